@@ -1,0 +1,1 @@
+"""xval: cross-validation of constrained-dynamics solvers."""

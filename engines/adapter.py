@@ -1,0 +1,291 @@
+"""The protocol every engine adapter follows, and the shared machinery behind it.
+
+An adapter subclasses :class:`Engine` and fills in:
+
+- ``name``, ``capabilities`` (e.g. ``{"3d", "constraint-forces"}``),
+  ``options`` (typed :class:`Option` records with defaults), ``variants``
+  (named option presets; the first is the default), ``overrides`` (engine
+  defaults the adapter changes, recorded in every RunInfo);
+- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities;
+- ``_run(scene, schedule, settings) -> RawRun``: build the model, step it
+  ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
+  and time only the stepping loop.
+
+The public :meth:`Engine.simulate` owns everything else, in one place:
+validating dt, resolving variant and options, refusing unsupported scenes,
+turning exceptions into ``failed`` and non-finite samples into ``unstable``.
+(After scipy's ``OdeSolver.step`` / ``_step_impl`` split.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar, Mapping, Sequence
+
+import numpy as np
+
+from engines.errors import Unsupported, UserError
+from engines.scene import Scene
+from engines.trajectory import RunInfo, Trajectory
+
+#: Default interval between stored samples, s.
+DEFAULT_SAMPLE_INTERVAL = 0.01
+
+
+@dataclass(frozen=True)
+class Option:
+    """One engine option: type, default, meaning and (optionally) allowed values.
+
+    kind : "float", "int", "str", "bool" or "floats" (comma-separated numbers).
+    """
+
+    name: str
+    default: Any
+    doc: str
+    kind: str = "float"
+    choices: tuple[Any, ...] | None = None
+
+    def parse(self, raw: Any, engine: str) -> Any:
+        """Convert a CLI string (or a value from a suite file); UserError names the option and the fix."""
+        where = f"{engine}: option {self.name}"
+        try:
+            if self.kind == "float":
+                value: Any = float(raw)
+                if not math.isfinite(value):
+                    raise ValueError
+            elif self.kind == "int":
+                value = int(raw)
+            elif self.kind == "bool":
+                if isinstance(raw, bool):
+                    value = raw
+                elif str(raw).lower() in ("1", "true", "yes", "on"):
+                    value = True
+                elif str(raw).lower() in ("0", "false", "no", "off"):
+                    value = False
+                else:
+                    raise ValueError
+            elif self.kind == "floats":
+                items = raw.split(",") if isinstance(raw, str) else list(raw)
+                value = tuple(float(x) for x in items)
+                if not all(math.isfinite(x) for x in value):
+                    raise ValueError
+            else:
+                value = str(raw)
+        except (TypeError, ValueError):
+            raise UserError(f"{where} must be {_KIND_WORDS[self.kind]}, got {raw!r}") from None
+        if self.choices is not None and value not in self.choices:
+            raise UserError(f"{where} must be one of {', '.join(map(str, self.choices))}; got {raw!r}")
+        return value
+
+
+_KIND_WORDS = {
+    "float": "a finite number",
+    "int": "an integer",
+    "bool": "true or false",
+    "floats": "comma-separated numbers",
+    "str": "a string",
+}
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When to step and when to sample.
+
+    dt : s; n_steps : steps to take (round(duration / dt));
+    stride : steps between samples (round(sample_interval / dt), at least 1).
+    Samples are taken at step 0, every ``stride`` steps, and at the last step.
+    """
+
+    dt: float
+    n_steps: int
+    stride: int
+
+    @classmethod
+    def make(cls, duration: float, dt: float, sample_interval: float | None = None) -> "Schedule":
+        check_time_step(dt, duration)
+        interval = DEFAULT_SAMPLE_INTERVAL if sample_interval is None else float(sample_interval)
+        if not math.isfinite(interval) or interval <= 0:
+            raise UserError(f"sample interval must be positive, got {sample_interval!r}")
+        n_steps = max(1, round(duration / dt))
+        stride = max(1, round(interval / dt))
+        return cls(float(dt), n_steps, stride)
+
+    @property
+    def sample_steps(self) -> np.ndarray:
+        """(n_samples,) step indices at which the state is recorded (0 is the initial state)."""
+        steps = np.arange(0, self.n_steps + 1, self.stride)
+        if steps[-1] != self.n_steps:
+            steps = np.append(steps, self.n_steps)
+        return steps
+
+    @property
+    def times(self) -> np.ndarray:
+        """(n_samples,) s."""
+        return self.sample_steps * self.dt
+
+
+def check_time_step(dt: Any, duration: float) -> None:
+    """Raise UserError for a dt that is not positive and finite or exceeds the duration."""
+    try:
+        value = float(dt)
+    except (TypeError, ValueError):
+        raise UserError(f"dt must be a number of seconds, got {dt!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise UserError(f"dt must be positive, got {dt!r}; pass a time step in seconds such as 1e-3")
+    if value > duration:
+        raise UserError(
+            f"dt ({value:g} s) is larger than the duration ({duration:g} s); use a smaller dt or a longer duration"
+        )
+
+
+@dataclass
+class RawRun:
+    """What ``_run`` returns: the samples it recorded (possibly fewer than scheduled).
+
+    positions, velocities : (n_recorded, n_particles, 3) m, m/s.
+    forces : (n_recorded, n_constraints, 3) N on each constraint's first particle, or None.
+    steps : steps taken; wall_time : s of the stepping loop alone.
+    message : a note for RunInfo (e.g. why stepping stopped early).
+    settings : extra settings to record (e.g. the inertia given to point masses).
+    """
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    forces: np.ndarray | None
+    steps: int
+    wall_time: float
+    message: str = ""
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+class Engine:
+    """Base class of every adapter; see the module docstring for the protocol."""
+
+    name: ClassVar[str] = ""
+    capabilities: ClassVar[frozenset[str]] = frozenset()
+    options: ClassVar[Mapping[str, Option]] = {}
+    variants: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
+    variant_docs: ClassVar[Mapping[str, str]] = {}
+    overrides: ClassVar[Mapping[str, Any]] = {}
+
+    # -- to implement ------------------------------------------------------------
+
+    def version(self) -> str:
+        raise NotImplementedError
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        """Raise Unsupported for a scene this configuration cannot express (capabilities are checked already)."""
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        raise NotImplementedError
+
+    # -- provided ----------------------------------------------------------------
+
+    @property
+    def default_variant(self) -> str:
+        return next(iter(self.variants))
+
+    def variant_ids(self) -> list[str]:
+        return [f"{self.name}/{v}" for v in self.variants]
+
+    def resolve(self, variant: str | None = None, options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Settings for ``variant`` (a key of ``variants``) with ``options`` on top, each parsed and checked."""
+        variant = variant or self.default_variant
+        if variant not in self.variants:
+            raise UserError(
+                f"unknown variant {self.name}/{variant}; choose one of: {', '.join(self.variant_ids())}"
+            )
+        settings = {name: option.default for name, option in self.options.items()}
+        settings.update(self.variants[variant])
+        for key, raw in (options or {}).items():
+            if key not in self.options:
+                valid = ", ".join(self.options) or "none"
+                raise UserError(f"{self.name}: unknown option {key!r}; its options are: {valid}")
+            settings[key] = self.options[key].parse(raw, self.name)
+        return settings
+
+    def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
+        """Raise Unsupported with the reason when this engine (variant) cannot express ``scene``."""
+        missing = scene.requires - self.capabilities
+        if "3d" in missing:
+            raise Unsupported(f"{self.name} is 2-D and cannot express the 3-D scene {scene.name!r}")
+        if missing:
+            raise Unsupported(f"{self.name} lacks {', '.join(sorted(missing))} needed by {scene.name!r}")
+        self._check(scene, self.resolve(variant, options))
+
+    def simulate(
+        self,
+        scene: Scene,
+        dt: float,
+        *,
+        variant: str | None = None,
+        options: Mapping[str, Any] | None = None,
+        sample_interval: float | None = None,
+    ) -> Trajectory:
+        """Simulate ``scene`` for its duration with step ``dt`` (s).
+
+        Returns a Trajectory sampled at ``Schedule.times`` with status ``ok``,
+        ``unstable`` (samples up to the first non-finite one) or ``failed``
+        (the engine raised; the message says what). Bad input (dt, variant,
+        options) and unsupported scenes raise UserError / Unsupported.
+        """
+        variant = variant or self.default_variant
+        schedule = Schedule.make(scene.duration, dt, sample_interval)
+        settings = self.resolve(variant, options)
+        self.check(scene, variant, options)
+        info = RunInfo(
+            engine=self.name,
+            variant=f"{self.name}/{variant}",
+            engine_version=self.version(),
+            dt=float(dt),
+            settings={**settings, **{f"override.{k}": v for k, v in self.overrides.items()}},
+        )
+        n_particles, n_constraints = len(scene.particles), len(scene.constraints)
+        try:
+            raw = self._run(scene, schedule, settings)
+        except Exception as exc:  # an engine that raises is a result, not a crash
+            empty = np.empty((0, n_particles, 3))
+            message = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status="failed", message=message))
+        return _finish(schedule, raw, info, n_constraints)
+
+
+def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) -> Trajectory:
+    """Build the Trajectory; truncate at the first non-finite sample and mark it unstable."""
+    n = len(raw.positions)
+    t = schedule.times[:n]
+    finite = np.isfinite(raw.positions).all(axis=(1, 2)) & np.isfinite(raw.velocities).all(axis=(1, 2))
+    status, message = "ok", raw.message
+    if not finite.all():
+        first_bad = int(np.argmin(finite))
+        status = "unstable"
+        message = f"non-finite state at t = {t[first_bad]:.6g} s" + (f"; {raw.message}" if raw.message else "")
+        n = first_bad
+    elif n < len(schedule.times):
+        # The adapter stopped stepping early (it saw the state run away).
+        status = "unstable"
+        message = raw.message or f"stepping stopped at t = {t[-1] if n else 0:.6g} s"
+    forces = None if raw.forces is None else np.asarray(raw.forces, dtype=np.float64)[:n]
+    if forces is not None and forces.shape[1:] != (n_constraints, 3):
+        raise ValueError(f"{info.engine}: forces must have shape (n, {n_constraints}, 3), got {forces.shape}")
+    info = replace(
+        info,
+        steps=int(raw.steps),
+        wall_time=float(raw.wall_time),
+        status=status,
+        message=message,
+        settings={**info.settings, **raw.settings},
+    )
+    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces)
+
+
+def parse_engine_id(engine_id: str) -> tuple[str, str | None]:
+    """``"mujoco/hinge-rk4"`` -> ``("mujoco", "hinge-rk4")``; ``"reference"`` -> ``("reference", None)``."""
+    name, _, variant = engine_id.partition("/")
+    return name, (variant or None)
+
+
+def sample_indices(schedule: Schedule) -> Sequence[int]:
+    """Step indices to record, as a Python list (cheap membership in tight loops)."""
+    return schedule.sample_steps.tolist()
