@@ -1,0 +1,312 @@
+"""The ground truth: reduced-coordinate equations integrated at tight tolerances.
+
+Independent of ``ours/``. Two formulations cover the catalog:
+
+- **Planar chain** (bead, double pendulum, chain): a Pin to a fixed anchor
+  followed by Rods along a path, in the x–z plane. Generalized coordinates
+  are the absolute link angles θ_i from the downward vertical, so every
+  constraint holds by construction. Lagrange's equations give
+  ``M(θ) θ̈ = −S(θ) θ̇² + G(θ)`` with
+  ``M_ij = μ_ij l_i l_j cos(θ_i − θ_j)``, ``S_ij = μ_ij l_i l_j sin(θ_i − θ_j)``,
+  ``G_i = μ_ii l_i (g_x cos θ_i + g_z sin θ_i)`` and
+  ``μ_ij = Σ_{k ≥ max(i, j)} m_k``.
+- **Spherical pendulum** (one particle pinned in 3-D): spherical angles
+  (θ polar from −z, φ azimuth). The poles θ = 0, π are the only
+  singularities; with a nonzero vertical angular momentum L_z the path never
+  reaches them, and with L_z = 0 the motion is planar and the chain
+  formulation applies (so such a scene is refused here with that reason).
+
+Both are integrated with ``scipy.integrate.solve_ivp(method="DOP853")`` at
+rtol = atol = 1e-12 by default, with dense output, so a solution can be
+evaluated at any engine's sample times. Constraint forces come from the
+particle accelerations: the force link k exerts on the particle below it is
+``f_k = m_k (a_k − g) + f_{k+1}`` (Newton's law, from the free end up).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+import scipy
+from scipy.integrate import solve_ivp
+
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported
+from engines.scene import Pin, Rod, Scene
+
+DEFAULT_RTOL = 1e-12
+DEFAULT_ATOL = 1e-12
+
+
+# -- planar chain ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PlanarChain:
+    """A scene read as a serial chain hung from ``anchor``.
+
+    order : (n,) particle indices from the anchor down.
+    lengths, masses : (n,) m, kg; link k joins order[k−1] (or the anchor) to order[k].
+    constraint_of_link : (n,) index into scene.constraints of link k.
+    first_is_lower : (n,) whether that constraint's first particle is order[k].
+    gravity : (2,) m/s², (g_x, g_z).
+    """
+
+    anchor: np.ndarray
+    order: np.ndarray
+    lengths: np.ndarray
+    masses: np.ndarray
+    constraint_of_link: np.ndarray
+    first_is_lower: np.ndarray
+    gravity: np.ndarray
+
+    @property
+    def tail_mass(self) -> np.ndarray:
+        """(n,) kg: μ_i = Σ_{k ≥ i} m_k, the mass a link carries."""
+        return np.cumsum(self.masses[::-1])[::-1]
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        """(2n,) [θ, θ̇] in rad, rad/s from the scene's particles."""
+        q = scene.initial_positions[self.order][:, [0, 2]]
+        v = scene.initial_velocities[self.order][:, [0, 2]]
+        upper_q = np.vstack([self.anchor[[0, 2]], q[:-1]])
+        upper_v = np.vstack([np.zeros(2), v[:-1]])
+        d, dv = q - upper_q, v - upper_v
+        theta = np.arctan2(d[:, 0], -d[:, 1])
+        theta_dot = (d[:, 0] * dv[:, 1] - d[:, 1] * dv[:, 0]) / self.lengths**2
+        return np.concatenate([theta, theta_dot])
+
+    def accelerations(self, theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
+        """(n,) rad/s²: θ̈ from Lagrange's equations."""
+        mu = self.tail_mass[np.maximum.outer(np.arange(len(theta)), np.arange(len(theta)))]
+        ll = np.outer(self.lengths, self.lengths) * mu
+        diff = theta[:, None] - theta[None, :]
+        mass_matrix = ll * np.cos(diff)
+        gx, gz = self.gravity
+        rhs = -(ll * np.sin(diff)) @ theta_dot**2
+        rhs += self.tail_mass * self.lengths * (gx * np.cos(theta) + gz * np.sin(theta))
+        return np.linalg.solve(mass_matrix, rhs)
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        n = len(self.lengths)
+        return np.concatenate([y[n:], self.accelerations(y[:n], y[n:])])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions, velocities (n_samples, P, 3) and constraint forces (n_samples, C, 3) from states (n_samples, 2n)."""
+        n = len(self.lengths)
+        theta, theta_dot = states[:, :n], states[:, n:]
+        theta_ddot = np.array([self.accelerations(a, b) for a, b in zip(theta, theta_dot)])
+        sin, cos = np.sin(theta), np.cos(theta)
+        # Per-link offsets in (x, z), then cumulative sums down the chain.
+        dq = self.lengths * np.stack([sin, -cos], axis=-1).transpose(2, 0, 1)
+        dv = self.lengths * theta_dot * np.stack([cos, sin], axis=-1).transpose(2, 0, 1)
+        da = self.lengths * np.stack(
+            [theta_ddot * cos - theta_dot**2 * sin, theta_ddot * sin + theta_dot**2 * cos], axis=-1
+        ).transpose(2, 0, 1)
+        q, v, a = (np.cumsum(x, axis=2).transpose(1, 2, 0) for x in (dq, dv, da))  # (s, n, 2)
+        q = q + self.anchor[[0, 2]]
+        # f_k = m_k (a_k − g) + f_{k+1}: accumulate from the free end.
+        own = self.masses[None, :, None] * (a - self.gravity)
+        f = np.cumsum(own[:, ::-1], axis=1)[:, ::-1]
+
+        n_samples = len(states)
+        positions = np.zeros((n_samples, len(scene.particles), 3))
+        velocities = np.zeros_like(positions)
+        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        for k, p in enumerate(self.order):
+            positions[:, p, 0], positions[:, p, 2] = q[:, k, 0], q[:, k, 1]
+            velocities[:, p, 0], velocities[:, p, 2] = v[:, k, 0], v[:, k, 1]
+            sign = 1.0 if self.first_is_lower[k] else -1.0
+            c = self.constraint_of_link[k]
+            forces[:, c, 0], forces[:, c, 2] = sign * f[:, k, 0], sign * f[:, k, 1]
+        return positions, velocities, forces
+
+
+def planar_chain(scene: Scene) -> PlanarChain:
+    """Read ``scene`` as a planar serial chain, or raise Unsupported saying why it is not one."""
+    if not scene.is_planar:
+        raise Unsupported(f"{scene.name!r} is not planar, so it is not a planar chain")
+    pins = [k for k, c in enumerate(scene.constraints) if isinstance(c, Pin)]
+    if len(pins) != 1:
+        raise Unsupported(f"the reference's chain form needs exactly one Pin, {scene.name!r} has {len(pins)}")
+    if len(scene.constraints) != len(scene.particles):
+        raise Unsupported(
+            f"the reference's chain form needs one constraint per particle "
+            f"({len(scene.constraints)} constraints, {len(scene.particles)} particles)"
+        )
+    rods = {k: c for k, c in enumerate(scene.constraints) if isinstance(c, Rod)}
+    pin = scene.constraints[pins[0]]
+    order, links, first_is_lower = [pin.particle], [pins[0]], [True]
+    while rods:
+        here = order[-1]
+        step = [(k, c) for k, c in rods.items() if here in (c.a, c.b)]
+        if len(step) != 1:
+            raise Unsupported(f"the rods of {scene.name!r} do not form a single path from the pinned particle")
+        k, rod = step[0]
+        below = rod.b if rod.a == here else rod.a
+        if below in order:
+            raise Unsupported(f"the rods of {scene.name!r} form a loop")
+        order.append(below)
+        links.append(k)
+        first_is_lower.append(rod.a == below)
+        del rods[k]
+    return PlanarChain(
+        anchor=np.asarray(pin.anchor, dtype=float),
+        order=np.array(order),
+        lengths=np.array([scene.constraints[k].length for k in links]),
+        masses=scene.masses[order],
+        constraint_of_link=np.array(links),
+        first_is_lower=np.array(first_is_lower),
+        gravity=np.array([scene.gravity[0], scene.gravity[2]]),
+    )
+
+
+# -- spherical pendulum -----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SphericalPin:
+    """One particle of ``mass`` (kg) at ``radius`` (m) from ``anchor``, gravity ``g`` (m/s²) along −z.
+
+    State [θ, φ, θ̇, φ̇]: θ polar angle from −z, φ azimuth from +x toward +y.
+    """
+
+    anchor: np.ndarray
+    radius: float
+    mass: float
+    g: float
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        d = scene.initial_positions[0] - self.anchor
+        v = scene.initial_velocities[0]
+        theta = math.atan2(math.hypot(d[0], d[1]), -d[2])
+        phi = math.atan2(d[1], d[0])
+        e_theta = np.array([math.cos(theta) * math.cos(phi), math.cos(theta) * math.sin(phi), math.sin(theta)])
+        e_phi = np.array([-math.sin(phi), math.cos(phi), 0.0])
+        return np.array([theta, phi, v @ e_theta / self.radius, v @ e_phi / (self.radius * math.sin(theta))])
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        theta, _phi, theta_dot, phi_dot = y
+        s, c = math.sin(theta), math.cos(theta)
+        theta_ddot = s * c * phi_dot**2 - (self.g / self.radius) * s
+        phi_ddot = -2.0 * c / s * theta_dot * phi_dot
+        return np.array([theta_dot, phi_dot, theta_ddot, phi_ddot])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        theta, phi, theta_dot, phi_dot = states.T
+        st, ct, sp, cp = np.sin(theta), np.cos(theta), np.sin(phi), np.cos(phi)
+        r = self.radius
+        d = r * np.stack([st * cp, st * sp, -ct], axis=-1)
+        v = r * np.stack(
+            [ct * cp * theta_dot - st * sp * phi_dot, ct * sp * theta_dot + st * cp * phi_dot, st * theta_dot], axis=-1
+        )
+        unit = d / r
+        # Radial balance: −m v²/r = m g·r̂ − T, so T = m v²/r + m g·r̂ and the force is −T r̂.
+        gravity = np.array([0.0, 0.0, -self.g])
+        tension = self.mass * (np.einsum("si,si->s", v, v) / r + unit @ gravity)
+        forces = -tension[:, None] * unit
+        return (d + self.anchor)[:, None, :], v[:, None, :], forces[:, None, :]
+
+
+def spherical_pin(scene: Scene) -> SphericalPin:
+    """Read a one-particle 3-D pinned scene, or raise Unsupported saying why not."""
+    if len(scene.particles) != 1 or len(scene.constraints) != 1 or not isinstance(scene.constraints[0], Pin):
+        raise Unsupported(
+            f"the reference handles 3-D scenes of one pinned particle only; {scene.name!r} is not one"
+        )
+    gx, gy, gz = scene.gravity
+    if gx != 0.0 or gy != 0.0:
+        raise Unsupported("the reference's spherical form needs gravity along −z")
+    pin = scene.constraints[0]
+    model = SphericalPin(np.asarray(pin.anchor, dtype=float), pin.length, scene.particles[0].mass, -gz)
+    d = scene.initial_positions[0] - model.anchor
+    lz = d[0] * scene.initial_velocities[0][1] - d[1] * scene.initial_velocities[0][0]
+    if abs(lz) < 1e-12 * max(pin.length, 1.0):
+        raise Unsupported(
+            "this 3-D pin has no angular momentum about the vertical, so it swings through the pole of "
+            "the reference's spherical coordinates; rotate it into the x–z plane (a planar scene)"
+        )
+    return model
+
+
+# -- solving -------------------------------------------------------------------
+
+
+def model_for(scene: Scene) -> PlanarChain | SphericalPin:
+    """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it."""
+    return planar_chain(scene) if scene.is_planar else spherical_pin(scene)
+
+
+@dataclass(frozen=True)
+class ReferenceSolution:
+    """A dense solution: evaluate at any times in [0, scene.duration].
+
+    wall_time : s spent integrating; n_steps : accepted DOP853 steps; nfev : right-hand-side calls.
+    """
+
+    scene: Scene
+    model: PlanarChain | SphericalPin
+    ode: Any  # scipy.integrate.OdeSolution
+    rtol: float
+    atol: float
+    n_steps: int
+    nfev: int
+    wall_time: float
+
+    def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """positions (n, P, 3) m, velocities (n, P, 3) m/s, constraint forces (n, C, 3) N at ``times`` (n,) s."""
+        times = np.asarray(times, dtype=float)
+        states = self.ode(times).T.reshape(len(times), -1)
+        return self.model.evaluate(self.scene, states)
+
+
+def solve(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> ReferenceSolution:
+    """Integrate ``scene`` over its duration with DOP853; Unsupported when it has no reduced form here."""
+    model = model_for(scene)
+    y0 = model.initial_state(scene)
+    start = time.perf_counter()
+    result = solve_ivp(
+        model.rhs, (0.0, scene.duration), y0, method="DOP853", rtol=rtol, atol=atol, dense_output=True
+    )
+    wall_time = time.perf_counter() - start
+    if not result.success:
+        raise RuntimeError(f"reference integration failed: {result.message}")
+    return ReferenceSolution(scene, model, result.sol, rtol, atol, len(result.t) - 1, result.nfev, wall_time)
+
+
+class ReferenceEngine(Engine):
+    """The reference as an engine, so it can be simulated, listed and compared like any other."""
+
+    name = "reference"
+    capabilities = frozenset({"3d", "constraint-forces"})
+    options = {
+        "rtol": Option("rtol", DEFAULT_RTOL, "relative tolerance of DOP853"),
+        "atol": Option("atol", DEFAULT_ATOL, "absolute tolerance of DOP853 (rad, rad/s)"),
+    }
+    variants = {"dop853": {}}
+    variant_docs = {"dop853": "reduced coordinates, scipy DOP853 at rtol = atol = 1e-12, dense output"}
+
+    def version(self) -> str:
+        return f"scipy {scipy.__version__}"
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        model_for(scene)
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        solution = solve(scene, settings["rtol"], settings["atol"])
+        positions, velocities, forces = solution.at(schedule.times)
+        return RawRun(
+            positions,
+            velocities,
+            forces,
+            steps=solution.n_steps,
+            wall_time=solution.wall_time,
+            settings={"method": "DOP853", "nfev": solution.nfev, "formulation": type(solution.model).__name__},
+        )
+
+
+ENGINE = ReferenceEngine()
