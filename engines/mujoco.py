@@ -1,0 +1,564 @@
+"""MuJoCo adapter: the scenes as a MuJoCo user would build them, in two formulations.
+
+- **hinge** (reduced coordinates): one body per particle, nested along the
+  constraint tree. A body's frame sits at its pivot (the Pin's anchor or the
+  parent particle), its joint is a hinge about +y for a planar scene and a
+  ball joint for a 3-D one, and its point mass sits at the end of the arm.
+  Every constraint holds by construction.
+- **connect** (maximal coordinates): one free body per particle, with its
+  mass at the body origin. A ``connect`` equality is a ball joint between
+  two bodies, not a distance constraint, so each Pin and Rod becomes a rigid,
+  massless *arm* owned by one particle's body, reaching from that particle to
+  the other end (the Pin's anchor, or the other particle), with the ball at
+  the far end. A body owns at most one arm (two arms on one body would freeze
+  the angle between them), so the arms are assigned by a matching of
+  constraints to particles. The arm's body turns with the rod, so it adds the
+  rotational energy ½·ω·I·ω of the body's tiny inertia I: relative to the
+  particle energy this is ``inertia_ratio`` (1e-6 by default).
+
+The model is built as MJCF text in the scene's *initial* configuration, so
+qpos0 is the initial state: hinge angles are 0 there (a child's hinge angle is
+relative to its parent, and only velocities need converting) and the
+``connect`` anchors coincide at compile time. Contacts are disabled by flag;
+MuJoCo's joint damping, armature, friction loss and passive forces default to
+zero and stay so. Nothing is rendered and MuJoCo prints nothing.
+
+Stepping uses ``mujoco.rollout`` (many steps inside C per call), in chunks so
+memory stays bounded; only those calls are timed. Positions, velocities and
+constraint forces at each sample are recomputed afterwards with ``mj_forward``
+(after ``mj_step`` the derived quantities in mjData are those of the start of
+the step, so they are never read from the stepping data).
+
+MuJoCo resets the state to qpos0 when it meets a bad (non-finite or huge)
+position, velocity or acceleration (``mjWARN_BAD*``, "autoreset"). rollout
+stops at the first warning and pads its output with the reset state; the run
+is cut at the first sample whose clock does not match its step and ends
+``unstable`` with the samples before it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import mujoco
+import numpy as np
+from mujoco import rollout as mj_rollout
+
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported, UserError
+from engines.scene import Pin, Rod, Scene
+
+#: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
+_ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
+mujoco.mj_defaultSolRefImp(_ref, _imp)
+MUJOCO_SOLREF: tuple[float, ...] = tuple(float(x) for x in _ref)
+MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
+
+#: Stiff equality setting: time constant 2·dt (the smallest refsafe allows), critical damping,
+#: impedance 0.9999 whatever the violation (R = 1e-4 of the constraint's inverse mass).
+STIFF = {"timeconst_steps": 2.0, "solref": (0.02, 1.0), "solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}
+
+INTEGRATORS = {
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
+
+#: Steps per rollout call: long enough that the per-call overhead (~10 µs) is negligible,
+#: short enough that the state buffer stays a few MB.
+CHUNK_STEPS = 20_000
+
+_WARNINGS = {
+    int(mujoco.mjtWarning.mjWARN_BADQACC): "bad acceleration (mjWARN_BADQACC)",
+    int(mujoco.mjtWarning.mjWARN_BADQVEL): "bad velocity (mjWARN_BADQVEL)",
+    int(mujoco.mjtWarning.mjWARN_BADQPOS): "bad position (mjWARN_BADQPOS)",
+    int(mujoco.mjtWarning.mjWARN_INERTIA): "bad inertia (mjWARN_INERTIA)",
+    int(mujoco.mjtWarning.mjWARN_CNSTRFULL): "constraint buffer full (mjWARN_CNSTRFULL)",
+}
+
+
+# -- structure of a scene ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Tree:
+    """The constraints of a scene read as a forest hung from Pins (for the hinge formulation).
+
+    parent : (n,) parent particle index, or −1 for a particle pinned to ``anchor``.
+    anchor : (n, 3) m, the pivot of each particle's link (the anchor, or the parent's position).
+    constraint_of : (n,) index of the constraint joining the particle to its parent.
+    order : particles, parents before children.
+    """
+
+    parent: tuple[int, ...]
+    pivot: np.ndarray
+    constraint_of: tuple[int, ...]
+    order: tuple[int, ...]
+
+
+def constraint_tree(scene: Scene) -> Tree:
+    """Orient the constraints away from the Pins; Unsupported unless every particle hangs by exactly one path."""
+    n = len(scene.particles)
+    q = scene.initial_positions
+    parent, constraint_of = [-2] * n, [-1] * n
+    pivot = np.zeros((n, 3))
+    neighbours: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+    queue: list[int] = []
+    for k, c in enumerate(scene.constraints):
+        if isinstance(c, Pin):
+            if parent[c.particle] != -2:
+                raise Unsupported(
+                    f"mujoco/hinge: particle {c.particle} has two Pins, a closed loop that reduced "
+                    "coordinates cannot express; use mujoco/connect"
+                )
+            parent[c.particle], constraint_of[c.particle] = -1, k
+            pivot[c.particle] = c.anchor
+            queue.append(c.particle)
+        else:
+            neighbours[c.a].append((c.b, k))
+            neighbours[c.b].append((c.a, k))
+    order: list[int] = []
+    while queue:
+        i = queue.pop(0)
+        order.append(i)
+        for j, k in neighbours[i]:
+            if k == constraint_of[i]:
+                continue
+            if parent[j] != -2:
+                raise Unsupported(
+                    f"mujoco/hinge: constraint {k} closes a loop, which reduced coordinates cannot "
+                    "express; use mujoco/connect"
+                )
+            parent[j], constraint_of[j], pivot[j] = i, k, q[i]
+            queue.append(j)
+    loose = [i for i in range(n) if parent[i] == -2]
+    if loose:
+        raise Unsupported(
+            f"mujoco/hinge: particles {loose} are not hung from a Pin; the hinge formulation builds "
+            "chains from a fixed anchor (use mujoco/connect for free-floating bodies)"
+        )
+    return Tree(tuple(parent), pivot, tuple(constraint_of), tuple(order))
+
+
+def arm_owners(scene: Scene) -> list[int]:
+    """For each constraint, the particle whose body carries its arm (connect formulation).
+
+    A Pin's arm belongs to its particle; a Rod's to either end. No body may own
+    two arms, so this is a bipartite matching (augmenting paths), preferring a
+    Rod's second particle so a chain hung from a Pin matches at once.
+    """
+    n = len(scene.particles)
+    owner_of_particle = [-1] * n
+    candidates = [
+        [c.particle] if isinstance(c, Pin) else [c.b, c.a] for c in scene.constraints
+    ]
+
+    def place(k: int, seen: set[int]) -> bool:
+        for i in candidates[k]:
+            if i in seen:
+                continue
+            seen.add(i)
+            if owner_of_particle[i] == -1 or place(owner_of_particle[i], seen):
+                owner_of_particle[i] = k
+                return True
+        return False
+
+    for k in range(len(scene.constraints)):
+        if not place(k, set()):
+            raise Unsupported(
+                f"mujoco/connect: constraint {k} cannot get an arm of its own (more constraints than "
+                "particles in a connected group: a rigid loop), and connect joints are ball joints, "
+                "not distance constraints"
+            )
+    owners = [-1] * len(scene.constraints)
+    for i, k in enumerate(owner_of_particle):
+        if k >= 0:
+            owners[k] = i
+    return owners
+
+
+# -- MJCF ------------------------------------------------------------------------------
+
+
+def _fmt(values) -> str:
+    return " ".join(repr(float(v)) for v in np.atleast_1d(values))
+
+
+def _header(scene: Scene, dt: float, settings: Mapping[str, Any]) -> list[str]:
+    refsafe = "" if settings["refsafe"] else ' refsafe="disable"'
+    return [
+        f'<mujoco model="xval-{scene.name}">',
+        f'  <option timestep="{dt!r}" gravity="{_fmt(scene.gravity)}" integrator="{settings["integrator"]}">',
+        f'    <flag contact="disable"{refsafe}/>',
+        "  </option>",
+        "  <worldbody>",
+    ]
+
+
+def _inertial(mass: float, inertia: float, pos=(0.0, 0.0, 0.0)) -> str:
+    return f'<inertial pos="{_fmt(pos)}" mass="{mass!r}" diaginertia="{_fmt([inertia] * 3)}"/>'
+
+
+def hinge_mjcf(scene: Scene, dt: float, settings: Mapping[str, Any], inertia: np.ndarray) -> str:
+    """Nested bodies, one per particle, with a hinge about +y (planar) or a ball joint (3-D)."""
+    tree = constraint_tree(scene)
+    q = scene.initial_positions
+    joint = '<joint type="hinge" axis="0 1 0"/>' if scene.is_planar else '<joint type="ball"/>'
+    children: dict[int, list[int]] = {}
+    for i in tree.order:
+        children.setdefault(tree.parent[i], []).append(i)
+
+    def body(i: int, depth: int) -> list[str]:
+        pad = "  " * depth
+        origin = tree.pivot[i] if tree.parent[i] == -1 else q[tree.parent[i]] - tree.pivot[tree.parent[i]]
+        arm = q[i] - tree.pivot[i]
+        lines = [
+            f'{pad}<body name="p{i}" pos="{_fmt(origin)}">',
+            f"{pad}  {joint}",
+            f"{pad}  {_inertial(scene.particles[i].mass, inertia[i], arm)}",
+            f'{pad}  <site name="s{i}" pos="{_fmt(arm)}"/>',
+        ]
+        for j in children.get(i, []):
+            lines += body(j, depth + 1)
+        return lines + [f"{pad}</body>"]
+
+    lines = _header(scene, dt, settings)
+    for i in children.get(-1, []):
+        lines += body(i, 2)
+    return "\n".join(lines + ["  </worldbody>", "</mujoco>"])
+
+
+def connect_mjcf(scene: Scene, dt: float, settings: Mapping[str, Any], inertia: np.ndarray) -> str:
+    """Free bodies at the particles, joined by connect equalities at the end of each constraint's arm."""
+    q = scene.initial_positions
+    lines = _header(scene, dt, settings)
+    for i, p in enumerate(scene.particles):
+        lines += [
+            f'    <body name="p{i}" pos="{_fmt(p.position)}">',
+            "      <freejoint/>",
+            f"      {_inertial(p.mass, inertia[i])}",
+            f'      <site name="s{i}"/>',
+            "    </body>",
+        ]
+    lines += ["  </worldbody>", "  <equality>"]
+    solref, solimp = equality_softness(settings, dt)
+    soft = ""
+    if solref != MUJOCO_SOLREF:
+        soft += f' solref="{_fmt(solref)}"'
+    if solimp != MUJOCO_SOLIMP:
+        soft += f' solimp="{_fmt(solimp)}"'
+    for k, (c, owner) in enumerate(zip(scene.constraints, arm_owners(scene))):
+        far = np.asarray(c.anchor) if isinstance(c, Pin) else q[c.a if owner == c.b else c.b]
+        other = "" if isinstance(c, Pin) else f' body2="p{c.a if owner == c.b else c.b}"'
+        lines.append(f'    <connect name="c{k}" body1="p{owner}"{other} anchor="{_fmt(far - q[owner])}"{soft}/>')
+    return "\n".join(lines + ["  </equality>", "</mujoco>"])
+
+
+def equality_softness(settings: Mapping[str, Any], dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(solref, solimp) for the connect equalities; ``timeconst_steps`` > 0 replaces the time constant by that many dt."""
+    solref = tuple(settings["solref"])
+    if settings["timeconst_steps"] > 0:
+        solref = (settings["timeconst_steps"] * dt, solref[1])
+    return solref, tuple(settings["solimp"])
+
+
+# -- the adapter -------------------------------------------------------------------------
+
+
+class MuJoCoEngine(Engine):
+    """MuJoCo: reduced coordinates (hinge / ball joints) and maximal coordinates (connect equalities)."""
+
+    name = "mujoco"
+    capabilities = frozenset({"3d", "constraint-forces"})
+    options = {
+        "formulation": Option(
+            "formulation", "hinge", "hinge: nested bodies with joints; connect: free bodies and connect equalities",
+            kind="str", choices=("hinge", "connect"),
+        ),
+        "integrator": Option(
+            "integrator", "Euler", "MuJoCo integrator (Euler is MuJoCo's default, semi-implicit)",
+            kind="str", choices=tuple(INTEGRATORS),
+        ),
+        "solref": Option(
+            "solref", MUJOCO_SOLREF,
+            "connect: timeconst (s), dampratio of the equality constraints (MuJoCo's default 0.02, 1)",
+            kind="floats",
+        ),
+        "solimp": Option(
+            "solimp", MUJOCO_SOLIMP,
+            "connect: dmin, dmax, width (m), midpoint, power (MuJoCo's default 0.9, 0.95, 0.001, 0.5, 2)",
+            kind="floats",
+        ),
+        "timeconst_steps": Option(
+            "timeconst_steps", 0.0,
+            "connect: when > 0, solref's time constant is this many time steps (2 is the least refsafe allows)",
+        ),
+        "refsafe": Option(
+            "refsafe", True, "keep MuJoCo's refsafe clamp of solref's time constant to at least 2·dt", kind="bool"
+        ),
+        "inertia_ratio": Option(
+            "inertia_ratio", 1e-6,
+            "rotational inertia of each point-mass body, as a fraction of m·L² (L: the scene's length scale)",
+        ),
+    }
+    variants = {
+        "hinge": {"formulation": "hinge"},
+        "hinge-rk4": {"formulation": "hinge", "integrator": "RK4"},
+        "hinge-implicit": {"formulation": "hinge", "integrator": "implicit"},
+        "hinge-implicitfast": {"formulation": "hinge", "integrator": "implicitfast"},
+        "connect": {"formulation": "connect"},
+        "connect-stiff": {"formulation": "connect", **STIFF},
+        "connect-rk4": {"formulation": "connect", "integrator": "RK4"},
+        "connect-rk4-stiff": {"formulation": "connect", "integrator": "RK4", **STIFF},
+        "connect-implicitfast-stiff": {"formulation": "connect", "integrator": "implicitfast", **STIFF},
+    }
+    variant_docs = {
+        "hinge": "reduced coordinates, MuJoCo's default Euler integrator",
+        "hinge-rk4": "reduced coordinates, RK4 (4th order)",
+        "hinge-implicit": "reduced coordinates, implicit in velocity",
+        "hinge-implicitfast": "reduced coordinates, implicit in velocity without the RNE derivative",
+        "connect": "free bodies + connect equalities with MuJoCo's default solref/solimp, Euler",
+        "connect-stiff": "connect with solref time constant 2·dt, solimp 0.9999, Euler",
+        "connect-rk4": "connect with MuJoCo's default solref/solimp, RK4",
+        "connect-rk4-stiff": "connect with the stiff setting, RK4",
+        "connect-implicitfast-stiff": "connect with the stiff setting, implicitfast",
+    }
+    overrides = {"flag.contact": "disable (default enable): the scenes have nothing to collide"}
+
+    def version(self) -> str:
+        return mujoco.mj_versionString()
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if len(settings["solref"]) != 2 or not all(x > 0 for x in settings["solref"]):
+            raise UserError(
+                f"mujoco: option solref must be two positive numbers (timeconst s, dampratio), "
+                f"got {settings['solref']}"
+            )
+        if len(settings["solimp"]) not in (3, 5) or not all(0 < x < 1 for x in settings["solimp"][:2]):
+            raise UserError(
+                "mujoco: option solimp must be 3 or 5 numbers (dmin, dmax, width[, midpoint, power]) "
+                f"with dmin and dmax in (0, 1), got {settings['solimp']}"
+            )
+        if settings["timeconst_steps"] < 0:
+            raise UserError(f"mujoco: option timeconst_steps must be ≥ 0, got {settings['timeconst_steps']}")
+        if settings["inertia_ratio"] <= 0:
+            raise UserError(f"mujoco: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
+        if settings["formulation"] == "hinge":
+            constraint_tree(scene)
+        else:
+            arm_owners(scene)
+
+    # -- building ----------------------------------------------------------------------
+
+    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
+        """(compiled model, MJCF text, (n,) kg·m² inertia of each particle body)."""
+        inertia = settings["inertia_ratio"] * scene.masses * scene.characteristic_length**2
+        settings = {**settings, "solimp": _full_solimp(settings["solimp"])}
+        make = hinge_mjcf if settings["formulation"] == "hinge" else connect_mjcf
+        xml = make(scene, dt, settings, inertia)
+        return mujoco.MjModel.from_xml_string(xml), xml, inertia
+
+    # -- running -----------------------------------------------------------------------
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        model, _xml, inertia = self.build(scene, schedule.dt, settings)
+        data = mujoco.MjData(model)
+        hinge = settings["formulation"] == "hinge"
+        if hinge:
+            data.qvel[:] = hinge_velocities(scene, model)
+        else:
+            data.qvel[:] = connect_velocities(scene)
+        mujoco.mj_forward(model, data)
+
+        state_spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        nstate = mujoco.mj_stateSize(model, state_spec)
+        initial = np.empty((1, nstate))
+        mujoco.mj_getState(model, data, initial[0], state_spec)
+        sample_steps = schedule.sample_steps
+        states = np.empty((len(sample_steps), nstate))
+        states[0] = initial[0]
+        recorded, wall, steps_done, message = 1, 0.0, 0, ""
+
+        runner = mj_rollout.Rollout(nthread=0)
+        buffer = np.empty((1, min(CHUNK_STEPS, schedule.n_steps), nstate))
+        warmstart = np.zeros((1, model.nv))
+        models, datas = [model], [data]
+        try:
+            while steps_done < schedule.n_steps:
+                nstep = min(buffer.shape[1], schedule.n_steps - steps_done)
+                out = buffer[:, :nstep]  # a leading axis of 1 keeps the slice C-contiguous
+                warmstart[0] = data.qacc_warmstart
+                t0 = time.perf_counter()
+                # skip_checks: the shapes are right by construction, and the checks cost more than short chunks.
+                runner.rollout(
+                    models, datas, initial, None, skip_checks=True, nstep=nstep,
+                    initial_warmstart=warmstart, state=out,
+                )
+                wall += time.perf_counter() - t0
+                warned = [w for w in _WARNINGS if data.warning[w].number > 0]
+                good = nstep
+                if warned:
+                    expected = (steps_done + 1 + np.arange(nstep)) * schedule.dt
+                    off = np.abs(out[0, :, 0] - expected) > 0.5 * schedule.dt
+                    good = int(np.argmax(off)) if off.any() else nstep - 1
+                    message = (
+                        f"MuJoCo raised {', '.join(_WARNINGS[w] for w in warned)} near "
+                        f"t = {(steps_done + good + 1) * schedule.dt:.6g} s and reset its state; "
+                        "samples end before the reset"
+                    )
+                rows = sample_steps[(sample_steps > steps_done) & (sample_steps <= steps_done + good)]
+                states[recorded : recorded + len(rows)] = out[0, rows - steps_done - 1]
+                recorded += len(rows)
+                steps_done += good
+                if warned:
+                    break
+                initial[0] = out[0, nstep - 1]
+        finally:
+            runner.close()
+
+        positions, velocities, forces = read_samples(scene, model, data, states[:recorded], hinge)
+        return RawRun(
+            positions,
+            velocities,
+            forces,
+            steps=steps_done,
+            wall_time=wall,
+            message=message,
+            settings=self._record(model, settings, inertia, schedule.dt),
+        )
+
+    def _record(self, model: mujoco.MjModel, settings: Mapping[str, Any], inertia: np.ndarray, dt: float) -> dict:
+        """The settings a reader needs to reproduce the run, read back from the compiled model."""
+        record: dict[str, Any] = {
+            "stepping": f"mujoco.rollout, chunks of up to {CHUNK_STEPS} steps",
+            "point_mass_inertia": [float(x) for x in inertia],
+            "solver": mujoco.mjtSolver(model.opt.solver).name,
+            "solver_iterations": int(model.opt.iterations),
+            "solver_tolerance": float(model.opt.tolerance),
+            "disableflags": int(model.opt.disableflags),
+        }
+        if settings["formulation"] == "connect" and model.neq:
+            record["effective_solref"] = [float(x) for x in model.eq_solref[0]]
+            record["effective_solimp"] = [float(x) for x in model.eq_solimp[0]]
+            timeconst = float(model.eq_solref[0][0])
+            record["effective_timeconst"] = max(timeconst, 2 * dt) if settings["refsafe"] else timeconst
+        return record
+
+
+def _full_solimp(solimp: tuple[float, ...]) -> tuple[float, ...]:
+    """MuJoCo's 3-number solimp form means midpoint and power keep their defaults."""
+    return tuple(solimp) + MUJOCO_SOLIMP[len(solimp) :]
+
+
+def hinge_velocities(scene: Scene, model: mujoco.MjModel) -> np.ndarray:
+    """(nv,) joint velocities for the scene's initial particle velocities (the model is built at qpos0 = initial).
+
+    Each link's absolute angular velocity ω solves ω × r = Δv (r the arm, Δv the
+    particle's velocity relative to its pivot) with ω ⊥ r: ω = r × Δv / |r|².
+    A joint velocity is relative to the parent's; at qpos0 every body frame is
+    aligned with the world, so local and world components agree.
+    """
+    tree = constraint_tree(scene)
+    q, v = scene.initial_positions, scene.initial_velocities
+    omega = np.zeros((len(q), 3))
+    qvel = np.zeros(model.nv)
+    for i in tree.order:
+        parent = tree.parent[i]
+        r = q[i] - tree.pivot[i]
+        dv = v[i] - (v[parent] if parent >= 0 else 0.0)
+        omega[i] = np.cross(r, dv) / float(r @ r)
+        relative = omega[i] - (omega[parent] if parent >= 0 else 0.0)
+        joint = model.body_jntadr[model.body(f"p{i}").id]
+        dof = model.jnt_dofadr[joint]
+        if scene.is_planar:
+            qvel[dof] = relative[1]
+        else:
+            qvel[dof : dof + 3] = relative
+    return qvel
+
+
+def connect_velocities(scene: Scene) -> np.ndarray:
+    """(6·n,) free-joint velocities: each particle's velocity, and the angular velocity its arm must have.
+
+    A free joint's qvel is the body origin's linear velocity (world frame) then
+    the angular velocity (body frame, the world's at qpos0). The arm r (owner
+    to far end) must turn so that its tip moves with the far end:
+    ω × r = Δv, taken ⊥ r (no spin about the arm): ω = r × Δv / |r|². Leaving ω
+    at 0 would start the constraint with a velocity violation of |Δv|.
+    """
+    q, v = scene.initial_positions, scene.initial_velocities
+    qvel = np.zeros((len(q), 6))
+    qvel[:, :3] = v
+    for c, owner in zip(scene.constraints, arm_owners(scene)):
+        if isinstance(c, Pin):
+            far, far_velocity = np.asarray(c.anchor), np.zeros(3)
+        else:
+            other = c.a if owner == c.b else c.b
+            far, far_velocity = q[other], v[other]
+        r = far - q[owner]
+        qvel[owner, 3:] = np.cross(r, far_velocity - v[owner]) / float(r @ r)
+    return qvel.ravel()
+
+
+def read_samples(
+    scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, states: np.ndarray, hinge: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (n, P, 3) m, velocities (n, P, 3) m/s and constraint forces (n, C, 3) N at each state.
+
+    The forces are those MuJoCo applies at that state (``mj_forward`` from it):
+    hinge, the interaction force of each particle's body with its parent
+    (``cfrc_int`` after ``mj_rnePostConstraint``); connect, the equality rows
+    of ``efc_force``. Either is returned as the force on each constraint's
+    first particle.
+    """
+    n, n_p, n_c = len(states), len(scene.particles), len(scene.constraints)
+    positions, velocities, forces = np.empty((n, n_p, 3)), np.empty((n, n_p, 3)), np.empty((n, n_c, 3))
+    sites = [model.site(f"s{i}").id for i in range(n_p)]
+    spatial = np.empty(6)
+    tree = constraint_tree(scene) if hinge else None
+    owners = None if hinge else arm_owners(scene)
+    for s, state in enumerate(states):
+        mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_forward(model, data)
+        for i, site in enumerate(sites):
+            positions[s, i] = data.site_xpos[site]
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, site, spatial, 0)
+            velocities[s, i] = spatial[3:]
+        if hinge:
+            mujoco.mj_rnePostConstraint(model, data)
+            forces[s] = _hinge_forces(scene, model, data, tree)
+        else:
+            forces[s] = _connect_forces(scene, data, owners)
+    return positions, velocities, forces
+
+
+def _hinge_forces(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, tree: Tree) -> np.ndarray:
+    """(C, 3) N. cfrc_int's force part is what the parent exerts on the body's subtree through the joint;
+    the body is a massless arm ending at its particle, so it is the link's force on that particle."""
+    out = np.empty((len(scene.constraints), 3))
+    for i in range(len(scene.particles)):
+        on_child = data.cfrc_int[model.body(f"p{i}").id, 3:]
+        k = tree.constraint_of[i]
+        c = scene.constraints[k]
+        # The record's first particle is the child (Pin, or a Rod whose a is the child) or the parent.
+        out[k] = on_child if isinstance(c, Pin) or c.a == i else -on_child
+    return out
+
+
+def _connect_forces(scene: Scene, data: mujoco.MjData, owners: list[int]) -> np.ndarray:
+    """(C, 3) N. A connect's three efc rows are the world-frame force on body1 (qfrc = Jᵀf, J = ∂(p1 − p2)/∂q)."""
+    out = np.zeros((len(scene.constraints), 3))
+    rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    for k, c in enumerate(scene.constraints):
+        f = data.efc_force[rows[data.efc_id[rows] == k]]
+        # body1 is the arm's owner: Pin.particle, or a Rod's end that owns the arm.
+        first = c.particle if isinstance(c, Pin) else c.a
+        out[k] = f if owners[k] == first else -f
+    return out
+
+
+ENGINE = MuJoCoEngine()
