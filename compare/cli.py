@@ -1,0 +1,88 @@
+"""The ``xval`` command line: a click group whose verbs live one per module in ``compare/commands``.
+
+Layers above ``compare`` (``reports``) and third-party packages add verbs
+through the ``xval.commands`` entry-point group, so nothing here imports
+upward. ``main`` turns every UserError (and click's usage errors) into one
+line on stderr and exit code 2, with no traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from importlib.metadata import entry_points
+
+import click
+
+from engines.errors import UserError
+
+#: Built-in verbs: each module defines a click command named ``command``.
+COMMAND_MODULES = [
+    "compare.commands.scenes",
+    "compare.commands.engines",
+    "compare.commands.simulate",
+]
+
+
+class XvalGroup(click.Group):
+    """Loads the verbs lazily so ``xval --help`` stays fast and an engine import is never needed to list them."""
+
+    def _commands(self) -> dict[str, click.Command]:
+        found: dict[str, click.Command] = {}
+        for module_name in COMMAND_MODULES:
+            command = importlib.import_module(module_name).command
+            found[command.name] = command
+        for entry in entry_points(group="xval.commands"):
+            found.setdefault(entry.name, entry.load())
+        return found
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(self._commands())
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        return self._commands().get(name)
+
+
+@click.group(cls=XvalGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="xval")
+def cli() -> None:
+    """Cross-validate constrained-dynamics solvers against MuJoCo, PyBullet, pymunk and a reference."""
+
+
+def fail(message: str) -> "NoReturn":  # noqa: F821 - documented return type
+    """Print one error line and exit 2."""
+    click.echo(f"xval: error: {message}", err=True)
+    sys.exit(2)
+
+
+def main(argv: list[str] | None = None) -> None:
+    try:
+        cli.main(args=argv, prog_name="xval", standalone_mode=False)
+    except UserError as exc:
+        fail(str(exc))
+    except click.UsageError as exc:
+        hint = f" (see 'xval {exc.ctx.info_name} --help')" if exc.ctx and exc.ctx.info_name != "xval" else ""
+        fail(f"{exc.format_message()}{hint}")
+    except click.ClickException as exc:
+        fail(exc.format_message())
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except click.Abort:
+        click.echo("xval: interrupted", err=True)
+        sys.exit(130)
+    except KeyboardInterrupt:
+        click.echo("xval: interrupted", err=True)
+        sys.exit(130)
+    except BrokenPipeError:
+        sys.exit(0)
+
+
+def parse_assignments(pairs: tuple[str, ...], flag: str) -> dict[str, str]:
+    """``("theta0=30", "m=2")`` -> ``{"theta0": "30", "m": "2"}``; UserError naming the flag for a malformed pair."""
+    parsed: dict[str, str] = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise UserError(f"{flag}: expected NAME=VALUE, got {pair!r}")
+        parsed[name.strip()] = value.strip()
+    return parsed

@@ -1,0 +1,77 @@
+"""Where results were produced: Python, numpy, every engine's version, CPU, platform, git commit."""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engines import registry
+
+#: The project checkout whose commit is recorded (the directory above compare/).
+PROJECT_ROOT = Path(__file__).resolve().parent.parent
+
+
+def cpu_name() -> str:
+    """The CPU model as the OS reports it ('' when unknown)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def git_commit(root: Path = PROJECT_ROOT) -> str | None:
+    """The checkout's HEAD commit, with ``+dirty`` when tracked files changed; None outside git."""
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10
+        )
+        if head.returncode != 0:
+            return None
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def engine_versions() -> dict[str, str]:
+    """Engine name -> version string, or ``unavailable: <reason>``."""
+    versions = {}
+    for name in registry.engine_names():
+        found = registry.status(name)
+        if found.engine is None:
+            versions[name] = f"unavailable: {found.reason}"
+        else:
+            try:
+                versions[name] = found.engine.version()
+            except Exception as exc:  # a broken version() must not stop a run
+                versions[name] = f"unknown: {exc}"
+    return versions
+
+
+def environment() -> dict[str, Any]:
+    """A JSON-ready description of this machine and software."""
+    return {
+        "python": sys.version.split()[0],
+        "python_implementation": platform.python_implementation(),
+        "numpy": np.__version__,
+        "engines": engine_versions(),
+        "cpu": cpu_name(),
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+        "machine": platform.machine(),
+        "git_commit": git_commit(),
+    }

@@ -1,0 +1,135 @@
+"""The reference against closed forms: elliptic-integral periods, normal modes, energy, rod tensions."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from engines import catalog, reference
+from engines.closed_form import normal_modes, pendulum_period
+from engines.errors import Unsupported
+from engines.trajectory import constraint_errors, tensions, total_energy
+
+
+def roots(f, t_end, n_grid=4000):
+    """Times in (0, t_end] where the scalar function f(t) changes sign, refined with brentq."""
+    grid = np.linspace(0.0, t_end, n_grid)
+    values = np.array([f(t) for t in grid])
+    found = []
+    for i in np.nonzero(np.sign(values[1:]) != np.sign(values[:-1]))[0]:
+        if values[i] == 0.0:
+            continue
+        found.append(brentq(f, grid[i], grid[i + 1], xtol=1e-15, rtol=1e-15))
+    return np.array(found)
+
+
+@pytest.mark.parametrize("theta0", [60.0, 120.0, 170.0])
+def test_bead_period_matches_the_elliptic_integral(theta0):
+    exact = pendulum_period(1.0, 9.81, math.radians(theta0))
+    scene = catalog.build("bead", {"theta0": theta0, "duration": 1.2 * exact})
+    solution = reference.solve(scene)
+    # Released at rest, the angular velocity vanishes at T/2 and T.
+    turning = roots(lambda t: solution.ode(t)[1], scene.duration)
+    assert len(turning) == 2
+    assert turning[1] == pytest.approx(exact, rel=1e-9)
+    assert turning[0] == pytest.approx(exact / 2, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "masses, lengths", [((1.0, 1.0), (1.0, 1.0)), ((3.0, 0.5), (0.7, 1.6)), ((0.2, 5.0), (2.0, 0.3))]
+)
+@pytest.mark.parametrize("mode", [0, 1])
+def test_double_pendulum_normal_mode_frequency(masses, lengths, mode):
+    omegas, shapes = normal_modes(masses, lengths, 9.81)
+    amplitude = 1e-3  # rad: the nonlinear frequency shift ~ amplitude²/16 ≈ 6e-8 is far below 1e-4
+    angles = amplitude * shapes[:, mode]
+    period = 2 * math.pi / omegas[mode]
+    scene = catalog.build(
+        "double-pendulum",
+        {"m1": masses[0], "m2": masses[1], "l1": lengths[0], "l2": lengths[1],
+         "theta1": math.degrees(angles[0]), "theta2": math.degrees(angles[1]), "duration": 6 * period},
+    )
+    solution = reference.solve(scene)
+    big = int(np.argmax(np.abs(angles)))
+    crossings = roots(lambda t: solution.ode(t)[big], scene.duration)
+    # Zero crossings of a pure mode are half a period apart.
+    measured = math.pi * (len(crossings) - 1) / (crossings[-1] - crossings[0])
+    assert measured == pytest.approx(omegas[mode], rel=1e-4)
+    # And the motion stays in the mode's shape: the other angle follows in fixed ratio.
+    t = np.linspace(0, scene.duration, 200)
+    theta = solution.ode(t)[:2]
+    np.testing.assert_allclose(theta[1 - big], theta[big] * angles[1 - big] / angles[big], atol=1e-3 * amplitude)
+
+
+def test_reference_conserves_energy_of_the_default_double_pendulum_over_100_s():
+    scene = catalog.build("double-pendulum", {"duration": 100.0})
+    solution = reference.solve(scene)
+    positions, velocities, _ = solution.at(np.linspace(0, 100, 20001))
+    energy = total_energy(scene, positions, velocities)
+    assert np.max(np.abs(energy - energy[0])) / scene.characteristic_energy < 1e-9
+    assert constraint_errors(scene, positions).max() < 1e-12
+
+
+def test_bead_tension_at_the_bottom_of_the_swing():
+    # Energy gives v² = 2 g r (1 − cos θ0) at the bottom, so T = m g (3 − 2 cos θ0).
+    theta0, m = 60.0, 2.0
+    exact_period = pendulum_period(1.0, 9.81, math.radians(theta0))
+    scene = catalog.build("bead", {"theta0": theta0, "m": m, "duration": exact_period})
+    solution = reference.solve(scene)
+    positions, _, forces = solution.at(np.array([0.0, exact_period / 4]))
+    pull = tensions(scene, positions, forces)
+    assert pull[1, 0] == pytest.approx(m * 9.81 * (3 - 2 * math.cos(math.radians(theta0))), rel=1e-9)
+    # At release (at rest) only gravity's radial part is balanced: T = m g cos θ0.
+    assert pull[0, 0] == pytest.approx(m * 9.81 * math.cos(math.radians(theta0)), rel=1e-9)
+
+
+def test_chain_tensions_hanging_at_rest_carry_the_weight_below():
+    scene = catalog.build("chain", {"n": 4, "theta0": 0.0, "mass": 0.5, "duration": 0.1})
+    positions, _, forces = reference.solve(scene).at(np.array([0.05]))
+    np.testing.assert_allclose(tensions(scene, positions, forces)[0], 0.5 * 9.81 * np.array([4, 3, 2, 1]), rtol=1e-12)
+    # Each constraint's force acts on its first particle: the pin pulls particle 0 up, rod (0, 1) pulls it down.
+    assert forces[0, 0, 2] > 0 and forces[0, 1, 2] < 0
+
+
+def test_conical_spherical_pendulum_keeps_its_polar_angle():
+    theta0 = 40.0
+    rate = math.sqrt(9.81 / math.cos(math.radians(theta0)))  # conical pendulum: φ̇² = g / (r cos θ)
+    scene = catalog.build("spherical-pendulum", {"theta0": theta0, "phi_dot0": rate, "duration": 5.0})
+    positions, velocities, forces = reference.solve(scene).at(np.linspace(0, 5, 101))
+    np.testing.assert_allclose(positions[:, 0, 2], -math.cos(math.radians(theta0)), atol=1e-10)
+    energy = total_energy(scene, positions, velocities)
+    assert np.max(np.abs(energy - energy[0])) / scene.characteristic_energy < 1e-10
+    # The rod balances gravity vertically: T cos θ = m g.
+    pull = tensions(scene, positions, forces)[:, 0]
+    np.testing.assert_allclose(pull, 9.81 / math.cos(math.radians(theta0)), rtol=1e-9)
+
+
+def test_spherical_pendulum_conserves_angular_momentum_about_the_vertical():
+    scene = catalog.build("spherical-pendulum")
+    positions, velocities, _ = reference.solve(scene).at(np.linspace(0, 10, 501))
+    p, v = positions[:, 0], velocities[:, 0]
+    lz = p[:, 0] * v[:, 1] - p[:, 1] * v[:, 0]
+    np.testing.assert_allclose(lz, lz[0], rtol=1e-9)
+    assert np.ptp(p[:, 2]) > 0.1  # it nutates: not a conical orbit in disguise
+
+
+def test_reference_engine_samples_on_the_shared_schedule():
+    scene = catalog.build("bead", {"duration": 1.0})
+    trajectory = reference.ENGINE.simulate(scene, 1e-3)
+    assert trajectory.info.status == "ok"
+    np.testing.assert_allclose(trajectory.t, np.arange(101) * 0.01)
+    assert trajectory.constraint_forces.shape == (101, 1, 3)
+
+
+def test_reference_refuses_what_it_cannot_express():
+    from engines.scene import Particle, Pin, Rod, Scene
+
+    # A triangle of rods is not a chain.
+    a, b, c = (1, 0, 0), (2, 0, 0), (1.5, 0, math.sqrt(3) / 2)
+    loop = Scene(
+        "loop", (Particle(1, a), Particle(1, b), Particle(1, c)),
+        (Pin(0, (0, 0, 0), 1.0), Rod(0, 1, 1.0), Rod(1, 2, 1.0), Rod(2, 0, 1.0)),
+    )
+    with pytest.raises(Unsupported, match="one constraint per particle"):
+        reference.ENGINE.check(loop)
