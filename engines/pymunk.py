@@ -1,0 +1,269 @@
+"""pymunk (Chipmunk2D / Munk2D) adapter: planar scenes as point masses joined by ``PinJoint``s.
+
+Formulation (variant family ``pin``): each particle is a dynamic body of the
+particle's mass and *infinite* moment of inertia, so it never rotates and its
+position is the particle's position (no rotational inertia needs to be made
+up or stated). A ``Pin`` is a ``PinJoint`` from the space's static body
+(anchor at the scene's anchor point) to the particle; a ``Rod`` is a
+``PinJoint`` between the two particles. Anchors sit on the centres of mass,
+so a ``PinJoint`` is a true distance constraint. No shapes are created:
+nothing can collide.
+
+Frame: pymunk is 2-D. The scene's (x, z) is pymunk's (x, y); the scene's y
+is 0 on the way out. The conversion happens here and nowhere else.
+
+What one ``space.step(dt)`` does (Munk2D ``cpSpaceStep``): positions first,
+x ← x + v·dt, with the velocity of the previous step; then each joint's
+pre-step measures its direction and error at the *new* positions; then
+v ← v·damping^dt + g·dt; then the warm-started impulses and ``iterations``
+Gauss–Seidel passes make the velocities satisfy each joint, plus a bias
+velocity −(1 − error_bias^dt)·C/dt (clamped to ±max_bias) that pulls the
+drift C back. Semi-implicit (symplectic) Euler: first order.
+
+Constraint forces: ``PinJoint.impulse`` is |accumulated impulse| (N·s) of
+the last step (``getImpulse`` returns ``cpfabs(jnAcc)``), so its sign is
+lost. The force is impulse/dt (N) along the joint's direction at the end of
+the step; its sign (pull or push) is recovered from the momentum balance of
+that step, m·(v_new − damping^dt·v_old − g·dt) = Σ impulses, solved in least
+squares for the signed impulses. Only the sign is taken from that balance.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Mapping
+
+import numpy as np
+import pymunk
+
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported
+from engines.scene import Pin, Rod, Scene
+
+#: pymunk's own defaults, read from the library rather than copied.
+_PROBE_SPACE = pymunk.Space()
+PYMUNK_ERROR_BIAS = pymunk.PinJoint(_PROBE_SPACE.static_body, pymunk.Body(1.0, math.inf)).error_bias
+PYMUNK_ITERATIONS = _PROBE_SPACE.iterations
+PYMUNK_DAMPING = _PROBE_SPACE.damping
+del _PROBE_SPACE
+
+#: A state coordinate this many characteristic lengths from the origin has run away.
+RUNAWAY_LENGTHS = 1e6
+
+
+class PymunkEngine(Engine):
+    """pymunk ``PinJoint`` formulation of planar point-mass scenes."""
+
+    name = "pymunk"
+    capabilities = frozenset({"constraint-forces"})
+    options = {
+        "error_bias": Option(
+            "error_bias",
+            PYMUNK_ERROR_BIAS,
+            "fraction of a joint's error left uncorrected after 1 s (pymunk's default "
+            f"{PYMUNK_ERROR_BIAS:.6g} = 0.9^60: 10% per 1/60 s; 0 = full correction every step); in [0, 1]",
+        ),
+        "iterations": Option(
+            "iterations", PYMUNK_ITERATIONS, f"solver passes per step (pymunk's default {PYMUNK_ITERATIONS})", "int"
+        ),
+        "max_bias": Option(
+            "max_bias",
+            None,
+            "largest error-correction speed, m/s (pymunk's default: unlimited); >= 0",
+        ),
+        "damping": Option(
+            "damping",
+            PYMUNK_DAMPING,
+            "fraction of velocity kept after 1 s (pymunk's default 1 = no damping); in (0, 1]",
+        ),
+    }
+    variants = {
+        "pin": {},
+        "pin-bias0": {"error_bias": 0.0},
+        "pin-bias0-iter50": {"error_bias": 0.0, "iterations": 50},
+    }
+    variant_docs = {
+        "pin": "PinJoints with pymunk's own solver defaults (error_bias 0.9^60, 10 iterations)",
+        "pin-bias0": "PinJoints with error_bias = 0: the whole drift corrected every step",
+        "pin-bias0-iter50": "error_bias = 0 and 50 solver iterations (converged Gauss-Seidel for chains)",
+    }
+    overrides = {
+        "Body.moment": "inf (non-rotating point mass; pymunk has no default for a body without shapes)",
+        "PinJoint.distance": "the scene's length (pymunk measures it from the anchors when the joint is created)",
+        "Space.gravity": "the scene's (g_x, g_z) (pymunk's default is (0, 0))",
+        "shapes": "none (nothing collides; pymunk would need shapes for contact)",
+    }
+
+    def version(self) -> str:
+        return f"{pymunk.version} (Munk2D {pymunk.chipmunk_version.split('-')[0]})"
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        for k, c in enumerate(scene.constraints):
+            if not isinstance(c, (Pin, Rod)):
+                raise Unsupported(f"pymunk adapter has no joint for constraints[{k}] of kind {c.kind!r}")
+        _check_settings(settings)
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        model = _Model(scene, settings)
+        dt = schedule.dt
+        steps = schedule.sample_steps.tolist()
+        n_samples = len(steps)
+        n_particles, n_constraints = len(scene.particles), len(scene.constraints)
+        positions = np.empty((n_samples, n_particles, 3))
+        velocities = np.empty((n_samples, n_particles, 3))
+        forces = np.empty((n_samples, n_constraints, 3))
+        positions[0], velocities[0] = scene.initial_positions, scene.initial_velocities
+        # No step has been taken, so no constraint impulse exists yet: the
+        # force at t = 0 is the one of the first step (filled below).
+        limit = RUNAWAY_LENGTHS * model.scale
+        step = model.space.step
+        wall_time = 0.0
+        taken, recorded, message = 0, 1, ""
+        for k in range(1, n_samples):
+            gap = steps[k] - taken
+            started = time.perf_counter()
+            for _ in range(gap - 1):
+                step(dt)
+            wall_time += time.perf_counter() - started
+            v_before = model.velocities_2d()
+            started = time.perf_counter()
+            step(dt)
+            wall_time += time.perf_counter() - started
+            taken = steps[k]
+            p2, v2 = model.positions_2d(), model.velocities_2d()
+            positions[k], velocities[k] = _to_scene(p2), _to_scene(v2)
+            recorded = k + 1
+            if not (np.isfinite(p2).all() and np.isfinite(v2).all() and np.isfinite(v_before).all()):
+                forces[k] = np.nan
+                break  # adapter._finish truncates here and marks the run unstable
+            forces[k] = _to_scene(model.constraint_forces(p2, v2, v_before, dt))
+            if np.abs(p2).max() > limit:
+                message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
+                recorded = k  # the runaway sample is not kept
+                break
+        forces[0] = forces[1] if recorded > 1 else np.nan
+        return RawRun(
+            positions[:recorded],
+            velocities[:recorded],
+            forces[:recorded],
+            steps=taken,
+            wall_time=wall_time,
+            message=message,
+            settings={
+                "moment_of_inertia": "inf",
+                "gravity_pymunk": tuple(model.space.gravity),
+                "timing": "Python loop over Space.step (no batched stepping API in pymunk)",
+                "force_t0": "the force at t = 0 is the one of the first step",
+            },
+        )
+
+
+def _check_settings(settings: Mapping[str, Any]) -> None:
+    """Refuse option values pymunk would accept but that mean nothing (or assert in C)."""
+    from engines.errors import UserError
+
+    if not 0.0 <= settings["error_bias"] <= 1.0:
+        raise UserError(f"pymunk: option error_bias must be in [0, 1], got {settings['error_bias']!r}")
+    if settings["iterations"] < 1:
+        raise UserError(f"pymunk: option iterations must be at least 1, got {settings['iterations']!r}")
+    max_bias = settings["max_bias"]
+    if max_bias is not None and not (isinstance(max_bias, (int, float)) and max_bias >= 0):
+        raise UserError(f"pymunk: option max_bias must be a number >= 0 (m/s), got {max_bias!r}")
+    if not 0.0 < settings["damping"] <= 1.0:
+        raise UserError(f"pymunk: option damping must be in (0, 1] (1 = none), got {settings['damping']!r}")
+
+
+def _to_scene(xy: np.ndarray) -> np.ndarray:
+    """(k, 2) pymunk (x, y) -> (k, 3) scene (x, 0, z)."""
+    out = np.zeros((xy.shape[0], 3))
+    out[:, 0], out[:, 2] = xy[:, 0], xy[:, 1]
+    return out
+
+
+class _Model:
+    """The pymunk space built from a scene, with readers in pymunk's frame ((k, 2) arrays)."""
+
+    def __init__(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        space = pymunk.Space()
+        space.gravity = (scene.gravity[0], scene.gravity[2])
+        space.iterations = int(settings["iterations"])
+        space.damping = float(settings["damping"])
+        self.space = space
+        self.damping = float(settings["damping"])
+        self.gravity = np.array(space.gravity)
+        self.bodies: list[pymunk.Body] = []
+        for particle in scene.particles:
+            body = pymunk.Body(particle.mass, math.inf)
+            body.position = (particle.position[0], particle.position[2])
+            body.velocity = (particle.velocity[0], particle.velocity[2])
+            self.bodies.append(body)
+        space.add(*self.bodies)
+        self.joints: list[pymunk.PinJoint] = []
+        # ends[k] = (index of the joint's body a or None for static, index of body b)
+        self.ends: list[tuple[int | None, int]] = []
+        #: +1 when the constraint's first particle is the joint's body b (Pin), −1 when it is body a (Rod).
+        self.first_sign = np.empty(len(scene.constraints))
+        for k, c in enumerate(scene.constraints):
+            if isinstance(c, Pin):
+                joint = pymunk.PinJoint(space.static_body, self.bodies[c.particle], (c.anchor[0], c.anchor[2]), (0, 0))
+                self.ends.append((None, c.particle))
+                self.first_sign[k] = 1.0
+            else:
+                joint = pymunk.PinJoint(self.bodies[c.a], self.bodies[c.b], (0, 0), (0, 0))
+                self.ends.append((c.a, c.b))
+                self.first_sign[k] = -1.0
+            # Created from positions, the distance carries their rounding: set it.
+            joint.distance = c.length
+            joint.error_bias = float(settings["error_bias"])
+            if settings["max_bias"] is not None:
+                joint.max_bias = float(settings["max_bias"])
+            self.joints.append(joint)
+        space.add(*self.joints)
+        self.masses = scene.masses
+        self.anchors = np.array(
+            [(c.anchor[0], c.anchor[2]) if isinstance(c, Pin) else (np.nan, np.nan) for c in scene.constraints]
+        ).reshape(-1, 2)
+        extent = np.abs(scene.initial_positions).max()
+        self.scale = scene.characteristic_length + float(extent)
+
+    def positions_2d(self) -> np.ndarray:
+        """(n_particles, 2) m in pymunk's frame."""
+        return np.array([tuple(b.position) for b in self.bodies])
+
+    def velocities_2d(self) -> np.ndarray:
+        """(n_particles, 2) m/s in pymunk's frame."""
+        return np.array([tuple(b.velocity) for b in self.bodies])
+
+    def directions(self, p2: np.ndarray) -> np.ndarray:
+        """(n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b."""
+        out = np.empty((len(self.joints), 2))
+        for k, (a, b) in enumerate(self.ends):
+            start = self.anchors[k] if a is None else p2[a]
+            delta = p2[b] - start
+            out[k] = delta / (np.linalg.norm(delta) or math.inf)
+        return out
+
+    def constraint_forces(self, p2: np.ndarray, v2: np.ndarray, v_before: np.ndarray, dt: float) -> np.ndarray:
+        """(n_constraints, 2) N on each constraint's first particle during the last step.
+
+        Magnitude: pymunk's ``impulse`` / dt. Direction: the joint's axis at
+        the end of the step (where pymunk's pre-step measured it). Sign: from
+        the step's momentum balance (pymunk reports |impulse|).
+        """
+        n = self.directions(p2)
+        # Momentum balance, per body and axis: m (v_new − d v_old − g dt) = Σ_k j_k s_{k,body} n_k,
+        # with s = +1 on the joint's body b and −1 on its body a (cpPinJoint's apply_impulses).
+        change = self.masses[:, None] * (v2 - self.damping**dt * v_before - self.gravity * dt)
+        matrix = np.zeros((2 * len(self.bodies), len(self.joints)))
+        for k, (a, b) in enumerate(self.ends):
+            matrix[2 * b : 2 * b + 2, k] += n[k]
+            if a is not None:
+                matrix[2 * a : 2 * a + 2, k] -= n[k]
+        signed, *_ = np.linalg.lstsq(matrix, change.reshape(-1), rcond=None)
+        magnitude = np.array([j.impulse for j in self.joints]) / dt
+        impulse_on_b = np.copysign(magnitude, signed)
+        return (self.first_sign * impulse_on_b)[:, None] * n
+
+
+ENGINE = PymunkEngine()
