@@ -1,0 +1,405 @@
+"""Running a suite: cases through a concurrent.futures.Executor, one record written per finished case.
+
+Division of work (why it is split this way):
+
+- **Workers** only simulate. Each case goes to the executor as a
+  :class:`~compare.isolation.CaseTask`; the worker forks a child per case
+  (see :mod:`compare.isolation`), so a case that raises, hangs or kills its
+  process is recorded and the pool carries on.
+- **The reference** for each scene is solved once, as its own task on the
+  same executor (so it overlaps with the engines' cases), and comes back to
+  the parent as a pickled dense solution (a few hundred kB).
+- **The parent** evaluates the reference at each case's own sample times
+  (a dt sweep gives different times per dt), computes the metrics (cheap,
+  pure functions), applies the status bounds and writes the record. Cases
+  that finish before their scene's reference wait in memory for it.
+
+Cases are submitted longest first (smallest dt) so that on a few cores the
+long cases do not end up alone at the tail of the run.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engines.adapter import Schedule
+from engines.errors import Unsupported
+from engines.scene import Scene
+
+from compare.environment import environment
+from compare.isolation import CaseOutcome, CaseTask, execute
+from compare.metrics import apply_bounds, case_metrics
+from compare.progress import NullProgress, Progress
+from compare.results import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
+from compare.suite import EngineSpec, SceneSpec, Suite
+
+#: How many times a case is resubmitted after the pool broke while it was running.
+MAX_ATTEMPTS = 2
+
+
+@dataclass(frozen=True)
+class Case:
+    """One scene × engine variant × dt of a suite."""
+
+    scene: SceneSpec
+    engine: EngineSpec
+    dt: float
+
+    @property
+    def id(self) -> str:
+        return case_id(self.scene.id, self.engine.label, self.dt)
+
+
+def case_id(scene_id: str, engine_label: str, dt: float) -> str:
+    """``bead|mujoco/hinge-rk4|dt=0.001``: stable across runs, the key ``--resume`` matches on."""
+    return f"{scene_id}|{engine_label}|dt={dt:.12g}"
+
+
+def plan(suite: Suite) -> list[Case]:
+    """Every case of the suite, scene-major, in the suite's order."""
+    return [Case(s, e, dt) for s in suite.scenes for e in suite.engines for dt in suite.dts]
+
+
+def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
+    """Why ``engine`` cannot run ``scene`` (unavailable here, or cannot express it), or None."""
+    if engine.engine is None:
+        return engine.unavailable
+    try:
+        engine.engine.check(scene, engine.variant, engine.options)
+    except Unsupported as exc:
+        return str(exc)
+    return None
+
+
+def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
+    """The reference's dense solution of ``scene`` (runs in a worker; module-level so it pickles)."""
+    from engines.reference import solve
+
+    return solve(scene, rtol=rtol, atol=atol)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a run did: where results are, status counts, cases run now / skipped / resumed, wall time (s)."""
+
+    path: Path
+    counts: dict[str, int]
+    ran: int
+    already_done: int
+    wall_time: float
+
+
+def default_jobs() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def run_suite(
+    suite: Suite,
+    output: str | Path,
+    *,
+    jobs: int | None = None,
+    executor: cf.Executor | None = None,
+    resume: bool = False,
+    timeout: float | None = None,
+    progress: Progress | None = None,
+    isolate: bool = True,
+) -> RunSummary:
+    """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
+
+    jobs : worker processes of the default ProcessPoolExecutor (all cores
+        when None); ignored when ``executor`` is given (any Executor works:
+        a ThreadPoolExecutor, a cluster's; cases are still isolated in
+        forked children unless ``isolate`` is False).
+    timeout : s per case; the suite's ``timeout`` when None.
+    resume : continue the run already in ``output`` (same suite required).
+    """
+    started = time.perf_counter()
+    progress = progress or NullProgress()
+    header = {
+        "suite": {
+            "name": suite.name,
+            "description": suite.description,
+            "path": suite.path,
+            "fingerprint": suite.fingerprint(),
+        },
+        "environment": environment(),
+        "xval_version": compare_version(),
+    }
+    results = ResultsDir.open_for_run(output, suite.source, header, resume)
+    cases = plan(suite)
+    done = results.done_ids() if resume else set()
+    todo = [c for c in cases if c.id not in done]
+    progress.start(len(cases), len(cases) - len(todo))
+    writer = _Writer(results, suite, progress)
+    try:
+        runnable = []
+        reasons: dict[tuple[str, str], str | None] = {}
+        for case in todo:
+            key = (case.scene.id, case.engine.label)
+            if key not in reasons:
+                reasons[key] = skip_reason(case.scene.scene, case.engine)
+            if reasons[key] is not None:
+                writer.write(case, None, skipped=reasons[key])
+            else:
+                runnable.append(case)
+        if runnable:
+            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate).run()
+    finally:
+        progress.stop()
+    counts = _status_counts(results)
+    results.finish(counts)
+    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started)
+
+
+def compare_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("xval")
+    except Exception:
+        return "unknown"
+
+
+def _status_counts(results: ResultsDir) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for record in iter_records(results.cases):
+        counts[record["status"]] = counts.get(record["status"], 0) + 1
+    return dict(sorted(counts.items()))
+
+
+class _Dispatcher:
+    """Submits references and cases, collects them as they finish, rebuilds a broken pool it owns."""
+
+    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate) -> None:
+        self.suite = suite
+        self.cases = {c.id: c for c in cases}
+        self.writer = writer
+        self.jobs = jobs or default_jobs()
+        self.own_executor = executor is None
+        self.executor = executor or self._new_pool()
+        self.timeout = timeout
+        self.isolate = isolate
+        self.references: dict[str, Any] = {}  # scene id -> solution, or the exception that stopped it
+        self.waiting: dict[str, list[tuple[Case, CaseOutcome]]] = {}
+        self.attempts: dict[str, int] = {}
+
+    def _new_pool(self) -> cf.Executor:
+        # fork: workers inherit the imported engines; the workers are forked
+        # before the progress bar starts its thread (all at first submit).
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"))
+
+    def task(self, case: Case) -> CaseTask:
+        return CaseTask(
+            case_id=case.id,
+            engine_id=case.engine.id,
+            variant=case.engine.variant,
+            options=dict(case.engine.options),
+            scene=case.scene.scene,
+            dt=case.dt,
+            sample_interval=self.suite.sample_interval,
+            repeats=self.suite.repeats,
+            timeout=self.timeout,
+            isolate=self.isolate,
+        )
+
+    def submit_all(self, reference_ids: list[str], case_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
+        futures: dict[cf.Future, tuple[str, str]] = {}
+        scenes = {s.id: s.scene for s in self.suite.scenes}
+        for scene_id in reference_ids:
+            future = self.executor.submit(solve_reference, scenes[scene_id], self.suite.rtol, self.suite.atol)
+            futures[future] = ("reference", scene_id)
+        # Longest first: cost grows like 1/dt.
+        for cid in sorted(case_ids, key=lambda c: self.cases[c].dt):
+            futures[self.executor.submit(execute, self.task(self.cases[cid]))] = ("case", cid)
+        return futures
+
+    def run(self) -> None:
+        scene_ids = sorted({c.scene.id for c in self.cases.values()})
+        pending = self.submit_all(scene_ids, list(self.cases))
+        try:
+            while pending:
+                finished, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                broken = False
+                for future in finished:
+                    kind, key = pending.pop(future)
+                    try:
+                        value = future.result()
+                    except cf.BrokenExecutor:
+                        broken = True
+                        pending[future] = (kind, key)  # re-handled below
+                        continue
+                    except Exception as exc:  # the reference raised (the case path never raises)
+                        value = exc
+                    self.handle(kind, key, value)
+                if broken:
+                    pending = self.recover(pending)
+        except BaseException:
+            # Ctrl-C or a bug: stop the workers now; finished records are already on disk.
+            self.executor.shutdown(wait=False, cancel_futures=True)
+            raise
+        if self.own_executor:
+            self.executor.shutdown(wait=True)
+
+    def handle(self, kind: str, key: str, value: Any) -> None:
+        if kind == "reference":
+            self.references[key] = value
+            for case, outcome in self.waiting.pop(key, []):
+                self.writer.write(case, outcome, reference=value)
+            return
+        case = self.cases[key]
+        if case.scene.id in self.references:
+            self.writer.write(case, value, reference=self.references[case.scene.id])
+        else:
+            self.waiting.setdefault(case.scene.id, []).append((case, value))
+
+    def recover(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
+        """The pool broke (a worker died outside a case's child): rebuild it and resubmit what was lost.
+
+        A case caught in MAX_ATTEMPTS breaks is recorded as failed; with an
+        executor we do not own, everything lost is recorded as failed.
+        """
+        lost = list(pending.values())
+        self.executor.shutdown(wait=False, cancel_futures=True)
+        reference_ids, case_ids = [], []
+        for kind, key in lost:
+            if kind == "reference":
+                reference_ids.append(key)
+                continue
+            self.attempts[key] = self.attempts.get(key, 0) + 1
+            if not self.own_executor or self.attempts[key] >= MAX_ATTEMPTS:
+                outcome = CaseOutcome(key, None, status="failed", message="a worker process of the executor died while it ran")
+                self.handle("case", key, outcome)
+            else:
+                case_ids.append(key)
+        if not self.own_executor:
+            for scene_id in reference_ids:
+                self.handle("reference", scene_id, RuntimeError("the executor broke before the reference was solved"))
+            return {}
+        self.executor = self._new_pool()
+        return self.submit_all(reference_ids, case_ids)
+
+
+class _Writer:
+    """Turns outcomes into records (metrics computed here, in the parent) and writes them."""
+
+    def __init__(self, results: ResultsDir, suite: Suite, progress: Progress) -> None:
+        self.results = results
+        self.suite = suite
+        self.progress = progress
+
+    def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
+        record = build_record(case, outcome, reference, self.suite, skipped=skipped)
+        self.results.write_case(record)
+        self.progress.advance(record)
+
+
+def build_record(
+    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None
+) -> dict[str, Any]:
+    """The JSON-ready record of one case.
+
+    reference : the scene's ReferenceSolution, or the exception that kept it
+    from being solved (position metrics are then null and the message says why).
+    """
+    scene = case.scene.scene
+    record: dict[str, Any] = {
+        "case": {
+            "id": case.id,
+            "scene_id": case.scene.id,
+            "scene_name": case.scene.name,
+            "engine": case.engine.label,
+            "engine_id": case.engine.id,
+            "variant": case.engine.variant,
+            "options": dict(case.engine.options),
+            "dt": case.dt,
+        },
+        "status": "skipped",
+        "message": skipped or "",
+        "metrics": None,
+        "run_info": None,
+        "wall_times": [],
+        "elapsed": 0.0,
+        "scene": scene.to_dict(),
+        "scene_hash": scene.content_hash,
+        "characteristic": {"length": scene.characteristic_length, "energy": scene.characteristic_energy},
+        "series": None,
+        "reference": None,
+        "finished": now(),
+    }
+    if outcome is None:
+        return jsonable(record)
+    record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
+    record["wall_times"] = outcome.wall_times
+    trajectory = outcome.trajectory
+    if trajectory is None:
+        return jsonable(record)
+    info = trajectory.info
+    record["run_info"] = info.to_dict()
+    status, message = info.status, info.message
+    if status == "ok" and not (np.isfinite(trajectory.positions).all() and np.isfinite(trajectory.velocities).all()):
+        # An engine that bypasses Engine.simulate's own check must not pass NaN off as ok.
+        status, message = "unstable", "non-finite state in the returned trajectory"
+    finite = np.isfinite(trajectory.positions).all(axis=(1, 2)) & np.isfinite(trajectory.velocities).all(axis=(1, 2))
+    if not finite.all():
+        trajectory = _truncate(trajectory, int(np.argmin(finite)))
+    scheduled = Schedule.make(scene.duration, case.dt, suite.sample_interval).times
+    n = trajectory.n_samples
+    if isinstance(reference, Exception) or reference is None:
+        why = reference if reference is not None else "no reference"
+        ref_positions = np.full((n, len(scene.particles), 3), math.nan)
+        ref_forces = None
+        message = "; ".join(m for m in (message, f"no reference solution ({why}), so no position metrics") if m)
+    else:
+        ref_positions, _, ref_forces = reference.at(trajectory.t) if n else (np.zeros((0, len(scene.particles), 3)), None, None)
+        record["reference"] = {
+            "rtol": reference.rtol,
+            "atol": reference.atol,
+            "steps": reference.n_steps,
+            "wall_time": reference.wall_time,
+        }
+    metrics, series = case_metrics(
+        scene,
+        trajectory,
+        ref_positions,
+        ref_forces,
+        scheduled_times=scheduled,
+        wall_times=outcome.wall_times,
+        delta=suite.delta,
+    )
+    status, message = apply_bounds(status, message, metrics, suite.bounds, scene)
+    record["status"], record["message"] = status, message
+    record["metrics"] = metrics.to_dict()
+    keep = downsample_indices(n)
+    record["series"] = {
+        "t": rounded(series.t[keep]),
+        "position_error": rounded(series.position_error[keep]),
+        "energy_drift": rounded(series.energy_drift[keep]),
+        "constraint_error": rounded(series.constraint_error[keep]),
+        "positions": rounded(trajectory.positions[keep]),
+    }
+    return jsonable(record)
+
+
+def _truncate(trajectory, n: int):
+    """The first n samples of ``trajectory``."""
+    forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
+    return replace(
+        trajectory,
+        t=trajectory.t[:n],
+        positions=trajectory.positions[:n],
+        velocities=trajectory.velocities[:n],
+        constraint_forces=forces,
+    )
