@@ -21,6 +21,8 @@ COMMAND_MODULES = [
     "compare.commands.scenes",
     "compare.commands.engines",
     "compare.commands.simulate",
+    "compare.commands.run",
+    "compare.commands.show",
 ]
 
 

@@ -48,11 +48,12 @@ MAX_ATTEMPTS = 2
 
 @dataclass(frozen=True)
 class Case:
-    """One scene × engine variant × dt of a suite."""
+    """One scene × engine variant × dt of a suite; ``position`` is its (scene, engine, dt) index in the suite."""
 
     scene: SceneSpec
     engine: EngineSpec
     dt: float
+    position: tuple[int, int, int] = (0, 0, 0)
 
     @property
     def id(self) -> str:
@@ -66,7 +67,12 @@ def case_id(scene_id: str, engine_label: str, dt: float) -> str:
 
 def plan(suite: Suite) -> list[Case]:
     """Every case of the suite, scene-major, in the suite's order."""
-    return [Case(s, e, dt) for s in suite.scenes for e in suite.engines for dt in suite.dts]
+    return [
+        Case(s, e, dt, (i, j, k))
+        for i, s in enumerate(suite.scenes)
+        for j, e in enumerate(suite.engines)
+        for k, dt in enumerate(suite.dts)
+    ]
 
 
 def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
@@ -325,6 +331,7 @@ def build_record(
             "variant": case.engine.variant,
             "options": dict(case.engine.options),
             "dt": case.dt,
+            "position": list(case.position),
         },
         "status": "skipped",
         "message": skipped or "",

@@ -1,0 +1,37 @@
+"""``xval run``: run a suite into a results directory, then print a table per scene."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from compare.progress import progress_for
+from compare.results import load_results
+from compare.runner import run_suite
+from compare.suite import load_suite
+from compare.table import scene_tables
+
+
+@click.command("run")
+@click.argument("suite_path", metavar="SUITE")
+@click.option("--output", required=True, metavar="DIR", help="Results directory to create (or finish, with --resume).")
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes (default: all cores).")
+@click.option("--resume", is_flag=True, help="Run only the cases DIR does not hold yet.")
+@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
+              help="Seconds per case before it is killed and recorded as timeout (default: the suite's).")
+def command(suite_path, output, jobs, resume, timeout) -> None:
+    """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
+
+    A case that fails, goes unstable or times out is recorded with its status
+    and does not stop the others. Exit code 0 when the run completed (whatever
+    the cases' statuses), 2 for bad input.
+    """
+    suite = load_suite(suite_path)
+    summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr))
+    click.echo(scene_tables(load_results(summary.path).records), nl=False)
+    counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
+    resumed = f", {summary.already_done} already done" if summary.already_done else ""
+    click.echo(f"\n{summary.ran} cases run in {summary.wall_time:.1f} s{resumed} ({counts})")
+    click.echo(f"results: {summary.path}")
