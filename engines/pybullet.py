@@ -1,0 +1,579 @@
+"""PyBullet adapter: point-mass scenes as one multibody, or as separate bodies joined by point-to-point constraints.
+
+Two formulations (variant families), as a PyBullet user would build them:
+
+- ``multibody`` (reduced coordinates, Featherstone): each Pin roots one
+  multibody whose fixed base sits at the Pin's anchor; every particle is a
+  link whose joint is at its parent (the anchor or the particle above it) and
+  whose centre of mass is the particle. Planar scenes use revolute joints
+  about the scene's y axis, 3-D scenes spherical joints. The model is built
+  in the scene's initial configuration (every joint angle 0, every frame
+  aligned with the scene frame), so no angle convention enters.
+- ``p2p`` (maximal coordinates): each particle is a separate body (a
+  multibody with a floating base and no links, what ``createMultiBody``
+  builds by default); each constraint is a ``JOINT_POINT2POINT`` (a ball
+  joint). A point-to-point
+  constraint holds two *points* together, so the rod has to be carried by a
+  body: each particle's body carries the arm to its parent (the Pin's
+  anchor, or the particle above it), with the pivot at the end of that arm.
+  A Pin's other side is a fixed (mass 0) body at the anchor: a
+  point-to-point constraint to the world (parent -1) did not hold in
+  PyBullet 3.2.7 (ENGINE_NOTES). Floating-base multibodies rather than
+  ``useMaximalCoordinates`` rigid bodies because only multibody constraints
+  report their force through ``getConstraintState`` (a rigid-body one
+  raised "Couldn't getConstraintState"). A body that carried two arms would lock
+  the angle between them, so a scene whose constraints form a loop is
+  refused.
+
+Point masses: PyBullet needs bodies with inertia, so each particle gets a body of
+its mass with an isotropic central inertia ``inertia_ratio · m · L²``
+(L = the scene's characteristic length), stated in RunInfo. With the
+arm carried by the body, the pendulum's moment about the pivot is
+m·l² + I: a relative excess of ``inertia_ratio·(L/l)²`` (period longer by
+about half of that). No collision shapes are created (PyBullet accepts
+bodies without one when the mass and inertia are given), so nothing can
+collide.
+
+PyBullet defaults overridden (all recorded in RunInfo under ``override.``):
+gravity (0 by default) set from the scene; ``fixedTimeStep`` = dt with
+``numSubSteps`` = 0; linear and angular damping 0 (default 0.04 per body and
+per multibody); joint damping 0; the velocity motor PyBullet puts on every
+revolute joint disabled (zero maximum force), and a spherical joint's motor
+likewise; sleeping disabled (a slow pendulum would otherwise fall asleep
+after 2 s below 0.8 m/s). Left in place: the multibody joint-speed clamp of
+100 rad/s (``changeDynamics(maxJointVelocity=...)`` set the base free in
+3.2.7: the pendulum fell), far above the catalog's joint speeds.
+
+What stays soft: the p2p constraints are corrected Baumgarte-style by the
+global ``erp`` (PyBullet's default 0.2); the default sequential-impulse
+solver stops after ``iterations`` passes (default 50) or when the residual
+falls below its threshold. ``scripts/defaults_pybullet.py`` measures what
+each of these costs.
+
+Constraint forces (N, scene frame, on each constraint's first particle):
+``p2p`` reads ``getConstraintState``, which for a multibody point-to-point
+constraint is the applied impulse of each row (world x, y, z) divided by dt
+inside Bullet, i.e. a force on the constraint's child side; the particle
+carrying the arm gets its negative (checked on a hanging bead: +m·g along z).
+It is the force applied during the step that ends at the sample; the sample
+at t = 0 carries the first step's force (no step precedes it).
+``multibody`` gives None: the joint force-torque sensors
+(``enableJointForceTorqueSensor``) matched the bead's tension but were about
+twice the reference rod tension in the double pendulum (bullet3 issues
+#4451, #4604), so they are not reported as constraint forces.
+
+Output: PyBullet writes to the C-level streams (``pybullet build time`` to
+stderr on import, ``switched solver`` to stdout). File descriptors 1 and 2
+point at /dev/null while PyBullet is imported and while a run builds and
+steps; Python's and C's buffers are flushed before the redirection and C's
+again before the descriptors are restored, so nothing PyBullet prints
+reaches the caller and nothing the caller wrote earlier is lost or
+reordered. While a run is in progress, anything else in the same process
+that writes to fd 1 or 2 (another thread) is discarded too.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Iterator, Mapping
+
+import numpy as np
+
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported
+from engines.scene import Pin, Rod, Scene
+
+# -- keeping PyBullet's prints out of the caller's output -------------------------------
+
+_LIBC = ctypes.CDLL(None)
+_quiet_lock = threading.Lock()
+_quiet_depth = 0
+_saved_fds: dict[int, int] = {}
+
+
+def _flush_all() -> None:
+    """Flush Python's streams and C's stdio (fflush(NULL)) so text goes where fd 1 and 2 point now."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    _LIBC.fflush(None)
+
+
+@contextlib.contextmanager
+def quiet_output() -> Iterator[None]:
+    """Point file descriptors 1 and 2 at /dev/null for the duration; nested and concurrent uses share one redirection.
+
+    PyBullet writes to both (``pybullet build time`` to stderr on import,
+    ``switched solver`` to stdout). Everything already written through
+    Python or C stdio is flushed on entry, so the caller's pending text
+    reaches the real streams first; C's stdio is flushed again before the
+    descriptors are restored, so PyBullet's buffered text goes to /dev/null
+    rather than out later. A descriptor that is not open is left alone.
+    """
+    global _quiet_depth
+    with _quiet_lock:
+        if _quiet_depth == 0:
+            _flush_all()
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            try:
+                for fd in (1, 2):
+                    try:
+                        _saved_fds[fd] = os.dup(fd)
+                    except OSError:
+                        continue
+                    os.dup2(devnull, fd)
+            finally:
+                os.close(devnull)
+        _quiet_depth += 1
+    try:
+        yield
+    finally:
+        with _quiet_lock:
+            _quiet_depth -= 1
+            if _quiet_depth == 0:
+                _flush_all()
+                for fd, saved in _saved_fds.items():
+                    os.dup2(saved, fd)
+                    os.close(saved)
+                _saved_fds.clear()
+
+
+with quiet_output():
+    import pybullet as _pb  # prints "pybullet build time: ..." at import
+
+# -- PyBullet's own defaults (documented values; the library does not report them) ----------
+
+#: btContactSolverInfo::m_erp2, the error reduction of non-contact constraints.
+PYBULLET_ERP = 0.2
+#: setPhysicsEngineParameter's numSolverIterations, read from a fresh client.
+PYBULLET_ITERATIONS: int
+#: btMultiBody::m_maxCoordinateVelocity, rad/s: PyBullet clamps multibody joint speeds to it.
+#: Not raised: changeDynamics(maxJointVelocity=...) set the base free in 3.2.7 (the pendulum fell).
+PYBULLET_MAX_JOINT_VELOCITY = 100.0
+
+with quiet_output():
+    _probe = _pb.connect(_pb.DIRECT)
+    try:
+        PYBULLET_ITERATIONS = int(_pb.getPhysicsEngineParameters(physicsClientId=_probe)["numSolverIterations"])
+    finally:
+        _pb.disconnect(_probe)
+    del _probe
+
+SOLVERS = {
+    "si": _pb.CONSTRAINT_SOLVER_LCP_SI,
+    "pgs": _pb.CONSTRAINT_SOLVER_LCP_PGS,
+    "dantzig": _pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
+}
+
+#: A coordinate this many characteristic lengths from the origin has run away.
+RUNAWAY_LENGTHS = 1e6
+
+
+# -- the scene as a forest: which constraint ties each particle to its parent -------------
+
+
+@dataclass(frozen=True)
+class Link:
+    """One particle and the constraint that ties it to its parent.
+
+    particle : index in the scene; constraint : index in scene.constraints.
+    parent : the parent particle's index, or None when the parent is the Pin's anchor.
+    joint : (3,) m, where the joint sits at the initial state (anchor or parent particle).
+    first_is_self : whether the constraint's first particle (Pin.particle, Rod.a) is ``particle``.
+    """
+
+    particle: int
+    constraint: int
+    parent: int | None
+    joint: np.ndarray
+    first_is_self: bool
+
+
+def forest(scene: Scene) -> list[Link]:
+    """The links of the scene, parents before children, grown breadth-first from each Pin.
+
+    Raises Unsupported when the constraints form a loop (two paths to one
+    particle) or a particle is not tied to any Pin: neither formulation
+    built here can express those.
+    """
+    n = len(scene.particles)
+    q = scene.initial_positions
+    links: dict[int, Link] = {}
+    order: list[int] = []
+    for k, c in enumerate(scene.constraints):
+        if isinstance(c, Pin):
+            if c.particle in links:
+                raise Unsupported(
+                    f"pybullet: particle {c.particle} has two Pins (constraints {links[c.particle].constraint} "
+                    f"and {k}); a closed loop cannot be built as a tree of joints"
+                )
+            links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
+            order.append(c.particle)
+    head = 0
+    used = {link.constraint for link in links.values()}
+    while head < len(order):
+        parent = order[head]
+        head += 1
+        for k, c in enumerate(scene.constraints):
+            if k in used or not isinstance(c, Rod) or parent not in (c.a, c.b):
+                continue
+            child = c.b if c.a == parent else c.a
+            if child in links:
+                raise Unsupported(
+                    f"pybullet: constraint {k} closes a loop through particle {child}; "
+                    "only trees of constraints hung from Pins can be built"
+                )
+            links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
+            used.add(k)
+            order.append(child)
+    loose = [i for i in range(n) if i not in links]
+    if loose:
+        raise Unsupported(
+            f"pybullet: particles {loose} are not tied to any Pin; this adapter builds only scenes "
+            "hung from fixed anchors (no floating bodies)"
+        )
+    return [links[i] for i in order]
+
+
+def _angular_velocity(r: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(3,) rad/s: the rotation rate of an arm r (m) whose tip moves at u (m/s) relative to its root (no spin about r)."""
+    return np.cross(r, u) / float(r @ r)
+
+
+# -- the adapter --------------------------------------------------------------------------------
+
+
+class PyBulletEngine(Engine):
+    """PyBullet, as a multibody (reduced coordinates) or as separate bodies with point-to-point constraints."""
+
+    name = "pybullet"
+    capabilities = frozenset({"3d", "constraint-forces"})
+    options = {
+        "formulation": Option(
+            "formulation",
+            "multibody",
+            "multibody: one multibody per Pin, revolute/spherical joints; p2p: separate bodies joined by JOINT_POINT2POINT",
+            "str",
+            ("multibody", "p2p"),
+        ),
+        "solver": Option(
+            "solver",
+            "si",
+            "constraint solver: si (sequential impulse, PyBullet's default), pgs (MLCP projected Gauss-Seidel), "
+            "dantzig (MLCP Dantzig, a direct solver)",
+            "str",
+            tuple(SOLVERS),
+        ),
+        "erp": Option(
+            "erp",
+            PYBULLET_ERP,
+            f"fraction of a constraint's position error corrected per step (PyBullet's default {PYBULLET_ERP}); in [0, 1]",
+        ),
+        "iterations": Option(
+            "iterations",
+            PYBULLET_ITERATIONS,
+            f"solver iterations per step (PyBullet's default {PYBULLET_ITERATIONS}); at least 1",
+            "int",
+        ),
+        "inertia_ratio": Option(
+            "inertia_ratio",
+            1e-4,
+            "each point mass's central inertia as a fraction of m·L² (L: the scene's characteristic length); positive",
+        ),
+    }
+    variants = {
+        "multibody": {"formulation": "multibody"},
+        "p2p": {"formulation": "p2p"},
+        "p2p-dantzig": {"formulation": "p2p", "solver": "dantzig"},
+        "p2p-dantzig-erp0.8": {"formulation": "p2p", "solver": "dantzig", "erp": 0.8},
+        "p2p-iter500": {"formulation": "p2p", "iterations": 500},
+    }
+    variant_docs = {
+        "multibody": "one multibody per Pin: revolute joints (spherical in 3-D), motors off, no damping",
+        "p2p": "separate bodies joined by JOINT_POINT2POINT, PyBullet's default solver (sequential impulse, 50 iterations, ERP 0.2)",
+        "p2p-dantzig": "p2p with the MLCP Dantzig (direct) solver, ERP 0.2",
+        "p2p-dantzig-erp0.8": "p2p with the Dantzig solver and ERP 0.8 (stiffer drift correction)",
+        "p2p-iter500": "p2p with the default sequential-impulse solver at 500 iterations",
+    }
+    overrides = {
+        "gravity": "scene gravity (PyBullet's default: 0)",
+        "fixedTimeStep": "dt (PyBullet's default: 1/240 s)",
+        "numSubSteps": 0,
+        "linearDamping": "0 (PyBullet's default: 0.04)",
+        "angularDamping": "0 (PyBullet's default: 0.04)",
+        "jointDamping": 0.0,
+        "joint velocity motors": "disabled: zero maximum force (PyBullet's default holds each revolute joint at rest)",
+        "sleeping": "disabled (PyBullet's default: bodies sleep after 2 s below 0.8 m/s and 1 rad/s)",
+        "collision shapes": "none (no contacts possible)",
+    }
+
+    def version(self) -> str:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            return version("pybullet")
+        except PackageNotFoundError:
+            return f"api {_pb.getAPIVersion()}"
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if not 0.0 <= settings["erp"] <= 1.0:
+            raise Unsupported(f"pybullet: option erp must be in [0, 1], got {settings['erp']}")
+        if settings["iterations"] < 1:
+            raise Unsupported(f"pybullet: option iterations must be at least 1, got {settings['iterations']}")
+        if settings["inertia_ratio"] <= 0:
+            raise Unsupported(
+                f"pybullet: option inertia_ratio must be positive, got {settings['inertia_ratio']}; try 1e-4"
+            )
+        forest(scene)
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        with quiet_output():
+            client = _pb.connect(_pb.DIRECT)
+            try:
+                return _Run(client, scene, schedule, settings).execute()
+            finally:
+                _pb.disconnect(physicsClientId=client)
+
+
+class _Run:
+    """One simulation in one private PyBullet client."""
+
+    def __init__(self, client: int, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]):
+        self.client = client
+        self.scene = scene
+        self.schedule = schedule
+        self.settings = settings
+        self.links = forest(scene)
+        self.inertia = float(settings["inertia_ratio"]) * scene.characteristic_length**2
+        self.n_particles = len(scene.particles)
+        self.n_constraints = len(scene.constraints)
+
+    # -- building --
+
+    def _world(self) -> None:
+        pb, c, s = _pb, self.client, self.settings
+        pb.setGravity(*self.scene.gravity, physicsClientId=c)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=self.schedule.dt,
+            numSubSteps=0,
+            numSolverIterations=int(s["iterations"]),
+            erp=float(s["erp"]),
+            constraintSolverType=SOLVERS[s["solver"]],
+            physicsClientId=c,
+        )
+
+    def _build_multibody(self) -> None:
+        """One multibody per Pin; every particle a link with its joint at its parent."""
+        pb, c = _pb, self.client
+        q = self.scene.initial_positions
+        v = self.scene.initial_velocities
+        masses = self.scene.masses
+        joint_type = pb.JOINT_REVOLUTE if self.scene.is_planar else pb.JOINT_SPHERICAL
+        # Link handle per particle: (body id, link index); absolute angular velocity per particle.
+        self.handles: list[tuple[int, int]] = [(-1, -1)] * self.n_particles
+        omega = {}
+        roots = [link for link in self.links if link.parent is None]
+        for root in roots:
+            members = [root]
+            index_of = {root.particle: 0}
+            for link in self.links:
+                if link.parent is not None and link.parent in index_of:
+                    index_of[link.particle] = len(members)
+                    members.append(link)
+            # Link frames sit at the joint, aligned with the scene frame at the initial state;
+            # a link's joint is placed at its parent's particle (the parent link's centre of mass).
+            positions, parents = [], []
+            for link in members:
+                if link.parent is None:
+                    positions.append([0.0, 0.0, 0.0])  # the base frame is at the anchor
+                    parents.append(0)  # 0 = the base; k = link k − 1
+                else:
+                    parent = self.links_by_particle[link.parent]
+                    positions.append(list(q[link.parent] - parent.joint))
+                    parents.append(index_of[link.parent] + 1)
+            count = len(members)
+            body = pb.createMultiBody(
+                baseMass=0.0,
+                baseCollisionShapeIndex=-1,
+                baseVisualShapeIndex=-1,
+                basePosition=list(root.joint),
+                linkMasses=[float(masses[l.particle]) for l in members],
+                linkCollisionShapeIndices=[-1] * count,
+                linkVisualShapeIndices=[-1] * count,
+                linkPositions=positions,
+                linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
+                linkInertialFramePositions=[list(q[l.particle] - l.joint) for l in members],
+                linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
+                linkParentIndices=parents,
+                linkJointTypes=[joint_type] * count,
+                linkJointAxis=[[0.0, 1.0, 0.0]] * count,
+                physicsClientId=c,
+            )
+            pb.changeDynamics(
+                body, -1, linearDamping=0.0, angularDamping=0.0,
+                activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=c,
+            )
+            for j, link in enumerate(members):
+                i = link.particle
+                self.handles[i] = (body, j)
+                pb.changeDynamics(
+                    body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
+                    jointDamping=0.0, linearDamping=0.0, angularDamping=0.0, physicsClientId=c,
+                )
+                v_parent = np.zeros(3) if link.parent is None else v[link.parent]
+                omega[i] = _angular_velocity(q[i] - link.joint, v[i] - v_parent)
+                relative = omega[i] - (np.zeros(3) if link.parent is None else omega[link.parent])
+                if joint_type == pb.JOINT_REVOLUTE:
+                    # Disable PyBullet's default velocity motor: it holds the joint at rest.
+                    pb.setJointMotorControl2(body, j, pb.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=c)
+                    pb.resetJointState(body, j, 0.0, targetVelocity=float(relative[1]), physicsClientId=c)
+                else:
+                    pb.setJointMotorControlMultiDof(
+                        body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
+                        targetVelocity=[0.0, 0.0, 0.0], force=[0.0, 0.0, 0.0], physicsClientId=c,
+                    )
+                    # At the initial state every frame is aligned with the scene frame, so the
+                    # joint's angular velocity (child frame) is the scene-frame relative rate.
+                    pb.resetJointStateMultiDof(
+                        body, j, targetValue=[0.0, 0.0, 0.0, 1.0], targetVelocity=list(map(float, relative)),
+                        physicsClientId=c,
+                    )
+
+    def _build_p2p(self) -> None:
+        """A body per particle carrying the arm to its parent; a point-to-point constraint at the arm's tip."""
+        pb, c = _pb, self.client
+        q = self.scene.initial_positions
+        v = self.scene.initial_velocities
+        masses = self.scene.masses
+        self.bodies = [-1] * self.n_particles
+        for i in range(self.n_particles):
+            body = pb.createMultiBody(
+                baseMass=float(masses[i]), baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                basePosition=list(q[i]), physicsClientId=c,
+            )
+            # Mass passed with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass (ENGINE_NOTES).
+            pb.changeDynamics(
+                body, -1, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
+                linearDamping=0.0, angularDamping=0.0,
+                activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=c,
+            )
+            self.bodies[i] = body
+        omega = {}
+        self.constraint_ids = [-1] * self.n_constraints
+        # getConstraintState gives the impulse/dt on the constraint's child side (world frame): the
+        # force on the particle carrying the arm is its negative (checked on a hanging bead: +m·g·z).
+        self.force_sign = np.zeros(self.n_constraints)
+        anchors: dict[tuple[float, ...], int] = {}
+        for link in self.links:
+            i = link.particle
+            arm = link.joint - q[i]  # from the particle to its pivot, scene frame = body frame at rest
+            if link.parent is None:
+                key = tuple(link.joint)
+                if key not in anchors:
+                    anchors[key] = pb.createMultiBody(
+                        baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                        basePosition=list(link.joint), physicsClientId=c,
+                    )
+                other = anchors[key]
+                v_parent = np.zeros(3)
+            else:
+                other = self.bodies[link.parent]
+                v_parent = v[link.parent]
+            omega[i] = _angular_velocity(-arm, v[i] - v_parent)
+            cid = pb.createConstraint(
+                self.bodies[i], -1, other, -1, pb.JOINT_POINT2POINT, [0.0, 0.0, 0.0],
+                parentFramePosition=list(arm), childFramePosition=[0.0, 0.0, 0.0], physicsClientId=c,
+            )
+            self.constraint_ids[link.constraint] = cid
+            self.force_sign[link.constraint] = -1.0 if link.first_is_self else 1.0
+        for i, body in enumerate(self.bodies):
+            pb.resetBaseVelocity(body, list(map(float, v[i])), list(map(float, omega[i])), physicsClientId=c)
+
+    # -- reading --
+
+    def _state_multibody(self) -> tuple[np.ndarray, np.ndarray]:
+        pb, c = _pb, self.client
+        x = np.empty((self.n_particles, 3))
+        u = np.empty((self.n_particles, 3))
+        for i, (body, j) in enumerate(self.handles):
+            # [0]: the link's centre of mass (the particle), [6]: its linear velocity, world frame.
+            s = pb.getLinkState(body, j, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
+            x[i] = s[0]
+            u[i] = s[6]
+        return x, u
+
+    def _state_p2p(self) -> tuple[np.ndarray, np.ndarray]:
+        pb, c = _pb, self.client
+        x = np.empty((self.n_particles, 3))
+        u = np.empty((self.n_particles, 3))
+        for i, body in enumerate(self.bodies):
+            x[i] = pb.getBasePositionAndOrientation(body, physicsClientId=c)[0]
+            u[i] = pb.getBaseVelocity(body, physicsClientId=c)[0]
+        return x, u
+
+    def _forces_p2p(self) -> np.ndarray:
+        pb, c = _pb, self.client
+        f = np.empty((self.n_constraints, 3))
+        for k, cid in enumerate(self.constraint_ids):
+            f[k] = self.force_sign[k] * np.asarray(pb.getConstraintState(cid, physicsClientId=c)[:3])
+        return f
+
+    # -- stepping --
+
+    def execute(self) -> RawRun:
+        pb, c = _pb, self.client
+        self.links_by_particle = {link.particle: link for link in self.links}
+        self._world()
+        if self.settings["formulation"] == "multibody":
+            self._build_multibody()
+            state, forces = self._state_multibody, None
+        else:
+            self._build_p2p()
+            state, forces = self._state_p2p, self._forces_p2p
+        samples = self.schedule.sample_steps
+        n = len(samples)
+        positions = np.empty((n, self.n_particles, 3))
+        velocities = np.empty((n, self.n_particles, 3))
+        force_samples = np.full((n, self.n_constraints, 3), np.nan) if forces else None
+        limit = RUNAWAY_LENGTHS * self.scene.characteristic_length
+        positions[0], velocities[0] = state()
+        step, recorded, message = 0, 1, ""
+        start = time.perf_counter()
+        for k in range(1, n):
+            for _ in range(int(samples[k]) - step):
+                pb.stepSimulation(physicsClientId=c)
+                step += 1
+                if step == 1 and forces:
+                    force_samples[0] = forces()  # no step precedes t = 0: the first step's force stands in
+            positions[k], velocities[k] = state()
+            if forces:
+                force_samples[k] = forces()
+            recorded = k + 1
+            if not (np.isfinite(positions[k]).all() and np.isfinite(velocities[k]).all()):
+                break
+            if np.abs(positions[k]).max() > limit:
+                message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
+                break
+        wall = time.perf_counter() - start
+        return RawRun(
+            positions=positions[:recorded],
+            velocities=velocities[:recorded],
+            forces=None if force_samples is None else force_samples[:recorded],
+            steps=step,
+            wall_time=wall,
+            message=message,
+            settings={
+                "point_mass_inertia": f"{self.inertia:.6g}·m kg·m² about each axis (inertia_ratio · L²)",
+                "joint": ("revolute about y" if self.scene.is_planar else "spherical")
+                if self.settings["formulation"] == "multibody"
+                else "JOINT_POINT2POINT",
+            },
+        )
+
+ENGINE = PyBulletEngine()
