@@ -14,7 +14,7 @@
   the angle between them), so the arms are assigned by a matching of
   constraints to particles. The arm's body turns with the rod, so it adds the
   rotational energy ½·ω·I·ω of the body's tiny inertia I: relative to the
-  particle energy this is ``inertia_ratio`` (1e-6 by default).
+  particle energy this is ``inertia_ratio`` (1e-9 by default).
 
 The model is built as MJCF text in the scene's *initial* configuration, so
 qpos0 is the initial state: hinge angles are 0 there (a child's hinge angle is
@@ -301,7 +301,7 @@ class MuJoCoEngine(Engine):
             "refsafe", True, "keep MuJoCo's refsafe clamp of solref's time constant to at least 2·dt", kind="bool"
         ),
         "inertia_ratio": Option(
-            "inertia_ratio", 1e-6,
+            "inertia_ratio", 1e-9,
             "rotational inertia of each point-mass body, as a fraction of m·L² (L: the scene's length scale)",
         ),
     }
@@ -383,6 +383,11 @@ class MuJoCoEngine(Engine):
         states[0] = initial[0]
         recorded, wall, steps_done, message = 1, 0.0, 0, ""
 
+        heard: list[str] = []
+        previous_handler = mujoco.get_mju_user_warning()
+        # MuJoCo prints warnings and appends them to MUJOCO_LOG.TXT in the working directory;
+        # collect them for RunInfo instead (the handler is process-wide, so restore it after).
+        mujoco.set_mju_user_warning(heard.append)
         runner = mj_rollout.Rollout(nthread=0)
         buffer = np.empty((1, min(CHUNK_STEPS, schedule.n_steps), nstate))
         warmstart = np.zeros((1, model.nv))
@@ -402,13 +407,14 @@ class MuJoCoEngine(Engine):
                 warned = [w for w in _WARNINGS if data.warning[w].number > 0]
                 good = nstep
                 if warned:
+                    # The reset sets the clock back, so the first row whose time is not its step's is the reset.
                     expected = (steps_done + 1 + np.arange(nstep)) * schedule.dt
                     off = np.abs(out[0, :, 0] - expected) > 0.5 * schedule.dt
                     good = int(np.argmax(off)) if off.any() else nstep - 1
+                    said = f" ({heard[0].strip()})" if heard else ""
                     message = (
-                        f"MuJoCo raised {', '.join(_WARNINGS[w] for w in warned)} near "
-                        f"t = {(steps_done + good + 1) * schedule.dt:.6g} s and reset its state; "
-                        "samples end before the reset"
+                        f"MuJoCo raised {', '.join(_WARNINGS[w] for w in warned)}{said} in the step from "
+                        f"t = {(steps_done + good) * schedule.dt:.6g} s and reset its state; the samples end before it"
                     )
                 rows = sample_steps[(sample_steps > steps_done) & (sample_steps <= steps_done + good)]
                 states[recorded : recorded + len(rows)] = out[0, rows - steps_done - 1]
@@ -419,6 +425,7 @@ class MuJoCoEngine(Engine):
                 initial[0] = out[0, nstep - 1]
         finally:
             runner.close()
+            mujoco.set_mju_user_warning(previous_handler)
 
         positions, velocities, forces = read_samples(scene, model, data, states[:recorded], hinge)
         return RawRun(
