@@ -171,6 +171,10 @@ SOLVERS = {
     "dantzig": _pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
 }
 
+#: Overrides a user can switch off (option ``keep_defaults``) to see what PyBullet's default costs:
+#: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
+KEEPABLE = ("damping", "motors", "sleeping")
+
 #: A coordinate this many characteristic lengths from the origin has run away.
 RUNAWAY_LENGTHS = 1e6
 
@@ -241,6 +245,11 @@ def forest(scene: Scene) -> list[Link]:
     return [links[i] for i in order]
 
 
+def _kept(settings: Mapping[str, Any]) -> list[str]:
+    """The PyBullet defaults the ``keep_defaults`` option leaves in place."""
+    return [name.strip() for name in str(settings["keep_defaults"]).split(",") if name.strip()]
+
+
 def _angular_velocity(r: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(3,) rad/s: the rotation rate of an arm r (m) whose tip moves at u (m/s) relative to its root (no spin about r)."""
     return np.cross(r, u) / float(r @ r)
@@ -280,6 +289,13 @@ class PyBulletEngine(Engine):
             PYBULLET_ITERATIONS,
             f"solver iterations per step (PyBullet's default {PYBULLET_ITERATIONS}); at least 1",
             "int",
+        ),
+        "keep_defaults": Option(
+            "keep_defaults",
+            "",
+            "PyBullet defaults to leave in place, comma-separated, for measuring what they cost: "
+            f"{', '.join(KEEPABLE)} (none by default)",
+            "str",
         ),
         "inertia_ratio": Option(
             "inertia_ratio",
@@ -330,6 +346,12 @@ class PyBulletEngine(Engine):
             raise Unsupported(
                 f"pybullet: option inertia_ratio must be positive, got {settings['inertia_ratio']}; try 1e-4"
             )
+        unknown = set(_kept(settings)) - set(KEEPABLE)
+        if unknown:
+            raise Unsupported(
+                f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
+                f"use a comma-separated subset of {', '.join(KEEPABLE)}"
+            )
         forest(scene)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
@@ -353,6 +375,17 @@ class _Run:
         self.inertia = float(settings["inertia_ratio"]) * scene.characteristic_length**2
         self.n_particles = len(scene.particles)
         self.n_constraints = len(scene.constraints)
+        kept = _kept(settings)
+        self.keep_motors = "motors" in kept
+        # changeDynamics keywords: zero damping for every body and link, no sleeping for every body
+        # (base), unless kept. activationState goes on bases only: given for a multibody link it
+        # broke the multibody in 3.2.7 (the bead stopped swinging: energy drift 5e-2 of E*).
+        self.damping: dict[str, Any] = {}
+        self.activation: dict[str, Any] = {}
+        if "damping" not in kept:
+            self.damping.update(linearDamping=0.0, angularDamping=0.0)
+        if "sleeping" not in kept:
+            self.activation.update(activationState=_pb.ACTIVATION_STATE_DISABLE_SLEEPING)
 
     # -- building --
 
@@ -415,29 +448,30 @@ class _Run:
                 linkJointAxis=[[0.0, 1.0, 0.0]] * count,
                 physicsClientId=c,
             )
-            pb.changeDynamics(
-                body, -1, linearDamping=0.0, angularDamping=0.0,
-                activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=c,
-            )
+            pb.changeDynamics(body, -1, **self.damping, **self.activation, physicsClientId=c)
             for j, link in enumerate(members):
                 i = link.particle
                 self.handles[i] = (body, j)
                 pb.changeDynamics(
                     body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                    jointDamping=0.0, linearDamping=0.0, angularDamping=0.0, physicsClientId=c,
+                    jointDamping=0.0, **self.damping, physicsClientId=c,
                 )
                 v_parent = np.zeros(3) if link.parent is None else v[link.parent]
                 omega[i] = _angular_velocity(q[i] - link.joint, v[i] - v_parent)
                 relative = omega[i] - (np.zeros(3) if link.parent is None else omega[link.parent])
                 if joint_type == pb.JOINT_REVOLUTE:
-                    # Disable PyBullet's default velocity motor: it holds the joint at rest.
-                    pb.setJointMotorControl2(body, j, pb.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=c)
+                    if not self.keep_motors:
+                        # Disable PyBullet's default velocity motor: it holds the joint at rest.
+                        pb.setJointMotorControl2(
+                            body, j, pb.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=c
+                        )
                     pb.resetJointState(body, j, 0.0, targetVelocity=float(relative[1]), physicsClientId=c)
                 else:
-                    pb.setJointMotorControlMultiDof(
-                        body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
-                        targetVelocity=[0.0, 0.0, 0.0], force=[0.0, 0.0, 0.0], physicsClientId=c,
-                    )
+                    if not self.keep_motors:
+                        pb.setJointMotorControlMultiDof(
+                            body, j, pb.POSITION_CONTROL, targetPosition=[0.0, 0.0, 0.0, 1.0],
+                            targetVelocity=[0.0, 0.0, 0.0], force=[0.0, 0.0, 0.0], physicsClientId=c,
+                        )
                     # At the initial state every frame is aligned with the scene frame, so the
                     # joint's angular velocity (child frame) is the scene-frame relative rate.
                     pb.resetJointStateMultiDof(
@@ -460,8 +494,7 @@ class _Run:
             # Mass passed with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass (ENGINE_NOTES).
             pb.changeDynamics(
                 body, -1, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                linearDamping=0.0, angularDamping=0.0,
-                activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=c,
+                **self.damping, **self.activation, physicsClientId=c,
             )
             self.bodies[i] = body
         omega = {}
