@@ -12,6 +12,10 @@ per scene:
   measure chaos rather than the solver);
 - cost: stepping wall time per simulated second, s/s.
 
+Then, for pymunk's defaults against error_bias = 0: the signed energy change
+of the bead over 100 s, the bead's period error, the tension error against
+the reference, and the chain of 16 at large steps.
+
 The numbers quoted in docs/engines.md ("## pymunk") come from this script:
 
     .venv/bin/python scripts/defaults_pymunk.py
@@ -25,10 +29,14 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-from compare.metrics import constraint_error, energy_drift, position_error
+import numpy as np
+
+from compare.metrics import constraint_error, energy_drift, energy_drift_series, position_error
 from engines import catalog
+from engines.closed_form import pendulum_period
 from engines.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
 from engines.reference import solve
+from engines.trajectory import tensions
 
 #: Horizon (s) of the position-error column.
 ERROR_HORIZON = 1.0
@@ -107,6 +115,84 @@ def table(case: Case, rows) -> str:
     return "\n".join(lines)
 
 
+def long_run_energy() -> str:
+    """Signed energy change of the 60° bead over 100 s: is the default bias's loss steady?"""
+    scene = catalog.build("bead", {"duration": 100.0})
+    lines = [
+        "### bead, 60°, 100 s, dt = 1e-3: signed energy change (E − E(0)) / E*",
+        "",
+        "| setting | at 10 s | at 100 s | max abs over 100 s |",
+        "|---|---|---|---|",
+    ]
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
+        series = energy_drift_series(scene, run.positions, run.velocities)
+        at_10 = series[int(np.argmin(np.abs(run.t - 10.0)))]
+        lines.append(f"| {label} | {at_10:.2g} | {series[-1]:.2g} | {np.abs(series).max():.2g} |")
+    return "\n".join(lines)
+
+
+def bead_period() -> str:
+    """Relative period error of the 10° bead at dt = 1e-3 (zero crossings of x, sampled every step)."""
+    dt, theta0 = 1e-3, math.radians(10.0)
+    exact = pendulum_period(1.0, 9.81, theta0)
+    scene = catalog.build("bead", {"theta0": 10.0, "duration": 4 * exact})
+    lines = [
+        "### bead, 10°, dt = 1e-3: period against the elliptic-integral period",
+        "",
+        "| setting | relative period error |",
+        "|---|---|",
+    ]
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, dt, variant="pin", options=options, sample_interval=dt)
+        x = run.positions[:, 0, 0]
+        i = np.nonzero(np.signbit(x[1:]) != np.signbit(x[:-1]))[0]
+        crossings = run.t[i] - x[i] * dt / (x[i + 1] - x[i])
+        period = 2 * np.polyfit(np.arange(len(crossings)), crossings, 1)[0]
+        lines.append(f"| {label} | {(period - exact) / exact:.2g} |")
+    return "\n".join(lines)
+
+
+def tension_error() -> str:
+    """Largest |T − T_ref| (N) on the 60° bead over 1 s (the whole tension range) at dt = 1e-3."""
+    scene = catalog.build("bead", {"duration": 1.0})
+    reference = solve(scene)
+    lines = [
+        "### bead, 60°, 1 s, dt = 1e-3: tension from impulse / dt against the reference",
+        "",
+        "| setting | max tension error (N) | reference tension range (N) |",
+        "|---|---|---|",
+    ]
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
+        positions, _, forces = reference.at(run.t)
+        expected = tensions(scene, positions, forces)[1:, 0]
+        measured = tensions(scene, run.positions, run.constraint_forces)[1:, 0]
+        lines.append(
+            f"| {label} | {np.abs(measured - expected).max():.2g} | {expected.min():.3g}–{expected.max():.3g} |"
+        )
+    return "\n".join(lines)
+
+
+def large_steps() -> str:
+    """Status and largest speed of the chain of 16 at large steps: does pymunk blow up?"""
+    case = CASES[-1]
+    scene = catalog.build(case.scene, {**case.parameters, "duration": 5.0})
+    lines = [
+        "### chain of 16, 5 s, large steps: status and largest speed",
+        "",
+        "| setting | dt (s) | status | max speed (m/s) | energy drift (E*) |",
+        "|---|---|---|---|---|",
+    ]
+    for label, options in (SETTINGS[0], SETTINGS[4]):
+        for dt in (0.02, 0.05, 0.1):
+            run = ENGINE.simulate(scene, dt, variant="pin", options=options)
+            speed = np.linalg.norm(run.velocities, axis=2).max() if run.n_samples else math.nan
+            drift = energy_drift(scene, run.positions, run.velocities)
+            lines.append(f"| {label} | {dt:g} | {run.info.status} | {speed:.3g} | {drift:.2g} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", type=int, action="append", help="index of a case to run (default: all)")
@@ -116,6 +202,10 @@ def main(argv: list[str] | None = None) -> int:
     for case in chosen:
         print(table(case, measure(case)))
         print()
+    if not args.case:
+        for section in (long_run_energy, bead_period, tension_error, large_steps):
+            print(section())
+            print()
     return 0
 
 
