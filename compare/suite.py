@@ -23,6 +23,10 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     [tolerances]                   # per-metric tolerances, for the gate
     position_error_linf = 0.1
 
+    [gate]                         # `xval gate` overrides (compare/tolerance.py)
+    timing_factor = 1.5
+    energy_drift = { rtol = 0.2, atol = 1e-9 }
+
     [[scenes]]
     id = "bead-60"                 # readable id, defaults to the scene name
     scene = "bead"                 # a catalog name
@@ -58,6 +62,7 @@ from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
 from compare.metrics import DEFAULT_DELTA, Bounds
+from compare.tolerance import GateSettings, gate_settings
 
 #: Keys a suite file may hold at the top level, with what each must be.
 TOP_LEVEL_KEYS = {
@@ -72,6 +77,7 @@ TOP_LEVEL_KEYS = {
     "reference": "a table with rtol and atol",
     "bounds": "a table with energy_drift and constraint_error",
     "tolerances": "a table of metric name = number",
+    "gate": "a table of metric = { rtol, atol } and timing_factor, for xval gate",
     "scenes": "an array of tables [[scenes]]",
     "engines": "an array of engine ids or tables [[engines]]",
 }
@@ -146,6 +152,7 @@ class Suite:
     atol: float
     bounds: Bounds
     tolerances: Mapping[str, float] = field(default_factory=dict)
+    gate: GateSettings = field(default_factory=GateSettings)
 
     def fingerprint(self) -> str:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
@@ -323,6 +330,7 @@ class _Reader:
             key: self.number(f"tolerances.{key}", value)
             for key, value in self.table("tolerances", data.get("tolerances", {}), TOLERANCE_KEYS).items()
         }
+        gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)
         longest_dt = max(dts)
@@ -351,6 +359,7 @@ class _Reader:
             atol=atol,
             bounds=bounds,
             tolerances=tolerances,
+            gate=gate,
         )
 
     def dts(self, value: Any) -> tuple[float, ...]:
