@@ -38,7 +38,7 @@ import numpy as np
 import pymunk
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported
+from engines.errors import Unsupported, UserError
 from engines.scene import Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
@@ -105,6 +105,11 @@ class PymunkEngine(Engine):
         _check_settings(settings)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        """Step ``schedule.n_steps`` times; record positions (m), velocities (m/s), forces (N) at the sample steps.
+
+        Only ``Space.step`` calls are timed. The velocity before each sample
+        step is read (untimed) for the sign of that step's constraint forces.
+        """
         model = _Model(scene, settings)
         dt = schedule.dt
         steps = schedule.sample_steps.tolist()
@@ -160,9 +165,7 @@ class PymunkEngine(Engine):
 
 
 def _check_settings(settings: Mapping[str, Any]) -> None:
-    """Refuse option values pymunk would accept but that mean nothing (or assert in C)."""
-    from engines.errors import UserError
-
+    """Refuse option values pymunk would accept but that mean nothing (or trip an assert in C)."""
     if not 0.0 <= settings["error_bias"] <= 1.0:
         raise UserError(f"pymunk: option error_bias must be in [0, 1], got {settings['error_bias']!r}")
     if settings["iterations"] < 1:

@@ -18,6 +18,7 @@ from engines.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
 from engines.pymunk import ENGINE
 from engines.reference import solve
+from engines.scene import Pin, Rod, Scene
 from engines.trajectory import max_constraint_error, tensions, total_energy
 
 VARIANTS = list(ENGINE.variants)
@@ -201,6 +202,28 @@ def test_pushing_constraints_have_negative_tension():
     run = ENGINE.simulate(scene, 1e-3, variant="pin-bias0")
     measured = tensions(scene, run.positions, run.constraint_forces)
     np.testing.assert_allclose(measured, np.broadcast_to([-2 * G, -G], measured.shape), rtol=1e-6)
+
+
+def test_constraint_order_and_orientation_do_not_matter():
+    # The double pendulum with its particles listed bottom-up: the Pin holds
+    # particle 1 and the Rod's first particle is the lower one, so the rod's
+    # force is reported on the lower mass. Same physics, same bounds as
+    # above: positions within 5e-4·L (measured 2.2e-4 m), force vectors
+    # within max|dT/dt|·dt of the reference's (measured 0.028 N).
+    base = catalog.build("double-pendulum", {"duration": 0.5})
+    scene = Scene(
+        "double-pendulum-bottom-up",
+        base.particles[::-1],
+        (Pin(1, base.constraints[0].anchor, 1.0), Rod(0, 1, 1.0)),
+        base.gravity,
+        0.5,
+    )
+    dt = 1e-4
+    run = ENGINE.simulate(scene, dt, variant="pin-bias0")
+    positions, _, forces = solve(scene).at(run.t)
+    assert np.linalg.norm(run.positions - positions, axis=2).max() < 5e-4 * scene.characteristic_length
+    rate = np.abs(np.gradient(tensions(scene, positions, forces)[1:], run.t[1:], axis=0)).max()
+    assert np.linalg.norm(run.constraint_forces - forces, axis=2)[1:].max() < rate * dt
 
 
 def test_frame_and_constraint_error():
