@@ -88,8 +88,8 @@ _WARNINGS = {
 class Tree:
     """The constraints of a scene read as a forest hung from Pins (for the hinge formulation).
 
-    parent : (n,) parent particle index, or −1 for a particle pinned to ``anchor``.
-    anchor : (n, 3) m, the pivot of each particle's link (the anchor, or the parent's position).
+    parent : (n,) parent particle index, or −1 for a particle hung from a Pin.
+    pivot : (n, 3) m, the pivot of each particle's link (the Pin's anchor, or the parent's initial position).
     constraint_of : (n,) index of the constraint joining the particle to its parent.
     order : particles, parents before children.
     """
