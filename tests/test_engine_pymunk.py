@@ -132,8 +132,8 @@ def test_double_pendulum_normal_mode_frequency(mode):
     lower = np.arctan2(p[:, 1, 0] - p[:, 0, 0], p[:, 0, 2] - p[:, 1, 2])
     # Relative frequency error: first-order drift term ω·dt·ε², the phase
     # error of symplectic Euler (ω·dt)², and the nonlinear shift of a finite
-    # amplitude, ≲ ε² (measured 0.92·ε² for the fast mode). Measured with
-    # ε = 0.002: about 4e-6 for both modes; bounds 3.7e-5 / 4e-6+(2.4e-3)².
+    # amplitude, ≲ ε² (measured 0.92·ε² for the fast mode). Bounds with
+    # ε = 0.002: 9.8e-6 (slow), 3.8e-5 (fast); measured 7e-8 and −2.3e-6.
     w = omegas[mode]
     tolerance = w * dt * amplitude**2 + (w * dt) ** 2 + amplitude**2
     for angle in (upper, lower):
