@@ -1,0 +1,27 @@
+"""ours: constrained dynamics of point masses (after Baraff & Witkin), a library of its own.
+
+Build a :class:`System` of masses, gravity and constraints (:class:`Pin`,
+:class:`Wire`, :class:`Rod`), then :func:`simulate` a whole trajectory in one
+call; the stepping loop is compiled with numba (cached between runs).
+
+    >>> from ours import System, Wire, simulate
+    >>> bead = System((1.0,), (0.0, -9.81), (Wire(0, (0.0, 0.0), 1.0),))
+    >>> run = simulate(bead, [[1.0, 0.0]], [[0.0, 0.0]], 1e-3, 1000, 10, method="rattle")
+"""
+
+from ours.bead import bead_multiplier
+from ours.constraint import DistanceConstraint, Pin, Rod, Wire
+from ours.errors import InvalidPair, ModelError, OursError
+from ours.integrator import INTEGRATORS, Integrator, get_integrator
+from ours.method import DEFAULT_K_S, METHODS, critical_damping, resolve_pair, valid_pairs
+from ours.simulate import Result, compile_all, multipliers, simulate
+from ours.system import System
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DEFAULT_K_S", "INTEGRATORS", "METHODS", "DistanceConstraint", "Integrator", "InvalidPair",
+    "ModelError", "OursError", "Pin", "Result", "Rod", "System", "Wire", "bead_multiplier",
+    "compile_all", "critical_damping", "get_integrator", "multipliers", "resolve_pair",
+    "simulate", "valid_pairs",
+]

@@ -1,0 +1,125 @@
+"""Adapter for ``ours``, the project's own constrained-dynamics solver.
+
+Variants are ``<method>-<integrator>`` (``baumgarte-rk4``, ``plain-euler``,
+``projection-symplectic-euler``, ``lagrangian-rk4``, …) plus ``rattle``, which
+is its own integrator; every pair ``ours.valid_pairs()`` accepts has one.
+
+Frame: a planar scene (x–z) runs in ours' 2-D coordinates (scene x → ours x,
+scene z → ours y), anything else in 3-D with the scene's axes. Constraint
+forces are the force each constraint exerts on its first particle
+(``Pin.particle``, ``Rod.a``), mapped back to the scene frame. The Lagrangian
+form exists only for planar chains hung from a fixed point (Pin on particle 0,
+then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
+The time recorded is the compiled stepping loop alone (compilation is done,
+or loaded from numba's cache, before the clock starts).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+import ours
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported, UserError
+from engines.scene import Pin, Rod, Scene
+
+_INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
+
+
+def _variants() -> dict[str, dict[str, Any]]:
+    pairs = set(ours.valid_pairs())
+    variants: dict[str, dict[str, Any]] = {"baumgarte-rk4": {"method": "baumgarte", "integrator": "rk4"}}
+    for method in ("baumgarte", "plain", "projection", "lagrangian"):
+        for integrator in _INTEGRATOR_ORDER:
+            if (method, integrator) in pairs:
+                variants.setdefault(f"{method}-{integrator}", {"method": method, "integrator": integrator})
+    variants["rattle"] = {"method": "rattle", "integrator": "rattle"}
+    return variants
+
+
+def _to_system(scene: Scene) -> tuple[ours.System, np.ndarray, np.ndarray, list[int]]:
+    """ours' System, q0, v0 and the scene axes it uses ([0, 2] for planar scenes, else [0, 1, 2])."""
+    axes = [0, 2] if scene.is_planar else [0, 1, 2]
+    constraints = []
+    for c in scene.constraints:
+        if isinstance(c, Pin):
+            constraints.append(ours.Pin(c.particle, tuple(np.asarray(c.anchor)[axes]), c.length))
+        elif isinstance(c, Rod):
+            constraints.append(ours.Rod(c.a, c.b, c.length))
+        else:  # pragma: no cover - a new scene kind must be mapped here first
+            raise Unsupported(f"ours has no constraint for scene kind {c.kind!r}")
+    system = ours.System(tuple(scene.masses), tuple(np.asarray(scene.gravity)[axes]), tuple(constraints))
+    q0 = scene.initial_positions[:, axes]
+    v0 = scene.initial_velocities[:, axes]
+    return system, q0, v0, axes
+
+
+class OursEngine(Engine):
+    name = "ours"
+    capabilities = frozenset({"3d", "constraint-forces"})
+    options = {
+        "method": Option("method", "baumgarte", "drift cure: plain, baumgarte, projection, rattle or lagrangian",
+                         kind="str", choices=tuple(ours.METHODS)),
+        "integrator": Option("integrator", "rk4", "euler, symplectic-euler, midpoint, rk4 or rattle",
+                             kind="str", choices=tuple(ours.INTEGRATORS)),
+        "k_s": Option("k_s", ours.DEFAULT_K_S,
+                      "Baumgarte stiffness, 1/s² (default 100: a 0.1 s correction time constant)"),
+        "k_d": Option("k_d", None, "Baumgarte damping, 1/s (default 2·sqrt(k_s), critical damping)"),
+        "tolerance": Option("tolerance", 1e-12,
+                            "projection / RATTLE solve: stop at max |C|/l² ≤ tolerance (relative length error)"),
+        "max_iterations": Option("max_iterations", 50, "most Newton / SHAKE iterations per step", kind="int"),
+    }
+    variants = _variants()
+    variant_docs = {
+        name: f"{ours.METHODS[v['method']].doc} Integrator: {ours.INTEGRATORS[v['integrator']].doc}"
+        for name, v in variants.items()
+    }
+    overrides: Mapping[str, Any] = {}
+
+    def version(self) -> str:
+        return ours.__version__
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        try:
+            ours.resolve_pair(settings["method"], settings["integrator"])
+        except ours.InvalidPair as exc:
+            raise UserError(f"ours: {exc}") from None
+        if settings["method"] == "lagrangian":
+            if not scene.is_planar:
+                raise Unsupported(
+                    f"ours/lagrangian uses the link angles of a planar chain; {scene.name!r} moves in 3-D"
+                )
+            why = _to_system(scene)[0].chain_order()
+            if why is not None:
+                raise Unsupported(
+                    f"ours/lagrangian needs a chain hung from a fixed point (Pin on particle 0, then "
+                    f"Rod(k-1, k)); {scene.name!r} is not one: {why}"
+                )
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        system, q0, v0, axes = _to_system(scene)
+        compile_seconds = ours.compile_all()  # compile or load the cache before the clock starts
+        result = ours.simulate(
+            system, q0, v0, schedule.dt, schedule.n_steps, schedule.stride,
+            method=settings["method"], integrator=settings["integrator"],
+            k_s=settings["k_s"], k_d=settings["k_d"],
+            tolerance=settings["tolerance"], max_iterations=settings["max_iterations"],
+        )
+        n = len(result.t)
+        positions = np.zeros((n, system.n_particles, 3))
+        velocities = np.zeros_like(positions)
+        forces = np.zeros((n, system.n_constraints, 3))
+        positions[:, :, axes] = result.q
+        velocities[:, :, axes] = result.v
+        forces[:, :, axes] = result.forces
+        return RawRun(
+            positions, velocities, forces, result.steps, result.wall_time, message=result.message,
+            settings={**{f"ours.{k}": v for k, v in result.settings.items()},
+                      "ours.frame": "2-D (scene x, z)" if len(axes) == 2 else "3-D",
+                      "ours.compile_or_cache_load_s": round(compile_seconds, 3)},
+        )
+
+
+ENGINE = OursEngine()

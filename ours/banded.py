@@ -1,0 +1,53 @@
+"""Banded Cholesky factorization and solve for symmetric positive-definite matrices.
+
+Storage: ``band[i, k]`` holds A[i, i − k] for k = 0..b (the lower band, row by
+row); entries with i − k < 0 are unused. Factor and solve cost O(n·b²) and
+O(n·b): for a chain of pins and rods J W Jᵀ is tridiagonal (b = 1), so a
+solve is O(n). With b = n − 1 this is the ordinary dense Cholesky, which the
+Lagrangian form uses for its mass matrix.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True)
+def cholesky_banded(band, b):
+    """Factor A = L Lᵀ in place (L in ``band``); False when A is not positive definite.
+
+    band : (n, b + 1) the lower band of A; b : bandwidth.
+    """
+    n = band.shape[0]
+    for i in range(n):
+        lo = max(0, i - b)
+        for j in range(lo, i + 1):
+            s = band[i, i - j]
+            # L[i, k] and L[j, k] are both inside the band only for k ≥ i − b.
+            for k in range(lo, j):
+                s -= band[i, i - k] * band[j, j - k]
+            if j == i:
+                if not s > 0.0:
+                    return False
+                band[i, 0] = math.sqrt(s)
+            else:
+                band[i, i - j] = s / band[j, 0]
+    return True
+
+
+@njit(cache=True, inline="always")
+def solve_banded(band, b, x):
+    """Solve L Lᵀ x = r in place (``x`` holds r on entry) with L from :func:`cholesky_banded`."""
+    n = band.shape[0]
+    for i in range(n):
+        s = x[i]
+        for k in range(max(0, i - b), i):
+            s -= band[i, i - k] * x[k]
+        x[i] = s / band[i, 0]
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for k in range(i + 1, min(n, i + b + 1)):
+            s -= band[k, k - i] * x[k]
+        x[i] = s / band[i, 0]

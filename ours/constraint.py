@@ -1,0 +1,168 @@
+"""Constraint kinds: C(q), its Jacobian J = ∂C/∂q and J̇q̇, each in closed form.
+
+Every kind here is a *distance* constraint between a particle i and an
+"other end" (a second particle j, or a fixed point a):
+
+    C = ½(‖d‖² − l²),   d = xᵢ − x_other   (m²)
+    ∂C/∂xᵢ = d,  ∂C/∂xⱼ = −d               (m)
+    J̇q̇ = ‖ḋ‖² = ‖vᵢ − vⱼ‖²                (m²/s²)
+
+so each class only says which ends it joins and its length. The compiled
+stepping loop (``ours.kernel``) reads the packed form from :meth:`encode`;
+a new distance-family kind is one small class like those below. The numpy
+methods here are the readable closed forms, used by tests and the dense
+check against the compiled banded solve.
+
+Indices are particle indices of the :class:`ours.system.System`; positions
+``q`` and velocities ``v`` are (n_particles, dim) arrays in m and m/s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ours.errors import ModelError
+
+
+def _point(value, field: str) -> tuple[float, ...]:
+    try:
+        point = tuple(float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ModelError(f"{field}: must be a sequence of 2 or 3 numbers, got {value!r}") from None
+    if len(point) not in (2, 3) or not all(np.isfinite(point)):
+        raise ModelError(f"{field}: must be 2 or 3 finite numbers, got {value!r}")
+    return point
+
+
+def _length(value, field: str) -> float:
+    length = float(value)
+    if not np.isfinite(length) or length <= 0.0:
+        raise ModelError(f"{field}: must be a positive length in m, got {value!r}")
+    return length
+
+
+def _index(value, field: str) -> int:
+    if isinstance(value, bool) or int(value) != value or int(value) < 0:
+        raise ModelError(f"{field}: must be a particle index (an integer ≥ 0), got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class DistanceConstraint:
+    """Base of the distance family; subclasses set the ends and the length (m)."""
+
+    def ends(self) -> tuple[int, int, tuple[float, ...] | None]:
+        """(i, j, anchor): j = −1 and a fixed ``anchor`` point when the other end is fixed."""
+        raise NotImplementedError
+
+    @property
+    def length(self) -> float:
+        raise NotImplementedError
+
+    @property
+    def particles(self) -> tuple[int, ...]:
+        i, j, _ = self.ends()
+        return (i,) if j < 0 else (i, j)
+
+    # -- closed forms (numpy, for reading and checking) -------------------------
+
+    def _d(self, x: np.ndarray) -> np.ndarray:
+        i, j, anchor = self.ends()
+        return x[i] - (x[j] if j >= 0 else np.asarray(anchor[: x.shape[1]]))
+
+    def value(self, q: np.ndarray) -> float:
+        """C(q) = ½(‖d‖² − l²), m²."""
+        d = self._d(q)
+        return 0.5 * (float(d @ d) - self.length**2)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """(n_particles, dim) m: ∂C/∂q, +d on the first particle, −d on the second."""
+        i, j, _ = self.ends()
+        row = np.zeros_like(q, dtype=float)
+        d = self._d(q)
+        row[i] += d
+        if j >= 0:
+            row[j] -= d
+        return row
+
+    def jdot_qdot(self, q: np.ndarray, v: np.ndarray) -> float:
+        """J̇q̇ = ‖vᵢ − vⱼ‖² (m²/s²); the velocity of a fixed end is zero."""
+        i, j, _ = self.ends()
+        dv = v[i] - (v[j] if j >= 0 else 0.0)
+        return float(dv @ dv)
+
+    def encode(self, dim: int) -> tuple[int, int, tuple[float, ...], float]:
+        """(i, j, anchor padded to ``dim``, length): one row of the compiled loop's constraint table."""
+        i, j, anchor = self.ends()
+        point = tuple(anchor[:dim]) if anchor is not None else (0.0,) * dim
+        return i, j, point, self.length
+
+
+@dataclass(frozen=True)
+class Pin(DistanceConstraint):
+    """Particle ``particle`` held at distance ``distance`` (m) from the fixed point ``anchor`` (m):
+    C = ½(‖x − a‖² − l²)."""
+
+    particle: int
+    anchor: tuple[float, ...]
+    distance: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "Pin.particle"))
+        object.__setattr__(self, "anchor", _point(self.anchor, "Pin.anchor"))
+        object.__setattr__(self, "distance", _length(self.distance, "Pin.distance"))
+
+    def ends(self):
+        return self.particle, -1, self.anchor
+
+    @property
+    def length(self) -> float:
+        return self.distance
+
+
+@dataclass(frozen=True)
+class Wire(DistanceConstraint):
+    """A bead ``particle`` on a circular wire of ``radius`` (m) about ``centre`` (m), in a planar system:
+    c(x) = ½(‖x − centre‖² − r²). (The Baraff–Witkin example; the same closed forms as a Pin.)"""
+
+    particle: int
+    centre: tuple[float, ...]
+    radius: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "Wire.particle"))
+        object.__setattr__(self, "centre", _point(self.centre, "Wire.centre"))
+        object.__setattr__(self, "radius", _length(self.radius, "Wire.radius"))
+
+    def ends(self):
+        return self.particle, -1, self.centre
+
+    @property
+    def length(self) -> float:
+        return self.radius
+
+
+@dataclass(frozen=True)
+class Rod(DistanceConstraint):
+    """Particles ``a`` and ``b`` held at distance ``distance`` (m): C = ½(‖xₐ − x_b‖² − l²).
+    Its force Jᵀλ acts on ``a`` as +λd and on ``b`` as −λd."""
+
+    a: int
+    b: int
+    distance: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "a", _index(self.a, "Rod.a"))
+        object.__setattr__(self, "b", _index(self.b, "Rod.b"))
+        object.__setattr__(self, "distance", _length(self.distance, "Rod.distance"))
+        if self.a == self.b:
+            raise ModelError(f"Rod: a and b must be different particles, both are {self.a}")
+
+    def ends(self):
+        return self.a, self.b, None
+
+    @property
+    def length(self) -> float:
+        return self.distance

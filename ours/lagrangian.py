@@ -1,0 +1,125 @@
+"""Reduced coordinates for a planar chain: link angles from Lagrange's equations.
+
+Link k joins particle k − 1 (or the fixed point, for k = 0) to particle k;
+θ_k is its absolute angle from the −y axis toward +x, so
+x_k = a + Σ_{i ≤ k} l_i (sin θ_i, −cos θ_i). With μ_ij = Σ_{k ≥ max(i, j)} m_k,
+
+    Σ_j μ_ij l_i l_j cos(θ_i − θ_j) θ̈_j
+        = −Σ_j μ_ij l_i l_j sin(θ_i − θ_j) θ̇_j² + μ_ii l_i (g_x cos θ_i + g_y sin θ_i),
+
+so the constraints hold by construction (up to round-off in the positions).
+The mass matrix is dense: each step costs O(n³) in the number of links (this
+form is for the short chains where it is the accurate choice, not for speed).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ours.banded import cholesky_banded, solve_banded
+from ours.kernel import NON_FINITE, OK, SINGULAR, _finite, multipliers
+
+
+@njit(cache=True)
+def angular_acceleration(theta, omega, tail, lengths, gravity, M, alpha):
+    """θ̈ (rad/s²) into ``alpha``; False when the mass matrix is singular. M : (n, n) workspace."""
+    n = theta.shape[0]
+    for i in range(n):
+        s = tail[i] * lengths[i] * (gravity[0] * math.cos(theta[i]) + gravity[1] * math.sin(theta[i]))
+        for j in range(n):
+            mu = tail[max(i, j)] * lengths[i] * lengths[j]
+            s -= mu * math.sin(theta[i] - theta[j]) * omega[j] * omega[j]
+            if j <= i:
+                M[i, i - j] = mu * math.cos(theta[i] - theta[j])
+        alpha[i] = s
+    if not cholesky_banded(M, n - 1):
+        return False
+    solve_banded(M, n - 1, alpha)
+    return True
+
+
+@njit(cache=True)
+def to_cartesian(theta, omega, lengths, anchor, q, v):
+    """Particle positions (n, 2) m and velocities (n, 2) m/s of the chain."""
+    x, y, vx, vy = anchor[0], anchor[1], 0.0, 0.0
+    for k in range(theta.shape[0]):
+        s, c = math.sin(theta[k]), math.cos(theta[k])
+        x += lengths[k] * s
+        y -= lengths[k] * c
+        vx += lengths[k] * omega[k] * c
+        vy += lengths[k] * omega[k] * s
+        q[k, 0], q[k, 1], v[k, 0], v[k, 1] = x, y, vx, vy
+
+
+@njit(cache=True)
+def _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam):
+    to_cartesian(theta, omega, lengths, anchor, out_q[n], out_v[n])
+    # The constraint forces of the exact motion: the acceleration-level solve with no feedback.
+    if not multipliers(out_q[n], out_v[n], model, 0.0, 0.0, D, V, band, out_lam[n]):
+        out_lam[n, :] = np.nan
+
+
+@njit(cache=True)
+def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, dt, n_steps, stride, out_q, out_v, out_lam):
+    """Step (θ, θ̇) with the explicit Runge–Kutta table (A, b), recording Cartesian samples.
+
+    tail : (n,) kg, μ_ii = Σ_{k ≥ i} m_k.  lengths : (n,) m.  gravity, anchor : (2,).
+    Returns (samples written, steps taken, status).
+    """
+    n_links = theta.shape[0]
+    stages = b.shape[0]
+    C = model[2].shape[0]
+    M = np.zeros((n_links, n_links))
+    Kt = np.zeros((stages, n_links))
+    Kw = np.zeros((stages, n_links))
+    ts = np.zeros(n_links)
+    ws = np.zeros(n_links)
+    D = np.zeros((C, 2))
+    V = np.zeros((C, 2))
+    band = np.zeros((C, model[8] + 1))
+    h = dt
+    _record(0, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
+    n = 1
+    status = OK
+    step = 0
+    while step < n_steps:
+        for i in range(stages):
+            ts[:] = theta
+            ws[:] = omega
+            for j in range(i):
+                if A[i, j] != 0.0:
+                    for k in range(n_links):
+                        ts[k] += h * A[i, j] * Kt[j, k]
+                        ws[k] += h * A[i, j] * Kw[j, k]
+            Kt[i] = ws
+            if not angular_acceleration(ts, ws, tail, lengths, gravity, M, Kw[i]):
+                status = SINGULAR
+        for i in range(stages):
+            for k in range(n_links):
+                theta[k] += h * b[i] * Kt[i, k]
+                omega[k] += h * b[i] * Kw[i, k]
+        step += 1
+        if status != OK or not (_finite(theta) and _finite(omega)):
+            status = NON_FINITE if not (_finite(theta) and _finite(omega)) else status
+            break
+        if step % stride == 0 or step == n_steps:
+            _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
+            n += 1
+    return n, step, status
+
+
+def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(θ, θ̇) of a planar chain from Cartesian (q0, v0) (n, 2): absolute link angles, rad and rad/s."""
+    theta = np.empty(system.n_particles)
+    omega = np.empty(system.n_particles)
+    anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
+    for k, c in enumerate(system.constraints):
+        base_q = anchor if k == 0 else q0[k - 1]
+        base_v = np.zeros(2) if k == 0 else v0[k - 1]
+        d, dd = q0[k] - base_q, v0[k] - base_v
+        theta[k] = math.atan2(d[0], -d[1])
+        omega[k] = (d[0] * dd[1] - d[1] * dd[0]) / float(d @ d)
+    return theta, omega
