@@ -1,0 +1,154 @@
+"""The per-scene summary table: one row per engine variant at the scene's chosen dt, best value per column marked.
+
+Values are compared only between variants whose case at the chosen dt is
+``ok``: an unstable run's small cost or a failed run's missing drift is not
+"best". The reference engine, when a suite runs it, is shown but not ranked. Ties (equal to the shown precision) are all marked. The observed
+order is a property of the whole sweep, so it is ranked over every variant
+that has one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from compare.sweep import VariantSweep
+
+from reports.load import SceneResults
+
+
+@dataclass(frozen=True)
+class Column:
+    """A metric column: ``key`` in the record's metrics, heading, unit, which way is better, how to print.
+
+    better : "low", "high", or None (not ranked).
+    missing : text for a value the record does not have (None).
+    """
+
+    key: str
+    heading: str
+    unit: str
+    better: str | None
+    missing: str = "–"
+    fmt: Callable[[float], str] = lambda v: f"{v:.3g}" if v == 0 or 1e-3 <= abs(v) < 1e4 else f"{v:.2e}"
+
+
+#: The metric columns, in order (status, dt and the order are added around them).
+METRIC_COLUMNS = (
+    Column("position_error_linf", "position error", "m", "low"),
+    # None means e(t) never passed δ·L: the best possible value, shown as "never".
+    Column("divergence_time", "divergence time", "s", "high", missing="never"),
+    Column("energy_drift", "energy drift", "E*", "low"),
+    Column("constraint_error", "constraint error", "m", "low"),
+    Column("constraint_force_error", "constraint-force error", "N", "low", missing="not exposed"),
+    Column("cost_per_simulated_second", "cost", "s/s", "low"),
+)
+ORDER_COLUMN = Column("observed_order", "observed order", "", "high", missing="–", fmt=lambda v: f"{v:.2f}")
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One table cell: the text shown, whether it is its column's best, and an optional tooltip."""
+
+    text: str
+    best: bool = False
+    title: str = ""
+
+
+@dataclass(frozen=True)
+class Row:
+    """One engine variant: name, status at the chosen dt, statuses over the sweep, metric cells, order cell."""
+
+    engine: str
+    status: str
+    message: str
+    sweep_statuses: str
+    cells: list[Cell]
+    order: Cell
+
+
+@dataclass(frozen=True)
+class SummaryTable:
+    columns: tuple[Column, ...]
+    rows: list[Row]
+    dt: float | None
+
+
+def is_reference(sweep: VariantSweep) -> bool:
+    """Whether ``sweep`` is the reference engine run as a suite engine (not ranked)."""
+    return sweep.records[0]["case"].get("engine_id", "").startswith("reference/")
+
+
+def _sweep_statuses(sweep: VariantSweep) -> str:
+    counts = sweep.statuses
+    total = sum(counts.values())
+    return ", ".join(f"{status} {n}/{total}" for status, n in counts.items())
+
+
+def _rank_value(column: Column, value: Any) -> float | None:
+    """A number to rank on (higher is better after the sign flip), or None when the value cannot rank."""
+    if value is None:
+        # A divergence time of None means "never diverged": better than any time.
+        return math.inf if column.key == "divergence_time" else None
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value) if column.better == "high" else -float(value)
+
+
+def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list[bool]:
+    """Which of ``values`` are the column's best among the ``eligible`` ones (ties to the shown precision)."""
+    ranks = [_rank_value(column, v) if ok else None for v, ok in zip(values, eligible)]
+    candidates = [r for r in ranks if r is not None]
+    if column.better is None or not candidates:
+        return [False] * len(values)
+    top = max(candidates)
+    shown = lambda v: column.missing if v is None else column.fmt(v)  # noqa: E731
+    top_text = next(shown(v) for v, r in zip(values, ranks) if r == top)
+    return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
+
+
+def summary_table(scene: SceneResults) -> SummaryTable:
+    """The summary table of ``scene`` at its chosen dt."""
+    dt = scene.chosen_dt
+    cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
+    metrics = [(case or {}).get("metrics") or {} for case in cases]
+    # The reference is the yardstick, not a competitor: its zero error would always be "best".
+    ok = [case is not None and case["status"] == "ok" and not is_reference(sweep) for case, sweep in zip(cases, scene.sweeps)]
+    # Without a reference there is no position error, so a divergence time of
+    # None would falsely read "never": such cells are unknown, not best.
+    no_reference = [m.get("position_error_linf") is None for m in metrics]
+    columns_cells: list[list[Cell]] = []
+    for column in METRIC_COLUMNS:
+        values = [m.get(column.key) for m in metrics]
+        unknown = [column.key == "divergence_time" and nr for nr in no_reference]
+        flags = _best_flags(column, values, [o and not u for o, u in zip(ok, unknown)])
+        cells = []
+        for value, best, case, unknown_here in zip(values, flags, cases, unknown):
+            if case is None or not case.get("metrics"):
+                cells.append(Cell("–", title="no metrics at this dt"))
+            elif unknown_here:
+                cells.append(Cell("–", title="no position error (no reference solution)"))
+            else:
+                cells.append(Cell(column.missing if value is None else column.fmt(value), best))
+        columns_cells.append(cells)
+    orders = [s.order.order if s.order is not None else None for s in scene.sweeps]
+    order_flags = _best_flags(ORDER_COLUMN, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
+    rows = []
+    for k, (sweep, case) in enumerate(zip(scene.sweeps, cases)):
+        fit = sweep.order
+        if orders[k] is None:
+            order = Cell("–", title=(fit.reason if fit is not None else ""))
+        else:
+            order = Cell(ORDER_COLUMN.fmt(orders[k]), order_flags[k], f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)")
+        rows.append(
+            Row(
+                engine=sweep.engine,
+                status=case["status"] if case else "not run",
+                message=(case or {}).get("message", ""),
+                sweep_statuses=_sweep_statuses(sweep),
+                cells=[cells[k] for cells in columns_cells],
+                order=order,
+            )
+        )
+    return SummaryTable(METRIC_COLUMNS + (ORDER_COLUMN,), rows, dt)
