@@ -6,7 +6,7 @@ XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench baseline clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,14 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	@for script in bench/bench_*.py; do echo "== $$script"; $(PY) $$script || exit 1; done
+
+# Regenerate the self-gate's baseline (tests/test_self_gate.py gates suites/smoke.toml against it).
+# Run it after a deliberate change of accuracy or of the smoke suite, and commit baselines/smoke.json.
+baseline: $(STAMP)
+	@mkdir -p baselines
+	@dir=$$(mktemp -d) && $(XVAL) run suites/smoke.toml --output $$dir/smoke > /dev/null \
+		&& $(XVAL) baseline $$dir/smoke --output baselines/smoke.json; \
+		status=$$?; rm -rf $$dir; exit $$status
 
 clean:
 	rm -rf $(VENV) build *.egg-info results artifacts

@@ -23,6 +23,8 @@ COMMAND_MODULES = [
     "compare.commands.simulate",
     "compare.commands.run",
     "compare.commands.show",
+    "compare.commands.baseline",
+    "compare.commands.gate",
 ]
 
 

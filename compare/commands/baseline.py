@@ -1,0 +1,31 @@
+"""``xval baseline``: store the gate-relevant numbers of a finished results directory as one JSON file."""
+
+from __future__ import annotations
+
+import click
+
+from compare.baseline import build_baseline, write_baseline
+from compare.files import check_writable
+from compare.results import load_results
+
+
+@click.command("baseline")
+@click.argument("directory", metavar="DIR")
+@click.option("--output", required=True, metavar="BASELINE.json", help="Baseline file to write (replaced if it exists).")
+def command(directory, output) -> None:
+    """Make a baseline of the results in DIR (the --output of 'xval run') for 'xval gate'.
+
+    Per case: status, deterministic metrics (errors, drifts, constraint
+    errors, divergence time, observed order), timing with the spread of its
+    repeats, and the engine version; keyed by scene content hash, engine,
+    variant, options and dt. Commit the file next to the suite it came from.
+    """
+    target = check_writable(output)
+    results = load_results(directory)
+    document = build_baseline(results)
+    write_baseline(document, target)
+    statuses: dict[str, int] = {}
+    for entry in document["cases"].values():
+        statuses[entry["status"]] = statuses.get(entry["status"], 0) + 1
+    counts = ", ".join(f"{n} {status}" for status, n in sorted(statuses.items()))
+    click.echo(f"baseline of suite {document['suite']['name']}: {len(document['cases'])} cases ({counts}) -> {target}")

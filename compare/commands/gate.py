@@ -1,0 +1,68 @@
+"""``xval gate``: compare a results directory with a baseline; exit 1 when a case got worse."""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+from pathlib import Path
+
+import click
+
+from engines.errors import UserError
+
+from compare.baseline import build_baseline, load_baseline
+from compare.files import atomic_write_text, check_writable
+from compare.gate import TIMING_MODES, gate_results
+from compare.gate_report import format_table, to_markdown
+from compare.junit import to_junit
+from compare.results import load_results
+from compare.tolerance import GateSettings, gate_settings
+
+
+def settings_of(directory: Path) -> GateSettings:
+    """The [gate] (and legacy [tolerances]) settings of the suite stored with the results.
+
+    Only those tables are read, not the whole suite: gating must not need
+    the engines the suite names to be importable here.
+    """
+    path = directory / "suite.toml"
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        return GateSettings()
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{path}: invalid TOML ({exc}); the results directory is damaged, run the suite again") from None
+    return gate_settings(data.get("gate"), data.get("tolerances"), lambda key, message: UserError(f"{path}: {key}: {message}"))
+
+
+@click.command("gate")
+@click.argument("directory", metavar="DIR")
+@click.option("--baseline", "baseline_path", required=True, metavar="BASELINE.json",
+              help="The baseline to compare with (made by 'xval baseline').")
+@click.option("--junit", metavar="FILE.xml", default=None, help="Also write JUnit XML: one test case per scene x engine x dt.")
+@click.option("--summary", metavar="FILE.md", default=None, help="Also write a Markdown summary (for a CI job summary).")
+@click.option("--timing", type=click.Choice(TIMING_MODES), default="gate", show_default=True,
+              help="gate: a slowdown past the suite's timing factor and the repeats' spread fails; "
+                   "report: timing changes are shown but never fail (for shared or mixed CI machines).")
+def command(directory, baseline_path, junit, summary, timing) -> None:
+    """Compare the results in DIR with BASELINE.json and print a table of cases marked
+    worse, not comparable, missing, new, better or unchanged.
+
+    Exit 0 when no case got worse, 1 when one did, 2 for bad input. A changed
+    scene, engine version or engine options makes a case "not comparable":
+    reported, not failed. Tolerances come from the suite's [gate] table.
+    """
+    # Refuse unwritable output paths before any work, like every other verb.
+    junit_file = check_writable(junit, "--junit") if junit else None
+    summary_file = check_writable(summary, "--summary") if summary else None
+    baseline = load_baseline(baseline_path)
+    results = load_results(directory)
+    current = build_baseline(results)
+    report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
+    click.echo(format_table(report), nl=False)
+    if junit_file:
+        atomic_write_text(junit_file, to_junit(report))
+    if summary_file:
+        atomic_write_text(summary_file, to_markdown(report))
+    if not report.passed:
+        sys.exit(1)
