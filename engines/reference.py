@@ -28,8 +28,10 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Mapping
 
+import numba
 import numpy as np
 import scipy
 from scipy.integrate import solve_ivp
@@ -80,20 +82,26 @@ class PlanarChain:
         theta_dot = (d[:, 0] * dv[:, 1] - d[:, 1] * dv[:, 0]) / self.lengths**2
         return np.concatenate([theta, theta_dot])
 
+    @cached_property
+    def _inertia(self) -> np.ndarray:
+        """(n, n) kg·m²: μ_ij l_i l_j, constant, so built once (the right-hand side is called ~10⁵ times)."""
+        n = len(self.lengths)
+        mu = self.tail_mass[np.maximum.outer(np.arange(n), np.arange(n))]
+        return np.outer(self.lengths, self.lengths) * mu
+
+    @cached_property
+    def _weight(self) -> np.ndarray:
+        """(n,) kg·m: μ_i l_i, the gravity moment arm of each link per unit g."""
+        return self.tail_mass * self.lengths
+
     def accelerations(self, theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
         """(n,) rad/s²: θ̈ from Lagrange's equations."""
-        mu = self.tail_mass[np.maximum.outer(np.arange(len(theta)), np.arange(len(theta)))]
-        ll = np.outer(self.lengths, self.lengths) * mu
-        diff = theta[:, None] - theta[None, :]
-        mass_matrix = ll * np.cos(diff)
         gx, gz = self.gravity
-        rhs = -(ll * np.sin(diff)) @ theta_dot**2
-        rhs += self.tail_mass * self.lengths * (gx * np.cos(theta) + gz * np.sin(theta))
-        return np.linalg.solve(mass_matrix, rhs)
+        return _chain_accelerations(theta, theta_dot, self._inertia, self._weight, gx, gz)
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
-        n = len(self.lengths)
-        return np.concatenate([y[n:], self.accelerations(y[:n], y[n:])])
+        gx, gz = self.gravity
+        return _chain_rhs(y, self._inertia, self._weight, gx, gz)
 
     def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities (n_samples, P, 3) and constraint forces (n_samples, C, 3) from states (n_samples, 2n)."""
@@ -124,6 +132,56 @@ class PlanarChain:
             c = self.constraint_of_link[k]
             forces[:, c, 0], forces[:, c, 2] = sign * f[:, k, 0], sign * f[:, k, 1]
         return positions, velocities, forces
+
+
+@numba.njit(cache=True)
+def _chain_accelerations(theta, theta_dot, inertia, weight, gx, gz):  # pragma: no cover - compiled
+    """θ̈ (n,) solving M θ̈ = G − S θ̇² by Cholesky (M is symmetric positive definite).
+
+    Compiled because DOP853 at 1e-12 calls it ~10⁵ times per scene and numpy's
+    per-call overhead on 2×2 arrays is ~15× the arithmetic.
+    """
+    n = theta.shape[0]
+    m = np.empty((n, n))
+    b = np.empty(n)
+    for i in range(n):
+        r = weight[i] * (gx * np.cos(theta[i]) + gz * np.sin(theta[i]))
+        for j in range(n):
+            d = theta[i] - theta[j]
+            m[i, j] = inertia[i, j] * np.cos(d)
+            r -= inertia[i, j] * np.sin(d) * theta_dot[j] ** 2
+        b[i] = r
+    # In-place Cholesky M = L Lᵀ (lower triangle), then two triangular solves.
+    for j in range(n):
+        s = m[j, j]
+        for k in range(j):
+            s -= m[j, k] * m[j, k]
+        m[j, j] = np.sqrt(s)
+        for i in range(j + 1, n):
+            s = m[i, j]
+            for k in range(j):
+                s -= m[i, k] * m[j, k]
+            m[i, j] = s / m[j, j]
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s -= m[i, k] * b[k]
+        b[i] = s / m[i, i]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= m[k, i] * b[k]
+        b[i] = s / m[i, i]
+    return b
+
+
+@numba.njit(cache=True)
+def _chain_rhs(y, inertia, weight, gx, gz):  # pragma: no cover - compiled
+    n = y.shape[0] // 2
+    out = np.empty(2 * n)
+    out[:n] = y[n:]
+    out[n:] = _chain_accelerations(y[:n], y[n:], inertia, weight, gx, gz)
+    return out
 
 
 def planar_chain(scene: Scene) -> PlanarChain:
