@@ -184,7 +184,8 @@ def _chosen_cases(scene: SceneResults) -> list[tuple[int, VariantSweep, dict[str
     chosen = []
     for index, sweep in enumerate(scene.sweeps):
         record = scene.case_at(sweep, scene.chosen_dt)
-        if record is not None and record.get("series"):
+        # A failed run has no samples: nothing to draw (its message is in the problems list).
+        if record is not None and (record.get("series") or {}).get("t"):
             chosen.append((index, sweep, record))
     return chosen
 

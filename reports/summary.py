@@ -31,14 +31,15 @@ class Column:
     unit: str
     better: str | None
     missing: str = "–"
-    fmt: Callable[[float], str] = lambda v: f"{v:.3g}" if v == 0 or 1e-3 <= abs(v) < 1e4 else f"{v:.2e}"
+    # One exponent format for the whole column, so magnitudes line up down the column (as in `xval show`).
+    fmt: Callable[[float], str] = lambda v: "0" if v == 0 else f"{v:.2e}"
 
 
 #: The metric columns, in order (status, dt and the order are added around them).
 METRIC_COLUMNS = (
     Column("position_error_linf", "position error", "m", "low"),
     # None means e(t) never passed δ·L: the best possible value, shown as "never".
-    Column("divergence_time", "divergence time", "s", "high", missing="never"),
+    Column("divergence_time", "divergence time", "s", "high", missing="never", fmt=lambda v: f"{v:.3g}"),
     Column("energy_drift", "energy drift", "E*", "low"),
     Column("constraint_error", "constraint error", "m", "low"),
     Column("constraint_force_error", "constraint-force error", "N", "low", missing="not exposed"),
@@ -125,8 +126,10 @@ def summary_table(scene: SceneResults) -> SummaryTable:
         flags = _best_flags(column, values, [o and not u for o, u in zip(ok, unknown)])
         cells = []
         for value, best, case, unknown_here in zip(values, flags, cases, unknown):
-            if case is None or not case.get("metrics"):
-                cells.append(Cell("–", title="no metrics at this dt"))
+            if case is None or not case.get("metrics") or not case["metrics"].get("n_samples"):
+                # A run with no samples (it raised at once) has drift and constraint error 0 by
+                # definition; printing those zeros would read as a perfect result.
+                cells.append(Cell("–", title="no samples at this dt"))
             elif unknown_here:
                 cells.append(Cell("–", title="no position error (no reference solution)"))
             else:

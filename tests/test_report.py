@@ -1,0 +1,320 @@
+"""``xval report``: the page's structure for a fixed small results directory, its self-containment, and robustness.
+
+The results come from a real run of tests/report_suite.toml (see
+report_support); the expected structure below is the golden one: which
+sections, tables, rows and plots (with how many traces each) the page has.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+import plotly.graph_objects as go
+import pytest
+
+from compare.cli import main
+from compare.sweep import sweeps
+from engines.errors import UserError
+from report_support import PageStructure, copy_results, run_suite_once
+from reports.load import choose_dt, load_report_data
+from reports.render import render, write_report
+from reports.summary import METRIC_COLUMNS, Column, _best_flags
+
+
+@pytest.fixture(scope="session")
+def small_results(tmp_path_factory):
+    return run_suite_once(tmp_path_factory.getbasetemp())
+
+
+@pytest.fixture(scope="session")
+def small_page(small_results):
+    return PageStructure(render(load_report_data(small_results)))
+
+
+# -- golden structure -------------------------------------------------------------------
+
+#: Per scene: summary rows (engine, status at the chosen dt), other tables, and plots with their trace counts.
+GOLDEN = {
+    "scene-0": {
+        "heading": "Scene bead",
+        "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"), ("pymunk/pin", "ok"),
+                 ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
+        "tables": ["summary"],
+        # work-precision and error-vs-dt: the 3 variants with ok cases; time series: 4 variants with samples
+        # x 3 panels; paths: the reference + 4 variants, 1 particle.
+        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 12), ("s0-path", 5)],
+    },
+    "scene-1": {
+        "heading": "Scene spherical",
+        "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"),
+                 ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
+        "tables": ["summary", "skipped"],
+        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 9), ("s1-path", 4)],
+    },
+}
+
+
+def test_page_has_the_sections_in_order(small_page):
+    assert [(s.id, s.heading) for s in small_page.sections] == [
+        ("run", "xval report: report-small"),
+        ("scene-0", "Scene bead"),
+        ("scene-1", "Scene spherical"),
+        ("problems", "Unstable and failed cases"),
+        ("how-to-read", "How to read this"),
+    ]
+
+
+def test_header_counts_every_status(small_page):
+    counts = small_page.section("run").tables[0]
+    assert counts.css_class == "counts"
+    assert counts.rows == [
+        ["cases", "ran", "ok", "unstable", "failed", "skipped"],
+        ["30", "27", "15", "6", "6", "3"],
+    ]
+
+
+def test_header_names_machine_engines_and_commit(small_results):
+    html = render(load_report_data(small_results))
+    header = json.loads((small_results / "run.json").read_text())
+    env = header["environment"]
+    for text in (env["cpu"], env["python"], env["engines"]["mujoco"], env["engines"]["pymunk"], header["started"]):
+        assert text in html
+    if env["git_commit"]:
+        assert env["git_commit"] in html
+
+
+@pytest.mark.parametrize("section_id", sorted(GOLDEN))
+def test_scene_sections_have_the_golden_tables_and_plots(small_page, section_id):
+    golden = GOLDEN[section_id]
+    section = small_page.section(section_id)
+    assert section.heading == golden["heading"]
+    assert [t.css_class for t in section.tables] == golden["tables"]
+    summary = section.tables[0]
+    assert summary.rows[0][:3] == ["engine variant", "status at this dt", "over the dt sweep"]
+    assert [(row[0], row[1]) for row in summary.rows[1:]] == golden["rows"]
+    assert section.plots == golden["plots"]
+
+
+def test_summary_marks_the_best_value_of_each_column(small_page):
+    summary = small_page.section("scene-0").tables[0]
+    header, rows = summary.rows[0], {row[0]: row for row in summary.rows[1:]}
+    column = {name: header.index(name) for name in header}
+    # MuJoCo's RK4 is far more accurate than pymunk's first-order solver: it holds the position-error star.
+    assert rows["mujoco/hinge-rk4"][column["position error / m"]].startswith("★")
+    assert not rows["pymunk/pin"][column["position error / m"]].startswith("★")
+    # The reference is never ranked, and neither are the broken variants.
+    for name in ("reference/dop853", "broken/blow-up", "broken/raise"):
+        assert not any(cell.startswith("★") for cell in rows[name])
+    # Ties are all marked: neither ok variant diverges, so both get the divergence-time star.
+    divergence = column["divergence time / s"]
+    assert [rows[n][divergence] for n in ("mujoco/hinge-rk4", "pymunk/pin")] == ["★ never", "★ never"]
+    # Every other column has exactly one star (the order only pymunk's first-order sweep could fit).
+    stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(3, len(header)) if k != divergence]
+    assert stars == [1] * len(stars)
+
+
+def test_a_run_without_samples_shows_no_numbers(small_page):
+    row = next(r for r in small_page.section("scene-0").tables[0].rows if r[0] == "broken/raise")
+    assert row[3:] == ["–"] * 7
+
+
+def test_skipped_pairs_are_listed_with_their_reason(small_page):
+    skipped = small_page.section("scene-1").tables[1]
+    assert skipped.rows[1:] == [["pymunk/pin", "pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'"]]
+
+
+def test_problems_list_every_unstable_and_failed_case_with_its_message(small_page):
+    problems = small_page.section("problems").tables[0]
+    rows = problems.rows[1:]
+    assert len(rows) == 12
+    assert {(r[1], r[3]) for r in rows} == {("broken/blow-up", "unstable"), ("broken/raise", "failed")}
+    assert "non-finite state at t = 0.25 s" in {r[4] for r in rows}
+    assert "RuntimeError: deliberate failure of <b>the test engine</b> & friends" in {r[4] for r in rows}
+
+
+def test_how_to_read_states_every_metric_and_its_unit(small_results):
+    html = render(load_report_data(small_results))
+    section = html[html.index('id="how-to-read"'):]
+    for term in ("position error (m)", "divergence time (s)", "energy drift (E*)", "constraint error (m)",
+                 "constraint-force error (N)", "cost (s/s)", "observed order", "E* = total mass · g · L",
+                 "δ = 0.01"):
+        assert term in section
+
+
+def test_status_element_announces_plots_and_traces(small_page):
+    plots = small_page.plots
+    assert small_page.status["data-plots"] == str(len(plots)) == "8"
+    assert small_page.status["data-traces"] == str(sum(n for _, n in plots))
+
+
+# -- figures ----------------------------------------------------------------------------
+
+
+def test_every_figure_spec_is_valid_plotly_with_the_announced_traces(small_page):
+    specs = small_page.figure_specs()
+    assert sorted(specs) == sorted(plot_id for plot_id, _ in small_page.plots)
+    for plot_id, n_traces in small_page.plots:
+        figure = go.Figure(specs[plot_id])  # raises on any property plotly does not know
+        assert len(figure.data) == n_traces
+
+
+def test_work_precision_is_log_log_with_dt_in_the_hover(small_page):
+    spec = small_page.figure_specs()["s0-wp"]
+    assert spec["layout"]["xaxis"]["type"] == spec["layout"]["yaxis"]["type"] == "log"
+    trace = next(t for t in spec["data"] if t["name"] == "mujoco/hinge-rk4")
+    assert [c[1] for c in trace["customdata"]] == [1e-2, 3e-3, 1e-3]
+    assert "dt = %{customdata[1]" in trace["hovertemplate"] and "%{customdata[0]}" in trace["hovertemplate"]
+
+
+def test_error_vs_dt_legend_gives_the_observed_order(small_page):
+    names = [t["name"] for t in small_page.figure_specs()["s0-dt"]["data"]]
+    assert any(re.fullmatch(r"pymunk/pin \(order 1\.\d\d\)", n) for n in names), names
+    assert "mujoco/hinge-rk4 (order –)" in names or any(n.startswith("mujoco/hinge-rk4 (order ") for n in names)
+
+
+def test_paths_are_drawn_over_the_reference_at_equal_scale(small_page):
+    spec = small_page.figure_specs()["s0-path"]
+    assert spec["data"][0]["name"] == "reference"
+    assert spec["layout"]["yaxis"]["scaleanchor"] == "x"
+
+
+# -- self-contained -----------------------------------------------------------------------
+
+
+def test_plotly_is_embedded_once_and_nothing_is_fetched(small_results, small_page):
+    html = render(load_report_data(small_results))
+    executable = [body for attrs, body in zip(small_page.scripts, small_page.script_bodies)
+                  if attrs.get("type") != "application/json"]
+    assert len(executable) == 2  # the plotly.js bundle and the few lines that draw the plots
+    assert sum("Plotly" in body and len(body) > 1_000_000 for body in executable) == 1
+    assert html.count("plotly.js v") <= 2  # the bundle's own banner, not a copy per figure
+    assert all("src" not in attrs for attrs in small_page.scripts)
+    assert not [url for url in small_page.urls if not url.startswith("#")]
+    bundle = max(executable, key=len)
+    outside = html.replace(bundle, "")
+    assert "http:" not in outside and "https:" not in outside  # no CDN, no link: the page names no server at all
+    assert "default-src 'none'" in html  # the page's CSP forbids any request
+
+
+# -- robustness ----------------------------------------------------------------------------
+
+
+def test_a_single_case_renders(small_results, tmp_path):
+    single = copy_results(small_results, tmp_path / "one",
+                          keep=lambda r: r["case"]["id"] == "bead|pymunk/pin|dt=0.003")
+    page = PageStructure(render(load_report_data(single)))
+    assert [s.id for s in page.sections] == ["run", "scene-0", "problems", "how-to-read"]
+    assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
+    # One point: nothing to fit an order to, but every plot still draws its one variant.
+    assert [n for _, n in page.plots] == [1, 1, 3, 1]
+
+
+def test_only_failures_and_skips_render(small_results, tmp_path):
+    broken = copy_results(small_results, tmp_path / "broken",
+                          keep=lambda r: r["status"] in ("failed", "skipped"))
+    page = PageStructure(render(load_report_data(broken)))
+    assert page.plots == []
+    assert len(page.section("problems").tables[0].rows) == 1 + 6
+    assert page.section("scene-1").tables[1].css_class == "skipped"
+
+
+def test_an_empty_or_unfinished_run_renders(small_results, tmp_path):
+    def unfinished(header):
+        header["finished"] = None
+        header.pop("counts", None)
+
+    empty = copy_results(small_results, tmp_path / "empty", keep=lambda r: False, change_header=unfinished)
+    html = render(load_report_data(empty))
+    assert "not finished" in html
+    assert [s.id for s in PageStructure(html).sections] == ["run", "problems", "how-to-read"]
+
+
+def test_missing_metrics_and_series_render(small_results, tmp_path):
+    """Records from a writer that stored no series (or an older one): tables still render, plots drop out."""
+    def strip(record):
+        record["series"] = None
+
+    stripped = copy_results(small_results, tmp_path / "stripped", change=strip)
+    page = PageStructure(render(load_report_data(stripped)))
+    assert [plot_id for plot_id, _ in page.plots] == ["s0-wp", "s0-dt", "s1-wp", "s1-dt"]
+
+
+# -- choices --------------------------------------------------------------------------------
+
+
+def test_chosen_dt_is_the_smallest_with_the_most_ok_variants(small_results):
+    from compare.results import load_results
+
+    scene_sweeps = [s for s in sweeps(load_results(small_results).records) if s.scene_id == "bead"]
+    assert choose_dt(scene_sweeps, [1e-2, 3e-3, 1e-3]) == 1e-3
+    assert choose_dt(scene_sweeps, [1e-2, 3e-3, 1e-3], requested=4e-3) == 3e-3
+    assert choose_dt([], []) is None
+
+
+def test_best_flags_rank_only_eligible_values_and_keep_ties():
+    low = Column("x", "x", "m", "low")
+    assert _best_flags(low, [3.0, 1.0, 1.0, 0.5], [True, True, True, False]) == [False, True, True, False]
+    assert _best_flags(low, [None, None], [True, True]) == [False, False]
+    divergence = next(c for c in METRIC_COLUMNS if c.key == "divergence_time")
+    # None is "never diverged": the best divergence time there is.
+    assert _best_flags(divergence, [0.3, None, 0.9], [True, True, True]) == [False, True, False]
+
+
+# -- the command -----------------------------------------------------------------------------
+
+
+def run_cli(capsys, *argv):
+    """(exit code, stdout, stderr) of ``xval ARGV`` run in-process; 0 when main() returns."""
+    try:
+        main(list(argv))
+        code = 0
+    except SystemExit as stop:
+        code = stop.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_report_command_writes_dir_report_html_by_default(small_results, tmp_path, capsys):
+    results = copy_results(small_results, tmp_path / "r")
+    code, out, err = run_cli(capsys, "report", str(results))
+    assert code == 0, err
+    assert (results / "report.html").is_file()
+    assert out.startswith(f"report: {results / 'report.html'} (")
+
+
+def test_report_command_output_and_dt(small_results, tmp_path, capsys):
+    target = tmp_path / "elsewhere.html"
+    code, _, err = run_cli(capsys, "report", str(small_results), "--output", str(target), "--dt", "0.01")
+    assert code == 0, err
+    page = PageStructure(target.read_text())
+    assert "Summary at dt = 0.01 s" in target.read_text()
+    assert page.section("scene-0").tables[0].rows[1][:2] == ["reference/dop853", "ok"]
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["report", "{tmp}/nowhere"], r"^xval: error: .*nowhere: not a results directory \(no run\.json\); give the --output directory of 'xval run'\n$"),
+    (["report", "{results}", "--output", "{tmp}/no/such/dir/r.html"], r"^xval: error: --output: directory .* does not exist; create it or choose another path\n$"),
+    (["report", "{results}", "--dt", "-1"], r"^xval: error: .*--dt.*\n$"),
+])
+def test_bad_input_is_one_line_and_exit_2(small_results, tmp_path, capsys, argv, message):
+    argv = [a.format(tmp=tmp_path, results=small_results) for a in argv]
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2 and out == ""
+    assert re.match(message, err), err
+
+
+def test_a_record_of_another_schema_version_is_refused(small_results, tmp_path):
+    def old(record):
+        record["schema_version"] = 0
+
+    results = copy_results(small_results, tmp_path / "old", change=old)
+    with pytest.raises(UserError, match=r"results schema version 0, but this xval reads version \d+; re-run the suite"):
+        write_report(results)
+
+
+def test_write_report_reports_size_and_time(small_results, tmp_path):
+    written = write_report(small_results, tmp_path / "r.html")
+    assert written.size == (tmp_path / "r.html").stat().st_size
+    assert 3_000_000 < written.size < 10_000_000  # the plotly.js bundle (~4.8 MB) and a little data
+    assert written.seconds < 10
