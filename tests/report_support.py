@@ -186,3 +186,55 @@ class PageStructure(HTMLParser):
             if attrs.get("type") == "application/json":
                 specs[attrs["id"].removesuffix("-spec")] = json.loads(body)
         return specs
+
+
+# -- hostile strings ----------------------------------------------------------------------
+
+HOSTILE_SUITE = f"""
+name = '{HOSTILE}'
+description = '{HOSTILE}'
+duration = 0.2
+dt = [1e-2, 5e-3]
+
+[[scenes]]
+id = "bead"
+scene = "bead"
+
+[[engines]]
+id = "pymunk/pin"
+label = '{HOSTILE}'
+
+[[engines]]
+id = "report_support:BROKEN/raise"
+label = "broken/raise"
+"""
+
+
+def hostile_results(base: Path) -> Path:
+    """Results whose every string a file can carry is HOSTILE.
+
+    The suite name, description and an engine label come from a real run (a
+    suite may say anything there); the scene id (which a suite restricts to
+    a readable id), the messages, engine options and machine description are
+    then rewritten, as a results file from elsewhere could have them.
+    """
+    if "hostile" in _runs:
+        return _runs["hostile"]
+    from compare.runner import run_suite
+    from compare.suite import parse_suite
+
+    run = base / "hostile-run"
+    run_suite(parse_suite(HOSTILE_SUITE, HOSTILE), run, jobs=2)
+
+    def change(record: dict[str, Any]) -> None:
+        record["case"]["scene_id"] = HOSTILE
+        record["case"]["options"] = {HOSTILE: HOSTILE}
+        if record["status"] != "ok":
+            record["message"] = f"{record['message']} {HOSTILE}"
+
+    def change_header(header: dict[str, Any]) -> None:
+        header["environment"]["cpu"] = HOSTILE
+        header["environment"]["engines"][HOSTILE] = HOSTILE
+
+    _runs["hostile"] = copy_results(run, base / "hostile", change=change, change_header=change_header)
+    return _runs["hostile"]
