@@ -1,0 +1,45 @@
+"""xval gates itself: run suites/smoke.toml and gate it against the committed baselines/smoke.json.
+
+A change that makes a solver in the smoke suite less accurate (or unstable)
+fails this test, hence ``make test`` and CI. Timing cannot fail it: the gate
+runs with ``--timing report`` (a CI runner is not the machine the baseline
+was timed on, and the smoke suite times each case once), so slowdowns are
+shown in the table but never gated.
+
+After a deliberate change of accuracy, or of suites/smoke.toml, run
+``make baseline`` and commit baselines/smoke.json with the reason.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from compare.baseline import build_baseline, load_baseline
+from compare.gate import gate_results
+from compare.results import load_results
+from compare.tolerance import GateSettings
+
+ROOT = Path(__file__).resolve().parent.parent
+SUITE = ROOT / "suites" / "smoke.toml"
+BASELINE = ROOT / "baselines" / "smoke.json"
+XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
+REGENERATE = "run 'make baseline' and commit baselines/smoke.json, saying why in the commit message"
+
+
+def test_the_smoke_suite_is_no_worse_than_its_committed_baseline(tmp_path):
+    results = tmp_path / "smoke"
+    ran = subprocess.run([*XVAL, "run", str(SUITE), "--output", str(results)], capture_output=True, text=True, cwd=ROOT)
+    assert ran.returncode == 0, ran.stdout + ran.stderr
+    gated = subprocess.run(
+        [*XVAL, "gate", str(results), "--baseline", str(BASELINE), "--timing", "report"],
+        capture_output=True, text=True, cwd=ROOT,
+    )
+    # The table is the failure message: it names each worse case and both numbers.
+    assert gated.returncode == 0, f"the smoke suite got worse than {BASELINE}:\n{gated.stdout}{gated.stderr}"
+
+    # A baseline that no longer matches the suite would pass vacuously: its cases would be new or missing.
+    report = gate_results(load_baseline(BASELINE), build_baseline(load_results(results)), GateSettings(), str(BASELINE))
+    stale = [c for c in report.cases if c.verdict in ("new", "missing") or c.reason.startswith("scene changed")]
+    assert not stale, f"suites/smoke.toml changed since {BASELINE} was made; {REGENERATE}:\n{gated.stdout}"
