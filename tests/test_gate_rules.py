@@ -1,0 +1,133 @@
+"""The gate's rules as pure functions: the accuracy bound, null divergence times, the timing rule, [gate] parsing."""
+
+from __future__ import annotations
+
+import pytest
+
+from engines.errors import UserError
+
+from compare.gate import accuracy_change, machine_difference, timing_change
+from compare.suite import parse_suite
+from compare.tolerance import RULES, GateSettings, Tolerance, gate_settings
+
+SETTINGS = GateSettings()
+
+
+def error(key: str, message: str) -> UserError:
+    return UserError(f"suite.toml: {key}: {message}")
+
+
+@pytest.mark.parametrize(
+    "current, verdict",
+    [
+        (1.0e-3 * 1.1 + 1e-9, "unchanged"),        # exactly at baseline·(1 + rtol) + atol: still passes
+        (1.0e-3 * 1.1 + 2e-9, "worse"),            # just past it
+        (2.0e-3, "worse"),                          # doubled
+        (0.5e-3, "better"),                         # halved
+        (1.0e-3 / 1.05, "unchanged"),               # 5 % better: inside the tolerance
+    ],
+)
+def test_an_error_is_worse_past_baseline_times_one_plus_rtol_plus_atol(current, verdict):
+    change = accuracy_change(RULES["position_error_linf"], 1.0e-3, current, SETTINGS)
+    assert change.verdict == verdict
+    assert change.limit == pytest.approx(1.0e-3 * 1.1 + 1e-9)
+
+
+def test_errors_below_atol_are_noise():
+    # Round-off-sized constraint errors that grow 100× are still below atol = 1e-10 m.
+    assert accuracy_change(RULES["constraint_error"], 1e-15, 1e-13, SETTINGS).verdict == "unchanged"
+
+
+@pytest.mark.parametrize(
+    "baseline, current, verdict",
+    [(4.0, 3.8, "unchanged"), (4.0, 3.0, "worse"), (1.0, 2.0, "better"), (None, 2.0, None), (4.0, None, None)],
+)
+def test_a_lower_observed_order_is_worse_and_a_missing_fit_is_not_compared(baseline, current, verdict):
+    change = accuracy_change(RULES["observed_order"], baseline, current, SETTINGS)
+    assert (change.verdict if change else None) == verdict
+
+
+@pytest.mark.parametrize(
+    "baseline, current, verdict",
+    [(None, None, "unchanged"), (None, 0.4, "worse"), (0.4, None, "better"), (0.5, 0.3, "worse"), (0.5, 0.49, "unchanged")],
+)
+def test_a_null_divergence_time_means_never_diverged(baseline, current, verdict):
+    assert accuracy_change(RULES["divergence_time"], baseline, current, SETTINGS).verdict == verdict
+
+
+def timing(*repeats: float) -> dict:
+    ordered = sorted(repeats)
+    return {"cost": ordered[len(ordered) // 2], "repeats": list(repeats), "spread": [ordered[0], ordered[-1]]}
+
+
+@pytest.mark.parametrize(
+    "baseline, current, verdict",
+    [
+        (timing(1.0, 1.1, 1.2), timing(1.6, 1.7, 1.8), "worse"),       # 1.55× and clear of both spreads
+        (timing(1.0, 1.1, 1.2), timing(1.4, 1.5, 1.6), "unchanged"),   # 1.36×: under the factor
+        (timing(1.0, 1.1, 1.2), timing(0.5, 2.0, 2.2), "unchanged"),   # 1.8× but the spreads (0.2 + 1.7) cover it
+        (timing(1.0, 1.1, 1.2), timing(0.3, 0.35, 0.4), "better"),
+    ],
+)
+def test_a_slowdown_must_exceed_the_factor_and_the_spread_of_both_sides(baseline, current, verdict):
+    change = timing_change(baseline, current, 1.5, gated=True)
+    assert change.verdict == verdict and change.gated
+
+
+def test_single_repeats_are_shown_but_never_gated():
+    change = timing_change(timing(1.0), timing(5.0), 1.5, gated=True)
+    assert change.verdict == "worse" and not change.gated
+    assert change.note == "5.00× slower (factor 1.5, repeat spread 0 s/s); not gated: fewer than 2 timing repeats, so the noise is unknown (set repeats in the suite)"
+
+
+def test_machines_differ_in_the_named_fields():
+    same = {"cpu": "A", "cpu_count": 2, "machine": "x86_64"}
+    assert machine_difference(same, dict(same)) == ""
+    assert machine_difference(same, {**same, "cpu_count": 4}) == "timed on another machine (cpu_count 2 → 4)"
+
+
+def test_gate_table_overrides_and_legacy_tolerances():
+    settings = gate_settings(
+        {"timing_factor": 2, "energy_drift": {"atol": 1e-6}, "position_error_l2": 0.3},
+        {"position_error_linf": 0.2, "position_error_l2": 0.9},
+        error,
+    )
+    assert settings.timing_factor == 2.0
+    assert settings.tolerance("energy_drift") == Tolerance(0.1, 1e-6)
+    assert settings.tolerance("position_error_linf") == Tolerance(0.2, 1e-9)
+    assert settings.tolerance("position_error_l2") == Tolerance(0.3, 1e-9)  # [gate] wins over [tolerances]
+    assert gate_settings(None, {"cost_per_simulated_second": 1.0}, error).timing_factor == 2.0
+
+
+@pytest.mark.parametrize(
+    "gate, message",
+    [
+        ({"nosuch": 1}, "suite.toml: gate.nosuch: unknown key; valid keys are: timing_factor, position_error_linf, "
+                        "position_error_l2, position_error_final, divergence_time, energy_drift, constraint_error, "
+                        "constraint_force_error, observed_order"),
+        ({"timing_factor": 1}, "suite.toml: gate.timing_factor: must be a number > 1 (a slowdown factor), got 1; write e.g. timing_factor = 1.5"),
+        ({"energy_drift": -0.1}, "suite.toml: gate.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1"),
+        ({"energy_drift": {"rtol": "big"}}, "suite.toml: gate.energy_drift.rtol: must be a number ≥ 0, got 'big'; write e.g. rtol = 0.1"),
+        ({"energy_drift": {"reltol": 1}}, "suite.toml: gate.energy_drift.reltol: unknown key; write energy_drift = { rtol = 0.1, atol = 1e-9 }"),
+    ],
+)
+def test_a_bad_gate_table_names_the_key_and_the_fix(gate, message):
+    with pytest.raises(UserError) as raised:
+        gate_settings(gate, None, error)
+    assert str(raised.value) == message
+
+
+SUITE = """name = "s"
+dt = [1e-2]
+[[scenes]]
+scene = "bead"
+[[engines]]
+id = "reference/dop853"
+"""
+
+
+def test_a_suite_carries_its_gate_table_and_a_mistake_names_the_line():
+    suite = parse_suite(SUITE + "[gate]\ntiming_factor = 3\n", "s.toml")
+    assert suite.gate.timing_factor == 3.0
+    with pytest.raises(UserError, match=r"^s\.toml:8: gate\.timing_factor: must be a number > 1"):
+        parse_suite(SUITE + "[gate]\ntiming_factor = 0\n", "s.toml")
