@@ -95,6 +95,30 @@ def simulate(task: CaseTask) -> CaseOutcome:
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start)
 
 
+#: Built-in engine variants this process has run once (see :func:`warm_up`).
+_WARM: set[str] = set()
+
+
+def warm_up(task: CaseTask) -> None:
+    """Run a built-in engine variant for two steps in this (worker) process, once.
+
+    Forked children inherit what the worker has loaded, so one-off costs
+    (``ours``' numba kernels load from the on-disk cache in ~0.5 s, MuJoCo
+    and PyBullet initialize their libraries) are paid once per worker, not
+    once per case. Only built-in engines are warmed: an engine loaded by
+    ``module:attribute`` could kill the worker, which is what the per-case
+    child is for. Errors here are ignored: the real case reports them.
+    """
+    if task.engine_id in _WARM or ":" in task.engine_id:
+        return
+    _WARM.add(task.engine_id)
+    try:
+        scene = task.scene.with_duration(min(task.scene.duration, 2 * task.dt))
+        _engine_for(task).simulate(scene, task.dt, variant=task.variant, options=task.options)
+    except Exception:
+        pass
+
+
 def _failure(task: CaseTask, exc: BaseException) -> CaseOutcome:
     frame = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
     where = f" (at {frame[0].filename.rsplit('/', 1)[-1]}:{frame[0].lineno})" if frame else ""
@@ -135,6 +159,7 @@ def execute(task: CaseTask) -> CaseOutcome:
             outcome = _failure(task, exc)
             outcome.elapsed = time.perf_counter() - start
             return outcome
+    warm_up(task)
     context = multiprocessing.get_context("fork")
     reader, writer = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(writer, task), name=f"xval-case {task.case_id}")
