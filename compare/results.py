@@ -32,7 +32,7 @@ from compare.files import atomic_write_text
 #: Version of run.json and every case record; bump it when a field changes meaning.
 SCHEMA_VERSION = 1
 #: Most points kept per stored time series (evenly spaced, first and last kept).
-MAX_SERIES_POINTS = 200
+MAX_SERIES_POINTS = 100
 #: Significant digits kept in stored series (metrics keep full precision).
 SERIES_DIGITS = 6
 
