@@ -69,9 +69,13 @@ def _axis_type(values: Iterable[Any]) -> str:
     return "log" if positive and max(positive) > 10 * min(positive) else "linear"
 
 
-def _layout(**extra: Any) -> dict[str, Any]:
+#: Pixels per legend entry: a plot grows with its legend, so a suite of 30 variants needs no legend scrolling.
+LEGEND_ROW = 19
+
+
+def _layout(n_legend: int, height: int = 460, **extra: Any) -> dict[str, Any]:
     base = {
-        "height": 460,
+        "height": max(height, 80 + LEGEND_ROW * n_legend),
         "margin": {"l": 70, "r": 20, "t": 30, "b": 50},
         "hovermode": "closest",
         "legend": {"font": {"size": 11}},
@@ -128,6 +132,7 @@ def work_precision(scene: SceneResults) -> Plot | None:
     figure = {
         "data": traces,
         "layout": _layout(
+            len(traces),
             xaxis=_axis("stepping cost per simulated second / (s/s)"),
             yaxis=_axis("max position error / m"),
         ),
@@ -161,7 +166,7 @@ def error_vs_dt(scene: SceneResults) -> Plot | None:
         return None
     figure = {
         "data": traces,
-        "layout": _layout(xaxis=_axis("time step dt / s"), yaxis=_axis("max position error / m")),
+        "layout": _layout(len(traces), xaxis=_axis("time step dt / s"), yaxis=_axis("max position error / m")),
     }
     caption = ("The slope of each line is the observed order (fitted over the asymptotic range, see the table); "
                "a line that flattens has reached the reference's accuracy or saturated." + _not_drawn_note(missing))
@@ -223,7 +228,7 @@ def time_series(scene: SceneResults) -> Plot | None:
         axes[name] = _axis(title, _axis_type(panel_values[panel]), domain=domains[panel])
     figure = {
         "data": traces,
-        "layout": _layout(height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes),
+        "layout": _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes),
     }
     caption = (f"Every variant at dt = {scene.chosen_dt:.3g} s. A panel is logarithmic when its values span more "
                "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A line that "
@@ -282,6 +287,7 @@ def paths(scene: SceneResults) -> Plot | None:
     figure = {
         "data": traces,
         "layout": _layout(
+            len(chosen) + bool(reference),
             height=560,
             xaxis=_axis("x / m", "linear", zeroline=False),
             # Equal scales, so a circle of the wire looks like a circle.
