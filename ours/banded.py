@@ -13,8 +13,18 @@ import math
 
 from numba import njit
 
+try:
+    # No reference counting of arrays inside compiled code: with it, every call
+    # between compiled functions increfs and decrefs each array argument
+    # (atomic operations), which measured 5x slower than the arithmetic on a
+    # double pendulum. The price: compiled code must not allocate, so callers
+    # pass in preallocated scratch arrays. ``_nrt`` is numba's (private) switch.
+    compiled = njit(cache=True, _nrt=False)
+except (KeyError, TypeError):  # pragma: no cover - a numba without the switch: correct, slower
+    compiled = njit(cache=True)
 
-@njit(cache=True)
+
+@compiled
 def cholesky_banded(band, b):
     """Factor A = L Lᵀ in place (L in ``band``); False when A is not positive definite.
 
@@ -37,7 +47,7 @@ def cholesky_banded(band, b):
     return True
 
 
-@njit(cache=True, inline="always")
+@compiled
 def solve_banded(band, b, x):
     """Solve L Lᵀ x = r in place (``x`` holds r on entry) with L from :func:`cholesky_banded`."""
     n = band.shape[0]

@@ -1,9 +1,11 @@
 """The compiled stepping loop in maximal coordinates (positions and velocities of every particle).
 
-Everything here is numba-compiled with ``cache=True``: the first call compiles
-(seconds), later calls and later processes load the cached machine code. All
-calls use the same argument types (float64 / int64 C arrays, dim 2 or 3 as a
-runtime size), so each function has exactly one compiled specialization.
+Everything here is numba-compiled (``ours.banded.compiled``: cached, no
+reference counting): the first call compiles (tens of seconds), later calls and
+later processes load the cached machine code. All calls use the same argument
+types (float64 / int64 C arrays, dim 2 or 3 as a runtime size), so each
+function has one compiled specialization. The compiled code allocates
+nothing: scratch arrays come from :func:`workspace`.
 
 Shapes: P particles, C constraints, dim 2 or 3. ``model`` is the tuple
 (inverse_mass (P,), force (P, dim), ends (C, 2), anchor (C, dim), length2 (C,),
@@ -15,9 +17,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ours.banded import cholesky_banded, solve_banded
+from ours.banded import cholesky_banded, compiled, solve_banded
+
+def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
+    """Scratch arrays for :func:`run`, allocated here in Python because the compiled code has no allocator."""
+    z = np.zeros
+    rattle = (z((C, dim)), z((C, dim)), z((C, bandwidth + 1)), z(C), z(C), z((P, dim)))
+    return (z((C, dim)), z((C, dim)), z((C, bandwidth + 1)), z(C), z((stages, P, dim)), z((stages, P, dim)),
+            z((P, dim)), z((P, dim)), rattle)
+
 
 #: Why the loop stopped (0 = ran to the end).
 OK, NON_FINITE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
@@ -28,7 +37,7 @@ _PLAIN, _BAUMGARTE, _PROJECTION, _RATTLE_METHOD = 0, 1, 2, 3
 _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 
 
-@njit(cache=True, inline="always")
+@compiled
 def constraint_vectors(q, ends, anchor, D):
     """D[k] = x_i − x_j (or − the fixed point), m."""
     dim = q.shape[1]
@@ -38,7 +47,7 @@ def constraint_vectors(q, ends, anchor, D):
             D[k, a] = q[i, a] - (q[j, a] if j >= 0 else anchor[k, a])
 
 
-@njit(cache=True, inline="always")
+@compiled
 def relative_velocities(v, ends, V):
     """V[k] = v_i − v_j (a fixed end does not move), m/s."""
     dim = v.shape[1]
@@ -48,7 +57,7 @@ def relative_velocities(v, ends, V):
             V[k, a] = v[i, a] - (v[j, a] if j >= 0 else 0.0)
 
 
-@njit(cache=True, inline="always")
+@compiled
 def _dot(X, k, Y, l):
     s = 0.0
     for a in range(X.shape[1]):
@@ -56,16 +65,18 @@ def _dot(X, k, Y, l):
     return s
 
 
-@njit(cache=True, inline="always")
+@compiled
 def assemble(D, pair_k, pair_l, pair_w, band):
     """The lower band of J W Jᵀ (m²/kg) from the constraint vectors D."""
-    band[:, :] = 0.0
+    for k in range(band.shape[0]):
+        for j in range(band.shape[1]):
+            band[k, j] = 0.0
     for n in range(pair_k.shape[0]):
         k, l = pair_k[n], pair_l[n]
         band[k, k - l] += pair_w[n] * _dot(D, k, D, l)
 
 
-@njit(cache=True, inline="always")
+@compiled
 def add_constraint_term(x, scale, inverse_mass, ends, D, lam):
     """x += scale · W Jᵀ λ (per particle: +w_i λ_k d_k on the first end, −w_j λ_k d_k on the second)."""
     dim = x.shape[1]
@@ -77,7 +88,7 @@ def add_constraint_term(x, scale, inverse_mass, ends, D, lam):
                 x[j, a] -= scale * inverse_mass[j] * lam[k] * D[k, a]
 
 
-@njit(cache=True)
+@compiled
 def multipliers(q, v, model, k_s, k_d, D, V, band, lam):
     """λ (N/m) from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular."""
     inverse_mass, force, ends, anchor, length2, pair_k, pair_l, pair_w, bandwidth = model
@@ -101,7 +112,7 @@ def multipliers(q, v, model, k_s, k_d, D, V, band, lam):
     return True
 
 
-@njit(cache=True)
+@compiled
 def acceleration(q, v, model, k_s, k_d, D, V, band, lam, acc):
     """acc = W (f + Jᵀλ), m/s²; False when J W Jᵀ is singular."""
     inverse_mass, force = model[0], model[1]
@@ -113,7 +124,7 @@ def acceleration(q, v, model, k_s, k_d, D, V, band, lam, acc):
     return ok
 
 
-@njit(cache=True, inline="always")
+@compiled
 def max_violation(D, length2):
     """max_k |C_k| / l_k² (≈ the largest relative length error)."""
     worst = 0.0
@@ -122,7 +133,7 @@ def max_violation(D, length2):
     return worst
 
 
-@njit(cache=True)
+@compiled
 def project_velocities(q, v, model, D, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
     inverse_mass, _, ends, anchor, _, pair_k, pair_l, pair_w, bandwidth = model
@@ -142,7 +153,7 @@ def project_velocities(q, v, model, D, band, mu):
     return True
 
 
-@njit(cache=True)
+@compiled
 def project_positions(q, model, tolerance, max_iterations, D, band, delta):
     """Newton in the mass-weighted metric: q ← q − W Jᵀ (J W Jᵀ)⁻¹ C until max|C|/l² ≤ tolerance.
 
@@ -163,7 +174,7 @@ def project_positions(q, model, tolerance, max_iterations, D, band, delta):
     return NOT_CONVERGED
 
 
-@njit(cache=True)
+@compiled
 def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     """One RATTLE step (order 2, symplectic) in place; returns OK, SINGULAR or NOT_CONVERGED.
 
@@ -182,7 +193,8 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     for p in range(P):
         for a in range(dim):
             q_new[p, a] = q[p, a] + h * v[p, a] + 0.5 * h * h * inverse_mass[p] * force[p, a]
-    Lam[:] = 0.0
+    for k in range(Lam.shape[0]):
+        Lam[k] = 0.0
     converged = False
     for _ in range(max_iterations + 1):
         constraint_vectors(q_new, ends, anchor, D)
@@ -202,13 +214,21 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
         for a in range(dim):
             v[p, a] += h * inverse_mass[p] * force[p, a]
     add_constraint_term(v, 1.0 / h, inverse_mass, ends, D0, Lam)
-    q[:, :] = q_new
+    _copy(q, q_new)
     if not project_velocities(q, v, model, D, band, delta):
         return SINGULAR
     return OK
 
 
-@njit(cache=True, inline="always")
+@compiled
+def _copy(y, x):
+    """y[...] = x for (P, dim) arrays (slice assignment may allocate a temporary)."""
+    for p in range(y.shape[0]):
+        for a in range(y.shape[1]):
+            y[p, a] = x[p, a]
+
+
+@compiled
 def _axpy(y, x, alpha, s):
     """y = x + alpha · s (all (P, dim))."""
     for p in range(y.shape[0]):
@@ -216,44 +236,38 @@ def _axpy(y, x, alpha, s):
             y[p, a] = x[p, a] + alpha * s[p, a]
 
 
-@njit(cache=True)
+@compiled
 def _finite(x):
-    for value in x.ravel():
-        if not math.isfinite(value):
-            return False
+    """True when every entry of the (rows, cols) array is finite."""
+    for p in range(x.shape[0]):
+        for a in range(x.shape[1]):
+            if not math.isfinite(x[p, a]):
+                return False
     return True
 
 
-@njit(cache=True)
+@compiled
 def _record(n, q, v, model, k_s, k_d, D, V, band, out_q, out_v, out_lam):
-    out_q[n] = q
-    out_v[n] = v
+    for p in range(q.shape[0]):
+        for a in range(q.shape[1]):
+            out_q[n, p, a] = q[p, a]
+            out_v[n, p, a] = v[p, a]
     if not multipliers(q, v, model, k_s, k_d, D, V, band, out_lam[n]):
-        out_lam[n, :] = np.nan
+        for k in range(out_lam.shape[1]):
+            out_lam[n, k] = np.nan
 
 
-@njit(cache=True)
-def run(method, integrator, A, b, q, v, model, k_s, k_d, dt, n_steps, stride, tolerance, max_iterations,
+@compiled
+def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stride, tolerance, max_iterations,
         out_q, out_v, out_lam):
     """Step the system ``n_steps`` times from (q, v) (modified in place), recording every ``stride`` steps
     and the last one into out_q / out_v (S, P, dim) and out_lam (S, C).
 
     method, integrator : codes from ours.method / ours.integrator. A (s, s), b (s,) : Butcher table.
-    Returns (samples written, steps taken, status).
+    work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
-    P, dim = q.shape
-    C = model[2].shape[0]
     stages = b.shape[0]
-    bandwidth = model[8]
-    D = np.zeros((C, dim))
-    V = np.zeros((C, dim))
-    band = np.zeros((C, bandwidth + 1))
-    lam = np.zeros(C)
-    Kq = np.zeros((stages, P, dim))
-    Kv = np.zeros((stages, P, dim))
-    qs = np.zeros((P, dim))
-    vs = np.zeros((P, dim))
-    work = (np.zeros((C, dim)), D, band, np.zeros(C), np.zeros(C), np.zeros((P, dim)))
+    D, V, band, lam, Kq, Kv, qs, vs, rattle_work = work
     # Only baumgarte feeds C and Ċ back; its λ at a sample includes the feedback it applied.
     ks = k_s if method == _BAUMGARTE else 0.0
     kd = k_d if method == _BAUMGARTE else 0.0
@@ -265,7 +279,7 @@ def run(method, integrator, A, b, q, v, model, k_s, k_d, dt, n_steps, stride, to
     step = 0
     while step < n_steps:
         if integrator == _RATTLE:
-            status = rattle_step(q, v, h, model, tolerance, max_iterations, work)
+            status = rattle_step(q, v, h, model, tolerance, max_iterations, rattle_work)
         elif integrator == _SYMPLECTIC_EULER:
             if not acceleration(q, v, model, ks, kd, D, V, band, lam, Kv[0]):
                 status = SINGULAR
@@ -273,13 +287,13 @@ def run(method, integrator, A, b, q, v, model, k_s, k_d, dt, n_steps, stride, to
             _axpy(q, q, h, v)
         else:
             for i in range(stages):
-                qs[:, :] = q
-                vs[:, :] = v
+                _copy(qs, q)
+                _copy(vs, v)
                 for j in range(i):
                     if A[i, j] != 0.0:
                         _axpy(qs, qs, h * A[i, j], Kq[j])
                         _axpy(vs, vs, h * A[i, j], Kv[j])
-                Kq[i] = vs
+                _copy(Kq[i], vs)
                 if not acceleration(qs, vs, model, ks, kd, D, V, band, lam, Kv[i]):
                     status = SINGULAR
             for i in range(stages):

@@ -17,13 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from ours.banded import cholesky_banded, solve_banded
-from ours.kernel import NON_FINITE, OK, SINGULAR, _finite, multipliers
+from ours.banded import cholesky_banded, compiled, solve_banded
+from ours.kernel import NON_FINITE, OK, SINGULAR, multipliers
 
 
-@njit(cache=True)
+@compiled
 def angular_acceleration(theta, omega, tail, lengths, gravity, M, alpha):
     """θ̈ (rad/s²) into ``alpha``; False when the mass matrix is singular. M : (n, n) workspace."""
     n = theta.shape[0]
@@ -41,7 +40,7 @@ def angular_acceleration(theta, omega, tail, lengths, gravity, M, alpha):
     return True
 
 
-@njit(cache=True)
+@compiled
 def to_cartesian(theta, omega, lengths, anchor, q, v):
     """Particle positions (n, 2) m and velocities (n, 2) m/s of the chain."""
     x, y, vx, vy = anchor[0], anchor[1], 0.0, 0.0
@@ -54,32 +53,33 @@ def to_cartesian(theta, omega, lengths, anchor, q, v):
         q[k, 0], q[k, 1], v[k, 0], v[k, 1] = x, y, vx, vy
 
 
-@njit(cache=True)
+@compiled
 def _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam):
     to_cartesian(theta, omega, lengths, anchor, out_q[n], out_v[n])
     # The constraint forces of the exact motion: the acceleration-level solve with no feedback.
     if not multipliers(out_q[n], out_v[n], model, 0.0, 0.0, D, V, band, out_lam[n]):
-        out_lam[n, :] = np.nan
+        for k in range(out_lam.shape[1]):
+            out_lam[n, k] = np.nan
 
 
-@njit(cache=True)
-def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, dt, n_steps, stride, out_q, out_v, out_lam):
+@compiled
+def _finite(x):
+    for k in range(x.shape[0]):
+        if not math.isfinite(x[k]):
+            return False
+    return True
+
+
+@compiled
+def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, work, dt, n_steps, stride, out_q, out_v, out_lam):
     """Step (θ, θ̇) with the explicit Runge–Kutta table (A, b), recording Cartesian samples.
 
     tail : (n,) kg, μ_ii = Σ_{k ≥ i} m_k.  lengths : (n,) m.  gravity, anchor : (2,).
-    Returns (samples written, steps taken, status).
+    work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
     n_links = theta.shape[0]
     stages = b.shape[0]
-    C = model[2].shape[0]
-    M = np.zeros((n_links, n_links))
-    Kt = np.zeros((stages, n_links))
-    Kw = np.zeros((stages, n_links))
-    ts = np.zeros(n_links)
-    ws = np.zeros(n_links)
-    D = np.zeros((C, 2))
-    V = np.zeros((C, 2))
-    band = np.zeros((C, model[8] + 1))
+    M, Kt, Kw, ts, ws, D, V, band = work
     h = dt
     _record(0, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
     n = 1
@@ -87,14 +87,16 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, dt, n_steps, 
     step = 0
     while step < n_steps:
         for i in range(stages):
-            ts[:] = theta
-            ws[:] = omega
+            for k in range(n_links):
+                ts[k] = theta[k]
+                ws[k] = omega[k]
             for j in range(i):
                 if A[i, j] != 0.0:
                     for k in range(n_links):
                         ts[k] += h * A[i, j] * Kt[j, k]
                         ws[k] += h * A[i, j] * Kw[j, k]
-            Kt[i] = ws
+            for k in range(n_links):
+                Kt[i, k] = ws[k]
             if not angular_acceleration(ts, ws, tail, lengths, gravity, M, Kw[i]):
                 status = SINGULAR
         for i in range(stages):
@@ -109,6 +111,12 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, dt, n_steps, 
             _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
             n += 1
     return n, step, status
+
+
+def workspace(n: int, bandwidth: int, stages: int) -> tuple:
+    """Scratch arrays for :func:`run` (the compiled code allocates nothing)."""
+    z = np.zeros
+    return (z((n, n)), z((stages, n)), z((stages, n)), z(n), z(n), z((n, 2)), z((n, 2)), z((n, bandwidth + 1)))
 
 
 def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -154,15 +154,17 @@ def simulate(
         tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
         lengths = np.array([c.length for c in system.constraints])
         anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
+        work = lagrangian.workspace(system.n_particles, p.bandwidth, scheme.stages)
         start = time.perf_counter()
         written, steps, status = lagrangian.run(
-            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, model,
+            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, model, work,
             dt, n_steps, stride, out_q, out_v, out_lam,
         )
     else:
+        work = kernel.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages)
         start = time.perf_counter()
         written, steps, status = kernel.run(
-            chosen.code, scheme.code, scheme.A, scheme.b, q, v, model, ks, kd, dt, n_steps, stride,
+            chosen.code, scheme.code, scheme.A, scheme.b, q, v, model, work, ks, kd, dt, n_steps, stride,
             tolerance, max_iterations, out_q, out_v, out_lam,
         )
     wall_time = time.perf_counter() - start
