@@ -1,0 +1,194 @@
+"""The runner on real engines: isolation of misbehaving cases, skipped pairs, resume after SIGKILL,
+observed orders from real sweeps, and the run/show commands."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+if str(HERE) not in sys.path:  # compare_engines is a test-only module beside this file
+    sys.path.insert(0, str(HERE))
+
+from compare.results import load_results  # noqa: E402
+from compare.runner import run_suite  # noqa: E402
+from compare.suite import parse_suite  # noqa: E402
+from compare.sweep import sweeps  # noqa: E402
+from engines.errors import UserError  # noqa: E402
+
+XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
+
+
+def suite_text(engines: list[str], dt: str = "[1e-2]", duration: float = 0.5, scenes=("bead",), extra: str = "") -> str:
+    lines = [f"duration = {duration}", f"dt = {dt}", "timeout = 20", extra]
+    for scene in scenes:
+        lines += ["[[scenes]]", f'scene = "{scene}"']
+    for engine in engines:
+        lines += ["[[engines]]", f'id = "{engine}"']
+    return "\n".join(lines) + "\n"
+
+
+def by_engine(path: Path) -> dict[str, dict]:
+    return {r["case"]["engine"]: r for r in load_results(path).records}
+
+
+def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
+    modes = ["exact", "raise", "nan", "sleep", "kill", "exit", "drift"]
+    suite = parse_suite(suite_text([f"compare_engines:MISBEHAVING/{m}" for m in modes] + ["mujoco/hinge"]))
+    start = time.perf_counter()
+    summary = run_suite(suite, tmp_path / "r", jobs=2, timeout=3)
+    assert time.perf_counter() - start < 30  # the sleeper was cut at its timeout
+    records = by_engine(tmp_path / "r")
+    status = {k.split("/")[-1]: (r["status"], r["message"]) for k, r in records.items()}
+    assert status["exact"] == ("ok", "")
+    assert status["raise"] == ("failed", "RuntimeError: deliberate failure in the stepping loop")
+    assert status["nan"][0] == "unstable" and status["nan"][1].startswith("non-finite state at t = 0.25")
+    assert status["sleep"] == ("timeout", "ran past the timeout of 3 s and was killed; raise --timeout if it is only slow")
+    assert status["kill"] == ("failed", "the engine's process died (signal SIGKILL) before returning a result")
+    assert status["exit"] == ("failed", "the engine's process died (exit code 3) before returning a result")
+    assert status["drift"][0] == "unstable" and "constraint error 0.5 m exceeds the bound 0.1 L" in status["drift"][1]
+    assert status["hinge"][0] == "ok"
+    assert records["compare_engines:MISBEHAVING/exact"]["metrics"]["position_error_linf"] == 0.0
+    # The NaN run's metrics cover the samples before the first non-finite one.
+    assert records["compare_engines:MISBEHAVING/nan"]["metrics"]["n_samples"] == 25
+    assert summary.counts == {"failed": 3, "ok": 2, "timeout": 1, "unstable": 2}
+
+
+def test_any_executor_and_skipped_pairs(tmp_path):
+    # pymunk is 2-D: the spherical pendulum is recorded as skipped with the reason, not dropped.
+    suite = parse_suite(suite_text(["pymunk/pin", "mujoco/hinge"], scenes=("bead", "spherical-pendulum")))
+    with cf.ThreadPoolExecutor(2) as executor:
+        run_suite(suite, tmp_path / "r", executor=executor)
+    records = load_results(tmp_path / "r").records
+    skipped = [r for r in records if r["status"] == "skipped"]
+    assert [(r["case"]["scene_id"], r["case"]["engine"]) for r in skipped] == [("spherical-pendulum", "pymunk/pin")]
+    assert skipped[0]["message"] == "pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'"
+    assert len(records) == 4
+
+
+def test_a_results_directory_is_not_overwritten_and_resume_needs_the_same_suite(tmp_path):
+    suite = parse_suite(suite_text(["pymunk/pin"]))
+    run_suite(suite, tmp_path / "r")
+    with pytest.raises(UserError, match="already holds results; pass --resume to finish that run"):
+        run_suite(suite, tmp_path / "r")
+    other = parse_suite(suite_text(["pymunk/pin"], dt="[1e-2, 1e-3]"))
+    with pytest.raises(UserError, match="^--resume: .* holds results of a different suite"):
+        run_suite(other, tmp_path / "r", resume=True)
+    assert run_suite(suite, tmp_path / "r", resume=True).ran == 0
+
+
+#: Fields that depend on the machine's speed or the clock, left out when runs are compared.
+TIMING = {"wall_time", "cost_per_simulated_second", "steps_per_second"}
+
+
+def deterministic(record: dict) -> dict:
+    record = dict(record)
+    for key in ("elapsed", "wall_times", "finished"):
+        record.pop(key)
+    record["metrics"] = {k: v for k, v in (record["metrics"] or {}).items() if k not in TIMING}
+    if record["run_info"]:
+        record["run_info"] = {k: v for k, v in record["run_info"].items() if k != "wall_time"}
+    if record["reference"]:
+        record["reference"] = {k: v for k, v in record["reference"].items() if k != "wall_time"}
+    return record
+
+
+def test_sigkill_part_way_then_resume_equals_an_uninterrupted_run(tmp_path):
+    suite_file = tmp_path / "s.toml"
+    suite_file.write_text(
+        suite_text(["mujoco/hinge", "pymunk/pin", "pybullet/multibody", "mujoco/hinge-rk4"],
+                   dt="[3e-2, 1e-2, 3e-3, 1e-3]", duration=1.0, scenes=("bead", "double-pendulum"))
+    )
+    total = 2 * 4 * 4
+    interrupted = tmp_path / "interrupted"
+    process = subprocess.Popen(
+        XVAL + ["run", str(suite_file), "--output", str(interrupted), "--jobs", "1"],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )
+    cases = interrupted / "cases"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(list(cases.glob("*.json")) if cases.is_dir() else []) < 5:
+        time.sleep(0.01)
+    os.killpg(process.pid, signal.SIGKILL)  # the CLI, its pool worker and any case child
+    process.wait()
+    before = {f.name: f.stat().st_mtime_ns for f in cases.glob("*.json")}
+    assert 5 <= len(before) < total
+    assert json.loads((interrupted / "run.json").read_text())["finished"] is None
+
+    resumed = subprocess.run(
+        XVAL + ["run", str(suite_file), "--output", str(interrupted), "--resume", "--jobs", "2"],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    assert f"{len(before)} already done" in resumed.stdout
+    after = {f.name: f.stat().st_mtime_ns for f in cases.glob("*.json")}
+    assert {name: after[name] for name in before} == before  # no finished case redone
+    assert len(after) == total
+
+    fresh = tmp_path / "fresh"
+    run_suite(parse_suite(suite_file.read_text(), str(suite_file)), fresh, jobs=2)
+    a = {r["case"]["id"]: deterministic(r) for r in load_results(interrupted).records}
+    b = {r["case"]["id"]: deterministic(r) for r in load_results(fresh).records}
+    assert a == b
+
+
+@pytest.fixture(scope="module")
+def bead_sweep(tmp_path_factory):
+    path = tmp_path_factory.mktemp("order") / "r"
+    text = suite_text(["ours/plain-rk4", "mujoco/hinge"], dt="{ from = 0.2, to = 0.002, per_decade = 2 }", duration=1.0)
+    run_suite(parse_suite(text), path, jobs=2)
+    return {s.engine: s for s in sweeps(load_results(path).records)}
+
+
+def test_observed_order_of_ours_rk4_on_the_bead_is_4(bead_sweep):
+    fit = bead_sweep["ours/plain-rk4"].order
+    assert fit.order == pytest.approx(4.0, abs=0.3) and fit.n_points >= 3
+
+
+def test_observed_order_of_mujoco_hinge_euler_on_the_bead_is_1(bead_sweep):
+    fit = bead_sweep["mujoco/hinge"].order
+    assert fit.order == pytest.approx(1.0, abs=0.1) and fit.n_points >= 3
+
+
+def test_run_and_show_commands(tmp_path):
+    suite_file = tmp_path / "s.toml"
+    suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
+    env = {**os.environ, "PYTHONPATH": str(HERE)}
+    out = tmp_path / "r"
+    run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"],
+                         cwd=ROOT, capture_output=True, text=True, env=env, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert "engine" in run.stdout and "pymunk/pin" in run.stdout and f"results: {out}" in run.stdout
+    assert "[2/2] bead" in run.stderr or "[1/2] bead" in run.stderr  # plain progress lines off a terminal
+    show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=env)
+    table = show.stdout.splitlines()
+    assert table[2] == "scene bead"
+    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order"]
+    assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
+    assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
+    assert table[6] == "  compare_engines:MISBEHAVING/raise: RuntimeError: deliberate failure in the stepping loop"
+    csv_out = subprocess.run(XVAL + ["show", str(out), "--format", "csv"], cwd=ROOT, capture_output=True, text=True)
+    lines = csv_out.stdout.splitlines()
+    assert lines[0].startswith("scene,engine,dt,status,message,position_error_final") and len(lines) == 3
+    rows = json.loads(subprocess.run(XVAL + ["show", str(out), "--format", "json"], cwd=ROOT,
+                                     capture_output=True, text=True).stdout)
+    assert [(r["engine"], r["status"]) for r in rows] == [("pymunk/pin", "ok"), ("compare_engines:MISBEHAVING/raise", "failed")]
+
+
+def test_cli_errors_are_one_line(tmp_path):
+    missing = subprocess.run(XVAL + ["run", "nope.toml", "--output", str(tmp_path / "r")],
+                             cwd=ROOT, capture_output=True, text=True)
+    assert missing.returncode == 2
+    assert missing.stderr.startswith("xval: error: nope.toml: no such suite file") and missing.stderr.count("\n") == 1
+    show = subprocess.run(XVAL + ["show", str(tmp_path)], cwd=ROOT, capture_output=True, text=True)
+    assert show.returncode == 2
+    assert show.stderr == f"xval: error: {tmp_path}: not a results directory (no run.json); give the --output directory of 'xval run'\n"
