@@ -219,6 +219,16 @@ def test_only_failures_and_skips_render(small_results, tmp_path):
     assert page.section("scene-1").tables[1].css_class == "skipped"
 
 
+def test_a_scene_whose_every_pair_was_skipped_renders(small_results, tmp_path):
+    skipped = copy_results(small_results, tmp_path / "skipped", keep=lambda r: r["status"] == "skipped")
+    html = render(load_report_data(skipped))
+    page = PageStructure(html)
+    assert [s.heading for s in page.sections[1:2]] == ["Scene spherical"]
+    assert "No engine variant ran on this scene." in html
+    assert [t.css_class for t in page.section("scene-0").tables] == ["skipped"]
+    assert page.plots == [] and "None: no case ran." in html
+
+
 def test_an_empty_or_unfinished_run_renders(small_results, tmp_path):
     def unfinished(header):
         header["finished"] = None
