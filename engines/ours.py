@@ -56,6 +56,17 @@ def _to_system(scene: Scene) -> tuple[ours.System, np.ndarray, np.ndarray, list[
     return system, q0, v0, axes
 
 
+_compile_seconds: float | None = None
+
+
+def _ensure_compiled() -> float:
+    """Compile ours' loops (or load them from numba's cache) once per process; the seconds it took."""
+    global _compile_seconds
+    if _compile_seconds is None:
+        _compile_seconds = ours.compile_all()
+    return _compile_seconds
+
+
 class OursEngine(Engine):
     name = "ours"
     capabilities = frozenset({"3d", "constraint-forces"})
@@ -100,7 +111,7 @@ class OursEngine(Engine):
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         system, q0, v0, axes = _to_system(scene)
-        compile_seconds = ours.compile_all()  # compile or load the cache before the clock starts
+        compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(
             system, q0, v0, schedule.dt, schedule.n_steps, schedule.stride,
             method=settings["method"], integrator=settings["integrator"],
