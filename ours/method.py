@@ -23,8 +23,10 @@ from ours.integrator import RATTLE, SYMPLECTIC_EULER, Integrator, get_integrator
 #: 0.1 s, faster than the pendulum motions of the catalog (periods ≥ 1 s) yet
 #: h·√k_s ≤ 0.1 for any dt ≤ 10 ms, so the feedback never limits the step.
 DEFAULT_K_S = 100.0
-#: Baumgarte damping k_d = 2·√k_s (1/s): critical damping, the fastest decay without overshoot.
+
+
 def critical_damping(k_s: float) -> float:
+    """The default Baumgarte damping k_d = 2·√k_s (1/s): critical damping, the fastest decay without overshoot."""
     return 2.0 * math.sqrt(k_s)
 
 
