@@ -2,7 +2,8 @@
 
 Values are compared only between variants whose case at the chosen dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
-"best". The reference engine, when a suite runs it, is shown but not ranked. Ties (equal to the shown precision) are all marked. The observed
+"best". The reference engine, when a suite runs it, is shown but not ranked.
+A column in which every ranked variant ties gets no mark at all. Ties (equal to the shown precision) are all marked. The observed
 order is a property of the whole sweep, so it is ranked over every variant
 that has one.
 """
@@ -104,6 +105,9 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
     if column.better is None or not candidates:
         return [False] * len(values)
     top = max(candidates)
+    if len(candidates) > 1 and min(candidates) == top:
+        # Everyone ties (e.g. no variant diverges): a star on every row would say nothing.
+        return [False] * len(values)
     shown = lambda v: column.missing if v is None else column.fmt(v)  # noqa: E731
     top_text = next(shown(v) for v, r in zip(values, ranks) if r == top)
     return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]

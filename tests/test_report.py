@@ -106,9 +106,9 @@ def test_summary_marks_the_best_value_of_each_column(small_page):
     # The reference is never ranked, and neither are the broken variants.
     for name in ("reference/dop853", "broken/blow-up", "broken/raise"):
         assert not any(cell.startswith("★") for cell in rows[name])
-    # Ties are all marked: neither ok variant diverges, so both get the divergence-time star.
+    # Neither ok variant diverges: a tie of everyone, so no star at all in that column.
     divergence = column["divergence time / s"]
-    assert [rows[n][divergence] for n in ("mujoco/hinge-rk4", "pymunk/pin")] == ["★ never", "★ never"]
+    assert [rows[n][divergence] for n in ("mujoco/hinge-rk4", "pymunk/pin")] == ["never", "never"]
     # Every other column has exactly one star (the order only pymunk's first-order sweep could fit).
     stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(3, len(header)) if k != divergence]
     assert stars == [1] * len(stars)
@@ -265,6 +265,8 @@ def test_chosen_dt_is_the_smallest_with_the_most_ok_variants(small_results):
 def test_best_flags_rank_only_eligible_values_and_keep_ties():
     low = Column("x", "x", "m", "low")
     assert _best_flags(low, [3.0, 1.0, 1.0, 0.5], [True, True, True, False]) == [False, True, True, False]
+    assert _best_flags(low, [2.0, 2.0], [True, True]) == [False, False]  # all tie: nothing to point at
+    assert _best_flags(low, [2.0, 5.0], [True, False]) == [True, False]  # a single ranked value is still best
     assert _best_flags(low, [None, None], [True, True]) == [False, False]
     divergence = next(c for c in METRIC_COLUMNS if c.key == "divergence_time")
     # None is "never diverged": the best divergence time there is.
