@@ -1,27 +1,34 @@
-"""``make demo``: simulate every catalog scene with the reference and print a short summary.
+"""``make demo``: run ``suites/default.toml`` into ``results/default`` and print the tables.
 
-(Until the suite runner exists; then it runs ``suites/default.toml``.)
+A previous demo's results directory is replaced (only when it is one: it
+holds a run.json), so the demo always shows a fresh, complete run.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import shutil
+import sys
+from pathlib import Path
 
-from engines import catalog
-from engines.reference import ENGINE as REFERENCE
-from engines.trajectory import max_constraint_error, total_energy
+from compare.progress import progress_for
+from compare.results import load_results
+from compare.runner import run_suite
+from compare.suite import load_suite
+from compare.table import scene_tables
+
+ROOT = Path(__file__).resolve().parent.parent
+SUITE = ROOT / "suites" / "default.toml"
+OUTPUT = ROOT / "results" / "default"
 
 
 def main() -> None:
-    print(f"{'scene':<20} {'samples':>8} {'steps':>7} {'time/s':>8} {'energy drift/E*':>16} {'constraint err/m':>17}")
-    for name in catalog.scene_names():
-        scene = catalog.build(name)
-        trajectory = REFERENCE.simulate(scene, 1e-2)
-        energy = total_energy(scene, trajectory.positions, trajectory.velocities)
-        drift = np.max(np.abs(energy - energy[0])) / scene.characteristic_energy
-        error = max_constraint_error(scene, trajectory.positions).max()
-        info = trajectory.info
-        print(f"{name:<20} {trajectory.n_samples:>8} {info.steps:>7} {info.wall_time:>8.3f} {drift:>16.2e} {error:>17.2e}")
+    if (OUTPUT / "run.json").exists():
+        shutil.rmtree(OUTPUT)
+    summary = run_suite(load_suite(SUITE), OUTPUT, progress=progress_for(sys.stderr))
+    print(scene_tables(load_results(OUTPUT).records))
+    counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
+    print(f"{summary.ran} cases in {summary.wall_time:.1f} s ({counts})")
+    print(f"results: {OUTPUT}  (xval show {OUTPUT.relative_to(ROOT)} --format csv; xval report ...)")
 
 
 if __name__ == "__main__":

@@ -1,28 +1,33 @@
 """Running one case so that whatever the engine does (raise, hang, segfault) only that case pays.
 
 :func:`execute` is what the runner submits to its Executor. With
-``isolate`` (the default) it forks a child process per case from the worker
-that received it, and waits for the child's answer on a pipe at most
-``timeout`` seconds:
+``isolate`` (the default) the case runs in a *case host*: a child process
+forked from the worker (one per worker thread), which runs cases one after
+another and answers each on a pipe. The worker waits at most ``timeout``
+seconds for the answer:
 
-- the engine raised: the child catches it and answers ``failed``;
-- the child died (a segfault, ``os._exit``, SIGKILL): the pipe closes
-  without an answer, and the case is ``failed`` with the exit code or signal;
-- no answer in time: the child is killed and the case is ``timeout``.
+- the engine raised: the host catches it and answers ``failed``;
+- the host died (a segfault, ``os._exit``, SIGKILL): the pipe closes
+  without an answer, the case is ``failed`` with the exit code or signal,
+  and the next case gets a new host;
+- no answer in time: the host is killed, the case is ``timeout``, and the
+  next case gets a new host.
 
-Forking per case (rather than running cases in the pool's workers
-directly) is what keeps a ``ProcessPoolExecutor`` usable after a case kills
-its process: the worker itself never dies, so the pool never breaks. A fork
-copies the worker's already imported engines, so the cost is a few
-milliseconds per case. It needs the ``fork`` start method (Linux, macOS);
-with ``isolate=False`` the case runs in the worker itself (no timeout, and
-a crash breaks the pool, which the runner then rebuilds).
+Because the worker itself never runs engine code, a case that kills its
+process never breaks a ``ProcessPoolExecutor``. Reusing the host across
+cases (rather than forking per case) matters for speed: a fork per case
+cost 90–250 ms (copying a process that holds numba, MuJoCo and PyBullet,
+and re-initializing them), more than most cases' stepping. It needs the
+``fork`` start method (Linux, macOS); with ``isolate=False`` the case runs
+in the worker itself (no timeout, and a crash breaks the pool, which the
+runner then rebuilds).
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import signal
+import threading
 import time
 import traceback
 from dataclasses import dataclass, field
@@ -95,21 +100,18 @@ def simulate(task: CaseTask) -> CaseOutcome:
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start)
 
 
-#: Built-in engine variants this process has run once (see :func:`warm_up`).
+#: Engine variants this process has run once (see :func:`warm_up`).
 _WARM: set[str] = set()
 
 
 def warm_up(task: CaseTask) -> None:
-    """Run a built-in engine variant for two steps in this (worker) process, once.
+    """Run the case's engine variant for two steps in this (host) process, once per variant.
 
-    Forked children inherit what the worker has loaded, so one-off costs
-    (``ours``' numba kernels load from the on-disk cache in ~0.5 s, MuJoCo
-    and PyBullet initialize their libraries) are paid once per worker, not
-    once per case. Only built-in engines are warmed: an engine loaded by
-    ``module:attribute`` could kill the worker, which is what the per-case
-    child is for. Errors here are ignored: the real case reports them.
+    One-off costs (``ours``' numba kernels load from the on-disk cache in
+    ~0.5 s; MuJoCo and PyBullet initialize their libraries) then stay out of
+    the case's stepping time. Errors are ignored here: the case reports them.
     """
-    if task.engine_id in _WARM or ":" in task.engine_id:
+    if task.engine_id in _WARM:
         return
     _WARM.add(task.engine_id)
     try:
@@ -126,16 +128,47 @@ def _failure(task: CaseTask, exc: BaseException) -> CaseOutcome:
     return CaseOutcome(task.case_id, None, status="failed", message=message)
 
 
-def _child(connection: Any, task: CaseTask) -> None:
-    try:
-        outcome = simulate(task)
-    except BaseException as exc:  # anything the engine throws is this case's result
-        outcome = _failure(task, exc)
-    try:
-        connection.send(outcome)
-    except Exception as exc:  # an unpicklable trajectory must still give an answer
-        connection.send(_failure(task, exc))
-    connection.close()
+def _host_loop(requests: Any, replies: Any) -> None:
+    """The case host: run each task received until the worker closes the pipe."""
+    while True:
+        try:
+            task = requests.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            warm_up(task)
+            outcome = simulate(task)
+        except BaseException as exc:  # anything the engine throws is this case's result
+            outcome = _failure(task, exc)
+        try:
+            replies.send(outcome)
+        except Exception as exc:  # an unpicklable trajectory must still give an answer
+            replies.send(_failure(task, exc))
+
+
+class _Host:
+    """A case host process and the worker's ends of its two pipes."""
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("fork")
+        self.requests, child_requests = context.Pipe(duplex=False)[::-1]
+        child_replies, self.replies = context.Pipe(duplex=False)[::-1]
+        # daemon: it is killed when the worker exits, rather than waited for.
+        self.process = context.Process(target=_host_loop, args=(child_requests, child_replies), daemon=True,
+                                       name="xval-case-host")
+        self.process.start()
+        child_requests.close()
+        child_replies.close()  # so a host that dies closes the pipe and recv() sees EOF
+
+    def close(self, kill: bool = False) -> None:
+        if kill:
+            self.process.kill()
+        self.requests.close()
+        self.replies.close()
+        self.process.join(timeout=10)
+
+
+_local = threading.local()  # one host per worker thread, so threads never share a pipe
 
 
 def _signal_name(exitcode: int | None) -> str:
@@ -150,7 +183,7 @@ def _signal_name(exitcode: int | None) -> str:
 
 
 def execute(task: CaseTask) -> CaseOutcome:
-    """Run ``task``, isolated in a forked child unless ``task.isolate`` is False; never raises for the engine's sake."""
+    """Run ``task`` in this thread's case host (unless ``task.isolate`` is False); never raises for the engine's sake."""
     start = time.perf_counter()
     if not task.isolate:
         try:
@@ -159,43 +192,36 @@ def execute(task: CaseTask) -> CaseOutcome:
             outcome = _failure(task, exc)
             outcome.elapsed = time.perf_counter() - start
             return outcome
-    warm_up(task)
-    context = multiprocessing.get_context("fork")
-    reader, writer = context.Pipe(duplex=False)
-    child = context.Process(target=_child, args=(writer, task), name=f"xval-case {task.case_id}")
-    child.start()
-    writer.close()  # so a child that dies closes the pipe and recv() sees EOF
+    host: _Host | None = getattr(_local, "host", None)
+    if host is None or not host.process.is_alive():
+        host = _local.host = _Host()
     try:
-        outcome: CaseOutcome | None = None
-        if reader.poll(task.timeout):
-            try:
-                outcome = reader.recv()
-            except (EOFError, OSError):
-                outcome = None
-        else:
-            child.kill()
-            child.join()
-            return CaseOutcome(
-                task.case_id,
-                None,
-                status="timeout",
-                message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it is only slow",
-                elapsed=time.perf_counter() - start,
-            )
-        child.join(timeout=30)
-        if child.is_alive():  # answered but will not exit: do not let it linger
-            child.kill()
-            child.join()
-        if outcome is None:
-            return CaseOutcome(
-                task.case_id,
-                None,
-                status="failed",
-                message=f"the engine's process died ({_signal_name(child.exitcode)}) before returning a result",
-                elapsed=time.perf_counter() - start,
-            )
-        outcome.elapsed = time.perf_counter() - start
-        return outcome
-    finally:
-        reader.close()
-        child.close() if child.exitcode is not None else None
+        host.requests.send(task)
+    except OSError:  # the host died after its last answer: start another
+        host.close()
+        host = _local.host = _Host()
+        host.requests.send(task)
+    if not host.replies.poll(task.timeout):
+        host.close(kill=True)
+        _local.host = None
+        return CaseOutcome(
+            task.case_id,
+            None,
+            status="timeout",
+            message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it is only slow",
+            elapsed=time.perf_counter() - start,
+        )
+    try:
+        outcome: CaseOutcome = host.replies.recv()
+    except (EOFError, OSError):
+        host.close()
+        _local.host = None
+        return CaseOutcome(
+            task.case_id,
+            None,
+            status="failed",
+            message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
+            elapsed=time.perf_counter() - start,
+        )
+    outcome.elapsed = time.perf_counter() - start
+    return outcome

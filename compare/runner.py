@@ -3,9 +3,9 @@
 Division of work (why it is split this way):
 
 - **Workers** only simulate. Each case goes to the executor as a
-  :class:`~compare.isolation.CaseTask`; the worker forks a child per case
-  (see :mod:`compare.isolation`), so a case that raises, hangs or kills its
-  process is recorded and the pool carries on.
+  :class:`~compare.isolation.CaseTask`; the worker runs it in its case host,
+  a forked child (see :mod:`compare.isolation`), so a case that raises, hangs
+  or kills its process is recorded and the pool carries on.
 - **The reference** for each scene is solved once, as its own task on the
   same executor (so it overlaps with the engines' cases), and comes back to
   the parent as a pickled dense solution (a few hundred kB).
@@ -247,8 +247,12 @@ class _Dispatcher:
                         broken = True
                         pending[future] = (kind, key)  # re-handled below
                         continue
-                    except Exception as exc:  # the reference raised (the case path never raises)
-                        value = exc
+                    except Exception as exc:
+                        # A reference that could not be solved is kept as its exception;
+                        # a case whose task itself raised (not the engine) is failed.
+                        value = exc if kind == "reference" else CaseOutcome(
+                            key, None, status="failed", message=f"{type(exc).__name__}: {exc}".splitlines()[0]
+                        )
                     self.handle(kind, key, value)
                 if broken:
                     pending = self.recover(pending)
