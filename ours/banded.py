@@ -19,7 +19,13 @@ from numba import njit
 #: about 2x slower per step on the double pendulum. The price: compiled code must
 #: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
 #: numba's switch for this (an underscored option of numba 0.68's ``njit``).
-compiled = njit(cache=True, _nrt=False)
+try:
+    # Probe once: if a numba release drops the private switch, fall back to the
+    # public decorator (same results; the compiled code allocates nothing either way).
+    njit(_nrt=False)(lambda: 0)()
+    compiled = njit(cache=True, _nrt=False)
+except Exception:  # noqa: BLE001 - any rejection of the option means "not available"
+    compiled = njit(cache=True)
 
 
 @compiled
