@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(PY) -m compare.demo
+	$(XVAL) report results/default
 
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -q
