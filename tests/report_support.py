@@ -51,7 +51,9 @@ class BrokenEngine(Engine):
         n = len(schedule.sample_steps)
         positions = np.repeat(scene.initial_positions[None], n, axis=0)
         positions[n // 2:] = np.nan
-        velocities = np.where(np.isnan(positions), np.nan, 0.0)
+        # Sample 0 must be the scene's initial state (the adapter protocol checks it).
+        velocities = np.repeat(scene.initial_velocities[None], n, axis=0)
+        velocities[n // 2:] = np.nan
         return RawRun(positions, velocities, None, steps=schedule.n_steps, wall_time=1e-6)
 
 
