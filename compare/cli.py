@@ -25,6 +25,7 @@ COMMAND_MODULES = [
     "compare.commands.show",
     "compare.commands.baseline",
     "compare.commands.gate",
+    "compare.commands.stability",
 ]
 
 

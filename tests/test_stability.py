@@ -1,0 +1,192 @@
+"""Stability search, Baumgarte gain-map theory, and blow-ups recorded (not crashing) in a suite run."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from engines.errors import UserError
+
+from compare.gainmap import critical_limit, largest_stable_dt, run_gainmap, spectral_radius, theory_stable
+from compare.results import load_results
+from compare.runner import run_suite
+from compare.stability import (
+    BOUNDED,
+    STABLE_AT_LARGEST,
+    UNSTABLE_AT_SMALLEST,
+    Probe,
+    SearchSettings,
+    load_stability,
+    plan_stability,
+    run_stability,
+    search,
+)
+from compare.suite import parse_suite
+
+K_S = 1e6  # stiff enough that the feedback, not explicit Euler's slow energy growth, sets the limit
+K_D = 2 * math.sqrt(K_S)
+
+BEAD_SUITE = f"""
+name = "bead-stability"
+duration = 0.5
+dt = [1e-2, 1e-4]
+timeout = 60
+[bounds]
+energy_drift = 1.0
+constraint_error = 0.1
+[stability]
+dt_max = 1e-2
+dt_min = 1e-4
+[[scenes]]
+id = "bead"
+scene = "bead"
+[[engines]]
+id = "ours/baumgarte-euler"
+options = {{ k_s = {K_S}, k_d = {K_D} }}
+[[engines]]
+id = "ours/baumgarte-symplectic-euler"
+options = {{ k_s = {K_S}, k_d = {K_D} }}
+"""
+
+
+# -- the pure search ---------------------------------------------------------------------------
+
+
+def threshold_probe(boundary: float):
+    """A fake engine stable exactly for dt ≤ boundary (s)."""
+    return lambda dt: Probe(dt, "ok" if dt <= boundary else "unstable")
+
+
+@pytest.mark.parametrize("boundary", [3.7e-4, 1e-3, 2.2e-3, 9.9e-3])
+def test_search_brackets_a_known_boundary_to_ten_percent(boundary):
+    verdict, lo, hi, probes = search(threshold_probe(boundary), SearchSettings(1e-2, 1e-4))
+    assert verdict == BOUNDED
+    assert lo <= boundary < hi and hi / lo <= 1.1 * (1 + 1e-9)
+    assert len(probes) <= 10  # two per decade down, then ~4 bisections
+
+
+def test_search_edges_stable_at_largest_and_unstable_at_smallest():
+    assert search(threshold_probe(1.0), SearchSettings(1e-2, 1e-4))[:3] == (STABLE_AT_LARGEST, 1e-2, None)
+    verdict, lo, hi, probes = search(threshold_probe(1e-6), SearchSettings(1e-2, 1e-4))
+    assert (verdict, lo, hi) == (UNSTABLE_AT_SMALLEST, None, 1e-4)
+    assert probes[-1].dt == 1e-4  # the smallest dt was tried, not skipped over
+
+
+# -- theory ------------------------------------------------------------------------------------
+
+
+def test_euler_and_symplectic_euler_regions_match_their_closed_forms():
+    """Euler: h k_s ≤ k_d ≤ 2/h + h k_s/2. Symplectic Euler: h k_d ≤ 2 and h² k_s + 2 h k_d ≤ 4."""
+    h = 1e-3
+    for k_s in (1e1, 1e3, 1e5, 3e6, 5e6):
+        for k_d in (0.3, 3.0, 30.0, 300.0, 1.5e3, 3e3, 3e4):
+            assert theory_stable("euler", h, k_s, k_d) == (h * k_s <= k_d <= 2 / h + h * k_s / 2)
+            assert theory_stable("symplectic-euler", h, k_s, k_d) == (h * k_d <= 2 and h * h * k_s + 2 * h * k_d <= 4)
+
+
+def test_critical_damping_limits():
+    """h√k_s at the limit: real-axis limits of R(z) (2, 2, 2.785) and 2(√2 − 1) for symplectic Euler."""
+    assert critical_limit("euler") == pytest.approx(2.0, rel=1e-5)
+    assert critical_limit("midpoint") == pytest.approx(2.0, rel=1e-5)
+    assert critical_limit("rk4") == pytest.approx(2.785293, rel=1e-5)
+    assert critical_limit("symplectic-euler") == pytest.approx(2 * (math.sqrt(2) - 1), rel=1e-5)
+    assert largest_stable_dt("euler", 1.0, 0.0) is None  # undamped: |1 + iωh| > 1 for every h
+    assert spectral_radius("rk4", 1e-3, 1e6, 2e3) < 1
+
+
+# -- the search on a real engine, through the isolation ------------------------------------------
+
+
+def test_search_finds_the_analytic_baumgarte_boundary_on_the_bead(tmp_path):
+    suite = parse_suite(BEAD_SUITE, str(tmp_path / "bead.toml"))
+    path = run_stability(suite, tmp_path / "out", jobs=2)
+    document = load_stability(path.parent)
+    assert document["schema_version"] == 1 and "energy drift" in document["criterion"]
+    results = {r["engine"]: r for r in document["results"]}
+    euler = results["ours/baumgarte-euler"]
+    analytic = 2 / math.sqrt(K_S)  # |1 + λh| ≤ 1 with λ = −√k_s (double): h ≤ 2/√k_s = 2 ms
+    assert euler["analytic_dt"] == pytest.approx(analytic, rel=1e-5)
+    assert euler["verdict"] == BOUNDED
+    assert abs(euler["largest_stable_dt"] / analytic - 1) < 0.2
+    assert euler["smallest_unstable_dt"] / euler["largest_stable_dt"] <= 1.1 + 1e-9
+    symplectic = results["ours/baumgarte-symplectic-euler"]
+    assert abs(symplectic["largest_stable_dt"] / (2 * (math.sqrt(2) - 1) / math.sqrt(K_S)) - 1) < 0.2
+    with pytest.raises(UserError, match="exists; pass --force"):
+        run_stability(suite, tmp_path / "out")
+
+
+def test_stability_table_errors_name_the_key(tmp_path):
+    bad = BEAD_SUITE.replace('dt_min = 1e-4', 'dt_min = 1e-4\nscenes = ["nope"]')
+    with pytest.raises(UserError, match=r"stability\.scenes: unknown scene id 'nope'; this suite's are: bead"):
+        plan_stability(parse_suite(bad, "s.toml"))
+    bad = BEAD_SUITE.replace('dt_min = 1e-4', 'dt_min = 1e-4\nengines = ["mujoco/*"]')
+    with pytest.raises(UserError, match=r"'mujoco/\*' matches no engine variant"):
+        plan_stability(parse_suite(bad, "s.toml"))
+
+
+def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
+    suite = tmp_path / "bad.toml"
+    suite.write_text(BEAD_SUITE.replace("dt_min = 1e-4", "dt_min = 1"))
+    xval = str(Path(sys.executable).parent / "xval")
+    done = subprocess.run([xval, "stability", str(suite), "--output", str(tmp_path / "o")], capture_output=True, text=True)
+    assert done.returncode == 2
+    assert done.stderr.strip().count("\n") == 0
+    assert "stability.dt_min: 1 s is larger than dt_max 0.01 s" in done.stderr
+
+
+# -- gain map ------------------------------------------------------------------------------------
+
+
+def test_gain_map_agrees_with_theory_away_from_the_boundary(tmp_path):
+    text = BEAD_SUITE + """
+[gainmap]
+scene = "bead"
+integrators = ["euler", "rk4"]
+dt = 1e-3
+k_s = { from = 1, to = 1e8, per_decade = 1 }
+k_d = { from = 1e-1, to = 1e5, per_decade = 1 }
+theory_points = 11
+"""
+    path = run_gainmap(parse_suite(text, str(tmp_path / "g.toml")), tmp_path / "out", jobs=2)
+    document = json.loads(path.read_text())
+    assert document["dt"] == 1e-3 and len(document["k_s"]) == 9 and len(document["k_d"]) == 7
+    for integrator, grid in document["maps"].items():
+        for row_status, row_rho in zip(grid["status"], grid["rho"]):
+            for status, rho in zip(row_status, row_rho):
+                if rho < 0.999:  # clearly stable in theory: the run must stay ok
+                    assert status == "ok", (integrator, rho)
+                if rho > 1.1:  # grows ≥ 10 % a step: past any bound long before 500 steps
+                    assert status == "unstable", (integrator, rho)
+        assert len(grid["theory"]["log10_rho"]) == 11
+
+
+# -- blow-ups inside a suite run -----------------------------------------------------------------
+
+
+def test_a_run_that_blows_up_is_recorded_unstable_with_its_samples(tmp_path):
+    text = f"""
+duration = 1.0
+dt = [5e-3, 1e-3]
+[[scenes]]
+id = "bead"
+scene = "bead"
+[[engines]]
+id = "ours/baumgarte-euler"
+options = {{ k_s = {K_S}, k_d = {K_D} }}
+[[engines]]
+id = "ours/rattle"
+"""
+    summary = run_suite(parse_suite(text, "blowup.toml"), tmp_path / "run", jobs=2)
+    records = {(r["case"]["engine"], r["case"]["dt"]): r for r in load_results(summary.path).records}
+    blown = records[("ours/baumgarte-euler", 5e-3)]  # h√k_s = 5 > 2
+    assert blown["status"] == "unstable"
+    t = blown["series"]["t"]
+    assert 0 < len(t) and t[-1] < 1.0  # the samples up to the blow-up are kept
+    assert blown["metrics"]["complete"] is False
+    assert records[("ours/baumgarte-euler", 1e-3)]["status"] == "ok"  # h√k_s = 1: inside the region
+    assert all(records[("ours/rattle", dt)]["status"] == "ok" for dt in (5e-3, 1e-3))
