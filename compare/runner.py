@@ -46,6 +46,14 @@ from compare.suite import EngineSpec, SceneSpec, Suite
 MAX_ATTEMPTS = 2
 
 
+class RunStopped(Exception):
+    """Raised by an executor's future when the executor can run nothing more (a lost cluster scheduler).
+
+    Unlike a case that failed, it stops the run: cases not yet finished get no
+    record (so ``--resume`` runs them later), finished ones stay on disk.
+    """
+
+
 @dataclass(frozen=True)
 class Case:
     """One scene × engine variant × dt of a suite; ``position`` is its (scene, engine, dt) index in the suite."""
@@ -122,6 +130,7 @@ def run_suite(
     timeout: float | None = None,
     progress: Progress | None = None,
     isolate: bool = True,
+    environment_extra: dict[str, Any] | None = None,
 ) -> RunSummary:
     """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
 
@@ -131,6 +140,8 @@ def run_suite(
         forked children unless ``isolate`` is False).
     timeout : s per case; the suite's ``timeout`` when None.
     resume : continue the run already in ``output`` (same suite required).
+    environment_extra : more entries for run.json's ``environment`` (a
+        cluster's address and workers, see :mod:`compare.cluster`).
     """
     started = time.perf_counter()
     progress = progress or NullProgress()
@@ -141,7 +152,7 @@ def run_suite(
             "path": suite.path,
             "fingerprint": suite.fingerprint(),
         },
-        "environment": environment(),
+        "environment": {**environment(), **(environment_extra or {})},
         "xval_version": compare_version(),
     }
     results = ResultsDir.open_for_run(output, suite.source, header, resume)
@@ -243,6 +254,8 @@ class _Dispatcher:
                     kind, key = pending.pop(future)
                     try:
                         value = future.result()
+                    except RunStopped:
+                        raise  # no record for this case: --resume runs it
                     except cf.BrokenExecutor:
                         broken = True
                         pending[future] = (kind, key)  # re-handled below
@@ -400,6 +413,8 @@ def build_record(
         "energy_drift": rounded(series.energy_drift[keep]),
         "constraint_error": rounded(series.constraint_error[keep]),
         "positions": rounded(trajectory.positions[keep]),
+        # The reference at the same samples, so a report can overlay paths without re-solving.
+        "reference_positions": rounded(ref_positions[:n][keep]),
     }
     return jsonable(record)
 

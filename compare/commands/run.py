@@ -21,15 +21,30 @@ from compare.table import scene_tables
 @click.option("--resume", is_flag=True, help="Run only the cases DIR does not hold yet.")
 @click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
               help="Seconds per case before it is killed and recorded as timeout (default: the suite's).")
-def command(suite_path, output, jobs, resume, timeout) -> None:
+@click.option("--scheduler", default=None, metavar="tcp://HOST:PORT|local[:N]",
+              help="Run the cases on a Dask cluster: a scheduler's address, or local[:N] for an "
+                   "in-process cluster of N workers (needs: pip install 'xval[dask]').")
+def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 
     A case that fails, goes unstable or times out is recorded with its status
     and does not stop the others. Exit code 0 when the run completed (whatever
-    the cases' statuses), 2 for bad input.
+    the cases' statuses), 2 for bad input, 1 when the Dask scheduler was lost
+    (finished cases are kept; --resume finishes the run).
     """
     suite = load_suite(suite_path)
-    summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr))
+    if scheduler is None:
+        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr))
+    else:
+        from compare.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
+
+        try:
+            summary = run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
+                                     progress=progress_for(sys.stderr),
+                                     warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
+        except SchedulerLost as exc:
+            click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
+            sys.exit(1)
     click.echo(scene_tables(load_results(summary.path).records), nl=False)
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     resumed = f", {summary.already_done} already done" if summary.already_done else ""
