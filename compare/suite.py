@@ -178,24 +178,9 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
 
     The ``module:attribute`` form loads an Engine object from any importable
     module (test engines, plug-ins). Raises UserError for an unknown engine,
-    ``registry.EngineUnavailable`` when a built-in engine's library is missing.
+    ``registry.EngineUnavailable`` when an engine cannot load here.
     """
-    if ":" in engine_id:
-        target, _, variant = engine_id.partition("/")
-        module_name, _, attribute = target.partition(":")
-        try:
-            module = importlib.import_module(module_name)
-        except ImportError as exc:
-            raise UserError(f"engine {engine_id!r}: cannot import module {module_name!r} ({exc})") from None
-        engine = getattr(module, attribute, None)
-        if not isinstance(engine, Engine):
-            raise UserError(
-                f"engine {engine_id!r}: {module_name}.{attribute} is not an Engine object; "
-                f"point module:attribute at an engines.adapter.Engine instance"
-            )
-        return engine, (variant or None)
-    name, variant = parse_engine_id(engine_id)
-    return registry.get_engine(name), variant
+    return registry.load_engine(engine_id)  # the registry is the one place engine ids are resolved
 
 
 # -- reading -----------------------------------------------------------------------

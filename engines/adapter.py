@@ -13,13 +13,22 @@ An adapter subclasses :class:`Engine` and fills in:
 
 The public :meth:`Engine.simulate` owns everything else, in one place:
 validating dt, resolving variant and options, refusing unsupported scenes,
-turning exceptions into ``failed`` and non-finite samples into ``unstable``.
-(After scipy's ``OdeSolver.step`` / ``_step_impl`` split.)
+turning exceptions into ``failed`` and non-finite samples into ``unstable``,
+and checking what ``_run`` returned (:func:`check_raw_run`: shapes, sample
+count, the first sample against the scene's initial state, seconds of wall
+time), so an adapter with a wrong shape, unit or frame is ``failed`` with a
+message that names it, never compared. (After scipy's ``OdeSolver.step`` /
+``_step_impl`` split.)
+
+The protocol is versioned (:data:`API_VERSION`): an adapter declares the
+version it was written for in ``api_version``; :func:`api_version_problem`
+says what to do when that is not one this xval speaks (docs/plugins.md).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping, Sequence
 
@@ -31,6 +40,19 @@ from engines.trajectory import RunInfo, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
+
+#: The engine protocol's version. Bump it when a change would make an adapter
+#: written for the old protocol give wrong results (a field changing meaning,
+#: a unit, what ``_run`` returns), and list the change in docs/plugins.md.
+API_VERSION = 1
+#: Protocol versions this xval runs adapters for.
+SUPPORTED_API_VERSIONS = (1,)
+
+#: The first sample must match the scene's initial state to this fraction of
+#: the scene's length L (positions) or speed scale max(|v0|, √(gL)) (velocities).
+#: Every built-in engine matches it to 1e-12; a millimetre/metre, y-up/z-up or
+#: particle-order mistake is off by far more than 1e-6.
+INITIAL_STATE_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -162,6 +184,8 @@ class RawRun:
 class Engine:
     """Base class of every adapter; see the module docstring for the protocol."""
 
+    #: The protocol version the adapter was written for; see :data:`API_VERSION`.
+    api_version: ClassVar[int] = API_VERSION
     name: ClassVar[str] = ""
     capabilities: ClassVar[frozenset[str]] = frozenset()
     options: ClassVar[Mapping[str, Option]] = {}
@@ -243,12 +267,120 @@ class Engine:
         )
         n_particles, n_constraints = len(scene.particles), len(scene.constraints)
         try:
+            started = time.perf_counter()
             raw = self._run(scene, schedule, settings)
-        except Exception as exc:  # an engine that raises is a result, not a crash
+            elapsed = time.perf_counter() - started
+            raw = check_raw_run(self.name, raw, scene, schedule, elapsed)
+        except Exception as exc:  # an engine that raises, or returns nonsense, is a result, not a crash
             empty = np.empty((0, n_particles, 3))
             message = f"{type(exc).__name__}: {exc}".splitlines()[0]
             return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status="failed", message=message))
         return _finish(schedule, raw, info, n_constraints)
+
+
+class RawRunError(ValueError):
+    """What an adapter's ``_run`` returned breaks the protocol; the message names the adapter, field and fix."""
+
+
+def api_version_problem(engine: "Engine", who: str) -> str | None:
+    """Why xval cannot run ``engine`` (declared ``api_version`` not spoken here), or None when it can.
+
+    who : how to name the adapter in the message (``plugin 'my-solver' (my_solver.adapter:ENGINE)``).
+    """
+    declared = getattr(engine, "api_version", None)
+    if declared in SUPPORTED_API_VERSIONS:
+        return None
+    speaks = ", ".join(map(str, SUPPORTED_API_VERSIONS))
+    if isinstance(declared, int) and not isinstance(declared, bool) and declared > max(SUPPORTED_API_VERSIONS):
+        return (f"{who} declares api_version = {declared}, newer than this xval speaks ({speaks}); "
+                f"upgrade xval, or install a version of the plugin written for api_version {API_VERSION}")
+    return (f"{who} declares api_version = {declared!r}, but this xval speaks api_version {speaks}; "
+            f"update the adapter to the protocol in docs/plugins.md (see its 'Protocol versions' list), "
+            f"then set api_version = {API_VERSION}")
+
+
+def _as_samples(name: str, field_name: str, value: Any, n_particles_or_constraints: int, what: str,
+                n_max: int) -> np.ndarray:
+    """``value`` as a float64 (n, k, 3) array with 1 <= n <= n_max, or RawRunError naming the field."""
+    expected = f"(n <= {n_max}, {n_particles_or_constraints}, 3): samples x {what} x (x, y, z)"
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise RawRunError(
+            f"{name}: RawRun.{field_name} is not a numeric array ({type(value).__name__}); expected shape {expected}"
+        ) from None
+    if array.ndim != 3 or array.shape[1:] != (n_particles_or_constraints, 3) or not 1 <= array.shape[0] <= n_max:
+        raise RawRunError(
+            f"{name}: RawRun.{field_name} has shape {array.shape}, expected {expected}; record one row per "
+            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.raw_run builds it)"
+        )
+    return array
+
+
+def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed: float) -> RawRun:
+    """Check what ``_run`` returned, once for every adapter; RawRunError says what is wrong and how to fix it.
+
+    - ``raw`` is a RawRun; positions and velocities are (n, P, 3) with
+      1 <= n <= len(schedule.times); forces are (n, C, 3) or None;
+    - units and frame: the first sample is the scene's initial state (m, m/s,
+      scene frame, particles in scene order) to :data:`INITIAL_STATE_TOLERANCE`;
+    - steps is an integer in [0, n_steps]; wall_time is seconds, finite,
+      >= 0 and no longer than ``elapsed`` (s, the whole ``_run`` call).
+
+    Non-finite values are not errors here: ``_finish`` turns them into ``unstable``.
+    Returns ``raw`` with float64 arrays.
+    """
+    if not isinstance(raw, RawRun):
+        raise RawRunError(f"{name}: _run returned {type(raw).__name__}, expected engines.adapter.RawRun "
+                          f"(engines.plugin.raw_run builds one from arrays)")
+    n_max, n_p, n_c = len(schedule.times), len(scene.particles), len(scene.constraints)
+    positions = _as_samples(name, "positions", raw.positions, n_p, "particles", n_max)
+    velocities = _as_samples(name, "velocities", raw.velocities, n_p, "particles", n_max)
+    if velocities.shape != positions.shape:
+        raise RawRunError(f"{name}: RawRun.velocities has shape {velocities.shape} but positions {positions.shape}; "
+                          f"record both at the same samples")
+    forces = None
+    if raw.forces is not None:
+        forces = _as_samples(name, "forces", raw.forces, n_c, "constraints", n_max)
+        if len(forces) != len(positions):
+            raise RawRunError(f"{name}: RawRun.forces has {len(forces)} samples but positions {len(positions)}; "
+                              f"record both at the same samples, or return forces=None")
+    _check_initial_state(name, scene, positions[0], velocities[0])
+    if isinstance(raw.steps, bool) or not isinstance(raw.steps, (int, np.integer)) or not 0 <= raw.steps <= schedule.n_steps:
+        raise RawRunError(f"{name}: RawRun.steps = {raw.steps!r}, expected the integer number of steps taken, "
+                          f"0..{schedule.n_steps}")
+    wall = raw.wall_time
+    if isinstance(wall, bool) or not isinstance(wall, (int, float, np.floating)) or not math.isfinite(wall) or wall < 0:
+        raise RawRunError(f"{name}: RawRun.wall_time = {wall!r}, expected seconds (a finite number >= 0)")
+    # A stepping loop cannot take longer than the call around it; allow clock granularity.
+    if wall > 1.05 * elapsed + 1e-3:
+        raise RawRunError(
+            f"{name}: RawRun.wall_time = {wall:.6g} s but _run took only {elapsed:.6g} s; give the stepping "
+            f"loop's wall time in seconds (time.perf_counter() differences), not ms or ns"
+        )
+    return replace(raw, positions=positions, velocities=velocities, forces=forces, steps=int(raw.steps),
+                   wall_time=float(wall))
+
+
+def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray) -> None:
+    """RawRunError when sample 0 (q0, v0: (P, 3) m, m/s) is not the scene's initial state."""
+    if not (np.isfinite(q0).all() and np.isfinite(v0).all()):
+        return  # unstable from the start: _finish reports it
+    length = scene.characteristic_length
+    speed = max(float(np.abs(scene.initial_velocities).max()),
+                math.sqrt(float(np.linalg.norm(scene.gravity)) * length), 1e-3)
+    dq = float(np.abs(q0 - scene.initial_positions).max())
+    dv = float(np.abs(v0 - scene.initial_velocities).max())
+    if dq > INITIAL_STATE_TOLERANCE * length:
+        raise RawRunError(
+            f"{name}: the first sample's positions are {dq:.3g} m off the scene's initial positions; sample 0 "
+            f"must be the initial state in the scene frame (metres, z up, particles in scene order)"
+        )
+    if dv > INITIAL_STATE_TOLERANCE * speed:
+        raise RawRunError(
+            f"{name}: the first sample's velocities are {dv:.3g} m/s off the scene's initial velocities; sample 0 "
+            f"must be the initial state in the scene frame (m/s, z up, particles in scene order)"
+        )
 
 
 def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) -> Trajectory:
@@ -266,9 +398,8 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
         # The adapter stopped stepping early (it saw the state run away).
         status = "unstable"
         message = raw.message or f"stepping stopped at t = {t[-1] if n else 0:.6g} s"
-    forces = None if raw.forces is None else np.asarray(raw.forces, dtype=np.float64)[:n]
-    if forces is not None and forces.shape[1:] != (n_constraints, 3):
-        raise ValueError(f"{info.engine}: forces must have shape (n, {n_constraints}, 3), got {forces.shape}")
+    # Shapes were checked by check_raw_run; forces that go non-finite alone do not make a run unstable.
+    forces = None if raw.forces is None else raw.forces[:n]
     info = replace(
         info,
         steps=int(raw.steps),

@@ -1,11 +1,29 @@
-"""Which engines exist, imported lazily so a missing engine library is "unavailable", never a crash."""
+"""Which engines exist, and the one place an engine id is turned into an adapter.
+
+Three kinds of engine, all loaded lazily so one that cannot load is
+"unavailable" (with the reason), never a crash of everything else:
+
+- **built-in**: ``BUILTIN`` maps a name to the module defining ``ENGINE``;
+- **plugin**: an installed package's entry point in the group
+  ``xval.engines`` (``my-solver = "my_solver.adapter:ENGINE"``), named by the
+  entry point's name;
+- **by path**: ``package.module:ATTRIBUTE[/variant]`` in a suite or on the
+  command line, for a solver that is not a package yet (and test engines).
+
+A plugin (entry point or path) may point at an Engine instance or an Engine
+subclass (instantiated with no arguments); its ``api_version`` is checked
+(:func:`engines.adapter.api_version_problem`). A built-in's name wins over a
+plugin of the same name, and the plugin is listed as unavailable, saying so.
+"""
 
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 from dataclasses import dataclass
+from typing import Any
 
-from engines.adapter import Engine, parse_engine_id
+from engines.adapter import Engine, api_version_problem, parse_engine_id
 from engines.errors import UserError
 
 #: Built-in adapters: engine name -> module defining ``ENGINE``.
@@ -17,22 +35,88 @@ BUILTIN: dict[str, str] = {
     "pymunk": "engines.pymunk",
 }
 
+#: The entry-point group installed packages register engines under.
+ENTRY_POINT_GROUP = "xval.engines"
+
 
 class EngineUnavailable(UserError):
-    """The engine is known but its library (or adapter) cannot be imported here."""
+    """The engine is known but its library (or adapter) cannot be loaded here; the message says why."""
 
 
 @dataclass(frozen=True)
 class EngineStatus:
-    """What ``xval engines`` shows for one engine."""
+    """What ``xval engines`` shows for one engine.
+
+    origin : where it comes from: ``engines.mujoco`` (built-in),
+        ``plugin my-solver 0.1.0: my_solver.adapter:ENGINE`` (entry point),
+        or ``module:ATTRIBUTE`` (by path).
+    kind : ``"built-in"``, ``"plugin"`` or ``"path"``.
+    engine : the adapter, or None when unavailable (``reason`` says why).
+    """
 
     name: str
     origin: str
     engine: Engine | None
     reason: str = ""
+    kind: str = "built-in"
 
 
-def _load(name: str) -> EngineStatus:
+# -- discovery -------------------------------------------------------------------
+
+
+def entry_points() -> dict[str, importlib.metadata.EntryPoint]:
+    """Installed ``xval.engines`` entry points by name (read each call: cheap, and never stale in tests)."""
+    found: dict[str, importlib.metadata.EntryPoint] = {}
+    for point in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        found.setdefault(point.name, point)  # the first installed distribution wins, like importlib's own lookup
+    return found
+
+
+def _origin(point: importlib.metadata.EntryPoint) -> str:
+    dist = getattr(point, "dist", None)
+    where = f"{dist.metadata['Name']} {dist.version}" if dist is not None else "unknown distribution"
+    return f"plugin from {where}: {point.value}"
+
+
+def engine_names() -> list[str]:
+    """Built-in names, then installed plugins' names (sorted)."""
+    return list(BUILTIN) + sorted(set(entry_points()) - set(BUILTIN))
+
+
+def plugin_names() -> list[str]:
+    """Names of installed plugins (entry points), including any shadowed by a built-in."""
+    return sorted(entry_points())
+
+
+# -- loading ---------------------------------------------------------------------
+
+
+def _failure(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}".splitlines()[0]
+
+
+def _adopt(obj: Any, who: str) -> Engine:
+    """An Engine from what a plugin exported (an instance or a subclass), its api_version checked.
+
+    Raises EngineUnavailable naming ``who`` and the fix.
+    """
+    if isinstance(obj, type) and issubclass(obj, Engine):
+        try:
+            obj = obj()
+        except Exception as exc:  # a plugin's constructor is its code: contain it
+            raise EngineUnavailable(f"{who}: creating {obj.__name__}() raised {_failure(exc)}") from None
+    if not isinstance(obj, Engine):
+        raise EngineUnavailable(
+            f"{who} is a {type(obj).__name__}, not an engines.adapter.Engine; point it at an instance "
+            f"(or subclass) of Engine, e.g. ENGINE = MySolverEngine()"
+        )
+    problem = api_version_problem(obj, who)
+    if problem:
+        raise EngineUnavailable(problem)
+    return obj
+
+
+def _load_builtin(name: str) -> EngineStatus:
     module_name = BUILTIN[name]
     try:
         module = importlib.import_module(module_name)
@@ -41,14 +125,47 @@ def _load(name: str) -> EngineStatus:
     return EngineStatus(name, module_name, module.ENGINE)
 
 
-def engine_names() -> list[str]:
-    return list(BUILTIN)
+def _load_plugin(name: str, point: importlib.metadata.EntryPoint) -> EngineStatus:
+    origin = _origin(point)
+    who = f"plugin {name!r} ({point.value})"
+    try:
+        exported = point.load()
+    except BaseException as exc:  # noqa: BLE001 - a plugin's import runs its code; only it should pay
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        return EngineStatus(name, origin, None, f"{who}: cannot load: {_failure(exc)}", "plugin")
+    try:
+        engine = _adopt(exported, who)
+    except EngineUnavailable as exc:
+        return EngineStatus(name, origin, None, str(exc), "plugin")
+    if engine.name != name:
+        # Results record engine.name; a mismatch would file cases under a name `xval engines` does not show.
+        return EngineStatus(name, origin, None, f"{who}: its Engine.name is {engine.name!r}, but the entry point is "
+                            f"named {name!r}; make them the same", "plugin")
+    return EngineStatus(name, origin, engine, kind="plugin")
 
 
 def status(name: str) -> EngineStatus:
-    if name not in BUILTIN:
-        raise UserError(f"unknown engine {name!r}; choose one of: {', '.join(BUILTIN)}")
-    return _load(name)
+    """How engine ``name`` (built-in or plugin) loads here; UserError listing the valid names for an unknown one."""
+    points = entry_points()
+    if name in BUILTIN:
+        return _load_builtin(name)
+    if name in points:
+        return _load_plugin(name, points[name])
+    # (An adapter that is not installed can also be named by path, package.module:ATTRIBUTE; docs/plugins.md.)
+    raise UserError(f"unknown engine {name!r}; choose one of: {', '.join(engine_names())}")
+
+
+def statuses() -> list[EngineStatus]:
+    """Every built-in and installed plugin, loaded; a plugin shadowed by a built-in's name is unavailable."""
+    out = [status(name) for name in BUILTIN]
+    for name, point in sorted(entry_points().items()):
+        if name in BUILTIN:
+            out.append(EngineStatus(name, _origin(point), None,
+                                    f"the name {name!r} is a built-in engine's; rename the entry point", "plugin"))
+        else:
+            out.append(_load_plugin(name, point))
+    return out
 
 
 def get_engine(name: str) -> Engine:
@@ -59,13 +176,58 @@ def get_engine(name: str) -> Engine:
     return found.engine
 
 
-def resolve(engine_id: str) -> tuple[Engine, str]:
-    """``"mujoco/hinge-rk4"`` -> (the MuJoCo adapter, ``"hinge-rk4"``), the variant checked."""
+def load_path(target: str) -> Engine:
+    """The Engine at ``package.module:ATTRIBUTE``.
+
+    UserError when the id is malformed or the attribute does not exist (a
+    typo in the suite); EngineUnavailable when the module fails to import or
+    the object is not a usable Engine (the plugin is broken: its cases are
+    skipped with this reason and the rest of the suite runs).
+    """
+    module_name, _, attribute = target.partition(":")
+    if not module_name or not attribute:
+        raise UserError(f"engine {target!r}: write a path as package.module:ATTRIBUTE, e.g. my_solver.adapter:ENGINE")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name is not None and module_name.startswith(exc.name):
+            raise UserError(f"engine {target!r}: no module named {module_name!r}; install the package that "
+                            f"provides it, or put its directory on PYTHONPATH") from None
+        raise EngineUnavailable(f"engine {target!r} is unavailable: importing {module_name} failed: "
+                                f"{_failure(exc)}") from None
+    except BaseException as exc:  # noqa: BLE001 - the module's own code raised while importing
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        raise EngineUnavailable(f"engine {target!r} is unavailable: importing {module_name} failed: "
+                                f"{_failure(exc)}") from None
+    exported = getattr(module, attribute, None)
+    if not (isinstance(exported, Engine) or (isinstance(exported, type) and issubclass(exported, Engine))):
+        # A path to the wrong object is a typo in the suite, not a broken plugin: say so at once.
+        raise UserError(f"engine {target!r}: {module_name}.{attribute} is not an Engine object; "
+                        f"point module:attribute at an engines.adapter.Engine instance")
+    return _adopt(exported, f"engine {target!r}")
+
+
+def load_engine(engine_id: str) -> tuple[Engine, str | None]:
+    """(engine, variant or None) for ``name[/variant]`` or ``package.module:ATTRIBUTE[/variant]``.
+
+    The single place engine ids are resolved (suites, workers, the CLI).
+    Raises UserError for an unknown engine, EngineUnavailable for one that
+    cannot load here.
+    """
+    if ":" in engine_id:
+        target, _, variant = engine_id.partition("/")
+        return load_path(target), (variant or None)
     name, variant = parse_engine_id(engine_id)
-    engine = get_engine(name)
+    return get_engine(name), variant
+
+
+def resolve(engine_id: str) -> tuple[Engine, str]:
+    """``"mujoco/hinge-rk4"`` -> (the MuJoCo adapter, ``"hinge-rk4"``), the variant checked; any id form."""
+    engine, variant = load_engine(engine_id)
     variant = variant or engine.default_variant
     if variant not in engine.variants:
         raise UserError(
-            f"unknown variant {engine_id!r}; {name} has: {', '.join(engine.variant_ids())}"
+            f"unknown variant {engine_id!r}; {engine.name} has: {', '.join(engine.variant_ids())}"
         )
     return engine, variant

@@ -152,7 +152,9 @@ def test_duplicate_scene_id():
 
 def test_unknown_engine():
     bad(GOOD.replace('id = "mujoco/hinge"', 'id = "mujoko/hinge"'),
-        "s.toml:10: engines[0].id: unknown engine 'mujoko'; choose one of: reference, ours, mujoco, pybullet, pymunk")
+        "s.toml:10: engines[0].id: unknown engine 'mujoko'; choose one of: "
+        # built-ins, then installed plugins (e.g. examples/my-solver)
+        + ", ".join(__import__("engines.registry").registry.engine_names()))
 
 
 def test_unknown_variant():
