@@ -112,13 +112,18 @@ def entries(results: StoredResults) -> dict[str, dict[str, Any]]:
     return out
 
 
-def build_baseline(results: StoredResults) -> dict[str, Any]:
-    """The baseline document of a finished results directory (UserError for an unfinished run)."""
+def build_baseline(results: StoredResults, then: str = "make the baseline") -> dict[str, Any]:
+    """The baseline document of a finished results directory.
+
+    An unfinished run is refused (UserError ending "then ``then``"): its
+    absent cases would otherwise be silently missing from a baseline, or
+    reported missing by a gate that should have failed the interrupted job.
+    """
     header = results.header
     if not header.get("finished"):
         raise UserError(
             f"{results.path}: the run is unfinished; finish it first "
-            f"(xval run SUITE --output {results.path} --resume), then make the baseline"
+            f"(xval run SUITE --output {results.path} --resume), then {then}"
         )
     environment = header.get("environment") or {}
     return jsonable(

@@ -1,7 +1,8 @@
 """Golden output of the gate for a fixed pair of inputs: the printed table, the Markdown and the JUnit XML.
 
 tests/golden/gate/baseline.json and current.json are baselines of two real
-runs of tests/gate_suite.toml with timings, machine and versions fixed, and
+runs of a suite of ours at two orders (bead, dt = 1e-2, 5e-3, 2.5e-3), with
+timings, machine and versions fixed, and
 ``current`` edited to hold one case of every verdict: a doubled position
 error and an ok → unstable case (worse), an engine version bump (not
 comparable), a dropped case (missing), an added dt (new), halved errors

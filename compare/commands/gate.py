@@ -57,7 +57,7 @@ def command(directory, baseline_path, junit, summary, timing) -> None:
     summary_file = check_writable(summary, "--summary") if summary else None
     baseline = load_baseline(baseline_path)
     results = load_results(directory)
-    current = build_baseline(results)
+    current = build_baseline(results, then="gate it")
     report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
     click.echo(format_table(report), nl=False)
     if junit_file:
