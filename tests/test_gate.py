@@ -20,6 +20,7 @@ from compare.gate_report import format_value
 from compare.results import load_results, read_json
 from compare.sweep import sweeps
 
+from gate_engines import REGRESSION
 from gate_support import CASE, SUITE, copy_results, edit_case, remove_case, run, set_timings, xval
 
 
@@ -309,3 +310,36 @@ def test_a_bad_gate_table_names_the_key(runs, rerun, capsys):
         f"xval: error: {suite}: gate.timing_factor: must be a number > 1 (a slowdown factor), got 0.5; "
         f"write e.g. timing_factor = 1.5\n"
     )
+
+
+# -- end to end ---------------------------------------------------------------------------------
+
+SOLVER_SUITE = """name = "solver-ci"
+duration = 0.5
+dt = [1e-2, 5e-3]
+
+[[scenes]]
+scene = "double-pendulum"
+
+[[engines]]
+id = "gate_engines:SOLVER/default"
+"""
+
+
+def test_a_solver_made_less_accurate_fails_its_gate_end_to_end(tmp_path, monkeypatch, capsys):
+    """The pattern the README recommends, on a solver whose code (not its id, options or version) got worse."""
+    suite = tmp_path / "solver.toml"
+    suite.write_text(SOLVER_SUITE)
+    assert xval(capsys, "run", suite, "--output", tmp_path / "before")[0] == 0
+    assert xval(capsys, "baseline", tmp_path / "before", "--output", tmp_path / "baseline.json")[0] == 0
+    assert xval(capsys, "run", suite, "--output", tmp_path / "same")[0] == 0
+    code, out, _ = xval(capsys, "gate", tmp_path / "same", "--baseline", tmp_path / "baseline.json", "--timing", "report")
+    assert code == 0, out
+
+    monkeypatch.setenv(REGRESSION, "1")
+    assert xval(capsys, "run", suite, "--output", tmp_path / "after")[0] == 0
+    code, out, _ = xval(capsys, "gate", tmp_path / "after", "--baseline", tmp_path / "baseline.json", "--timing", "report")
+    assert code == 1, out
+    worse = {(row[1], row[2], row[3], row[4]) for row in rows(out, "worse")}
+    assert ("double-pendulum", "gate_engines:SOLVER/default", "0.01", "position_error_linf") in worse
+    assert not rows(out, "not comparable")
