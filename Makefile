@@ -8,10 +8,11 @@ JOBS ?= 2
 
 .PHONY: demo test bench baseline clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e examples/my-solver
 	touch $(STAMP)
 
 demo: $(STAMP)

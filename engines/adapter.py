@@ -312,7 +312,7 @@ def _as_samples(name: str, field_name: str, value: Any, n_particles_or_constrain
     if array.ndim != 3 or array.shape[1:] != (n_particles_or_constraints, 3) or not 1 <= array.shape[0] <= n_max:
         raise RawRunError(
             f"{name}: RawRun.{field_name} has shape {array.shape}, expected {expected}; record one row per "
-            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.raw_run builds it)"
+            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.Recorder builds it)"
         )
     return array
 
@@ -332,7 +332,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """
     if not isinstance(raw, RawRun):
         raise RawRunError(f"{name}: _run returned {type(raw).__name__}, expected engines.adapter.RawRun "
-                          f"(engines.plugin.raw_run builds one from arrays)")
+                          f"(engines.plugin.Recorder builds one)")
     n_max, n_p, n_c = len(schedule.times), len(scene.particles), len(scene.constraints)
     positions = _as_samples(name, "positions", raw.positions, n_p, "particles", n_max)
     velocities = _as_samples(name, "velocities", raw.velocities, n_p, "particles", n_max)
