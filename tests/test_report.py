@@ -206,8 +206,9 @@ def test_a_single_case_renders(small_results, tmp_path):
     page = PageStructure(render(load_report_data(single)))
     assert [s.id for s in page.sections] == ["run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
-    # One point: nothing to fit an order to, but every plot still draws its one variant.
-    assert [n for _, n in page.plots] == [1, 1, 3, 1]
+    # One point: nothing to fit an order to, but every plot still draws its one variant;
+    # the paths plot adds the reference's path, stored in the record beside the engine's.
+    assert [n for _, n in page.plots] == [1, 1, 3, 2]
 
 
 def test_only_failures_and_skips_render(small_results, tmp_path):
