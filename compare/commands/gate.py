@@ -59,6 +59,11 @@ def command(directory, baseline_path, junit, summary, timing) -> None:
     results = load_results(directory)
     current = build_baseline(results, then="gate it")
     report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
+    made = baseline.get("results") or {}
+    click.echo(
+        f"baseline {baseline_path}: suite {baseline['suite'].get('name')}, {len(baseline['cases'])} cases, "
+        f"made {baseline.get('created')} from commit {made.get('git_commit')}\n"
+    )
     click.echo(format_table(report), nl=False)
     if junit_file:
         atomic_write_text(junit_file, to_junit(report))
