@@ -103,6 +103,6 @@ def to_markdown(report: GateReport) -> str:
     lines.append("")
     lines += header + rows_of(changed) if changed else ["No case changed."]
     if unchanged:
-        lines += ["", f"<details><summary>{len(unchanged)} unchanged cases</summary>", ""]
+        lines += ["", f"<details><summary>{len(unchanged)} unchanged case{'s' * (len(unchanged) != 1)}</summary>", ""]
         lines += header + rows_of(unchanged) + ["", "</details>"]
     return "\n".join(lines) + "\n"
