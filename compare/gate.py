@@ -26,8 +26,8 @@ without running anything.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Iterable
+from dataclasses import dataclass
+from typing import Any
 
 from engines.errors import UserError
 
@@ -309,6 +309,3 @@ def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: Ga
     report = gate(baseline, current, settings, timing=timing)
     return GateReport(report.suite, report.cases, report.settings, report.timing, report.timing_note, tuple(notes))
 
-
-def changed_cases(report: GateReport) -> Iterable[CaseResult]:
-    return (c for c in report.cases if c.verdict != "unchanged")
