@@ -314,7 +314,8 @@ def start_local_cluster(workers: int) -> Any:
 
     with dask.config.set(LOCAL_SCHEDULER_CONFIG):
         return distributed.LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=workers, threads_per_worker=1, processes=True,
+            dashboard_address=":0",  # any free port: two runs at once must not fight over 8787
         )
 
 
