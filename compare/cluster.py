@@ -35,6 +35,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import json
+import logging
 import math
 import multiprocessing
 import re
@@ -315,6 +316,9 @@ def start_local_cluster(workers: int) -> Any:
     with dask.config.set(LOCAL_SCHEDULER_CONFIG):
         return distributed.LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True,
+            # What its scheduler and nannies would log (a worker restarted, a task
+            # failed because workers died) is in the case records and progress lines.
+            silence_logs=logging.CRITICAL,
             dashboard_address=":0",  # any free port: two runs at once must not fight over 8787
         )
 
@@ -377,6 +381,8 @@ def connect(
     if spec.address is not None and jobs is not None:
         raise UserError("--jobs sets the local pool's processes; with --scheduler ADDRESS the workers' threads decide")
     with contextlib.ExitStack() as stack:
+        # The client logs a traceback when its scheduler goes away; SchedulerLost says it in one line.
+        stack.enter_context(_quiet("distributed.client"))
         if spec.address is None:
             local = stack.enter_context(start_local_cluster(spec.workers or jobs or default_jobs()))
             address = local.scheduler_address
@@ -395,6 +401,18 @@ def connect(
         executor = DaskExecutor(client)
         stack.callback(executor.shutdown, wait=False, cancel_futures=True)
         yield Cluster(executor, metadata, warnings)
+
+
+@contextlib.contextmanager
+def _quiet(logger_name: str) -> Iterator[None]:
+    """Only critical messages from ``logger_name`` while the block runs."""
+    logger = logging.getLogger(logger_name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def _close(client: Any) -> None:
