@@ -49,7 +49,8 @@ class MisbehavingEngine(Engine):
         if mode == "nan":
             positions[len(positions) // 2 :] = np.nan
         if mode == "drift":
-            positions = positions * 1.5
+            # From the first step on: sample 0 must stay the initial state (engines.adapter.check_raw_run).
+            positions[1:] = positions[1:] * 1.5
         return RawRun(positions, velocities, forces, steps=schedule.n_steps, wall_time=1e-3)
 
 
