@@ -8,8 +8,10 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   (divergence time, observed order). A null divergence time means "never
   diverged" and ranks above any time.
 - status: ok → unstable / failed / timeout is always **worse**; back to ok is
-  **better**; a case skipped on one side only is **not comparable** (the
-  engine is unavailable here, or no longer expresses the scene).
+  **better**. A case that ran in the baseline but is skipped now is **worse**
+  (its engine no longer loads here — a broken plug-in, a missing library — or
+  no longer expresses the scene): a solver that stopped running must fail
+  the gate. Skipped in the baseline only is **not comparable**.
 - timing (cost per simulated second): **worse** only when the median slowed
   by more than ``timing_factor`` *and* by more than the spread of the
   repeats on both sides (max − min of each); never gated when the two runs
@@ -175,6 +177,11 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
         position=tuple(current.get("position", (0, 0, 0))),
         baseline_status=base["status"], current_status=current["status"],
     )
+    if current["status"] == "skipped" and base["status"] != "skipped":
+        # The engine no longer loads here (a broken plug-in, a missing library) or no longer
+        # expresses the scene: a solver that stopped running must not pass the gate silently.
+        lost = Change("status", "", base["status"], "skipped", None, "worse", note=current["message"])
+        return CaseResult(**common, verdict="worse", reason=f"skipped now: {current['message']}", changes=(lost,))
     if base.get("engine_version") != current.get("engine_version"):
         return CaseResult(
             **common, verdict="not comparable",

@@ -343,3 +343,21 @@ def test_a_solver_made_less_accurate_fails_its_gate_end_to_end(tmp_path, monkeyp
     worse = {(row[1], row[2], row[3], row[4]) for row in rows(out, "worse")}
     assert ("double-pendulum", "gate_engines:SOLVER/default", "0.01", "position_error_linf") in worse
     assert not rows(out, "not comparable")
+
+
+def test_a_case_skipped_now_that_ran_in_the_baseline_fails(runs, rerun, capsys):
+    # A plug-in that stops importing (or an engine library gone missing) turns its cases
+    # into skips: that must fail the gate, not pass it as "not comparable".
+    def unavailable(record):
+        record["status"] = "skipped"
+        record["message"] = "engine 'my-solver' is unavailable: cannot import: No module named 'my_solver'"
+        record.pop("run_info", None)
+        record.pop("metrics", None)
+        record.pop("series", None)
+
+    edit_case(rerun, CASE, unavailable)
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    assert code == 1, out
+    [row] = rows(out, "worse")
+    assert row[1:7] == ["bead", "reference/loose", "0.005", "status", "ok", "skipped"]
+    assert "No module named 'my_solver'" in row[-1]
