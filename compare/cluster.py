@@ -56,15 +56,11 @@ INSTALL_HINT = "pip install 'xval[dask]'"
 #: s to wait for the scheduler to answer, and for a first worker to join it.
 CONNECT_TIMEOUT = 10.0
 WORKER_TIMEOUT = 60.0
-#: Scheduler settings of ``--scheduler local``. allowed-failures: a case
-#: that kills its worker is tried MAX_ATTEMPTS times in all, as with the
-#: local pool. worker-saturation 1.0: a worker holds only the case it runs,
-#: so a worker that dies takes no queued innocent case with it (and long
-#: cases are not queued behind each other on one worker).
-LOCAL_SCHEDULER_CONFIG = {
-    "distributed.scheduler.allowed-failures": MAX_ATTEMPTS - 1,
-    "distributed.scheduler.worker-saturation": 1.0,
-}
+#: Scheduler settings of ``--scheduler local``: a case that kills its worker
+#: is tried MAX_ATTEMPTS times in all, as with the local pool (Dask's default
+#: is 4). That only the case, not others queued with it, pays for a dead
+#: worker is DaskExecutor's doing.
+LOCAL_SCHEDULER_CONFIG = {"distributed.scheduler.allowed-failures": MAX_ATTEMPTS - 1}
 
 
 class SchedulerLost(RunStopped):

@@ -245,4 +245,9 @@ def test_a_scheduler_that_does_not_answer_or_jobs_with_an_address_is_refused():
     with pytest.raises(UserError, match="^--jobs sets the local pool's processes; with --scheduler ADDRESS"):
         with connect(address, jobs=2):
             pass
+    with start_local_cluster(0) as empty:
+        with pytest.raises(UserError, match=f"^--scheduler: no Dask worker joined {empty.scheduler_address} within 0.5 s; "
+                                            f"start workers with: dask worker {empty.scheduler_address}$"):
+            with connect(empty.scheduler_address, worker_timeout=0.5):
+                pass
     assert parse_scheduler("local").workers is None and parse_scheduler("127.0.0.1:8786").address == "127.0.0.1:8786"
