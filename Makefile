@@ -6,7 +6,7 @@ XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
 
-.PHONY: demo test bench baseline clean
+.PHONY: demo stiff test bench baseline clean
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -18,6 +18,14 @@ $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 demo: $(STAMP)
 	$(PY) -m compare.demo
 	$(XVAL) report results/default
+
+# Hard cases (suites/stiff.toml): the suite, the stability search and the Baumgarte gain map into
+# results/stiff (replaced), then its report. A few minutes on 2 cores; docs/findings.md quotes it.
+stiff: $(STAMP)
+	rm -rf results/stiff
+	$(XVAL) run suites/stiff.toml --output results/stiff --jobs $(JOBS)
+	$(XVAL) stability suites/stiff.toml --output results/stiff --jobs $(JOBS)
+	$(XVAL) report results/stiff
 
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -q

@@ -42,7 +42,7 @@ SCHEMA = "xval-gainmap"
 SCHEMA_VERSION = 1
 #: Integrators the theory covers (RATTLE is not a Baumgarte integrator).
 INTEGRATORS = ("euler", "symplectic-euler", "midpoint", "rk4")
-GAINMAP_KEYS = ("scene", "integrators", "dt", "k_s", "k_d", "theory_points")
+GAINMAP_KEYS = ("scene", "integrators", "dt", "k_s", "k_d", "theory_points", "sample_interval")
 #: ρ ≤ 1 + this counts as stable (round-off; small enough that undamped Euler, ρ = 1 + (ωh)²/2, is unstable at h = 1e-4/ω).
 RHO_SLACK = 1e-12
 
@@ -137,6 +137,7 @@ class GainMapPlan:
     k_s: tuple[float, ...]
     k_d: tuple[float, ...]
     theory_points: int = 121
+    sample_interval: float | None = None
 
 
 def plan_gainmap(suite: Suite) -> GainMapPlan | None:
@@ -144,7 +145,8 @@ def plan_gainmap(suite: Suite) -> GainMapPlan | None:
 
     Keys: ``scene`` (an id of the suite), ``integrators`` (default all four),
     ``dt`` (s), ``k_s`` and ``k_d`` as {from, to, per_decade} sweeps or lists,
-    ``theory_points`` (resolution of the theory grid per axis, default 121).
+    ``theory_points`` (resolution of the theory grid per axis, default 121),
+    ``sample_interval`` (s, default the suite's).
     """
     if "gainmap" not in _top_level(suite):
         return None
@@ -178,7 +180,9 @@ def plan_gainmap(suite: Suite) -> GainMapPlan | None:
             raise reader.error(f"gainmap.{key}", "must be a list of positive numbers or { from, to, per_decade }")
         grids[key] = tuple(sorted(values))
     points = int(reader.number("gainmap.theory_points", table.get("theory_points", 121), integer=True))
-    return GainMapPlan(scene, tuple(integrators), dt, grids["k_s"], grids["k_d"], points)
+    interval = table.get("sample_interval")
+    interval = None if interval is None else reader.number("gainmap.sample_interval", interval)
+    return GainMapPlan(scene, tuple(integrators), dt, grids["k_s"], grids["k_d"], points, interval)
 
 
 def _top_level(suite: Suite) -> dict[str, Any]:
@@ -228,7 +232,7 @@ def run_gainmap(
     def one(cell: tuple[str, int, int]):
         integrator, a, b = cell
         k_s, k_d = plan.k_s[a], plan.k_d[b]
-        probe = run_probe(plan.scene, _engine(integrator, k_s, k_d), plan.dt, suite, timeout)
+        probe = run_probe(plan.scene, _engine(integrator, k_s, k_d), plan.dt, suite, timeout, plan.sample_interval)
         return cell, probe
 
     maps = {

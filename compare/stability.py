@@ -59,7 +59,7 @@ BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED = (
     "bounded", "stable-at-largest", "unstable-at-smallest", "skipped",
 )
 #: Keys of a suite's optional ``[stability]`` table.
-STABILITY_KEYS = ("scenes", "engines", "dt_max", "dt_min", "bracket_factor", "resolution")
+STABILITY_KEYS = ("scenes", "engines", "dt_max", "dt_min", "bracket_factor", "resolution", "sample_interval")
 
 
 def criterion_text(bounds: Bounds) -> str:
@@ -78,12 +78,14 @@ class SearchSettings:
     dt_max, dt_min : s, the largest and smallest time step probed.
     bracket_factor : ratio between successive probes while stepping down (> 1).
     resolution : the search stops when (smallest unstable dt) / (largest stable dt) ≤ resolution (> 1).
+    sample_interval : s between the samples the bounds are checked on (None: the suite's).
     """
 
     dt_max: float
     dt_min: float
     bracket_factor: float = math.sqrt(10.0)
     resolution: float = 1.1
+    sample_interval: float | None = None
 
 
 @dataclass(frozen=True)
@@ -161,9 +163,14 @@ def search(probe: Callable[[float], Probe], settings: SearchSettings) -> tuple[s
 # -- one probe through the runner's isolation -------------------------------------------------
 
 
-def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float) -> Probe:
-    """Simulate one (scene, variant) at ``dt`` (s) in a case host and classify it by the suite's bounds."""
+def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
+              sample_interval: float | None = None) -> Probe:
+    """Simulate one (scene, variant) at ``dt`` (s) in a case host and classify it by the suite's bounds.
+
+    sample_interval : s between samples (None: the suite's).
+    """
     scene = scene_spec.scene
+    sample_interval = sample_interval or suite.sample_interval
     task = CaseTask(
         case_id=f"stability|{scene_spec.id}|{engine.label}|dt={dt:.12g}",
         engine_id=engine.id,
@@ -171,12 +178,12 @@ def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite
         options=dict(engine.options),
         scene=scene,
         dt=dt,
-        sample_interval=suite.sample_interval,
+        sample_interval=sample_interval,
         repeats=1,
         timeout=timeout,
     )
     outcome: CaseOutcome = execute(task)
-    return classify(scene, outcome, dt, suite.sample_interval, suite.bounds)
+    return classify(scene, outcome, dt, sample_interval, suite.bounds)
 
 
 def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Probe:
@@ -224,7 +231,8 @@ def plan_stability(suite: Suite) -> StabilityPlan:
     ``[stability]`` keys: ``scenes`` (ids, default all), ``engines`` (labels
     or shell patterns such as ``"ours/*"``, default all), ``dt_max`` and
     ``dt_min`` (s, default the suite's largest and smallest dt),
-    ``bracket_factor`` (default √10), ``resolution`` (default 1.1).
+    ``bracket_factor`` (default √10), ``resolution`` (default 1.1),
+    ``sample_interval`` (s, default the suite's: the samples the bounds are checked on).
     """
     table, reader = suite_table(suite, "stability", STABILITY_KEYS)
     scene_ids = table.get("scenes")
@@ -259,7 +267,9 @@ def plan_stability(suite: Suite) -> StabilityPlan:
         if dt_max > spec.scene.duration:
             raise reader.error("stability.dt_max", f"{dt_max:g} s is longer than scene {spec.id!r}'s duration "
                                f"{spec.scene.duration:g} s; lower dt_max or leave the scene out")
-    return StabilityPlan(scenes, engines, SearchSettings(dt_max, dt_min, factor, resolution))
+    interval = table.get("sample_interval")
+    interval = None if interval is None else reader.number("stability.sample_interval", interval)
+    return StabilityPlan(scenes, engines, SearchSettings(dt_max, dt_min, factor, resolution, interval))
 
 
 # -- the analytic limit where the theory covers the variant ---------------------------------------
@@ -338,7 +348,8 @@ def run_stability(
         if reason is not None:
             return PairResult(scene.id, engine.label, SKIPPED, reason=reason)
         verdict, lo, hi, probes = search(
-            lambda dt: run_probe(scene, engine, dt, suite, timeout), stability.settings
+            lambda dt: run_probe(scene, engine, dt, suite, timeout, stability.settings.sample_interval),
+            stability.settings,
         )
         last_unstable = next((p for p in reversed(probes) if not p.stable), None)
         why = "" if last_unstable is None else f"at dt = {last_unstable.dt:.4g} s: {last_unstable.status} ({last_unstable.message})"
