@@ -28,6 +28,7 @@ from compare.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN
 
 from reports.figures import Plot, scene_plots
 from reports.load import ReportData, load_report_data
+from reports.stability import stability_context
 from reports.summary import summary_table
 
 #: File name of the report inside the results directory when no --output is given.
@@ -88,6 +89,9 @@ def page_context(data: ReportData) -> dict[str, Any]:
             "plots": scene_plots(scene, number),
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
+    stability = stability_context(data.path)  # None unless DIR holds xval stability output
+    if stability is not None:
+        plots = plots + stability["plots"]
     header = data.header
     return {
         "data": data,
@@ -104,6 +108,7 @@ def page_context(data: ReportData) -> dict[str, Any]:
         "order_ceiling": f"{ORDER_CEILING:g}",
         "order_min_points": ORDER_MIN_POINTS,
         "plotly_js": plotly_js(),
+        "stability": stability,
     }
 
 

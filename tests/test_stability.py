@@ -190,3 +190,33 @@ id = "ours/rattle"
     assert blown["metrics"]["complete"] is False
     assert records[("ours/baumgarte-euler", 1e-3)]["status"] == "ok"  # h√k_s = 1: inside the region
     assert all(records[("ours/rattle", dt)]["status"] == "ok" for dt in (5e-3, 1e-3))
+
+
+# -- report sections -----------------------------------------------------------------------------
+
+
+def test_report_shows_the_stability_table_bars_and_gain_maps(tmp_path):
+    from reports.render import write_report
+
+    text = BEAD_SUITE.replace("duration = 0.5", "duration = 0.2").replace("dt_min = 1e-4", "dt_min = 1e-3") + """
+[gainmap]
+scene = "bead"
+integrators = ["symplectic-euler"]
+dt = 1e-3
+k_s = [1e2, 1e7]
+k_d = [1.0, 1e4]
+theory_points = 5
+"""
+    suite = parse_suite(text, str(tmp_path / "r.toml"))
+    output = tmp_path / "out"
+    run_suite(suite, output, jobs=1)
+    plain = write_report(output, tmp_path / "plain.html").path.read_text()
+    assert 'id="stability"' not in plain and 'id="gainmap"' not in plain  # only with stability data
+    run_stability(suite, output, jobs=2)
+    run_gainmap(suite, output, jobs=2)
+    html = write_report(output).path.read_text()
+    assert 'id="stability"' in html and 'id="stability-bars"' in html
+    assert "ours/baumgarte-symplectic-euler" in html and "theory / s" in html
+    for kind in ("stability", "constraint-error", "energy-drift"):
+        assert f'id="gainmap-0-{kind}"' in html
+    assert html.count('"type": "contour"') == 3  # the theory boundary over each heat map

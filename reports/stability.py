@@ -1,0 +1,185 @@
+"""Report sections for ``xval stability`` output: the largest-stable-dt table and bar chart, the gain-map heat maps.
+
+Shown only when the results directory holds ``stability.json`` and/or
+``gainmap.json`` (:mod:`compare.stability`, :mod:`compare.gainmap`). Figures
+are plotly.js specs like :mod:`reports.figures`; their ``n_traces`` counts
+only scatter traces, the ones the page's drawing check finds in the DOM
+(bars, heat maps and contours are drawn in other layers).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from compare.gainmap import load_gainmap
+from compare.stability import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
+
+from reports.figures import PALETTE, _layout, plot_text
+
+
+@dataclass(frozen=True)
+class ExtraPlot:
+    """A plot of these sections: DOM id, heading, caption (plain text), figure spec."""
+
+    id: str
+    title: str
+    caption: str
+    figure: dict[str, Any]
+
+    @property
+    def n_traces(self) -> int:
+        return sum(1 for trace in self.figure["data"] if trace.get("type", "scatter") == "scatter")
+
+
+# -- stability search -----------------------------------------------------------------------
+
+
+def _cell(result: dict[str, Any]) -> dict[str, str]:
+    """Table cell of one pair: text, CSS status class, hover title."""
+    verdict = result["verdict"]
+    theory = result.get("analytic_dt")
+    note = f"; theory {theory:.3g} s" if theory else ""
+    if verdict == BOUNDED:
+        return {"text": f"{result['largest_stable_dt']:.3g}", "status": "ok",
+                "title": f"stable at {result['largest_stable_dt']:.4g} s, unstable at "
+                         f"{result['smallest_unstable_dt']:.4g} s{note}; {result.get('reason', '')}"}
+    if verdict == STABLE_AT_LARGEST:
+        return {"text": f"≥ {result['largest_stable_dt']:.3g}", "status": "ok",
+                "title": f"stable at the largest dt tried{note}"}
+    if verdict == UNSTABLE_AT_SMALLEST:
+        return {"text": f"< {result['smallest_unstable_dt']:.3g}", "status": "unstable",
+                "title": f"unstable even at the smallest dt tried{note}; {result.get('reason', '')}"}
+    return {"text": "skipped", "status": "skipped", "title": result.get("reason", "")}
+
+
+def stability_table(document: dict[str, Any]) -> dict[str, Any]:
+    """Rows = engine variants, columns = scenes, cells = largest stable dt (s)."""
+    scenes = list(document.get("scenes") or {})
+    by_pair = {(r["scene_id"], r["engine"]): r for r in document.get("results", [])}
+    rows = []
+    for engine in document.get("engines", []):
+        cells = [(_cell(by_pair[(s, engine)]) if (s, engine) in by_pair else
+                  {"text": "–", "status": "", "title": "not searched (yet)"}) for s in scenes]
+        theory = next((by_pair[(s, engine)].get("analytic_dt") for s in scenes if (s, engine) in by_pair), None)
+        rows.append({"engine": engine, "cells": cells, "theory": theory})
+    unstable = [(r["scene_id"], r["engine"]) for r in document.get("results", []) if r["verdict"] == UNSTABLE_AT_SMALLEST]
+    return {"scenes": scenes, "rows": rows, "unstable": unstable}
+
+
+def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
+    """Largest stable dt (s, log axis) per engine variant, one bar colour per scene.
+
+    A variant unstable even at the smallest dt gets a cross-hatched bar at half that dt;
+    one stable at the largest dt tried, a striped bar at that dt (the true limit is higher).
+    """
+    settings = document.get("settings") or {}
+    dt_min, dt_max = settings.get("dt_min"), settings.get("dt_max")
+    engines = document.get("engines", [])
+    traces = []
+    for index, scene in enumerate(document.get("scenes") or {}):
+        ys, patterns, hover = [], [], []
+        for engine in engines:
+            result = next((r for r in document.get("results", [])
+                           if r["scene_id"] == scene and r["engine"] == engine), None)
+            verdict = None if result is None else result["verdict"]
+            if verdict == BOUNDED:
+                ys.append(result["largest_stable_dt"]), patterns.append(""), hover.append("largest stable dt")
+            elif verdict == STABLE_AT_LARGEST:
+                ys.append(result["largest_stable_dt"]), patterns.append("/"), hover.append("stable at the largest dt tried")
+            elif verdict == UNSTABLE_AT_SMALLEST and dt_min:
+                ys.append(dt_min / 2), patterns.append("x"), hover.append(f"UNSTABLE even at {dt_min:g} s")
+            else:
+                ys.append(None), patterns.append(""), hover.append("skipped" if verdict == SKIPPED else "not searched")
+        traces.append({
+            "type": "bar", "name": plot_text(scene), "x": [plot_text(e) for e in engines], "y": ys,
+            "marker": {"color": PALETTE[index % len(PALETTE)], "pattern": {"shape": patterns}},
+            "customdata": hover,
+            "hovertemplate": "%{x}<br>" + plot_text(scene) + ": %{y:.3g} s<br>%{customdata}<extra></extra>",
+        })
+    if not traces:
+        return None
+    low = math.log10(dt_min / 4) if dt_min else None
+    high = math.log10(dt_max * 1.5) if dt_max else None
+    yaxis = {"title": {"text": "largest stable dt / s"}, "type": "log", "exponentformat": "power",
+             "gridcolor": "#e4e4e4"}
+    if low is not None and high is not None:
+        yaxis["range"] = [low, high]
+    figure = {"data": traces, "layout": _layout(len(traces), height=520, barmode="group",
+                                                xaxis={"tickangle": -45, "automargin": True}, yaxis=yaxis)}
+    caption = (f"Per engine variant and scene, the largest time step found stable (searched from {dt_max:g} s "
+               f"down to {dt_min:g} s, to 10 %). Cross-hatched bars at half the smallest dt mark variants unstable "
+               f"even there; striped bars were stable at the largest dt tried, so their limit is higher.")
+    return ExtraPlot("stability-bars", "Largest stable dt", caption, figure)
+
+
+# -- gain map ------------------------------------------------------------------------------------
+
+
+def _log10(value: Any) -> float | None:
+    return math.log10(value) if isinstance(value, (int, float)) and value > 0 and math.isfinite(value) else None
+
+
+def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
+    """Per integrator: stability, log10 constraint error and log10 energy drift over log10 k_s × log10 k_d,
+    with the theory's boundary (spectral radius ρ = 1 of the linearized step) drawn over each."""
+    xs = [math.log10(k) for k in document["k_s"]]
+    ys = [math.log10(k) for k in document["k_d"]]
+    dt = document["dt"]
+    plots = []
+    for number, (integrator, grid) in enumerate(document["maps"].items()):
+        theory = grid["theory"]
+        boundary = {
+            "type": "contour", "x": theory["log10_k_s"], "y": theory["log10_k_d"], "z": theory["log10_rho"],
+            "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
+            "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
+            "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
+        }
+        stable = [[None if s is None else (1 if s == "ok" else 0) for s in row] for row in grid["status"]]
+        panels = [
+            ("stability", stable, [[0, "#f4a582"], [0.5, "#f4a582"], [0.5, "#92c5de"], [1, "#92c5de"]],
+             "measured: blue = ok, orange = unstable", {"zmin": 0, "zmax": 1, "showscale": False}),
+            ("constraint error", [[_log10(v) for v in row] for row in grid["constraint_error"]], "Viridis",
+             "log10 constraint error / m", {}),
+            ("energy drift", [[_log10(v) for v in row] for row in grid["energy_drift"]], "Viridis",
+             "log10 energy drift / E*", {}),
+        ]
+        for kind, z, colorscale, label, extra in panels:
+            heat = {"type": "heatmap", "x": xs, "y": ys, "z": z, "colorscale": colorscale,
+                    "colorbar": {"title": {"text": label}}, "name": label,
+                    "hovertemplate": "log10 k_s = %{x:.2f}<br>log10 k_d = %{y:.2f}<br>" + label + ": %{z:.3g}<extra></extra>",
+                    **extra}
+            figure = {"data": [heat, boundary], "layout": _layout(
+                1, height=460,
+                xaxis={"title": {"text": "log10 k_s / (1/s²)"}}, yaxis={"title": {"text": "log10 k_d / (1/s)"}},
+                legend={"orientation": "h", "y": 1.08})}
+            slug = kind.replace(" ", "-")
+            plots.append(ExtraPlot(
+                f"gainmap-{number}-{slug}", f"{integrator}: {kind}",
+                f"ours/baumgarte-{integrator} on {document['scene_id']} at dt = {dt:g} s. Black line: the boundary "
+                f"of the linearized constraint dynamics C'' + k_d C' + k_s C = 0 under {integrator} (stable inside, "
+                f"where the spectral radius of one step is ≤ 1; critical damping k_d = 2√k_s is stable up to "
+                f"h√k_s = {grid['critical_limit']:.3g}). {'Blue cells stayed within the bounds, orange ones did not.' if kind == 'stability' else 'Blank cells had no finite value (the run blew up).'}",
+                figure))
+    return plots
+
+
+def stability_context(directory: str | Path) -> dict[str, Any] | None:
+    """What the template's stability and gain-map sections need, or None when ``directory`` has neither file."""
+    stability = load_stability(directory)
+    gainmap = load_gainmap(directory)
+    if stability is None and gainmap is None:
+        return None
+    context: dict[str, Any] = {"search": None, "gainmap": None, "plots": []}
+    if stability is not None:
+        bars = stability_bars(stability)
+        context["search"] = {"document": stability, "table": stability_table(stability), "bars": bars}
+        if bars is not None:
+            context["plots"].append(bars)
+    if gainmap is not None:
+        heatmaps = gain_heatmaps(gainmap)
+        context["gainmap"] = {"document": gainmap, "plots": heatmaps}
+        context["plots"].extend(heatmaps)
+    return context
