@@ -80,6 +80,8 @@ TOP_LEVEL_KEYS = {
     "gate": "a table of metric = { rtol, atol } and timing_factor, for xval gate",
     "scenes": "an array of tables [[scenes]]",
     "engines": "an array of engine ids or tables [[engines]]",
+    "stability": "a table for xval stability (compare/stability.py): scenes, engines, dt_max, dt_min",
+    "gainmap": "a table for the Baumgarte gain map (compare/gainmap.py): scene, integrators, dt, k_s, k_d",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters")
