@@ -199,6 +199,25 @@ class Link:
     first_is_self: bool
 
 
+#: Links PyBullet 3.2.7 builds into one multibody correctly. Measured on a chain
+#: (tests/test_engine_pybullet.py): 122 links start in the scene's pose, 123 start
+#: with one link's pose missing — consistent with a fixed 128-DoF buffer upstream
+#: (bullet3 issues #3116 "createMultiBody limited to 127 object", #4621).
+MAX_MULTIBODY_LINKS = 122
+
+
+def _tree_sizes(links: list[Link]) -> dict[int, int]:
+    """Links per multibody: {pinned root particle: number of particles hung from it}."""
+    parent = {link.particle: link.parent for link in links}
+    sizes: dict[int, int] = {}
+    for particle in parent:
+        root = particle
+        while parent[root] is not None:
+            root = parent[root]
+        sizes[root] = sizes.get(root, 0) + 1
+    return sizes
+
+
 def forest(scene: Scene) -> list[Link]:
     """The links of the scene, parents before children, grown breadth-first from each Pin.
 
@@ -352,7 +371,15 @@ class PyBulletEngine(Engine):
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
-        forest(scene)
+        links = forest(scene)
+        if settings["formulation"] == "multibody":
+            largest = max(_tree_sizes(links).values(), default=0)
+            if largest > MAX_MULTIBODY_LINKS:
+                raise Unsupported(
+                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
+                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
+                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
+                )
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         with quiet_output():

@@ -206,3 +206,17 @@ def test_forest_orders_parents_before_children():
     scene = catalog.build("chain", {"n": 4})
     assert [link.particle for link in forest(scene)] == [0, 1, 2, 3]
     assert max_constraint_error(scene, ENGINE.simulate(scene.with_duration(0.2), 1e-3).positions).max() < 1e-12
+
+
+def test_multibody_refuses_chains_longer_than_pybullet_builds_correctly():
+    from engines.pybullet import MAX_MULTIBODY_LINKS
+
+    # The largest chain still starts in the scene's pose and runs ...
+    n = MAX_MULTIBODY_LINKS
+    largest = catalog.build("chain", {"n": n, "length": 1 / n, "mass": 1 / n, "duration": 0.02})
+    assert ENGINE.simulate(largest, 5e-3, variant="multibody").info.status == "ok"
+    # ... one link more is refused with the reason, not run wrongly; p2p still expresses it.
+    longer = catalog.build("chain", {"n": n + 1, "length": 1 / n, "mass": 1 / n, "duration": 0.02})
+    with pytest.raises(Unsupported, match=r"builds at most 122 links into one multibody .* needs 123; use pybullet/p2p"):
+        ENGINE.check(longer, "multibody")
+    ENGINE.check(longer, "p2p")
