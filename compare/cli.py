@@ -62,7 +62,11 @@ def fail(message: str) -> "NoReturn":  # noqa: F821 - documented return type
 
 def main(argv: list[str] | None = None) -> None:
     try:
-        cli.main(args=argv, prog_name="xval", standalone_mode=False)
+        # Outside standalone mode click *returns* the code of a click.exceptions.Exit
+        # (e.g. simulate's exit 1 for an unstable run) instead of exiting with it.
+        code = cli.main(args=argv, prog_name="xval", standalone_mode=False)
+        if isinstance(code, int) and code != 0:
+            sys.exit(code)
     except UserError as exc:
         fail(str(exc))
     except click.UsageError as exc:
