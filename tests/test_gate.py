@@ -40,6 +40,13 @@ def rerun(runs, tmp_path) -> Path:
     return copy_results(runs["rerun"], tmp_path / "rerun")
 
 
+#: The two real runs were timed minutes apart on a shared machine whose load changes between
+#: them (a CI run measured a 40 ms case 1.9x slower, well outside its repeats' spread), so
+#: tests of accuracy verdicts on real reruns show timing without gating it; the timing rule
+#: itself is tested below on set numbers (the ``timed`` fixture).
+REAL_TIMING = ("--timing", "report")
+
+
 def rows(out: str, verdict: str) -> list[list[str]]:
     """The table rows of ``verdict`` (columns split on runs of two or more spaces)."""
     return [re.split(r"\s{2,}", line) for line in out.splitlines() if line.startswith(verdict + " ")]
@@ -102,9 +109,10 @@ def test_gating_an_unfinished_run_is_refused(runs, tmp_path, capsys):
 
 
 def test_an_unchanged_rerun_passes(runs, capsys):
-    code, out, err = xval(capsys, "gate", runs["rerun"], "--baseline", runs["baseline"])
+    code, out, err = xval(capsys, "gate", runs["rerun"], "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 0, out + err
-    assert not rows(out, "worse")
+    # A slowdown from machine load may be listed, but only as timing that is not gated.
+    assert all(row[4] == "cost_per_simulated_second" and "not gated" in row[-1] for row in rows(out, "worse"))
     assert "gate passed (suite gate-test): 0 worse" in out
 
 
@@ -171,7 +179,7 @@ def test_a_doubled_position_error_fails_and_every_output_names_the_case_and_both
     edit_case(rerun, CASE, double)
     old, new = format_value("position_error_linf", before["value"]), format_value("position_error_linf", 2 * before["value"])
     junit, summary = tmp_path / "gate.xml", tmp_path / "gate.md"
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], "--junit", junit, "--summary", summary)
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], "--junit", junit, "--summary", summary, *REAL_TIMING)
     assert code == 1, out
     row = next(r for r in rows(out, "worse") if r[4] == "position_error_linf")
     assert row[1:7] == ["bead", "reference/loose", "0.005", "position_error_linf", old, new]
@@ -195,7 +203,7 @@ def test_the_suites_gate_table_overrides_the_tolerance(runs, rerun, capsys):
     edit_case(rerun, CASE, lambda r: r["metrics"].__setitem__("position_error_linf", 2 * r["metrics"]["position_error_linf"]))
     suite = rerun / "suite.toml"
     suite.write_text(suite.read_text() + "\n[gate]\nposition_error_linf = { rtol = 1.5 }\nobserved_order = { atol = 1.0 }\n")
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 0, out
 
 
@@ -205,7 +213,7 @@ def test_ok_to_unstable_fails(runs, rerun, capsys):
         record["message"] = "energy drift 3.2 E* exceeds the bound 1 E*"
 
     edit_case(rerun, "bead|reference/coarse|dt=0.01", blow_up)
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 1, out
     assert ["worse", "bead", "reference/coarse", "0.01", "status", "ok", "unstable",
             "energy drift 3.2 E* exceeds the bound 1 E*"] in rows(out, "worse")
@@ -213,7 +221,7 @@ def test_ok_to_unstable_fails(runs, rerun, capsys):
 
 def test_a_changed_engine_version_is_not_comparable_not_a_failure(runs, rerun, capsys):
     edit_case(rerun, CASE, lambda r: r["run_info"].__setitem__("engine_version", "9.9.9"))
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 0, out
     [row] = rows(out, "not comparable")
     assert row[1:4] == ["bead", "reference/loose", "0.005"]
@@ -222,7 +230,7 @@ def test_a_changed_engine_version_is_not_comparable_not_a_failure(runs, rerun, c
 
 def test_a_changed_scene_is_not_comparable(runs, rerun, capsys):
     edit_case(rerun, CASE, lambda r: r.__setitem__("scene_hash", "0123456789abcdef"))
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 0, out
     [row] = rows(out, "not comparable")
     assert row[-1].startswith("scene changed (content hash ") and row[-1].endswith(" → 0123456789abcdef)")
@@ -230,7 +238,7 @@ def test_a_changed_scene_is_not_comparable(runs, rerun, capsys):
 
 def test_a_missing_case_is_reported(runs, rerun, capsys):
     remove_case(rerun, CASE)
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 0, out
     assert rows(out, "missing") == [["missing", "bead", "reference/loose", "0.005", "-", "ok", "-",
                                      "in the baseline, not in the results"]]
@@ -356,8 +364,8 @@ def test_a_case_skipped_now_that_ran_in_the_baseline_fails(runs, rerun, capsys):
         record.pop("series", None)
 
     edit_case(rerun, CASE, unavailable)
-    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
+    code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
     assert code == 1, out
-    [row] = rows(out, "worse")
+    [row] = [r for r in rows(out, "worse") if r[4] == "status"]
     assert row[1:7] == ["bead", "reference/loose", "0.005", "status", "ok", "skipped"]
     assert "No module named 'my_solver'" in row[-1]
