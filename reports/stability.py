@@ -17,17 +17,13 @@ from typing import Any
 from compare.gainmap import load_gainmap
 from compare.stability import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
 
-from reports.figures import PALETTE, _layout, plot_text
+from reports.figures import PALETTE, Plot, _layout, plot_text
 
 
 @dataclass(frozen=True)
-class ExtraPlot:
-    """A plot of these sections: DOM id, heading, caption (plain text), figure spec."""
-
-    id: str
-    title: str
-    caption: str
-    figure: dict[str, Any]
+class ExtraPlot(Plot):
+    """A plot of these sections; it counts only its scatter traces, because bars, heat maps and
+    contours are drawn in other plotly layers than the ones the browser test counts."""
 
     @property
     def n_traces(self) -> int:
