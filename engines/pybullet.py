@@ -86,7 +86,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported
+from engines.errors import Unsupported, UserError
 from engines.scene import Pin, Rod, Scene
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
@@ -357,17 +357,19 @@ class PyBulletEngine(Engine):
             return f"api {_pb.getAPIVersion()}"
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        # A bad option value is the user's mistake (UserError), not a scene PyBullet cannot express
+        # (Unsupported): a suite would record the latter as a skipped case and run on.
         if not 0.0 <= settings["erp"] <= 1.0:
-            raise Unsupported(f"pybullet: option erp must be in [0, 1], got {settings['erp']}")
+            raise UserError(f"pybullet: option erp must be in [0, 1], got {settings['erp']}")
         if settings["iterations"] < 1:
-            raise Unsupported(f"pybullet: option iterations must be at least 1, got {settings['iterations']}")
+            raise UserError(f"pybullet: option iterations must be at least 1, got {settings['iterations']}")
         if settings["inertia_ratio"] <= 0:
-            raise Unsupported(
+            raise UserError(
                 f"pybullet: option inertia_ratio must be positive, got {settings['inertia_ratio']}; try 1e-4"
             )
         unknown = set(_kept(settings)) - set(KEEPABLE)
         if unknown:
-            raise Unsupported(
+            raise UserError(
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
