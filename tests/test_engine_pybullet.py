@@ -203,6 +203,18 @@ def test_a_bad_option_value_is_a_user_error_naming_the_option(options, message):
     assert not isinstance(raised.value, Unsupported)
 
 
+def test_the_iterations_default_is_what_a_fresh_client_reports():
+    from engines.pybullet import _pb, quiet_output
+
+    with quiet_output():
+        client = _pb.connect(_pb.DIRECT)
+        try:
+            reported = _pb.getPhysicsEngineParameters(physicsClientId=client)["numSolverIterations"]
+        finally:
+            _pb.disconnect(client)
+    assert reported == PYBULLET_ITERATIONS == ENGINE.options["iterations"].default
+
+
 def test_runinfo_records_settings_and_overrides():
     run = ENGINE.simulate(catalog.build("bead", {"duration": 0.01}), 1e-3, variant="p2p")
     settings = run.info.settings
