@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Mapping, Sequence
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -415,8 +415,3 @@ def parse_engine_id(engine_id: str) -> tuple[str, str | None]:
     """``"mujoco/hinge-rk4"`` -> ``("mujoco", "hinge-rk4")``; ``"reference"`` -> ``("reference", None)``."""
     name, _, variant = engine_id.partition("/")
     return name, (variant or None)
-
-
-def sample_indices(schedule: Schedule) -> Sequence[int]:
-    """Step indices to record, as a Python list (cheap membership in tight loops)."""
-    return schedule.sample_steps.tolist()
