@@ -172,26 +172,23 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
 
 def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSettings, timing_gated: bool, why_not: str) -> CaseResult:
     """The verdict on one case present in both the baseline and the results, under the same key."""
+    b_status, c_status = base["status"], current["status"]
     common = dict(
         scene_id=current["scene_id"], engine=current["engine"], dt=current["dt"],
-        position=tuple(current.get("position", (0, 0, 0))),
-        baseline_status=base["status"], current_status=current["status"],
+        position=tuple(current.get("position", (0, 0, 0))), baseline_status=b_status, current_status=c_status,
     )
-    if current["status"] == "skipped" and base["status"] != "skipped":
+    if c_status == "skipped" and b_status != "skipped":
         # The engine no longer loads here (a broken plug-in, a missing library) or no longer
         # expresses the scene: a solver that stopped running must not pass the gate silently.
-        lost = Change("status", "", base["status"], "skipped", None, "worse", note=current["message"])
+        lost = Change("status", "", b_status, "skipped", None, "worse", note=current["message"])
         return CaseResult(**common, verdict="worse", reason=f"skipped now: {current['message']}", changes=(lost,))
+    if b_status == "skipped" and c_status != "skipped":
+        return CaseResult(**common, verdict="not comparable", reason=f"skipped in the baseline: {base['message']}")
     if base.get("engine_version") != current.get("engine_version"):
         return CaseResult(
             **common, verdict="not comparable",
             reason=f"engine version changed: {base.get('engine_version')} → {current.get('engine_version')}",
         )
-    b_status, c_status = base["status"], current["status"]
-    if (b_status == "skipped") != (c_status == "skipped"):
-        which = "now" if c_status == "skipped" else "in the baseline"
-        message = current["message"] if c_status == "skipped" else base["message"]
-        return CaseResult(**common, verdict="not comparable", reason=f"skipped {which}: {message}")
     status = Change("status", "", b_status, c_status, None, "unchanged")
     if b_status != c_status:
         if b_status == "ok" and c_status in BROKEN:

@@ -6,7 +6,7 @@ import pytest
 
 from engines.errors import UserError
 
-from compare.gate import accuracy_change, machine_difference, timing_change
+from compare.gate import accuracy_change, compare_case, machine_difference, timing_change
 from compare.suite import parse_suite
 from compare.tolerance import RULES, GateSettings, Tolerance, gate_settings
 
@@ -78,6 +78,29 @@ def test_single_repeats_are_shown_but_never_gated():
     change = timing_change(timing(1.0), timing(5.0), 1.5, gated=True)
     assert change.verdict == "worse" and not change.gated
     assert change.note == "5.00× slower (factor 1.5, repeat spread 0 s/s); not gated: fewer than 2 timing repeats, so the noise is unknown (set repeats in the suite)"
+
+
+def entry(status: str, message: str = "", version: str | None = "1.0") -> dict:
+    """A baseline entry of one case with no metrics or timing (enough for the status rules)."""
+    return {"scene_id": "bead", "engine": "e/v", "dt": 0.01, "status": status, "message": message,
+            "engine_version": version, "metrics": None, "timing": None}
+
+
+@pytest.mark.parametrize(
+    "baseline, current, verdict, reason",
+    [
+        # Stopped running (a plug-in that no longer imports has no version to compare): worse, whatever else changed.
+        (entry("ok"), entry("skipped", "cannot import my_solver", version=None), "worse", "skipped now: cannot import my_solver"),
+        (entry("unstable"), entry("skipped", "gone"), "worse", "skipped now: gone"),
+        (entry("skipped", "not installed", version=None), entry("ok"), "not comparable", "skipped in the baseline: not installed"),
+        (entry("skipped", "2-D only"), entry("skipped", "2-D only"), "unchanged", ""),
+        (entry("ok"), entry("ok", version="2.0"), "not comparable", "engine version changed: 1.0 → 2.0"),
+        (entry("unstable"), entry("failed"), "unchanged", ""),
+    ],
+)
+def test_status_rules_for_skipped_and_versioned_cases(baseline, current, verdict, reason):
+    case = compare_case(baseline, current, SETTINGS, timing_gated=True, why_not="")
+    assert (case.verdict, case.reason) == (verdict, reason)
 
 
 def test_machines_differ_in_the_named_fields():
