@@ -47,7 +47,6 @@ cases are recorded as ``skipped`` with the reason, like asv.
 from __future__ import annotations
 
 import hashlib
-import importlib
 import json
 import math
 import re
@@ -57,7 +56,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from engines import catalog, registry
-from engines.adapter import Engine, parse_engine_id
+from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
@@ -321,7 +320,7 @@ class _Reader:
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)
         longest_dt = max(dts)
-        for k, spec in enumerate(scenes):
+        for spec in scenes:
             if longest_dt > spec.scene.duration:
                 raise self.error(
                     "dt",
