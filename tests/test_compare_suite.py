@@ -103,9 +103,9 @@ def test_unknown_key_in_a_table():
 
 def test_unknown_tolerance_metric():
     bad(GOOD + "\n[tolerances]\nspeed = 1.0\n",
-        "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_final, position_error_l2, "
-        "position_error_linf, divergence_time, energy_drift, constraint_error, constraint_force_error, "
-        "cost_per_simulated_second, observed_order")
+        "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_linf, position_error_l2, "
+        "position_error_final, divergence_time, energy_drift, constraint_error, constraint_force_error, "
+        "observed_order, cost_per_simulated_second")
 
 
 def test_incomplete_sweep():
