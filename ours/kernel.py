@@ -20,6 +20,7 @@ import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
 
+
 def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
     """Scratch arrays for :func:`run`, allocated here in Python because the compiled code has no allocator."""
     z = np.zeros
@@ -77,6 +78,17 @@ def assemble(D, pair_k, pair_l, pair_w, band):
 
 
 @compiled
+def solve_jwjt(D, model, band, x):
+    """x ← (J W Jᵀ)⁻¹ x in place, J from the constraint vectors D; False when J W Jᵀ is singular."""
+    bandwidth = model[8]
+    assemble(D, model[5], model[6], model[7], band)
+    if not cholesky_banded(band, bandwidth):
+        return False
+    solve_banded(band, bandwidth, x)
+    return True
+
+
+@compiled
 def add_constraint_term(x, scale, inverse_mass, ends, D, lam):
     """x += scale · W Jᵀ λ (per particle: +w_i λ_k d_k on the first end, −w_j λ_k d_k on the second)."""
     dim = x.shape[1]
@@ -91,7 +103,7 @@ def add_constraint_term(x, scale, inverse_mass, ends, D, lam):
 @compiled
 def multipliers(q, v, model, k_s, k_d, D, V, band, lam):
     """λ (N/m) from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular."""
-    inverse_mass, force, ends, anchor, length2, pair_k, pair_l, pair_w, bandwidth = model
+    inverse_mass, force, ends, anchor, length2 = model[0], model[1], model[2], model[3], model[4]
     constraint_vectors(q, ends, anchor, D)
     relative_velocities(v, ends, V)
     dim = q.shape[1]
@@ -105,11 +117,7 @@ def multipliers(q, v, model, k_s, k_d, D, V, band, lam):
         c = 0.5 * (_dot(D, k, D, k) - length2[k])
         c_dot = _dot(D, k, V, k)
         lam[k] = -_dot(V, k, V, k) - jwf - k_s * c - k_d * c_dot
-    assemble(D, pair_k, pair_l, pair_w, band)
-    if not cholesky_banded(band, bandwidth):
-        return False
-    solve_banded(band, bandwidth, lam)
-    return True
+    return solve_jwjt(D, model, band, lam)
 
 
 @compiled
@@ -136,7 +144,7 @@ def max_violation(D, length2):
 @compiled
 def project_velocities(q, v, model, D, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
-    inverse_mass, _, ends, anchor, _, pair_k, pair_l, pair_w, bandwidth = model
+    inverse_mass, ends, anchor = model[0], model[2], model[3]
     constraint_vectors(q, ends, anchor, D)
     dim = q.shape[1]
     for k in range(ends.shape[0]):
@@ -145,10 +153,8 @@ def project_velocities(q, v, model, D, band, mu):
         for a in range(dim):
             s += D[k, a] * (v[i, a] - (v[j, a] if j >= 0 else 0.0))
         mu[k] = s
-    assemble(D, pair_k, pair_l, pair_w, band)
-    if not cholesky_banded(band, bandwidth):
+    if not solve_jwjt(D, model, band, mu):
         return False
-    solve_banded(band, bandwidth, mu)
     add_constraint_term(v, -1.0, inverse_mass, ends, D, mu)
     return True
 
@@ -159,17 +165,15 @@ def project_positions(q, model, tolerance, max_iterations, D, band, delta):
 
     Returns OK, SINGULAR or NOT_CONVERGED.
     """
-    inverse_mass, _, ends, anchor, length2, pair_k, pair_l, pair_w, bandwidth = model
+    inverse_mass, ends, anchor, length2 = model[0], model[2], model[3], model[4]
     for _ in range(max_iterations + 1):
         constraint_vectors(q, ends, anchor, D)
         if max_violation(D, length2) <= tolerance:
             return OK
         for k in range(ends.shape[0]):
             delta[k] = 0.5 * (_dot(D, k, D, k) - length2[k])
-        assemble(D, pair_k, pair_l, pair_w, band)
-        if not cholesky_banded(band, bandwidth):
+        if not solve_jwjt(D, model, band, delta):
             return SINGULAR
-        solve_banded(band, bandwidth, delta)
         add_constraint_term(q, -1.0, inverse_mass, ends, D, delta)
     return NOT_CONVERGED
 
