@@ -4,7 +4,9 @@ One row per decisive change: a case that got worse in two metrics has two
 rows, each naming the case, the metric and both numbers, so a CI log line
 found by grep is complete on its own. Unchanged cases show their headline
 (max position error, or status); timing changes that cannot fail the gate
-(another machine, ``--timing report``) are shown with the reason.
+(another machine, ``--timing report``, a single repeat) are shown with the
+reason, labelled ``slower (not gated)`` / ``faster (not gated)`` rather than
+with the case's verdict, so a row that starts ``worse`` always failed the gate.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from compare.gate import CaseResult, Change, GateReport
 COLUMNS = ("verdict", "scene", "engine", "dt", "metric", "baseline", "current", "note")
 #: The metric an unchanged case is summarised by.
 HEADLINE = "position_error_linf"
+#: The label of a row whose change is shown but cannot fail the gate (only timing can be ungated).
+NOT_GATED = {"worse": "slower (not gated)", "better": "faster (not gated)"}
 
 
 def format_value(metric: str, value: Any) -> str:
@@ -42,16 +46,17 @@ def _note(change: Change) -> str:
 
 def case_rows(case: CaseResult) -> list[list[str]]:
     """The table rows of one case (columns COLUMNS)."""
-    head = [case.verdict, case.scene_id, case.engine, f"{case.dt:.3g}"]
+    where = [case.scene_id, case.engine, f"{case.dt:.3g}"]
     if case.verdict in ("not comparable", "missing", "new"):
-        return [head + ["-", case.baseline_status or "-", case.current_status or "-", case.reason]]
+        return [[case.verdict, *where, "-", case.baseline_status or "-", case.current_status or "-", case.reason]]
     shown: list[Change] = case.decisive()
     if case.verdict == "unchanged":
         headline = [c for c in case.changes if c.metric == HEADLINE] or [c for c in case.changes if c.metric == "status"]
         shown = headline[:1]
     shown += [c for c in case.changes if not c.gated and c.verdict != "unchanged"]
     return [
-        head + [c.metric, format_value(c.metric, c.baseline), format_value(c.metric, c.current), _note(c)]
+        [case.verdict if c.gated else NOT_GATED[c.verdict], *where,
+         c.metric, format_value(c.metric, c.baseline), format_value(c.metric, c.current), _note(c)]
         for c in shown
     ]
 

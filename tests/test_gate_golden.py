@@ -6,7 +6,9 @@ timings, machine and versions fixed, and
 ``current`` edited to hold one case of every verdict: a doubled position
 error and an ok → unstable case (worse), an engine version bump (not
 comparable), a dropped case (missing), an added dt (new), halved errors
-(better), and untouched cases (unchanged).
+(better), and untouched cases (unchanged); the doubled-error case is also
+3× slower and the unchanged one 2.5× faster, each timed once, so the noise
+is unknown and both timing rows are shown as not gated.
 
 After a deliberate change of the output format, regenerate the expected
 files with ``XVAL_UPDATE_GOLDEN=1 pytest tests/test_gate_golden.py`` and
