@@ -12,28 +12,22 @@ from __future__ import annotations
 import csv
 import io
 import json
+from dataclasses import fields
 from typing import Any, Iterable
 
+from compare.metrics import CaseMetrics
 from compare.sweep import VariantSweep, sweeps
 
-#: Columns of the CSV / JSON export, in order.
+#: CaseMetrics fields left out of the export (bookkeeping of the comparison, not metrics).
+NOT_EXPORTED = ("n_samples", "complete")
+#: Columns of the CSV / JSON export, in order: every metric of a case, as CaseMetrics orders them.
 ROW_FIELDS = (
     "scene",
     "engine",
     "dt",
     "status",
     "message",
-    "position_error_final",
-    "position_error_l2",
-    "position_error_linf",
-    "divergence_time",
-    "energy_drift",
-    "constraint_error",
-    "constraint_force_error",
-    "constraint_force_error_relative",
-    "wall_time",
-    "cost_per_simulated_second",
-    "steps_per_second",
+    *(f.name for f in fields(CaseMetrics) if f.name not in NOT_EXPORTED),
     "observed_order",
     "order_dt_min",
     "order_dt_max",
@@ -108,7 +102,7 @@ def scene_tables(records: Iterable[dict[str, Any]]) -> str:
     for sweep in sweeps(records):
         finest = sweep.finest_ok
         metrics = (finest or {}).get("metrics") or {}
-        order = sweep.order.order if sweep.order and sweep.order.order is not None else None
+        order = sweep.order.order if sweep.order else None
         by_scene.setdefault(sweep.scene_id, []).append(
             [
                 sweep.engine,
@@ -121,8 +115,9 @@ def scene_tables(records: Iterable[dict[str, Any]]) -> str:
                 "-" if order is None else f"{order:.2f}",
             ]
         )
-        if _reason(sweep):
-            notes.setdefault(sweep.scene_id, []).append(f"  {sweep.engine}: {_reason(sweep)}")
+        reason = _reason(sweep)
+        if reason:
+            notes.setdefault(sweep.scene_id, []).append(f"  {sweep.engine}: {reason}")
     blocks = []
     for scene_id, rows in by_scene.items():
         widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(TABLE_COLUMNS)]
