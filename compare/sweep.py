@@ -1,4 +1,4 @@
-"""Across a dt sweep: per (scene, engine variant), the observed order and the work-precision points.
+"""Across a dt sweep: per (scene, engine variant), its records in order and the observed order.
 
 Works on stored case records (dicts as written by the runner), so ``xval
 show`` and reports compute the same numbers from a results directory.
@@ -13,16 +13,6 @@ from compare.metrics import OrderFit, observed_order
 
 #: The error an order is fitted to and work-precision points plot: max position error, m.
 ORDER_METRIC = "position_error_linf"
-
-
-@dataclass(frozen=True)
-class WorkPrecisionPoint:
-    """One case on an error-against-run-time plot: dt (s), error (m), cost (s per simulated s), status."""
-
-    dt: float
-    error: float | None
-    cost: float | None
-    status: str
 
 
 @dataclass(frozen=True)
@@ -50,21 +40,6 @@ class VariantSweep:
         """The ``ok`` case with the smallest dt, or None."""
         ok = [r for r in self.records if r["status"] == "ok" and r.get("metrics")]
         return min(ok, key=lambda r: r["case"]["dt"]) if ok else None
-
-    @property
-    def points(self) -> list[WorkPrecisionPoint]:
-        out = []
-        for record in self.records:
-            metrics = record.get("metrics") or {}
-            out.append(
-                WorkPrecisionPoint(
-                    record["case"]["dt"],
-                    metrics.get(ORDER_METRIC),
-                    metrics.get("cost_per_simulated_second"),
-                    record["status"],
-                )
-            )
-        return out
 
 
 def _position(record: dict[str, Any]) -> tuple:
