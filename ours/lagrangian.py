@@ -104,8 +104,9 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, work, dt, n_s
                 theta[k] += h * b[i] * Kt[i, k]
                 omega[k] += h * b[i] * Kw[i, k]
         step += 1
-        if status != OK or not (_finite(theta) and _finite(omega)):
-            status = NON_FINITE if not (_finite(theta) and _finite(omega)) else status
+        if not (_finite(theta) and _finite(omega)):
+            status = NON_FINITE
+        if status != OK:
             break
         if step % stride == 0 or step == n_steps:
             _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
