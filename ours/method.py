@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass
 
 from ours.errors import InvalidPair, OursError
-from ours.integrator import RATTLE, SYMPLECTIC_EULER, Integrator, get_integrator
+from ours.integrator import INTEGRATORS, RATTLE, SYMPLECTIC_EULER, Integrator, get_integrator
 
 #: Baumgarte stiffness k_s, 1/s². √k_s = 10 rad/s: a correction time constant of
 #: 0.1 s, faster than the pendulum motions of the catalog (periods ≥ 1 s) yet
@@ -85,7 +85,7 @@ def valid_pairs() -> list[tuple[str, str]]:
     """Every (method, integrator) pair :func:`resolve_pair` accepts."""
     pairs = []
     for m in METHODS:
-        for i in ("euler", "symplectic-euler", "midpoint", "rk4", "rattle"):
+        for i in INTEGRATORS:
             try:
                 resolve_pair(m, i)
             except InvalidPair:
