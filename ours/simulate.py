@@ -136,7 +136,7 @@ def simulate(
     out_v = np.full_like(out_q, np.nan)
     out_lam = np.full((n_samples, system.n_constraints), np.nan)
     p = system.packed
-    model = (p.inverse_mass, p.force, p.ends, p.anchor, p.length2, p.pair_k, p.pair_l, p.pair_w, p.bandwidth)
+    model = p.model
     settings = {"method": chosen.name, "integrator": scheme.name, "tolerance": tolerance,
                 "max_iterations": max_iterations}
     if chosen.code == BAUMGARTE:
@@ -197,10 +197,9 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     q = _state(system, q, "q")
     v = _state(system, v, "v")
     p = system.packed
-    model = (p.inverse_mass, p.force, p.ends, p.anchor, p.length2, p.pair_k, p.pair_l, p.pair_w, p.bandwidth)
     C = system.n_constraints
     lam = np.zeros(C)
-    if not kernel.multipliers(q, v, model, float(k_s), float(k_d), np.zeros((C, system.dim)),
+    if not kernel.multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
                               np.zeros((C, system.dim)), np.zeros((C, p.bandwidth + 1)), lam):
         raise ModelError("J W Jᵀ is singular at this state: the constraints are dependent or degenerate")
     return lam

@@ -33,6 +33,12 @@ class Packed:
     pair_w: np.ndarray
     bandwidth: int
 
+    @property
+    def model(self) -> tuple:
+        """The fields in order, as the ``model`` tuple of the compiled functions (``ours.kernel``)."""
+        return (self.inverse_mass, self.force, self.ends, self.anchor, self.length2, self.pair_k, self.pair_l,
+                self.pair_w, self.bandwidth)
+
 
 @dataclass(frozen=True)
 class System:
