@@ -21,7 +21,6 @@ boundary, the measured one lies a little outside it.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,12 +28,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from engines.errors import UserError
-
-from compare.files import atomic_write_text
-from compare.results import jsonable, now
-from compare.runner import compare_version, default_jobs
-from compare.stability import check_output, read_versioned, run_probe, suite_table
+from compare.results import now
+from compare.runner import default_jobs
+from compare.stability import check_output, document_head, load_document, run_probe, suite_table, write_document
 from compare.suite import EngineSpec, Suite, geometric_sweep, load_engine
 
 FILE_NAME = "gainmap.json"
@@ -148,9 +144,9 @@ def plan_gainmap(suite: Suite) -> GainMapPlan | None:
     ``theory_points`` (resolution of the theory grid per axis, default 121),
     ``sample_interval`` (s, default the suite's).
     """
-    if "gainmap" not in _top_level(suite):
-        return None
     table, reader = suite_table(suite, "gainmap", GAINMAP_KEYS)
+    if table is None:
+        return None
     for key in ("scene", "dt", "k_s", "k_d"):
         if key not in table:
             raise reader.error("gainmap", f"missing {key}; see compare/gainmap.py for the keys")
@@ -183,12 +179,6 @@ def plan_gainmap(suite: Suite) -> GainMapPlan | None:
     interval = table.get("sample_interval")
     interval = None if interval is None else reader.number("gainmap.sample_interval", interval)
     return GainMapPlan(scene, tuple(integrators), dt, grids["k_s"], grids["k_d"], points, interval)
-
-
-def _top_level(suite: Suite) -> dict[str, Any]:
-    import tomllib
-
-    return tomllib.loads(suite.source)
 
 
 def theory_grid(plan: GainMapPlan, integrator: str) -> dict[str, Any]:
@@ -259,29 +249,22 @@ def run_gainmap(
             if on_cell is not None:
                 on_cell(done, len(cells))
     document = {
-        "schema": SCHEMA,
-        "schema_version": SCHEMA_VERSION,
-        "suite": {"name": suite.name, "path": suite.path, "fingerprint": suite.fingerprint()},
-        "xval_version": compare_version(),
+        **document_head(suite, SCHEMA, SCHEMA_VERSION),
         "scene_id": plan.scene.id,
         "scene": {"name": plan.scene.name, "duration": plan.scene.scene.duration,
                   "length": plan.scene.scene.characteristic_length},
         "dt": plan.dt,
         "k_s": plan.k_s,
         "k_d": plan.k_d,
-        "bounds": {"energy_drift": suite.bounds.energy_drift, "constraint_error": suite.bounds.constraint_error},
         "theory": "linearized constraint dynamics C'' + k_d C' + k_s C = 0; stable where the spectral radius "
                   "of the integrator's one-step matrix is <= 1 (docs/ours.md)",
         "maps": maps,
         "finished": now(),
     }
-    atomic_write_text(target, json.dumps(jsonable(document), allow_nan=False) + "\n")
+    write_document(target, document)
     return target
 
 
 def load_gainmap(path: str | Path) -> dict[str, Any] | None:
-    """The gain-map document in results directory ``path`` (None when it has none)."""
-    file = Path(path) / FILE_NAME
-    if not file.exists():
-        return None
-    return read_versioned(file, SCHEMA, SCHEMA_VERSION, "xval stability SUITE --output DIR --force")
+    """The gain-map document in results directory ``path`` (None when it has none); UserError for another version."""
+    return load_document(path, FILE_NAME, SCHEMA, SCHEMA_VERSION)

@@ -36,7 +36,7 @@ import time
 import tomllib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable
 
 import numpy as np
 
@@ -218,11 +218,11 @@ class StabilityPlan:
     settings: SearchSettings
 
 
-def suite_table(suite: Suite, name: str, allowed: tuple[str, ...]) -> tuple[dict[str, Any], _Reader]:
-    """The suite file's optional table ``name`` (validated keys) and a reader for line-numbered errors."""
+def suite_table(suite: Suite, name: str, allowed: tuple[str, ...]) -> tuple[dict[str, Any] | None, _Reader]:
+    """The suite file's optional table ``name`` (validated keys; None when absent) and a reader for line-numbered errors."""
     reader = _Reader(suite.path, suite.source)
-    data = tomllib.loads(suite.source)
-    return reader.table(name, data.get(name, {}), allowed), reader
+    value = tomllib.loads(suite.source).get(name)
+    return (None if value is None else reader.table(name, value, allowed)), reader
 
 
 def plan_stability(suite: Suite) -> StabilityPlan:
@@ -235,6 +235,7 @@ def plan_stability(suite: Suite) -> StabilityPlan:
     ``sample_interval`` (s, default the suite's: the samples the bounds are checked on).
     """
     table, reader = suite_table(suite, "stability", STABILITY_KEYS)
+    table = table or {}
     scene_ids = table.get("scenes")
     scenes = suite.scenes
     if scene_ids is not None:
@@ -290,6 +291,43 @@ def analytic_dt(engine: EngineSpec) -> float | None:
     return largest_stable_dt(settings["integrator"], k_s, k_d)
 
 
+# -- the output files (stability.json here, gainmap.json in compare.gainmap) ----------------------
+
+#: The command that rewrites either file, named in every error about one.
+RERUN = "xval stability SUITE --output DIR --force"
+
+
+def document_head(suite: Suite, schema: str, version: int) -> dict[str, Any]:
+    """The fields both output files open with: format, suite, xval version and the bounds the probes were judged by."""
+    return {
+        "schema": schema,
+        "schema_version": version,
+        "suite": {"name": suite.name, "path": suite.path, "fingerprint": suite.fingerprint()},
+        "xval_version": compare_version(),
+        "bounds": {"energy_drift": suite.bounds.energy_drift, "constraint_error": suite.bounds.constraint_error},
+    }
+
+
+def write_document(target: Path, document: dict[str, Any], indent: int | None = None) -> None:
+    """Write ``document`` to ``target`` atomically (a reader never sees half a file)."""
+    atomic_write_text(target, json.dumps(jsonable(document), indent=indent, allow_nan=False) + "\n")
+
+
+def load_document(directory: str | Path, name: str, schema: str, version: int) -> dict[str, Any] | None:
+    """``directory/name`` as written by this module or gainmap; None when absent, UserError naming RERUN when unreadable."""
+    file = Path(directory) / name
+    if not file.exists():
+        return None
+    try:
+        data = json.loads(file.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"{file}: cannot read it ({exc}); rerun {RERUN}") from None
+    if not isinstance(data, dict) or data.get("schema") != schema or data.get("schema_version") != version:
+        found = data.get("schema_version") if isinstance(data, dict) else None
+        raise UserError(f"{file}: {schema} version {found!r}, but this xval reads version {version}; rerun {RERUN}")
+    return data
+
+
 # -- running it -------------------------------------------------------------------------------
 
 
@@ -322,12 +360,8 @@ def run_stability(
     stability = plan_stability(suite)
     timeout = timeout or suite.timeout
     document: dict[str, Any] = {
-        "schema": SCHEMA,
-        "schema_version": SCHEMA_VERSION,
-        "suite": {"name": suite.name, "path": suite.path, "fingerprint": suite.fingerprint()},
-        "xval_version": compare_version(),
+        **document_head(suite, SCHEMA, SCHEMA_VERSION),
         "criterion": criterion_text(suite.bounds),
-        "bounds": {"energy_drift": suite.bounds.energy_drift, "constraint_error": suite.bounds.constraint_error},
         "settings": asdict(stability.settings),
         "scenes": {s.id: {"name": s.name, "duration": s.scene.duration, "length": s.scene.characteristic_length}
                    for s in stability.scenes},
@@ -341,7 +375,7 @@ def run_stability(
 
     def save() -> None:
         document["results"].sort(key=lambda r: order[(r["scene_id"], r["engine"])])
-        atomic_write_text(target, json.dumps(jsonable(document), indent=1, allow_nan=False) + "\n")
+        write_document(target, document, indent=1)
 
     def one(scene: SceneSpec, engine: EngineSpec) -> PairResult:
         reason = skip_reason(scene.scene, engine)
@@ -378,19 +412,4 @@ def run_stability(
 
 def load_stability(path: str | Path) -> dict[str, Any] | None:
     """The stability document in results directory ``path`` (None when it has none); UserError for another version."""
-    file = Path(path) / FILE_NAME
-    if not file.exists():
-        return None
-    return read_versioned(file, SCHEMA, SCHEMA_VERSION, "xval stability SUITE --output DIR --force")
-
-
-def read_versioned(file: Path, schema: str, version: int, command: str) -> dict[str, Any]:
-    """Read a JSON file written by this module or gainmap; UserError naming the command that rewrites it."""
-    try:
-        data = json.loads(file.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise UserError(f"{file}: cannot read it ({exc}); rerun {command}") from None
-    if not isinstance(data, dict) or data.get("schema") != schema or data.get("schema_version") != version:
-        found = data.get("schema_version") if isinstance(data, dict) else None
-        raise UserError(f"{file}: {schema} version {found!r}, but this xval reads version {version}; rerun {command}")
-    return data
+    return load_document(path, FILE_NAME, SCHEMA, SCHEMA_VERSION)

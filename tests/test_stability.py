@@ -12,7 +12,7 @@ import pytest
 
 from engines.errors import UserError
 
-from compare.gainmap import critical_limit, largest_stable_dt, run_gainmap, spectral_radius, theory_stable
+from compare.gainmap import critical_limit, largest_stable_dt, load_gainmap, run_gainmap, spectral_radius, theory_stable
 from compare.results import load_results
 from compare.runner import run_suite
 from compare.stability import (
@@ -137,6 +137,17 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0
     assert "stability.dt_min: 1 s is larger than dt_max 0.01 s" in done.stderr
+
+
+def test_output_files_of_another_version_are_refused_with_the_command_that_rewrites_them(tmp_path):
+    assert load_stability(tmp_path) is None and load_gainmap(tmp_path) is None  # none written: no section
+    (tmp_path / "stability.json").write_text('{"schema": "xval-stability", "schema_version": 0}')
+    with pytest.raises(UserError, match=r"stability\.json: xval-stability version 0, but this xval reads version 1; "
+                                        r"rerun xval stability SUITE --output DIR --force$"):
+        load_stability(tmp_path)
+    (tmp_path / "gainmap.json").write_text("{")
+    with pytest.raises(UserError, match=r"gainmap\.json: cannot read it \(.*\); rerun xval stability SUITE"):
+        load_gainmap(tmp_path)
 
 
 # -- gain map ------------------------------------------------------------------------------------
