@@ -38,7 +38,8 @@ import numpy as np
 import pymunk
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported, UserError
+from engines.errors import UserError
+from engines.plugin import refuse_constraint_kinds
 from engines.scene import Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
@@ -99,9 +100,7 @@ class PymunkEngine(Engine):
         return f"{pymunk.version} (Munk2D {pymunk.chipmunk_version.split('-')[0]})"
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        for k, c in enumerate(scene.constraints):
-            if not isinstance(c, (Pin, Rod)):
-                raise Unsupported(f"pymunk adapter has no joint for constraints[{k}] of kind {c.kind!r}")
+        refuse_constraint_kinds(scene, (Pin, Rod), "pymunk")
         _check_settings(settings)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
