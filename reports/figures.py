@@ -18,7 +18,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from compare.sweep import ORDER_METRIC, VariantSweep
 
@@ -107,26 +107,30 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
     return xs, ys, custom
 
 
-def _not_drawn_note(names: list[str]) -> str:
-    if not names:
-        return ""
-    return " Not drawn (no ok case with a positive error and cost): " + ", ".join(names) + "."
-
-
-def work_precision(scene: SceneResults) -> Plot | None:
-    """Max position error (m) against stepping cost per simulated second (s/s), log-log, one line per variant."""
+def _sweep_traces(scene: SceneResults, x_key: str, name: Callable[[VariantSweep], str], hovertemplate: str) -> tuple[list[dict[str, Any]], str]:
+    """One lines+markers trace per variant through its dt sweep (see :func:`_sweep_points`), and a note naming
+    the variants left out; ``name(sweep)`` is the legend text."""
     traces, missing = [], []
     for index, sweep in enumerate(scene.sweeps):
-        xs, ys, custom = _sweep_points(sweep, "cost_per_simulated_second")
+        xs, ys, custom = _sweep_points(sweep, x_key)
         if not xs:
             missing.append(sweep.engine)
             continue
         traces.append({
-            "type": "scatter", "mode": "lines+markers", "name": plot_text(sweep.engine),
-            "x": xs, "y": ys, "customdata": custom, "line": style(index),
-            "hovertemplate": "%{customdata[0]}<br>dt = %{customdata[1]:.3g} s<br>"
-                             "error = %{y:.3g} m<br>cost = %{x:.3g} s/s<extra></extra>",
+            "type": "scatter", "mode": "lines+markers", "name": plot_text(name(sweep)),
+            "x": xs, "y": ys, "customdata": custom, "line": style(index), "hovertemplate": hovertemplate,
         })
+    needs = "a positive error and cost" if x_key != "dt" else "a positive error"
+    note = f" Not drawn (no ok case with {needs}): " + ", ".join(missing) + "." if missing else ""
+    return traces, note
+
+
+def work_precision(scene: SceneResults) -> Plot | None:
+    """Max position error (m) against stepping cost per simulated second (s/s), log-log, one line per variant."""
+    traces, not_drawn = _sweep_traces(
+        scene, "cost_per_simulated_second", lambda sweep: sweep.engine,
+        "%{customdata[0]}<br>dt = %{customdata[1]:.3g} s<br>error = %{y:.3g} m<br>cost = %{x:.3g} s/s<extra></extra>",
+    )
     if not traces:
         return None
     figure = {
@@ -138,7 +142,7 @@ def work_precision(scene: SceneResults) -> Plot | None:
         ),
     }
     caption = ("Lower left is better: less error for less run time. Each line is one engine variant through its "
-               "dt sweep (ok cases only); hover a point for its dt." + _not_drawn_note(missing))
+               "dt sweep (ok cases only); hover a point for its dt." + not_drawn)
     return Plot("wp", "Work–precision: error against run time", caption, figure)
 
 
@@ -151,17 +155,9 @@ def _order_label(sweep: VariantSweep) -> str:
 
 def error_vs_dt(scene: SceneResults) -> Plot | None:
     """Max position error (m) against dt (s), log-log; the legend gives each variant's observed order."""
-    traces, missing = [], []
-    for index, sweep in enumerate(scene.sweeps):
-        xs, ys, custom = _sweep_points(sweep, "dt")
-        if not xs:
-            missing.append(sweep.engine)
-            continue
-        traces.append({
-            "type": "scatter", "mode": "lines+markers", "name": plot_text(_order_label(sweep)),
-            "x": xs, "y": ys, "customdata": custom, "line": style(index),
-            "hovertemplate": "%{customdata[0]}<br>dt = %{x:.3g} s<br>error = %{y:.3g} m<extra></extra>",
-        })
+    traces, not_drawn = _sweep_traces(
+        scene, "dt", _order_label, "%{customdata[0]}<br>dt = %{x:.3g} s<br>error = %{y:.3g} m<extra></extra>",
+    )
     if not traces:
         return None
     figure = {
@@ -169,7 +165,7 @@ def error_vs_dt(scene: SceneResults) -> Plot | None:
         "layout": _layout(len(traces), xaxis=_axis("time step dt / s"), yaxis=_axis("max position error / m")),
     }
     caption = ("The slope of each line is the observed order (fitted over the asymptotic range, see the table); "
-               "a line that flattens has reached the reference's accuracy or saturated." + _not_drawn_note(missing))
+               "a line that flattens has reached the reference's accuracy or saturated." + not_drawn)
     return Plot("dt", "Error against time step", caption, figure)
 
 
