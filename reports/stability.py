@@ -17,7 +17,7 @@ from typing import Any
 from compare.gainmap import load_gainmap
 from compare.stability import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
 
-from reports.figures import PALETTE, Plot, _layout, plot_text
+from reports.figures import PALETTE, Plot, _axis, _layout, plot_text
 
 
 @dataclass(frozen=True)
@@ -51,10 +51,15 @@ def _cell(result: dict[str, Any]) -> dict[str, str]:
     return {"text": "skipped", "status": "skipped", "title": result.get("reason", "")}
 
 
+def _by_pair(document: dict[str, Any]) -> dict[tuple[str, str], dict[str, Any]]:
+    """The search's results keyed by (scene id, engine label); a pair not searched (yet) is absent."""
+    return {(r["scene_id"], r["engine"]): r for r in document.get("results", [])}
+
+
 def stability_table(document: dict[str, Any]) -> dict[str, Any]:
     """Rows = engine variants, columns = scenes, cells = largest stable dt (s)."""
     scenes = list(document.get("scenes") or {})
-    by_pair = {(r["scene_id"], r["engine"]): r for r in document.get("results", [])}
+    by_pair = _by_pair(document)
     rows = []
     for engine in document.get("engines", []):
         cells = [(_cell(by_pair[(s, engine)]) if (s, engine) in by_pair else
@@ -74,12 +79,12 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
     settings = document.get("settings") or {}
     dt_min, dt_max = settings.get("dt_min"), settings.get("dt_max")
     engines = document.get("engines", [])
+    by_pair = _by_pair(document)
     traces = []
     for index, scene in enumerate(document.get("scenes") or {}):
         ys, patterns, hover = [], [], []
         for engine in engines:
-            result = next((r for r in document.get("results", [])
-                           if r["scene_id"] == scene and r["engine"] == engine), None)
+            result = by_pair.get((scene, engine))
             verdict = None if result is None else result["verdict"]
             if verdict == BOUNDED:
                 ys.append(result["largest_stable_dt"]), patterns.append(""), hover.append("largest stable dt")
@@ -99,8 +104,7 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
         return None
     low = math.log10(dt_min / 4) if dt_min else None
     high = math.log10(dt_max * 1.5) if dt_max else None
-    yaxis = {"title": {"text": "largest stable dt / s"}, "type": "log", "exponentformat": "power",
-             "gridcolor": "#e4e4e4"}
+    yaxis = _axis("largest stable dt / s")
     if low is not None and high is not None:
         yaxis["range"] = [low, high]
     figure = {"data": traces, "layout": _layout(len(traces), height=520, barmode="group",
