@@ -79,11 +79,17 @@ def _records(directory: Path):
     return load_results(directory).records
 
 
-def test_baseline_of_an_unfinished_run_is_refused(runs, tmp_path, capsys):
-    unfinished = copy_results(runs["first"], tmp_path / "unfinished")
-    header = read_json(unfinished / "run.json")
+def unfinished_copy(source: Path, target: Path) -> Path:
+    """A copy of the results directory ``source`` whose run.json says the run never finished."""
+    copy_results(source, target)
+    header = read_json(target / "run.json")
     header["finished"] = None
-    (unfinished / "run.json").write_text(json.dumps(header))
+    (target / "run.json").write_text(json.dumps(header))
+    return target
+
+
+def test_baseline_of_an_unfinished_run_is_refused(runs, tmp_path, capsys):
+    unfinished = unfinished_copy(runs["first"], tmp_path / "unfinished")
     code, _, err = xval(capsys, "baseline", unfinished, "--output", tmp_path / "b.json")
     assert code == 2
     assert err == (
@@ -93,10 +99,7 @@ def test_baseline_of_an_unfinished_run_is_refused(runs, tmp_path, capsys):
 
 
 def test_gating_an_unfinished_run_is_refused(runs, tmp_path, capsys):
-    unfinished = copy_results(runs["rerun"], tmp_path / "unfinished")
-    header = read_json(unfinished / "run.json")
-    header["finished"] = None
-    (unfinished / "run.json").write_text(json.dumps(header))
+    unfinished = unfinished_copy(runs["rerun"], tmp_path / "unfinished")
     code, _, err = xval(capsys, "gate", unfinished, "--baseline", runs["baseline"])
     assert code == 2
     assert err == (
@@ -281,11 +284,17 @@ def test_a_json_file_that_is_not_a_baseline(runs, tmp_path, capsys):
     assert err == f'xval: error: --baseline: {path}: not an xval baseline (no "kind": "xval-baseline"); {REMAKE.format(path=path)}\n'
 
 
-def test_a_baseline_of_an_old_schema(runs, tmp_path, capsys):
+def edited_baseline(runs, path: Path, **changes) -> Path:
+    """The session's baseline with top-level ``changes`` (a dict value is merged into the field), written to ``path``."""
     document = json.loads(runs["baseline"].read_text())
-    document["schema_version"] = 0
-    path = tmp_path / "old.json"
+    for key, value in changes.items():
+        document[key] = {**document[key], **value} if isinstance(value, dict) else value
     path.write_text(json.dumps(document))
+    return path
+
+
+def test_a_baseline_of_an_old_schema(runs, tmp_path, capsys):
+    path = edited_baseline(runs, tmp_path / "old.json", schema_version=0)
     code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
     assert code == 2
     assert err == (
@@ -295,10 +304,7 @@ def test_a_baseline_of_an_old_schema(runs, tmp_path, capsys):
 
 
 def test_a_baseline_of_another_suite(runs, tmp_path, capsys):
-    document = json.loads(runs["baseline"].read_text())
-    document["suite"]["name"] = "smoke"
-    path = tmp_path / "smoke.json"
-    path.write_text(json.dumps(document))
+    path = edited_baseline(runs, tmp_path / "smoke.json", suite={"name": "smoke"})
     code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
     assert code == 2
     assert err == (
