@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 
 from compare.progress import progress_for
-from compare.results import load_results
 from compare.runner import run_suite
 from compare.suite import load_suite
 from compare.table import scene_tables
@@ -25,7 +24,7 @@ def main() -> None:
     if (OUTPUT / "run.json").exists():
         shutil.rmtree(OUTPUT)
     summary = run_suite(load_suite(SUITE), OUTPUT, progress=progress_for(sys.stderr))
-    print(scene_tables(load_results(OUTPUT).records))
+    print(scene_tables(summary.records))
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     print(f"{summary.ran} cases in {summary.wall_time:.1f} s ({counts})")
     print(f"results: {OUTPUT}  (xval show {OUTPUT.relative_to(ROOT)} --format csv; xval report ...)")

@@ -103,13 +103,15 @@ def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
 
 @dataclass(frozen=True)
 class RunSummary:
-    """What a run did: where results are, status counts, cases run now / skipped / resumed, wall time (s)."""
+    """What a run did: where results are, status counts, cases run now / resumed, wall time (s),
+    and every case record in ``path`` (read once at the end, for the counts and the tables)."""
 
     path: Path
     counts: dict[str, int]
     ran: int
     already_done: int
     wall_time: float
+    records: list[dict[str, Any]]
 
 
 def default_jobs() -> int:
@@ -176,9 +178,10 @@ def run_suite(
             _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate).run()
     finally:
         progress.stop()
-    counts = _status_counts(results)
+    records = list(iter_records(results.cases))
+    counts = _status_counts(records)
     results.finish(counts)
-    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started)
+    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records)
 
 
 def compare_version() -> str:
@@ -190,9 +193,9 @@ def compare_version() -> str:
         return "unknown"
 
 
-def _status_counts(results: ResultsDir) -> dict[str, int]:
+def _status_counts(records: list[dict[str, Any]]) -> dict[str, int]:
     counts: dict[str, int] = {}
-    for record in iter_records(results.cases):
+    for record in records:
         counts[record["status"]] = counts.get(record["status"], 0) + 1
     return dict(sorted(counts.items()))
 

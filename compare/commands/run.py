@@ -7,7 +7,6 @@ import sys
 import click
 
 from compare.progress import progress_for
-from compare.results import load_results
 from compare.runner import run_suite
 from compare.suite import load_suite
 from compare.table import scene_tables
@@ -45,7 +44,7 @@ def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
         except SchedulerLost as exc:
             click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
             sys.exit(1)
-    click.echo(scene_tables(load_results(summary.path).records), nl=False)
+    click.echo(scene_tables(summary.records), nl=False)
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     resumed = f", {summary.already_done} already done" if summary.already_done else ""
     click.echo(f"\n{summary.ran} cases run in {summary.wall_time:.1f} s{resumed} ({counts})")
