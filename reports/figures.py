@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable
 
 from compare.sweep import ORDER_METRIC, VariantSweep
 
-from reports.load import SceneResults
+from reports.load import SceneResults, is_reference
 
 #: Distinct colours, one per engine variant in a scene (D3/Tableau category20 without its pale halves first).
 PALETTE = (
@@ -241,8 +241,7 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     for _, _, record in _chosen_cases(scene):
         if record["series"].get("reference_positions"):
             return record["series"]["reference_positions"], "the reference solution"
-    reference = [s for s in scene.sweeps if s.records[0]["case"].get("engine_id", "").startswith("reference/")]
-    for sweep in reference:
+    for sweep in filter(is_reference, scene.sweeps):
         for record in sorted(sweep.records, key=lambda r: r["case"]["dt"] != scene.chosen_dt):
             if record["status"] == "ok" and (record.get("series") or {}).get("positions"):
                 return record["series"]["positions"], f"{sweep.engine} at dt = {record['case']['dt']:.3g} s"

@@ -79,9 +79,10 @@ class ReportData:
     def n_cases(self) -> int:
         return sum(self.counts.values())
 
-    @property
-    def skipped(self) -> list[SkippedPair]:
-        return [pair for scene in self.scenes for pair in scene.skipped]
+
+def is_reference(sweep: VariantSweep) -> bool:
+    """Whether ``sweep`` is the reference engine run as a suite engine (the yardstick, not a competitor)."""
+    return sweep.records[0]["case"].get("engine_id", "").startswith("reference/")
 
 
 def status_counts(records: list[dict[str, Any]]) -> dict[str, int]:

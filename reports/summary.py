@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 from compare.sweep import VariantSweep
 
-from reports.load import SceneResults
+from reports.load import SceneResults, is_reference
 
 
 @dataclass(frozen=True)
@@ -75,11 +75,6 @@ class SummaryTable:
     columns: tuple[Column, ...]
     rows: list[Row]
     dt: float | None
-
-
-def is_reference(sweep: VariantSweep) -> bool:
-    """Whether ``sweep`` is the reference engine run as a suite engine (not ranked)."""
-    return sweep.records[0]["case"].get("engine_id", "").startswith("reference/")
 
 
 def _sweep_statuses(sweep: VariantSweep) -> str:
