@@ -28,7 +28,7 @@ without running anything.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from engines.errors import UserError
@@ -122,9 +122,11 @@ def accuracy_change(rule: MetricRule, baseline: float | None, current: float | N
     tol = settings.tolerance(rule.name)
     infinite = rule.none_means == "infinite"
     if baseline is None or current is None:
-        if not infinite or (baseline is None and current is None):
-            return None if not infinite else Change(rule.name, rule.unit, None, None, None, "unchanged")
+        if not infinite:
+            return None
         # Divergence time: null = never diverged.
+        if baseline is None and current is None:
+            return Change(rule.name, rule.unit, None, None, None, "unchanged")
         if baseline is None:
             return Change(rule.name, rule.unit, None, current, None, "worse", note="diverges now, never did before")
         return Change(rule.name, rule.unit, baseline, None, None, "better", note="no longer diverges")
@@ -310,6 +312,5 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
 def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, baseline_path: str, *, timing: str = "gate") -> GateReport:
     """:func:`gate` after checking both come from the same suite; the report carries the suite notes."""
     notes = check_same_suite(baseline, current["suite"], baseline_path)
-    report = gate(baseline, current, settings, timing=timing)
-    return GateReport(report.suite, report.cases, report.settings, report.timing, report.timing_note, tuple(notes))
+    return replace(gate(baseline, current, settings, timing=timing), notes=tuple(notes))
 
