@@ -11,41 +11,37 @@ from __future__ import annotations
 import importlib
 import sys
 from importlib.metadata import entry_points
+from typing import Any, NoReturn
 
 import click
 
 from engines.errors import UserError
 
-#: Built-in verbs: each module defines a click command named ``command``.
-COMMAND_MODULES = [
-    "compare.commands.scenes",
-    "compare.commands.engines",
-    "compare.commands.simulate",
-    "compare.commands.run",
-    "compare.commands.show",
-    "compare.commands.baseline",
-    "compare.commands.gate",
-    "compare.commands.stability",
-]
+#: Built-in verbs: name -> the module defining a click command ``command`` of that name.
+COMMAND_MODULES = {
+    name: f"compare.commands.{name}"
+    for name in ("scenes", "engines", "simulate", "run", "show", "baseline", "gate", "stability")
+}
 
 
 class XvalGroup(click.Group):
-    """Loads the verbs lazily so ``xval --help`` stays fast and an engine import is never needed to list them."""
+    """Imports only the verb being run (``xval show`` never imports the runner, engines or reports);
+    listing the verbs needs no import, ``xval --help`` imports each for its one-line help."""
 
-    def _commands(self) -> dict[str, click.Command]:
-        found: dict[str, click.Command] = {}
-        for module_name in COMMAND_MODULES:
-            command = importlib.import_module(module_name).command
-            found[command.name] = command
+    def _plugins(self) -> dict[str, Any]:
+        found: dict[str, Any] = {}
         for entry in entry_points(group="xval.commands"):
-            found.setdefault(entry.name, entry.load())
+            found.setdefault(entry.name, entry)
         return found
 
     def list_commands(self, ctx: click.Context) -> list[str]:
-        return sorted(self._commands())
+        return sorted({*COMMAND_MODULES, *self._plugins()})
 
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
-        return self._commands().get(name)
+        if name in COMMAND_MODULES:  # a built-in name wins over a plug-in's
+            return importlib.import_module(COMMAND_MODULES[name]).command
+        entry = self._plugins().get(name)
+        return None if entry is None else entry.load()
 
 
 @click.group(cls=XvalGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -54,7 +50,7 @@ def cli() -> None:
     """Cross-validate constrained-dynamics solvers against MuJoCo, PyBullet, pymunk and a reference."""
 
 
-def fail(message: str) -> "NoReturn":  # noqa: F821 - documented return type
+def fail(message: str) -> NoReturn:
     """Print one error line and exit 2."""
     click.echo(f"xval: error: {message}", err=True)
     sys.exit(2)
@@ -76,10 +72,7 @@ def main(argv: list[str] | None = None) -> None:
         fail(exc.format_message())
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except click.Abort:
-        click.echo("xval: interrupted", err=True)
-        sys.exit(130)
-    except KeyboardInterrupt:
+    except (click.Abort, KeyboardInterrupt):
         click.echo("xval: interrupted", err=True)
         sys.exit(130)
     except BrokenPipeError:
