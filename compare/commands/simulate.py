@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import click
-import numpy as np
 
 from compare.cli import parse_assignments
 from compare.export import trajectory_csv
 from compare.files import atomic_write_text, check_writable
+from compare.metrics import constraint_error, energy_drift
 from engines import catalog, registry
 from engines.adapter import check_time_step
-from engines.trajectory import max_constraint_error, total_energy
 
 
 @click.command("simulate")
@@ -50,9 +49,8 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     info = trajectory.info
     summary = f"{info.variant} on {scene.name}: {info.status}, {trajectory.n_samples} samples to {path}"
     if trajectory.n_samples:
-        energy = total_energy(scene, trajectory.positions, trajectory.velocities)
-        drift = float(np.max(np.abs(energy - energy[0]))) / scene.characteristic_energy
-        error = float(max_constraint_error(scene, trajectory.positions).max())
+        drift = energy_drift(scene, trajectory.positions, trajectory.velocities)
+        error = constraint_error(scene, trajectory.positions)
         summary += (
             f"; {info.steps} steps in {info.wall_time:.3g} s; energy drift {drift:.2e} E*;"
             f" constraint error {error:.2e} m"
