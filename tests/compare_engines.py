@@ -3,6 +3,11 @@
 Loaded by suites as ``compare_engines:MISBEHAVING/<variant>``. Every variant
 but the misbehaving ones returns the reference solution itself, so a case
 that behaves has zero position error.
+
+The engine runs in a case host, a child forked from the executor's worker
+(compare.isolation), so its parent process is that worker: ``kill-worker``
+SIGKILLs it, as an out-of-memory killer or a lost machine would (a pool
+worker locally, a Dask worker on a cluster).
 """
 
 from __future__ import annotations
@@ -17,13 +22,14 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.scene import Scene
 
-MODES = ("exact", "raise", "nan", "sleep", "kill", "exit", "drift")
+MODES = ("exact", "raise", "nan", "sleep", "kill", "exit", "drift", "kill-worker")
 
 
 class MisbehavingEngine(Engine):
     """exact: the reference; raise: raises in the stepping loop; nan: NaN from halfway;
     sleep: sleeps for an hour; kill: SIGKILLs its own process; exit: os._exit(3);
-    drift: the reference with the bead pushed 0.5 m off its wire (finite, but past the bounds)."""
+    drift: the reference with the bead pushed 0.5 m off its wire (finite, but past the bounds);
+    kill-worker: SIGKILLs the process that forked the case host (the executor's worker)."""
 
     name = "misbehaving"
     capabilities = frozenset({"3d", "constraint-forces"})
@@ -45,6 +51,9 @@ class MisbehavingEngine(Engine):
             os.kill(os.getpid(), signal.SIGKILL)
         if mode == "exit":
             os._exit(3)
+        if mode == "kill-worker":
+            os.kill(os.getppid(), signal.SIGKILL)
+            os._exit(9)  # no answer, and no orphaned case host left behind
         positions, velocities, forces = solve(scene).at(schedule.times)
         if mode == "nan":
             positions[len(positions) // 2 :] = np.nan

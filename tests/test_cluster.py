@@ -120,7 +120,7 @@ def test_a_worker_with_other_engine_versions_is_reported(cluster, tmp_path):
 
 
 def test_a_killed_worker_fails_only_its_case(cluster, tmp_path):
-    engines = ["cluster_engines:WORKER_KILLER/kill-worker", "cluster_engines:WORKER_KILLER/exact",
+    engines = ["compare_engines:MISBEHAVING/kill-worker", "compare_engines:MISBEHAVING/exact",
                "compare_engines:MISBEHAVING/kill", "compare_engines:MISBEHAVING/sleep",
                "compare_engines:MISBEHAVING/raise", "mujoco/hinge"]
     start = time.perf_counter()
