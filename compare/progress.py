@@ -43,7 +43,6 @@ class PlainProgress:
         self.stream = stream
         self.done = 0
         self.total = 0
-        self.failures = 0
 
     def start(self, total: int, already_done: int) -> None:
         self.total, self.done = total, already_done
