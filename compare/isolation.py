@@ -78,7 +78,7 @@ class CaseOutcome:
 
 
 def _engine_for(task: CaseTask) -> Engine:
-    from compare.suite import load_engine  # here, not at import: workers need not parse suites
+    from engines.registry import load_engine  # here, not at import: loaded in the worker that runs the case
 
     return load_engine(task.engine_id)[0]
 
