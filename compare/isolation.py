@@ -128,8 +128,15 @@ def _failure(task: CaseTask, exc: BaseException) -> CaseOutcome:
     return CaseOutcome(task.case_id, None, status="failed", message=message)
 
 
-def _host_loop(requests: Any, replies: Any) -> None:
-    """The case host: run each task received until the worker closes the pipe."""
+def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
+    """The case host: run each task received until the worker closes the pipe (or dies).
+
+    The fork copied the worker's ends of both pipes into this process; they are
+    closed first, or the host itself would hold the request pipe's write end open
+    and never see EOF when its worker is killed (an orphan blocked forever).
+    """
+    for end in worker_ends:
+        end.close()
     while True:
         try:
             task = requests.recv()
@@ -154,8 +161,8 @@ class _Host:
         self.requests, child_requests = context.Pipe(duplex=False)[::-1]
         child_replies, self.replies = context.Pipe(duplex=False)[::-1]
         # daemon: it is killed when the worker exits, rather than waited for.
-        self.process = context.Process(target=_host_loop, args=(child_requests, child_replies), daemon=True,
-                                       name="xval-case-host")
+        self.process = context.Process(target=_host_loop, args=(child_requests, child_replies, self.requests, self.replies),
+                                       daemon=True, name="xval-case-host")
         self.process.start()
         child_requests.close()
         child_replies.close()  # so a host that dies closes the pipe and recv() sees EOF

@@ -25,6 +25,7 @@ import math
 import multiprocessing
 import os
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -42,8 +43,11 @@ from compare.progress import NullProgress, Progress
 from compare.results import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
 from compare.suite import EngineSpec, SceneSpec, Suite
 
-#: How many times a case is resubmitted after the pool broke while it was running.
+#: Runs of a case whose executor breaks under it: once among others, then once alone
+#: (the Dask executor's allowed-failures follows this).
 MAX_ATTEMPTS = 2
+#: Why a case that broke its executor twice (the second time alone) is failed.
+LOST_MESSAGE = "a worker process of the executor died while it ran"
 
 
 class RunStopped(Exception):
@@ -214,7 +218,12 @@ class _Dispatcher:
         self.isolate = isolate
         self.references: dict[str, Any] = {}  # scene id -> solution, or the exception that stopped it
         self.waiting: dict[str, list[tuple[Case, CaseOutcome]]] = {}
-        self.attempts: dict[str, int] = {}
+        # Longest first: cost grows like 1/dt.
+        self.queue: deque[str] = deque(sorted(self.cases, key=lambda cid: self.cases[cid].dt))
+        # Cases lost when the pool broke: each is run again alone, so the one that kills
+        # its worker is known and no case that merely shared the pool with it is blamed.
+        self.suspects: deque[str] = deque()
+        self.alone: str | None = None
 
     def _new_pool(self) -> cf.Executor:
         # fork: workers inherit the imported engines; the workers are forked
@@ -235,20 +244,53 @@ class _Dispatcher:
             isolate=self.isolate,
         )
 
-    def submit_all(self, reference_ids: list[str], case_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
-        futures: dict[cf.Future, tuple[str, str]] = {}
+    def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
         scenes = {s.id: s.scene for s in self.suite.scenes}
-        for scene_id in reference_ids:
-            future = self.executor.submit(solve_reference, scenes[scene_id], self.suite.rtol, self.suite.atol)
-            futures[future] = ("reference", scene_id)
-        # Longest first: cost grows like 1/dt.
-        for cid in sorted(case_ids, key=lambda c: self.cases[c].dt):
-            futures[self.executor.submit(execute, self.task(self.cases[cid]))] = ("case", cid)
-        return futures
+        return {
+            self.executor.submit(solve_reference, scenes[sid], self.suite.rtol, self.suite.atol): ("reference", sid)
+            for sid in scene_ids
+        }
+
+    def fill(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
+        """Submit cases while there is room: ``jobs`` at a time on a pool we own, all at once otherwise.
+
+        A window on our own pool means a worker's death loses only the cases
+        running then, not the whole queue (an executor passed in, e.g. the
+        Dask one, keeps its own window). After a break, suspects run one at a
+        time with nothing else in flight. Returns ``pending``, or a new dict
+        when the pool turned out broken at submission.
+        """
+        while True:
+            try:
+                self._fill(pending)
+                return pending
+            except cf.BrokenExecutor:
+                # Its manager saw a worker die before any of our futures said so.
+                pending = self.recover(pending)
+
+    def _fill(self, pending: dict[cf.Future, tuple[str, str]]) -> None:
+        if self.suspects:
+            if not pending:
+                self._submit(pending, self.suspects, alone=True)
+            return
+        in_flight = sum(kind == "case" for kind, _ in pending.values())
+        room = self.jobs - in_flight if self.own_executor else len(self.queue)
+        for _ in range(min(room, len(self.queue))):
+            self._submit(pending, self.queue)
+
+    def _submit(self, pending: dict[cf.Future, tuple[str, str]], source: deque[str], alone: bool = False) -> None:
+        cid = source.popleft()
+        try:
+            future = self.executor.submit(execute, self.task(self.cases[cid]))
+        except cf.BrokenExecutor:
+            source.appendleft(cid)  # not run: it goes first once the pool is rebuilt
+            raise
+        pending[future] = ("case", cid)
+        self.alone = cid if alone else None
 
     def run(self) -> None:
         scene_ids = sorted({c.scene.id for c in self.cases.values()})
-        pending = self.submit_all(scene_ids, list(self.cases))
+        pending = self.fill(self.submit_references(scene_ids))
         try:
             while pending:
                 finished, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
@@ -272,6 +314,7 @@ class _Dispatcher:
                     self.handle(kind, key, value)
                 if broken:
                     pending = self.recover(pending)
+                pending = self.fill(pending)
         except BaseException:
             # Ctrl-C or a bug: stop the workers now; finished records are already on disk.
             self.executor.shutdown(wait=False, cancel_futures=True)
@@ -293,30 +336,33 @@ class _Dispatcher:
             self.waiting.setdefault(case.scene.id, []).append((case, value))
 
     def recover(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
-        """The pool broke (a worker died outside a case's child): rebuild it and resubmit what was lost.
+        """The pool broke (a worker died outside a case's child): rebuild it and run again what was lost.
 
-        A case caught in MAX_ATTEMPTS breaks is recorded as failed; with an
-        executor we do not own, everything lost is recorded as failed.
+        Lost cases become suspects, each run again alone (MAX_ATTEMPTS = 2 in
+        all); a suspect that breaks the pool while alone is the culprit and is
+        recorded failed. With an executor we do not own, everything lost is
+        recorded as failed.
         """
         lost = list(pending.values())
         self.executor.shutdown(wait=False, cancel_futures=True)
-        reference_ids, case_ids = [], []
-        for kind, key in lost:
-            if kind == "reference":
-                reference_ids.append(key)
-                continue
-            self.attempts[key] = self.attempts.get(key, 0) + 1
-            if not self.own_executor or self.attempts[key] >= MAX_ATTEMPTS:
-                outcome = CaseOutcome(key, None, status="failed", message="a worker process of the executor died while it ran")
-                self.handle("case", key, outcome)
-            else:
-                case_ids.append(key)
+        reference_ids = [key for kind, key in lost if kind == "reference"]
+        case_ids = [key for kind, key in lost if kind == "case"]
         if not self.own_executor:
+            # Not ours to rebuild: what was lost, and what had not been submitted yet, is failed.
+            for key in case_ids + list(self.queue):
+                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+            self.queue.clear()
             for scene_id in reference_ids:
                 self.handle("reference", scene_id, RuntimeError("the executor broke before the reference was solved"))
             return {}
+        for key in case_ids:
+            if key == self.alone:
+                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+            else:
+                self.suspects.append(key)
+        self.alone = None
         self.executor = self._new_pool()
-        return self.submit_all(reference_ids, case_ids)
+        return self.submit_references(reference_ids)
 
 
 class _Writer:
