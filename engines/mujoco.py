@@ -14,7 +14,19 @@
   the angle between them), so the arms are assigned by a matching of
   constraints to particles. The arm's body turns with the rod, so it adds the
   rotational energy ½·ω·I·ω of the body's tiny inertia I: relative to the
-  particle energy this is ``inertia_ratio`` (1e-9 by default).
+  particle energy this is ``inertia_ratio`` (1e-9 in the connect variants).
+
+Point-mass inertia is the hinge variants' error floor. MuJoCo refuses a moving
+body whose mass or inertia is below mjMINVAL (1e-15), so each particle body
+gets ``inertia_ratio · m · L²`` about every axis; on a hinge it adds to the
+link's moment m·l² about the pivot, a model error proportional to the ratio:
+about 2.6·ratio m on the bead and 18·ratio m on the double pendulum in 2 s
+(scripts/inertia_floor.py), which is what hinge-rk4 converges to as dt → 0.
+The hinge variants therefore use 1e-12 (:data:`HINGE_INERTIA_RATIO`; well
+conditioned down to 1e-14, ball joints included): the floor is 2.5e-10 m on
+the double pendulum where 1e-9 gave 1.8e-8 m. The connect variants keep 1e-9
+(:data:`CONNECT_INERTIA_RATIO`): there the inertia is what a ball joint turns
+the arm with.
 
 The model is built as MJCF text in the scene's *initial* configuration, so
 qpos0 is the initial state: hinge angles are 0 there (a child's hinge angle is
@@ -57,9 +69,15 @@ mujoco.mj_defaultSolRefImp(_ref, _imp)
 MUJOCO_SOLREF: tuple[float, ...] = tuple(float(x) for x in _ref)
 MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
 
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; module docstring).
+HINGE_INERTIA_RATIO = 1e-12
+CONNECT_INERTIA_RATIO = 1e-9
+
 #: Stiff equality setting: time constant 2·dt (the smallest refsafe allows), critical damping,
 #: impedance 0.9999 whatever the violation (R = 1e-4 of the constraint's inverse mass).
 STIFF = {"timeconst_steps": 2.0, "solref": (0.02, 1.0), "solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}
+#: The connect variants' point-mass inertia: a ball joint turns the arm with it.
+CONNECT = {"inertia_ratio": CONNECT_INERTIA_RATIO}
 
 INTEGRATORS = {
     "Euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -301,8 +319,9 @@ class MuJoCoEngine(Engine):
             "refsafe", True, "keep MuJoCo's refsafe clamp of solref's time constant to at least 2·dt", kind="bool"
         ),
         "inertia_ratio": Option(
-            "inertia_ratio", 1e-9,
-            "rotational inertia of each point-mass body, as a fraction of m·L² (L: the scene's length scale)",
+            "inertia_ratio", HINGE_INERTIA_RATIO,
+            "rotational inertia of each point-mass body, as a fraction of m·L² (L: the scene's length scale); "
+            f"{HINGE_INERTIA_RATIO:g} for hinge, {CONNECT_INERTIA_RATIO:g} in the connect variants",
         ),
     }
     variants = {
@@ -310,11 +329,11 @@ class MuJoCoEngine(Engine):
         "hinge-rk4": {"formulation": "hinge", "integrator": "RK4"},
         "hinge-implicit": {"formulation": "hinge", "integrator": "implicit"},
         "hinge-implicitfast": {"formulation": "hinge", "integrator": "implicitfast"},
-        "connect": {"formulation": "connect"},
-        "connect-stiff": {"formulation": "connect", **STIFF},
-        "connect-rk4": {"formulation": "connect", "integrator": "RK4"},
-        "connect-rk4-stiff": {"formulation": "connect", "integrator": "RK4", **STIFF},
-        "connect-implicitfast-stiff": {"formulation": "connect", "integrator": "implicitfast", **STIFF},
+        "connect": {"formulation": "connect", **CONNECT},
+        "connect-stiff": {"formulation": "connect", **CONNECT, **STIFF},
+        "connect-rk4": {"formulation": "connect", "integrator": "RK4", **CONNECT},
+        "connect-rk4-stiff": {"formulation": "connect", "integrator": "RK4", **CONNECT, **STIFF},
+        "connect-implicitfast-stiff": {"formulation": "connect", "integrator": "implicitfast", **CONNECT, **STIFF},
     }
     variant_docs = {
         "hinge": "reduced coordinates, MuJoCo's default Euler integrator",

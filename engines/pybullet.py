@@ -30,7 +30,16 @@ its mass with an isotropic central inertia ``inertia_ratio · m · L²``
 (L = the scene's characteristic length), stated in RunInfo. With the
 arm carried by the body, the pendulum's moment about the pivot is
 m·l² + I: a relative excess of ``inertia_ratio·(L/l)²`` (period longer by
-about half of that). No collision shapes are created (PyBullet accepts
+about half of that), an error floor of its own. The ratio is the smallest
+each formulation stays well-conditioned with (scripts/inertia_floor.py):
+``multibody`` 1e-9 (:data:`MULTIBODY_INERTIA_RATIO`): planar multibodies
+match MuJoCo's hinge model to round-off at any ratio down to 1e-15, but a
+spherical joint's spin about its own rod has only I to resist it, and below
+1e-9 the 3-D pendulum departs from MuJoCo's (by 6e-7 m in 2 s at 1e-10,
+2.5e-5 m at 1e-12); at 1e-4 (the former default) the inertia cost the mild
+double pendulum its first order. ``p2p`` 1e-4 (:data:`P2P_INERTIA_RATIO`):
+the sequential-impulse solver does not converge with a smaller one (the
+bead's wire stretches 0.31 m at 1e-6). No collision shapes are created (PyBullet accepts
 bodies without one when the mass and inertia are given), so nothing can
 collide.
 
@@ -167,6 +176,10 @@ SOLVERS = {
 #: Overrides a user can switch off (option ``keep_defaults``) to see what PyBullet's default costs:
 #: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
 KEEPABLE = ("damping", "motors", "sleeping")
+
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; see the module docstring).
+MULTIBODY_INERTIA_RATIO = 1e-9
+P2P_INERTIA_RATIO = 1e-4
 
 #: A coordinate this many characteristic lengths from the origin has run away.
 RUNAWAY_LENGTHS = 1e6
@@ -311,16 +324,20 @@ class PyBulletEngine(Engine):
         ),
         "inertia_ratio": Option(
             "inertia_ratio",
-            1e-4,
-            "each point mass's central inertia as a fraction of m·L² (L: the scene's characteristic length); positive",
+            MULTIBODY_INERTIA_RATIO,
+            "each point mass's central inertia as a fraction of m·L² (L: the scene's characteristic length); "
+            f"positive; {MULTIBODY_INERTIA_RATIO:g} for multibody, {P2P_INERTIA_RATIO:g} in the p2p variants "
+            "(the sequential-impulse solver needs it)",
         ),
     }
     variants = {
-        "multibody": {"formulation": "multibody"},
-        "p2p": {"formulation": "p2p"},
-        "p2p-dantzig": {"formulation": "p2p", "solver": "dantzig"},
-        "p2p-dantzig-erp0.8": {"formulation": "p2p", "solver": "dantzig", "erp": 0.8},
-        "p2p-iter500": {"formulation": "p2p", "iterations": 500},
+        "multibody": {"formulation": "multibody", "inertia_ratio": MULTIBODY_INERTIA_RATIO},
+        "p2p": {"formulation": "p2p", "inertia_ratio": P2P_INERTIA_RATIO},
+        "p2p-dantzig": {"formulation": "p2p", "solver": "dantzig", "inertia_ratio": P2P_INERTIA_RATIO},
+        "p2p-dantzig-erp0.8": {
+            "formulation": "p2p", "solver": "dantzig", "erp": 0.8, "inertia_ratio": P2P_INERTIA_RATIO,
+        },
+        "p2p-iter500": {"formulation": "p2p", "iterations": 500, "inertia_ratio": P2P_INERTIA_RATIO},
     }
     variant_docs = {
         "multibody": "one multibody per Pin: revolute joints (spherical in 3-D), motors off, no damping",
@@ -358,7 +375,7 @@ class PyBulletEngine(Engine):
             raise UserError(f"pybullet: option iterations must be at least 1, got {settings['iterations']}")
         if settings["inertia_ratio"] <= 0:
             raise UserError(
-                f"pybullet: option inertia_ratio must be positive, got {settings['inertia_ratio']}; try 1e-4"
+                f"pybullet: option inertia_ratio must be positive, got {settings['inertia_ratio']}; try 1e-9"
             )
         unknown = set(_kept(settings)) - set(KEEPABLE)
         if unknown:

@@ -24,7 +24,7 @@ from engines.trajectory import max_constraint_error, tensions, total_energy
 VARIANTS = list(ENGINE.variants)
 #: Variants whose constraint solver converges each step (direct solver, or a reduced-coordinate model).
 CONVERGED = ("multibody", "p2p-dantzig", "p2p-dantzig-erp0.8")
-INERTIA_RATIO = ENGINE.options["inertia_ratio"].default
+INERTIA_RATIO = max(ENGINE.resolve(v)["inertia_ratio"] for v in ENGINE.variants)  # the largest, p2p's
 
 
 def zero_crossing_period(t: np.ndarray, x: np.ndarray) -> float:
