@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from compare.metrics import position_error
+from compare.results.metrics import position_error
 from engines import catalog
 from engines.mujoco import ENGINE as MUJOCO
 from engines.pybullet import ENGINE as PYBULLET
