@@ -336,6 +336,117 @@ def solve(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) 
     return ReferenceSolution(scene, model, result.sol, rtol, atol, len(result.t) - 1, result.nfev, wall_time)
 
 
+# -- the reference's own error bar, horizon and Lyapunov exponent ------------------------------
+
+#: How much tighter the second solve is: rtol and atol divided by this, but never below what
+#: DOP853 accepts (scipy raises any rtol < 100·ε ≈ 2.2e-14 to that floor, with a warning).
+TIGHTER = 100.0
+#: scipy's smallest accepted rtol for DOP853 (a hair above 100·ε, so it never warns).
+MIN_RTOL = 100 * np.finfo(float).eps * (1 + 1e-9)
+#: The reference is trusted to this fraction of L: the gate's position tolerance (1e-9 m for
+#: L = 1 m, "the reference's own accuracy", README) ...
+REFERENCE_ACCURACY = 1e-9
+#: ... and its horizon is the first time the two solves differ by more than this fraction of it
+#: (1e-10 L): by then an error measured against the reference is no longer the engine's alone.
+HORIZON_FRACTION = 0.1
+
+
+@dataclass(frozen=True)
+class ReferenceBound:
+    """The reference solved twice, and what the difference says about it.
+
+    rtol, atol : the suite's tolerances; tight_rtol, tight_atol : the second solve's.
+    t : (n,) s sample times; difference : (n,) m, max over particles of the position difference.
+    threshold : m, HORIZON_FRACTION · REFERENCE_ACCURACY · L unless given.
+    reference_error : m, the largest difference over the whole run.
+    reference_horizon : s, the first sample time where the difference exceeds ``threshold``,
+        None when it never does (the reference holds over the whole run).
+    """
+
+    rtol: float
+    atol: float
+    tight_rtol: float
+    tight_atol: float
+    t: np.ndarray
+    difference: np.ndarray
+    threshold: float
+    reference_error: float
+    reference_horizon: float | None
+
+
+def reference_horizon(t: np.ndarray, difference: np.ndarray, threshold: float) -> float | None:
+    """First t (s) with difference (n,) m above threshold (m), or None when it never is."""
+    above = np.nonzero(np.asarray(difference) > threshold)[0]
+    return float(t[above[0]]) if len(above) else None
+
+
+def bound(
+    scene: Scene,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+    times: np.ndarray | None = None,
+    threshold: float | None = None,
+) -> ReferenceBound:
+    """Solve ``scene`` at (rtol, atol) and TIGHTER times tighter; compare positions at ``times``.
+
+    times : (n,) s, default every 0.01 s over the scene's duration. threshold : m, default
+    HORIZON_FRACTION · REFERENCE_ACCURACY · L. Unsupported when the reference cannot express the scene.
+    """
+    if times is None:
+        times = np.linspace(0.0, scene.duration, max(2, round(scene.duration / 0.01) + 1))
+    times = np.asarray(times, dtype=float)
+    tight_rtol, tight_atol = max(rtol / TIGHTER, MIN_RTOL), atol / TIGHTER
+    loose = solve(scene, rtol, atol).at(times)[0]
+    tight = solve(scene, tight_rtol, tight_atol).at(times)[0]
+    difference = np.linalg.norm(loose - tight, axis=2).max(axis=1)
+    if threshold is None:
+        threshold = HORIZON_FRACTION * REFERENCE_ACCURACY * scene.characteristic_length
+    return ReferenceBound(
+        rtol, atol, tight_rtol, tight_atol, times, difference, float(threshold),
+        float(difference.max()), reference_horizon(times, difference, threshold),
+    )
+
+
+def lyapunov_exponent(
+    scene: Scene, duration: float | None = None, interval: float = 0.1, separation: float = 1e-8,
+    rtol: float = 1e-11,
+) -> float:
+    """Largest Lyapunov exponent estimate (1/s) of ``scene`` over ``duration`` s (default its own).
+
+    Benettin's method on the reference's reduced state y (angles and rates): a copy started
+    ``separation`` away (relative to |y0|, along a fixed direction) is integrated beside y, and
+    every ``interval`` s the log of its growth is added up and the copy pulled back to
+    ``separation``. The estimate is that sum over the time. A regular scene (the bead, a
+    spherical pendulum) gives a value that falls towards 0 like ln(growth)/time; a chaotic one
+    converges to a positive rate (about 1 per second for the default double pendulum).
+    """
+    model = model_for(scene)
+    duration = scene.duration if duration is None else float(duration)
+    if not duration > 0 or not interval > 0:
+        raise ValueError("lyapunov_exponent: duration and interval must be positive")
+    y = model.initial_state(scene)
+    n = len(y)
+    direction = np.ones(n) / math.sqrt(n)
+    d0 = separation * max(1.0, float(np.linalg.norm(y)))
+    z = y + d0 * direction
+
+    def pair(_t, w):
+        return np.concatenate([model.rhs(_t, w[:n]), model.rhs(_t, w[n:])])
+
+    total, elapsed = 0.0, 0.0
+    while elapsed < duration - 1e-12:
+        step = min(interval, duration - elapsed)
+        out = solve_ivp(pair, (0.0, step), np.concatenate([y, z]), method="DOP853", rtol=rtol, atol=rtol * 1e-2)
+        if not out.success:
+            raise RuntimeError(f"lyapunov_exponent: integration failed: {out.message}")
+        y, z = out.y[:n, -1], out.y[n:, -1]
+        gap = float(np.linalg.norm(z - y))
+        total += math.log(gap / d0)
+        z = y + (z - y) * (d0 / gap)
+        elapsed += step
+    return total / elapsed
+
+
 class ReferenceEngine(Engine):
     """The reference as an engine, so it can be simulated, listed and compared like any other."""
 

@@ -141,3 +141,54 @@ def tensions(scene: Scene, positions: np.ndarray, forces: np.ndarray) -> np.ndar
     d = constraint_vectors(scene, positions)
     unit = d / np.linalg.norm(d, axis=2, keepdims=True)
     return -np.einsum("ski,ski->sk", forces, unit)
+
+
+# -- angular momentum about the vertical -------------------------------------------------------
+
+
+def vertical_axis(scene: Scene) -> np.ndarray | None:
+    """(2,) m: the (x, y) of the vertical line about which the scene conserves angular momentum, or None.
+
+    L_z about a vertical line is conserved when gravity is vertical and every external
+    constraint force passes through that line: Rods are internal (equal and opposite along
+    the rod, no torque), and a Pin pulls along the line to its anchor, so every Pin's anchor
+    must lie on the one line. None when gravity is not vertical, the anchors are not on one
+    vertical line, there are no Pins (any line would do; none is singled out), or the scene
+    is planar (L_z is then zero by symmetry, which tests nothing).
+    """
+    gx, gy, _gz = scene.gravity
+    if gx != 0.0 or gy != 0.0 or scene.is_planar:
+        return None
+    anchors = np.array([c.anchor[:2] for c in scene.constraints if isinstance(c, Pin)], dtype=float)
+    if len(anchors) == 0:
+        return None
+    scale = scene.characteristic_length
+    if np.abs(anchors - anchors[0]).max() > 1e-12 * scale:
+        return None
+    return anchors[0]
+
+
+def angular_momentum_z(scene: Scene, positions: np.ndarray, velocities: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """(n_samples,) kg·m²/s: Σ mᵢ (xᵢ v_yᵢ − yᵢ v_xᵢ) about the vertical line through ``axis`` (2,) m."""
+    x = positions[..., 0] - axis[0]
+    y = positions[..., 1] - axis[1]
+    return np.einsum("p,sp->s", scene.masses, x * velocities[..., 1] - y * velocities[..., 0])
+
+
+def momentum_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> float | None:
+    """max |L_z(t) − L_z(0)| / L* (dimensionless), or None when the scene does not conserve L_z.
+
+    L_z is the angular momentum about the vertical line of :func:`vertical_axis`;
+    L* = M·L·√(g·L) (total mass, characteristic length, |g|), the momentum of the whole
+    mass moving at the characteristic speed at arm L. 0 for fewer than 2 samples.
+    """
+    axis = vertical_axis(scene)
+    if axis is None:
+        return None
+    if len(positions) < 2:
+        return 0.0
+    lz = angular_momentum_z(scene, positions, velocities, axis)
+    length = scene.characteristic_length
+    g = float(np.linalg.norm(scene.gravity))
+    scale = float(scene.masses.sum()) * length * np.sqrt(g * length)
+    return float(np.abs(lz - lz[0]).max() / scale)

@@ -1,0 +1,68 @@
+"""The reference's own error bar and horizon, the Lyapunov exponent, and the vertical angular momentum."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engines import catalog, reference
+from engines.scene import Particle, Pin, Rod, Scene
+from engines.trajectory import momentum_drift, vertical_axis
+
+
+def test_the_bead_has_no_horizon_over_40_s():
+    scene = catalog.build("bead", {"duration": 40.0})
+    b = reference.bound(scene)
+    # A regular orbit: the two solves drift apart in phase only (measured 5.7e-12 m in 40 s).
+    assert b.reference_horizon is None
+    assert b.reference_error < 0.5 * b.threshold
+    assert b.tight_rtol < b.rtol / 40  # 100× tighter, floored at what DOP853 accepts (2.2e-14)
+
+
+def test_the_chaotic_double_pendulum_has_a_horizon_inside_40_s():
+    scene = catalog.build("double-pendulum", {"duration": 40.0})
+    b = reference.bound(scene)
+    # The difference grows like 1e-12·e^{λt} with λ ≈ 1/s: past 1e-10 m near 7 s (measured 7.29 s).
+    assert b.reference_horizon is not None and 5.0 < b.reference_horizon < 10.0
+    assert b.difference[b.t < b.reference_horizon].max() <= b.threshold
+    assert b.reference_error > 1e-3  # by 40 s the two solves are different motions
+
+
+def test_horizon_is_the_first_time_above_the_threshold():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    assert reference.reference_horizon(t, np.array([0.0, 1e-12, 2e-10, 1e-12]), 1e-10) == 2.0
+    assert reference.reference_horizon(t, np.zeros(4), 1e-10) is None
+
+
+def test_lyapunov_exponent_of_the_default_double_pendulum_is_about_one_per_second():
+    scene = catalog.build("double-pendulum", {"duration": 10.0})
+    # Measured 0.99 /s over 10 s; a regular scene's estimate is ln(growth)/T, small and falling.
+    assert 0.7 < reference.lyapunov_exponent(scene) < 1.3
+    bead = catalog.build("bead", {"duration": 40.0})
+    assert reference.lyapunov_exponent(bead) < 0.15
+
+
+def test_momentum_drift_of_the_spherical_pendulum():
+    scene = catalog.build("spherical-pendulum", {"duration": 5.0})
+    t = np.linspace(0.0, scene.duration, 501)
+    p, v, _ = reference.solve(scene).at(t)
+    assert momentum_drift(scene, p, v) < 1e-10  # the reference conserves L_z (measured 8.5e-13)
+    # A torque about the vertical (a tangential push growing with time) shows up in full:
+    # adding δv along e_phi at the last sample changes L_z by m·r·sinθ·δv.
+    kicked = v.copy()
+    radial = p[-1, 0, :2] / np.linalg.norm(p[-1, 0, :2])
+    kicked[-1, 0, :2] += 1e-3 * np.array([-radial[1], radial[0]])
+    r_xy = np.linalg.norm(p[-1, 0, :2])
+    expected = 1.0 * r_xy * 1e-3 / (1.0 * 1.0 * np.sqrt(9.81))
+    assert momentum_drift(scene, p, kicked) == pytest.approx(expected, rel=1e-6, abs=1e-10)
+
+
+def test_momentum_drift_is_none_where_lz_is_not_conserved_or_trivially_zero():
+    assert momentum_drift(catalog.build("bead"), np.zeros((2, 1, 3)), np.zeros((2, 1, 3))) is None  # planar
+    two_anchors = Scene(
+        "two-anchors",
+        (Particle(1.0, (1.0, 0.0, -1.0), (0.0, 1.0, 0.0)), Particle(1.0, (3.0, 0.0, -1.0))),
+        (Pin(0, (0.0, 0.0, 0.0), 2**0.5), Pin(1, (2.0, 0.0, 0.0), 2**0.5), Rod(0, 1, 2.0)),
+        duration=1.0,
+    )
+    assert vertical_axis(two_anchors) is None
