@@ -1,0 +1,127 @@
+"""Figures quoted in docs/, tied to the script that produces them.
+
+Every script in scripts/ that docs quote defines
+
+- ``figures(quick=False) -> dict[str, float]``: each figure it measures, by key;
+  ``quick`` leaves out the expensive ones (named in its ``SLOW`` set);
+- ``QUOTES``: :class:`Quote` records, one number as a doc quotes it, and
+  ``ROWS``: :class:`Row` records, one Markdown table row of a doc against keys;
+
+and its ``main()`` prints its tables and then :func:`report` (every quoted figure,
+measured against quoted). tests/test_docs_figures.py calls ``figures(quick=True)``
+and fails when a doc no longer contains a quote, or a quoted number is more
+than :data:`TOLERANCE` off what the script measures now.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, Mapping
+
+ROOT = Path(__file__).resolve().parent.parent
+#: A quoted number may differ from the measured one by this fraction (round-off of the quote,
+#: machine-to-machine differences of chaotic runs); a physics change moves figures by far more.
+TOLERANCE = 0.2
+
+_NUMBER = re.compile(r"[−-]?\d[\d,]*(?:\.\d+)?(?:\s*[eE×]\s*[−-]?\d+|·10\^?[−-]?\d+)?")
+
+
+@dataclass(frozen=True)
+class Quote:
+    """``text`` (a number, as written, e.g. "3.8e-2" or "0.86%") appears in ``doc`` and is figure ``key``."""
+
+    doc: str
+    text: str
+    key: str
+    context: str = ""  # words around it in the doc ("{}" marks the number), when the bare number is ambiguous
+    unit: float = 1.0  # the figure is the quoted number times this (0.01 for a figure in m quoted in cm)
+
+
+@dataclass(frozen=True)
+class Row:
+    """The table row of ``doc`` whose first cell starts with ``label``: its numeric cells are ``keys`` in order.
+
+    A key of None skips that cell (a timing, or a cell that is not a number).
+    """
+
+    doc: str
+    label: str
+    keys: tuple[str | None, ...]
+
+
+def number(text: str) -> float:
+    """The value of a number as docs write it: "3.8e-2", "−1.3e-6", "1,000", "0.86%" (→ 0.0086), "2.6 m"."""
+    match = _NUMBER.search(text.replace("\u2212", "-"))
+    if match is None:
+        raise ValueError(f"no number in {text!r}")
+    raw = match.group(0).replace(",", "").replace(" ", "").replace("×", "e").replace("−", "-")
+    value = float(raw)
+    if text.strip().endswith("%"):
+        value /= 100.0
+    return value
+
+
+def close(measured: float, quoted: float, tolerance: float = TOLERANCE) -> bool:
+    """Whether ``measured`` is within ``tolerance`` (relative) of ``quoted``; zeros and infinities must match."""
+    if quoted == 0.0 or not math.isfinite(quoted):
+        return measured == quoted
+    return abs(measured / quoted - 1.0) <= tolerance
+
+
+def row_cells(doc_text: str, label: str) -> list[str] | None:
+    """The cells after the first of the first table row in ``doc_text`` whose first cell starts with ``label``."""
+    for line in doc_text.splitlines():
+        if not line.startswith("|"):
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if cells and cells[0].startswith(label):
+            return cells[1:]
+    return None
+
+
+def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterable[Row]) -> list[str]:
+    """Every quote or row cell that is missing from its doc or more than TOLERANCE off; [] when all hold.
+
+    Quotes and rows whose key is not in ``figures`` (left out by a quick run) are checked for
+    presence in the doc only.
+    """
+    out: list[str] = []
+    docs: dict[str, str] = {}
+
+    def text_of(doc: str) -> str:
+        if doc not in docs:
+            docs[doc] = (ROOT / doc).read_text()
+        return docs[doc]
+
+    for q in quotes:
+        where = text_of(q.doc)
+        needle = q.context.replace("{}", q.text) if q.context else q.text
+        if needle not in where:
+            out.append(f"{q.doc}: quote {needle!r} ({q.key}) is not in the doc")
+            continue
+        if q.key in figures and not close(figures[q.key], number(q.text) * q.unit):
+            out.append(f"{q.doc}: {q.key} is quoted as {q.text} but measures {figures[q.key]:.3g}")
+    for r in rows:
+        cells = row_cells(text_of(r.doc), r.label)
+        if cells is None:
+            out.append(f"{r.doc}: no table row starting {r.label!r}")
+            continue
+        for key, cell in zip(r.keys, cells):
+            if key is None or key not in figures:
+                continue
+            if not close(figures[key], number(cell)):
+                out.append(f"{r.doc}: row {r.label!r}: {key} is quoted as {cell} but measures {figures[key]:.3g}")
+    return out
+
+
+def report(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterable[Row]) -> None:
+    """Print every figure (key = value) and then any quote that no longer holds."""
+    print("\n## Figures\n")
+    for key in sorted(figures):
+        print(f"{key} = {figures[key]:.4g}")
+    found = problems(figures, quotes, rows)
+    print("\n" + ("\n".join(found) if found else "every quoted figure is within "
+                                                   f"{TOLERANCE:.0%} of what this run measured"))
