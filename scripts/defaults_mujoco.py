@@ -80,9 +80,10 @@ def main() -> None:
     ], references)
     table("point-mass inertia (RK4, dt = 1e-4)", [
         ("hinge-rk4, inertia 1e-6·m·L²", "hinge-rk4", {"inertia_ratio": 1e-6}, 1e-4),
-        ("hinge-rk4, inertia 1e-9·m·L² (adapter default)", "hinge-rk4", {}, 1e-4),
+        ("hinge-rk4, inertia 1e-9·m·L²", "hinge-rk4", {"inertia_ratio": 1e-9}, 1e-4),
+        ("hinge-rk4, inertia 1e-12·m·L² (the hinge default)", "hinge-rk4", {}, 1e-4),
         ("connect-rk4-stiff, inertia 1e-6·m·L²", "connect-rk4-stiff", {"inertia_ratio": 1e-6}, 1e-4),
-        ("connect-rk4-stiff, inertia 1e-9·m·L²", "connect-rk4-stiff", {}, 1e-4),
+        ("connect-rk4-stiff, inertia 1e-9·m·L² (the connect default)", "connect-rk4-stiff", {}, 1e-4),
     ], references)
 
 

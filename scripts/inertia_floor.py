@@ -1,0 +1,89 @@
+"""The point-mass inertia each rigid-body engine needs, and the error floor it sets (docs/engines.md).
+
+Run:  .venv/bin/python scripts/inertia_floor.py      (a few seconds)
+
+MuJoCo and PyBullet need a rotational inertia on every body; a point mass gets
+``inertia_ratio · m · L²``. On a hinge (reduced coordinates) it adds to the link's
+moment, so it is a model error of its own: the floor hinge-rk4 converges to. This
+script measures that floor, how small a ratio each engine stays well-conditioned
+with, and what PyBullet's former default (1e-4) cost the multibody variant.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quoted import Quote, report  # noqa: E402
+
+from compare.results.metrics import position_error  # noqa: E402
+from engines import catalog  # noqa: E402
+from engines.mujoco import ENGINE as MUJOCO  # noqa: E402
+from engines.pybullet import ENGINE as PYBULLET  # noqa: E402
+from engines.reference import solve  # noqa: E402
+
+SLOW: set[str] = set()
+MILD = {"theta1": 30.0, "theta2": 20.0, "duration": 2.0}
+
+
+def _error(engine, scene, reference, variant, dt, ratio=None):
+    options = {} if ratio is None else {"inertia_ratio": ratio}
+    run = engine.simulate(scene, dt, variant=variant, options=options)
+    return float(position_error(run.positions, reference.at(run.t)[0]).max()), run
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    f: dict[str, float] = {}
+    # MuJoCo hinge-rk4 at dt = 1e-4 over 2 s: its error is the inertia's (RK4's own is ~1e-14).
+    for name, params in (("bead", {"duration": 2.0}), ("double-pendulum", {"duration": 2.0})):
+        scene = catalog.build(name, params)
+        reference = solve(scene)
+        key = name.split("-")[0]
+        for ratio, tag in ((1e-9, "1e-9"), (1e-12, "1e-12")):
+            f[f"hinge_rk4_{key}_floor_{tag}"] = _error(MUJOCO, scene, reference, "hinge-rk4", 1e-4, ratio)[0]
+        f[f"hinge_rk4_{key}_floor_per_ratio"] = f[f"hinge_rk4_{key}_floor_1e-9"] / 1e-9
+    # PyBullet's spherical joint: its departure from MuJoCo's ball joint as the ratio shrinks.
+    sphere = catalog.build("spherical-pendulum", {"duration": 2.0})
+    for ratio, tag in ((1e-9, "1e-9"), (1e-10, "1e-10"), (1e-12, "1e-12")):
+        a = PYBULLET.simulate(sphere, 1e-3, variant="multibody", options={"inertia_ratio": ratio})
+        b = MUJOCO.simulate(sphere, 1e-3, variant="hinge", options={"inertia_ratio": ratio})
+        f[f"spherical_pybullet_vs_mujoco_{tag}"] = float(position_error(a.positions, b.positions).max())
+    # The mild double pendulum: observed order over dt = 1, 0.5, 0.25 ms, old and new ratio.
+    scene = catalog.build("double-pendulum", MILD)
+    reference = solve(scene)
+    dts = np.array([1e-3, 5e-4, 2.5e-4])
+    for ratio, tag in ((1e-4, "1e-4"), (1e-9, "1e-9")):
+        errors = [_error(PYBULLET, scene, reference, "multibody", dt, ratio)[0] for dt in dts]
+        f[f"mild_multibody_order_{tag}"] = float(np.polyfit(np.log(dts), np.log(errors), 1)[0])
+        f[f"mild_multibody_error_{tag}"] = errors[0]
+    f["mild_hinge_error"] = _error(MUJOCO, scene, reference, "hinge", 1e-3)[0]
+    return f
+
+
+D = "docs/engines.md"
+QUOTES = [
+    Quote(D, "2.6", "hinge_rk4_bead_floor_per_ratio", "about {}·ratio m on the bead"),
+    Quote(D, "18", "hinge_rk4_double_floor_per_ratio", "{}·ratio m on the double pendulum"),
+    Quote(D, "1.8e-8", "hinge_rk4_double_floor_1e-9", "{} m at 1e-9"),
+    Quote(D, "2.4e-11", "hinge_rk4_double_floor_1e-12", "{} m at 1e-12"),
+    Quote(D, "2.6e-9", "hinge_rk4_bead_floor_1e-9", "bead: {} m"),
+    Quote(D, "6.2e-12", "hinge_rk4_bead_floor_1e-12", "against {} m"),
+    Quote(D, "1.1e-8", "spherical_pybullet_vs_mujoco_1e-9", "by\n  {} m at 1e-9"),
+    Quote(D, "6.3e-7", "spherical_pybullet_vs_mujoco_1e-10", "{} m at 1e-10"),
+    Quote(D, "2.5e-5", "spherical_pybullet_vs_mujoco_1e-12", "{} m at 1e-12"),
+    Quote(D, "0.33", "mild_multibody_order_1e-4", "observed order {}"),
+    Quote(D, "1.00", "mild_multibody_order_1e-9", "order {} at 1e-9"),
+    Quote(D, "1.3e-3", "mild_hinge_error", "off by {} m"),
+]
+ROWS: list = []
+
+
+def main() -> None:
+    report(figures(), QUOTES, ROWS)
+
+
+if __name__ == "__main__":
+    main()
