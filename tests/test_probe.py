@@ -1,0 +1,102 @@
+"""`xval probe`: hidden damping told apart from integrator error (compare/stability/dissipation.py)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from compare.cli import main
+from compare.stability.dissipation import RATE_FLOOR, extrapolate, hidden, loss_rate, probe
+from engines import catalog
+from engines.scene import Particle, Scene
+
+BEAD = catalog.build("bead", {"duration": 20.0})
+
+
+def run(capsys, argv):
+    try:
+        main(argv)
+        code = 0
+    except SystemExit as stop:
+        code = stop.code or 0
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+# -- the pure measurement ------------------------------------------------------------------
+
+
+def test_loss_rate_is_the_slope_of_the_energy_in_e_star_per_second():
+    # A free particle in gravity-free space slowing down linearly in energy: E = E0 (1 - 0.01 t).
+    scene = Scene("free", (Particle(2.0, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)),), (), (0.0, 0.0, -9.81), 1.0)
+    t = np.linspace(0.0, 10.0, 101)
+    speed = np.sqrt(1.0 - 0.01 * t)
+    velocities = np.zeros((101, 1, 3))
+    velocities[:, 0, 0] = speed
+    rate = loss_rate(scene, t, np.zeros((101, 1, 3)), velocities)
+    # E0 = ½·2·1 = 1 J lost at 0.01 J/s; E* = M g L with L = 1 (no constraints): 2·9.81 J.
+    assert rate == pytest.approx(0.01 / (2 * 9.81 * scene.characteristic_length), rel=1e-9)
+
+
+def test_extrapolation_recovers_a_floor_and_rejects_a_pure_step_error():
+    dts = np.array([4e-3, 2e-3, 1e-3, 5e-4])
+    rate, sigma = extrapolate(dts, 2e-4 + 3.0 * dts)
+    assert rate == pytest.approx(2e-4, abs=1e-12) and sigma < 1e-12
+    assert hidden(rate, sigma)
+    rate, sigma = extrapolate(dts, 5.0 * dts)  # an integrator's loss: gone at dt -> 0
+    assert abs(rate) < 1e-12 and not hidden(rate, sigma)
+    rate, sigma = extrapolate(dts, 40.0 * dts**2)  # second order: linear extrapolation undershoots, σ says so
+    assert not hidden(rate, sigma)
+    assert not hidden(0.5 * RATE_FLOOR, 0.0)
+
+
+# -- real engines -------------------------------------------------------------------------------
+
+
+def test_pymunk_with_damping_has_hidden_dissipation():
+    result = probe("pymunk/pin", BEAD, {"damping": 0.9}, isolate=False)
+    # v ← 0.9^dt·v every step: about 2.1e-2 E*/s on the 60° bead, the same at every dt.
+    assert result.hidden_dissipation is True
+    assert 0.015 < result.rate < 0.025 and result.uncertainty < 1e-3 * result.rate
+
+
+@pytest.mark.parametrize("engine_id", ["mujoco/hinge", "ours/rattle"])
+def test_conservative_integrators_have_none(engine_id):
+    result = probe(engine_id, BEAD, isolate=False)
+    # Semi-implicit Euler and RATTLE: bounded energy error, so the rate goes to 0 with dt
+    # (measured |r0| < 5e-9 E*/s, σ < 4e-9).
+    assert result.hidden_dissipation is False
+    assert abs(result.rate) < 1e-7 and all(p.status == "ok" for p in result.points)
+
+
+def test_the_default_mujoco_connect_damps_on_its_own():
+    # The soft equality's damper (docs/engines.md): ~2.4e-4 E*/s at every dt, not an integration error.
+    result = probe("mujoco/connect", BEAD, isolate=False)
+    assert result.hidden_dissipation is True
+    assert 1.5e-4 < result.rate < 3.5e-4
+
+
+# -- the command ----------------------------------------------------------------------------------
+
+
+def test_probe_json_is_one_object_with_the_verdict(capsys):
+    code, out, _ = run(capsys, ["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5", "--format", "json"])
+    assert code == 0
+    document = json.loads(out)
+    assert document["hidden_dissipation"] is True
+    assert set(document) >= {"engine", "scene", "rate", "uncertainty", "hidden_dissipation", "rule", "points"}
+    assert document["engine"] == "pymunk/pin" and document["options"] == {"damping": "0.9"}
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["probe", "mujoco/nope"], "unknown variant 'mujoco/nope'"),
+    (["probe", "mujoco/hinge", "--dt", "1e-3", "--dt", "2e-3"], "--dt: give at least 3 different time steps"),
+    (["probe", "pymunk/pin", "--option", "damping=2"], "damping"),
+    (["probe", "pymunk/pin", "--scene", "spherical-pendulum"], "2-D"),
+])
+def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
+    code, out, err = run(capsys, argv)
+    assert code == 2 and out == ""
+    assert message in err and len(err.strip().splitlines()) == 1
