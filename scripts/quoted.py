@@ -50,10 +50,16 @@ class Row:
     doc: str
     label: str
     keys: tuple[str | None, ...]
+    after: str = ""  # look for the row only after this text (a heading), when labels repeat in the doc
 
 
 def number(text: str) -> float:
-    """The value of a number as docs write it: "3.8e-2", "−1.3e-6", "1,000", "0.86%" (→ 0.0086), "2.6 m"."""
+    """The value of a number as docs write it: "3.8e-2", "−1.3e-6", "1,000", "0.86%" (→ 0.0086), "2.6 m", "true" (1)."""
+    word = text.strip().strip("*`").lower()
+    if word in ("true", "yes"):
+        return 1.0
+    if word in ("false", "no"):
+        return 0.0
     match = _NUMBER.search(text.replace("\u2212", "-"))
     if match is None:
         raise ValueError(f"no number in {text!r}")
@@ -71,9 +77,12 @@ def close(measured: float, quoted: float, tolerance: float = TOLERANCE) -> bool:
     return abs(measured / quoted - 1.0) <= tolerance
 
 
-def row_cells(doc_text: str, label: str) -> list[str] | None:
-    """The cells after the first of the first table row in ``doc_text`` whose first cell starts with ``label``."""
-    for line in doc_text.splitlines():
+def row_cells(doc_text: str, label: str, after: str = "") -> list[str] | None:
+    """The cells after the first of the first table row in ``doc_text`` (past ``after``) whose first cell starts with ``label``."""
+    start = doc_text.find(after) if after else 0
+    if start < 0:
+        return None
+    for line in doc_text[start:].splitlines():
         if not line.startswith("|"):
             continue
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
@@ -105,7 +114,7 @@ def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterab
         if q.key in figures and not close(figures[q.key], number(q.text) * q.unit):
             out.append(f"{q.doc}: {q.key} is quoted as {q.text} but measures {figures[q.key]:.3g}")
     for r in rows:
-        cells = row_cells(text_of(r.doc), r.label)
+        cells = row_cells(text_of(r.doc), r.label, r.after)
         if cells is None:
             out.append(f"{r.doc}: no table row starting {r.label!r}")
             continue
