@@ -23,7 +23,9 @@ link's moment m·l² about the pivot, a model error proportional to the ratio:
 about 2.6·ratio m on the bead and 18·ratio m on the double pendulum in 2 s
 (scripts/inertia_floor.py), which is what hinge-rk4 converges to as dt → 0.
 The hinge variants therefore use 1e-12 (:data:`HINGE_INERTIA_RATIO`; well
-conditioned down to 1e-14, ball joints included): the floor is 2.5e-10 m on
+conditioned down to 1e-14, ball joints included), raised to MuJoCo's absolute
+floor :data:`MIN_INERTIA` where m·L² is small (a 1 mm bead of 1 kg gets
+1e-15 kg·m², a ratio of 1e-9): the floor is 2.5e-10 m on
 the double pendulum where 1e-9 gave 1.8e-8 m. The connect variants keep 1e-9
 (:data:`CONNECT_INERTIA_RATIO`): there the inertia is what a ball joint turns
 the arm with.
@@ -72,6 +74,9 @@ MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
 #: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; module docstring).
 HINGE_INERTIA_RATIO = 1e-12
 CONNECT_INERTIA_RATIO = 1e-9
+#: kg·m²: the least inertia MuJoCo compiles ("mass and inertia of moving bodies must be larger than
+#: mjMINVAL"); a ratio that would give less is raised to it (a scene smaller than ~3 cm at 1 kg).
+MIN_INERTIA = mujoco.mjMINVAL * (1 + 1e-6)
 
 #: Stiff equality setting: time constant 2·dt (the smallest refsafe allows), critical damping,
 #: impedance 0.9999 whatever the violation (R = 1e-4 of the constraint's inverse mass).
@@ -375,7 +380,9 @@ class MuJoCoEngine(Engine):
 
     def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
         """(compiled model, MJCF text, (n,) kg·m² inertia of each particle body)."""
-        inertia = settings["inertia_ratio"] * scene.masses * scene.characteristic_length**2
+        # MuJoCo's floor is absolute (mjMINVAL kg·m²), the ratio is relative: a small scene (the
+        # 1 mm bead: m·L² = 1e-6) gets the least inertia MuJoCo compiles instead of a refusal.
+        inertia = np.maximum(settings["inertia_ratio"] * scene.masses * scene.characteristic_length**2, MIN_INERTIA)
         settings = {**settings, "solimp": _full_solimp(settings["solimp"])}
         make = hinge_mjcf if settings["formulation"] == "hinge" else connect_mjcf
         xml = make(scene, dt, settings, inertia)

@@ -63,3 +63,15 @@ def test_multibody_is_first_order_on_the_mild_double_pendulum(mild):
         errors.append(position_error(run.positions, reference.at(run.t)[0]).max())
     slope = np.polyfit(np.log(dts), np.log(errors), 1)[0]
     assert abs(slope - 1.0) < 0.15, f"observed order {slope:.2f}"
+
+
+def test_a_millimetre_scene_gets_the_least_inertia_mujoco_compiles():
+    # 1e-12 · m · L² is 1e-18 kg·m² for a 1 mm bead of 1 kg, below MuJoCo's absolute floor
+    # (mjMINVAL = 1e-15): the adapter raises it to the floor instead of failing the run.
+    scene = catalog.build("bead", {"radius": 1e-3, "duration": 0.2})
+    run = MUJOCO.simulate(scene, 1e-4, variant="hinge-rk4")
+    assert run.info.status == "ok", run.info.message
+    assert min(run.info.settings["point_mass_inertia"]) > 1e-15
+    reference = solve(scene).at(run.t)[0]
+    # A ratio of ~1e-9 at this scale: the floor is ~2.6e-9 L (2.6e-12 m); RK4's own error is far below.
+    assert position_error(run.positions, reference).max() < 1e-10
