@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 SCRIPTS_DIR = Path(__file__).resolve().parent.parent / "scripts"
-SCRIPTS = ["ours_claims", "inertia_floor", "soft_constraints", "probe_table"]
+SCRIPTS = ["ours_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures"]
 
 
 def load(name: str):
