@@ -152,7 +152,9 @@ def stability(f: dict) -> None:
     The same search as ``xval stability`` (compare/stability/search.py: two probes per decade
     from 0.05 s down, then bisection to 10 %), run in this process on ours directly.
     """
-    from compare.stability.search import Probe, SearchSettings, search
+    from compare.stability.probe import Probe
+    from compare.stability.search import search
+    from compare.suite.plans import SearchSettings
 
     settings = SearchSettings(dt_max=0.05, dt_min=1e-4)
     for integrator in ("euler", "symplectic-euler", "midpoint", "rk4"):
