@@ -15,7 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from compare.results.metrics import constraint_error, energy_drift, position_error
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quoted import Quote, Row, report  # noqa: E402
+
+from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines import catalog
 from engines.mujoco import ENGINE
 from engines.reference import solve
@@ -42,49 +48,131 @@ def measure(scene, reference, variant, options, dt=1e-3):
     }
 
 
-def table(title, rows, references):
-    print(f"\n### {title}\n")
-    print("| setting | bead constraint error (m) | bead energy drift | double constraint error (m) "
-          "| double energy drift | double position error (m) | double tension error (N) |")
-    print("|---|---|---|---|---|---|---|")
-    for label, variant, options, dt in rows:
-        b = measure(BEAD, references[0], variant, options, dt)
-        d = measure(DOUBLE, references[1], variant, options, dt)
-        flag = "" if b["status"] == d["status"] == "ok" else f" ({b['status']}/{d['status']})"
-        print(f"| {label}{flag} | {b['cerr']:.1e} | {b['drift']:.1e} | {d['cerr']:.1e} | {d['drift']:.1e} "
-              f"| {d['perr']:.1e} | {d['terr']:.2g} |")
+COLUMNS = ("bead.cerr", "bead.drift", "double.cerr", "double.drift", "double.perr", "double.terr")
 
-
-def main() -> None:
-    references = (solve(BEAD), solve(DOUBLE))
-    table("connect softness (Euler, dt = 1e-3)", [
+TABLES = [
+    ("connect softness (Euler, dt = 1e-3)", [
         ("`connect`: MuJoCo's solref 0.02,1 and solimp 0.9,0.95,…", "connect", {}, 1e-3),
         ("solref time constant 2·dt, default solimp", "connect", {"timeconst_steps": 2}, 1e-3),
         ("default solref, solimp 0.9999", "connect", {"solimp": "0.9999,0.9999,0.001"}, 1e-3),
         ("`connect-stiff`: both", "connect-stiff", {}, 1e-3),
         ("`connect-stiff` at dt = 1e-4", "connect-stiff", {}, 1e-4),
         ("`connect` at dt = 1e-4", "connect", {}, 1e-4),
-    ], references)
-    table("refsafe (connect-stiff, Euler): solref's time constant below 2·dt", [
+    ]),
+    ("refsafe (connect-stiff, Euler): solref's time constant below 2·dt", [
         ("time constant 1·dt, refsafe on (clamped to 2·dt)", "connect-stiff", {"timeconst_steps": 1}, 1e-3),
         ("time constant 1·dt, refsafe off", "connect-stiff", {"timeconst_steps": 1, "refsafe": False}, 1e-3),
         ("time constant 0.5·dt, refsafe off", "connect-stiff", {"timeconst_steps": 0.5, "refsafe": False}, 1e-3),
-    ], references)
-    table("integrator (hinge, dt = 1e-3)", [
+    ]),
+    ("integrator (hinge, dt = 1e-3)", [
         ("`hinge`: Euler (MuJoCo's default)", "hinge", {}, 1e-3),
         ("implicitfast", "hinge-implicitfast", {}, 1e-3),
         ("implicit", "hinge-implicit", {}, 1e-3),
         ("RK4", "hinge-rk4", {}, 1e-3),
         ("`connect-rk4`: RK4 with the default softness", "connect-rk4", {}, 1e-3),
         ("`connect-rk4-stiff`", "connect-rk4-stiff", {}, 1e-3),
-    ], references)
-    table("point-mass inertia (RK4, dt = 1e-4)", [
+    ]),
+    ("point-mass inertia (RK4, dt = 1e-4)", [
         ("hinge-rk4, inertia 1e-6·m·L²", "hinge-rk4", {"inertia_ratio": 1e-6}, 1e-4),
         ("hinge-rk4, inertia 1e-9·m·L²", "hinge-rk4", {"inertia_ratio": 1e-9}, 1e-4),
         ("hinge-rk4, inertia 1e-12·m·L² (the hinge default)", "hinge-rk4", {}, 1e-4),
         ("connect-rk4-stiff, inertia 1e-6·m·L²", "connect-rk4-stiff", {"inertia_ratio": 1e-6}, 1e-4),
         ("connect-rk4-stiff, inertia 1e-9·m·L² (the connect default)", "connect-rk4-stiff", {}, 1e-4),
-    ], references)
+    ]),
+]
+#: Short keys for the rows docs/engines.md quotes.
+KEYS = {
+    "`connect`: MuJoCo's solref 0.02,1 and solimp 0.9,0.95,…": "connect",
+    "solref time constant 2·dt, default solimp": "timeconst2",
+    "default solref, solimp 0.9999": "solimp",
+    "`connect-stiff`: both": "stiff",
+    "`connect-stiff` at dt = 1e-4": "stiff_1e-4",
+    "`connect` at dt = 1e-4": "connect_1e-4",
+    "`hinge`: Euler (MuJoCo's default)": "hinge",
+    "implicitfast": "implicitfast",
+    "implicit": "implicit",
+    "RK4": "rk4",
+    "`connect-rk4`: RK4 with the default softness": "connect_rk4",
+    "`connect-rk4-stiff`": "connect_rk4_stiff",
+    "hinge-rk4, inertia 1e-6·m·L²": "inertia_hinge_1e-6",
+    "connect-rk4-stiff, inertia 1e-6·m·L²": "inertia_connect_1e-6",
+    "connect-rk4-stiff, inertia 1e-9·m·L² (the connect default)": "inertia_connect_1e-9",
+}
+SLOW: set[str] = set()
+
+
+def measure_row(variant, options, dt, references):
+    b = measure(BEAD, references[0], variant, options, dt)
+    d = measure(DOUBLE, references[1], variant, options, dt)
+    values = (b["cerr"], b["drift"], d["cerr"], d["drift"], d["perr"], d["terr"])
+    return b["status"], d["status"], values
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    references = (solve(BEAD), solve(DOUBLE))
+    f: dict[str, float] = {}
+    for _title, rows in TABLES:
+        for label, variant, options, dt in rows:
+            if label not in KEYS:
+                continue
+            _, _, values = measure_row(variant, options, dt, references)
+            for column, value in zip(COLUMNS, values):
+                f[f"{KEYS[label]}.{column}"] = float(value)
+    f["stretch_ratio_timeconst"] = f["connect.double.cerr"] / f["timeconst2.double.cerr"]
+    f["stretch_ratio_solimp"] = f["connect.double.cerr"] / f["solimp.double.cerr"]
+    f["stiff_gain_1e-4"] = f["stiff.double.cerr"] / f["stiff_1e-4.double.cerr"]
+    return f
+
+
+def table(title, rows, references):
+    print(f"\n### {title}\n")
+    print("| setting | bead constraint error (m) | bead energy drift | double constraint error (m) "
+          "| double energy drift | double position error (m) | double tension error (N) |")
+    print("|---|---|---|---|---|---|---|")
+    for label, variant, options, dt in rows:
+        b_status, d_status, v = measure_row(variant, options, dt, references)
+        flag = "" if b_status == d_status == "ok" else f" ({b_status}/{d_status})"
+        print(f"| {label}{flag} | {v[0]:.1e} | {v[1]:.1e} | {v[2]:.1e} | {v[3]:.1e} | {v[4]:.1e} | {v[5]:.2g} |")
+
+
+D = "docs/engines.md"
+SOFTNESS = "**Softness left by MuJoCo's defaults**"
+ROWS = [
+    Row(D, "defaults (`connect`)", tuple(f"connect.{c}" for c in COLUMNS), SOFTNESS),
+    Row(D, "time constant 2·dt only", tuple(f"timeconst2.{c}" for c in COLUMNS), SOFTNESS),
+    Row(D, "solimp 0.9999 only", tuple(f"solimp.{c}" for c in COLUMNS), SOFTNESS),
+    Row(D, "`connect-stiff`", tuple(f"stiff.{c}" for c in COLUMNS), SOFTNESS),
+]
+QUOTES = [
+    Quote(D, "46×", "stretch_ratio_timeconst", "({} less stretch on the double pendulum)"),
+    Quote(D, "2.7×", "stretch_ratio_solimp", "solimp alone gives {}"),
+    Quote(D, "3.3e-3", "connect_1e-4.double.cerr", "constraint error {} m, position error"),
+    Quote(D, "2.3e-2", "connect_1e-4.double.perr", "position error {} m)"),
+    Quote(D, "100×", "stiff_gain_1e-4", "improves {} ("),
+    Quote(D, "1.1e-6", "stiff_1e-4.double.cerr", "improves 100× ({} m,"),
+    Quote(D, "3.7e-4", "stiff_1e-4.double.perr", "1.1e-6 m, {} m)"),
+    Quote(D, "1.1e-6", "connect_rk4_stiff.double.perr", "holds positions to {} m"),
+    Quote(D, "0.41", "connect_rk4_stiff.double.terr", "off by {} N"),
+    Quote(D, "1.3e-7", "rk4.double.terr", "`hinge-rk4` is off by {} N"),
+    Quote(D, "7.4e-4", "hinge.bead.drift", "(drift {} on the bead"),
+    Quote(D, "6.6e-3", "hinge.double.drift", "{} on the double pendulum);"),
+    Quote(D, "6.6e-3", "implicitfast.double.drift", "{} on the double pendulum);"),
+    Quote(D, "7.1e-3", "implicit.double.drift", "implicit differs slightly ({})"),
+    Quote(D, "4.8e-13", "rk4.bead.drift", "higher-order one ({}"),
+    Quote(D, "4.6e-10", "rk4.double.drift", "and {})."),
+    Quote(D, "1.4e-2", "connect_rk4.double.drift", "(drift {} on the"),
+    Quote(D, "1.8e-5", "inertia_hinge_1e-6.double.perr", "1e-6 shifted the RK4 double\npendulum by {} m"),
+    Quote(D, "4e-3", "inertia_hinge_1e-6.double.terr", "tension by {} N"),
+    Quote(D, "2.9e-8", "inertia_connect_1e-9.double.perr", "({} m against 1.8e-5 m)"),
+    Quote(D, "1.8e-5", "inertia_connect_1e-6.double.perr", "(2.9e-8 m against {} m)"),
+]
+
+
+def main() -> None:
+    references = (solve(BEAD), solve(DOUBLE))
+    for title, rows in TABLES:
+        table(title, rows, references)
+    report(figures(), QUOTES, ROWS)
 
 
 if __name__ == "__main__":
