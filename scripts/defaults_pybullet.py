@@ -22,12 +22,17 @@ The numbers quoted in docs/engines.md ("## PyBullet") come from this script:
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
-from compare.results.metrics import constraint_error, energy_drift, position_error
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quoted import Quote, Row, report  # noqa: E402
+
+from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines import catalog
 from engines.pybullet import ENGINE
 from engines.reference import solve
@@ -135,6 +140,70 @@ def _cell(value: Any) -> str:
     return f"{value:.2g}" if isinstance(value, float) else str(value)
 
 
+SLOW: set[str] = set()
+#: The rows docs/engines.md quotes, measured by figures(): (case, setting) -> short key.
+_QUOTED_CASES = {"bead60": BEAD_60, "double": DOUBLE}
+
+
+def _k(text: str) -> str:
+    return text.split(" (")[0].replace(", ", "_").replace(" ", "_")
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    """Every quoted cell: ``<case>|<setting>|<column>`` (case bead60 or double; setting as shortened by _k)."""
+    f: dict[str, float] = {}
+    for tag, case in _QUOTED_CASES.items():
+        reference = solve(catalog.build(case.scene, case.parameters))
+        for setting in KEPT_DEFAULTS[:3] + KEPT_DEFAULTS[4:6] + SOLVER_SETTINGS + (INERTIA_SETTINGS if tag == "bead60" else ()):
+            row = measure(case, setting, reference)
+            for column, value in row.items():
+                if isinstance(value, float):
+                    f[f"{tag}|{_k(setting.label)}|{column.split(' (')[0]}"] = value
+    f["bead60|erp_gain_0.8"] = f["bead60|dantzig_ERP_0.2|constraint error"] / f["bead60|dantzig_ERP_0.8|constraint error"]
+    f["bead60|damping_lost_fraction"] = f["bead60|multibody_default_damping|energy drift"] / 0.5  # E* = m g L; swing energy 0.5 E*
+    return f
+
+
+D = "docs/engines.md"
+SOFT = "### What stays soft: solver, iterations, ERP (p2p)"
+
+
+def _row(label: str, setting: str) -> Row:
+    bead = (f"bead60|{setting}|constraint error", f"bead60|{setting}|energy drift")
+    double = (f"double|{setting}|constraint error", f"double|{setting}|energy drift", f"double|{setting}|tension error")
+    if setting == "multibody":
+        bead, double = (None, bead[1]), (None, double[1], None)
+    return Row(D, label, (bead, double, None), SOFT)
+
+
+ROWS = [
+    _row("si, 50 iterations, ERP 0.2 (defaults)", "si_50_iterations_ERP_0.2"),
+    _row("si, 500 iterations", "si_500_iterations"),
+    _row("pgs (MLCP), 50 iterations", "pgs"),
+    _row("dantzig, ERP 0.2", "dantzig_ERP_0.2"),
+    _row("dantzig, ERP 0", "dantzig_ERP_0"),
+    _row("dantzig, ERP 0.8", "dantzig_ERP_0.8"),
+    _row("multibody (no constraint)", "multibody"),
+]
+QUOTES = [
+    Quote(D, "0.35", "bead60|multibody_default_damping|energy drift", "drift {} (70%"),
+    Quote(D, "70%", "bead60|damping_lost_fraction", "({} of the swing energy)"),
+    Quote(D, "7.6e-4", "bead60|multibody_every_override|energy drift", "instead of {};"),
+    Quote(D, "0.58", "double|multibody_default_damping|energy drift", "double pendulum: {} instead of"),
+    Quote(D, "0.022", "double|multibody_every_override|energy drift", "instead of {} (multibody)"),
+    Quote(D, "0.0014", "double|p2p-dantzig_every_override|energy drift", "/ {} (p2p-dantzig)"),
+    Quote(D, "1.7", "bead60|multibody_default_joint_motors_kept|position error", "position error {} m)"),
+    Quote(D, "5e-5", "bead60|si_inertia_ratio_0.01|constraint error", "error {} m at `inertia_ratio` 1e-2"),
+    Quote(D, "6.6e-3", "bead60|si_inertia_ratio_0.0001|constraint error", "{} m at 1e-4, 0.31 m"),
+    Quote(D, "0.31", "bead60|si_inertia_ratio_1e-06|constraint error", "{} m at 1e-6)"),
+    Quote(D, "2.5e-5", "bead60|dantzig_inertia_ratio_1e-06|constraint error", "Dantzig stays at {} m for all three"),
+    Quote(D, "1.9e-2", "bead60|dantzig_ERP_0|constraint error", "drifts freely ({} m)"),
+    Quote(D, "4×", "bead60|erp_gain_0.8", "cuts the error about {} from"),
+    Quote(D, "0.022", "double|multibody|energy drift", "drifts {} in energy on the double"),
+    Quote(D, "1.4e-3", "double|dantzig_ERP_0.2|energy drift", "Dantzig variants: {})"),
+]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="only the bead cases (a few seconds)")
@@ -158,6 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         INERTIA_SETTINGS,
         ("constraint error (m)", "energy drift", "position error (m)", "tension error (N)"),
     )
+    if not args.quick:
+        report(figures(), QUOTES, ROWS)
     return 0
 
 

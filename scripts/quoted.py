@@ -44,12 +44,13 @@ class Quote:
 class Row:
     """The table row of ``doc`` whose first cell starts with ``label``: its numeric cells are ``keys`` in order.
 
-    A key of None skips that cell (a timing, or a cell that is not a number).
+    A key of None skips that cell (a timing, or a cell that is not a number); a tuple of keys
+    reads the cell's numbers in order ("6.6e-3 m / 0.015").
     """
 
     doc: str
     label: str
-    keys: tuple[str | None, ...]
+    keys: tuple[str | None | tuple[str | None, ...], ...]
     after: str = ""  # look for the row only after this text (a heading), when labels repeat in the doc
 
 
@@ -78,16 +79,17 @@ def close(measured: float, quoted: float, tolerance: float = TOLERANCE) -> bool:
 
 
 def row_cells(doc_text: str, label: str, after: str = "") -> list[str] | None:
-    """The cells after the first of the first table row in ``doc_text`` (past ``after``) whose first cell starts with ``label``."""
+    """The cells after the first of the first table row in ``doc_text`` (past ``after``) whose first cell is
+    ``label``, or else starts with it."""
     start = doc_text.find(after) if after else 0
     if start < 0:
         return None
-    for line in doc_text[start:].splitlines():
-        if not line.startswith("|"):
-            continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if cells and cells[0].startswith(label):
-            return cells[1:]
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+            for line in doc_text[start:].splitlines() if line.startswith("|")]
+    for exact in (True, False):  # a row whose first cell is exactly ``label`` wins over a longer one
+        for cells in rows:
+            if cells and (cells[0] == label if exact else cells[0].startswith(label)):
+                return cells[1:]
     return None
 
 
@@ -119,10 +121,14 @@ def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterab
             out.append(f"{r.doc}: no table row starting {r.label!r}")
             continue
         for key, cell in zip(r.keys, cells):
-            if key is None or key not in figures:
-                continue
-            if not close(figures[key], number(cell)):
-                out.append(f"{r.doc}: row {r.label!r}: {key} is quoted as {cell} but measures {figures[key]:.3g}")
+            # A tuple of keys: the cell holds several numbers ("6.6e-3 m / 0.015"), one key each.
+            pairs = zip(key, [m.group(0) for m in _NUMBER.finditer(cell.replace("\u2212", "-"))]) \
+                if isinstance(key, tuple) else [(key, cell)]
+            for one, text in pairs:
+                if one is None or one not in figures:
+                    continue
+                if not close(figures[one], number(text)):
+                    out.append(f"{r.doc}: row {r.label!r}: {one} is quoted as {text} but measures {figures[one]:.3g}")
     return out
 
 
