@@ -26,12 +26,16 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
-from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quoted import Quote, Row, report  # noqa: E402
+
+from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error  # noqa: E402
 from engines import catalog
 from engines.closed_form import pendulum_period
 from engines.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
@@ -193,6 +197,105 @@ def large_steps() -> str:
     return "\n".join(lines)
 
 
+SLOW = {"chain4", "chain16", "large"}  # key prefixes left out of a quick run (see figures)
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    """Every quoted figure. Keys: ``<case>|<setting>|cerr|drift|perr``, and named ones below."""
+    f: dict[str, float] = {}
+    tags = ("bead", "bead60Hz", "double", "chain4", "chain16")
+    settings = {SETTINGS[0][0]: "defaults", "error_bias = 0": "bias0", "error_bias = 0, iterations = 3": "bias0_iter3",
+                "error_bias = 0, iterations = 50": "bias0_iter50", "damping = 0.999 (not a default)": "damping0.999"}
+    for tag, case in zip(tags, CASES):
+        if quick and tag in SLOW:
+            continue
+        for label, _status, c_err, drift, p_err, _cost in measure(case):
+            if label in settings:
+                for name, value in (("cerr", c_err), ("drift", drift), ("perr", p_err)):
+                    f[f"{tag}|{settings[label]}|{name}"] = float(value)
+    # 100 s of the 60° bead: the signed energy change.
+    scene = catalog.build("bead", {"duration": 100.0})
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
+        series = energy_drift_series(scene, run.positions, run.velocities)
+        key = settings[label]
+        f[f"long|{key}|loss_10s"] = -float(series[int(np.argmin(np.abs(run.t - 10.0)))])
+        f[f"long|{key}|loss_100s"] = -float(series[-1])
+        f[f"long|{key}|max_abs"] = float(np.abs(series).max())
+    # The 10° bead's period.
+    dt, theta0 = 1e-3, math.radians(10.0)
+    exact = pendulum_period(1.0, 9.81, theta0)
+    scene = catalog.build("bead", {"theta0": 10.0, "duration": 4 * exact})
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, dt, variant="pin", options=options, sample_interval=dt)
+        x = run.positions[:, 0, 0]
+        i = np.nonzero(np.signbit(x[1:]) != np.signbit(x[:-1]))[0]
+        crossings = run.t[i] - x[i] * dt / (x[i + 1] - x[i])
+        f[f"period|{settings[label]}"] = float((2 * np.polyfit(np.arange(len(crossings)), crossings, 1)[0] - exact) / exact)
+    # Tension from impulse / dt on the 60° bead over 1 s.
+    scene = catalog.build("bead", {"duration": 1.0})
+    reference = solve(scene)
+    for label, options in SETTINGS[:2]:
+        run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
+        positions, _, forces = reference.at(run.t)
+        expected = tensions(scene, positions, forces)[1:, 0]
+        measured = tensions(scene, run.positions, run.constraint_forces)[1:, 0]
+        f[f"tension|{settings[label]}"] = float(np.abs(measured - expected).max())
+        f["tension|min"], f["tension|max"] = float(expected.min()), float(expected.max())
+    if not quick:
+        case = CASES[-1]
+        scene = catalog.build(case.scene, {**case.parameters, "duration": 5.0})
+        for label, options in (SETTINGS[0], SETTINGS[4]):
+            run = ENGINE.simulate(scene, 0.1, variant="pin", options=options)
+            f[f"large|{settings[label]}|ok"] = float(run.info.status == "ok")
+            f[f"large|{settings[label]}|speed"] = float(np.linalg.norm(run.velocities, axis=2).max())
+            f[f"large|{settings[label]}|drift"] = energy_drift(scene, run.positions, run.velocities)
+    return f
+
+
+D = "docs/engines.md"
+T = "**Remaining softness, and what each default costs.**"
+
+
+def _row(label: str, tag: str, setting: str, after: str = T) -> Row:
+    return Row(D, label, tuple(f"{tag}|{setting}|{c}" for c in ("cerr", "drift", "perr")), after)
+
+
+ROWS = [
+    _row("bead 60°, 10 s | defaults", "bead", "defaults"),
+    _row("| error_bias = 0", "bead", "bias0", "| bead 60°, 10 s | defaults"),
+    _row("double pendulum, 10 s | defaults", "double", "defaults"),
+    _row("| error_bias = 0", "double", "bias0", "| double pendulum, 10 s | defaults"),
+    _row("chain of 4, 5 s | defaults", "chain4", "defaults"),
+    _row("| error_bias = 0", "chain4", "bias0", "| chain of 4, 5 s | defaults"),
+    _row("| error_bias = 0, 3 iterations", "chain4", "bias0_iter3", "| chain of 4, 5 s | defaults"),
+    _row("chain of 16, 3 s | defaults", "chain16", "defaults"),
+    _row("| error_bias = 0 (10 iterations)", "chain16", "bias0", "| chain of 16, 3 s | defaults"),
+    _row("| error_bias = 0, 50 iterations", "chain16", "bias0_iter50", "| chain of 16, 3 s | defaults"),
+]
+QUOTES = [
+    Quote(D, "−3.3e-7", "period|bias0", "relative period error is {} with error_bias = 0"),
+    Quote(D, "9.7e-6", "period|defaults", "With the default bias it is {}"),
+    Quote(D, "0.36%", "long|defaults|loss_10s", "loses {} of E* in 10 s"),
+    Quote(D, "3.9%", "long|defaults|loss_100s", "and {} in 100 s"),
+    Quote(D, "7.4e-4", "long|bias0|max_abs", "(within\n  ±{} over 100 s)"),
+    Quote(D, "8.0e-2", "bead60Hz|defaults|drift", "by {} E* in 10 s with the default"),
+    Quote(D, "1.3e-2", "bead60Hz|bias0|drift", "and by {} with error_bias = 0"),
+    Quote(D, "20", "chain4|bias0_iter3|drift", "*adds* energy: {} E* for the chain of 4"),
+    Quote(D, "0.52", "chain16|bias0|drift", "and {} E* for the chain of 16"),
+    Quote(D, "9.8e-3", "bead|damping0.999|drift", "from 5.3e-3 to {}"),
+    Quote(D, "0.022", "tension|bias0", "is {} N (error_bias = 0)"),
+    Quote(D, "0.036", "tension|defaults", "and {} N (default)"),
+    Quote(D, "4.9", "tension|min", "the tension spans {}–19.6 N"),
+    Quote(D, "19.6", "tension|max", "spans 4.9–{} N"),
+    Quote(D, "38", "large|defaults|speed", "speeds up to\n{} m/s"),
+    Quote(D, "8.9", "large|defaults|drift", "drifts of {} E* (defaults)"),
+    Quote(D, "0.94", "large|bias0_iter3|drift", "and {} E* (error_bias = 0"),
+]
+SLOW = {k for r in ROWS for k in r.keys if k.split("|")[0] in SLOW} | {
+    q.key for q in QUOTES if q.key.split("|")[0] in ("chain4", "chain16", "large")}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", type=int, action="append", help="index of a case to run (default: all)")
@@ -206,6 +309,7 @@ def main(argv: list[str] | None = None) -> int:
         for section in (long_run_energy, bead_period, tension_error, large_steps):
             print(section())
             print()
+        report(figures(), QUOTES, ROWS)
     return 0
 
 

@@ -86,10 +86,15 @@ def row_cells(doc_text: str, label: str, after: str = "") -> list[str] | None:
         return None
     rows = [[c.strip() for c in line.strip().strip("|").split("|")]
             for line in doc_text[start:].splitlines() if line.startswith("|")]
-    for exact in (True, False):  # a row whose first cell is exactly ``label`` wins over a longer one
+    # A label with "|" in it names the first cells together ("| error_bias = 0" for a row whose
+    # first cell is empty; use ``after`` to say below which row to look).
+    n = label.count("|") + 1
+    label = label.strip()
+    for exact in (True, False):  # a row whose first cells are exactly ``label`` win over a longer one
         for cells in rows:
-            if cells and (cells[0] == label if exact else cells[0].startswith(label)):
-                return cells[1:]
+            head = " | ".join(cells[:n]).strip()
+            if cells and (head == label if exact else head.startswith(label)):
+                return cells[n:]
     return None
 
 
