@@ -386,17 +386,22 @@ def bound(
     atol: float = DEFAULT_ATOL,
     times: np.ndarray | None = None,
     threshold: float | None = None,
+    solution: ReferenceSolution | None = None,
 ) -> ReferenceBound:
     """Solve ``scene`` at (rtol, atol) and TIGHTER times tighter; compare positions at ``times``.
 
     times : (n,) s, default every 0.01 s over the scene's duration. threshold : m, default
-    HORIZON_FRACTION · REFERENCE_ACCURACY · L. Unsupported when the reference cannot express the scene.
+    HORIZON_FRACTION · REFERENCE_ACCURACY · L. solution : the scene's solve at (rtol, atol)
+    when the caller has it already (the runner does), so only the tighter one is solved here.
+    Unsupported when the reference cannot express the scene.
     """
     if times is None:
         times = np.linspace(0.0, scene.duration, max(2, round(scene.duration / 0.01) + 1))
     times = np.asarray(times, dtype=float)
     tight_rtol, tight_atol = max(rtol / TIGHTER, MIN_RTOL), atol / TIGHTER
-    loose = solve(scene, rtol, atol).at(times)[0]
+    if solution is None or (solution.rtol, solution.atol) != (rtol, atol):
+        solution = solve(scene, rtol, atol)
+    loose = solution.at(times)[0]
     tight = solve(scene, tight_rtol, tight_atol).at(times)[0]
     difference = np.linalg.norm(loose - tight, axis=2).max(axis=1)
     if threshold is None:
