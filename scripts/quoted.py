@@ -61,6 +61,8 @@ def number(text: str) -> float:
         return 1.0
     if word in ("false", "no"):
         return 0.0
+    if word in ("none", "never"):  # a horizon or a divergence time that never came
+        return math.inf
     match = _NUMBER.search(text.replace("\u2212", "-"))
     if match is None:
         raise ValueError(f"no number in {text!r}")
