@@ -121,7 +121,29 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["stretch_ratio_timeconst"] = f["connect.double.cerr"] / f["timeconst2.double.cerr"]
     f["stretch_ratio_solimp"] = f["connect.double.cerr"] / f["solimp.double.cerr"]
     f["stiff_gain_1e-4"] = f["stiff.double.cerr"] / f["stiff_1e-4.double.cerr"]
+    # The default connect's steady stretch under g, r = (1 − d)·g/(d·k), and the period it costs the 10° bead.
+    from engines.mujoco import MUJOCO_SOLIMP, MUJOCO_SOLREF
+
+    k = 1.0 / (MUJOCO_SOLIMP[1] * MUJOCO_SOLREF[0] * MUJOCO_SOLREF[1]) ** 2
+    f["connect.stretch_under_g"] = (1 - MUJOCO_SOLIMP[0]) * 9.81 / (MUJOCO_SOLIMP[0] * k)
+    f["connect.period_predicted"] = f["connect.stretch_under_g"] / 2
+    f["connect.period_10deg"] = relative_period_error("connect")
     return f
+
+
+def relative_period_error(variant: str, dt: float = 1e-3) -> float:
+    """(T − T_exact)/T_exact of the 10° bead over three periods, from the zero crossings of x."""
+    import math
+
+    from engines.closed_form import pendulum_period
+
+    exact = pendulum_period(1.0, 9.81, math.radians(10.0))
+    scene = catalog.build("bead", {"theta0": 10.0, "duration": 3.2 * exact})
+    run = ENGINE.simulate(scene, dt, variant=variant, sample_interval=dt)
+    x = run.positions[:, 0, 0]
+    i = np.nonzero(np.signbit(x[1:]) != np.signbit(x[:-1]))[0]
+    crossings = run.t[i] - x[i] * dt / (x[i + 1] - x[i])
+    return float((2 * np.polyfit(np.arange(len(crossings)), crossings, 1)[0] - exact) / exact)
 
 
 def table(title, rows, references):
@@ -161,6 +183,9 @@ QUOTES = [
     Quote(D, "4.8e-13", "rk4.bead.drift", "higher-order one ({}"),
     Quote(D, "4.6e-10", "rk4.double.drift", "and {})."),
     Quote(D, "1.4e-2", "connect_rk4.double.drift", "(drift {} on the"),
+    Quote(D, "3.9e-4", "connect.stretch_under_g", "i.e. {} m under\ng"),
+    Quote(D, "1.9e-4", "connect.period_predicted", "r/2L ≈ {} (measured"),
+    Quote(D, "1.8e-4", "connect.period_10deg", "(measured {})"),
     Quote(D, "1.8e-5", "inertia_hinge_1e-6.double.perr", "1e-6 shifted the RK4 double\npendulum by {} m"),
     Quote(D, "4e-3", "inertia_hinge_1e-6.double.terr", "tension by {} N"),
     Quote(D, "2.9e-8", "inertia_connect_1e-9.double.perr", "({} m against 1.8e-5 m)"),
