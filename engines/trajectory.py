@@ -138,6 +138,13 @@ def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return out
 
 
+def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
+    """(n_samples,) m: the largest constraint error at each sample (0 with no constraints)."""
+    if not scene.constraints:
+        return np.zeros(positions.shape[0])
+    return constraint_errors(scene, positions).max(axis=1)
+
+
 def linear_momentum(scene: Scene, velocities: np.ndarray) -> np.ndarray:
     """(n_samples, 3) kg·m/s: Σ mᵢ vᵢ from velocities (n_samples, n_particles, 3) m/s."""
     return np.einsum("p,spi->si", scene.masses, velocities)
