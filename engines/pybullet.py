@@ -23,7 +23,14 @@ Two formulations (variant families), as a PyBullet user would build them:
   report their force through ``getConstraintState`` (a rigid-body one
   raised "Couldn't getConstraintState"). A body that carried two arms would lock
   the angle between them, so a scene whose constraints form a loop is
-  refused.
+  refused (a multibody is a tree of joints, so ``multibody`` refuses it too).
+
+A ``Line`` (a slider's rail) is a prismatic joint in ``multibody`` (a
+prismatic link carrying the pendulum's revolute link) and a
+``JOINT_PRISMATIC`` constraint to a fixed anchor body in ``p2p``; that
+constraint's force is read from its first two rows, the impulses along the
+two axes Bullet builds perpendicular to the line (:func:`_slider_axes`). An
+``Ellipse`` is refused: no PyBullet joint or constraint holds a body on one.
 
 Point masses: PyBullet needs bodies with inertia, so each particle gets a body of
 its mass with an isotropic central inertia ``inertia_ratio · m · L²``
@@ -87,7 +94,7 @@ import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
 
@@ -181,8 +188,10 @@ class Link:
 
     particle : index in the scene; constraint : index in scene.constraints.
     parent : the parent particle's index, or None when the parent is the Pin's anchor.
-    joint : (3,) m, where the joint sits at the initial state (anchor or parent particle).
+    joint : (3,) m, where the joint sits at the initial state (anchor or parent particle; a particle
+        on a Line is its own joint).
     first_is_self : whether the constraint's first particle (Pin.particle, Rod.a) is ``particle``.
+    slide : (3,) the unit direction of a Line the particle slides on (a prismatic joint), or None.
     """
 
     particle: int
@@ -190,6 +199,7 @@ class Link:
     parent: int | None
     joint: np.ndarray
     first_is_self: bool
+    slide: np.ndarray | None = None
 
 
 #: Links PyBullet 3.2.7 builds into one multibody correctly. Measured on a chain
@@ -223,13 +233,22 @@ def forest(scene: Scene) -> list[Link]:
     links: dict[int, Link] = {}
     order: list[int] = []
     for k, c in enumerate(scene.constraints):
-        if isinstance(c, Pin):
+        if isinstance(c, Ellipse):
+            raise Unsupported(
+                "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute joints move "
+                f"a point on a circle, prismatic ones on a line); constraints[{k}] is an 'ellipse'"
+            )
+        if isinstance(c, (Pin, Line)):
             if c.particle in links:
                 raise Unsupported(
-                    f"pybullet: particle {c.particle} has two Pins (constraints {links[c.particle].constraint} "
-                    f"and {k}); a closed loop cannot be built as a tree of joints"
+                    f"pybullet: particle {c.particle} is fixed twice (constraints {links[c.particle].constraint} "
+                    f"and {k}): a closed loop, which neither a multibody (a tree of joints) nor this adapter's "
+                    "point-to-point bodies (each carries one arm) can express"
                 )
-            links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
+            if isinstance(c, Pin):
+                links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
+            else:
+                links[c.particle] = Link(c.particle, k, None, q[c.particle].copy(), True, c.unit)
             order.append(c.particle)
     head = 0
     used = {link.constraint for link in links.values()}
@@ -242,8 +261,9 @@ def forest(scene: Scene) -> list[Link]:
             child = c.b if c.a == parent else c.a
             if child in links:
                 raise Unsupported(
-                    f"pybullet: constraint {k} closes a loop through particle {child}; "
-                    "only trees of constraints hung from Pins can be built"
+                    f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
+                    "of joints, and a point-to-point body carries one arm, so only trees hung from Pins or "
+                    "Lines can be built"
                 )
             links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
             used.add(k)
@@ -260,6 +280,22 @@ def forest(scene: Scene) -> list[Link]:
 def _kept(settings: Mapping[str, Any]) -> list[str]:
     """The PyBullet defaults the ``keep_defaults`` option leaves in place."""
     return [name.strip() for name in str(settings["keep_defaults"]).split(",") if name.strip()]
+
+
+def _slider_axes(unit: np.ndarray) -> np.ndarray:
+    """(2, 3): the directions of a multibody slider constraint's two linear rows (world frame, body at rest).
+
+    As ``btMultiBodySliderConstraint::createConstraintRows``: the first frame axis eᵢ with
+    eᵢ × u ≠ 0 gives a₀ = unit(eᵢ × u), then a₁ = unit(u × a₀); each row's impulse acts on
+    the slider (body A) along its axis.
+    """
+    for e in np.eye(3):
+        a0 = np.cross(e, unit)
+        if np.linalg.norm(a0) > 1e-6:
+            a0 = a0 / np.linalg.norm(a0)
+            a1 = np.cross(unit, a0)
+            return np.array([a0, a1 / np.linalg.norm(a1)])
+    raise ValueError("a slider axis must be nonzero")  # pragma: no cover - Line refuses a zero direction
 
 
 def _angular_velocity(r: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -466,8 +502,8 @@ class _Run:
                 linkInertialFramePositions=[list(q[l.particle] - l.joint) for l in members],
                 linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
                 linkParentIndices=parents,
-                linkJointTypes=[joint_type] * count,
-                linkJointAxis=[[0.0, 1.0, 0.0]] * count,
+                linkJointTypes=[joint_type if l.slide is None else pb.JOINT_PRISMATIC for l in members],
+                linkJointAxis=[[0.0, 1.0, 0.0] if l.slide is None else list(map(float, l.slide)) for l in members],
                 physicsClientId=c,
             )
             pb.changeDynamics(body, -1, **self.damping, **self.activation, physicsClientId=c)
@@ -478,6 +514,14 @@ class _Run:
                     body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
                     jointDamping=0.0, **self.damping, physicsClientId=c,
                 )
+                if link.slide is not None:  # a prismatic joint: the speed along the line; no turning
+                    omega[i] = np.zeros(3)
+                    if not self.keep_motors:
+                        pb.setJointMotorControl2(
+                            body, j, pb.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=c
+                        )
+                    pb.resetJointState(body, j, 0.0, targetVelocity=float(v[i] @ link.slide), physicsClientId=c)
+                    continue
                 v_parent = np.zeros(3) if link.parent is None else v[link.parent]
                 omega[i] = _angular_velocity(q[i] - link.joint, v[i] - v_parent)
                 relative = omega[i] - (np.zeros(3) if link.parent is None else omega[link.parent])
@@ -524,6 +568,8 @@ class _Run:
         # getConstraintState gives the impulse/dt on the constraint's child side (world frame): the
         # force on the particle carrying the arm is its negative (checked on a hanging bead: +m·g·z).
         self.force_sign = np.zeros(self.n_constraints)
+        #: A rail's (JOINT_PRISMATIC) first two rows are impulses along two axes ⊥ the line, on the slider.
+        self.slider_axes: dict[int, np.ndarray] = {}
         anchors: dict[tuple[float, ...], int] = {}
         for link in self.links:
             i = link.particle
@@ -540,6 +586,16 @@ class _Run:
             else:
                 other = self.bodies[link.parent]
                 v_parent = v[link.parent]
+            if link.slide is not None:  # a rail: a prismatic constraint to the anchor body, along the line
+                omega[i] = np.zeros(3)
+                cid = pb.createConstraint(
+                    self.bodies[i], -1, other, -1, pb.JOINT_PRISMATIC, list(map(float, link.slide)),
+                    parentFramePosition=[0.0, 0.0, 0.0], childFramePosition=[0.0, 0.0, 0.0], physicsClientId=c,
+                )
+                self.constraint_ids[link.constraint] = cid
+                self.force_sign[link.constraint] = 1.0
+                self.slider_axes[link.constraint] = _slider_axes(link.slide)
+                continue
             omega[i] = _angular_velocity(-arm, v[i] - v_parent)
             cid = pb.createConstraint(
                 self.bodies[i], -1, other, -1, pb.JOINT_POINT2POINT, [0.0, 0.0, 0.0],
@@ -576,7 +632,11 @@ class _Run:
         pb, c = _pb, self.client
         f = np.empty((self.n_constraints, 3))
         for k, cid in enumerate(self.constraint_ids):
-            f[k] = self.force_sign[k] * np.asarray(pb.getConstraintState(cid, physicsClientId=c)[:3])
+            rows = np.asarray(pb.getConstraintState(cid, physicsClientId=c))
+            if k in self.slider_axes:
+                f[k] = rows[:2] @ self.slider_axes[k]
+            else:
+                f[k] = self.force_sign[k] * rows[:3]
         return f
 
     # -- stepping --
