@@ -98,7 +98,7 @@ def four_bar_table(title, overrides, dt, duration):
         other = 100.0 * np.mean(np.sign(side[clear]) != np.sign(ref_side[clear])) if clear.any() else float("nan")
         peak = "—"
         if run.constraint_forces is not None and np.isfinite(run.constraint_forces).all():
-            peak = f"{np.abs(run.constraint_forces).max() / np.abs(f_ref).max():.2f}"
+            peak = f"{np.abs(run.constraint_forces).max() / np.abs(f_ref).max():.3g}"
         status = run.info.status if n == len(t) else f"{run.info.status} at {run.t[-1]:.2f} s"
         print(f"| {label} | {status} | {error:.2e} | {constraint_errors(scene, q).max():.2e} | {drift:.2e} "
               f"| {_turns(q):.2f} | {other:.0f} % | {peak} |")
