@@ -75,14 +75,16 @@ class DenseSystem:
         return worst
 
     def _solve(self, J: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """(J W Jᵀ)⁻¹ rhs by Cholesky; _Singular when the matrix is not positive definite."""
-        A = (J * self.w) @ J.T
+        """(J W Jᵀ)⁻¹ rhs; _Singular when the matrix is singular (LAPACK's LU meets a zero pivot or the
+        answer is not finite). The matrix is symmetric positive semi-definite, so LU serves as well as
+        Cholesky, in one numpy call instead of three."""
         try:
-            L = np.linalg.cholesky(A)
+            out = np.linalg.solve((J * self.w) @ J.T, rhs)
         except np.linalg.LinAlgError:
             raise _Singular from None
-        y = np.linalg.solve(L, rhs)
-        return np.linalg.solve(L.T, y)
+        if not np.isfinite(out).all():
+            raise _Singular
+        return out
 
     def multipliers(self, x, u, k_s, k_d) -> tuple[np.ndarray, np.ndarray]:
         """(λ (C,), J (C, P·dim)) from the general formula."""
