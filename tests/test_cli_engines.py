@@ -26,7 +26,7 @@ LEFT_OUT = {
     ("mujoco/connect", "slider-pendulum"): "MuJoCo has no equality constraint that holds a point on a line",
     ("mujoco/connect", "four-bar"): "use mujoco/hinge, which closes a loop with an equality",
     ("mujoco", "bead-ellipse"): "MuJoCo cannot hold a body on an ellipse",
-    ("pybullet", "four-bar"): "closes a loop through particle 1",
+    ("pybullet/multibody", "four-bar"): "closes a loop through particle 1",
     ("pybullet", "bead-ellipse"): "no joint or constraint of PyBullet holds a body on an ellipse",
     ("pymunk", "bead-ellipse"): "pymunk has no joint that holds a body on an ellipse",
 }
