@@ -142,7 +142,8 @@ FOUR_BAR_RULE = (
 
 
 def four_bar_joint(p0, pivot, b: float, c: float, branch: int) -> tuple[tuple[float, float], tuple[float, float]]:
-    """The coupler–rocker joint (x, z) m closing the loop, and d(joint)/d(crank tip) as the unit normal data.
+    """The coupler–rocker joint (x, z) m that closes the loop: where the coupler circle about p0 meets the
+    rocker circle about the pivot.
 
     p0 : crank tip (x, z); pivot : ground pivot (x, z); b, c : coupler and rocker lengths (m).
     branch +1 puts the joint left of the directed line from p0 to the pivot, −1 right of it.

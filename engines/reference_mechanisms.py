@@ -203,28 +203,42 @@ class FourBar:
         return p0, p0 + along[..., None] * u + across[..., None] * perp
 
     def _rates(self, phi: float) -> tuple[np.ndarray, np.ndarray, float, float]:
-        """Crank and rocker tips, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
-        p0, p1 = self.closure(phi)
-        a, c = self.a, self.c
-        u_phi = (p0 - self.crank_pivot) / a
-        e_phi = np.array([-u_phi[1], u_phi[0]])
-        u_psi = (p1 - self.rocker_pivot) / c
-        e_psi = np.array([-u_psi[1], u_psi[0]])
-        r = p1 - p0
-        denominator = c * float(r @ e_psi)
-        k = a * float(r @ e_phi) / denominator
-        relative = c * k * e_psi - a * e_phi
-        h = (c * k * k * float(r @ u_psi) - a * float(r @ u_phi) - float(relative @ relative)) / denominator
-        return p0, p1, k, h
+        """Crank and rocker tips (2,) m, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
+        x0, z0, x1, z1, k, h = self._scalar_rates(phi)
+        return np.array([x0, z0]), np.array([x1, z1]), k, h
+
+    def _scalar_rates(self, phi: float) -> tuple[float, float, float, float, float, float]:
+        """(x0, z0, x1, z1, k, h): the closure and the rates in scalars (the right-hand side is called
+        ~10⁴ times per solve, and numpy's per-call cost on 2-vectors is ~10× the arithmetic here)."""
+        a, b, c = self.a, self.b, self.c
+        ax, az = self.crank_pivot
+        bx, bz = self.rocker_pivot
+        s, co = math.sin(phi), math.cos(phi)
+        x0, z0 = ax + a * s, az - a * co
+        dx, dz = bx - x0, bz - z0
+        delta = math.hypot(dx, dz)
+        ux, uz = dx / delta, dz / delta
+        along = (b * b - c * c + delta * delta) / (2.0 * delta)
+        across = self.branch * math.sqrt(max(b * b - along * along, 0.0))
+        x1, z1 = x0 + along * ux - across * uz, z0 + along * uz + across * ux
+        upx, upz = s, -co  # u_φ = (p0 − A) / a
+        epx, epz = co, s  # e_φ
+        uqx, uqz = (x1 - bx) / c, (z1 - bz) / c  # u_ψ
+        eqx, eqz = -uqz, uqx  # e_ψ
+        rx, rz = x1 - x0, z1 - z0
+        denominator = c * (rx * eqx + rz * eqz)
+        k = a * (rx * epx + rz * epz) / denominator
+        relx, relz = c * k * eqx - a * epx, c * k * eqz - a * epz
+        h = (c * k * k * (rx * uqx + rz * uqz) - a * (rx * upx + rz * upz) - (relx * relx + relz * relz)) / denominator
+        return x0, z0, x1, z1, k, h
 
     def angular_acceleration(self, phi: float, phi_dot: float) -> float:
         """φ̈ (rad/s²) by d'Alembert's principle along the crank coordinate."""
-        p0, p1, k, h = self._rates(phi)
+        x0, z0, x1, z1, k, h = self._scalar_rates(phi)
         a, c, m0, m1 = self.a, self.c, self.m0, self.m1
-        u_phi = (p0 - self.crank_pivot) / a
-        u_psi = (p1 - self.rocker_pivot) / c
-        g_phi = float(self.gravity[0] * -u_phi[1] + self.gravity[1] * u_phi[0])  # g·e_φ
-        g_psi = float(self.gravity[0] * -u_psi[1] + self.gravity[1] * u_psi[0])  # g·e_ψ
+        gx, gz = self.gravity
+        g_phi = gx * math.cos(phi) + gz * math.sin(phi)  # g·e_φ
+        g_psi = (-gx * (z1 - self.rocker_pivot[1]) + gz * (x1 - self.rocker_pivot[0])) / c  # g·e_ψ
         force = m0 * a * g_phi + m1 * c * k * g_psi - m1 * c * c * k * h * phi_dot * phi_dot
         return force / (m0 * a * a + m1 * c * c * k * k)
 
