@@ -18,13 +18,14 @@ distance-only scene); its wall time is honest numpy time.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from ours import kernel
 from ours.constraint import CurveConstraint
 from ours.errors import ModelError
-from ours.method import BAUMGARTE, LAGRANGIAN, PROJECTION, RATTLE_METHOD, Method
+from ours.method import BAUMGARTE, LAGRANGIAN, PROJECTION, Method
 from ours.integrator import RATTLE, SYMPLECTIC_EULER, Integrator
 
 
@@ -131,15 +132,32 @@ class DenseSystem:
         return kernel.OK
 
 
-def simulate(system, q, v, dt: float, n_steps: int, stride: int, chosen: Method, scheme: Integrator,
-             k_s: float, k_d: float, tolerance: float, max_iterations: int, settings: dict):
-    """Step a system holding curve constraints; returns an ``ours.simulate.Result``.
+@dataclass(frozen=True, eq=False)
+class Run:
+    """What :func:`run` returns (``ours.simulate`` wraps it in its Result).
+
+    t : (S,) s.  q, v : (S, P, dim) m, m/s.  multipliers : (S, C).  forces : (S, C, dim) N on each
+    constraint's first particle.  steps : taken.  wall_time : s of the stepping loop.
+    status : a ``kernel`` status code.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    multipliers: np.ndarray
+    forces: np.ndarray
+    steps: int
+    wall_time: float
+    status: int
+
+
+def run(system, q, v, dt: float, n_steps: int, stride: int, chosen: Method, scheme: Integrator,
+        k_s: float, k_d: float, tolerance: float, max_iterations: int) -> Run:
+    """Step a system holding curve constraints.
 
     Arguments are those of :func:`ours.simulate.simulate`, already validated
     (q, v : (P, dim) copies; the method and integrator records).
     """
-    from ours.simulate import STATUS_TEXT, Result
-
     if chosen.code == LAGRANGIAN:
         raise ModelError(
             "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; this system holds a "
@@ -211,15 +229,5 @@ def simulate(system, q, v, dt: float, n_steps: int, stride: int, chosen: Method,
     for s in range(written):
         J = dense.jacobian(qs[s].ravel()).reshape(C, P, dim)
         forces[s] = out_lam[s][:, None] * J[np.arange(C), dense.first]
-    settings = dict(settings, path="general (dense J W Jᵀ, numpy)")
-    return Result(
-        t=sample_steps[:written] * dt,
-        q=qs,
-        v=out_v[:written],
-        multipliers=out_lam[:written],
-        forces=forces,
-        steps=int(step),
-        wall_time=wall_time,
-        status=STATUS_TEXT[int(status)],
-        settings=settings,
-    )
+    return Run(sample_steps[:written] * dt, qs, out_v[:written], out_lam[:written], forces, int(step),
+               wall_time, int(status))
