@@ -138,7 +138,20 @@ _BUILT_IN = (
     Metric("steps_per_second", "1/s", "higher", description="steps per second of wall time"),
     Metric("observed_order", "", "higher", True, Tolerance(0.0, 0.25), per="variant", shown=True, label="order",
            description="slope of log error against log dt over the asymptotic range"),
+    # A conserved quantity beside energy: atol at the round-off of a reduced-coordinate run (~1e-13).
+    Metric("momentum_drift", "L*", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
+           title="angular-momentum drift", missing="not conserved",
+           compute=lambda inputs: _momentum_drift(inputs),
+           description="max |L_z(t) − L_z(0)| / L*, L_z about the Pins' vertical line, L* = M·L·√(g·L) "
+                       "(null where L_z is not conserved or is zero by symmetry: planar scenes)"),
 )
+
+
+def _momentum_drift(inputs: "MetricInputs") -> float | None:
+    from engines.trajectory import momentum_drift
+
+    trajectory = inputs.trajectory
+    return momentum_drift(inputs.scene, trajectory.positions, trajectory.velocities)
 
 #: Every declared metric by name, in table order.
 METRICS: dict[str, Metric] = {m.name: m for m in _BUILT_IN}
