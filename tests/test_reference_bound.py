@@ -82,3 +82,23 @@ def test_momentum_drift_is_a_declared_gated_metric_computed_for_each_case():
     bead = catalog.build("bead", {"duration": 0.1})
     run = MUJOCO.simulate(bead, 1e-3, variant="hinge")
     assert computed_extras(MetricInputs(bead, run, run.positions, np.zeros(run.n_samples)))["momentum_drift"] is None
+
+
+def test_a_run_records_the_reference_horizon_and_error(tmp_path):
+    from compare.results.store import load_results
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
+
+    suite = parse_suite(
+        'name = "horizon"\nduration = 12.0\ndt = [0.01]\n'
+        '[[scenes]]\nid = "dp"\nscene = "double-pendulum"\n'
+        '[[scenes]]\nid = "bead"\nscene = "bead"\n'
+        '[[engines]]\nid = "mujoco/hinge-rk4"\n'
+    )
+    run_suite(suite, tmp_path / "run", jobs=1, isolate=False)
+    records = {r.case.scene_id: r for r in load_results(tmp_path / "run").records}
+    # The chaotic double pendulum's two reference solves part near 7.3 s; the bead's never do.
+    assert 6.0 < records["dp"].reference_horizon < 9.0
+    assert records["bead"].reference_horizon is None
+    assert records["bead"].reference["reference_error"] < 1e-10
+    assert records["dp"].reference["tight_rtol"] < 1e-13

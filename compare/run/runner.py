@@ -100,11 +100,21 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
     return None
 
 
-def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
-    """The reference's dense solution of ``scene`` (runs in a worker; module-level so it pickles)."""
-    from engines.reference import solve
+#: Samples the reference's two solves are compared on (at most; evenly over the scene's duration).
+REFERENCE_BOUND_SAMPLES = 2001
 
-    return solve(scene, rtol=rtol, atol=atol)
+
+def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
+    """(dense solution, ReferenceBound) of ``scene``: the reference and its own error bar and horizon.
+
+    Runs in a worker (module-level so it pickles). The bound solves once more, 100× tighter
+    (engines.reference.bound), and compares the two on up to REFERENCE_BOUND_SAMPLES times.
+    """
+    from engines.reference import bound, solve
+
+    solution = solve(scene, rtol=rtol, atol=atol)
+    n = min(REFERENCE_BOUND_SAMPLES, max(2, round(scene.duration / 0.01) + 1))
+    return solution, bound(scene, rtol, atol, times=np.linspace(0.0, scene.duration, n), solution=solution)
 
 
 @dataclass(frozen=True)
@@ -451,6 +461,12 @@ def build_record(
             "steps": solution.n_steps,
             "wall_time": solution.wall_time,
         }
+        if reference.bound is not None:
+            # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
+            record["reference"].update(reference_error=reference.bound.reference_error,
+                                       tight_rtol=reference.bound.tight_rtol,
+                                       horizon_threshold=reference.bound.threshold)
+            record["reference_horizon"] = reference.bound.reference_horizon
     metrics, series = case_metrics(
         scene,
         trajectory,
@@ -486,8 +502,9 @@ class SampledReference:
     of the 20,001-sample 1,000 s bead of suites/stiff.toml when done per case).
     """
 
-    def __init__(self, solution: Any) -> None:
-        self.solution = solution
+    def __init__(self, solved: Any) -> None:
+        # solve_reference's (solution, bound); a bare solution (no bound) is accepted too.
+        self.solution, self.bound = solved if isinstance(solved, tuple) else (solved, None)
         self._samples: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
