@@ -121,54 +121,68 @@ class CommandSpec:
         return shlex.join(self.argv)
 
     def to_dict(self) -> dict[str, Any]:
+        """JSON-ready; :meth:`from_dict` inverts it (a case carries it to a worker on another machine)."""
         return {"label": self.label, "argv": list(self.argv), "cwd": self.cwd, "version": self.version,
                 "capabilities": sorted(self.capabilities), "options": dict(self.options)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "CommandSpec":
+        return cls(data["label"], tuple(data["argv"]), data["cwd"], data.get("version", ""),
+                   frozenset(data.get("capabilities", ())), dict(data.get("options", {})))
+
+
+class SpecError(UserError):
+    """A malformed command spec; ``field`` is the key at fault and ``reason`` the message without the place."""
+
+    def __init__(self, where: str, field_name: str, reason: str) -> None:
+        super().__init__(f"{where}.{field_name}: {reason}")
+        self.field, self.reason = field_name, reason
 
 
 def make_spec(label: Any, argv: Any, cwd: str | os.PathLike | None = None, version: Any = None,
               capabilities: Any = (), options: Any = None, where: str = "command") -> CommandSpec:
-    """A checked :class:`CommandSpec`; UserError naming ``where`` and the field for bad input.
+    """A checked :class:`CommandSpec`; SpecError (a UserError) naming ``where``, the field and the fix.
 
     argv : a list of strings (a single string is split like a shell would, without running one).
     cwd : relative to the current directory when relative; default the current directory.
     """
-    if not isinstance(label, str) or not label.strip() or "/" in label or ":" in label:
-        raise UserError(f"{where}: label must be a non-empty name without '/' or ':' (results call it "
-                        f"command/<label>), got {label!r}")
+    if not isinstance(label, str) or not label.strip() or "/" in label or ":" in label or label != label.strip():
+        raise SpecError(where, "label", f"must be a non-empty name without '/', ':' or surrounding spaces "
+                                        f"(results call it command/<label>), got {label!r}")
     if isinstance(argv, str):
         try:
             argv = shlex.split(argv)
         except ValueError as exc:
-            raise UserError(f"{where}: cannot split the command {argv!r}: {exc}") from None
+            raise SpecError(where, "command", f"cannot split {argv!r}: {exc}") from None
     if (not isinstance(argv, (list, tuple)) or not argv
             or not all(isinstance(a, str) for a in argv) or not argv[0]):
-        raise UserError(f"{where}: command must be a non-empty list of strings, e.g. "
-                        f"command = [\"python3\", \"solvers/bead.py\"], got {argv!r}")
+        raise SpecError(where, "command", f"must be a non-empty list of strings, e.g. "
+                                          f"command = [\"python3\", \"solvers/bead.py\"], got {argv!r}")
     folder = Path(cwd if cwd is not None else os.getcwd()).resolve()
     program = argv[0]
     if "/" in program and not os.path.isabs(program):
         program = str(folder / program)
-    if version is not None and not isinstance(version, (str, int, float)):
-        raise UserError(f"{where}: version must be a string such as \"1.2\", got {version!r}")
+    if version is not None and (isinstance(version, bool) or not isinstance(version, (str, int, float))):
+        raise SpecError(where, "version", f"must be a string such as \"1.2\", got {version!r}")
     if isinstance(capabilities, str):
         capabilities = [capabilities]
     if not isinstance(capabilities, (list, tuple, set, frozenset)):
-        raise UserError(f"{where}: capabilities must be a list, e.g. [\"3d\", \"constraint-forces\"], "
-                        f"got {capabilities!r}")
+        raise SpecError(where, "capabilities", f"must be a list, e.g. [\"3d\", \"constraint-forces\"], "
+                                               f"got {capabilities!r}")
     for capability in capabilities:
         if capability not in KNOWN_CAPABILITIES:
-            raise UserError(f"{where}: unknown capability {capability!r}; use any of "
-                            f"{', '.join(KNOWN_CAPABILITIES)}")
+            raise SpecError(where, "capabilities", f"unknown capability {capability!r}; use any of "
+                                                   f"{', '.join(KNOWN_CAPABILITIES)}")
     if options is None:
         options = {}
     if not isinstance(options, Mapping):
-        raise UserError(f"{where}: options must be a table of name = value, got {options!r}")
+        raise SpecError(where, "options", f"must be a table of name = value, got {options!r}")
     try:
         json.dumps(dict(options), allow_nan=False)
     except (TypeError, ValueError):
-        raise UserError(f"{where}: options must be JSON values (numbers, strings, booleans, lists, tables), "
-                        f"got {options!r}") from None
-    return CommandSpec(label.strip(), (program, *argv[1:]), str(folder), "" if version is None else str(version),
+        raise SpecError(where, "options", f"must be JSON values (numbers, strings, booleans, lists, tables), "
+                                          f"got {options!r}") from None
+    return CommandSpec(label, (program, *argv[1:]), str(folder), "" if version is None else str(version),
                        frozenset(capabilities), dict(options))
 
 
@@ -177,6 +191,9 @@ class CommandEngine(Engine):
 
     name = NAME
     options: Mapping[str, Any] = {}
+    #: Nothing to warm up in xval's process: every run starts the program afresh (its start-up is
+    #: outside the stepping time it reports, or inside the process time it is timed by).
+    needs_warm_up = False
 
     def __init__(self, spec: CommandSpec) -> None:
         self.spec = spec
@@ -212,6 +229,8 @@ class CommandEngine(Engine):
         message = getattr(self._timed_out, "message", None)
         if message is not None:
             trajectory = trajectory.with_info(status="timeout", message=message)
+        elif trajectory.info.message.startswith(f"{CommandFailed.__name__}: "):  # the message names the command
+            trajectory = trajectory.with_info(message=trajectory.info.message.removeprefix(f"{CommandFailed.__name__}: "))
         return trajectory
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
@@ -418,20 +437,21 @@ def command_engine(label: Any, argv: Any, cwd: str | os.PathLike | None = None, 
                    capabilities: Any = (), options: Any = None, where: str = "command") -> CommandEngine:
     """A :class:`CommandEngine` for the program ``argv`` run in ``cwd``, registered under its label.
 
-    UserError when the spec is malformed, or when another program already has the label in this process.
+    SpecError (a UserError) naming the field when the spec is malformed.
     """
-    spec = make_spec(label, argv, cwd, version, capabilities, options, where)
-    return register(spec, where)
+    return register(make_spec(label, argv, cwd, version, capabilities, options, where))
 
 
-def register(spec: CommandSpec, where: str = "command") -> CommandEngine:
-    """Register ``spec`` by its label (the same spec again returns the engine registered before)."""
+def register(spec: CommandSpec) -> CommandEngine:
+    """Register ``spec`` by its label and return its engine (the same spec again: the engine made before).
+
+    A different spec under a label already registered replaces it (the
+    latest suite read in this process wins; a suite itself refuses a label
+    used twice).
+    """
     known = _REGISTERED.get(spec.label)
-    if known is not None:
-        if known.spec == spec:
-            return known
-        raise UserError(f"{where}: label {spec.label!r} is already used by {known.spec.display} (in "
-                        f"{known.spec.cwd}); give each command its own label")
+    if known is not None and known.spec == spec:
+        return known
     engine = CommandEngine(spec)
     _REGISTERED[spec.label] = engine
     return engine
@@ -454,3 +474,13 @@ def registered(label: str) -> CommandEngine:
 
 def registered_labels() -> list[str]:
     return sorted(_REGISTERED)
+
+
+def spec_of(engine: Any) -> dict[str, Any] | None:
+    """The JSON-ready spec of a command engine (for a case sent to another process), or None for any other engine."""
+    return engine.spec.to_dict() if isinstance(engine, CommandEngine) else None
+
+
+def adopt(spec: Mapping[str, Any]) -> CommandEngine:
+    """Register (here, in a worker) the spec a case carried, and return its engine."""
+    return register(CommandSpec.from_dict(spec))
