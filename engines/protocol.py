@@ -346,8 +346,8 @@ def check_times(t: np.ndarray, sample_steps: np.ndarray, dt: float, lines: np.nd
     if bad.any():
         k = int(np.argmax(bad))
         raise ProtocolError(
-            f"{where}: line {int(lines[k])} (sample {k}), column 't': {got[k]!r} s is not the time of sample step "
-            f"{int(sample_steps[k])} ({expected[k]!r} s = {int(sample_steps[k])} x dt); write one row per entry of "
+            f"{where}: line {int(lines[k])} (sample {k}), column 't': {float(got[k])!r} s is not the time of sample step "
+            f"{int(sample_steps[k])} ({float(expected[k])!r} s = {int(sample_steps[k])} x dt); write one row per entry of "
             f"sample_steps, t = step * dt"
         )
 

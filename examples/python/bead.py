@@ -4,9 +4,9 @@ import json, math, sys, time
 
 doc = json.load(sys.stdin)                               # {"protocol": 1, "scene": ..., "dt", "steps", "sample_steps", "options"}
 scene, dt = doc["scene"], doc["dt"]
+if len(scene["particles"]) != 1 or [c["kind"] for c in scene["constraints"]] != ["pin"]:
+    sys.exit(f"bead.py: expected one particle on one pin, got the scene {scene['name']!r}")
 (pin,), (bead,) = scene["constraints"], scene["particles"]
-if pin["kind"] != "pin":
-    sys.exit("bead.py: expected one particle on one pin")
 ax, _, az = pin["anchor"]
 r, (gx, _, gz) = pin["length"], scene["gravity"]
 (x, _, z), (vx, _, vz) = bead["position"], bead["velocity"]
