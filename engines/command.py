@@ -49,7 +49,7 @@ from typing import Any, Iterator, Mapping, Sequence
 import numpy as np
 
 from engines import protocol
-from engines.adapter import Engine, RawRun, Schedule
+from engines.adapter import INITIAL_STATE_TOLERANCE, Engine, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.scene import Scene
 from engines.trajectory import Trajectory
@@ -272,6 +272,17 @@ class CommandEngine(Engine):
             protocol.check_times(state.t, schedule.sample_steps, schedule.dt, table.data_lines, where, first_bad)
         except protocol.ProtocolError as exc:
             raise CommandFailed(str(exc)) from None
+        if n:
+            try:
+                protocol.check_initial_state(scene, state.positions[0], state.velocities[0], where,
+                                             int(table.data_lines[0]), "the first row must be the initial state, in "
+                                             "the scene frame (metres, z up, particles in scene order)",
+                                             INITIAL_STATE_TOLERANCE)
+            except protocol.ProtocolError as exc:
+                raise CommandFailed(str(exc)) from None
+        if wall is not None and wall > result.elapsed:
+            raise CommandFailed(f"{where}: '# wall_time = {table.comments['wall_time']}' is longer than the program "
+                                f"ran ({result.elapsed:.3g} s); write the stepping loop's time in seconds")
         if "constraint-forces" in self.capabilities and state.forces is None and scene.constraints:
             raise CommandFailed(f"{where}: no force columns, but {label} declares 'constraint-forces'; write "
                                 f"f{{k}}_x,f{{k}}_y,f{{k}}_z for each constraint k, or drop the capability")

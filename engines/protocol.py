@@ -126,12 +126,14 @@ class Table:
     comments : every ``# key = value`` line (the last value of a key wins).
     data_lines : (n_rows,) 1-based line numbers of the rows in the text,
         for messages (comment lines and the header are counted).
+    header_line : 1-based line number of the header.
     """
 
     header: tuple[str, ...]
     values: np.ndarray
     comments: Mapping[str, str] = field(default_factory=dict)
     data_lines: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    header_line: int = 1
 
     @property
     def n_rows(self) -> int:
@@ -177,10 +179,12 @@ def read_csv(text: str | bytes, where: str = "the CSV") -> Table:
                             f"columns (t,p0_x,p0_y,p0_z,v0_x,...)")
     header_text, _, data = body.partition("\n")
     header = tuple(name.strip() for name in header_text.split(","))
-    _check_header(header, where)
+    found = _HEADER_LINE.search(text)
+    header_line = text.count("\n", 0, found.start() if found else 0) + 1
+    _check_header(header, f"{where}: header (line {header_line})")
     n_columns = len(header)
     if not data:
-        return Table(header, np.zeros((0, n_columns)), comments, np.zeros(0, dtype=np.int64))
+        return Table(header, np.zeros((0, n_columns)), comments, np.zeros(0, dtype=np.int64), header_line)
     n_rows = data.count("\n") + 1
     tokens = data.replace("\n", ",").split(",")
     if len(tokens) != n_rows * n_columns:
@@ -190,22 +194,21 @@ def read_csv(text: str | bytes, where: str = "the CSV") -> Table:
     except ValueError:
         _find_bad_number(text, header, where)
         raise  # unreachable: the slow path always finds it
-    return Table(header, values, comments, _data_lines(text, n_rows))
+    return Table(header, values, comments, _data_lines(text, n_rows), header_line)
 
 
 def _check_header(header: tuple[str, ...], where: str) -> None:
     for index, name in enumerate(header):
         if not name:
-            raise ProtocolError(f"{where}: header column {index + 1} has no name; the header is the column names "
+            raise ProtocolError(f"{where}, column {index + 1} has no name; the header is the column names "
                                 f"separated by commas, with no trailing comma")
         if _is_number(name):
-            raise ProtocolError(f"{where}: the first line that is not a comment is numbers ({name!r}...), not a "
-                                f"header; write the column names first (t,p0_x,p0_y,p0_z,v0_x,...)")
+            raise ProtocolError(f"{where}, column {index + 1} is the number {name!r}, not a name; the first line "
+                                f"that is not a comment must name the columns (t,p0_x,p0_y,p0_z,v0_x,...)")
     seen: dict[str, int] = {}
     for index, name in enumerate(header):
         if name in seen:
-            raise ProtocolError(f"{where}: column {name!r} appears twice in the header (columns {seen[name] + 1} "
-                                f"and {index + 1})")
+            raise ProtocolError(f"{where}: column {name!r} appears twice (columns {seen[name] + 1} and {index + 1})")
         seen[name] = index
 
 
@@ -290,22 +293,23 @@ def match_columns(table: Table, scene: Scene, where: str = "the CSV") -> StateCo
     """
     n_p, n_c = len(scene.particles), len(scene.constraints)
     index = {name: k for k, name in enumerate(table.header)}
+    where = f"{where}: header (line {table.header_line})"
     required = state_columns(n_p)
     missing = [name for name in required if name not in index]
     if missing:
-        raise ProtocolError(f"{where}: missing column {missing[0]!r}"
+        raise ProtocolError(f"{where}, missing column {missing[0]!r}"
                             + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
                             + f"; the scene {scene.name!r} has {n_p} particle(s): write t and p{{i}}_x..z, "
                               f"v{{i}}_x..z for i = 0..{n_p - 1}")
     known = set(required) | set(force_columns(n_c)) | set(DERIVED_COLUMNS)
     for k, name in enumerate(table.header):
         if name not in known:
-            raise ProtocolError(f"{where}: extra column {name!r} (column {k + 1}); {_extra_hint(name, n_p, n_c)}")
+            raise ProtocolError(f"{where}, extra column {name!r} (column {k + 1}); {_extra_hint(name, n_p, n_c)}")
     reported = [c for c in range(n_c) if any(f"f{c}_{a}" in index for a in _AXES)]
     for c in reported:
         for a in _AXES:
             if f"f{c}_{a}" not in index:
-                raise ProtocolError(f"{where}: missing column 'f{c}_{a}'; write all three of f{c}_x, f{c}_y, f{c}_z "
+                raise ProtocolError(f"{where}, missing column 'f{c}_{a}'; write all three of f{c}_x, f{c}_y, f{c}_z "
                                     f"or none of them")
     values = table.values
     n = table.n_rows
@@ -350,6 +354,30 @@ def check_times(t: np.ndarray, sample_steps: np.ndarray, dt: float, lines: np.nd
             f"{int(sample_steps[k])} ({float(expected[k])!r} s = {int(sample_steps[k])} x dt); write one row per entry of "
             f"sample_steps, t = step * dt"
         )
+
+
+def check_initial_state(scene: Scene, positions: np.ndarray, velocities: np.ndarray, where: str, line: int,
+                        hint: str, tolerance: float = 1e-6) -> None:
+    """ProtocolError naming the column when the first row (positions, velocities: (P, 3)) is not the scene's initial state.
+
+    tolerance : a fraction of the scene's length L (positions) or of its speed
+    scale max(|v0|, √(gL)) (velocities), as engines.adapter checks every engine.
+    hint : what to do about it (differs between a program and a file).
+    """
+    length = scene.characteristic_length
+    speed = max(float(np.abs(scene.initial_velocities).max()),
+                math.sqrt(float(np.linalg.norm(scene.gravity)) * length), 1e-3)
+    for name, got, want, scale, unit in (("p", positions, scene.initial_positions, length, "m"),
+                                         ("v", velocities, scene.initial_velocities, speed, "m/s")):
+        off = np.abs(np.asarray(got) - want)
+        if not np.isfinite(off).all():
+            continue  # unstable from the start: the caller reports it
+        if off.max() > tolerance * scale:
+            i, a = np.unravel_index(int(np.argmax(off)), off.shape)
+            raise ProtocolError(
+                f"{where}: line {line} (sample 0), column '{name}{i}_{'xyz'[a]}': {float(got[i, a])!r} {unit} is not "
+                f"the initial state of {scene.name!r} ({float(want[i, a])!r} {unit}); {hint}"
+            )
 
 
 def first_nonfinite_row(positions: np.ndarray, velocities: np.ndarray) -> int | None:

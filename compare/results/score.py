@@ -87,20 +87,12 @@ def _check_start(loaded: Loaded, scene: Scene) -> None:
     q0, v0 = loaded.state.positions[0], loaded.state.velocities[0]
     if not (np.isfinite(q0).all() and np.isfinite(v0).all()):
         raise UserError(f"{loaded.path}: line {int(loaded.lines[0])} (sample 0): the initial state is not finite")
-    length = scene.characteristic_length
-    speed = max(float(np.abs(scene.initial_velocities).max()),
-                math.sqrt(float(np.linalg.norm(scene.gravity)) * length), 1e-3)
-    for name, got, want, scale, unit in (("p", q0, scene.initial_positions, length, "m"),
-                                         ("v", v0, scene.initial_velocities, speed, "m/s")):
-        off = np.abs(got - want)
-        if off.max() > INITIAL_STATE_TOLERANCE * scale:
-            i, a = np.unravel_index(int(np.argmax(off)), off.shape)
-            column = f"{name}{i}_{'xyz'[a]}"
-            raise UserError(
-                f"{loaded.path}: line {int(loaded.lines[0])} (sample 0), column {column!r}: {float(got[i, a])!r} {unit} "
-                f"is not the initial state of {scene.name!r} ({float(want[i, a])!r} {unit}); pass the scene parameters "
-                f"the file was made with (--param NAME=VALUE)"
-            )
+    try:
+        protocol.check_initial_state(scene, q0, v0, loaded.path, int(loaded.lines[0]),
+                                     "pass the scene parameters the file was made with (--param NAME=VALUE)",
+                                     INITIAL_STATE_TOLERANCE)
+    except protocol.ProtocolError as exc:
+        raise UserError(str(exc)) from None
 
 
 def score(paths: Sequence[str | Path], scene: Scene, *, delta: float = DEFAULT_DELTA,
