@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -39,9 +40,7 @@ DERIVED_COLUMNS = ("energy", "constraint_error")
 COMMENT_KEYS = ("wall_time", "version")
 
 _AXES = "xyz"
-_COMMENT = re.compile(r"^[ \t]*#[^\n]*(?:\n|$)", re.MULTILINE)
-_HEADER_LINE = re.compile(r"^(?![ \t]*#)[^\n]*\S", re.MULTILINE)
-_KEY_VALUE = re.compile(r"^[ \t]*#[ \t]*([A-Za-z_][A-Za-z0-9_]*)[ \t]*[=:][ \t]*(.*?)[ \t\r]*$", re.MULTILINE)
+_KEY_VALUE = re.compile(r"#[ \t]*([A-Za-z_][A-Za-z0-9_]*)[ \t]*[=:][ \t]*(.*?)[ \t\r\n]*$")
 
 
 class ProtocolError(ValueError):
@@ -162,39 +161,109 @@ def read_csv(text: str | bytes, where: str = "the CSV") -> Table:
     where : how to name the text in messages (``stdout of command/my-bead``, a file path).
     Checks: a header line of unique, non-empty names; every row has as many
     fields as the header; every field is a number (``nan`` and ``inf``
-    included: whether they are allowed is the caller's business).
+    included: whether they are allowed is the caller's business). Comment
+    lines (``#`` in the first column) may appear anywhere; blank lines only
+    before the header and at the end.
+
+    The work is vectorised: comments are found with ``bytes.find`` (one call
+    per comment, not per row), fields per row are counted with numpy on the
+    bytes, and the numbers are converted by ``numpy.fromstring`` in C.
     """
-    if isinstance(text, bytes):
-        try:
-            text = text.decode("utf-8")
-        except UnicodeDecodeError as exc:
-            raise ProtocolError(f"{where}: byte {exc.start} is not UTF-8 text; write plain ASCII CSV") from None
-    if "\r" in text:
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
-    comments = {m.group(1): m.group(2) for m in _KEY_VALUE.finditer(text)}
-    body = _COMMENT.sub("", text) if "#" in text else text
-    body = body.strip("\n")
-    if not body.strip():
+    if isinstance(text, str):
+        raw = text.encode("utf-8", "surrogateescape")
+    else:
+        raw = bytes(text)
+    if b"\r" in raw:
+        raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    body, comments, comment_lines = _strip_comments(raw)
+    n_lines = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
+    # Original 1-based line number of each line that is not a comment, in order.
+    line_of = np.setdiff1d(np.arange(1, n_lines + 2, dtype=np.int64), np.asarray(comment_lines, dtype=np.int64))
+    lead, stop = 0, len(body)  # blank lines before the header and at the end (indices, not copies)
+    while lead < stop and body[lead] == 10:
+        lead += 1
+    while stop > lead and body[stop - 1] == 10:
+        stop -= 1
+    header_end = body.find(b"\n", lead, stop)
+    header_end = stop if header_end < 0 else header_end
+    header_raw, data = body[lead:header_end], body[header_end + 1:stop]
+    if not header_raw.strip():
         raise ProtocolError(f"{where}: no header line; the first line that is not a '#' comment must name the "
                             f"columns (t,p0_x,p0_y,p0_z,v0_x,...)")
-    header_text, _, data = body.partition("\n")
-    header = tuple(name.strip() for name in header_text.split(","))
-    found = _HEADER_LINE.search(text)
-    header_line = text.count("\n", 0, found.start() if found else 0) + 1
+    header_line = int(line_of[lead])
+    try:
+        header = tuple(name.strip() for name in header_raw.decode("utf-8").split(","))
+    except UnicodeDecodeError:
+        raise ProtocolError(f"{where}: header (line {header_line}) is not UTF-8 text; write plain ASCII CSV") from None
     _check_header(header, f"{where}: header (line {header_line})")
     n_columns = len(header)
     if not data:
         return Table(header, np.zeros((0, n_columns)), comments, np.zeros(0, dtype=np.int64), header_line)
-    n_rows = data.count("\n") + 1
-    tokens = data.replace("\n", ",").split(",")
-    if len(tokens) != n_rows * n_columns:
-        _find_ragged_row(text, header, where)
-    try:
-        values = np.array(tokens, dtype=np.float64).reshape(n_rows, n_columns)
-    except ValueError:
-        _find_bad_number(text, header, where)
-        raise  # unreachable: the slow path always finds it
-    return Table(header, values, comments, _data_lines(text, n_rows), header_line)
+    data_lines = line_of[lead + 1:]
+    buffer = np.frombuffer(data, dtype=np.uint8)
+    newlines = np.flatnonzero(buffer == 10)
+    n_rows = len(newlines) + 1
+    data_lines = data_lines[:n_rows]
+    commas = np.flatnonzero(buffer == 44)
+    bounds = np.concatenate(([0], newlines, [len(buffer)]))
+    fields = np.diff(np.searchsorted(commas, bounds)) + 1
+    if (fields != n_columns).any():
+        k = int(np.argmax(fields != n_columns))
+        row = data[bounds[k] + (k > 0):bounds[k + 1]]
+        what = "is empty" if not row.strip() else f"has {int(fields[k])} fields"
+        hint = (f"column {header[int(fields[k])]!r} is missing" if fields[k] < n_columns
+                else f"there is a field after the last column {header[-1]!r}")
+        raise ProtocolError(f"{where}: line {int(data_lines[k])} (sample {k}) {what}, the header has {n_columns}; "
+                            f"{hint}")
+    values = _numbers(data.replace(b"\n", b","), n_rows * n_columns)
+    if values is None:
+        _find_bad_number(data, header, data_lines, where)
+    return Table(header, values.reshape(n_rows, n_columns), comments, data_lines, header_line)
+
+
+def _strip_comments(raw: bytes) -> tuple[bytes, dict[str, str], list[int]]:
+    """(raw without its comment lines, the ``# key = value`` comments, the comments' 1-based line numbers).
+
+    One ``find`` per comment line, never a pass per row in Python.
+    """
+    if not raw.startswith(b"#") and b"\n#" not in raw:
+        return raw, {}, []
+    comments: dict[str, str] = {}
+    lines: list[int] = []
+    kept: list[bytes] = []
+    position = 0           # where the text not yet kept starts
+    line, counted = 1, 0   # the line number at offset `counted`
+    start = 0 if raw.startswith(b"#") else _next_comment(raw, 0)
+    while start is not None:
+        line += raw.count(b"\n", counted, start)
+        counted = start
+        end = raw.find(b"\n", start)
+        end = len(raw) if end < 0 else end + 1
+        kept.append(raw[position:start])
+        position = end
+        match = _KEY_VALUE.match(raw[start:end].decode("utf-8", "replace"))
+        if match:
+            comments[match.group(1)] = match.group(2)
+        lines.append(line)
+        start = _next_comment(raw, end - 1)
+    kept.append(raw[position:])
+    return b"".join(kept), comments, lines
+
+
+def _next_comment(raw: bytes, offset: int) -> int | None:
+    found = raw.find(b"\n#", offset)
+    return None if found < 0 else found + 1
+
+
+def _numbers(flat: bytes, expected: int) -> np.ndarray | None:
+    """The comma-separated numbers of ``flat`` as float64, or None when one is not a number (or the count is off)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            values = np.fromstring(flat, dtype=np.float64, sep=",")
+        except (ValueError, DeprecationWarning):
+            return None
+    return values if values.size == expected else None
 
 
 def _check_header(header: tuple[str, ...], where: str) -> None:
@@ -220,50 +289,15 @@ def _is_number(token: str) -> bool:
     return True
 
 
-def _rows(text: str) -> list[tuple[int, str]]:
-    """(1-based line number, line) of each data row (slow path and line numbers: comments and header skipped)."""
-    out, header_seen = [], False
-    for number, line in enumerate(text.split("\n"), start=1):
-        if line.lstrip(" \t").startswith("#"):
-            continue
-        if not header_seen:
-            if line.strip():
-                header_seen = True
-            continue
-        out.append((number, line))
-    while out and not out[-1][1].strip():  # trailing blank lines are not rows
-        out.pop()
-    return out
-
-
-def _data_lines(text: str, n_rows: int) -> np.ndarray:
-    """Line numbers of the data rows: arithmetic when no comment follows the header, else the slow walk."""
-    found = _HEADER_LINE.search(text)
-    start = found.start() if found else 0
-    first = text.count("\n", 0, start) + 2  # the line after the header
-    if "#" not in text[start:]:
-        return np.arange(first, first + n_rows, dtype=np.int64)
-    return np.array([number for number, _ in _rows(text)][:n_rows], dtype=np.int64)
-
-
-def _find_ragged_row(text: str, header: tuple[str, ...], where: str) -> None:
-    n = len(header)
-    for sample, (number, line) in enumerate(_rows(text)):
-        fields = line.split(",")
-        if len(fields) != n:
-            what = "is empty" if not line.strip() else f"has {len(fields)} fields"
-            hint = (f"column {header[len(fields)]!r} is missing" if len(fields) < n
-                    else f"there is a field after the last column {header[-1]!r}")
-            raise ProtocolError(f"{where}: line {number} (sample {sample}) {what}, the header has {n}; {hint}")
-    raise ProtocolError(f"{where}: the rows do not all have {n} fields")
-
-
-def _find_bad_number(text: str, header: tuple[str, ...], where: str) -> None:
-    for sample, (number, line) in enumerate(_rows(text)):
-        for index, token in enumerate(line.split(",")):
-            if not _is_number(token):
-                raise ProtocolError(f"{where}: line {number} (sample {sample}), column {header[index]!r}: "
-                                    f"{token.strip()!r} is not a number")
+def _find_bad_number(data: bytes, header: tuple[str, ...], data_lines: np.ndarray, where: str) -> None:
+    """Raise ProtocolError naming the first field that is not a number (the slow path, only for bad text)."""
+    for sample, row in enumerate(data.split(b"\n")):
+        for index, token in enumerate(row.split(b",")):
+            text = token.decode("utf-8", "replace")
+            if _numbers(token, 1) is None:
+                raise ProtocolError(f"{where}: line {int(data_lines[sample])} (sample {sample}), column "
+                                    f"{header[index]!r}: {text.strip()!r} is not a number")
+    raise ProtocolError(f"{where}: a field is not a number")
 
 
 # -- a table as a trajectory --------------------------------------------------------
