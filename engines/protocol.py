@@ -176,9 +176,6 @@ def read_csv(text: str | bytes, where: str = "the CSV") -> Table:
     if b"\r" in raw:
         raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     body, comments, comment_lines = _strip_comments(raw)
-    n_lines = raw.count(b"\n") + (0 if raw.endswith(b"\n") else 1)
-    # Original 1-based line number of each line that is not a comment, in order.
-    line_of = np.setdiff1d(np.arange(1, n_lines + 2, dtype=np.int64), np.asarray(comment_lines, dtype=np.int64))
     lead, stop = 0, len(body)  # blank lines before the header and at the end (indices, not copies)
     while lead < stop and body[lead] == 10:
         lead += 1
@@ -190,26 +187,30 @@ def read_csv(text: str | bytes, where: str = "the CSV") -> Table:
     if not header_raw.strip():
         raise ProtocolError(f"{where}: no header line; the first line that is not a '#' comment must name the "
                             f"columns (t,p0_x,p0_y,p0_z,v0_x,...)")
-    header_line = int(line_of[lead])
     try:
         header = tuple(name.strip() for name in header_raw.decode("utf-8").split(","))
     except UnicodeDecodeError:
-        raise ProtocolError(f"{where}: header (line {header_line}) is not UTF-8 text; write plain ASCII CSV") from None
+        header = ("",)  # reported below, with its line
+    buffer = np.frombuffer(data, dtype=np.uint8)
+    newlines = np.flatnonzero(buffer == 10)
+    n_rows = len(newlines) + 1 if data else 0
+    # Original 1-based line number of the header and of each row: the lines that are not comments, in order.
+    lines = np.arange(1, lead + 2 + n_rows + len(comment_lines), dtype=np.int64)
+    lines = np.delete(lines, [c - 1 for c in comment_lines if c <= len(lines)])
+    header_line, data_lines = int(lines[lead]), lines[lead + 1:lead + 1 + n_rows]
+    if header == ("",) and header_raw.strip():
+        raise ProtocolError(f"{where}: header (line {header_line}) is not UTF-8 text; write plain ASCII CSV")
     _check_header(header, f"{where}: header (line {header_line})")
     n_columns = len(header)
     if not data:
         return Table(header, np.zeros((0, n_columns)), comments, np.zeros(0, dtype=np.int64), header_line)
-    data_lines = line_of[lead + 1:]
-    buffer = np.frombuffer(data, dtype=np.uint8)
-    newlines = np.flatnonzero(buffer == 10)
-    n_rows = len(newlines) + 1
-    data_lines = data_lines[:n_rows]
+    starts = np.concatenate(([0], newlines + 1))
     commas = np.flatnonzero(buffer == 44)
-    bounds = np.concatenate(([0], newlines, [len(buffer)]))
-    fields = np.diff(np.searchsorted(commas, bounds)) + 1
+    fields = np.diff(np.searchsorted(commas, np.append(starts, len(buffer)))) + 1  # commas per row, + 1
     if (fields != n_columns).any():
         k = int(np.argmax(fields != n_columns))
-        row = data[bounds[k] + (k > 0):bounds[k + 1]]
+        end = newlines[k] if k < len(newlines) else len(buffer)
+        row = data[starts[k]:end]
         what = "is empty" if not row.strip() else f"has {int(fields[k])} fields"
         hint = (f"column {header[int(fields[k])]!r} is missing" if fields[k] < n_columns
                 else f"there is a field after the last column {header[-1]!r}")
@@ -226,7 +227,7 @@ def _strip_comments(raw: bytes) -> tuple[bytes, dict[str, str], list[int]]:
 
     One ``find`` per comment line, never a pass per row in Python.
     """
-    if not raw.startswith(b"#") and b"\n#" not in raw:
+    if b"#" not in raw or (not raw.startswith(b"#") and b"\n#" not in raw):  # memchr first: no '#' at all
         return raw, {}, []
     comments: dict[str, str] = {}
     lines: list[int] = []
