@@ -251,3 +251,45 @@ options = {{ pidfile = {json.dumps(str(pidfile))} }}
     assert record["run_info"]["variant"] == "command/hang"
     pid, pgid, child = wait_for(pidfile)
     assert live_members(pgid) == []
+
+
+# -- suites naming programs --------------------------------------------------------------
+
+SUITE_HEAD = 'name = "s"\ndt = [1e-2]\n\n[[scenes]]\nscene = "bead"\n\n'
+
+
+def test_a_suite_command_entry_runs_in_the_suite_s_folder(tmp_path):
+    from compare.suite.reader import load_suite
+
+    (tmp_path / "suite.toml").write_text(SUITE_HEAD + """[[engines]]
+command = ["build/solver", "--input", "data/x.txt"]
+label = "mine"
+version = "1.2"
+capabilities = ["constraint-forces"]
+options = { method = "rk4", order = 4 }
+""")
+    (spec,) = load_suite(tmp_path / "suite.toml").engines
+    assert (spec.id, spec.label, spec.variant, dict(spec.options)) == (
+        "command/mine", "command/mine", "mine", {"method": "rk4", "order": 4})
+    made = spec.engine.spec
+    assert made.argv == (str(tmp_path / "build" / "solver"), "--input", "data/x.txt") and made.cwd == str(tmp_path)
+    assert made.version == "1.2" and made.capabilities == {"constraint-forces"}
+
+
+@pytest.mark.parametrize("entry, message", [
+    ('command = ["prog"]', "suite.toml:7: engines[0]: missing label; a command needs one"),
+    ('command = ["prog"]\nlabel = "a"\nid = "ours"', "engines[0].id: unknown key; id and command are alternatives"),
+    ('command = ["prog"]\nlabel = "a"\ncapabilities = ["2d"]', "suite.toml:10: engines[0].capabilities: unknown "
+                                                                 "capability '2d'"),
+    ('command = []\nlabel = "a"', "suite.toml:8: engines[0].command: must be a non-empty list of strings"),
+    ('command = ["prog"]\nlabel = "a"\noptions = { when = 1979-05-27 }', "engines[0].options: must hold JSON values"),
+    ('command = ["prog"]\nlabel = "a"\n\n[[engines]]\ncommand = ["other"]\nlabel = "a"',
+     "engines[1].label: 'a' is used twice; give each command its own label"),
+])
+def test_a_bad_command_entry_is_one_user_error_naming_file_line_and_key(tmp_path, entry, message):
+    from compare.suite.reader import load_suite
+
+    (tmp_path / "suite.toml").write_text(SUITE_HEAD + "[[engines]]\n" + entry + "\n")
+    with pytest.raises(UserError) as error:
+        load_suite(tmp_path / "suite.toml")
+    assert str(error.value).startswith(str(tmp_path / "suite.toml")) and message in str(error.value)

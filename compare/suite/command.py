@@ -13,6 +13,7 @@ whatever the working directory xval runs in.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -37,11 +38,16 @@ def command_engine_spec(entry: Mapping[str, Any], key: str, suite_path: str,
                 if name == "id" else f"valid keys of a command entry are: {', '.join(COMMAND_KEYS)}"
             raise error(f"{key}.{name}", f"unknown key; {which}")
     if "label" not in entry:
-        raise error(f"{key}.label", 'missing; a command needs a label, e.g. label = "my-bead" (results call it '
-                                    'command/my-bead)')
+        raise error(key, 'missing label; a command needs one, e.g. label = "my-bead" (results call it '
+                         'command/my-bead)')
     options = entry.get("options", {})
     if not isinstance(options, dict):
         raise error(f"{key}.options", f"must be a table, e.g. options = {{ method = \"rk4\" }}, got {options!r}")
+    try:
+        json.dumps(options, allow_nan=False)
+    except (TypeError, ValueError):
+        raise error(f"{key}.options", "must hold JSON values (numbers, strings, booleans, arrays, tables; no dates, "
+                                      "nan or inf): they are passed to the program in its JSON document") from None
     folder = Path(suite_path).resolve().parent if Path(suite_path).is_file() else Path.cwd()
     try:
         spec = command.make_spec(entry["label"], entry["command"], folder, entry.get("version"),
