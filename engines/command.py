@@ -228,9 +228,10 @@ class CommandEngine(Engine):
         trajectory = super().simulate(scene, dt, variant=variant, options=options, sample_interval=sample_interval)
         message = getattr(self._timed_out, "message", None)
         if message is not None:
-            trajectory = trajectory.with_info(status="timeout", message=message)
+            trajectory = replace(trajectory, info=replace(trajectory.info, status="timeout", message=message))
         elif trajectory.info.message.startswith(f"{CommandFailed.__name__}: "):  # the message names the command
-            trajectory = trajectory.with_info(message=trajectory.info.message.removeprefix(f"{CommandFailed.__name__}: "))
+            message = trajectory.info.message.removeprefix(f"{CommandFailed.__name__}: ")
+            trajectory = replace(trajectory, info=replace(trajectory.info, message=message))
         return trajectory
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
