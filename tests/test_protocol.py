@@ -246,9 +246,9 @@ options = {{ pidfile = {json.dumps(str(pidfile))} }}
 """)
     run_suite(load_suite(suite_file), tmp_path / "results", jobs=1)
     (record,) = load_results(tmp_path / "results").records
-    assert record["status"] == "timeout", record["message"]
-    assert "hang ran past the timeout of 1 s and its process group was killed" in record["message"]
-    assert record["run_info"]["variant"] == "command/hang"
+    assert record.status == "timeout", record.message
+    assert "hang ran past the timeout of 1 s and its process group was killed" in record.message
+    assert record.run_info["variant"] == "command/hang"
     pid, pgid, child = wait_for(pidfile)
     assert live_members(pgid) == []
 

@@ -52,15 +52,15 @@ def test_the_walkthrough_runs_as_written_and_its_solver_matches_mujoco_euler(tmp
     assert "command/pendulum on bead: ok, 501 samples" in ran.stdout  # step 3's simulate line
 
     records = load_results(solver / "results").records
-    by = {(r["case"]["engine"], r["case"]["dt"]): r for r in records}
+    by = {(r.engine, r.dt): r for r in records}
     assert {engine for engine, _ in by} == {"command/my-pendulum", "mujoco/hinge", "mujoco/hinge-rk4"}
     mine = [by[("command/my-pendulum", dt)] for dt in (1e-2, 3e-3, 1e-3)]
-    assert all(r["status"] == "ok" and r["run_info"]["engine_version"] == "0.1" for r in mine)
-    errors = [r["metrics"]["position_error_linf"] for r in mine]
+    assert all(r.status == "ok" and r.engine_version == "0.1" for r in mine)
+    errors = [r.metric("position_error_linf") for r in mine]
     order = np.polyfit(np.log([1e-2, 3e-3, 1e-3]), np.log(errors), 1)[0]
     assert 0.85 < order < 1.15  # semi-implicit Euler: first order
     for dt, r in zip((1e-2, 3e-3, 1e-3), mine):
         # MuJoCo's hinge joint with its Euler integrator is the same scheme in the same coordinate:
         # the two agree far below either's error (MuJoCo's point mass carries a tiny inertia).
-        theirs = by[("mujoco/hinge", dt)]["metrics"]["position_error_linf"]
-        assert abs(r["metrics"]["position_error_linf"] - theirs) < 1e-3 * theirs
+        theirs = by[("mujoco/hinge", dt)].metric("position_error_linf")
+        assert abs(r.metric("position_error_linf") - theirs) < 1e-3 * theirs

@@ -22,9 +22,11 @@ from engines.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
 from engines.scene import Scene
 from engines.trajectory import RunInfo, Trajectory
 
+from compare.results import declared
 from compare.results.metrics import DEFAULT_DELTA, case_metrics
 
-#: Metric names of a score, as ``xval show --format json`` names them (force errors only with force columns).
+#: Metric names of a score, as ``xval show --format json`` names them (force errors only with force columns);
+#: any declared metric with a ``compute`` function (compare.results.declared) follows them.
 SCORE_METRICS = (
     "position_error_final", "position_error_l2", "position_error_linf", "divergence_time",
     "energy_drift", "constraint_error", "constraint_force_error", "constraint_force_error_relative",
@@ -120,9 +122,12 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
                    dt=math.nan)
     trajectory = Trajectory(state.t[:n], state.positions[:n], state.velocities[:n], info, forces)
     ref_positions, _, ref_forces = solution.at(state.t)
-    metrics, _ = case_metrics(scene, trajectory, ref_positions, ref_forces, scheduled_times=state.t, wall_times=[],
-                              delta=delta)
-    values = metrics.to_dict()
+    metrics, series = case_metrics(scene, trajectory, ref_positions, ref_forces, scheduled_times=state.t,
+                                   wall_times=[], delta=delta)
+    values = {**metrics.to_dict(), **declared.computed_extras(
+        declared.MetricInputs(scene, trajectory, ref_positions[:n], series.position_error))}
+    extra = [name for name in values if name in declared.METRICS and name not in SCORE_METRICS
+             and declared.METRICS[name].compute is not None]
     status, message = "ok", ""
     if first_bad is not None:
         status = "unstable"
@@ -134,5 +139,5 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
         "message": message,
         "n_samples": int(n),
         "t_end": float(state.t[-1]),
-        **{name: values.get(name) for name in SCORE_METRICS},
+        **{name: values.get(name) for name in (*SCORE_METRICS, *extra)},
     }
