@@ -175,3 +175,39 @@ def test_simulate_command_that_fails_is_one_line_and_exit_1(program, message, tm
     ran = xval("simulate", "bead", "--command", program, "--dt", "1e-2", "--output", "out.csv", cwd=tmp_path)
     assert ran.returncode == 1 and ran.stdout.count("\n") == 1 and "Traceback" not in ran.stdout + ran.stderr
     assert ": failed, 0 samples to " in ran.stdout and message.format(cwd=tmp_path) in ran.stdout
+
+
+def test_a_version_bump_makes_the_gate_say_not_comparable(tmp_path):
+    """The suite's `version` is recorded; the gate calls a case of another version "not comparable", not worse."""
+    from compare.gate.baseline import build_baseline
+    from compare.gate.gate import gate_results
+    from compare.results.store import load_results
+    from compare.run.runner import run_suite
+    from compare.suite.reader import load_suite
+
+    def run(version: str, name: str):
+        (tmp_path / f"{name}.toml").write_text(f"""
+name = "versions"
+duration = 0.5
+dt = [1e-2]
+
+[[scenes]]
+scene = "bead"
+
+[[engines]]
+command = [{json.dumps(sys.executable)}, {json.dumps(str(PYTHON_BEAD))}]
+label = "py-bead"
+version = "{version}"
+""")
+        suite = load_suite(tmp_path / f"{name}.toml")
+        run_suite(suite, tmp_path / name, jobs=1)
+        return build_baseline(load_results(tmp_path / name)), suite
+
+    before, _ = run("1.0", "before")
+    same, _ = run("1.0", "same")
+    after, suite = run("1.1", "after")
+    settings = suite.gate
+    (unchanged,) = gate_results(before, same, settings, "before.json", timing="report").cases
+    (bumped,) = gate_results(before, after, settings, "before.json", timing="report").cases
+    assert unchanged.verdict == "unchanged"
+    assert bumped.verdict == "not comparable" and "1.0" in bumped.reason and "1.1" in bumped.reason
