@@ -281,7 +281,7 @@ class CommandEngine(Engine):
                                              INITIAL_STATE_TOLERANCE)
             except protocol.ProtocolError as exc:
                 raise CommandFailed(str(exc)) from None
-        if wall is not None and wall > result.elapsed:
+        if wall is not None and wall > 1.05 * result.elapsed + 1e-3:  # its clock is not ours: allow granularity
             raise CommandFailed(f"{where}: '# wall_time = {table.comments['wall_time']}' is longer than the program "
                                 f"ran ({result.elapsed:.3g} s); write the stepping loop's time in seconds")
         if "constraint-forces" in self.capabilities and state.forces is None and scene.constraints:
@@ -363,6 +363,8 @@ def run_program(spec: CommandSpec, payload: bytes, limit: tuple[float, float] | 
         # The group goes whatever happened (an exception, Ctrl-C, a timeout, or normal exit with
         # children left behind). The leader is not reaped yet, so its pid (= the group id) is not reused.
         _kill_group(process.pid)
+        with contextlib.suppress(ProcessLookupError):
+            process.kill()  # the leader too, should it have left its group (setsid)
         for stream in (process.stdin, process.stdout, process.stderr):
             with contextlib.suppress(OSError):
                 stream.close()
@@ -406,7 +408,8 @@ def _exchange(process: subprocess.Popen, payload: bytes, deadline_at: float | No
                     view = view[written:]
                     if not view:
                         selector.unregister(stream)
-                        stream.close()  # type: ignore[union-attr]
+                        with contextlib.suppress(OSError):
+                            stream.close()  # type: ignore[union-attr]
                     continue
                 chunk = os.read(stream.fileno(), 1 << 20)  # type: ignore[union-attr]
                 if not chunk:
