@@ -8,8 +8,10 @@ it becomes:
 
 - the program cannot start (no such file, not executable): ``failed``,
   naming the command;
-- it exits non-zero or is killed by a signal: ``failed`` with the exit code
-  (or signal) and its last stderr line;
+- it exits with :data:`UNSUPPORTED_EXIT_CODE` (77): ``skipped``, its last
+  stderr line being the reason (a scene it cannot express);
+- it exits non-zero otherwise, or is killed by a signal: ``failed`` with the
+  exit code (or signal) and its last stderr line;
 - its output breaks the protocol (a missing or extra column, a non-number,
   a wrong row count, a time that is not its sample step's, a first row that
   is not the scene's initial state): ``failed``, naming the line, sample
@@ -58,6 +60,10 @@ from engines.trajectory import Trajectory
 NAME = "command"
 #: Capabilities a command may declare (docs/protocol.md).
 KNOWN_CAPABILITIES = ("3d", "constraint-forces")
+#: The exit code by which a program says "I cannot express this scene" (its last stderr line says why): the
+#: case is ``skipped`` with that reason, as for a built-in engine's refusal. 77 is the "skip" of automake's
+#: test harness.
+UNSUPPORTED_EXIT_CODE = 77
 #: Bytes of stderr kept (the tail), for the last line in messages.
 STDERR_TAIL = 64 * 1024
 #: s between checks for exit once stdout is closed.
@@ -200,7 +206,7 @@ class CommandEngine(Engine):
         self.capabilities = spec.capabilities  # type: ignore[misc]
         self.variants = {spec.label: {}}  # type: ignore[misc]
         self.variant_docs = {spec.label: spec.display}  # type: ignore[misc]
-        self._timed_out = threading.local()
+        self._outcome = threading.local()  # (status, message) that Engine.simulate cannot express itself
 
     def version(self) -> str:
         return self.spec.version or "unversioned"
@@ -223,12 +229,14 @@ class CommandEngine(Engine):
 
     def simulate(self, scene: Scene, dt: float, *, variant: str | None = None,
                  options: Mapping[str, Any] | None = None, sample_interval: float | None = None) -> Trajectory:
-        """:meth:`Engine.simulate`, with a program killed at its deadline reported as ``timeout``."""
-        self._timed_out.message = None
+        """:meth:`Engine.simulate`, with a program killed at its deadline reported as ``timeout`` and one that
+        exits with :data:`UNSUPPORTED_EXIT_CODE` as ``skipped``."""
+        self._outcome.value = None
         trajectory = super().simulate(scene, dt, variant=variant, options=options, sample_interval=sample_interval)
-        message = getattr(self._timed_out, "message", None)
-        if message is not None:
-            trajectory = replace(trajectory, info=replace(trajectory.info, status="timeout", message=message))
+        outcome = getattr(self._outcome, "value", None)
+        if outcome is not None:
+            status, message = outcome
+            trajectory = replace(trajectory, info=replace(trajectory.info, status=status, message=message))
         elif trajectory.info.message.startswith(f"{CommandFailed.__name__}: "):  # the message names the command
             message = trajectory.info.message.removeprefix(f"{CommandFailed.__name__}: ")
             trajectory = replace(trajectory, info=replace(trajectory.info, message=message))
@@ -243,13 +251,17 @@ class CommandEngine(Engine):
         try:
             result = run_program(self.spec, payload, _deadline.get())
         except CommandTimeout as exc:
-            self._timed_out.message = str(exc)
+            self._outcome.value = ("timeout", str(exc))
             raise
         return self._parse(scene, schedule, result)
 
     def _parse(self, scene: Scene, schedule: Schedule, result: "ProgramResult") -> RawRun:
         where = f"{self.spec.engine_id}: stdout"
         label = self.spec.engine_id
+        if result.returncode == UNSUPPORTED_EXIT_CODE:
+            reason = result.last_stderr_line() or "it gave no reason on stderr"
+            self._outcome.value = ("skipped", f"{label} cannot express {scene.name!r}: {reason}")
+            raise CommandFailed(reason)
         if result.returncode != 0:
             raise CommandFailed(f"{label}: {self.spec.display} {result.exit_description()}{result.stderr_suffix()}")
         try:

@@ -31,6 +31,9 @@ if mode == "exit3":
 if mode == "exit-code":
     sys.stderr.write("warming up\nsomething went wrong: code 3\n")
     sys.exit(3)
+if mode == "unsupported":
+    sys.stderr.write("protocol_program: no rods, please\n")
+    sys.exit(77)
 if mode == "segfault":
     os.kill(os.getpid(), 11)
 if mode == "missing-column":

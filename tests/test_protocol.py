@@ -116,6 +116,12 @@ def test_a_program_that_dies_is_failed_with_its_exit_code_and_last_stderr_line(m
     assert trajectory.info.status == "failed" and message in trajectory.info.message
 
 
+def test_exit_77_is_skipped_with_the_last_stderr_line_as_the_reason():
+    trajectory = engine("unsupported").simulate(BEAD, 1e-2)
+    assert trajectory.info.status == "skipped" and trajectory.n_samples == 0
+    assert trajectory.info.message == "command/test-unsupported cannot express 'bead': protocol_program: no rods, please"
+
+
 def test_a_program_that_cannot_start_is_failed_naming_the_command(tmp_path):
     missing = command.command_engine("nosuch", ["solvers/nosuch", "--fast"], tmp_path).simulate(BEAD, 1e-2)
     assert missing.info.status == "failed"

@@ -105,6 +105,10 @@ def test_options_reach_the_program(cpp_build):
     assert failed.info.status == "failed"
     assert failed.info.message.endswith('exited with code 1; last stderr line: bead: options.method must be "rk4" '
                                         'or "euler"')
+    refused = euler.simulate(catalog.build("double-pendulum", {"duration": 0.1}), 1e-2)
+    assert refused.info.status == "skipped" and refused.info.message == (
+        "command/cpp-bead-euler cannot express 'double-pendulum': bead: expects one particle on one pin; scene "
+        "'double-pendulum' is not that")
 
 
 def test_a_suite_with_relative_command_paths_runs_from_another_directory(cpp_build, tmp_path):
@@ -148,9 +152,11 @@ capabilities = ["constraint-forces"]
         assert bead["status"] == "ok" and bead["engine_version"] == "1.0" and bead["position_error_linf"] < 1e-6
         assert pendulum["status"] == "ok" and pendulum["engine_version"] == "2.0"
         assert pendulum["position_error_linf"] < 1e-4 and pendulum["constraint_force_error"] < 1e-2
-        # A scene the program refuses is `failed` with its own last stderr line:
-        assert rows[("double-pendulum", "command/py-bead", dt)]["status"] == "failed"
-        assert "bead.py: expected one particle on one pin" in rows[("double-pendulum", "command/py-bead", dt)]["message"]
+        # A scene the program cannot express (exit 77) is skipped, its stderr line the reason:
+        refused = rows[("double-pendulum", "command/py-bead", dt)]
+        assert refused["status"] == "skipped" and refused["message"] == (
+            "command/py-bead cannot express 'double-pendulum': bead.py: expects one particle on one pin, not the "
+            "scene 'double-pendulum'")
 
 
 def test_simulate_command_writes_what_score_grades(cpp_build, tmp_path):
@@ -211,3 +217,16 @@ version = "{version}"
     (bumped,) = gate_results(before, after, settings, "before.json", timing="report").cases
     assert unchanged.verdict == "unchanged"
     assert bumped.verdict == "not comparable" and "1.0" in bumped.reason and "1.1" in bumped.reason
+
+
+def test_the_example_suite_names_the_built_programs_by_paths_relative_to_it(tmp_path, monkeypatch):
+    from compare.suite.reader import load_suite
+
+    monkeypatch.chdir(tmp_path)  # anywhere: paths resolve against the suite's folder
+    suite = load_suite(CPP / "suite.toml")
+    commands = {spec.label: spec.engine.spec for spec in suite.engines if spec.id.startswith("command/")}
+    assert set(commands) == {"command/cpp-bead", "command/cpp-bead-euler", "command/cpp-double-pendulum"}
+    assert commands["command/cpp-bead"].argv == (str(CPP / "build" / "bead"),)
+    assert commands["command/cpp-double-pendulum"].cwd == str(CPP)
+    euler = next(spec for spec in suite.engines if spec.label == "command/cpp-bead-euler")
+    assert dict(euler.options) == {"method": "euler"}

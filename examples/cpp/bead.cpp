@@ -25,7 +25,7 @@ struct Bead {
 
 void solve(const xval::Problem& problem, xval::Output& out) {
     if (problem.particles.size() != 1 || problem.constraints.size() != 1 || problem.constraints[0].kind != "pin")
-        throw xval::Error("bead expects one particle on one pin; scene '" + problem.scene_name + "' is not that");
+        throw xval::Unsupported("expects one particle on one pin; scene '" + problem.scene_name + "' is not that");
     const std::string method = problem.option("method", std::string("rk4"));
     if (method != "rk4" && method != "euler") throw xval::Error("options.method must be \"rk4\" or \"euler\"");
     const Bead bead{problem.particles[0].mass, problem.constraints[0].anchor, problem.gravity};

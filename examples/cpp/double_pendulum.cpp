@@ -53,11 +53,12 @@ struct DoublePendulum {
 };
 
 void solve(const xval::Problem& p, xval::Output& out) {
-    const char* expected = "double_pendulum expects two particles, a pin on one and a rod between them, gravity along -z";
-    if (p.particles.size() != 2 || p.constraints.size() != 2) throw xval::Error(expected);
+    const std::string expected = "expects two particles, a pin on one and a rod between them, gravity along -z; "
+                                 "scene '" + p.scene_name + "' is not that";
+    if (p.particles.size() != 2 || p.constraints.size() != 2) throw xval::Unsupported(expected);
     int pin = p.constraints[0].kind == "pin" ? 0 : 1, rod = 1 - pin;
     const xval::Constraint &P = p.constraints[pin], &R = p.constraints[rod];
-    if (P.kind != "pin" || R.kind != "rod" || p.gravity.x != 0 || p.gravity.y != 0) throw xval::Error(expected);
+    if (P.kind != "pin" || R.kind != "rod" || p.gravity.x != 0 || p.gravity.y != 0) throw xval::Unsupported(expected);
     std::size_t inner = static_cast<std::size_t>(P.particle), outer = 1 - inner;
     const DoublePendulum model{p.particles[inner].mass, p.particles[outer].mass, P.length, R.length, -p.gravity.z,
                                P.anchor};

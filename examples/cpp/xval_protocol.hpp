@@ -23,7 +23,8 @@
 // -z). A constraint's force is the force it exerts on its first particle
 // (Pin: `particle`; Rod: `a`), in N. An exception thrown inside run() is
 // printed as one stderr line and the program exits with code 1, which xval
-// reports as `failed` with that line.
+// reports as `failed` with that line; throw xval::Unsupported for a scene the
+// solver cannot express (exit code 77: xval reports the case `skipped`).
 #pragma once
 
 #include <chrono>
@@ -47,6 +48,14 @@ constexpr int PROTOCOL_VERSION = 1;
 struct Error : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
+
+// Thrown for a scene the solver cannot express: run() exits with UNSUPPORTED_EXIT_CODE and the message
+// on stderr, and xval records the case as `skipped` with that reason (never as a failure of the solver).
+struct Unsupported : Error {
+    using Error::Error;
+};
+
+constexpr int UNSUPPORTED_EXIT_CODE = 77;
 
 // ---------------------------------------------------------------------------------------------
 // Vectors
@@ -405,7 +414,8 @@ private:
     std::string text_;
 };
 
-// Read the document, call `solve(problem, output)`, write the output; any exception is one stderr line, exit 1.
+// Read the document, call `solve(problem, output)`, write the output. An exception is one stderr line and
+// exit code 1 (xval: `failed`), or UNSUPPORTED_EXIT_CODE for xval::Unsupported (xval: `skipped`).
 // forces: whether the rows carry constraint forces; version: written as `# version`.
 inline int run(const std::function<void(const Problem&, Output&)>& solve, bool forces = false,
                const std::string& version = "", const char* program = "solver") {
@@ -416,6 +426,9 @@ inline int run(const std::function<void(const Problem&, Output&)>& solve, bool f
         solve(problem, output);
         output.finish(std::cout);
         return 0;
+    } catch (const Unsupported& error) {
+        std::cerr << program << ": " << error.what() << std::endl;
+        return UNSUPPORTED_EXIT_CODE;
     } catch (const std::exception& error) {
         std::cerr << program << ": " << error.what() << std::endl;
         return 1;

@@ -5,7 +5,8 @@ import json, math, sys, time
 doc = json.load(sys.stdin)                               # {"protocol": 1, "scene": ..., "dt", "steps", "sample_steps", "options"}
 scene, dt = doc["scene"], doc["dt"]
 if len(scene["particles"]) != 1 or [c["kind"] for c in scene["constraints"]] != ["pin"]:
-    sys.exit(f"bead.py: expected one particle on one pin, got the scene {scene['name']!r}")
+    print(f"bead.py: expects one particle on one pin, not the scene {scene['name']!r}", file=sys.stderr)
+    sys.exit(77)                                         # 77: "cannot express this scene" -> skipped
 (pin,), (bead,) = scene["constraints"], scene["particles"]
 ax, _, az = pin["anchor"]
 r, (gx, _, gz) = pin["length"], scene["gravity"]
