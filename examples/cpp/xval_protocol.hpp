@@ -244,12 +244,15 @@ struct Particle {
 };
 
 struct Constraint {
-    std::string kind;  // "pin" or "rod"
-    int particle = -1; // pin: the particle
-    Vec3 anchor;       // pin: the fixed point, m
-    int a = -1, b = -1;// rod: the two particles
-    double length = 0; // m
-    int first() const { return kind == "pin" ? particle : a; }  // the particle its force is reported on
+    std::string kind;   // "pin", "rod", "line" or "ellipse"
+    int particle = -1;  // pin, line, ellipse: the particle
+    Vec3 anchor;        // pin: the fixed point, m
+    int a = -1, b = -1; // rod: the two particles
+    double length = 0;  // pin, rod: m
+    Vec3 point, direction;         // line: a point on it (m) and its direction (any nonzero length)
+    Vec3 centre;                   // ellipse: its centre, m (the wire lies in the x-z plane through it)
+    double semi_x = 0, semi_z = 0; // ellipse: semi-axes along x and z, m
+    int first() const { return kind == "rod" ? a : particle; }  // the particle its force is reported on
 };
 
 struct Problem {
@@ -305,15 +308,25 @@ inline Problem read_problem(std::istream& in = std::cin) {
         std::string where = "scene.constraints[" + std::to_string(k) + "]";
         Constraint out;
         out.kind = c["kind"].as_string(where + ".kind");
-        out.length = c["length"].as_number(where + ".length");
         if (out.kind == "pin") {
             out.particle = static_cast<int>(c["particle"].as_integer(where + ".particle"));
             out.anchor = c["anchor"].as_vec3(where + ".anchor");
+            out.length = c["length"].as_number(where + ".length");
         } else if (out.kind == "rod") {
             out.a = static_cast<int>(c["a"].as_integer(where + ".a"));
             out.b = static_cast<int>(c["b"].as_integer(where + ".b"));
-        } else {
-            throw Error(where + ": constraint kind '" + out.kind + "' is not one this helper knows");
+            out.length = c["length"].as_number(where + ".length");
+        } else if (out.kind == "line") {
+            out.particle = static_cast<int>(c["particle"].as_integer(where + ".particle"));
+            out.point = c["point"].as_vec3(where + ".point");
+            out.direction = c["direction"].as_vec3(where + ".direction");
+        } else if (out.kind == "ellipse") {
+            out.particle = static_cast<int>(c["particle"].as_integer(where + ".particle"));
+            out.centre = c["centre"].as_vec3(where + ".centre");
+            out.semi_x = c["semi_x"].as_number(where + ".semi_x");
+            out.semi_z = c["semi_z"].as_number(where + ".semi_z");
+        } else {  // a kind newer than this helper: the solver cannot express the scene
+            throw Unsupported(where + ": constraint kind '" + out.kind + "' is not one this helper knows");
         }
         p.constraints.push_back(out);
     }
