@@ -36,7 +36,6 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import json
-import math
 import os
 import selectors
 import shlex
@@ -46,9 +45,7 @@ import threading
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Sequence
-
-import numpy as np
+from typing import Any, Iterator, Mapping
 
 from engines import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE, Engine, RawRun, Schedule
