@@ -36,8 +36,10 @@ COLUMNS = (
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
               show_default=True, help="table: one line per file; json: a list of objects, one per file.")
 def command(scene_name, files, params, delta, output_format) -> None:
-    """Grade FILE.csv... (columns t, p{i}_x..z, v{i}_x..z[, f{k}_x..z]; any time step, any sample times)
-    against the reference solution of SCENE.
+    """Grade CSV files from any program against the reference solution of SCENE.
+
+    Each FILE has the columns t, p{i}_x..z, v{i}_x..z (optionally f{k}_x..z),
+    any time step and any sample times, the first row at t = 0.
 
     The metrics are named as in 'xval show --format json'. Exit code 0 when
     every file was graded, 2 for bad input (a column that does not fit the
