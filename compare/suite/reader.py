@@ -162,7 +162,8 @@ class Suite:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
         physics = {
             "scenes": [[s.id, s.scene.content_hash] for s in self.scenes],
-            "engines": [[e.id, e.label, dict(e.options)] for e in self.engines],
+            # An outside program is what it runs: its argv and declared version decide its results too.
+            "engines": [[e.id, e.label, dict(e.options), *_program_of(e)] for e in self.engines],
             "dts": list(self.dts),
             "sample_interval": self.sample_interval,
             "delta": self.delta,
@@ -172,6 +173,12 @@ class Suite:
         }
         text = json.dumps(physics, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _program_of(engine: EngineSpec) -> list[Any]:
+    """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
+    spec = getattr(engine.engine, "spec", None)
+    return [] if spec is None else [list(spec.argv), spec.version]
 
 
 # -- engine ids ------------------------------------------------------------------
