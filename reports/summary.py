@@ -1,11 +1,16 @@
-"""The per-scene summary table: one row per engine variant at the scene's chosen dt, best value per column marked.
+"""The per-scene summary tables: one per dt of the scene, one row per engine variant, best value per column marked.
 
-Values are compared only between variants whose case at the chosen dt is
+The columns are the declared metrics (:mod:`compare.results.declared`) a
+user compares cases on: every per-case metric that is shown or gated, then
+the per-variant observed order. A metric registered with ``shown=True``
+gets a column with no edit here.
+
+Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
 "best". The reference engine, when a suite runs it, is shown but not ranked.
-A column in which every ranked variant ties gets no mark at all. Ties (equal to the shown precision) are all marked. The observed
-order is a property of the whole sweep, so it is ranked over every variant
-that has one.
+A column in which every ranked variant ties gets no mark at all. Ties (equal
+to the shown precision) are all marked. The observed order is a property of
+the whole sweep, so it is ranked over every variant that has one.
 """
 
 from __future__ import annotations
@@ -14,9 +19,16 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from compare.results.declared import METRICS, Metric
+from compare.results.record import Status
 from compare.results.sweep import VariantSweep
 
 from reports.load import SceneResults, is_reference
+from reports.palette import Palette
+
+
+def _exponent(value: float) -> str:
+    return "0" if value == 0 else f"{value:.2e}"
 
 
 @dataclass(frozen=True)
@@ -33,34 +45,65 @@ class Column:
     better: str | None
     missing: str = "–"
     # One exponent format for the whole column, so magnitudes line up down the column (as in `xval show`).
-    fmt: Callable[[float], str] = lambda v: "0" if v == 0 else f"{v:.2e}"
+    fmt: Callable[[float], str] = _exponent
+    description: str = ""
 
 
-#: The metric columns, in order (status, dt and the order are added around them).
-METRIC_COLUMNS = (
-    Column("position_error_linf", "position error", "m", "low"),
-    # None means e(t) never passed δ·L: the best possible value, shown as "never".
-    Column("divergence_time", "divergence time", "s", "high", missing="never", fmt=lambda v: f"{v:.3g}"),
-    Column("energy_drift", "energy drift", "E*", "low"),
-    Column("constraint_error", "constraint error", "m", "low"),
-    Column("constraint_force_error", "constraint-force error", "N", "low", missing="not exposed"),
-    Column("cost_per_simulated_second", "cost", "s/s", "low"),
-)
-ORDER_COLUMN = Column("observed_order", "observed order", "", "high", missing="–", fmt=lambda v: f"{v:.2f}")
+#: Headings of the built-in metrics (the declaration's ``label`` is the terminal's short form).
+HEADINGS = {
+    "position_error_linf": "position error", "position_error_l2": "RMS position error",
+    "position_error_final": "final position error", "divergence_time": "divergence time",
+    "energy_drift": "energy drift", "constraint_error": "constraint error",
+    "constraint_force_error": "constraint-force error", "cost_per_simulated_second": "cost",
+    "observed_order": "observed order",
+}
+
+
+def column(metric: Metric) -> Column:
+    """The report column of a declared metric."""
+    if metric.none_means == "infinite":
+        missing = "never"
+    elif metric.name == "constraint_force_error":
+        missing = "not exposed"
+    else:
+        missing = "–"
+    if metric.per == "variant":
+        fmt: Callable[[float], str] = lambda v: f"{v:.2f}"  # noqa: E731
+    elif metric.unit == "s" and metric.better == "higher":
+        fmt = lambda v: f"{v:.3g}"  # noqa: E731
+    else:
+        fmt = _exponent
+    return Column(metric.name, HEADINGS.get(metric.name, metric.heading), metric.unit,
+                  "high" if metric.higher_is_better else "low", missing, fmt, metric.description)
+
+
+def metric_columns() -> tuple[Column, ...]:
+    """The per-case columns, in declaration order: per-case metrics that are shown or gated."""
+    return tuple(column(m) for m in METRICS.values() if m.per == "case" and (m.shown or m.gated))
+
+
+def order_column() -> Column:
+    return column(METRICS["observed_order"])
+
+
+#: The columns at import time (a metric registered later appears in the next table built).
+METRIC_COLUMNS = metric_columns()
+ORDER_COLUMN = order_column()
 
 
 @dataclass(frozen=True)
 class Cell:
-    """One table cell: the text shown, whether it is its column's best, and an optional tooltip."""
+    """One table cell: the text shown, whether it is its column's best, a tooltip, and the value to sort on."""
 
     text: str
     best: bool = False
     title: str = ""
+    sort: float | str = ""
 
 
 @dataclass(frozen=True)
 class Row:
-    """One engine variant: name, status at the chosen dt, statuses over the sweep, metric cells, order cell."""
+    """One engine variant: name, status at the table's dt, statuses over the sweep, consistency, metric cells, order."""
 
     engine: str
     status: str
@@ -68,6 +111,9 @@ class Row:
     sweep_statuses: str
     cells: list[Cell]
     order: Cell
+    colour: str = "#888"
+    consistent: bool | None = None
+    consistency: str = ""
 
 
 @dataclass(frozen=True)
@@ -87,7 +133,7 @@ def _rank_value(column: Column, value: Any) -> float | None:
     """A number to rank on (higher is better after the sign flip), or None when the value cannot rank."""
     if value is None:
         # A divergence time of None means "never diverged": better than any time.
-        return math.inf if column.key == "divergence_time" else None
+        return math.inf if column.missing == "never" else None
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         return None
     return float(value) if column.better == "high" else -float(value)
@@ -108,49 +154,70 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
     return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
 
 
-def summary_table(scene: SceneResults) -> SummaryTable:
-    """The summary table of ``scene`` at its chosen dt."""
-    dt = scene.chosen_dt
+def _sort_key(column: Column, value: Any) -> float | str:
+    """What a sortable table sorts the cell on: the number itself (never → +inf for divergence), else ""."""
+    if value is None:
+        return "Infinity" if column.missing == "never" else ""
+    if isinstance(value, (int, float)) and math.isfinite(value):
+        return float(value)
+    return ""
+
+
+def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette | None = None) -> SummaryTable:
+    """The summary table of ``scene`` at ``dt`` (s; default its chosen dt)."""
+    dt = scene.chosen_dt if dt is None else dt
+    palette = palette or Palette(s.engine for s in scene.sweeps)
+    columns = metric_columns()
+    order_col = order_column()
     cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
-    metrics = [(case or {}).get("metrics") or {} for case in cases]
+    metrics = [(case.metrics if case is not None else {}) for case in cases]
     # The reference is the yardstick, not a competitor: its zero error would always be "best".
-    ok = [case is not None and case["status"] == "ok" and not is_reference(sweep) for case, sweep in zip(cases, scene.sweeps)]
+    ok = [case is not None and case.status is Status.OK and not is_reference(sweep)
+          for case, sweep in zip(cases, scene.sweeps)]
     # Without a reference there is no position error, so a divergence time of
     # None would falsely read "never": such cells are unknown, not best.
     no_reference = [m.get("position_error_linf") is None for m in metrics]
     columns_cells: list[list[Cell]] = []
-    for column in METRIC_COLUMNS:
-        values = [m.get(column.key) for m in metrics]
-        unknown = [column.key == "divergence_time" and nr for nr in no_reference]
-        flags = _best_flags(column, values, [o and not u for o, u in zip(ok, unknown)])
+    for col in columns:
+        values = [m.get(col.key) for m in metrics]
+        unknown = [col.missing == "never" and nr for nr in no_reference]
+        flags = _best_flags(col, values, [o and not u for o, u in zip(ok, unknown)])
         cells = []
         for value, best, case, unknown_here in zip(values, flags, cases, unknown):
-            if case is None or not case.get("metrics") or not case["metrics"].get("n_samples"):
+            if case is None or not case.metrics or not case.metrics.get("n_samples"):
                 # A run with no samples (it raised at once) has drift and constraint error 0 by
                 # definition; printing those zeros would read as a perfect result.
                 cells.append(Cell("–", title="no samples at this dt"))
             elif unknown_here:
                 cells.append(Cell("–", title="no position error (no reference solution)"))
             else:
-                cells.append(Cell(column.missing if value is None else column.fmt(value), best))
+                cells.append(Cell(col.missing if value is None else col.fmt(value), best, sort=_sort_key(col, value)))
         columns_cells.append(cells)
     orders = [s.order.order if s.order is not None else None for s in scene.sweeps]
-    order_flags = _best_flags(ORDER_COLUMN, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
+    order_flags = _best_flags(order_col, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
     rows = []
     for k, (sweep, case) in enumerate(zip(scene.sweeps, cases)):
         fit = sweep.order
         if orders[k] is None:
             order = Cell("–", title=(fit.reason if fit is not None else ""))
         else:
-            order = Cell(ORDER_COLUMN.fmt(orders[k]), order_flags[k], f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)")
-        rows.append(
-            Row(
-                engine=sweep.engine,
-                status=case["status"] if case else "not run",
-                message=(case or {}).get("message", ""),
-                sweep_statuses=_sweep_statuses(sweep),
-                cells=[cells[k] for cells in columns_cells],
-                order=order,
-            )
-        )
-    return SummaryTable(METRIC_COLUMNS + (ORDER_COLUMN,), rows, dt)
+            order = Cell(order_col.fmt(orders[k]), order_flags[k],
+                         f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)", orders[k])
+        verdict = sweep.consistency
+        rows.append(Row(
+            engine=sweep.engine,
+            status=case.status.value if case is not None else "not run",
+            message=case.message if case is not None else "",
+            sweep_statuses=_sweep_statuses(sweep),
+            cells=[cells[k] for cells in columns_cells],
+            order=order,
+            colour=palette.colour(sweep.engine),
+            consistent=None if verdict is None else verdict.consistent,
+            consistency="" if verdict is None else verdict.reason,
+        ))
+    return SummaryTable(columns + (order_col,), rows, dt)
+
+
+def summary_tables(scene: SceneResults, palette: Palette | None = None) -> list[SummaryTable]:
+    """One summary table per dt of ``scene``, largest dt first (the dt selector switches between them)."""
+    return [summary_table(scene, dt, palette) for dt in scene.dts]
