@@ -19,6 +19,9 @@ from reports.palette import REFERENCE_COLOUR, Palette
 
 #: Most frames kept (the stored series hold about 100).
 MAX_FRAMES = 400
+#: Fewest frames kept, and most (frame, particle) pairs per run otherwise.
+MIN_FRAMES = 25
+MAX_POINTS_PER_RUN = 4000
 #: Wall-clock seconds one pass of the animation takes, whatever the simulated duration.
 PLAY_SECONDS = 8.0
 
@@ -50,7 +53,10 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
     if not chosen:
         return None
     longest = max((c[2].series["t"] for c in chosen), key=len)
-    step = max(1, math.ceil(len(longest) / MAX_FRAMES))
+    # Frames × particles per run is bounded, so a 128-link chain plays with fewer frames, not a bigger file.
+    n_particles = max(1, len(scene.scene.get("particles", [])))
+    frames = max(MIN_FRAMES, min(MAX_FRAMES, MAX_POINTS_PER_RUN // n_particles))
+    step = max(1, math.ceil(len(longest) / frames))
     keep = list(range(0, len(longest), step))
     box = CLIP_FACTOR * scene.length
     runs = []

@@ -325,6 +325,8 @@ def _norms(forces: Sequence[Any], constraint: int) -> list[Any]:
     return out
 
 
+#: Most particles whose paths are all drawn; a longer chain shows its first particle and its tip.
+MAX_PATH_PARTICLES = 4
 #: Most constraints given a panel of their own in the constraint-force plot.
 MAX_FORCE_PANELS = 3
 
@@ -506,23 +508,25 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
     if not chosen:
         return None
     n_particles = len(scene.scene.get("particles", [])) or len(chosen[0][2].series["positions"][0])
+    # A chain's every link would be hundreds of traces: its first particle and its tip tell the story.
+    drawn = list(range(n_particles)) if n_particles <= MAX_PATH_PARTICLES else [0, n_particles - 1]
     box = CLIP_FACTOR * scene.length
     traces = []
     reference, source = _reference_positions(scene)
     if reference:
-        for particle in range(n_particles):
+        for particle in drawn:
             xs, zs = _particle_xz(reference, particle)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                "showlegend": particle == 0, "x": _rounded(xs), "y": _rounded(zs), "line": REFERENCE_STYLE,
+                "showlegend": particle == drawn[0], "x": _rounded(xs), "y": _rounded(zs), "line": REFERENCE_STYLE,
                 "hoverinfo": "skip",
             })
     for index, sweep, record in chosen:
-        for particle in range(n_particles):
+        for particle in drawn:
             xs, zs = _clip_path(*_particle_xz(record.series["positions"], particle), box)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": particle == 0,
+                "legendgroup": f"v{index}", "showlegend": particle == drawn[0],
                 "x": _rounded(xs), "y": _rounded(zs), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "hovertemplate": f"%{{fullData.name}}<br>particle {particle}<br>x = %{{x:.3g}} m<br>z = %{{y:.3g}} m<extra></extra>",
             })
@@ -537,7 +541,8 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
         ),
     }
     under = f"the wide grey line is {source}" if reference else "no reference path is stored in these results"
-    caption = (f"Every particle of every variant at dt = {scene.chosen_dt:.3g} s in the x–z plane; {under}. "
+    which = "Every particle" if len(drawn) == n_particles else f"The first and the last of the {n_particles} particles"
+    caption = (f"{which} of every variant at dt = {scene.chosen_dt:.3g} s in the x–z plane; {under}. "
                f"A path is cut where it leaves ±{box:.3g} m (a blow-up). Click a legend entry to hide a variant.")
     return Plot("path", "Particle paths (x–z plane)", caption, figure)
 

@@ -98,7 +98,7 @@ class Cell:
     text: str
     best: bool = False
     title: str = ""
-    sort: float | str = ""
+    sort: str = ""
 
 
 @dataclass(frozen=True)
@@ -154,12 +154,11 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
     return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
 
 
-def _sort_key(column: Column, value: Any) -> float | str:
-    """What a sortable table sorts the cell on: the number itself (never → +inf for divergence), else ""."""
-    if value is None:
-        return "Infinity" if column.missing == "never" else ""
-    if isinstance(value, (int, float)) and math.isfinite(value):
-        return float(value)
+def _sort_key(column: Column, value: Any) -> str:
+    """What a sortable table sorts the cell on when its text will not do ("Infinity" for never), else ""
+    (the page then sorts on the text, which for a number is the number: "1.2e-04")."""
+    if value is None and column.missing == "never":
+        return "Infinity"
     return ""
 
 
@@ -202,7 +201,7 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
             order = Cell("–", title=(fit.reason if fit is not None else ""))
         else:
             order = Cell(order_col.fmt(orders[k]), order_flags[k],
-                         f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)", orders[k])
+                         f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)")
         verdict = sweep.consistency
         rows.append(Row(
             engine=sweep.engine,

@@ -185,7 +185,8 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                     cells.append(HeatCell("none", "", f"{sweep.engine} did not run at dt {dt:g} s", ""))
                     continue
                 status = record.status.value
-                title = f"{sweep.engine} at dt {dt:g} s: {status}" + (f" ({record.message})" if record.message else "")
+                # The message is one click away (the case's row); repeating it here would double the page.
+                title = f"{sweep.engine} at dt {dt:g} s: {status}"
                 cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), title, "#" + row_id(number, k, j)))
             heat.append(HeatRow(sweep.engine, family(sweep.engine), palette.colour(sweep.engine), cells))
         items = [ProblemItem(p.kind, p.engine, p.text, _evidence(p, number, scene, variants)) for p in verdict.problems]

@@ -170,14 +170,15 @@ class Page:
         self.browser.call("Emulation.setDeviceMetricsOverride",
                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}, self.session)
 
-    def screenshot(self, path: Path, height_limit: int = 12000) -> None:
+    def screenshot(self, path: Path, height_limit: int = 12000, top: float = 0) -> None:
+        """A PNG of the page from ``top`` px down (at most ``height_limit`` px)."""
         import base64
 
         height = self.evaluate("document.documentElement.scrollHeight")
         width = self.evaluate("document.documentElement.clientWidth")
         shot = self.browser.call("Page.captureScreenshot", {
             "format": "png", "captureBeyondViewport": True,
-            "clip": {"x": 0, "y": 0, "width": width, "height": min(height, height_limit), "scale": 1},
+            "clip": {"x": 0, "y": top, "width": width, "height": min(height - top, height_limit), "scale": 1},
         }, self.session)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_bytes(base64.b64decode(shot["data"]))
