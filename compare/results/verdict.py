@@ -219,7 +219,7 @@ class Comparison:
             side.append(f"{reach.engine} {reach.describe()}")
         text = f"to reach {goal}: " + "; ".join(side)
         if self.error_ratio is not None:
-            text += f"; at equal cost the best other engine's error is {self.error_ratio:.3g}× the best {self.focus_family}'s"
+            text += f"; at equal cost the best other engine's error is {self.error_ratio:.3g}× the best {self.focus_family} variant's"
         return text
 
 
@@ -264,7 +264,7 @@ class Problem:
 
 
 def _dts(values: Iterable[float]) -> str:
-    return ", ".join(f"{dt:g}" for dt in values)
+    return ", ".join(f"{dt:.3g}" for dt in values)
 
 
 def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
@@ -287,7 +287,7 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
             text = f"{kind} at dt {_dts(dts)} s"
             if kind == "unstable" and largest is not None and dts[0] == largest:
                 stable = [r.case.dt for r in sweep.ok_records]
-                text += " (the largest dt of the suite" + (f"; ok from dt {max(stable):g} s)" if stable else "; never ok)")
+                text += " (the largest dt of the suite" + (f"; ok from dt {max(stable):.3g} s)" if stable else "; never ok)")
             message = next((r.message for r in hit if r.message), "")
             if message:
                 text += f": {message}"
@@ -343,6 +343,10 @@ def scene_verdicts(sweeps: Sequence[VariantSweep], focus: str | None = None,
     return verdicts
 
 
+#: Longest problem text printed in the terminal (the report and the case files have the whole message).
+LINE = 140
+
+
 def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = False) -> str:
     """The closing summary of ``xval run`` as text, one block per scene (``problems_only``: skip the rankings)."""
     lines: list[str] = []
@@ -358,7 +362,7 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
                         lines.append(f"    {best.family}: none within the budget ({cheapest})")
                     else:
                         p = best.point
-                        lines.append(f"    {p.engine:<{width}}  dt {p.dt:<8g} error {p.error:.2e} m  cost {p.cost:.2e} s/s")
+                        lines.append(f"    {p.engine:<{width}}  dt {p.dt:<9.3g} error {p.error:.2e} m  cost {p.cost:.2e} s/s")
             else:
                 lines.append("  no ok run with an error and a cost")
             if verdict.comparison is not None:
@@ -366,7 +370,8 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
         if verdict.problems:
             lines.append(f"  problems ({len(verdict.problems)}):")
             for problem in verdict.problems:
-                lines.append(f"    {problem.kind:<12} {problem.engine}: {problem.text}")
+                text = problem.text if len(problem.text) <= LINE else problem.text[:LINE - 1] + "…"
+                lines.append(f"    {problem.kind:<12} {problem.engine}: {text}")
         elif not problems_only:
             lines.append("  problems: none")
     return "\n".join(lines) + ("\n" if lines else "")
