@@ -63,7 +63,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
         return top + (y1 - math.log10(y)) / (y1 - y0) * plot_h
 
     parts = [f'<svg class="loglog" id="{_escape(element_id)}" viewBox="0 0 {width} {height}" '
-             f'preserveAspectRatio="xMidYMid meet" role="img" xmlns="http://www.w3.org/2000/svg" '
+             f'preserveAspectRatio="xMidYMid meet" role="img" '
              f'font-family="system-ui, sans-serif" font-size="12">',
              f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fbfbfb" stroke="#ccc"/>']
     y_step = max(1, math.ceil((y1 - y0) / 10))
