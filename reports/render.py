@@ -23,7 +23,6 @@ import gzip
 import math
 import re
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +34,8 @@ from compare.results.verdict import families
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text, check_writable
-from compare.results.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS, Bounds
+from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
+from compare.suite.reader import RunSettings, load_run_settings
 
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
@@ -93,28 +93,14 @@ def environment() -> jinja2.Environment:
 
 
 def suite_settings(directory: Path) -> dict[str, Any]:
-    """δ and the status bounds the run used, read from the stored suite.toml (defaults when it is unreadable).
-
-    Only these numbers are needed, for the "how to read this" section, so the
-    suite is not rebuilt (that would load every engine).
-    """
-    settings = {"delta": DEFAULT_DELTA, "energy_bound": Bounds.energy_drift, "constraint_bound": Bounds.constraint_error,
-                "verdict_tolerance": DEFAULT_DELTA}
+    """δ, the status bounds and the verdict tolerance the run used, from the stored suite.toml (read without
+    loading engines; the defaults when it is unreadable)."""
     try:
-        data = tomllib.loads((directory / "suite.toml").read_text())
-    except (OSError, tomllib.TOMLDecodeError):
-        return settings
-    bounds = data.get("bounds") if isinstance(data.get("bounds"), dict) else {}
-    verdict = data.get("verdict") if isinstance(data.get("verdict"), dict) else {}
-    # The verdict tolerance defaults to the suite's delta (compare/suite/reader.py).
-    if isinstance(data.get("delta"), (int, float)) and not isinstance(data.get("delta"), bool):
-        settings["verdict_tolerance"] = data["delta"]
-    for key, value in (("delta", data.get("delta")), ("energy_bound", bounds.get("energy_drift")),
-                       ("constraint_bound", bounds.get("constraint_error")),
-                       ("verdict_tolerance", verdict.get("tolerance"))):
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
-            settings[key] = value
-    return settings
+        settings = load_run_settings(directory / "suite.toml")
+    except UserError:
+        settings = RunSettings()
+    return {"delta": settings.delta, "energy_bound": settings.bounds.energy_drift,
+            "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
 
 def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:

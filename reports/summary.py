@@ -1,9 +1,8 @@
 """The per-scene summary tables: one per dt of the scene, one row per engine variant, best value per column marked.
 
-The columns are the declared metrics (:mod:`compare.results.declared`) a
-user compares cases on: every per-case metric that is shown or gated, then
-the per-variant observed order. A metric registered with ``shown=True``
-gets a column with no edit here.
+The columns are the declared metrics (:mod:`compare.results.declared`)
+with ``report = True``, then the per-variant observed order: a metric
+declared for the report gets a column with no edit here.
 
 Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
@@ -19,7 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from compare.results.declared import METRICS, Metric
+from compare.results import declared
 from compare.results.record import Status
 from compare.results.sweep import VariantSweep
 
@@ -49,41 +48,23 @@ class Column:
     description: str = ""
 
 
-#: Headings of the built-in metrics (the declaration's ``label`` is the terminal's short form).
-HEADINGS = {
-    "position_error_linf": "position error", "position_error_l2": "RMS position error",
-    "position_error_final": "final position error", "divergence_time": "divergence time",
-    "energy_drift": "energy drift", "constraint_error": "constraint error",
-    "constraint_force_error": "constraint-force error", "cost_per_simulated_second": "cost",
-    "observed_order": "observed order",
-}
-
-
-def column(metric: Metric) -> Column:
-    """The report column of a declared metric."""
-    if metric.none_means == "infinite":
-        missing = "never"
-    elif metric.name == "constraint_force_error":
-        missing = "not exposed"
-    else:
-        missing = "–"
-    if metric.per == "variant":
-        fmt: Callable[[float], str] = lambda v: f"{v:.2f}"  # noqa: E731
-    elif metric.unit == "s" and metric.better == "higher":
-        fmt = lambda v: f"{v:.3g}"  # noqa: E731
-    else:
-        fmt = _exponent
-    return Column(metric.name, HEADINGS.get(metric.name, metric.heading), metric.unit,
-                  "high" if metric.higher_is_better else "low", missing, fmt, metric.description)
-
-
 def metric_columns() -> tuple[Column, ...]:
-    """The per-case columns, in declaration order: per-case metrics that are shown or gated."""
-    return tuple(column(m) for m in METRICS.values() if m.per == "case" and (m.shown or m.gated))
+    """The metric columns, in order, from the declarations (compare.results.declared: ``report = True``);
+    status, consistency and the order are added around them."""
+    columns = []
+    for metric in declared.reported():
+        better = "high" if metric.higher_is_better else "low"
+        # A time in seconds reads better without an exponent (divergence time: "never" when null).
+        fmt = (lambda v: f"{v:.3g}") if metric.unit == "s" else _exponent
+        columns.append(Column(metric.name, metric.title or metric.name, metric.unit, better, metric.missing, fmt,
+                              metric.description))
+    return tuple(columns)
 
 
 def order_column() -> Column:
-    return column(METRICS["observed_order"])
+    metric = declared.METRICS["observed_order"]
+    return Column(metric.name, metric.title or "observed order", metric.unit, "high", "–", lambda v: f"{v:.2f}",
+                  metric.description)
 
 
 #: The columns at import time (a metric registered later appears in the next table built).
@@ -133,7 +114,8 @@ def _rank_value(column: Column, value: Any) -> float | None:
     """A number to rank on (higher is better after the sign flip), or None when the value cannot rank."""
     if value is None:
         # A divergence time of None means "never diverged": better than any time.
-        return math.inf if column.missing == "never" else None
+        metric = declared.METRICS.get(column.key)
+        return math.inf if metric is not None and metric.none_means == "infinite" else None
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         return None
     return float(value) if column.better == "high" else -float(value)
@@ -157,7 +139,8 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
 def _sort_key(column: Column, value: Any) -> str:
     """What a sortable table sorts the cell on when its text will not do ("Infinity" for never), else ""
     (the page then sorts on the text, which for a number is the number: "1.2e-04")."""
-    if value is None and column.missing == "never":
+    metric = declared.METRICS.get(column.key)
+    if value is None and metric is not None and metric.none_means == "infinite":
         return "Infinity"
     return ""
 
@@ -179,7 +162,8 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
     columns_cells: list[list[Cell]] = []
     for col in columns:
         values = [m.get(col.key) for m in metrics]
-        unknown = [col.missing == "never" and nr for nr in no_reference]
+        infinite = getattr(declared.METRICS.get(col.key), "none_means", "") == "infinite"
+        unknown = [infinite and nr for nr in no_reference]
         flags = _best_flags(col, values, [o and not u for o, u in zip(ok, unknown)])
         cells = []
         for value, best, case, unknown_here in zip(values, flags, cases, unknown):
