@@ -42,16 +42,16 @@ GOLDEN = {
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
         "tables": ["summary sortable filterable"],
         # work-precision and error-vs-dt: the 3 variants with ok cases; time series: 4 variants with samples
-        # x 3 panels; phase plot and paths: the reference + 4 variants, 1 particle. No constraint-force plot:
-        # these records store no force series.
-        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 12), ("s0-phase", 5), ("s0-path", 5)],
+        # x 3 panels; constraint forces: the reference's + the 3 variants whose engines report them (the
+        # broken engine returns none); phase plot and paths: the reference + 4 variants, 1 particle.
+        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 12), ("s0-force", 4), ("s0-phase", 5), ("s0-path", 5)],
     },
     "scene-1": {
         "heading": "Scene spherical",
         "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"),
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
         "tables": ["summary sortable filterable", "skipped"],
-        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 9), ("s1-phase", 4), ("s1-path", 4)],
+        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 9), ("s1-force", 3), ("s1-phase", 4), ("s1-path", 4)],
     },
 }
 
@@ -149,7 +149,7 @@ def test_how_to_read_states_every_metric_and_its_unit(small_results):
 
 def test_status_element_announces_plots_and_traces(small_page):
     plots = small_page.plots
-    assert small_page.status["data-plots"] == str(len(plots)) == "10"
+    assert small_page.status["data-plots"] == str(len(plots)) == "12"
     assert small_page.status["data-traces"] == str(sum(n for _, n in plots))
 
 
@@ -213,8 +213,8 @@ def test_a_single_case_renders(small_results, tmp_path):
     assert [s.id for s in page.sections] == ["top", "verdict", "run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
     # One point: nothing to fit an order to, but every plot still draws its one variant;
-    # the phase and paths plots add the reference's, stored in the record beside the engine's.
-    assert [n for _, n in page.plots] == [1, 1, 3, 2, 2]
+    # the force, phase and paths plots add the reference's, stored in the record beside the engine's.
+    assert [n for _, n in page.plots] == [1, 1, 3, 2, 2, 2]
 
 
 def test_only_failures_and_skips_render(small_results, tmp_path):
