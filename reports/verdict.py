@@ -23,7 +23,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compare.results.record import Status
 from compare.results.verdict import Problem, Reach, SceneVerdict, default_focus, family, points, scene_verdicts
 
 from markupsafe import Markup
@@ -208,7 +207,3 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                                       pareto_plot(scene, number, verdict, palette), reaches, scene.dts, heat, items))
     return views
 
-
-def ok_everywhere(view: SceneVerdictView) -> bool:
-    """Whether every case of the scene's heat map is ok (the template says so instead of listing nothing)."""
-    return all(cell.status in (Status.OK.value, "none") for row in view.heat for cell in row.cells)
