@@ -23,7 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compare.results.verdict import Problem, Reach, SceneVerdict, default_focus, family, points, scene_verdicts
+from compare.results.verdict import (
+    Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
+)
 
 from markupsafe import Markup
 
@@ -199,8 +201,10 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                    for r in verdict.reaches]
         if verdict.comparison is not None:
             sentence = verdict.comparison.describe()
-        elif focus is None:
+        elif focus is None or not families(scene.sweeps):
             sentence = "no engine variant competed on this scene"
+        elif focus not in families(scene.sweeps):
+            sentence = f"no {focus} variant ran on this scene"
         else:
             sentence = f"only one engine family ran on this scene; nothing to compare {focus} with"
         views.append(SceneVerdictView(number, scene.scene_id, verdict, sentence,
