@@ -337,3 +337,37 @@ def test_write_report_reports_size_and_time(small_results, tmp_path):
     assert written.size == (tmp_path / "r.html").stat().st_size
     assert 1_900_000 < written.size < 3_000_000  # the packed plotly.js bundle (~2 MB) and a little data
     assert written.seconds < 10
+
+
+# -- the verdict section --------------------------------------------------------------------------
+
+
+def _answers(html: str) -> list[str]:
+    return [re.sub(r"\s+", " ", m) for m in re.findall(r'<p class="answer">(.*?)</p>', html, re.S)]
+
+
+def test_the_verdict_compares_the_suites_first_family_unless_told_otherwise(small_results):
+    data = load_report_data(small_results)
+    # The reference is the yardstick, so the first competing family is mujoco; pymunk's first-order pin
+    # never reaches 1e-6 L = 1e-6 m in this short sweep, so the sentence gives both sides.
+    first = _answers(render(data))
+    assert first[0].startswith("to reach 1e-06 m: mujoco/hinge-rk4 ≤ ") and "pymunk/pin not reached" in first[0]
+    assert _answers(render(data, "pymunk"))[0].startswith("to reach 1e-06 m: pymunk/pin not reached; mujoco/hinge-rk4 ≤ ")
+    # The spherical scene has no pymunk variant (2-D engine): the verdict says so instead of comparing.
+    assert _answers(render(data, "pymunk"))[1] == "no pymunk variant ran on this scene."
+
+
+def test_the_verdict_lists_problems_with_links_to_their_evidence(small_page, small_results):
+    html = render(load_report_data(small_results))
+    items = re.findall(r'<li data-engine="([^"]+)" data-status="([^"]+)">.*?<a href="(#[^"]+)">evidence</a></li>', html)
+    assert items[:2] == [("broken/raise", "failed", "#s0-d0-v4"), ("broken/blow-up", "unstable", "#s0-d0-v3")]
+    # The links point at rows of the scene's tables (the largest dt's is packed; its rows carry those ids).
+    rows = [row[0] for row in small_page.other_dt_tables(0)[0].rows]
+    assert rows[4] == "broken/blow-up" and rows[5] == "broken/raise"
+    assert 'id="s0-d0-v3"' in small_page.packs()["tables-0-packed"]
+
+
+def test_an_unknown_focus_family_is_one_line_and_exit_2(small_results, tmp_path, capsys):
+    code, out, err = run_cli(capsys, "report", str(small_results), "--output", str(tmp_path / "r.html"), "--focus", "nope")
+    assert code == 2 and out == ""
+    assert err == "xval: error: --focus: no engine family 'nope' in these results; choose one of: mujoco, pymunk, broken\n"
