@@ -197,3 +197,26 @@ def test_quiet_and_verbose_together_is_bad_input(tiny_suite, tmp_path, capsys):
     assert err == "xval: error: --quiet and --verbose: choose one (--quiet prints only the verdict, --verbose a line per case)\n"
     assert not (tmp_path / "o").exists()
 
+
+
+def test_equal_cost_falls_back_to_where_every_family_has_a_run():
+    # Family a only ran cheap, family b only dear: the ranges do not overlap, so the budget is b's cheapest
+    # run, and a competes with its best run.
+    runs = sweeps([
+        record("a/x", 0.1, 1e-2, 1e-5, index=0), record("a/x", 0.01, 1e-4, 1e-4, index=0),
+        record("b/y", 0.1, 1e-3, 1e-2, index=1), record("b/y", 0.01, 1e-6, 1e-1, index=1),
+    ])
+    budget, best = best_at_equal_cost(runs)
+    assert budget == 1e-2
+    assert [(b.family, b.point.dt) for b in best] == [("a", 0.01), ("b", 0.1)]
+
+
+def test_a_side_that_never_reaches_the_target_is_represented_by_its_closest_variant():
+    runs = sweeps([
+        record("a/failing", 0.1, None, None, status="failed", index=0),
+        record("a/close", 0.1, 1e-3, 1e-3, index=1), record("a/close", 0.01, 1e-5, 1e-2, index=1),
+        record("b/y", 0.1, 1e-2, 1e-3, index=2), record("b/y", 0.01, 1e-3, 1e-2, index=2),
+    ])
+    comparison = focus_comparison(runs, "a", 1e-6)
+    assert comparison.ratio is None and comparison.focus.engine == "a/close"
+    assert comparison.describe().startswith("to reach 1e-06 m: a/close not reached (best 1e-05 m); b/y not reached (best 0.001 m)")

@@ -18,9 +18,11 @@ Quantities (per scene; L = the scene's characteristic length, m):
   log cost against log error between the last point above the target and the
   first at or below it; "at most" when its cheapest point is already below,
   None ("not reached") when no point is;
-- *equal cost*: the budget is the largest cost every engine family spent on
-  some run (the smallest, over families, of each family's most expensive
-  run); per family, the most accurate run within that budget;
+- *equal cost*: the budget is the top of the cost range every engine family
+  covered (the smallest, over families, of each family's dearest run); when
+  the families' ranges do not overlap, the smallest budget at which every
+  family has a run (the largest, over families, of each family's cheapest
+  run). Per family, its most accurate run within that budget;
 - *problems*: a variant that is inconsistent (converges to something other
   than the reference, compare.results.consistency), unstable (the dts at
   which it was, the suite's largest first), failed or timed out.
@@ -121,7 +123,7 @@ class Reach:
 
     cost : s/s, or None when not reached. how : "interpolated" (between ``dts``, the
     bracketing time steps, s), "at most" (its cheapest ok run, at ``dts[0]``, is already
-    below), "not reached" or "no ok run".
+    below), "not reached" or "no ok run". best_error : m, its lowest error over its ok runs.
     """
 
     engine: str
@@ -129,6 +131,7 @@ class Reach:
     cost: float | None
     how: str
     dts: tuple[float, ...] = ()
+    best_error: float | None = None  # m, the lowest error of any of its ok runs
 
     @property
     def reached(self) -> bool:
@@ -136,7 +139,7 @@ class Reach:
 
     def describe(self) -> str:
         if self.cost is None:
-            return self.how
+            return self.how if self.best_error is None else f"{self.how} (best {self.best_error:.2g} m)"
         if self.how == "at most":
             return f"≤ {self.cost:.2g} s/s (already at dt {self.dts[0]:g} s)"
         return f"{self.cost:.2g} s/s (between dt {self.dts[0]:g} and {self.dts[1]:g} s)"
@@ -147,15 +150,16 @@ def cost_to_reach(sweep: VariantSweep, target: float) -> Reach:
     curve = points(sweep)
     if not curve:
         return Reach(sweep.engine, target, None, "no ok run")
+    best = min(p.error for p in curve)
     cheapest = min(curve, key=lambda p: p.cost)
     if cheapest.error <= target:
-        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,))
+        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,), best)
     for coarse, fine in zip(curve, curve[1:]):  # dt order: coarse first
         if coarse.error > target >= fine.error:
             fraction = math.log(coarse.error / target) / math.log(coarse.error / fine.error)
             cost = math.exp(math.log(coarse.cost) + fraction * (math.log(fine.cost) - math.log(coarse.cost)))
-            return Reach(sweep.engine, target, cost, "interpolated", (coarse.dt, fine.dt))
-    return Reach(sweep.engine, target, None, "not reached")
+            return Reach(sweep.engine, target, cost, "interpolated", (coarse.dt, fine.dt), best)
+    return Reach(sweep.engine, target, None, "not reached", best_error=best)
 
 
 @dataclass(frozen=True)
@@ -168,14 +172,19 @@ class Best:
 
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
-    """(budget s/s, per family in suite order its most accurate run costing ≤ budget); see the module docstring."""
+    """(budget s/s, per family in suite order its most accurate run costing ≤ budget); see the module docstring.
+
+    A family with no ok run gets ``Best(family, None)``.
+    """
     by_family: dict[str, list[Point]] = {name: [] for name in families(sweeps)}
     for sweep in competitors(sweeps):
         by_family[family(sweep.engine)].extend(points(sweep))
-    spent = [max(p.cost for p in ps) for ps in by_family.values() if ps]
-    if not spent:
+    ranges = [(min(p.cost for p in ps), max(p.cost for p in ps)) for ps in by_family.values() if ps]
+    if not ranges:
         return None, [Best(name, None) for name in by_family]
-    budget = min(spent)
+    common_top = min(high for _, high in ranges)
+    every_family = max(low for low, _ in ranges)
+    budget = common_top if every_family <= common_top else every_family
     result = []
     for name, ps in by_family.items():
         within = [p for p in ps if p.cost <= budget]
@@ -224,12 +233,14 @@ class Comparison:
 
 
 def _cheapest(reaches: list[Reach]) -> Reach | None:
+    """The cheapest Reach that reached; if none did, the one that came closest (lowest error); None for []."""
     if not reaches:
         return None
     reached = [r for r in reaches if r.cost is not None]
     if reached:
         return min(reached, key=lambda r: r.cost)  # type: ignore[arg-type,return-value]
-    return reaches[0]
+    tried = [r for r in reaches if r.best_error is not None]
+    return min(tried, key=lambda r: r.best_error) if tried else reaches[0]  # type: ignore[arg-type,return-value]
 
 
 def focus_comparison(sweeps: Sequence[VariantSweep], focus: str, target: float) -> Comparison:
