@@ -44,9 +44,10 @@ def row_id(scene: int, variant: int, dt: int) -> str:
 
 @dataclass(frozen=True)
 class HeatCell:
+    """One case in the heat map: its status, the mark shown, and the link to its row ("" when it did not run)."""
+
     status: str
     mark: str
-    title: str
     href: str
 
 
@@ -183,12 +184,11 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
             for j, dt in enumerate(scene.dts):
                 record = by_dt.get(dt)
                 if record is None:
-                    cells.append(HeatCell("none", "", f"{sweep.engine} did not run at dt {dt:g} s", ""))
+                    cells.append(HeatCell("none", "", ""))
                     continue
                 status = record.status.value
-                # The message is one click away (the case's row); repeating it here would double the page.
-                title = f"{sweep.engine} at dt {dt:g} s: {status}"
-                cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), title, "#" + row_id(number, k, j)))
+                # No tooltip: the message is one click away (the case's row), and 1,000 of them doubled the section.
+                cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), "#" + row_id(number, k, j)))
             heat.append(HeatRow(sweep.engine, family(sweep.engine), palette.colour(sweep.engine), cells))
         items = [ProblemItem(p.kind, p.engine, p.text, _evidence(p, number, scene, variants)) for p in verdict.problems]
         for probe in probes:
