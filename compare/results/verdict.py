@@ -227,8 +227,10 @@ class Comparison:
         for reach in (self.focus, self.other):
             side.append(f"{reach.engine} {reach.describe()}")
         text = f"to reach {goal}: " + "; ".join(side)
-        if self.error_ratio is not None:
-            text += f"; at equal cost the best other engine's error is {self.error_ratio:.3g}× the best {self.focus_family} variant's"
+        if self.error_ratio is not None and self.error_ratio >= 1:
+            text += f"; at equal cost the best {self.focus_family} variant is {self.error_ratio:.3g}× more accurate"
+        elif self.error_ratio is not None:
+            text += f"; at equal cost the best other engine is {1 / self.error_ratio:.3g}× more accurate"
         return text
 
 
