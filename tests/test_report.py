@@ -371,3 +371,16 @@ def test_an_unknown_focus_family_is_one_line_and_exit_2(small_results, tmp_path,
     code, out, err = run_cli(capsys, "report", str(small_results), "--output", str(tmp_path / "r.html"), "--focus", "nope")
     assert code == 2 and out == ""
     assert err == "xval: error: --focus: no engine family 'nope' in these results; choose one of: mujoco, pymunk, broken\n"
+
+
+def test_a_stored_probe_result_lists_hidden_dissipation(small_results, tmp_path):
+    """``xval probe ENGINE --format json > DIR/probe-NAME.json``: a variant found damping shows as a problem."""
+    results = copy_results(small_results, tmp_path / "probed")
+    (results / "probe-pymunk.json").write_text(json.dumps(
+        {"engine": "pymunk/pin", "scene": "bead", "rate": 0.0123, "uncertainty": 0.001, "hidden_dissipation": True}))
+    (results / "probe-mujoco.json").write_text(json.dumps(
+        {"engine": "mujoco/hinge-rk4", "scene": "bead", "rate": 1e-9, "uncertainty": 1e-9, "hidden_dissipation": False}))
+    html = render(load_report_data(results))
+    items = re.findall(r'<li data-engine="([^"]+)" data-status="hidden dissipation">(.*?)</li>', html, re.S)
+    assert [engine for engine, _ in items] == ["pymunk/pin"]  # bead only: pymunk does not run the 3-D scene
+    assert "(0.012 E*/s)" in items[0][1]
