@@ -259,13 +259,29 @@ def clip(t: Sequence[float], values: Sequence[Any], ceiling: float) -> tuple[lis
     return out, blew
 
 
-def _blowup_marker(t: float, ceiling: float, colour: str, axis: tuple[str, str], engine: str) -> dict[str, Any]:
+def last_finite(t: Sequence[float], values: Sequence[Any], duration: float) -> tuple[float, float] | None:
+    """(t, value) of the last finite sample of a series that ends before ``duration`` (s) or turns
+    non-finite; None when it runs to the end."""
+    finite = [k for k, v in enumerate(values) if isinstance(v, (int, float)) and math.isfinite(v)]
+    if not finite:
+        return None
+    k = finite[-1]
+    ends_early = t[min(len(t), len(values)) - 1] < duration * (1 - 1e-9) - 1e-12
+    if k == len(values) - 1 and not ends_early:
+        return None
+    return t[k], values[k]
+
+
+def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engine: str,
+                   text: str = "blew up at t = {t:.3g} s") -> dict[str, Any]:
+    """An × at (t, y) with ``text`` beside it (formatted with t): where a run left the plot."""
+    label = text.format(t=t)
     return {
-        "type": "scatter", "mode": "markers+text", "x": [_round(t)], "y": [_round(ceiling)],
-        "marker": {"symbol": "x", "size": 11, "color": colour}, "text": [f"blew up at t = {t:.3g} s"],
+        "type": "scatter", "mode": "markers+text", "x": [_round(t)], "y": [_round(y)],
+        "marker": {"symbol": "x", "size": 11, "color": colour}, "text": [label],
         "textposition": "bottom right", "textfont": {"size": 10, "color": colour}, "showlegend": False,
         "name": plot_text(engine), "xaxis": axis[0], "yaxis": axis[1],
-        "hovertemplate": plot_text(engine) + "<br>blew up at t = %{x:.3g} s (past the ceiling)<extra></extra>",
+        "hovertemplate": plot_text(engine) + "<br>" + label + "<extra></extra>",
     }
 
 
@@ -297,6 +313,12 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Pl
             })
             if blew is not None:
                 markers.append(_blowup_marker(blew, ceiling, colour, axis, sweep.engine))
+            elif record.status is Status.UNSTABLE and panel == 0:
+                # Cut at its first non-finite state before passing the ceiling: mark where it stops.
+                end = last_finite(series["t"], values, float(scene.scene.get("duration") or 0.0))
+                if end is not None:
+                    markers.append(_blowup_marker(end[0], end[1], colour, axis, sweep.engine,
+                                                  "non-finite after t = {t:.3g} s"))
     # Three panels stacked on one shared time axis (plotly's low-level subplot layout).
     domains = ([0.70, 1.0], [0.36, 0.64], [0.0, 0.30])
     axes = {}

@@ -42,16 +42,16 @@ GOLDEN = {
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
         "tables": ["summary sortable filterable"],
         # work-precision and error-vs-dt: the 3 variants with ok cases; time series: 4 variants with samples
-        # x 3 panels; constraint forces: the reference's + the 3 variants whose engines report them (the
+        # x 3 panels and the × where broken/blow-up stops; constraint forces: the reference's + the 3 variants whose engines report them (the
         # broken engine returns none); phase plot and paths: the reference + 4 variants, 1 particle.
-        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 12), ("s0-force", 4), ("s0-phase", 5), ("s0-path", 5)],
+        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 13), ("s0-force", 4), ("s0-phase", 5), ("s0-path", 5)],
     },
     "scene-1": {
         "heading": "Scene spherical",
         "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"),
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
         "tables": ["summary sortable filterable", "skipped"],
-        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 9), ("s1-force", 3), ("s1-phase", 4), ("s1-path", 4)],
+        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 10), ("s1-force", 3), ("s1-phase", 4), ("s1-path", 4)],
     },
 }
 
@@ -177,6 +177,13 @@ def test_error_vs_dt_legend_gives_the_observed_order(small_page):
     assert any(re.fullmatch(r"pymunk/pin \(order 1\.\d\d\)", n) for n in names), names
     # RK4's errors (≤ 9e-9 m at these dts) sit below the fit's 1e-8 L floor: no order, shown as a dash.
     assert "mujoco/hinge-rk4 (order –)" in names, names
+
+
+def test_a_run_that_blows_up_is_marked_where_it_stops(small_page):
+    spec = small_page.figure_specs()["s0-ts"]
+    marks = [t for t in spec["data"] if t.get("mode") == "markers+text"]
+    # The test engine's state turns NaN at t = 0.25 s; its last finite sample is at 0.24 s.
+    assert [(t["name"], t["text"]) for t in marks] == [("broken/blow-up", ["non-finite after t = 0.24 s"])]
 
 
 def test_paths_are_drawn_over_the_reference_at_equal_scale(small_page):

@@ -87,3 +87,11 @@ def test_the_verdict_svg_escapes_its_text_and_draws_the_front():
     assert "<script" not in svg and "&lt;script&gt;" in svg
     assert svg.count("<circle") == 2 and 'class="front"' in svg
     assert loglog_svg([], [], x_title="x", y_title="y") == ""
+
+
+def test_a_run_cut_short_is_marked_where_it_stops():
+    from reports.figures import last_finite
+
+    assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, None], 0.2) == (0.1, 2.0)  # turned non-finite
+    assert last_finite([0.0, 0.1], [1.0, 2.0], 0.2) == (0.1, 2.0)  # stored series stops early
+    assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], 0.2) is None  # ran to the end
