@@ -131,7 +131,7 @@ def test_dt_longer_than_the_duration():
 
 def test_unknown_scene():
     bad(GOOD.replace('scene = "bead"', 'scene = "beed"'),
-        "s.toml:7: scenes[0].scene: unknown scene 'beed'; choose one of: bead, double-pendulum, chain, spherical-pendulum")
+        "s.toml:7: scenes[0].scene: unknown scene 'beed'; choose one of: bead, double-pendulum, chain, spherical-pendulum, slider-pendulum, four-bar, bead-ellipse")
 
 
 def test_bad_scene_parameter():
