@@ -2,7 +2,9 @@
 
 Every variant with stored positions at the scene's chosen dt is overlaid
 on the reference, in the x–z plane (a 3-D scene seen from the side). The
-JSON is small: x and z only, at most :data:`MAX_FRAMES` frames, rounded to
+JSON is small: x and z only, at most :data:`MAX_FRAMES` frames and
+:data:`MAX_POINTS` positions in all (a long chain gets fewer frames, and
+when even :data:`MIN_FRAMES` would pass that, only its ok runs), rounded to
 4 significant digits; a particle that left the scene's box (a blow-up) is
 left out of the frame rather than stretching the view.
 """
@@ -13,15 +15,17 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from compare.results.record import Status
+
 from reports.figures import CLIP_FACTOR, _by_family, _chosen_cases, _label, _reference_positions, _round
 from reports.load import SceneResults
 from reports.palette import REFERENCE_COLOUR, Palette
 
 #: Most frames kept (the stored series hold about 100).
 MAX_FRAMES = 400
-#: Fewest frames kept, and most (frame, particle) pairs per run otherwise.
-MIN_FRAMES = 25
-MAX_POINTS_PER_RUN = 4000
+#: Fewest frames kept, and most (frame, particle, run) positions in one animation otherwise.
+MIN_FRAMES = 20
+MAX_POINTS = 40_000
 #: Wall-clock seconds one pass of the animation takes, whatever the simulated duration.
 PLAY_SECONDS = 8.0
 
@@ -53,9 +57,13 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
     if not chosen:
         return None
     longest = max((c[2].series["t"] for c in chosen), key=len)
-    # Frames × particles per run is bounded, so a 128-link chain plays with fewer frames, not a bigger file.
+    # Frames × particles × runs is bounded, so a 128-link chain plays with fewer frames (and, if that is not
+    # enough, only its ok runs), not a bigger file.
     n_particles = max(1, len(scene.scene.get("particles", [])))
-    frames = max(MIN_FRAMES, min(MAX_FRAMES, MAX_POINTS_PER_RUN // n_particles))
+    only_ok = (len(chosen) + 1) * n_particles * MIN_FRAMES > MAX_POINTS
+    if only_ok:
+        chosen = [c for c in chosen if c[2].status is Status.OK] or chosen[:1]
+    frames = max(MIN_FRAMES, min(MAX_FRAMES, MAX_POINTS // ((len(chosen) + 1) * n_particles)))
     step = max(1, math.ceil(len(longest) / frames))
     keep = list(range(0, len(longest), step))
     box = CLIP_FACTOR * scene.length
@@ -89,5 +97,6 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
         "anchors": anchors,
         "links": links,
         "runs": runs,
+        "only_ok": only_ok,
     }
     return AnimationData(len(keep), data)

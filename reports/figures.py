@@ -228,11 +228,12 @@ SERIES_PANELS = (
 )
 
 
-def _chosen_cases(scene: SceneResults) -> list[tuple[int, VariantSweep, CaseRecord]]:
-    """(variant index, sweep, record) of every variant with stored series at the chosen dt."""
+def _chosen_cases(scene: SceneResults, dt: float | None = None) -> list[tuple[int, VariantSweep, CaseRecord]]:
+    """(variant index, sweep, record) of every variant with stored series at ``dt`` (s; default the chosen dt)."""
+    dt = scene.chosen_dt if dt is None else dt
     chosen = []
     for index, sweep in enumerate(scene.sweeps):
-        record = scene.case_at(sweep, scene.chosen_dt)
+        record = scene.case_at(sweep, dt)
         # A failed run has no samples: nothing to draw (its message is in the problems list).
         if record is not None and (record.series or {}).get("t"):
             chosen.append((index, sweep, record))
@@ -285,9 +286,11 @@ def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engin
     }
 
 
-def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Plot | None:
-    """Position error, |energy drift| and constraint error against t at the chosen dt: three stacked panels."""
-    chosen = _by_family(_chosen_cases(scene), lambda c: c[1].engine)
+def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None) -> Plot | None:
+    """Position error, |energy drift| and constraint error against t at ``dt`` (s; default the chosen dt):
+    three stacked panels."""
+    dt = scene.chosen_dt if dt is None else dt
+    chosen = _by_family(_chosen_cases(scene, dt), lambda c: c[1].engine)
     if not chosen:
         return None
     traces, markers = [], []
@@ -329,10 +332,11 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Pl
         "data": traces + markers,
         "layout": _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes),
     }
-    caption = (f"Every variant at dt = {scene.chosen_dt:.3g} s. A panel is logarithmic when its values span more "
+    caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
+               "with the table). A panel is logarithmic when its values span more "
                "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A value past "
                f"{CLIP_FACTOR:g}× its bound is drawn at that ceiling and marked “blew up at t = …”.")
-    return Plot("ts", "Time series at the chosen dt", caption, figure)
+    return Plot("ts", f"Time series at dt = {dt:.3g} s", caption, figure)
 
 
 def _norms(forces: Sequence[Any], constraint: int) -> list[Any]:

@@ -39,7 +39,7 @@ from compare.suite.reader import RunSettings, load_run_settings
 
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
-from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots
+from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
 from reports.load import ReportData, load_report_data
 from reports.palette import Palette
 from reports.stability import stability_context
@@ -122,6 +122,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "tables": summary_tables(scene, palette) if scene.sweeps else [],
             "plots": scene_plots(scene, number, palette, ceilings),
             "animation": animation_data(scene, palette),
+            "ceilings": ceilings,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
     packs: dict[str, Markup] = {}
@@ -129,6 +130,14 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     for scene in scenes:
         name = f"pack-{scene['number']}"
         items: dict[str, Any] = {p.id: p.figure for p in scene["plots"]}
+        results = scene["results"]
+        if any(p.id == f"s{scene['number']}-ts" for p in scene["plots"]):
+            # The time series at the scene's other dts: the dt selector switches the plot with the table.
+            for j, dt in enumerate(results.dts):
+                if dt != results.chosen_dt:
+                    other = time_series(results, palette, scene["ceilings"], dt)
+                    if other is not None:
+                        items[f"s{scene['number']}-ts@{j}"] = other.figure
         if scene["animation"] is not None:
             items[f"anim-{scene['number']}"] = scene["animation"].data
         packs[name] = pack(items)

@@ -206,6 +206,12 @@ class PageStructure(HTMLParser):
                 specs.update(json.loads(text))
         return {k: v for k, v in specs.items() if k.startswith("anim-")}
 
+    def problems_table(self) -> Table | None:
+        """The table of unstable and failed cases (packed in the page), or None when there is none."""
+        text = self.packs().get("problems-packed", "")
+        tables = PageStructure(f"<section id='x'>{text}</section>").sections[0].tables if text else []
+        return tables[0] if tables else None
+
     def other_dt_tables(self, scene: int) -> list[Table]:
         """The summary tables of scene number ``scene`` at its other dts (packed in the page)."""
         text = self.packs().get(f"tables-{scene}-packed", "")

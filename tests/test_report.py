@@ -130,7 +130,7 @@ def test_skipped_pairs_are_listed_with_their_reason(small_page):
 
 
 def test_problems_list_every_unstable_and_failed_case_with_its_message(small_page):
-    problems = small_page.section("problems").tables[0]
+    problems = small_page.problems_table()
     rows = problems.rows[1:]
     assert len(rows) == 12
     assert {(r[1], r[3]) for r in rows} == {("broken/blow-up", "unstable"), ("broken/raise", "failed")}
@@ -158,10 +158,14 @@ def test_status_element_announces_plots_and_traces(small_page):
 
 def test_every_figure_spec_is_valid_plotly_with_the_announced_traces(small_page):
     specs = small_page.figure_specs()
-    assert sorted(specs) == sorted(plot_id for plot_id, _ in small_page.plots)
+    # Besides each plot, the time series at the scene's two other dts, for the dt selector.
+    others = {f"s{n}-ts@{j}" for n in (0, 1) for j in (0, 1)}
+    assert sorted(specs) == sorted([plot_id for plot_id, _ in small_page.plots] + list(others))
     for plot_id, n_traces in small_page.plots:
         figure = go.Figure(specs[plot_id])  # raises on any property plotly does not know
         assert len(figure.data) == n_traces
+    for plot_id in others:
+        go.Figure(specs[plot_id])
 
 
 def test_work_precision_is_log_log_with_dt_in_the_hover(small_page):
@@ -229,7 +233,7 @@ def test_only_failures_and_skips_render(small_results, tmp_path):
                           keep=lambda r: r["status"] in ("failed", "skipped"))
     page = PageStructure(render(load_report_data(broken)))
     assert page.plots == []
-    assert len(page.section("problems").tables[0].rows) == 1 + 6
+    assert len(page.problems_table().rows) == 1 + 6
     assert page.section("scene-1").tables[1].css_class == "skipped"
 
 

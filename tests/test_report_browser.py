@@ -83,6 +83,7 @@ def test_tables_sort_and_filter(small_page):
     assert visible_rows(small_page, "#scene-0 table.summary tbody tr", 0) == ["broken/blow-up", "broken/raise"]
     small_page.evaluate('var s = document.getElementById("filter-status"); s.value = "failed"; s.dispatchEvent(new Event("change"))')
     assert visible_rows(small_page, "#scene-0 table.summary tbody tr", 0) == ["broken/raise"]
+    small_page.await_promise("window.xvalShowProblems()")  # the problems table is unpacked when opened
     assert set(visible_rows(small_page, "#problems tbody tr", 1)) == {"broken/raise"}
     small_page.evaluate('var s = document.getElementById("filter-scene"); s.value = "1"; s.dispatchEvent(new Event("change"))')
     assert small_page.evaluate('document.getElementById("scene-0").hidden') is True
@@ -121,6 +122,12 @@ def test_every_plot_draws_when_opened_the_animation_plays_and_resizing_relays_ou
     for plot in plots:
         assert plot["drawn"] == plot["expected"] > 0, plot
         assert plot["lines"] > 0, plot
+    # The dt selector switches the drawn time series with the table.
+    small_page.evaluate('var s = document.getElementById("dt-select-0"); s.value = "0"; s.dispatchEvent(new Event("change"))')
+    small_page.wait('document.getElementById("s0-ts").getAttribute("data-shown-spec") === "s0-ts@0"', 20)
+    assert small_page.evaluate('document.getElementById("s0-ts-title").textContent') == "Time series at dt = 0.01 s"
+    assert small_page.evaluate('document.getElementById("s0-ts").getAttribute("data-drawn-traces")') == \
+        small_page.evaluate('document.getElementById("s0-ts").getAttribute("data-expected-traces")')
     # Legends group variants by engine family: the family's name heads its group.
     work_precision = next(p for p in plots if p["id"] == "s0-wp")
     assert {"mujoco", "pymunk", "mujoco/hinge-rk4", "pymunk/pin"} <= set(work_precision["legend"])

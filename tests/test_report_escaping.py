@@ -33,7 +33,7 @@ def test_hostile_strings_render_as_text(hostile_html):
     assert scene.heading == f"Scene {HOSTILE}"
     summary = scene.tables[0]
     assert [row[0] for row in summary.rows[1:]] == [HOSTILE, "broken/raise"]
-    problems = page.section("problems").tables[0]
+    problems = page.problems_table()
     assert problems.rows[1][0] == HOSTILE and problems.rows[1][4].endswith(HOSTILE)
     assert str(markupsafe.escape(HOSTILE)) in hostile_html  # escaped by Jinja, quotes included
 
@@ -51,8 +51,9 @@ def test_no_script_or_element_is_injected(hostile_html):
 def test_packed_tables_are_escaped_like_the_page(hostile_html):
     """The tables at other dts are inserted with innerHTML when asked for: they must be escaped HTML already."""
     page = PageStructure(hostile_html)
-    packed = page.packs()["tables-0-packed"]
-    assert HOSTILE not in packed and "<img" not in packed and "<script" not in packed
+    for name in ("tables-0-packed", "problems-packed"):
+        packed = page.packs()[name]
+        assert HOSTILE not in packed and "<img" not in packed and "<script" not in packed
     tables = page.other_dt_tables(0)
     assert tables and all(table.rows[1][0] == HOSTILE for table in tables)
 
