@@ -100,3 +100,33 @@ def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
     code, out, err = run(capsys, argv)
     assert code == 2 and out == ""
     assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_case_host_left_by_the_probe_is_not_reused_by_a_forked_child():
+    # The probe runs its cases in this thread's case host; a process forked afterwards (a run's
+    # process pool) inherits the thread-local host object but must start a host of its own.
+    import multiprocessing
+
+    from compare.run.isolation import CaseTask, execute
+
+    scene = catalog.build("bead", {"duration": 0.05})
+    task = CaseTask("fork-check", "mujoco/hinge", "hinge", {}, scene, 1e-3, 0.01)
+    assert execute(task).status == "ok"
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=_status_in_child, args=(task, queue))
+    child.start()
+    try:
+        status = queue.get(timeout=120)
+    finally:
+        child.join(timeout=30)
+    assert status == "ok"
+
+
+def _status_in_child(task, queue):
+    from compare.run.isolation import execute
+
+    try:
+        queue.put(str(execute(task).status))
+    except BaseException as exc:  # the assertion "can only test a child process", before the fix
+        queue.put(f"{type(exc).__name__}: {exc}")

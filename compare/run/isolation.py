@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import signal
 import threading
 import time
@@ -179,6 +180,7 @@ class _Host:
     """A case host process and the worker's ends of its two pipes."""
 
     def __init__(self) -> None:
+        self.owner = os.getpid()  # a forked child inherits this object (thread-locals survive fork) but not the host
         context = multiprocessing.get_context("fork")
         self.requests, child_requests = context.Pipe(duplex=False)[::-1]
         child_replies, self.replies = context.Pipe(duplex=False)[::-1]
@@ -222,7 +224,7 @@ def execute(task: CaseTask) -> CaseOutcome:
             outcome.elapsed = time.perf_counter() - start
             return outcome
     host: _Host | None = getattr(_local, "host", None)
-    if host is None or not host.process.is_alive():
+    if host is None or host.owner != os.getpid() or not host.process.is_alive():
         host = _local.host = _Host()
     try:
         host.requests.send(task)
