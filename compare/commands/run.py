@@ -6,6 +6,7 @@ import sys
 
 import click
 
+from compare.history.location import check_option
 from compare.run.progress import progress_for
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
@@ -23,7 +24,9 @@ from compare.results.table import scene_tables
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT|local[:N]",
               help="Run the cases on a Dask cluster: a scheduler's address, or local[:N] for an "
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")
-def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
+@click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
+              help="Also append the finished run to this history (xval history; a SQLite file or a postgresql:// URL).")
+def command(suite_path, output, jobs, resume, timeout, scheduler, history) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 
     A case that fails, goes unstable or times out is recorded with its status
@@ -49,3 +52,7 @@ def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
     resumed = f", {summary.already_done} already done" if summary.already_done else ""
     click.echo(f"\n{summary.ran} cases run in {summary.wall_time:.1f} s{resumed} ({counts})")
     click.echo(f"results: {summary.path}")
+    if history is not None:
+        from compare.commands.history import add_directory
+
+        click.echo(add_directory(summary.path, history, suite_path=suite_path))

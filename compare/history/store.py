@@ -39,7 +39,6 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import json
-import os
 import sqlite3
 import zlib
 from contextlib import contextmanager
@@ -50,6 +49,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, case_key
+from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE, default_location, parse
 from compare.history.origin import Machine, Origin, machine_of
 from compare.results.record import CaseRecord
 from compare.results.store import Results, now
@@ -58,10 +58,6 @@ from compare.results.store import Results, now
 SCHEMA_VERSION = 1
 #: What ``xval_meta.kind`` says in every xval history.
 KIND = "xval-history"
-#: Where the history is when no --history is given (XVAL_HISTORY overrides).
-DEFAULT_LOCATION = "results/history.sqlite"
-#: Environment variable naming the default history.
-LOCATION_VARIABLE = "XVAL_HISTORY"
 #: Seconds a writer waits for another to finish before giving up.
 BUSY_TIMEOUT = 60.0
 #: Advisory lock key under which PostgreSQL schema changes are made ("xval" in ASCII).
@@ -74,10 +70,6 @@ class HistoryError(UserError):
 
 class AlreadyRecorded(UserError):
     """The run is in the history already (the same run.json and case records)."""
-
-
-def default_location() -> str:
-    return os.environ.get(LOCATION_VARIABLE) or DEFAULT_LOCATION
 
 
 # -- the tables, per dialect -------------------------------------------------------------------
@@ -284,10 +276,6 @@ def _driver_url(url: str) -> str:
     return url
 
 
-def is_url(location: str) -> bool:
-    return "://" in location
-
-
 # -- stored runs and cases ------------------------------------------------------------------
 
 
@@ -415,18 +403,11 @@ class History:
         create : make a new, empty history when there is none (``history add``,
         ``run --history``); otherwise a missing one is a HistoryError naming the fix.
         """
-        location = str(location) if location is not None else default_location()
-        if location.startswith("sqlite:///"):
-            location = location[len("sqlite:///"):]
-        if is_url(location):
-            scheme = location.split("://", 1)[0]
-            if scheme.split("+")[0] not in ("postgres", "postgresql"):
-                raise HistoryError(f"--history: {scheme}:// is not supported; give a file path (SQLite) or a postgresql:// URL")
+        kind, location = parse(location)
+        if kind == "postgresql":
             backend: _SQLite | _SQLAlchemy = _SQLAlchemy(location)
         else:
             path = Path(location)
-            if path.is_dir():
-                raise HistoryError(f"--history: {path} is a directory; give a file, e.g. {path / 'history.sqlite'}")
             if not path.exists():
                 if not create:
                     raise HistoryError(

@@ -35,7 +35,7 @@ import statistics
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-from compare.gate.tolerance import RULES, TIMING_METRIC
+from compare.gate.tolerance import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
 from compare.results.store import Results
@@ -145,4 +145,8 @@ def _current_versions(results: Results) -> dict[str, str | None]:
     return {case_key(r.case, r.scene_hash): engine_version(r, results.header) for r in results.records}
 
 
-__all__ = ["DEFAULT_WINDOW", "TIMING_METRIC", "Window", "combine", "window_baseline", "window_runs"]
+def history_baseline(location: str, results: Results, size: int = DEFAULT_WINDOW) -> tuple[dict[str, Any], str, str]:
+    """For ``xval gate --history``: (the window's baseline document, a name for messages, the heading line)."""
+    with History.open(location) as history:
+        window = window_baseline(history, results, size)
+        return window.document, f"{history.name} (window of {len(window.runs)} runs)", window.describe(history.name)
