@@ -20,13 +20,15 @@ constants below):
      rtol) + atol, or the mirror), so a step is a change the gate would call
      worse or better, never round-off;
    - the two sides' mean z differ by more than ``SIGMAS`` · σ · √(1/n_b + 1/n_a).
-5. Recurse into both sides; stop where a split fails the test.
+5. Recurse into both sides; stop where a split fails the test. Each step
+   is then reported with the medians of the segments on either side of it.
 
 A step is **worse** or **better** by the metric's declared direction.
-MIN_SEGMENT = 2 keeps a single odd run from being called a step (the gate
-judges the latest run on its own). SIGMAS = 5: on 12-run series of pure
-log-normal noise it marks a step in about 1 % of them, and it finds a 1.3×
-step in 5 %-noise timings 9 times in 10 (scripts/history_trend_rates.py
+MIN_SEGMENT = 1: a deterministic metric (σ = 0) changes only when the code
+does, so a change in the latest run alone is a step, at that run; a noisy
+one must stand out by SIGMAS · σ · √(1 + 1/n) to count. SIGMAS = 5: on
+12-run series of pure log-normal noise it marks a step in 0.6–1.6 % of
+them, and it finds a 1.3× step in 5 %-noise timings 9 times in 10 (scripts/history_trend_rates.py
 prints both rates; docs/history.md quotes them).
 """
 
@@ -42,7 +44,7 @@ from compare.results import declared
 from compare.results.declared import TIMING_METRIC, Metric, Tolerance
 
 #: Fewest runs on each side of a step.
-MIN_SEGMENT = 2
+MIN_SEGMENT = 1
 #: How many noise standard errors a step must exceed.
 SIGMAS = 5.0
 #: MAD → standard deviation for normally distributed noise.
@@ -86,7 +88,7 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
     if len(y) < 2 * min_segment:
         return []
     z = np.log10(y) if np.all(y > 0) else y
-    found: list[Step] = []
+    breaks: list[int] = []
 
     # Noise from successive differences: a step moves one difference, noise moves them all.
     sigma = MAD_SCALE * _median(np.abs(np.diff(z))) / math.sqrt(2) if len(z) > 2 else 0.0
@@ -102,19 +104,22 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
                 best_k, best_cost = k, cost
         k = best_k
         b, a = _median(y[lo:k]), _median(y[k:hi])
-        n_b, n_a = k - lo, hi - k
         shift = abs(z[k:hi].mean() - z[lo:k].mean())
-        noise_bound = sigmas * sigma * math.sqrt(1 / n_b + 1 / n_a)
-        significant = (_exceeds(a, b, tolerance) or _exceeds(b, a, tolerance)) and shift > noise_bound
-        if not significant:
-            return
-        verdict = "better" if (a > b) == metric.higher_is_better else "worse"
-        found.append(Step(positions[k], b, a, a / b if b != 0 else None, verdict, sigma))
-        split(lo, k)
-        split(k, hi)
+        noise_bound = sigmas * sigma * math.sqrt(1 / (k - lo) + 1 / (hi - k))
+        if (_exceeds(a, b, tolerance) or _exceeds(b, a, tolerance)) and shift > noise_bound:
+            breaks.append(k)
+            split(lo, k)
+            split(k, hi)
 
     split(0, len(y))
-    return sorted(found, key=lambda s: s.index)
+    # Each step's levels are the medians of the segments on either side of it in the final segmentation.
+    edges = [0, *sorted(breaks), len(y)]
+    found = []
+    for i in range(1, len(edges) - 1):
+        b, a = _median(y[edges[i - 1]:edges[i]]), _median(y[edges[i]:edges[i + 1]])
+        verdict = "better" if (a > b) == metric.higher_is_better else "worse"
+        found.append(Step(positions[edges[i]], b, a, a / b if b != 0 else None, verdict, sigma))
+    return found
 
 
 # -- series out of a history ----------------------------------------------------------------------
@@ -140,7 +145,8 @@ class Point:
 
 @dataclass(frozen=True)
 class Series:
-    """One metric of one case (scene × variant × dt) on one machine, across runs; ``steps`` by :func:`steps`."""
+    """One metric of one case (scene × variant × dt) on one machine, across runs; ``steps`` by :func:`steps`;
+    position : the case's (scene, engine, dt) indices in the suite, for ordering."""
 
     machine: str
     suite: str
@@ -150,6 +156,7 @@ class Series:
     metric: Metric
     points: tuple[Point, ...]
     steps: tuple[Step, ...]
+    position: tuple[int, ...] = ()
 
     @property
     def has_values(self) -> bool:
@@ -185,12 +192,13 @@ def build_series(history: Any, suite: str | None = None, metrics: Sequence[Metri
                     for c in ordered
                 )
                 series = Series(by_run[ordered[0].run_id].machine.name, suite_name, scene_id, engine, dt, metric,
-                                points, ())
+                                points, (), tuple(ordered[-1].entry.get("position") or ()))
                 if not series.has_values:
                     continue
                 found = steps([p.value for p in points], metric)
                 out.append(Series(**{**series.__dict__, "steps": tuple(found)}))
-    return out
+    # In the suite's order (scene, engine, largest dt first) within each machine × suite.
+    return sorted(out, key=lambda s: (s.machine, s.suite, s.position[:2], s.scene_id, s.engine, -s.dt))
 
 
 def _value(metrics: Mapping[str, Any], name: str) -> float | None:
