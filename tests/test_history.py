@@ -90,15 +90,24 @@ def test_a_run_directory_added_twice_is_recorded_once(base, tmp_path, capsys):
     assert code == 0 and err == ""
     assert re.match(rf"history {re.escape(str(history))}: run 1 added: suite gate-test, 6 cases, commit \S+", out)
     copy = shutil.copytree(base.path, tmp_path / "copy")
-    for directory in (base.path, copy):
+    resumed = shutil.copytree(base.path, tmp_path / "resumed")  # as a --resume with nothing left to run leaves it
+    header = json.loads((resumed / "run.json").read_text())
+    (resumed / "run.json").write_text(json.dumps({**header, "resumed": ["2026-12-01T20:00:00+00:00"],
+                                                  "finished": "2026-12-01T20:00:01+00:00"}))
+    for directory in (base.path, copy, resumed):
         code, out, err = xval(capsys, "history", "add", directory, "--history", history)
         assert code == 2 and out == ""
         assert err.count("\n") == 1
         assert re.fullmatch(
             rf"xval: error: {re.escape(str(directory))}: already in the history {re.escape(str(history))} as run 1 "
             rf"\(added [^)]+\); not added again\n", err)
+    # Several directories: the one already there is refused, the new one still added.
+    other = write_results(synthetic(base, 5), tmp_path / "other")
+    code, out, err = xval(capsys, "history", "add", base.path, other, "--history", history)
+    assert code == 2 and "as run 1" in err and err.count("\n") == 1
+    assert re.match(rf"history {re.escape(str(history))}: run 2 added", out)
     with History.open(history) as opened:
-        assert len(opened.runs()) == 1 and len(opened.cases()) == 6
+        assert len(opened.runs()) == 2 and len(opened.cases()) == 12
 
 
 def test_an_unfinished_run_is_refused(base, tmp_path, capsys):

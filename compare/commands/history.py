@@ -7,6 +7,7 @@ group, as reports' own ``xval report`` joins ``xval``.
 
 from __future__ import annotations
 
+import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ import click
 
 from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE, check_option
 from compare.history.origin import given_origin, recorded_origin, tree_origin
-from compare.history.store import History, StoredRun
+from compare.history.store import AlreadyRecorded, History, StoredRun
 from compare.results.store import load_results
 
 HISTORY_HELP = (f"The history: a SQLite file, or a postgresql:// URL (default: ${LOCATION_VARIABLE}, "
@@ -81,10 +82,18 @@ def add(directories, location, commit) -> None:
     """Append the finished runs in DIR... (the --output of 'xval run') to the history.
 
     A run already in the history (the same run.json and case records) is
-    refused with one line and exit code 2; stored runs are never changed.
+    refused with one line, the others are still added, and the exit code is
+    2; stored runs are never changed.
     """
+    refused = 0
     for directory in directories:
-        click.echo(add_directory(directory, location, commit))
+        try:
+            click.echo(add_directory(directory, location, commit))
+        except AlreadyRecorded as exc:
+            click.echo(f"xval: error: {exc}", err=True)
+            refused += 1
+    if refused:
+        sys.exit(2)
 
 
 @command.command("show")

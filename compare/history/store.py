@@ -9,7 +9,8 @@ ever changed or deleted: the tables carry triggers that abort any UPDATE or
 DELETE, so appending a run cannot alter an earlier one, whatever the code
 that appends does.
 
-A run is identified by a SHA-256 of its run.json and every case record, so
+A run is identified by a SHA-256 of its run.json (less the fields a resume
+with nothing left to run rewrites) and every case record, so
 adding the same directory twice (or a copy of it) is refused with one line,
 while two runs of the same suite made at the same second are two runs.
 
@@ -345,10 +346,14 @@ class StoredCase:
     metrics: Mapping[str, Any]
 
 
+#: run.json fields that change when a finished run is resumed with nothing left to run: not part of its identity.
+_VOLATILE = ("finished", "resumed", "counts")
+
+
 def run_key(results: Results) -> str:
-    """SHA-256 of run.json and every case record (sorted by case id), canonical JSON."""
+    """SHA-256 of run.json (less the fields a no-op --resume rewrites) and every case record (sorted by case id)."""
     digest = hashlib.sha256()
-    digest.update(_canonical(results.header))
+    digest.update(_canonical({k: v for k, v in results.header.items() if k not in _VOLATILE}))
     for record in sorted(results.records, key=lambda r: r.case.id):
         digest.update(_canonical(record.to_json()))
     return digest.hexdigest()
