@@ -54,11 +54,11 @@ def run_commit(commit: str, scratch: Path, jobs: int) -> Path:
     """Check ``commit`` out, install it into its own environment, run the smoke suite; returns the results directory."""
     source, venv, output = scratch / "src", scratch / "venv", scratch / "results"
     git("worktree", "add", "--detach", "--force", str(source), commit)
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    pip = [str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet"]
-    subprocess.run([*pip, "-e", str(source)], check=True)
+    quiet = {"check": True, "capture_output": True, "text": True}
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], **quiet)
+    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet", "-e", str(source)], **quiet)
     subprocess.run([str(venv / "bin" / "xval"), "run", str(source / SUITE), "--output", str(output), "--jobs", str(jobs)],
-                   check=True, cwd=source, stdout=subprocess.DEVNULL)
+                   cwd=source, **quiet)
     return output
 
 
@@ -86,7 +86,8 @@ def main() -> None:
             try:
                 output = run_commit(commit, scratch, args.jobs)
             except subprocess.CalledProcessError as exc:
-                print(f"    skipped: {' '.join(map(str, exc.cmd[:3]))} … failed at this commit (exit {exc.returncode})")
+                last = (exc.stderr or exc.stdout or "").strip().splitlines()[-1:] or [""]
+                print(f"    skipped: {' '.join(map(str, exc.cmd[:3]))} … failed at this commit (exit {exc.returncode}): {last[0]}")
                 continue
             results = load_results(output)
             origin = tree_origin(scratch / "src")
