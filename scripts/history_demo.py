@@ -19,6 +19,7 @@ it is not part of ``make test``.
 from __future__ import annotations
 
 import argparse
+import signal
 import shutil
 import subprocess
 import sys
@@ -50,15 +51,33 @@ def recorded_commits(location: str, suite: str, machine: str) -> set[str]:
         return {r.origin.commit for r in history.runs(suite=suite, machine=machine) if not r.origin.dirty}
 
 
+#: Seconds per case: a fresh environment compiles ours' numba kernels on first use, which the
+#: smoke suite's 60 s does not allow for on a loaded machine (the cost measured excludes it).
+CASE_TIMEOUT = 900
+
+
+def quietly(argv: list[str], cwd: Path | None = None) -> None:
+    """Run ``argv`` in its own process group, output captured; the whole group is killed if we are stopped."""
+    process = subprocess.Popen(argv, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    try:
+        out, err = process.communicate()
+    except BaseException:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+        raise
+    if process.returncode != 0:
+        raise subprocess.CalledProcessError(process.returncode, argv, out, err)
+
+
 def run_commit(commit: str, scratch: Path, jobs: int) -> Path:
     """Check ``commit`` out, install it into its own environment, run the smoke suite; returns the results directory."""
     source, venv, output = scratch / "src", scratch / "venv", scratch / "results"
     git("worktree", "add", "--detach", "--force", str(source), commit)
-    quiet = {"check": True, "capture_output": True, "text": True}
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], **quiet)
-    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet", "-e", str(source)], **quiet)
-    subprocess.run([str(venv / "bin" / "xval"), "run", str(source / SUITE), "--output", str(output), "--jobs", str(jobs)],
-                   cwd=source, **quiet)
+    quietly([sys.executable, "-m", "venv", str(venv)])
+    quietly([str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet", "-e", str(source)])
+    quietly([str(venv / "bin" / "xval"), "run", str(source / SUITE), "--output", str(output), "--jobs", str(jobs),
+             "--timeout", str(CASE_TIMEOUT)], cwd=source)
     return output
 
 
@@ -70,6 +89,8 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--rev", default="HEAD", help="the newest commit to run (default HEAD)")
     args = parser.parse_args()
+    # Stopped (make interrupted, CI timeout): unwind, so each worktree and environment is removed.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     commits = git("rev-list", "--first-parent", "-n", str(args.commits), args.rev).split()[::-1]
     Path(args.history).parent.mkdir(parents=True, exist_ok=True)
     here = machine_of({"environment": {"cpu": cpu_name(), "cpu_count": os.cpu_count(), "machine": platform.machine()}})
