@@ -10,7 +10,10 @@ run, in exactly those series, and nothing in the noisy timings.
 from __future__ import annotations
 
 import json
+import os
 import re
+import shutil
+import subprocess
 
 import numpy as np
 import plotly.graph_objects as go
@@ -19,6 +22,8 @@ import pytest
 from compare.history.store import History
 from compare.history.trend import build_series, steps
 from compare.results.declared import METRICS
+
+from reports.history import write_history_report
 
 from history_support import ENGINE, ERRORS, add, real_run, synthetic, xval
 
@@ -134,3 +139,22 @@ def test_machines_are_kept_apart(base, tmp_path):
     assert [(s["machine"].split(" ×")[0], len(s["runs"])) for s in context["sections"]] == [
         (base.header["environment"]["cpu"], 3), ("another CPU", 3)]
     assert all(len(s["plots"]) == 2 for s in context["sections"])
+
+
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.access("/usr/bin/chromium", os.X_OK) else None)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no chromium here; install it with 'apt-get install -y chromium' (.ci/run does)")
+def test_the_trend_page_draws_every_plot_in_a_browser_with_the_network_off(planted, tmp_path):
+    page = tmp_path / "trend.html"
+    write_history_report(str(planted), page)
+    # --dump-dom prints the DOM once the page (and its virtual time budget) has run; any request that tried
+    # to leave would fail on the dead proxy and resolver, and plotly.js would then not draw.
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+             "--disable-background-networking", "--disable-component-update", "--disable-sync",
+             "--proxy-server=127.0.0.1:9", "--host-resolver-rules=MAP * ~NOTFOUND", "--allow-file-access-from-files",
+             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=20000", "--dump-dom"]
+    dom = subprocess.run([CHROMIUM, *flags, page.as_uri()], capture_output=True, text=True, timeout=120).stdout
+    assert re.search(r'id="xval-render-status"[^>]*data-state="done"[^>]*>2 plots drawn\.', dom), dom[-2000:]
+    drawn = re.findall(r'data-expected-traces="(\d+)" data-drawn-traces="(\d+)"', dom)
+    assert len(drawn) == 2 and all(expected == got for expected, got in drawn)
