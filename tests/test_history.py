@@ -22,7 +22,7 @@ from compare.gate.baseline import build_baseline, case_key
 from compare.gate.gate import gate
 from compare.gate.tolerance import GateSettings
 from compare.history import store as store_module
-from compare.history.store import AlreadyRecorded, History, HistoryError, SCHEMA_VERSION
+from compare.history.store import History, HistoryError, SCHEMA_VERSION
 from compare.history.window import window_baseline
 from compare.results.store import load_results
 
@@ -294,6 +294,26 @@ def test_window_gate_catches_a_doubled_error_and_passes_an_unchanged_rerun(base,
     worse = rows(out, "worse")
     assert {(r[1], r[2], r[4]) for r in worse} == {
         ("bead", ENGINE, metric) for metric in ("position_error_linf", "position_error_l2", "position_error_final")}
+
+
+def test_gate_takes_a_baseline_or_a_history(base, window, capsys):
+    for argv in ((), ("--baseline", "b.json", "--history", window)):
+        code, out, err = xval(capsys, "gate", base.path, *argv)
+        assert (code, out) == (2, "")
+        assert err == ("xval: error: give either --baseline BASELINE.json or --history FILE (the last runs in a history), "
+                       "not both or neither\n")
+    code, _, err = xval(capsys, "gate", base.path, "--baseline", "b.json", "--window", "3")
+    assert code == 2 and err == "xval: error: --window: only with --history FILE\n"
+
+
+def test_a_history_without_this_suite_on_this_machine_gates_every_case_as_new(base, tmp_path, capsys):
+    path = tmp_path / "h.sqlite"
+    with History.open(path, create=True) as history:
+        add(history, synthetic(base, 0, machine={"cpu": "another CPU"}), 0)
+    code, out, _ = xval(capsys, "gate", base.path, "--history", path)
+    assert code == 0
+    assert out.startswith(f"history {path}: no earlier run of suite 'gate-test' on this machine")
+    assert len(rows(out, "new")) == 6
 
 
 def test_window_gate_holds_accuracy_to_the_best_run_of_the_window(base, tmp_path):

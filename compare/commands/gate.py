@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.results.files import atomic_write_text, check_writable

@@ -50,7 +50,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, case_key
-from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE, default_location, parse
+from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
 from compare.results.record import CaseRecord
 from compare.results.store import Results, now
