@@ -90,6 +90,14 @@ def test_a_change_in_the_latest_run_is_a_step_at_that_run():
     assert [(s.index, s.verdict, s.before, s.after) for s in found] == [(5, "worse", 1e-3, 5e-3)]
 
 
+def test_a_timing_needs_enough_runs_to_measure_its_noise_first():
+    cost = METRICS["cost_per_simulated_second"]
+    assert steps([1e-3, 1e-3, 2e-3, 2e-3, 2e-3], cost) == []  # 5 runs: the noise is not known yet
+    assert [s.index for s in steps([1e-3, 1e-3, 1e-3, 2e-3, 2e-3, 2e-3], cost)] == [3]
+    assert steps([1e-3] * 6 + [2e-3], cost) == []  # one slow run is not a step in a timing
+    assert steps([1e-3, 1.05e-3, 0.97e-3, 1e-3, 1.02e-3, 0.99e-3, 2e-3, 1.01e-3], cost) == []
+
+
 def test_noise_alone_is_not_a_step_and_a_step_above_it_is():
     rng = np.random.default_rng(3)
     cost = METRICS["cost_per_simulated_second"]

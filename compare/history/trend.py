@@ -19,17 +19,24 @@ constants below):
      than the metric's gate tolerance (compare.results.declared: a > b·(1 +
      rtol) + atol, or the mirror), so a step is a change the gate would call
      worse or better, never round-off;
-   - the two sides' mean z differ by more than ``SIGMAS`` · σ · √(1/n_b + 1/n_a).
+   - the two sides' mean z differ by more than ``SIGMAS`` · σ · √(1/n_b + 1/n_a);
+   - a side of exactly two runs has both on its side of the midpoint
+     between the medians (the median of two is their mean, so one odd run
+     beside an ordinary one is not a new level).
 5. Recurse into both sides; stop where a split fails the test. Each step
    is then reported with the medians of the segments on either side of it.
 
 A step is **worse** or **better** by the metric's declared direction.
-MIN_SEGMENT = 1: a deterministic metric (σ = 0) changes only when the code
-does, so a change in the latest run alone is a step, at that run; a noisy
-one must stand out by SIGMAS · σ · √(1 + 1/n) to count. SIGMAS = 5: on
-12-run series of pure log-normal noise it marks a step in 0.6–1.6 % of
-them, and it finds a 1.3× step in 5 %-noise timings 9 times in 10 (scripts/history_trend_rates.py
-prints both rates; docs/history.md quotes them).
+Accuracy metrics are deterministic on one machine (σ = 0): they change
+only when the code does, so MIN_SEGMENT = 1 and a change in the latest run
+alone is a step, at that run. Timings (the metrics the gate does not judge
+for accuracy: cost, wall time, steps per second) are noisy by nature: a
+series needs MIN_NOISY_RUNS = 6 runs before its noise is measured and steps
+are looked for, and a step needs NOISY_SEGMENT = 2 runs on each side.
+SIGMAS = 5: on 12-run timing series of pure log-normal noise it marks a
+step in about 1 % of them, and it finds a 1.3× step in 5 %-noise timings
+9 times in 10 (scripts/history_trend_rates.py prints both rates;
+docs/history.md quotes them).
 """
 
 from __future__ import annotations
@@ -43,8 +50,12 @@ import numpy as np
 from compare.results import declared
 from compare.results.declared import TIMING_METRIC, Metric, Tolerance
 
-#: Fewest runs on each side of a step.
+#: Fewest runs on each side of a step (accuracy metrics: deterministic on one machine).
 MIN_SEGMENT = 1
+#: For timings (metrics the gate does not judge for accuracy): fewest runs on each side of a step,
+#: and fewest runs in the series before steps are looked for (σ from at least 5 differences).
+NOISY_SEGMENT = 2
+MIN_NOISY_RUNS = 6
 #: How many noise standard errors a step must exceed.
 SIGMAS = 5.0
 #: MAD → standard deviation for normally distributed noise.
@@ -85,6 +96,10 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
     sigmas = SIGMAS if sigmas is None else sigmas
     positions = [i for i, v in enumerate(values) if v is not None and math.isfinite(v)]
     y = np.array([values[i] for i in positions], dtype=float)
+    if not metric.gated:  # a timing: noisy by nature, so its noise must be measurable first
+        if len(y) < MIN_NOISY_RUNS:
+            return []
+        min_segment = max(min_segment, NOISY_SEGMENT)
     if len(y) < 2 * min_segment:
         return []
     z = np.log10(y) if np.all(y > 0) else y
@@ -106,7 +121,16 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
         b, a = _median(y[lo:k]), _median(y[k:hi])
         shift = abs(z[k:hi].mean() - z[lo:k].mean())
         noise_bound = sigmas * sigma * math.sqrt(1 / (k - lo) + 1 / (hi - k))
-        if (_exceeds(a, b, tolerance) or _exceeds(b, a, tolerance)) and shift > noise_bound:
+        # A side of two runs is a new level only if both runs are on its side of the midpoint: the median
+        # of two is their mean, so one odd run beside an ordinary one would otherwise pass for a level.
+        # (One run alone is its own median; three or more have a median one odd run cannot move.)
+        middle = (_median(z[lo:k]) + _median(z[k:hi])) / 2
+        sign = 1.0 if a > b else -1.0
+        held = True
+        for side, direction in ((z[lo:k] - middle, -sign), (z[k:hi] - middle, sign)):
+            if len(side) == 2 and not np.all(direction * side > 0):
+                held = False
+        if (_exceeds(a, b, tolerance) or _exceeds(b, a, tolerance)) and shift > noise_bound and held:
             breaks.append(k)
             split(lo, k)
             split(k, hi)
