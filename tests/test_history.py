@@ -117,6 +117,7 @@ def test_an_unfinished_run_is_refused(base, tmp_path, capsys):
     code, _, err = xval(capsys, "history", "add", directory, "--history", tmp_path / "h.sqlite")
     assert code == 2
     assert "the run is unfinished; finish it first" in err and err.rstrip().endswith("then add it to the history")
+    assert not (tmp_path / "h.sqlite").exists()  # refused before the history was made
 
 
 @pytest.mark.parametrize("content, message", [

@@ -16,7 +16,7 @@ import click
 
 from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE, check_option
 from compare.history.origin import given_origin, recorded_origin, tree_origin
-from compare.history.store import AlreadyRecorded, History, StoredRun
+from compare.history.store import AlreadyRecorded, History, StoredRun, baseline_of
 from compare.results.store import load_results
 
 HISTORY_HELP = (f"The history: a SQLite file, or a postgresql:// URL (default: ${LOCATION_VARIABLE}, "
@@ -64,12 +64,13 @@ def add_directory(directory: str | Path, location: str | None, commit: str | Non
     the one run.json recorded (see compare.history.origin).
     """
     results = load_results(directory)
+    document = baseline_of(results)  # an unfinished run is refused before the history is touched
     if commit:
         origin = given_origin(commit)
     else:
         origin = (tree_origin(Path(suite_path).resolve()) if suite_path else None) or recorded_origin(results.header)
     with History.open(location, create=True) as history:
-        run = history.add(results, origin, source=str(Path(directory).resolve()))
+        run = history.add(results, origin, source=str(Path(directory).resolve()), document=document)
         return describe(run, len(results.records), history.name)
 
 

@@ -350,6 +350,11 @@ class StoredCase:
 _VOLATILE = ("finished", "resumed", "counts")
 
 
+def baseline_of(results: Results) -> dict[str, Any]:
+    """The gate's baseline document of ``results`` (UserError for an unfinished run, naming the fix)."""
+    return build_baseline(results, then="add it to the history")
+
+
 def run_key(results: Results) -> str:
     """SHA-256 of run.json (less the fields a no-op --resume rewrites) and every case record (sorted by case id)."""
     digest = hashlib.sha256()
@@ -478,13 +483,15 @@ class History:
 
     # -- writing ----------------------------------------------------------------------------
 
-    def add(self, results: Results, origin: Origin, source: str | None = None) -> StoredRun:
+    def add(self, results: Results, origin: Origin, source: str | None = None,
+            document: dict[str, Any] | None = None) -> StoredRun:
         """Append the finished run ``results``; AlreadyRecorded when it is in the history already.
 
         origin : the commit it ran at (see compare.history.origin); source : the
-        directory it was read from (kept for the reader; default results.path).
+        directory it was read from (kept for the reader; default results.path);
+        document : ``baseline_of(results)`` when the caller made it already.
         """
-        document = build_baseline(results, then="add it to the history")
+        document = document if document is not None else baseline_of(results)
         key = run_key(results)
         header = results.header
         machine = machine_of(header)
