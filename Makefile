@@ -6,7 +6,7 @@ XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
 
-.PHONY: demo stiff test bench baseline clean history-demo
+.PHONY: demo stiff test bench baseline clean examples history-demo
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -50,5 +50,10 @@ history-demo: $(STAMP)
 	$(PY) scripts/history_demo.py --commits $(HISTORY_COMMITS) --jobs $(JOBS) \
 		--history results/history-demo/history.sqlite --output results/history-demo/trend.html
 
+# The C++ example solvers of the process protocol (docs/protocol.md), built with g++ into examples/cpp/build.
+examples:
+	$(MAKE) -C examples/cpp
+
 clean:
+	$(MAKE) -C examples/cpp clean
 	rm -rf $(VENV) build *.egg-info results artifacts

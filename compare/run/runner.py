@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
+from engines.command import spec_of
 from engines.errors import Unsupported
 from engines.scene import Scene
 
@@ -244,6 +245,7 @@ class _Dispatcher:
             repeats=self.suite.repeats,
             timeout=self.timeout,
             isolate=self.isolate,
+            command=spec_of(case.engine.engine),
         )
 
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
