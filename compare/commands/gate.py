@@ -14,7 +14,7 @@ from compare.results.files import atomic_write_text, check_writable
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
 from compare.history.location import check_option
-from compare.history.window import DEFAULT_WINDOW
+from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
 from compare.results.store import load_results
 from compare.gate.tolerance import GateSettings
@@ -60,8 +60,6 @@ def command(directory, baseline_path, history, window, junit, summary, timing) -
     results = load_results(directory)
     current = build_baseline(results, then="gate it")
     if history is not None:
-        from compare.history.window import history_baseline
-
         baseline, baseline_path, heading = history_baseline(history, results, window or DEFAULT_WINDOW)
     report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
     if history is None:
