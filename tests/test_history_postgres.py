@@ -12,6 +12,7 @@ installed; .ci/run installs both.
 from __future__ import annotations
 
 import glob
+import json
 import multiprocessing
 import os
 import pwd
@@ -28,7 +29,7 @@ from compare.history.store import AlreadyRecorded, History, HistoryError
 from compare.history.window import window_baseline
 from compare.results.store import load_results
 
-from history_support import ENGINE, ERRORS, add, real_run, synthetic
+from history_support import ENGINE, ERRORS, add, real_run, synthetic, xval
 
 
 def server_binaries() -> Path | None:
@@ -150,6 +151,17 @@ def test_writers_at_once_all_land_even_when_creating_the_tables(base, url):
     assert sorted(ids) == [1, 2, 3]
     with History.open(url) as history:
         assert len(history.cases()) == 18
+
+
+def test_the_commands_take_a_postgresql_url(base, url, tmp_path, capsys):
+    code, out, err = xval(capsys, "history", "add", base.path, "--history", url)
+    assert code == 0 and "run 1 added: suite gate-test, 6 cases" in out, err
+    code, out, _ = xval(capsys, "history", "show", "--history", url, "--format", "json", "--metric", "energy_drift")
+    assert code == 0 and len(json.loads(out)) == 6
+    code, out, _ = xval(capsys, "gate", base.path, "--history", url, "--timing", "report")
+    assert code == 0 and "no earlier run of suite 'gate-test' on this machine" in out  # the run itself is left out
+    code, out, _ = xval(capsys, "history", "report", "--history", url, "--output", tmp_path / "trend.html")
+    assert code == 0 and "(1 runs, 0 step changes" in out
 
 
 def test_the_windowed_gate_reads_the_same_from_postgresql(base, url):
