@@ -378,6 +378,7 @@ def run_program(spec: CommandSpec, payload: bytes, limit: tuple[float, float] | 
             with contextlib.suppress(OSError):
                 stream.close()
         process.wait()
+        _kill_stragglers(process.pid)
     elapsed = time.perf_counter() - started
     if timed_out:
         seconds = limit[1] if limit is not None else elapsed
@@ -450,6 +451,44 @@ def _wait_unreaped(pid: int, deadline_at: float | None) -> bool:
 def _kill_group(pgid: int) -> None:
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(pgid, signal.SIGKILL)
+
+
+def _kill_stragglers(pgid: int, patience: float = 2.0) -> None:
+    """After the leader is reaped: SIGKILL group ``pgid`` again until no live member is left.
+
+    One killpg can miss a child that a member was forking at that instant (it joins the group after
+    the signal), so the kill is repeated while /proc still lists a member that is not a zombie, for
+    at most ``patience`` s. A group that is already empty costs one system call.
+    """
+    end = time.monotonic() + patience
+    while True:
+        try:
+            os.killpg(pgid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            return
+        if not _live_members(pgid) or time.monotonic() > end:
+            return
+        time.sleep(0.01)
+
+
+def _live_members(pgid: int) -> bool:
+    """Whether a process of group ``pgid`` is alive (not a zombie); True when /proc cannot tell."""
+    try:
+        entries = os.listdir("/proc")
+    except OSError:
+        return True
+    for name in entries:
+        if not name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{name}/stat") as file:
+                stat = file.read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2:].split()  # state, ppid, pgrp, ...
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            return True
+    return False
 
 
 # -- the engines this process knows ---------------------------------------------------

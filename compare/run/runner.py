@@ -476,7 +476,13 @@ def build_record(
         "positions": rounded(trajectory.positions[keep]),
         # The reference at the same samples, so a report can overlay paths without re-solving.
         "reference_positions": rounded(ref_positions[:n][keep]),
+        # For the report's phase plot (angular velocity) and constraint-force plot.
+        "velocities": rounded(trajectory.velocities[keep]),
     }
+    if trajectory.constraint_forces is not None:
+        record["series"]["constraint_forces"] = rounded(trajectory.constraint_forces[keep])
+        if ref_forces is not None and len(ref_forces) >= n:
+            record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
     return jsonable(record)
 
 
