@@ -130,3 +130,15 @@ def _status_in_child(task, queue):
         queue.put(str(execute(task).status))
     except BaseException as exc:  # the assertion "can only test a child process", before the fix
         queue.put(f"{type(exc).__name__}: {exc}")
+
+
+def test_probe_output_is_what_the_report_lists(capsys, tmp_path):
+    from reports.verdict import load_probes
+
+    code, _, _ = run(capsys, ["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5",
+                              "--output", str(tmp_path)])
+    assert code == 0
+    stored = load_probes(tmp_path)
+    assert [p["engine"] for p in stored] == ["pymunk/pin"] and stored[0]["hidden_dissipation"] is True
+    code, _, err = run(capsys, ["probe", "pymunk/pin", "--output", str(tmp_path / "nope")])
+    assert code == 2 and "does not exist" in err

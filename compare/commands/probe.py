@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import click
 
 from compare.cli import parse_assignments
+from compare.results.files import atomic_write_text, check_writable
 from compare.stability.dissipation import DEFAULT_DTS, DEFAULT_DURATION, Dissipation, probe
 from engines import catalog, registry
 from engines.errors import UserError
@@ -40,7 +42,10 @@ def table(result: Dissipation) -> str:
 @click.option("--dt", "dts", multiple=True, type=click.FloatRange(min=0, min_open=True),
               help=f"Time step (s); repeatable, at least 3 (default: {', '.join(f'{d:g}' for d in DEFAULT_DTS)}).")
 @click.option("--format", "fmt", type=click.Choice(["table", "json"]), default="table", show_default=True)
-def command(engine_id, options, scene_name, params, duration, dts, fmt) -> None:
+@click.option("--output", default=None, metavar="DIR",
+              help="Also store the result as DIR/probe-ENGINE-VARIANT.json (a results directory: "
+                   "'xval report DIR' lists hidden dissipation among its problems).")
+def command(engine_id, options, scene_name, params, duration, dts, fmt, output) -> None:
     """Is ENGINE/VARIANT's energy loss its time step, or damping it adds on its own?
 
     Runs the scene at several time steps over a long horizon, measures the
@@ -57,7 +62,14 @@ def command(engine_id, options, scene_name, params, duration, dts, fmt) -> None:
     steps = tuple(dts) or DEFAULT_DTS
     if len(set(steps)) < 3:
         raise UserError(f"--dt: give at least 3 different time steps (got {len(set(steps))}), or none for the defaults")
+    target = None
+    if output is not None:
+        name = f"probe-{engine.name}-{variant}.json".replace("/", "-")
+        target = check_writable(Path(output) / name)
     result = probe(engine_id if "/" in engine_id else f"{engine_id}/{variant}", scene, engine_options, steps)
-    click.echo(json.dumps(result.to_dict(), indent=2) if fmt == "json" else table(result))
+    document = json.dumps(result.to_dict(), indent=2)
+    if target is not None:
+        atomic_write_text(target, document + "\n")
+    click.echo(document if fmt == "json" else table(result))
     if result.hidden_dissipation is None:
         raise click.exceptions.Exit(1)
