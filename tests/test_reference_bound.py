@@ -102,3 +102,8 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
     assert records["bead"].reference_horizon is None
     assert records["bead"].reference["reference_error"] < 1e-10
     assert records["dp"].reference["tight_rtol"] < 1e-13
+    # Errors are judged within the horizon; the whole run's are kept under their own names.
+    dp, bead = records["dp"].metrics, records["bead"].metrics
+    assert dp["position_error_linf"] <= dp["position_error_linf_whole_run"]
+    assert dp["position_error_linf_whole_run"] > 10 * dp["position_error_linf"]  # RK4 at 0.01 s: the chaos grows it
+    assert "position_error_linf_whole_run" not in bead

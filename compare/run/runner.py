@@ -483,6 +483,13 @@ def build_record(
     n_ref = min(n, len(ref_positions))
     extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     record["metrics"] = {**metrics.to_dict(), **extras}
+    horizon = record.get("reference_horizon")
+    if horizon is not None and n:
+        # Past the horizon the reference is not trusted: judge the errors within it, keep the whole run's too.
+        record["metrics"].update(
+            within_horizon(scene, trajectory, ref_positions, ref_forces, scheduled, horizon, outcome.wall_times,
+                           suite.delta, metrics.to_dict())
+        )
     keep = downsample_indices(n)
     record["series"] = {
         "t": rounded(series.t[keep]),
@@ -500,6 +507,32 @@ def build_record(
         if ref_forces is not None and len(ref_forces) >= n:
             record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
     return jsonable(record)
+
+
+#: Metrics judged within the reference's horizon (when it ends inside the run); the whole run's values
+#: stay in the record as ``<name>_whole_run``.
+HORIZON_METRICS = (
+    "position_error_final", "position_error_l2", "position_error_linf", "divergence_time",
+    "constraint_force_error", "constraint_force_error_relative",
+)
+
+
+def within_horizon(scene: Scene, trajectory: Any, ref_positions: np.ndarray, ref_forces: np.ndarray | None,
+                   scheduled: np.ndarray, horizon: float, wall_times: Any, delta: float,
+                   whole: dict[str, Any]) -> dict[str, Any]:
+    """HORIZON_METRICS over the samples at t ≤ ``horizon`` (s), and the whole run's as ``<name>_whole_run``."""
+    k = int(np.searchsorted(scheduled, horizon, side="right"))
+    n = min(k, trajectory.n_samples, len(ref_positions))
+    if n < 1:
+        return {}
+    inner, _ = case_metrics(
+        scene, _truncate(trajectory, n), ref_positions[:n], None if ref_forces is None else ref_forces[:n],
+        scheduled_times=scheduled[:k], wall_times=wall_times, delta=delta,
+    )
+    values = inner.to_dict()
+    out = {f"{name}_whole_run": whole.get(name) for name in HORIZON_METRICS}
+    out.update({name: values.get(name) for name in HORIZON_METRICS})
+    return out
 
 
 class SampledReference:
