@@ -13,6 +13,19 @@ seconds for the answer:
 - no answer in time: the host is killed, the case is ``timeout``, and the
   next case gets a new host.
 
+The reference solve of a scene (a :class:`ReferenceTask`) runs in the same
+host under the same timeout and memory limit, so a scene whose reference
+would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
+
+Lifetime: nothing xval starts outlives it. Each host is the leader of its
+own process group (so the engine's own children are killed with it on a
+timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGTERM
+when its worker dies, on which it SIGKILLs its whole group; pool workers get
+the same request for their parent, the ``xval`` process
+(:func:`die_with_parent`). A host sets ``RLIMIT_AS`` to the task's
+``memory_limit`` before each task: a case past it raises MemoryError (or its
+allocation fails inside the engine) and is ``failed`` with the reason.
+
 Because the worker itself never runs engine code, a case that kills its
 process never breaks a ``ProcessPoolExecutor``. Reusing the host across
 cases (rather than forking per case) matters for speed: a fork per case
@@ -25,8 +38,11 @@ runner then rebuilds).
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -56,6 +72,36 @@ class CaseTask:
     repeats: int = 1
     timeout: float = 120.0
     isolate: bool = True
+    memory_limit: int | None = None
+
+
+@dataclass(frozen=True)
+class ReferenceTask:
+    """The reference solve of one scene, run in a case host like a case (picklable).
+
+    rtol, atol : DOP853's tolerances. timeout : s. memory_limit : bytes of address space, or None.
+    """
+
+    scene_id: str
+    scene: Scene
+    rtol: float
+    atol: float
+    timeout: float = 120.0
+    isolate: bool = True
+    memory_limit: int | None = None
+
+    @property
+    def name(self) -> str:
+        """The scene's name (what a Dask dashboard shows beside ``solve_reference``)."""
+        return self.scene.name
+
+    @property
+    def case_id(self) -> str:
+        return f"reference of scene {self.scene_id}"
+
+
+class ReferenceFailed(RuntimeError):
+    """The reference of a scene could not be solved (raised, timed out, died); the message says which."""
 
 
 @dataclass
@@ -121,11 +167,87 @@ def warm_up(task: CaseTask) -> None:
         pass
 
 
-def _failure(task: CaseTask, exc: BaseException) -> CaseOutcome:
+#: Default address-space limit of a case host, bytes (``--memory-limit``): a host holding
+#: numba, MuJoCo and PyBullet maps ~0.7 GB before it runs anything.
+DEFAULT_MEMORY_LIMIT = 4 * 2**30
+
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(sig: int = signal.SIGKILL) -> None:
+    """Ask the kernel to send ``sig`` to this process when its parent dies (Linux; a no-op elsewhere).
+
+    Used as the pool workers' initializer and by every case host, so a
+    ``kill -9`` of ``xval`` takes its workers, and they their hosts, with it.
+    The check of the parent after the call closes the window in which the
+    parent died before the request was made.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl here: the pipes still end orphaned hosts
+        return
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _kill_own_group(signum: int, frame: Any) -> None:
+    """The host's SIGTERM handler: SIGKILL the host's process group (the host and any child of the engine)."""
+    os.killpg(os.getpgrp(), signal.SIGKILL)
+
+
+def _become_host() -> None:
+    """Lead a process group of our own; on the worker's death, take the group down."""
+    try:
+        os.setpgid(0, 0)
+    except OSError:
+        pass
+    signal.signal(signal.SIGTERM, _kill_own_group)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the xval process's to handle
+    die_with_parent(signal.SIGTERM)
+
+
+def _limit_memory(limit: int | None) -> None:
+    """Set this process's soft RLIMIT_AS to ``limit`` bytes (None: back to the hard limit)."""
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    want = hard if limit is None else (limit if hard == resource.RLIM_INFINITY else min(limit, hard))
+    if want != soft:
+        resource.setrlimit(resource.RLIMIT_AS, (want, hard))
+
+
+def format_bytes(n: int) -> str:
+    """``4294967296`` -> ``4 GiB``."""
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:g} {unit}"
+    return f"{n} B"
+
+
+def _failure(task: Any, exc: BaseException) -> CaseOutcome:
     frame = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
     where = f" (at {frame[0].filename.rsplit('/', 1)[-1]}:{frame[0].lineno})" if frame else ""
     message = f"{type(exc).__name__}: {exc}".splitlines()[0] + where
+    if isinstance(exc, MemoryError) and task.memory_limit is not None:
+        message = (f"ran out of memory past the memory limit of {format_bytes(task.memory_limit)} "
+                   f"({message}); raise --memory-limit if the case needs more")
     return CaseOutcome(task.case_id, None, status="failed", message=message)
+
+
+def _run_in_host(task: Any) -> Any:
+    """What the host does with one task: a case's CaseOutcome, or a reference's solution."""
+    if isinstance(task, ReferenceTask):
+        from engines.reference import solve
+
+        return solve(task.scene, rtol=task.rtol, atol=task.atol)
+    warm_up(task)
+    return simulate(task)
 
 
 def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
@@ -137,20 +259,27 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
     """
     for end in worker_ends:
         end.close()
+    _become_host()
     while True:
         try:
             task = requests.recv()
         except (EOFError, OSError):
             return
+        out_of_memory = False
         try:
-            warm_up(task)
-            outcome = simulate(task)
+            _limit_memory(task.memory_limit)
+            outcome = _run_in_host(task)
         except BaseException as exc:  # anything the engine throws is this case's result
+            out_of_memory = isinstance(exc, MemoryError)
             outcome = _failure(task, exc)
+        finally:
+            _limit_memory(None)
         try:
             replies.send(outcome)
         except Exception as exc:  # an unpicklable trajectory must still give an answer
             replies.send(_failure(task, exc))
+        if out_of_memory:
+            return  # a process that hit its limit may be in any state: the next case gets a new host
 
 
 class _Host:
@@ -164,12 +293,19 @@ class _Host:
         self.process = context.Process(target=_host_loop, args=(child_requests, child_replies, self.requests, self.replies),
                                        daemon=True, name="xval-case-host")
         self.process.start()
+        try:
+            os.setpgid(self.process.pid, self.process.pid)  # also done by the host: whichever runs first
+        except OSError:
+            pass
         child_requests.close()
         child_replies.close()  # so a host that dies closes the pipe and recv() sees EOF
 
     def close(self, kill: bool = False) -> None:
-        if kill:
-            self.process.kill()
+        if kill:  # the host's whole group: the engine's own children too
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)
+            except OSError:
+                self.process.kill()
         self.requests.close()
         self.replies.close()
         self.process.join(timeout=10)
@@ -189,6 +325,23 @@ def _signal_name(exitcode: int | None) -> str:
     return f"exit code {exitcode}"
 
 
+def execute_reference(task: ReferenceTask) -> Any:
+    """The scene's reference solution, solved in this thread's case host under ``task.timeout``.
+
+    Raises ReferenceFailed saying why (the solver raised, ran past the
+    timeout, died or ran out of memory); the runner records it in each case
+    of the scene, whose position metrics are then null.
+    """
+    if not task.isolate:
+        from engines.reference import solve
+
+        return solve(task.scene, rtol=task.rtol, atol=task.atol)
+    answer = _ask_host(task)
+    if isinstance(answer, CaseOutcome):
+        raise ReferenceFailed(answer.message.replace("; raise --timeout if it is only slow", ""))
+    return answer
+
+
 def execute(task: CaseTask) -> CaseOutcome:
     """Run ``task`` in this thread's case host (unless ``task.isolate`` is False); never raises for the engine's sake."""
     start = time.perf_counter()
@@ -199,6 +352,18 @@ def execute(task: CaseTask) -> CaseOutcome:
             outcome = _failure(task, exc)
             outcome.elapsed = time.perf_counter() - start
             return outcome
+    outcome = _ask_host(task)
+    outcome.elapsed = time.perf_counter() - start
+    return outcome
+
+
+def _ask_host(task: Any) -> Any:
+    """Send ``task`` to this thread's host and wait at most ``task.timeout`` s for its answer.
+
+    Returns the host's answer, or a ``timeout`` / ``failed`` CaseOutcome when
+    it gave none (killed at the timeout, or died).
+    """
+    start = time.perf_counter()
     host: _Host | None = getattr(_local, "host", None)
     if host is None or not host.process.is_alive():
         host = _local.host = _Host()
@@ -219,7 +384,7 @@ def execute(task: CaseTask) -> CaseOutcome:
             elapsed=time.perf_counter() - start,
         )
     try:
-        outcome: CaseOutcome = host.replies.recv()
+        answer = host.replies.recv()
     except (EOFError, OSError):
         host.close()
         _local.host = None
@@ -230,5 +395,4 @@ def execute(task: CaseTask) -> CaseOutcome:
             message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
             elapsed=time.perf_counter() - start,
         )
-    outcome.elapsed = time.perf_counter() - start
-    return outcome
+    return answer

@@ -33,11 +33,15 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
+from engines.limits import check_case_size
 from engines.errors import Unsupported
 from engines.scene import Scene
 
 from compare.run.environment import environment
-from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.run.lock import RunLock
+from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseOutcome, CaseTask, ReferenceTask, die_with_parent,
+                                   execute, execute_reference)
+from compare.results.files import remove_stale_temporaries
 from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.store import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
@@ -98,11 +102,10 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
     return None
 
 
-def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
-    """The reference's dense solution of ``scene`` (runs in a worker; module-level so it pickles)."""
-    from engines.reference import solve
-
-    return solve(scene, rtol=rtol, atol=atol)
+def solve_reference(task: ReferenceTask) -> Any:
+    """The reference's dense solution of ``task.scene``, solved in the worker's case host under the
+    case timeout (runs in a worker; module-level so it pickles). Raises ReferenceFailed saying why not."""
+    return execute_reference(task)
 
 
 @dataclass(frozen=True)
@@ -126,7 +129,27 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def run_suite(
+def run_suite(suite: Suite, output: str | Path, **options: Any) -> RunSummary:
+    """Run ``suite`` into ``output`` (see :func:`_run_suite` for the options), holding the directory's lock.
+
+    Every case's size (steps, samples) is checked first: an absurd one is a
+    UserError before anything is written. A second run of the same directory
+    while this one holds it is a UserError naming this one's pid.
+    """
+    check_sizes(suite)
+    with RunLock(output):
+        return _run_suite(suite, output, **options)
+
+
+def check_sizes(suite: Suite) -> None:
+    """UserError naming the scene and dt of the first case too big to run (engines/limits.py)."""
+    for spec in suite.scenes:
+        for dt in suite.dts:
+            check_case_size(len(spec.scene.particles), spec.scene.duration, dt, suite.sample_interval,
+                            where=f"{suite.path}: scene {spec.id!r}")
+
+
+def _run_suite(
     suite: Suite,
     output: str | Path,
     *,
@@ -137,6 +160,7 @@ def run_suite(
     progress: Progress | None = None,
     isolate: bool = True,
     environment_extra: dict[str, Any] | None = None,
+    memory_limit: int | None = DEFAULT_MEMORY_LIMIT,
 ) -> RunSummary:
     """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
 
@@ -148,6 +172,8 @@ def run_suite(
     resume : continue the run already in ``output`` (same suite required).
     environment_extra : more entries for run.json's ``environment`` (a
         cluster's address and workers, see :mod:`compare.run.cluster`).
+    memory_limit : bytes of address space per case host (None: no limit);
+        a case past it is ``failed`` with the reason.
     """
     started = time.perf_counter()
     progress = progress or NullProgress()
@@ -162,6 +188,8 @@ def run_suite(
         "xval_version": compare_version(),
     }
     results = ResultsDir.open_for_run(output, suite.source, header, resume)
+    if resume:
+        remove_stale_temporaries(results.path)  # of a run killed mid-write; we hold the lock
     cases = plan(suite)
     done = results.done_ids() if resume else set()
     todo = [c for c in cases if c.id not in done]
@@ -179,7 +207,8 @@ def run_suite(
             else:
                 runnable.append(case)
         if runnable:
-            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate).run()
+            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate,
+                        memory_limit).run()
     finally:
         progress.stop()
     records = list(iter_records(results.cases))
@@ -204,10 +233,19 @@ def _status_counts(records: list[dict[str, Any]]) -> dict[str, int]:
     return dict(sorted(counts.items()))
 
 
+def _init_worker() -> None:
+    """A pool worker's start: die with the xval process, and import the reference solver once, here,
+    so the case hosts forked from this worker do not spend their first reference's timeout importing it."""
+    die_with_parent()
+    import engines.reference  # noqa: F401
+
+
 class _Dispatcher:
     """Submits references and cases, collects them as they finish, rebuilds a broken pool it owns."""
 
-    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate) -> None:
+    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate,
+                 memory_limit: int | None = DEFAULT_MEMORY_LIMIT) -> None:
+        self.memory_limit = memory_limit
         self.suite = suite
         self.cases = {c.id: c for c in cases}
         self.writer = writer
@@ -228,7 +266,9 @@ class _Dispatcher:
     def _new_pool(self) -> cf.Executor:
         # fork: workers inherit the imported engines; the workers are forked
         # before the progress bar starts its thread (all at first submit).
-        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"))
+        # die_with_parent: a kill -9 of xval takes its workers with it (and they their case hosts).
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
+                                      initializer=_init_worker)
 
     def task(self, case: Case) -> CaseTask:
         return CaseTask(
@@ -242,12 +282,15 @@ class _Dispatcher:
             repeats=self.suite.repeats,
             timeout=self.timeout,
             isolate=self.isolate,
+            memory_limit=self.memory_limit,
         )
 
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
         scenes = {s.id: s.scene for s in self.suite.scenes}
         return {
-            self.executor.submit(solve_reference, scenes[sid], self.suite.rtol, self.suite.atol): ("reference", sid)
+            self.executor.submit(solve_reference, ReferenceTask(
+                sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit
+            )): ("reference", sid)
             for sid in scene_ids
         }
 
@@ -316,11 +359,23 @@ class _Dispatcher:
                     pending = self.recover(pending)
                 pending = self.fill(pending)
         except BaseException:
-            # Ctrl-C or a bug: stop the workers now; finished records are already on disk.
+            # Ctrl-C, SIGTERM or a bug: stop the workers now (their case hosts die with them);
+            # finished records are already on disk, and --resume runs the rest.
+            self.stop_workers()
             self.executor.shutdown(wait=False, cancel_futures=True)
             raise
         if self.own_executor:
             self.executor.shutdown(wait=True)
+
+    def stop_workers(self) -> None:
+        """SIGKILL the worker processes of a pool we own, rather than wait for their cases to end."""
+        if not self.own_executor:
+            return
+        for process in list((getattr(self.executor, "_processes", None) or {}).values()):
+            try:
+                process.kill()
+            except (OSError, AttributeError):
+                pass
 
     def handle(self, kind: str, key: str, value: Any) -> None:
         if kind == "reference":
