@@ -104,10 +104,11 @@ def main(argv: list[str] | None = None) -> None:
         fail(exc.format_message())
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except Terminated:
-        click.echo("xval: terminated", err=True)
-        sys.exit(143)
-    except (click.Abort, KeyboardInterrupt):
+    except (click.Abort, KeyboardInterrupt) as exc:
+        # click turns a KeyboardInterrupt (and so our Terminated) into Abort; its cause says which it was.
+        if isinstance(exc, Terminated) or isinstance(exc.__cause__, Terminated):
+            click.echo("xval: terminated", err=True)
+            sys.exit(143)
         click.echo("xval: interrupted", err=True)
         sys.exit(130)
     except BrokenPipeError:

@@ -46,7 +46,7 @@ import sys
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 from engines.adapter import Engine
@@ -140,6 +140,8 @@ def simulate(task: CaseTask) -> CaseOutcome:
             task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
         )
         wall_times.append(trajectory.info.wall_time)
+        if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
+            trajectory = _out_of_memory(task, trajectory)
         first = first or trajectory
         if trajectory.info.status != "ok":
             break  # repeating a failed or unstable run would only time the failure
@@ -230,13 +232,31 @@ def format_bytes(n: int) -> str:
     return f"{n} B"
 
 
+def _memory_message(task: Any, message: str) -> str:
+    return (f"ran out of memory past the memory limit of {format_bytes(task.memory_limit)} "
+            f"({message}); raise --memory-limit if the case needs more")
+
+
+def _out_of_memory(task: CaseTask, trajectory: Trajectory) -> Trajectory:
+    """The engine's ``failed`` trajectory with the memory limit named in its message (Engine.simulate
+    caught the MemoryError); the host then exits, since a process that hit its limit may be in any state."""
+    if task.memory_limit is None:
+        return trajectory
+    _HIT_LIMIT.set()
+    info = replace(trajectory.info, message=_memory_message(task, trajectory.info.message))
+    return replace(trajectory, info=info)
+
+
+#: Set when a task in this host ran out of memory: the host answers, then exits.
+_HIT_LIMIT = threading.Event()
+
+
 def _failure(task: Any, exc: BaseException) -> CaseOutcome:
     frame = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
     where = f" (at {frame[0].filename.rsplit('/', 1)[-1]}:{frame[0].lineno})" if frame else ""
     message = f"{type(exc).__name__}: {exc}".splitlines()[0] + where
     if isinstance(exc, MemoryError) and task.memory_limit is not None:
-        message = (f"ran out of memory past the memory limit of {format_bytes(task.memory_limit)} "
-                   f"({message}); raise --memory-limit if the case needs more")
+        message = _memory_message(task, message)
     return CaseOutcome(task.case_id, None, status="failed", message=message)
 
 
@@ -278,7 +298,7 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
             replies.send(outcome)
         except Exception as exc:  # an unpicklable trajectory must still give an answer
             replies.send(_failure(task, exc))
-        if out_of_memory:
+        if out_of_memory or _HIT_LIMIT.is_set():
             return  # a process that hit its limit may be in any state: the next case gets a new host
 
 
@@ -338,7 +358,8 @@ def execute_reference(task: ReferenceTask) -> Any:
         return solve(task.scene, rtol=task.rtol, atol=task.atol)
     answer = _ask_host(task)
     if isinstance(answer, CaseOutcome):
-        raise ReferenceFailed(answer.message.replace("; raise --timeout if it is only slow", ""))
+        reason = answer.message.replace("; raise --timeout if it is only slow", "")
+        raise ReferenceFailed(f"the reference of scene {task.scene_id!r} {reason}")
     return answer
 
 

@@ -487,11 +487,13 @@ def build_record(
         trajectory = _truncate(trajectory, int(np.argmin(finite)))
     scheduled = Schedule.make(scene.duration, case.dt, suite.sample_interval).times
     n = trajectory.n_samples
+    reference_note = ""
     if isinstance(reference, Exception) or reference is None:
         why = reference if reference is not None else "no reference"
         ref_positions = np.full((n, len(scene.particles), 3), math.nan)
         ref_forces = None
-        message = "; ".join(m for m in (message, f"no reference solution ({why}), so no position metrics") if m)
+        reference_note = f"no reference solution ({why}), so no position metrics"
+        message = "; ".join(m for m in (message, reference_note) if m)
     else:
         # At the scheduled times (shared by every engine of this dt), of which the trajectory holds the first n.
         ref_positions, ref_forces = reference.at(scheduled)
@@ -513,7 +515,7 @@ def build_record(
         wall_times=outcome.wall_times,
         delta=suite.delta,
     )
-    status, message = apply_bounds(status, message, metrics, suite.bounds, scene)
+    status, message = _with_note(apply_bounds(status, message, metrics, suite.bounds, scene), reference_note)
     record["status"], record["message"] = status, message
     record["metrics"] = metrics.to_dict()
     keep = downsample_indices(n)
@@ -527,6 +529,14 @@ def build_record(
         "reference_positions": rounded(ref_positions[:n][keep]),
     }
     return jsonable(record)
+
+
+def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
+    """(status, message) with ``note`` kept in the message (the bounds' verdict replaces the message)."""
+    status, message = verdict
+    if note and note not in message:
+        message = "; ".join(m for m in (message, note) if m)
+    return status, message
 
 
 class SampledReference:
