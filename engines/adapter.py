@@ -67,6 +67,10 @@ class Option:
     doc: str
     kind: str = "float"
     choices: tuple[Any, ...] | None = None
+    #: Allowed range of a "float" or "int" option (None: unbounded on that side); ``low_open``: low excluded.
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
 
     def parse(self, raw: Any, engine: str) -> Any:
         """Convert a CLI string (or a value from a suite file); UserError names the option and the fix."""
@@ -98,7 +102,22 @@ class Option:
             raise UserError(f"{where} must be {_KIND_WORDS[self.kind]}, got {raw!r}") from None
         if self.choices is not None and value not in self.choices:
             raise UserError(f"{where} must be one of {', '.join(map(str, self.choices))}; got {raw!r}")
+        if self.kind in ("float", "int") and value is not None and not self._in_range(value):
+            raise UserError(f"{where} = {value!r} is outside the allowed range {self.range_text()}")
         return value
+
+    def _in_range(self, value: float) -> bool:
+        if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
+            return False
+        return self.high is None or value <= self.high
+
+    def range_text(self) -> str:
+        """``(0, 1]``, ``[1, 10000]``, ``>= 0``: the allowed range as written in messages and help."""
+        if self.low is not None and self.high is not None:
+            return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
+        if self.low is not None:
+            return f"{'>' if self.low_open else '>='} {self.low:g}"
+        return f"<= {self.high:g}" if self.high is not None else "(any)"
 
 
 _KIND_WORDS = {

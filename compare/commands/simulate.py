@@ -8,7 +8,7 @@ import click
 import numpy as np
 
 from compare.cli import Seconds, output_path, parse_assignments
-from compare.results.export import trajectory_csv
+from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, constraint_error, energy_drift
 from engines import catalog, registry
@@ -74,7 +74,11 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     trajectory = engine.simulate(
         scene, float(dt), variant=variant, options=engine_options, sample_interval=sample_interval
     )
-    atomic_write_text(path, trajectory_csv(scene, trajectory))
+    if trajectory.n_samples:
+        text = trajectory_csv(scene, trajectory)
+    else:  # failed before its first sample: the header alone
+        text = ",".join(trajectory_columns(scene)) + "\n"
+    atomic_write_text(path, text)
 
     info = trajectory.info
     status, message = info.status, info.message
