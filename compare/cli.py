@@ -86,9 +86,17 @@ def os_error_line(exc: OSError) -> tuple[str, int]:
 
 def main(argv: list[str] | None = None) -> None:
     try:
-        signal.signal(signal.SIGTERM, _terminate)
+        previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread (an embedding program): leave SIGTERM alone
-        pass
+        previous = None
+    try:
+        _main(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> None:
     try:
         # Outside standalone mode click *returns* the code of a click.exceptions.Exit
         # (e.g. simulate's exit 1 for an unstable run) instead of exiting with it.

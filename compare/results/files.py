@@ -63,15 +63,16 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
         raise UserError(f"{flag}: the path is empty; give a file name")
     if str(path) == STDOUT:
         return Path(STDOUT)
+    name = Path(path).name
+    if len(name.encode()) > 255:
+        raise UserError(f"{flag}: the file name {name[:40]}... is {len(name.encode())} bytes, "
+                        f"longer than the 255 a file system allows; choose a shorter name")
     check_not_input(path, inputs, flag)
     target = Path(path)
     real = target.resolve() if target.is_symlink() else target
     parent = real.parent if str(real.parent) else Path(".")
     if real.is_dir():
         raise UserError(f"{flag}: {target} is a directory; give a file name")
-    if len(real.name.encode()) > 255:
-        raise UserError(f"{flag}: the file name {real.name[:40]}... is {len(real.name.encode())} bytes, "
-                        f"longer than the 255 a file system allows; choose a shorter name")
     if not parent.is_dir():
         raise UserError(f"{flag}: directory {parent} does not exist; create it or choose another path")
     if real.exists() and not stat.S_ISREG(real.stat().st_mode):
