@@ -19,6 +19,7 @@ from typing import Any, NoReturn
 
 import click
 
+from compare.text import InertStream, inert
 from engines.errors import UserError
 
 #: Built-in verbs: name -> the module defining a click command ``command`` of that name.
@@ -55,8 +56,8 @@ def cli() -> None:
 
 
 def fail(message: str) -> NoReturn:
-    """Print one error line and exit 2."""
-    click.echo(f"xval: error: {message}", err=True)
+    """Print one error line (control characters in it made visible, see compare/text.py) and exit 2."""
+    click.echo(f"xval: error: {inert(message)}", err=True)
     sys.exit(2)
 
 
@@ -89,9 +90,12 @@ def main(argv: list[str] | None = None) -> None:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread (an embedding program): leave SIGTERM alone
         previous = None
+    stdout = sys.stdout
+    sys.stdout = InertStream(stdout)  # labels from files print as text, never as terminal commands
     try:
         _main(argv)
     finally:
+        sys.stdout = stdout
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
@@ -123,7 +127,7 @@ def _main(argv: list[str] | None) -> None:
         sys.exit(0)
     except OSError as exc:  # a full disk, a name too long, a file that vanished: one line, never a traceback
         line, code = os_error_line(exc)
-        click.echo(f"xval: error: {line}", err=True)
+        click.echo(f"xval: error: {inert(line)}", err=True)
         sys.exit(code)
 
 

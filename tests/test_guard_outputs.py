@@ -110,3 +110,19 @@ def test_a_simulate_that_blows_up_at_once_is_one_line_and_the_csv_keeps_its_head
     assert code == 1 and err == ""
     assert len(out.strip().splitlines()) == 1 and ": unstable" in out
     assert output.read_text().startswith("t,p0_x,p0_y,p0_z")
+
+
+def test_labels_with_ansi_escapes_print_inert(tmp_path, capsys):
+    # A label that would clear the screen and turn the text red, in a suite file.
+    (tmp_path / "s.toml").write_text(
+        'dt = [1e-2]\nduration = 0.2\n[[scenes]]\nscene = "bead"\n'
+        '[[engines]]\nid = "mujoco/hinge"\nlabel = "\\u001b[2J\\u001b[31mred\\u0007"\n'
+    )
+    code, out, err = run(capsys, "run", str(tmp_path / "s.toml"), "--output", str(tmp_path / "r"), "--jobs", "1")
+    assert code == 0, err
+    code, shown, _ = run(capsys, "show", str(tmp_path / "r"))
+    assert code == 0
+    for text in (out, shown):
+        # Escapes the table formatter did not strip itself are shown as visible \xNN text.
+        assert "\x1b" not in text and "\x07" not in text
+        assert "red\\x07" in text
