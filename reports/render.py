@@ -21,7 +21,7 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
-from compare.results.files import atomic_write_text, check_writable
+from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings, load_run_settings
 from engines.errors import UserError
@@ -125,7 +125,8 @@ def write_report(directory: str | Path, output: str | Path | None = None, dt: fl
     """
     started = time.perf_counter()
     data = load_report_data(directory, dt)  # first, so a wrong DIR is named as such
-    target = check_writable(Path(output) if output is not None else Path(directory) / DEFAULT_NAME)
+    target = check_writable(Path(output) if output is not None else Path(directory) / DEFAULT_NAME,
+                            inputs=results_inputs(directory))
     text = render(data)
     atomic_write_text(target, text)
     return Written(target, len(text.encode()), time.perf_counter() - started)

@@ -9,7 +9,7 @@ import click
 
 
 from compare.gate.baseline import build_baseline, load_baseline
-from compare.results.files import atomic_write_text, check_writable
+from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
 from compare.gate.junit import to_junit
@@ -42,8 +42,10 @@ def command(directory, baseline_path, junit, summary, timing) -> None:
     reported, not failed. Tolerances come from the suite's [gate] table.
     """
     # Refuse unwritable output paths before any work, like every other verb.
-    junit_file = check_writable(junit, "--junit") if junit else None
-    summary_file = check_writable(summary, "--summary") if summary else None
+    # Neither may replace what the gate reads: the baseline, or the results' own files.
+    inputs = [baseline_path, *results_inputs(directory)]
+    junit_file = check_writable(junit, "--junit", inputs) if junit is not None else None
+    summary_file = check_writable(summary, "--summary", inputs) if summary is not None else None
     baseline = load_baseline(baseline_path)
     results = load_results(directory)
     current = build_baseline(results, then="gate it")

@@ -23,6 +23,13 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   a variant that converged to the reference in the baseline and converges
   to something else now is **worse**.
 - **new** / **missing**: a case only in the results / only in the baseline.
+  Missing cases fail the gate (named in a note) when the results were made
+  from the same suite as the baseline (an interrupted or partial run must not
+  pass), or when not one baseline case is in the results; after the suite
+  was edited, the cases it dropped are reported only.
+- a metric the baseline had a number for and the results have none (null:
+  the reference could not be solved, the engine stopped giving forces) is
+  **worse**: an absent number must not pass as unchanged.
 
 Everything here is a pure function of two baseline-shaped documents (the
 results are turned into baseline entries first), so the rules are tested
@@ -104,6 +111,8 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
+    #: True when the missing cases fail the gate (see the module docstring).
+    missing_fails: bool = False
 
     @property
     def counts(self) -> dict[str, int]:
@@ -114,7 +123,8 @@ class GateReport:
 
     @property
     def passed(self) -> bool:
-        return self.counts["worse"] == 0
+        counts = self.counts
+        return counts["worse"] == 0 and not (self.missing_fails and counts["missing"])
 
 
 # -- one metric -------------------------------------------------------------------------
@@ -209,7 +219,11 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
     if b_status == "ok" and c_status == "ok":
         b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
         for rule in RULES.values():
-            change = accuracy_change(rule, b_metrics.get(rule.name), c_metrics.get(rule.name), settings)
+            b_value, c_value = b_metrics.get(rule.name), c_metrics.get(rule.name)
+            change = accuracy_change(rule, b_value, c_value, settings)
+            if change is None and b_value is not None and c_value is None:
+                change = Change(rule.name, rule.unit, b_value, None, None, "worse",
+                                note=f"no value now, the baseline had one: {current.get('message') or 'see the case'}")
             if change is not None:
                 changes.append(change)
         timing = timing_change(base.get("timing"), current.get("timing"), settings.timing_factor, timing_gated, why_not)
@@ -321,17 +335,28 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
             reason="in the baseline, not in the results", baseline_status=base["status"],
         ))
     results.sort(key=lambda r: (VERDICTS.index(r.verdict), r.position, r.scene_id, r.engine, -r.dt))
+    missing = [r for r in results if r.verdict == "missing"]
+    same_suite = (baseline.get("suite") or {}).get("fingerprint") == (current.get("suite") or {}).get("fingerprint")
+    missing_fails = bool(missing) and (same_suite or len(missing) == len(base_cases))
+    notes: tuple[str, ...] = ()
+    if missing_fails:
+        names = ", ".join(r.name for r in missing[:10]) + (f" and {len(missing) - 10} more" if len(missing) > 10 else "")
+        notes = (f"{len(missing)} of the baseline's {len(base_cases)} cases are missing from the results ({names}); "
+                 f"finish the run with 'xval run SUITE --output DIR --resume'",)
     return GateReport(
         suite=current["suite"].get("name", ""),
         cases=tuple(results),
         settings=settings,
         timing=timing,
         timing_note=why_not,
+        notes=notes,
+        missing_fails=missing_fails,
     )
 
 
 def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, baseline_path: str, *, timing: str = "gate") -> GateReport:
     """:func:`gate` after checking both come from the same suite; the report carries the suite notes."""
     notes = check_same_suite(baseline, current["suite"], baseline_path)
-    return replace(gate(baseline, current, settings, timing=timing), notes=tuple(notes))
+    report = gate(baseline, current, settings, timing=timing)
+    return replace(report, notes=(*notes, *report.notes))
 

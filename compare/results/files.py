@@ -54,6 +54,13 @@ def check_not_input(path: str | os.PathLike, inputs: Iterable[str | os.PathLike]
                             f"choose another path")
 
 
+def results_inputs(directory: str | os.PathLike) -> list[Path]:
+    """The files of a results directory a command reads (run.json, suite.toml, every case file):
+    what an output must never replace. Other files in the directory (report.html) may be written."""
+    root = Path(directory)
+    return [root / "run.json", root / "suite.toml", root / "cases"]
+
+
 def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iterable[str | os.PathLike] = ()) -> Path:
     """Raise UserError now, before any work, when ``path`` cannot be written (or is one of ``inputs``).
 
