@@ -165,9 +165,11 @@ def load_baseline(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     fix = REMAKE.format(path=path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"--baseline: {path}: no such file; {fix}") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"--baseline: {path}: not UTF-8 text (byte {exc.start}), so not an xval baseline; {fix}") from None
     except IsADirectoryError:
         raise UserError(f"--baseline: {path} is a directory; give the baseline JSON file (xval baseline DIR --output FILE)") from None
     except OSError as exc:
