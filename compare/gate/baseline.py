@@ -83,7 +83,12 @@ def _timing(record: CaseRecord) -> dict[str, Any] | None:
         return None
     # Each repeat stepped the same simulated time, so cost scales with wall time.
     per_repeat = [w * cost / wall for w in repeats]
-    return {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
+    timing = {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
+    cpu_times = record.extra.get("cpu_times") or []
+    if len(cpu_times) == len(repeats) and all(isinstance(c, (int, float)) and c > 0 for c in cpu_times):
+        # CPU s per simulated s of each repeat: what the timing gate compares when both sides have it.
+        timing["cpu"] = [c * cost / wall for c in cpu_times]
+    return timing
 
 
 def entry_from_record(record: CaseRecord, header: dict[str, Any], sweep: VariantSweep | None = None) -> dict[str, Any]:

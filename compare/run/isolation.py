@@ -111,6 +111,7 @@ class CaseOutcome:
     trajectory : the first run's Trajectory (its RunInfo holds the engine's
         own status), or None when the case failed or timed out outside the engine.
     wall_times : s, the stepping-loop wall time of each repeat.
+    cpu_times : s, the stepping-loop CPU time of each repeat (RunInfo.cpu_time).
     status, message : ``ok`` when the trajectory's status applies; else ``failed`` or ``timeout``.
     elapsed : s, wall time of the whole case (model building and all repeats).
     """
@@ -121,6 +122,7 @@ class CaseOutcome:
     status: str = "ok"
     message: str = ""
     elapsed: float = 0.0
+    cpu_times: list[float] = field(default_factory=list)
 
 
 def _engine_for(task: CaseTask) -> Engine:
@@ -135,17 +137,19 @@ def simulate(task: CaseTask) -> CaseOutcome:
     engine = _engine_for(task)
     first: Trajectory | None = None
     wall_times: list[float] = []
+    cpu_times: list[float] = []
     for _ in range(task.repeats):
         trajectory = engine.simulate(
             task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
         )
         wall_times.append(trajectory.info.wall_time)
+        cpu_times.append(trajectory.info.cpu_time)
         if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
             trajectory = _out_of_memory(task, trajectory)
         first = first or trajectory
         if trajectory.info.status != "ok":
             break  # repeating a failed or unstable run would only time the failure
-    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start)
+    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times)
 
 
 #: Engine variants this process has run once (see :func:`warm_up`).

@@ -474,6 +474,7 @@ def build_record(
         return jsonable(record)
     record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
     record["wall_times"] = outcome.wall_times
+    record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares
     trajectory = outcome.trajectory
     if trajectory is None:
         return jsonable(record)
