@@ -203,21 +203,18 @@ class RawRun:
     cpu_time: float | None = None
 
 
-def loop_cpu_time(raw: RawRun, elapsed: float, cpu: float) -> float:
-    """s of CPU time of the stepping loop: the adapter's own measure, else an estimate.
+def loop_cpu_time(raw: RawRun, cpu: float) -> float:
+    """s of CPU time of the run: the adapter's own measure of its stepping loop, else ``cpu``.
 
-    elapsed, cpu : s of wall and of this thread's CPU time of the whole ``_run`` call.
-    The estimate is the run's CPU time times the loop's share of its wall time
-    (``cpu · wall_time / elapsed``): model building is left out as for wall
-    time, while time the thread spent waiting for a core (another process
-    loading the machine) is not counted, which is why the timing gate
-    compares it rather than wall time (compare/gate/gate.py).
+    cpu : s of this thread's CPU time of the whole ``_run`` call (model building
+    included: a build that became slower is a slower engine too). Time the
+    thread spent waiting for a core (another process loading the machine) is
+    not in it, which is why the timing gate compares it rather than wall time
+    (compare/gate/gate.py). Splitting it by the loop's share of wall time was
+    tried and rejected: under load, preemption falls unevenly on building and
+    stepping, and the share was off by up to 2x.
     """
-    if raw.cpu_time is not None:
-        return float(raw.cpu_time)
-    if elapsed <= 0:
-        return 0.0
-    return cpu * min(1.0, raw.wall_time / elapsed)
+    return float(raw.cpu_time) if raw.cpu_time is not None else cpu
 
 
 class Engine:
@@ -326,7 +323,7 @@ class Engine:
             raw = self._run(scene, schedule, settings)
             elapsed, cpu = time.perf_counter() - started, time.thread_time() - cpu_started
             raw = check_raw_run(self.name, raw, scene, schedule, elapsed)
-            info = replace(info, cpu_time=loop_cpu_time(raw, elapsed, cpu))
+            info = replace(info, cpu_time=loop_cpu_time(raw, cpu))
         except Exception as exc:  # an engine that raises, or returns nonsense, is a result, not a crash
             empty = np.empty((0, n_particles, 3))
             message = f"{type(exc).__name__}: {exc}".splitlines()[0]

@@ -25,7 +25,8 @@ class RunInfo:
     engine_version : the engine library's version string.
     dt : s, the time step; steps : steps actually taken.
     wall_time : s, wall time of the stepping loop alone (model building excluded).
-    cpu_time : s, CPU time of the stepping loop (this thread's), see engines.adapter.loop_cpu_time;
+    cpu_time : s, this thread's CPU time of the run (the adapter's stepping loop's when it measures it),
+        see engines.adapter.loop_cpu_time;
         what the timing gate compares, since a busy neighbour stretches wall time, not CPU time.
     status : one of ``STATUSES``; message : why, when not ok.
     settings : every option used, and every engine default overridden.

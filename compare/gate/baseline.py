@@ -85,9 +85,13 @@ def _timing(record: CaseRecord) -> dict[str, Any] | None:
     per_repeat = [w * cost / wall for w in repeats]
     timing = {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
     cpu_times = record.extra.get("cpu_times") or []
-    if len(cpu_times) == len(repeats) and all(isinstance(c, (int, float)) and c > 0 for c in cpu_times):
-        # CPU s per simulated s of each repeat: what the timing gate compares when both sides have it.
+    calibrations = record.extra.get("calibrations") or []
+    if (len(cpu_times) == len(calibrations) == len(repeats)
+            and all(isinstance(c, (int, float)) and c > 0 for c in [*cpu_times, *calibrations])):
+        # CPU s per simulated s of each repeat, and the calibration kernel's CPU s timed beside it:
+        # what the timing gate compares when both sides have them.
         timing["cpu"] = [c * cost / wall for c in cpu_times]
+        timing["calibration"] = list(calibrations)
     return timing
 
 

@@ -13,14 +13,16 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   no longer expresses the scene): a solver that stopped running must fail
   the gate. Skipped in the baseline only is **not comparable**.
 - timing (cost per simulated second), when both sides recorded the stepping
-  loop's CPU time (:func:`cpu_timing_change`, docs/reliability.md): compare
-  the *best* (smallest) CPU cost of the repeats, and call it **worse** when
-  current best > baseline best · ``timing_factor`` · (1 + s_b + s_c), where
-  s = (max − min) / min of a side's repeats: the threshold widens with the
-  noise measured in both runs. CPU time does not count the time a process
-  waits for a core, so a busy neighbour does not look like a regression; the
-  best of the repeats drops the ones that lost their cache or were slowed by
-  an interrupt. Older records (wall time only): **worse** only when the
+  loop's CPU time and the calibration kernel's (:func:`cpu_timing_change`,
+  docs/reliability.md): each repeat's CPU cost is divided by the smallest
+  calibration time of its run, and the *best* (smallest) of the repeats is
+  compared: **worse** when current best > baseline best · ``timing_factor`` ·
+  (1 + s_b + s_c), where s = (second best − best) / best of a side (how far
+  its best is from being reproduced): the threshold widens with the noise
+  measured in both runs. CPU time does not count the time a process waits
+  for a core; the calibration cancels a CPU that is itself slower now (a
+  shared physical core, a lower clock); the best of the repeats drops those
+  hit by a burst. Older records (wall time only): **worse** only when the
   median slowed by more than ``timing_factor`` *and* by more than the spread
   of the repeats on both sides (max − min of each). Either way, never gated
   with fewer than two repeats a side, when the two runs were timed on
@@ -179,8 +181,8 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
     b, c = baseline["cost"], current["cost"]
     if gated and min(len(baseline.get("repeats", ())), len(current.get("repeats", ()))) < MIN_TIMING_REPEATS:
         gated, why_not = False, f"fewer than {MIN_TIMING_REPEATS} timing repeats, so the noise is unknown (set repeats in the suite)"
-    if baseline.get("cpu") and current.get("cpu"):
-        return cpu_timing_change(baseline["cpu"], current["cpu"], factor, gated, why_not)
+    if baseline.get("cpu") and current.get("cpu") and baseline.get("calibration") and current.get("calibration"):
+        return cpu_timing_change(baseline, current, factor, gated, why_not)
     noise = (baseline["spread"][1] - baseline["spread"][0]) + (current["spread"][1] - current["spread"][0])
     if c > factor * b and c - b > noise:
         verdict, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
@@ -193,26 +195,38 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
     return Change(TIMING_METRIC, "s/s", b, c, factor * b, verdict, gated=gated, note=note)
 
 
-def relative_spread(costs: list[float]) -> float:
-    """(max − min) / min of one side's repeats: 0 for a single repeat."""
-    best = min(costs)
-    return (max(costs) - best) / best if best > 0 else 0.0
+def best_spread(values: list[float]) -> float:
+    """(second best − best) / best of one side's repeats: how far its best is from being reproduced (0 for one)."""
+    ordered = sorted(values)
+    if len(ordered) < 2 or ordered[0] <= 0:
+        return 0.0
+    return (ordered[1] - ordered[0]) / ordered[0]
 
 
-def cpu_timing_change(baseline: list[float], current: list[float], factor: float, gated: bool, why_not: str = "") -> Change:
-    """The statistical timing rule on CPU cost per simulated second (s/s), one value per repeat a side.
+def calibrated(timing: dict[str, Any]) -> list[float]:
+    """Each repeat's CPU cost (s/s) in units of the run's fastest calibration kernel (s)."""
+    unit = min(timing["calibration"])
+    return [c / unit for c in timing["cpu"]]
 
-    worse when best(current) > best(baseline) · factor · (1 + s_b + s_c); better in mirror;
-    s = :func:`relative_spread`. The Change shows the two bests and the limit.
+
+def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor: float, gated: bool,
+                      why_not: str = "") -> Change:
+    """The statistical timing rule (module docstring) on two timing entries with "cpu" and "calibration".
+
+    worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated
+    costs, s = :func:`best_spread`; better in mirror. The Change shows the best CPU costs (s/s).
     """
-    b, c = min(baseline), min(current)
-    widen = 1 + relative_spread(baseline) + relative_spread(current)
+    b_cal, c_cal = calibrated(baseline), calibrated(current)
+    ratio = min(c_cal) / min(b_cal)
+    widen = 1 + best_spread(b_cal) + best_spread(c_cal)
     limit = factor * widen
-    how = f"best of {len(baseline)}/{len(current)} repeats, CPU time; limit {factor:g} × {widen:.3g}"
-    if c > limit * b:
-        verdict, note = "worse", f"{c / b:.2f}× slower ({how})"
-    elif b > limit * c:
-        verdict, note = "better", f"{b / c:.2f}× faster ({how})"
+    b, c = min(baseline["cpu"]), min(current["cpu"])
+    how = (f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} repeats; "
+           f"limit {factor:g} × {widen:.3g} = {limit:.3g}")
+    if ratio > limit:
+        verdict, note = "worse", f"{ratio:.2f}× slower ({how})"
+    elif 1 / ratio > limit:
+        verdict, note = "better", f"{1 / ratio:.2f}× faster ({how})"
     else:
         verdict, note = "unchanged", ""
     if verdict != "unchanged" and not gated:

@@ -112,6 +112,7 @@ class CaseOutcome:
         own status), or None when the case failed or timed out outside the engine.
     wall_times : s, the stepping-loop wall time of each repeat.
     cpu_times : s, the stepping-loop CPU time of each repeat (RunInfo.cpu_time).
+    calibrations : s, CPU time of :func:`calibration_cpu_time` run just before each repeat.
     status, message : ``ok`` when the trajectory's status applies; else ``failed`` or ``timeout``.
     elapsed : s, wall time of the whole case (model building and all repeats).
     """
@@ -123,6 +124,27 @@ class CaseOutcome:
     message: str = ""
     elapsed: float = 0.0
     cpu_times: list[float] = field(default_factory=list)
+    calibrations: list[float] = field(default_factory=list)
+
+
+def calibration_cpu_time() -> float:
+    """s of this thread's CPU time for a fixed small kernel (~3 ms: 800 products of 24x24 matrices in a
+    Python loop, so both the interpreter and compiled code are in it).
+
+    Timed beside each repeat of a case, it measures how fast this CPU is
+    *right now*: a core shared with another VM's thread, a lower clock or a
+    cache shared with a busy neighbour slow the kernel and the engine alike,
+    so the timing gate divides one by the other (compare/gate/gate.py).
+    """
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((24, 24)), rng.standard_normal((24, 24)) / 5
+    started = time.thread_time()
+    for _ in range(800):
+        a = a @ b
+        a /= np.abs(a).max()
+    return time.thread_time() - started
 
 
 def _engine_for(task: CaseTask) -> Engine:
@@ -138,7 +160,9 @@ def simulate(task: CaseTask) -> CaseOutcome:
     first: Trajectory | None = None
     wall_times: list[float] = []
     cpu_times: list[float] = []
+    calibrations: list[float] = []
     for _ in range(task.repeats):
+        calibrations.append(calibration_cpu_time())
         trajectory = engine.simulate(
             task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
         )
@@ -149,7 +173,8 @@ def simulate(task: CaseTask) -> CaseOutcome:
         first = first or trajectory
         if trajectory.info.status != "ok":
             break  # repeating a failed or unstable run would only time the failure
-    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times)
+    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
+                       calibrations=calibrations[:len(cpu_times)])
 
 
 #: Engine variants this process has run once (see :func:`warm_up`).

@@ -474,7 +474,8 @@ def build_record(
         return jsonable(record)
     record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
     record["wall_times"] = outcome.wall_times
-    record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares
+    record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares,
+    record["calibrations"] = outcome.calibrations  # in units of this kernel's CPU time, timed beside each
     trajectory = outcome.trajectory
     if trajectory is None:
         return jsonable(record)
