@@ -128,7 +128,7 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
     assert resumed.returncode == 0, resumed.stderr
     results = load_results(out)
     assert results.header["finished"] is not None
-    assert sorted(r["status"] for r in results.records) == ["timeout", "timeout"]
+    assert sorted(r.status.value for r in results.records) == ["timeout", "timeout"]
 
 
 def test_sigterm_stops_the_run_leaves_no_process_nor_temporary_and_resume_finishes(tmp_path):
@@ -162,7 +162,7 @@ def test_a_timed_out_engine_leaves_no_children(tmp_path):
     before = descendants(os.getpid())
     run_suite(suite, tmp_path / "r", jobs=1, timeout=2)
     [record] = load_results(tmp_path / "r").records
-    assert record["status"] == "timeout"
+    assert record.status.value == "timeout"
     wait_for(lambda: descendants(os.getpid()) <= before, 10, "the engine's `sleep` children to be killed")
 
 
@@ -174,19 +174,19 @@ def test_the_reference_solve_runs_under_the_case_timeout(tmp_path):
     assert time.monotonic() - start < 30
     [record] = load_results(tmp_path / "r").records
     assert ("no reference solution (the reference of scene 'bead' ran past the timeout of 2 s and was killed), "
-            "so no position metrics") in record["message"]
-    assert record["metrics"]["position_error_linf"] is None
+            "so no position metrics") in record.message
+    assert record.metrics["position_error_linf"] is None
 
 
 def test_a_case_past_the_memory_limit_fails_with_the_reason_and_the_others_carry_on(tmp_path):
     suite = parse_suite(suite_text(["guard_engines:HOG/memory", "mujoco/hinge"]))
     run_suite(suite, tmp_path / "r", jobs=1, memory_limit=2 * 2**30)
-    records = {r["case"]["engine"]: r for r in load_results(tmp_path / "r").records}
+    records = {r.case.engine: r for r in load_results(tmp_path / "r").records}
     hog = records["guard_engines:HOG/memory"]
-    assert hog["status"] == "failed"
-    assert hog["message"].startswith("ran out of memory past the memory limit of 2 GiB (")
-    assert hog["message"].endswith("); raise --memory-limit if the case needs more")
-    assert records["mujoco/hinge"]["status"] == "ok"
+    assert hog.status.value == "failed"
+    assert hog.message.startswith("ran out of memory past the memory limit of 2 GiB (")
+    assert hog.message.endswith("); raise --memory-limit if the case needs more")
+    assert records["mujoco/hinge"].status.value == "ok"
 
 
 def _small_files() -> None:
@@ -207,7 +207,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     assert line.startswith(f"xval: error: ") and "File too large: no room to write" in line
     assert "Traceback" not in full.stderr
     assert [p.name for p in out.rglob("*.tmp")] == []
-    assert [r["case"]["scene_id"] for r in load_results(out).records] == ["bead"]  # the finished case is kept
+    assert [r.case.scene_id for r in load_results(out).records] == ["bead"]  # the finished case is kept
     resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT, env=ENV,
                              capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
