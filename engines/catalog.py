@@ -353,5 +353,7 @@ def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
     try:
         return entry.build(**values, parameters=values)
     except SceneError as exc:  # a rule only the built scene can check (a speed from omega0 and radius)
+        if str(exc).startswith(f"{name}: "):
+            raise  # the builder's own message, already naming the scene and its parameters
         given = ", ".join(f"{k} = {values[k]:g}" for k in (overrides or {}))
         raise SceneError(f"{name}: {exc}" + (f" (from {given})" if given else "")) from None

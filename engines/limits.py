@@ -51,8 +51,7 @@ def in_range(value: Any, field: str, low: float, high: float, unit: str = "") ->
         raise SceneError(f"{field}: must be a number, got {value!r}") from None
     allowed = f"{low:g} to {high:g}{unit}" if low > 0 else f"at most {high:g}{unit}"
     if not math.isfinite(number) or number <= 0.0:
-        bounded = f" ({allowed})" if math.isfinite(high) else ""
-        raise SceneError(f"{field}: must be positive and finite{bounded}, got {number!r}")
+        raise SceneError(f"{field}: must be positive and finite, got {number!r}")
     if not low <= number <= high:
         raise SceneError(f"{field}: {number:g}{unit} is outside the allowed range ({allowed})")
     return number
