@@ -126,3 +126,24 @@ def test_labels_with_ansi_escapes_print_inert(tmp_path, capsys):
         # Escapes the table formatter did not strip itself are shown as visible \xNN text.
         assert "\x1b" not in text and "\x07" not in text
         assert "red\\x07" in text
+
+
+def test_gate_md_escapes_html_in_labels():
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from gate_support import GOLDEN
+
+    from compare.gate.baseline import load_baseline
+    from compare.gate.gate import gate_results
+    from compare.gate.report import to_markdown
+    from compare.gate.tolerance import GateSettings
+
+    baseline, current = load_baseline(GOLDEN / "baseline.json"), load_baseline(GOLDEN / "current.json")
+    for document in (baseline, current):
+        for entry in document["cases"].values():
+            entry["engine"] = "<img src=x onerror=alert(1)>|" + entry["engine"]
+    text = to_markdown(gate_results(baseline, current, GateSettings(), "baseline.json"))
+    assert "<img" not in text
+    assert "&lt;img src=x onerror=alert(1)&gt;\\|ours/" in text
