@@ -151,8 +151,8 @@ class Seconds(click.ParamType):
 
 #: Multipliers of --memory-limit's suffixes (binary: 4G is 4 GiB).
 _SIZE_SUFFIXES = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
-#: Smallest --memory-limit: a case host holding the engines maps ~0.7 GB before it runs anything.
-MIN_MEMORY_LIMIT = 2**30
+#: Smallest --memory-limit (address space a case may add to its host's): less fails ordinary cases.
+MIN_MEMORY_LIMIT = 256 * 2**20
 
 
 class MemorySize(click.ParamType):
@@ -171,8 +171,8 @@ class MemorySize(click.ParamType):
             self.fail(f"{value!r} is not a size; write e.g. 4G, 512M or none", param, ctx)
         size = int(float(match.group(1)) * _SIZE_SUFFIXES[match.group(2)])
         if size < MIN_MEMORY_LIMIT:
-            self.fail(f"{value!r} is below the allowed minimum of 1G (an engine's process needs about 0.7 GB "
-                      f"before it runs a case); write e.g. 4G, or none for no limit", param, ctx)
+            self.fail(f"{value!r} is below the allowed minimum of 256M; write e.g. 4G, or none for no limit",
+                      param, ctx)
         return size
 
 

@@ -39,7 +39,7 @@ CASES = [
     ("timeout-text", {"s.toml": GOOD_SUITE}, RUN + ["--timeout", "soon"], r"--timeout.*'soon' is not a number of seconds"),
     ("jobs-zero", {"s.toml": GOOD_SUITE}, RUN + ["--jobs", "0"], r"--jobs.*0 is not in the range 1<=x<=64"),
     ("jobs-huge", {"s.toml": GOOD_SUITE}, RUN + ["--jobs", "1000000"], r"--jobs.*1000000 is not in the range 1<=x<=64"),
-    ("memory-limit-tiny", {"s.toml": GOOD_SUITE}, RUN + ["--memory-limit", "10M"], r"--memory-limit.*'10M' is below the allowed minimum of 1G"),
+    ("memory-limit-tiny", {"s.toml": GOOD_SUITE}, RUN + ["--memory-limit", "10M"], r"--memory-limit.*'10M' is below the allowed minimum of 256M"),
     ("memory-limit-text", {"s.toml": GOOD_SUITE}, RUN + ["--memory-limit", "lots"], r"--memory-limit.*'lots' is not a size; write e.g. 4G"),
     ("run-output-empty", {"s.toml": GOOD_SUITE}, ["run", "{tmp}/s.toml", "--output", ""], r"--output.*is empty"),
     ("run-output-is-a-file", {"s.toml": GOOD_SUITE, "f": "x"}, ["run", "{tmp}/s.toml", "--output", "{tmp}/f"], r"--output: .*/f is a file; give a directory"),

@@ -28,8 +28,8 @@ from compare.results.table import scene_tables
                    "timeout, at most 1e6 (default: the suite's).")
 @click.option("--memory-limit", type=MemorySize(), default=f"{DEFAULT_MEMORY_LIMIT // 2**30}G", metavar="SIZE",
               show_default=True,
-              help="Address space each case's process may use: at least 1G, or 'none'. A case past it is "
-                   "recorded failed with the reason.")
+              help="Memory (address space) each case may add to its process's own, at least 256M, or "
+                   "'none'. A case past it is recorded failed with the reason.")
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT|local[:N]",
               help="Run the cases on a Dask cluster: a scheduler's address, or local[:N] for an "
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")

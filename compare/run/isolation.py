@@ -22,9 +22,10 @@ own process group (so the engine's own children are killed with it on a
 timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGTERM
 when its worker dies, on which it SIGKILLs its whole group; pool workers get
 the same request for their parent, the ``xval`` process
-(:func:`die_with_parent`). A host sets ``RLIMIT_AS`` to the task's
-``memory_limit`` before each task: a case past it raises MemoryError (or its
-allocation fails inside the engine) and is ``failed`` with the reason.
+(:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before each task so that the
+task may map at most ``memory_limit`` bytes more than the host did at its
+start: a case past it raises MemoryError (or its allocation fails inside
+the engine) and is ``failed`` with the reason.
 
 Because the worker itself never runs engine code, a case that kills its
 process never breaks a ``ProcessPoolExecutor``. Reusing the host across
@@ -198,8 +199,7 @@ def warm_up(task: CaseTask) -> None:
         pass
 
 
-#: Default address-space limit of a case host, bytes (``--memory-limit``): a host holding
-#: numba, MuJoCo and PyBullet maps ~0.7 GB before it runs anything.
+#: Default address space a case may add to its host's, bytes (``--memory-limit``).
 DEFAULT_MEMORY_LIMIT = 4 * 2**30
 
 _PR_SET_PDEATHSIG = 1
@@ -241,14 +241,39 @@ def _become_host() -> None:
     die_with_parent(signal.SIGTERM)
 
 
+def _address_space() -> int:
+    """Bytes of address space this process maps now (VmSize; 0 where /proc is missing)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
+#: The host's address space when it started, bytes: the limit is counted from it.
+_START_SIZE: list[int] = []
+
+
 def _limit_memory(limit: int | None) -> None:
-    """Set this process's soft RLIMIT_AS to ``limit`` bytes (None: back to the hard limit)."""
+    """Let this process map at most ``limit`` bytes more than it did at start (soft RLIMIT_AS; None: no limit).
+
+    Counted from the host's own start size (~0.7 GB with numba, MuJoCo and
+    PyBullet imported; more on a machine where libraries reserve per-core
+    thread arenas), so one ``--memory-limit`` means the same on every machine.
+    """
     try:
         import resource
     except ImportError:  # not POSIX
         return
+    if not _START_SIZE:
+        _START_SIZE.append(_address_space())
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    want = hard if limit is None else (limit if hard == resource.RLIM_INFINITY else min(limit, hard))
+    want = hard if limit is None else _START_SIZE[0] + limit
+    if hard != resource.RLIM_INFINITY:
+        want = min(want, hard)
     if want != soft:
         resource.setrlimit(resource.RLIMIT_AS, (want, hard))
 
@@ -309,6 +334,7 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
     for end in worker_ends:
         end.close()
     _become_host()
+    _START_SIZE[:] = [_address_space()]
     while True:
         try:
             task = requests.recv()
