@@ -108,6 +108,8 @@ CASES = [
     ("suite-steps-absurd", {"s.toml": suite(dt="[1e-7]", duration="100")}, RUN, r"s.toml: scene 'bead': duration 100 s at dt 1e-07 s is 1e\+09 steps, more than the allowed 1e\+08 per case"),
     ("suite-engine-unknown", {"s.toml": suite(engines='["bullet"]')}, RUN, r"engines\[0\].id: .*bullet"),
     ("suite-engine-option-range", {"s.toml": suite(engines=None, engine_table='[[engines]]\nid = "ours/baumgarte-rk4"\noptions = { k_s = -5 }\n')}, RUN, r"engines\[0\].options: ours: option k_s = -5.0 is outside the allowed range"),
+    ("run-output-name-too-long", {"s.toml": GOOD_SUITE}, ["run", "{tmp}/s.toml", "--output", "{tmp}/" + "d" * 300], r"/d{300}: File name too long; choose a shorter path or name"),
+    ("suite-name-too-long", {}, ["run", "{tmp}/" + "s" * 300 + ".toml", "--output", "{tmp}/r"], r"/s{300}\.toml: cannot read the suite file \(File name too long\)"),
 ]
 
 
