@@ -349,12 +349,15 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
             outcome = _failure(task, exc)
         finally:
             _limit_memory(None)
+        # A process that hit its limit may be in any state: it says so with its answer and exits, so
+        # the worker starts a new host for the next case rather than send it to one on its way out.
+        exiting = out_of_memory or _HIT_LIMIT.is_set()
         try:
-            replies.send(outcome)
+            replies.send((outcome, exiting))
         except Exception as exc:  # an unpicklable trajectory must still give an answer
-            replies.send(_failure(task, exc))
-        if out_of_memory or _HIT_LIMIT.is_set():
-            return  # a process that hit its limit may be in any state: the next case gets a new host
+            replies.send((_failure(task, exc), exiting))
+        if exiting:
+            return
 
 
 class _Host:
@@ -460,7 +463,7 @@ def _ask_host(task: Any) -> Any:
             elapsed=time.perf_counter() - start,
         )
     try:
-        answer = host.replies.recv()
+        answer, exiting = host.replies.recv()
     except (EOFError, OSError):
         host.close()
         _local.host = None
@@ -471,4 +474,7 @@ def _ask_host(task: Any) -> Any:
             message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
             elapsed=time.perf_counter() - start,
         )
+    if exiting:
+        host.close()
+        _local.host = None
     return answer
