@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import re
+import shlex
 import types
+from pathlib import Path
 
 import click
 import numpy as np
@@ -13,6 +16,7 @@ from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, constraint_error, energy_drift
 from engines import catalog, registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
+from engines.command import command_engine
 from engines.errors import UserError
 from engines.limits import check_case_size
 
@@ -45,18 +49,24 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
               help="Engine option (see 'xval engines'); repeatable.")
 @click.option("--sample-interval", default=None, type=Seconds(),
               help="Seconds between stored samples (default 0.01; at least one step).")
+@click.option("--command", "program", default=None, metavar='"PROG ARGS"',
+              help="Run an outside program speaking the process protocol (docs/protocol.md) instead of --engine; "
+                   "split like a shell would, run without one, in the current directory.")
+@click.option("--forces", is_flag=True, help="Also write the constraint forces f{k}_x..z (NaN when not reported).")
 @click.option("--bounds", "bounds", multiple=True, metavar="NAME=VALUE",
               help=f"Past these an ok run is unstable (exit 1), as in a suite's [bounds]: energy_drift "
                    f"(x E*, default {Bounds.energy_drift:g}) and constraint_error (x L, default "
                    f"{Bounds.constraint_error:g}); repeatable.")
 @click.option("--output", required=True, callback=output_path,
               help="CSV file to write, or - for standard output (the summary then goes to standard error).")
-def command(scene_name, engine_id, dt, duration, params, options, sample_interval, bounds, output) -> None:
+def command(scene_name, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
+            output) -> None:
     """Simulate SCENE with one engine and write one CSV row per sample.
 
     Exit code 0 when the run ends ok, 1 when it ends unstable (a non-finite
     state, or past the bounds) or failed (the CSV still holds the samples up
-    to the end), 2 for bad input.
+    to the end; for --command, the line names the command, its exit code and
+    its last stderr line), 2 for bad input.
     """
     overrides = parse_assignments(params, "--param")
     if duration is not None:
@@ -66,7 +76,10 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     check_case_size(len(scene.particles), scene.duration, float(dt),
                     DEFAULT_SAMPLE_INTERVAL if sample_interval is None else sample_interval)
     limits = parse_bounds(bounds)
-    engine, variant = registry.resolve(engine_id)
+    if program is not None:
+        engine, variant = _command_engine(program, engine_id)
+    else:
+        engine, variant = registry.resolve(engine_id)
     engine_options = parse_assignments(options, "--option")
     engine.check(scene, variant, engine_options)
     path = check_writable(output)
@@ -75,9 +88,9 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
         scene, float(dt), variant=variant, options=engine_options, sample_interval=sample_interval
     )
     if trajectory.n_samples:
-        text = trajectory_csv(scene, trajectory)
+        text = trajectory_csv(scene, trajectory, forces=forces)
     else:  # failed before its first sample: the header alone
-        text = ",".join(trajectory_columns(scene)) + "\n"
+        text = ",".join(trajectory_columns(scene, forces)) + "\n"
     atomic_write_text(path, text)
 
     info = trajectory.info
@@ -100,3 +113,25 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     click.echo(summary, err=str(path) == STDOUT)
     if status != "ok":
         raise click.exceptions.Exit(1)
+
+
+def _command_engine(program: str, engine_id: str):
+    """The command engine for ``--command "prog args"`` (label: the program's file name), and its variant."""
+    if engine_id != "reference":
+        raise UserError("--command and --engine are alternatives; give one of them")
+    argv = _split(program)
+    # Label it by the program's file: the first argument that is a file here (solvers/bead.py after python3).
+    named = next((a for a in argv if "/" in a or Path(a).is_file()), argv[0])
+    label = re.sub(r"[^A-Za-z0-9._-]+", "-", Path(named).name).strip("-") or "program"
+    engine = command_engine(label, argv, Path.cwd(), capabilities=["3d"], where="--command")
+    return engine, engine.spec.label
+
+
+def _split(program: str) -> list[str]:
+    try:
+        argv = shlex.split(program)
+    except ValueError as exc:
+        raise UserError(f"--command: cannot split {program!r}: {exc}") from None
+    if not argv:
+        raise UserError('--command: give the program and its arguments, e.g. --command "./build/bead --fast"')
+    return argv

@@ -39,6 +39,7 @@ runner then rebuilds).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import multiprocessing
 import os
@@ -74,6 +75,8 @@ class CaseTask:
     timeout: float = 120.0
     isolate: bool = True
     memory_limit: int | None = None
+    #: An outside program's spec (engines.command.spec_of), so any worker, here or on another machine, can run it.
+    command: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -151,7 +154,16 @@ def calibration_cpu_time() -> float:
 def _engine_for(task: CaseTask) -> Engine:
     from engines.registry import load_engine  # here, not at import: loaded in the worker that runs the case
 
+    if task.command is not None:
+        from engines.command import adopt
+
+        return adopt(task.command)
     return load_engine(task.engine_id)[0]
+
+
+#: s a command engine's deadline leaves before the case's timeout, to kill its program's process
+#: group and answer ``timeout`` before the worker kills the host (which would orphan the program).
+COMMAND_MARGIN = 0.5
 
 
 def simulate(task: CaseTask) -> CaseOutcome:
@@ -162,20 +174,30 @@ def simulate(task: CaseTask) -> CaseOutcome:
     wall_times: list[float] = []
     cpu_times: list[float] = []
     calibrations: list[float] = []
-    for _ in range(task.repeats):
-        calibrations.append(calibration_cpu_time())
-        trajectory = engine.simulate(
-            task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
-        )
-        wall_times.append(trajectory.info.wall_time)
-        cpu_times.append(trajectory.info.cpu_time)
-        if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
-            trajectory = _out_of_memory(task, trajectory)
-        first = first or trajectory
-        if trajectory.info.status != "ok":
-            break  # repeating a failed or unstable run would only time the failure
+    with _command_deadline(task):
+        for _ in range(task.repeats):
+            calibrations.append(calibration_cpu_time())
+            trajectory = engine.simulate(
+                task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
+            )
+            wall_times.append(trajectory.info.wall_time)
+            cpu_times.append(trajectory.info.cpu_time)
+            if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
+                trajectory = _out_of_memory(task, trajectory)
+            first = first or trajectory
+            if trajectory.info.status != "ok":
+                break  # repeating a failed or unstable run would only time the failure
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
                        calibrations=calibrations[:len(cpu_times)])
+
+
+def _command_deadline(task: CaseTask) -> Any:
+    """The case's timeout as the deadline of a command engine's program (engines.command.deadline)."""
+    if task.command is None:
+        return contextlib.nullcontext()
+    from engines.command import deadline
+
+    return deadline(max(task.timeout - COMMAND_MARGIN, 0.5 * task.timeout))
 
 
 #: Engine variants this process has run once (see :func:`warm_up`).
@@ -189,7 +211,7 @@ def warm_up(task: CaseTask) -> None:
     ~0.5 s; MuJoCo and PyBullet initialize their libraries) then stay out of
     the case's stepping time. Errors are ignored here: the case reports them.
     """
-    if task.engine_id in _WARM:
+    if task.engine_id in _WARM or task.command is not None:  # a program starts afresh in every run
         return
     _WARM.add(task.engine_id)
     try:
