@@ -213,3 +213,28 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     assert resumed.returncode == 0, resumed.stderr
     assert "1 already done" in resumed.stdout
     assert len(load_results(out).records) == 2
+
+
+def test_kill_9_also_ends_an_outside_program_in_its_own_session(tmp_path):
+    # A command engine's program runs in a session of its own (engines/command.py), out of the case
+    # host's group: the host, told by the kernel that its worker died, kills that group too.
+    pidfile = tmp_path / "pids"
+    suite_file = tmp_path / "s.toml"
+    suite_file.write_text(
+        f'duration = 0.2\ndt = [1e-2]\ntimeout = 60\n[[scenes]]\nscene = "bead"\n[[engines]]\n'
+        f'command = {json.dumps([sys.executable, str(HERE / "protocol_program.py"), "hang"])}\nlabel = "hang"\n'
+        f'options = {{ pidfile = {json.dumps(str(pidfile))} }}\n'
+    )
+    run = start_run(suite_file, tmp_path / "r", "--jobs", "1")
+    program: list[int] = []
+    try:
+        wait_for(lambda: pidfile.exists() and len(pidfile.read_text().split()) == 3, 60, "the program's pids")
+        program = [int(x) for x in pidfile.read_text().split()]  # pid, pgid, its `sleep` child
+        assert alive(program[0]) and alive(program[2])
+        run.kill()
+        run.wait(timeout=30)
+        wait_for(lambda: not alive(program[0]) and not alive(program[2]), 15, "the program and its child to end")
+    finally:
+        run.kill()
+        kill_all(program[:1] + program[2:])
+        run.communicate(timeout=30)

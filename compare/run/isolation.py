@@ -248,7 +248,15 @@ def die_with_parent(sig: int = signal.SIGKILL) -> None:
 
 
 def _kill_own_group(signum: int, frame: Any) -> None:
-    """The host's SIGTERM handler: SIGKILL the host's process group (the host and any child of the engine)."""
+    """The host's SIGTERM handler: SIGKILL the process groups of any outside program the engine runs
+    (engines.command starts each in a session of its own), then the host's own group (the host and
+    any child of the engine)."""
+    command = sys.modules.get("engines.command")
+    for group in list(getattr(command, "LIVE_GROUPS", ())):
+        try:
+            os.killpg(group, signal.SIGKILL)
+        except OSError:
+            pass
     os.killpg(os.getpgrp(), signal.SIGKILL)
 
 
