@@ -9,6 +9,7 @@ from compare.results.files import STDOUT, atomic_write_text, check_writable, res
 
 from compare.results.store import load_results
 from compare.results.table import scene_tables, to_csv, to_json
+from compare.results.verdict import format_verdicts, scene_verdicts
 
 
 @click.command("show")
@@ -30,6 +31,7 @@ def command(directory, output_format, output) -> None:
         state = "finished " + header["finished"] if header.get("finished") else "unfinished (resume it with --resume)"
         text = f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n\n"
         text += scene_tables(results.records, results.verdict_tolerance)
+        text += "\n" + format_verdicts(scene_verdicts(results.sweeps()))
     if str(target) == STDOUT:
         click.echo(text, nl=False)
     else:
