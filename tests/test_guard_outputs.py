@@ -147,3 +147,18 @@ def test_gate_md_escapes_html_in_labels():
     text = to_markdown(gate_results(baseline, current, GateSettings(), "baseline.json"))
     assert "<img" not in text
     assert "&lt;img src=x onerror=alert(1)&gt;\\|ours/" in text
+
+
+def test_score_writes_to_standard_output_or_a_file_and_never_over_a_file_it_grades(tmp_path, capsys):
+    trajectory = tmp_path / "bead.csv"
+    code, _, _ = run(capsys, "simulate", "bead", "--dt", "1e-2", "--duration", "0.1", "--output", str(trajectory))
+    assert code == 0
+    before = trajectory.read_bytes()
+    code, _, err = run(capsys, "score", "bead", str(trajectory), "--output", str(trajectory))
+    assert code == 2 and err.strip() == (f"xval: error: --output: {trajectory} is the input {trajectory}; writing it "
+                                         f"would replace what this command reads; choose another path")
+    assert trajectory.read_bytes() == before
+    code, out, _ = run(capsys, "score", "bead", str(trajectory), "--output", "-")
+    assert code == 0 and out.startswith("file") and str(trajectory) in out
+    code, quiet, _ = run(capsys, "score", "bead", str(trajectory), "--output", str(tmp_path / "score.txt"))
+    assert code == 0 and quiet == "" and (tmp_path / "score.txt").read_text() == out
