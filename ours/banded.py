@@ -24,8 +24,13 @@ try:
     # public decorator (same results; the compiled code allocates nothing either way).
     njit(_nrt=False)(lambda: 0)()
     compiled = njit(cache=True, _nrt=False)
+    inlined = njit(cache=True, _nrt=False, inline="always")
 except Exception:  # noqa: BLE001 - any rejection of the option means "not available"
     compiled = njit(cache=True)
+    inlined = njit(cache=True, inline="always")
+
+#: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
+#: per-constraint functions called inside the step, where a call would copy every array argument).
 
 
 @compiled

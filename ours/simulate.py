@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ours import kernel, lagrangian
+from ours.specialize import kernel_for
 from ours.errors import ModelError, OursError
 from ours.method import (
     BAUMGARTE,
@@ -161,9 +162,10 @@ def simulate(
             dt, n_steps, stride, out_q, out_v, out_lam,
         )
     else:
-        work = kernel.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages)
+        compiled = _warm(system.dim)
+        work = compiled.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages)
         start = time.perf_counter()
-        written, steps, status = kernel.run(
+        written, steps, status = compiled.run(
             chosen.code, scheme.code, scheme.A, scheme.b, q, v, model, work, ks, kd, dt, n_steps, stride,
             tolerance, max_iterations, out_q, out_v, out_lam,
         )
@@ -185,11 +187,11 @@ def simulate(
 
 
 def _constraint_vectors(system: System, q: np.ndarray) -> np.ndarray:
-    """(S, C, dim) m: d_k = first particle − other end."""
-    p = system.packed
-    i, j = p.ends[:, 0], p.ends[:, 1]
-    other = np.where((j >= 0)[None, :, None], q[:, np.maximum(j, 0)], p.anchor[None])
-    return q[:, i] - other
+    """(S, C, dim): g_k = ∂C_k/∂xᵢ at each sample (d_k = first particle − other end, m, for a distance)."""
+    out = np.zeros((q.shape[0], system.n_constraints, system.dim))
+    if q.shape[0] and system.n_constraints:
+        kernel_for(system.dim).sample_gradients(np.ascontiguousarray(q), system.packed.model, out)
+    return out
 
 
 def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.ndarray:
@@ -199,14 +201,37 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     p = system.packed
     C = system.n_constraints
     lam = np.zeros(C)
-    if not kernel.multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
+    if not kernel_for(system.dim).multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
                               np.zeros((C, system.dim)), np.zeros((C, p.bandwidth + 1)), lam):
         raise ModelError("J W Jᵀ is singular at this state: the constraints are dependent or degenerate")
     return lam
 
 
+_warmed: set[int] = set()
+
+
+def _warm(dim: int):
+    """The kernel specialised for ``dim``, compiled (or loaded from the cache) before any clock starts."""
+    compiled = kernel_for(dim)
+    if dim not in _warmed:
+        _warmed.add(dim)
+        from ours.constraint import Pin, Rod
+
+        anchor = (0.0,) * dim
+        gravity = (0.0, -9.81) + (0.0,) * (dim - 2)
+        tiny = System((1.0, 1.0), gravity, (Pin(0, anchor, 1.0), Rod(0, 1, 1.0)))
+        q0 = np.zeros((2, dim))
+        q0[0, 0], q0[1, 0] = 1.0, 2.0
+        simulate(tiny, q0, np.zeros((2, dim)), 1e-3, 1, method="baumgarte")
+        multipliers(tiny, q0, np.zeros((2, dim)))
+    return compiled
+
+
 def compile_all() -> float:
-    """Compile (or load from the cache) every compiled loop; returns the seconds it took."""
+    """Compile (or load from the cache) the loops a planar scene uses; returns the seconds it took.
+
+    A 3-D system's kernel is compiled on its first :func:`simulate`, before the clock starts.
+    """""
     from ours.constraint import Pin, Rod
 
     start = time.perf_counter()
