@@ -10,10 +10,10 @@ import shutil
 import sys
 from pathlib import Path
 
-from compare.progress import progress_for
-from compare.runner import run_suite
-from compare.suite import load_suite
-from compare.table import scene_tables
+from compare.run.progress import progress_for
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
+from compare.results.table import scene_tables
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "default.toml"

@@ -20,7 +20,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterable
 
-from compare.sweep import ORDER_METRIC, VariantSweep
+from compare.results.sweep import ORDER_METRIC, VariantSweep
 
 from reports.load import SceneResults, is_reference
 

@@ -1,7 +1,7 @@
 """A results directory read back and arranged the way the report shows it: by scene, by engine variant.
 
-Reading and grouping go through :mod:`compare.results` and
-:mod:`compare.sweep`, so the report shows the same numbers (observed orders,
+Reading and grouping go through :mod:`compare.results.store` and
+:mod:`compare.results.sweep`, so the report shows the same numbers (observed orders,
 work-precision points) as ``xval show``. Nothing here formats text or builds
 plots; it only decides *what* is shown:
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compare.results import load_results
-from compare.sweep import VariantSweep, sweeps
+from compare.results.store import load_results
+from compare.results.sweep import VariantSweep, sweeps
 
 #: Statuses that mean "something went wrong" and are listed with their messages.
 PROBLEM_STATUSES = ("unstable", "failed", "timeout")

@@ -23,8 +23,8 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
-from compare.files import atomic_write_text, check_writable
-from compare.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS, Bounds
+from compare.results.files import atomic_write_text, check_writable
+from compare.results.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS, Bounds
 
 from reports.figures import Plot, scene_plots
 from reports.load import ReportData, load_report_data

@@ -1,7 +1,7 @@
 """Report sections for ``xval stability`` output: the largest-stable-dt table and bar chart, the gain-map heat maps.
 
 Shown only when the results directory holds ``stability.json`` and/or
-``gainmap.json`` (:mod:`compare.stability`, :mod:`compare.gainmap`). Figures
+``gainmap.json`` (:mod:`compare.stability.search`, :mod:`compare.stability.gainmap`). Figures
 are plotly.js specs like :mod:`reports.figures`; their ``n_traces`` counts
 only scatter traces, the ones the page's drawing check finds in the DOM
 (bars, heat maps and contours are drawn in other layers).
@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from compare.gainmap import load_gainmap
-from compare.stability import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
+from compare.stability.gainmap import load_gainmap
+from compare.stability.search import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
 
 from reports.figures import PALETTE, Plot, _axis, _layout, plot_text
 

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from compare.sweep import VariantSweep
+from compare.results.sweep import VariantSweep
 
 from reports.load import SceneResults, is_reference
 

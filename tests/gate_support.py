@@ -16,9 +16,9 @@ from typing import Any, Callable
 import pytest
 
 from compare.cli import main
-from compare.results import ResultsDir, iter_records, read_json
-from compare.runner import run_suite
-from compare.suite import load_suite
+from compare.results.store import ResultsDir, iter_records, read_json
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
 
 TESTS = Path(__file__).resolve().parent
 SUITE = TESTS / "gate_suite.toml"

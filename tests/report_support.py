@@ -64,8 +64,8 @@ _runs: dict[str, Path] = {}
 
 def run_suite_once(base: Path, suite_path: Path = SUITE, edit: Callable[[str], str] | None = None) -> Path:
     """Run ``suite_path`` (its text passed through ``edit``) into a directory under ``base``, once per session."""
-    from compare.runner import run_suite
-    from compare.suite import parse_suite
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
 
     text = suite_path.read_text()
     if edit is not None:
@@ -222,8 +222,8 @@ def hostile_results(base: Path) -> Path:
     """
     if "hostile" in _runs:
         return _runs["hostile"]
-    from compare.runner import run_suite
-    from compare.suite import parse_suite
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
 
     run = base / "hostile-run"
     run_suite(parse_suite(HOSTILE_SUITE, HOSTILE), run, jobs=2)

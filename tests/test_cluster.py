@@ -21,11 +21,11 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # test engines beside this file; spawned Dask workers inherit sys.path
     sys.path.insert(0, str(HERE))
 
-from compare import environment  # noqa: E402
-from compare.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster  # noqa: E402
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import load_suite, parse_suite  # noqa: E402
+from compare.run import environment  # noqa: E402
+from compare.run.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import load_suite, parse_suite  # noqa: E402
 from engines.errors import UserError  # noqa: E402
 
 XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]

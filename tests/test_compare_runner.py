@@ -19,10 +19,10 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # compare_engines is a test-only module beside this file
     sys.path.insert(0, str(HERE))
 
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import parse_suite  # noqa: E402
-from compare.sweep import sweeps  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import parse_suite  # noqa: E402
+from compare.results.sweep import sweeps  # noqa: E402
 from engines.errors import UserError  # noqa: E402
 
 XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]

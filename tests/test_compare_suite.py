@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from compare.suite import geometric_sweep, load_suite, parse_suite
+from compare.suite.reader import geometric_sweep, load_suite, parse_suite
 from engines.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from compare.baseline import BASELINE_SCHEMA_VERSION, build_baseline, case_key, load_baseline, write_baseline
-from compare.gate_report import format_value
-from compare.results import load_results, read_json
-from compare.sweep import sweeps
+from compare.gate.baseline import BASELINE_SCHEMA_VERSION, build_baseline, case_key, load_baseline, write_baseline
+from compare.gate.report import format_value
+from compare.results.store import load_results, read_json
+from compare.results.sweep import sweeps
 
 from gate_engines import REGRESSION
 from gate_support import CASE, SUITE, copy_results, edit_case, remove_case, run, set_timings, xval

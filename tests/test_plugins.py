@@ -21,12 +21,12 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # plugin_engines and plugin_broken_import are test-only modules beside this file
     sys.path.insert(0, str(HERE))
 
-from compare.baseline import build_baseline, load_baseline  # noqa: E402
-from compare.gate import gate_results  # noqa: E402
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import load_suite, parse_suite  # noqa: E402
-from compare.tolerance import GateSettings  # noqa: E402
+from compare.gate.baseline import build_baseline, load_baseline  # noqa: E402
+from compare.gate.gate import gate_results  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import load_suite, parse_suite  # noqa: E402
+from compare.gate.tolerance import GateSettings  # noqa: E402
 from engines import catalog, registry  # noqa: E402
 from engines.adapter import API_VERSION, api_version_problem  # noqa: E402
 from engines.errors import UserError  # noqa: E402

@@ -12,10 +12,10 @@ import pytest
 
 from engines.errors import UserError
 
-from compare.gainmap import critical_limit, largest_stable_dt, load_gainmap, run_gainmap, spectral_radius, theory_stable
-from compare.results import load_results
-from compare.runner import run_suite
-from compare.stability import (
+from compare.stability.gainmap import critical_limit, largest_stable_dt, load_gainmap, run_gainmap, spectral_radius, theory_stable
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.stability.search import (
     BOUNDED,
     STABLE_AT_LARGEST,
     UNSTABLE_AT_SMALLEST,
@@ -26,7 +26,7 @@ from compare.stability import (
     run_stability,
     search,
 )
-from compare.suite import parse_suite
+from compare.suite.reader import parse_suite
 
 K_S = 1e6  # stiff enough that the feedback, not explicit Euler's slow energy growth, sets the limit
 K_D = 2 * math.sqrt(K_S)

@@ -10,13 +10,13 @@ import click
 
 from engines.errors import UserError
 
-from compare.baseline import build_baseline, load_baseline
-from compare.files import atomic_write_text, check_writable
-from compare.gate import TIMING_MODES, gate_results
-from compare.gate_report import format_table, to_markdown
-from compare.junit import to_junit
-from compare.results import load_results
-from compare.tolerance import GateSettings, gate_settings
+from compare.gate.baseline import build_baseline, load_baseline
+from compare.results.files import atomic_write_text, check_writable
+from compare.gate.gate import TIMING_MODES, gate_results
+from compare.gate.report import format_table, to_markdown
+from compare.gate.junit import to_junit
+from compare.results.store import load_results
+from compare.gate.tolerance import GateSettings, gate_settings
 
 
 def settings_of(directory: Path) -> GateSettings:

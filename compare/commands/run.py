@@ -6,10 +6,10 @@ import sys
 
 import click
 
-from compare.progress import progress_for
-from compare.runner import run_suite
-from compare.suite import load_suite
-from compare.table import scene_tables
+from compare.run.progress import progress_for
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
+from compare.results.table import scene_tables
 
 
 @click.command("run")
@@ -35,7 +35,7 @@ def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
     if scheduler is None:
         summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr))
     else:
-        from compare.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
+        from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
 
         try:
             summary = run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from compare.results import load_results
-from compare.table import scene_tables, to_csv, to_json
+from compare.results.store import load_results
+from compare.results.table import scene_tables, to_csv, to_json
 
 
 @click.command("show")

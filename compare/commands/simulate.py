@@ -5,9 +5,9 @@ from __future__ import annotations
 import click
 
 from compare.cli import parse_assignments
-from compare.export import trajectory_csv
-from compare.files import atomic_write_text, check_writable
-from compare.metrics import constraint_error, energy_drift
+from compare.results.export import trajectory_csv
+from compare.results.files import atomic_write_text, check_writable
+from compare.results.metrics import constraint_error, energy_drift
 from engines import catalog, registry
 from engines.adapter import check_time_step
 

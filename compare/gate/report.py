@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from compare.gate import CaseResult, Change, GateReport
+from compare.gate.gate import CaseResult, Change, GateReport
 
 COLUMNS = ("verdict", "scene", "engine", "dt", "metric", "baseline", "current", "note")
 #: The metric an unchanged case is summarised by.

@@ -33,8 +33,8 @@ from typing import Any
 
 from engines.errors import UserError
 
-from compare.baseline import MACHINE_FIELDS, case_name
-from compare.tolerance import ACCURACY_METRICS, TIMING_METRIC, GateSettings, MetricRule
+from compare.gate.baseline import MACHINE_FIELDS, case_name
+from compare.gate.tolerance import ACCURACY_METRICS, TIMING_METRIC, GateSettings, MetricRule
 
 #: Case verdicts, in the order a table lists them (most urgent first).
 VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")

@@ -1,7 +1,7 @@
 """Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
 
 Criterion (the same one ``xval run`` applies to every case, see
-:func:`compare.metrics.apply_bounds`): a probe at time step dt is *stable*
+:func:`compare.results.metrics.apply_bounds`): a probe at time step dt is *stable*
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
@@ -18,7 +18,7 @@ stable at dt but not at some dt' < dt (a chaotic scene whose drift crosses
 a bound by chance) is reported at the first boundary found, and every
 probe is kept so the report can show it.
 
-Every probe runs through :func:`compare.isolation.execute` (a forked case
+Every probe runs through :func:`compare.run.isolation.execute` (a forked case
 host per thread), so a crash or a hang costs that probe only. Pairs run in
 parallel on ``jobs`` threads; each pair's probes are sequential (each one
 depends on the last). Results go to ``DIR/stability.json`` (versioned,
@@ -43,12 +43,12 @@ import numpy as np
 from engines.adapter import Schedule
 from engines.errors import UserError
 
-from compare.files import atomic_write_text
-from compare.isolation import CaseOutcome, CaseTask, execute
-from compare.metrics import Bounds, apply_bounds, case_metrics
-from compare.results import jsonable, now
-from compare.runner import compare_version, default_jobs, skip_reason
-from compare.suite import EngineSpec, SceneSpec, Suite, _Reader
+from compare.results.files import atomic_write_text
+from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.results.metrics import Bounds, apply_bounds, case_metrics
+from compare.results.store import jsonable, now
+from compare.run.runner import compare_version, default_jobs, skip_reason
+from compare.suite.reader import EngineSpec, SceneSpec, Suite, _Reader
 
 #: File the search writes in its output directory, and its format.
 FILE_NAME = "stability.json"
@@ -283,7 +283,7 @@ def analytic_dt(engine: EngineSpec) -> float | None:
     settings = engine.engine.resolve(engine.variant, engine.options)
     if settings["method"] != "baumgarte":
         return None
-    from compare.gainmap import largest_stable_dt  # here: gainmap imports this module's helpers
+    from compare.stability.gainmap import largest_stable_dt  # here: gainmap imports this module's helpers
 
     k_s = float(settings["k_s"])
     k_d = settings["k_d"]
@@ -291,7 +291,7 @@ def analytic_dt(engine: EngineSpec) -> float | None:
     return largest_stable_dt(settings["integrator"], k_s, k_d)
 
 
-# -- the output files (stability.json here, gainmap.json in compare.gainmap) ----------------------
+# -- the output files (stability.json here, gainmap.json in compare.stability.gainmap) ----------------------
 
 #: The command that rewrites either file, named in every error about one.
 RERUN = "xval stability SUITE --output DIR --force"

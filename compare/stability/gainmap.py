@@ -28,10 +28,10 @@ from typing import Any, Callable
 
 import numpy as np
 
-from compare.results import now
-from compare.runner import default_jobs
-from compare.stability import check_output, document_head, load_document, run_probe, suite_table, write_document
-from compare.suite import EngineSpec, Suite, geometric_sweep, load_engine
+from compare.results.store import now
+from compare.run.runner import default_jobs
+from compare.stability.search import check_output, document_head, load_document, run_probe, suite_table, write_document
+from compare.suite.reader import EngineSpec, Suite, geometric_sweep, load_engine
 
 FILE_NAME = "gainmap.json"
 SCHEMA = "xval-gainmap"
@@ -149,7 +149,7 @@ def plan_gainmap(suite: Suite) -> GainMapPlan | None:
         return None
     for key in ("scene", "dt", "k_s", "k_d"):
         if key not in table:
-            raise reader.error("gainmap", f"missing {key}; see compare/gainmap.py for the keys")
+            raise reader.error("gainmap", f"missing {key}; see compare/stability/gainmap.py for the keys")
     known = {s.id: s for s in suite.scenes}
     if table["scene"] not in known:
         raise reader.error("gainmap.scene", f"unknown scene id {table['scene']!r}; this suite's are: {', '.join(known)}")

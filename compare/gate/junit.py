@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from compare.gate import CaseResult, GateReport
-from compare.gate_report import case_rows, format_value
+from compare.gate.gate import CaseResult, GateReport
+from compare.gate.report import case_rows, format_value
 
 
 def _failure_message(case: CaseResult) -> str:

@@ -27,7 +27,7 @@ import numpy as np
 
 from engines.errors import UserError
 
-from compare.files import atomic_write_text
+from compare.results.files import atomic_write_text
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
 SCHEMA_VERSION = 1

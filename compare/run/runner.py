@@ -3,8 +3,8 @@
 Division of work (why it is split this way):
 
 - **Workers** only simulate. Each case goes to the executor as a
-  :class:`~compare.isolation.CaseTask`; the worker runs it in its case host,
-  a forked child (see :mod:`compare.isolation`), so a case that raises, hangs
+  :class:`~compare.run.isolation.CaseTask`; the worker runs it in its case host,
+  a forked child (see :mod:`compare.run.isolation`), so a case that raises, hangs
   or kills its process is recorded and the pool carries on.
 - **The reference** for each scene is solved once, as its own task on the
   same executor (so it overlaps with the engines' cases), and comes back to
@@ -36,12 +36,12 @@ from engines.adapter import Schedule
 from engines.errors import Unsupported
 from engines.scene import Scene
 
-from compare.environment import environment
-from compare.isolation import CaseOutcome, CaseTask, execute
-from compare.metrics import apply_bounds, case_metrics
-from compare.progress import NullProgress, Progress
-from compare.results import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
-from compare.suite import EngineSpec, SceneSpec, Suite
+from compare.run.environment import environment
+from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.results.metrics import apply_bounds, case_metrics
+from compare.run.progress import NullProgress, Progress
+from compare.results.store import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
+from compare.suite.reader import EngineSpec, SceneSpec, Suite
 
 #: Runs of a case whose executor breaks under it: once among others, then once alone
 #: (the Dask executor's allowed-failures follows this).
@@ -147,7 +147,7 @@ def run_suite(
     timeout : s per case; the suite's ``timeout`` when None.
     resume : continue the run already in ``output`` (same suite required).
     environment_extra : more entries for run.json's ``environment`` (a
-        cluster's address and workers, see :mod:`compare.cluster`).
+        cluster's address and workers, see :mod:`compare.run.cluster`).
     """
     started = time.perf_counter()
     progress = progress or NullProgress()

@@ -15,8 +15,8 @@ import json
 from dataclasses import fields
 from typing import Any, Iterable
 
-from compare.metrics import CaseMetrics
-from compare.sweep import VariantSweep, sweeps
+from compare.results.metrics import CaseMetrics
+from compare.results.sweep import VariantSweep, sweeps
 
 #: CaseMetrics fields left out of the export (bookkeeping of the comparison, not metrics).
 NOT_EXPORTED = ("n_samples", "complete")

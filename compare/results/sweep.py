@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
-from compare.metrics import OrderFit, observed_order
+from compare.results.metrics import OrderFit, observed_order
 
 #: The error an order is fitted to and work-precision points plot: max position error, m.
 ORDER_METRIC = "position_error_linf"

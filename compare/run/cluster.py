@@ -1,8 +1,8 @@
 """Running a suite's cases on a Dask cluster (``xval run --scheduler``).
 
 Only the executor changes. The runner submits the same tasks it gives the
-local process pool (one :func:`~compare.runner.solve_reference` per scene, one
-:func:`~compare.isolation.execute` per case); a Dask worker runs each in its
+local process pool (one :func:`~compare.run.runner.solve_reference` per scene, one
+:func:`~compare.run.isolation.execute` per case); a Dask worker runs each in its
 own case host, a child forked from the worker, so timeouts and a case that
 kills its process behave exactly as locally. Results come back to the client,
 which computes the metrics and writes the records case by case, so
@@ -49,7 +49,7 @@ from typing import Any, Callable, Iterator
 
 from engines.errors import UserError
 
-from compare.runner import MAX_ATTEMPTS, RunStopped, default_jobs
+from compare.run.runner import MAX_ATTEMPTS, RunStopped, default_jobs
 
 #: What to install when dask is missing.
 INSTALL_HINT = "pip install 'xval[dask]'"
@@ -128,7 +128,7 @@ def _prepare_worker() -> None:
         multiprocessing.current_process()._config["daemon"] = False
         # Import every engine now, so that case hosts forked from this worker
         # inherit them rather than each importing numba, MuJoCo and PyBullet.
-        from compare import environment
+        from compare.run import environment
 
         environment.engine_versions()
         _PREPARED = True
@@ -144,7 +144,7 @@ def software() -> dict[str, Any]:
     """This process's xval, Python, numpy and engine versions: what must match between client and workers."""
     import numpy as np
 
-    from compare import environment, runner
+    from compare.run import environment, runner
 
     return {
         "xval": runner.compare_version(),
@@ -421,10 +421,10 @@ def run_on_cluster(suite: Any, output: Any, scheduler: str, *, jobs: int | None 
                    warn: Callable[[str], None] = lambda line: None, **run_options: Any) -> Any:
     """``run_suite`` with the cases on the cluster ``scheduler``; ``warn`` gets each version-mismatch line.
 
-    run_options : passed on to :func:`compare.runner.run_suite` (resume, timeout, progress).
+    run_options : passed on to :func:`compare.run.runner.run_suite` (resume, timeout, progress).
     Raises SchedulerLost when the connection drops mid-run.
     """
-    from compare.runner import run_suite
+    from compare.run.runner import run_suite
 
     with connect(scheduler, jobs=jobs) as cluster:
         for line in cluster.warnings:

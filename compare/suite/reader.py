@@ -23,7 +23,7 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     [tolerances]                   # per-metric tolerances, for the gate
     position_error_linf = 0.1
 
-    [gate]                         # `xval gate` overrides (compare/tolerance.py)
+    [gate]                         # `xval gate` overrides (compare/gate/tolerance.py)
     timing_factor = 1.5
     energy_drift = { rtol = 0.2, atol = 1e-9 }
 
@@ -60,8 +60,8 @@ from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
-from compare.metrics import DEFAULT_DELTA, Bounds
-from compare.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.results.metrics import DEFAULT_DELTA, Bounds
+from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 
 #: Keys a suite file may hold at the top level, with what each must be.
 TOP_LEVEL_KEYS = {
@@ -79,8 +79,8 @@ TOP_LEVEL_KEYS = {
     "gate": "a table of metric = { rtol, atol } and timing_factor, for xval gate",
     "scenes": "an array of tables [[scenes]]",
     "engines": "an array of engine ids or tables [[engines]]",
-    "stability": "a table for xval stability (compare/stability.py): scenes, engines, dt_max, dt_min",
-    "gainmap": "a table for the Baumgarte gain map (compare/gainmap.py): scene, integrators, dt, k_s, k_d",
+    "stability": "a table for xval stability (compare/stability/search.py): scenes, engines, dt_max, dt_min",
+    "gainmap": "a table for the Baumgarte gain map (compare/stability/gainmap.py): scene, integrators, dt, k_s, k_d",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters")
@@ -88,7 +88,7 @@ ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
 BOUND_KEYS = ("energy_drift", "constraint_error")
-#: Metric names [tolerances] may name: the gated accuracy metrics and the timing metric (compare/tolerance.py).
+#: Metric names [tolerances] may name: the gated accuracy metrics and the timing metric (compare/gate/tolerance.py).
 TOLERANCE_KEYS = (*RULES, TIMING_METRIC)
 
 DEFAULTS = {"sample_interval": 0.01, "delta": DEFAULT_DELTA, "repeats": 1, "timeout": 120.0}

@@ -4,7 +4,7 @@ Accuracy metrics are deterministic: the same code on the same machine gives
 the same bits, so their tolerances only have to absorb round-off that
 differs across machines (BLAS, CPU instruction sets, numpy / scipy builds),
 amplified a little by sensitive scenes. Timing is noisy everywhere, so it is
-judged by a factor *and* the spread of the repeats (see :mod:`compare.gate`).
+judged by a factor *and* the spread of the repeats (see :mod:`compare.gate.gate`).
 
 A suite overrides any default in its ``[gate]`` table::
 
@@ -60,7 +60,7 @@ DEFAULT_RTOL = 0.1
 
 #: Accuracy metrics the gate compares, in table order. The atols sit at the
 #: level below which a value is noise, not accuracy: 1e-9 m is where
-#: compare.metrics.ORDER_FLOOR puts the reference's own error (rtol = atol =
+#: compare.results.metrics.ORDER_FLOOR puts the reference's own error (rtol = atol =
 #: 1e-12 over a few seconds) for ~1 m scenes; constraint error is pure
 #: round-off near 1e-13 m for a projecting solver, so 1e-10 m; forces come
 #: from differentiated states and are good to ~1e-6 N; divergence time is
