@@ -19,13 +19,20 @@ from numba import njit
 #: about 2x slower per step on the double pendulum. The price: compiled code must
 #: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
 #: numba's switch for this (an underscored option of numba 0.68's ``njit``).
-try:
-    # Probe once: if a numba release drops the private switch, fall back to the
-    # public decorator (same results; the compiled code allocates nothing either way).
-    njit(_nrt=False)(lambda: 0)()
+def _has_nrt_switch() -> bool:
+    """Whether this numba accepts ``_nrt`` (checked on its option table: probing by compiling
+    a function would cost a compilation at every import)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:  # pragma: no cover - a numba that moved its options
+        return False
+    return hasattr(CPUTargetOptions, "_nrt")
+
+
+if _has_nrt_switch():
     compiled = njit(cache=True, _nrt=False)
     inlined = njit(cache=True, _nrt=False, inline="always")
-except Exception:  # noqa: BLE001 - any rejection of the option means "not available"
+else:  # pragma: no cover - same results; the compiled code allocates nothing either way
     compiled = njit(cache=True)
     inlined = njit(cache=True, inline="always")
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from ours.banded import cholesky_banded, compiled, inlined, solve_banded
 from ours.constraint import DISTANCE
+from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 # ---- SIZES (ours.specialize replaces this block with constants) ----
 
@@ -56,8 +57,7 @@ def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
             z((P, dim)), z((P, dim)), rattle)
 
 
-#: Why the loop stopped (0 = ran to the end).
-OK, NON_FINITE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
+# Why the loop stopped (0 = ran to the end): ours.status.
 
 # Method and integrator codes (mirrors of ours.method / ours.integrator, kept
 # literal here so the compiled code has no Python-object lookups).

@@ -19,7 +19,8 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
-from ours.kernel import NON_FINITE, OK, SINGULAR, multipliers
+from ours.kernel import multipliers
+from ours.status import NON_FINITE, OK, SINGULAR
 
 
 @compiled

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from ours import kernel, lagrangian
 from ours.specialize import kernel_for
+from ours.status import STATUS_TEXT
 from ours.errors import ModelError, OursError
 from ours.method import (
     BAUMGARTE,
@@ -23,12 +23,6 @@ from ours.method import (
 )
 from ours.system import System
 
-STATUS_TEXT = {
-    kernel.OK: "ok",
-    kernel.NON_FINITE: "non-finite",
-    kernel.SINGULAR: "singular",
-    kernel.NOT_CONVERGED: "not-converged",
-}
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,6 +138,8 @@ def simulate(
         settings.update(k_s=ks, k_d=kd)
 
     if chosen.code == LAGRANGIAN:
+        from ours import lagrangian  # imports numba: only when a run needs it
+
         why = system.chain_order()
         if system.dim != 2 or why is not None:
             raise ModelError(
