@@ -41,12 +41,12 @@ else:  # pragma: no cover - same results; the compiled code allocates nothing ei
 
 
 @compiled
-def cholesky_banded(band, b):
+def cholesky_banded(band, n, b):
     """Factor A = L Lᵀ in place (L in ``band``); False when A is not positive definite.
 
-    band : (n, b + 1) the lower band of A; b : bandwidth.
+    band : (n, b + 1) the lower band of A; n : its rows; b : bandwidth. (n is an
+    argument so that a caller that knows it as a constant gets the loops unrolled.)
     """
-    n = band.shape[0]
     for i in range(n):
         lo = max(0, i - b)
         for j in range(lo, i + 1):
@@ -64,9 +64,8 @@ def cholesky_banded(band, b):
 
 
 @compiled
-def solve_banded(band, b, x):
-    """Solve L Lᵀ x = r in place (``x`` holds r on entry) with L from :func:`cholesky_banded`."""
-    n = band.shape[0]
+def solve_banded(band, n, b, x):
+    """Solve L Lᵀ x = r in place (``x`` holds r on entry, n entries) with L from :func:`cholesky_banded`."""
     for i in range(n):
         s = x[i]
         for k in range(max(0, i - b), i):

@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, solve_banded
 from ours.constraint import DISTANCE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
@@ -44,6 +44,30 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 def _dim(x):
     """Number of coordinates per particle (columns of a (P, dim) or (C, dim) array)."""
     return x.shape[1]
+
+
+@compiled
+def _particles(x):
+    """P, the rows of a (P, dim) array."""
+    return x.shape[0]
+
+
+@compiled
+def _constraints(x):
+    """C, the rows of a (C, …) array."""
+    return x.shape[0]
+
+
+@compiled
+def _band_columns(band):
+    """bandwidth + 1, the columns of the (C, bandwidth + 1) band of J W Jᵀ."""
+    return band.shape[1]
+
+
+@compiled
+def _pairs(pair_k):
+    """N, the nonzeros of the lower band of J W Jᵀ (entries of the pair tables)."""
+    return pair_k.shape[0]
 
 
 # ---- END SIZES ----
@@ -68,7 +92,7 @@ _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 # DISTANCE: C = ½(‖d‖² − l²), param = (l²,), g = d, J̇q̇ = ‖ḋ‖², scale l².
 
 
-@inlined
+@compiled
 def constraint_value(k, q, ends, anchor, kind, param, G):
     """C_k (the constraint's own unit) at q; writes g = ∂C_k/∂d into G[k] (dim,).
 
@@ -86,7 +110,7 @@ def constraint_value(k, q, ends, anchor, kind, param, G):
     return np.nan
 
 
-@inlined
+@compiled
 def constraint_rate(k, v, ends, kind, param, G):
     """(J̇q̇, Ċ) of constraint k with g = G[k] already set by :func:`constraint_value`.
 
@@ -108,10 +132,10 @@ def constraint_rate(k, v, ends, kind, param, G):
 def assemble(G, pair_k, pair_l, pair_w, band):
     """The lower band of J W Jᵀ from the gradients G (C, dim)."""
     dim = _dim(G)
-    for k in range(band.shape[0]):
-        for j in range(band.shape[1]):
+    for k in range(_constraints(band)):
+        for j in range(_band_columns(band)):
             band[k, j] = 0.0
-    for n in range(pair_k.shape[0]):
+    for n in range(_pairs(pair_k)):
         k, l = pair_k[n], pair_l[n]
         s = 0.0
         for a in range(dim):
@@ -122,11 +146,11 @@ def assemble(G, pair_k, pair_l, pair_w, band):
 @compiled
 def solve_jwjt(G, model, band, x):
     """x ← (J W Jᵀ)⁻¹ x in place, J from the gradients G; False when J W Jᵀ is singular."""
-    bandwidth = model[10]
+    n, bandwidth = _constraints(band), _band_columns(band) - 1
     assemble(G, model[7], model[8], model[9], band)
-    if not cholesky_banded(band, bandwidth):
+    if not cholesky_banded(band, n, bandwidth):
         return False
-    solve_banded(band, bandwidth, x)
+    solve_banded(band, n, bandwidth, x)
     return True
 
 
@@ -134,7 +158,7 @@ def solve_jwjt(G, model, band, x):
 def add_constraint_term(x, scale, inverse_mass, ends, G, lam):
     """x += scale · W Jᵀ λ (per particle: +w_i λ_k g_k on the first end, −w_j λ_k g_k on the second)."""
     dim = _dim(x)
-    for k in range(ends.shape[0]):
+    for k in range(_constraints(ends)):
         i, j = ends[k, 0], ends[k, 1]
         si = scale * inverse_mass[i] * lam[k]
         for a in range(dim):
@@ -153,7 +177,7 @@ def multipliers(q, v, model, k_s, k_d, G, V, band, lam):
     """
     inverse_mass, force, ends = model[0], model[1], model[2]
     dim = _dim(q)
-    for k in range(ends.shape[0]):
+    for k in range(_constraints(ends)):
         c = constraint_value(k, q, ends, model[3], model[4], model[5], G)
         jdot, c_dot = constraint_rate(k, v, ends, model[4], model[5], G)
         i, j = ends[k, 0], ends[k, 1]
@@ -172,7 +196,7 @@ def acceleration(q, v, model, k_s, k_d, G, V, band, lam, acc):
     inverse_mass, force = model[0], model[1]
     ok = multipliers(q, v, model, k_s, k_d, G, V, band, lam)
     dim = _dim(q)
-    for p in range(q.shape[0]):
+    for p in range(_particles(q)):
         for a in range(dim):
             acc[p, a] = inverse_mass[p] * force[p, a]
     add_constraint_term(acc, 1.0, inverse_mass, model[2], G, lam)
@@ -184,7 +208,7 @@ def violations(q, model, G, out):
     """out[k] = C_k at q (G receives the gradients); returns max_k |C_k| / scale_k (≈ relative length error)."""
     ends, scale = model[2], model[6]
     worst = 0.0
-    for k in range(out.shape[0]):
+    for k in range(_constraints(out)):
         c = constraint_value(k, q, ends, model[3], model[4], model[5], G)
         out[k] = c
         worst = max(worst, abs(c) / scale[k])
@@ -195,7 +219,7 @@ def violations(q, model, G, out):
 def project_velocities(q, v, model, G, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
     inverse_mass, ends = model[0], model[2]
-    for k in range(ends.shape[0]):
+    for k in range(_constraints(ends)):
         constraint_value(k, q, ends, model[3], model[4], model[5], G)
         mu[k] = constraint_rate(k, v, ends, model[4], model[5], G)[1]
     if not solve_jwjt(G, model, band, mu):
@@ -230,15 +254,16 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     and v projected so that J(q_{n+1}) v_{n+1} = 0.
     """
     inverse_mass, force, ends = model[0], model[1], model[2]
-    pair_k, pair_l, pair_w, bandwidth = model[7], model[8], model[9], model[10]
+    pair_k, pair_l, pair_w = model[7], model[8], model[9]
     G0, G, band, Lam, delta, q_new = work
-    P = q.shape[0]
+    P = _particles(q)
     dim = _dim(q)
-    C = ends.shape[0]
+    C = _constraints(ends)
     for k in range(C):
         constraint_value(k, q, ends, model[3], model[4], model[5], G0)
+    bandwidth = _band_columns(band) - 1
     assemble(G0, pair_k, pair_l, pair_w, band)
-    if not cholesky_banded(band, bandwidth):
+    if not cholesky_banded(band, C, bandwidth):
         return SINGULAR
     for p in range(P):
         for a in range(dim):
@@ -252,7 +277,7 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
             break
         for k in range(C):
             delta[k] = -delta[k]
-        solve_banded(band, bandwidth, delta)
+        solve_banded(band, C, bandwidth, delta)
         for k in range(C):
             Lam[k] += delta[k]
         add_constraint_term(q_new, 1.0, inverse_mass, ends, G0, delta)
@@ -273,7 +298,7 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
 def _copy(y, x):
     """y[...] = x for (P, dim) arrays (slice assignment may allocate a temporary)."""
     dim = _dim(y)
-    for p in range(y.shape[0]):
+    for p in range(_particles(y)):
         for a in range(dim):
             y[p, a] = x[p, a]
 
@@ -282,7 +307,7 @@ def _copy(y, x):
 def _finite(x):
     """True when every entry of the (P, dim) array is finite."""
     dim = _dim(x)
-    for p in range(x.shape[0]):
+    for p in range(_particles(x)):
         for a in range(dim):
             if not math.isfinite(x[p, a]):
                 return False
@@ -292,7 +317,7 @@ def _finite(x):
 @compiled
 def _record(n, q, v, model, k_s, k_d, G, V, band, out_q, out_v, out_lam):
     dim = _dim(q)
-    for p in range(q.shape[0]):
+    for p in range(_particles(q)):
         for a in range(dim):
             out_q[n, p, a] = q[p, a]
             out_v[n, p, a] = v[p, a]
@@ -305,7 +330,7 @@ def _record(n, q, v, model, k_s, k_d, G, V, band, out_q, out_v, out_lam):
 def _axpy(y, x, alpha, s):
     """y = x + alpha · s (all (P, dim))."""
     dim = _dim(y)
-    for p in range(y.shape[0]):
+    for p in range(_particles(y)):
         for a in range(dim):
             y[p, a] = x[p, a] + alpha * s[p, a]
 
@@ -350,7 +375,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     ks = k_s if method == _BAUMGARTE else 0.0
     kd = k_d if method == _BAUMGARTE else 0.0
     h = dt
-    P = q.shape[0]
+    P = _particles(q)
     dim = _dim(q)
 
     _record(0, q, v, model, ks, kd, G, V, band, out_q, out_v, out_lam)

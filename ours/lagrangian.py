@@ -35,9 +35,9 @@ def angular_acceleration(theta, omega, tail, lengths, gravity, M, alpha):
             if j <= i:
                 M[i, i - j] = mu * math.cos(theta[i] - theta[j])
         alpha[i] = s
-    if not cholesky_banded(M, n - 1):
+    if not cholesky_banded(M, n, n - 1):
         return False
-    solve_banded(M, n - 1, alpha)
+    solve_banded(M, n, n - 1, alpha)
     return True
 
 
