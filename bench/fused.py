@@ -93,7 +93,7 @@ def double_pendulum_rk4(q, v, masses, gravity, anchor, lengths, ks, kd, h, n_ste
         v4 = (u0 + h * k3a[0], w0 + h * k3a[1], u1 + h * k3a[2], w1 + h * k3a[3])
         k4a = _accel(q4[0], q4[1], q4[2], q4[3], v4[0], v4[1], v4[2], v4[3], ax, ay, w_0, w_1, fx0, fy0,
                      fx1, fy1, L1sq, L2sq, b00w, b10w, b11w, ks, kd)
-        b1, b2 = h / 6.0, h / 3.0
+        b1, b2 = h * (1.0 / 6.0), h * (1.0 / 3.0)
         x0 = x0 + b1 * u0 + b2 * v2[0] + b2 * v3[0] + b1 * v4[0]
         y0 = y0 + b1 * w0 + b2 * v2[1] + b2 * v3[1] + b1 * v4[1]
         x1 = x1 + b1 * u1 + b2 * v2[2] + b2 * v3[2] + b1 * v4[2]
