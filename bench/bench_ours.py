@@ -24,7 +24,7 @@ run on a loaded machine. Compare ratios within a run, not across machines.
     .venv/bin/python bench/bench_ours.py [--no-cold] [--quick] [--json PATH]
 
 ``--quick``: fewer repeats and only the 4- and 16-link chains.
-The JSON (default bench/out/bench_ours.json) holds every row and the machine's load average.
+The JSON (default results/bench/bench_ours.json) holds every row and the machine's load average.
 """
 
 from __future__ import annotations
@@ -200,7 +200,7 @@ def compare_rows(section: str, case: str, scene, dt: float, pairs, repeats: int)
 def main(argv: list[str]) -> int:
     quick = "--quick" in argv
     repeats, adapter_repeats = (5, 2) if quick else (20, 5)
-    json_path = Path(argv[argv.index("--json") + 1]) if "--json" in argv else ROOT / "bench" / "out" / "bench_ours.json"
+    json_path = Path(argv[argv.index("--json") + 1]) if "--json" in argv else ROOT / "results" / "bench" / "bench_ours.json"
     rows: list[dict] = []
 
     if "--no-cold" not in argv:
