@@ -43,9 +43,11 @@ SAMPLE = float(os.environ.get("OURS_EQ_SAMPLE", "0.25"))  # s between stored sam
 TOLERANCE = 1e-12
 
 
-def runs():
-    """Yield (key, arrays) for every scene × variant × dt."""
+def runs(scenes=None):
+    """Yield (key, arrays) for every scene (of ``scenes``, default all) × variant × dt."""
     for scene_id, (name, params) in SCENES.items():
+        if scenes is not None and scene_id not in scenes:
+            continue
         scene = catalog.build(name, {**params, "duration": DURATION})
         system, q0, v0, _ = _to_system(scene)
         for variant, settings in ENGINE.variants.items():
@@ -74,6 +76,24 @@ def _rel(new: np.ndarray, old: np.ndarray) -> float:
     return float(diff.max() / max(scale, 1e-300)) if diff.size else 0.0
 
 
+def compare(path, scenes=None) -> tuple[int, dict[str, float], list[str]]:
+    """(runs checked, largest relative difference per quantity, failures) against the file at ``path``."""
+    old = np.load(path)
+    worst = {"q": 0.0, "v": 0.0, "lam": 0.0}
+    failures = []
+    count = 0
+    for key, arrays in runs(scenes):
+        count += 1
+        if not np.array_equal(arrays["meta"], old[f"{key}|meta"]):
+            failures.append(f"{key}: steps/status {arrays['meta'].tolist()} != {old[f'{key}|meta'].tolist()}")
+        for name in worst:
+            rel = _rel(arrays[name], old[f"{key}|{name}"])
+            worst[name] = max(worst[name], rel)
+            if rel > TOLERANCE:
+                failures.append(f"{key}: {name} differs by {rel:.3g} (relative)")
+    return count, worst, failures
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 2 or argv[0] not in ("save", "check"):
         print(__doc__)
@@ -84,19 +104,7 @@ def main(argv: list[str]) -> int:
         np.savez_compressed(path, **data)
         print(f"saved {len(data) // 4} runs to {path}")
         return 0
-    old = np.load(path)
-    worst = {"q": 0.0, "v": 0.0, "lam": 0.0}
-    failures = []
-    count = 0
-    for key, arrays in runs():
-        count += 1
-        if not np.array_equal(arrays["meta"], old[f"{key}|meta"]):
-            failures.append(f"{key}: steps/status {arrays['meta'].tolist()} != {old[f'{key}|meta'].tolist()}")
-        for name in worst:
-            rel = _rel(arrays[name], old[f"{key}|{name}"])
-            worst[name] = max(worst[name], rel)
-            if rel > TOLERANCE:
-                failures.append(f"{key}: {name} differs by {rel:.3g} (relative)")
+    count, worst, failures = compare(path)
     print(f"checked {count} runs; largest relative difference: "
           + ", ".join(f"{k} {v:.3g}" for k, v in worst.items()))
     for line in failures[:20]:
