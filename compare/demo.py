@@ -23,8 +23,9 @@ OUTPUT = ROOT / "results" / "default"
 def main() -> None:
     if (OUTPUT / "run.json").exists():
         shutil.rmtree(OUTPUT)
-    summary = run_suite(load_suite(SUITE), OUTPUT, progress=progress_for(sys.stderr))
-    print(scene_tables(summary.records))
+    suite = load_suite(SUITE)
+    summary = run_suite(suite, OUTPUT, progress=progress_for(sys.stderr))
+    print(scene_tables(summary.records, suite.verdict_tolerance))
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     print(f"{summary.ran} cases in {summary.wall_time:.1f} s ({counts})")
     print(f"results: {OUTPUT}  (xval show {OUTPUT.relative_to(ROOT)} --format csv; xval report ...)")

@@ -109,6 +109,31 @@ class OursEngine(Engine):
                     f"Rod(k-1, k)); {scene.name!r} is not one: {why}"
                 )
 
+    def _baumgarte_gains(self, variant: str | None, options: Mapping[str, Any] | None) -> tuple[str, float, float] | None:
+        """(integrator, k_s 1/s², k_d 1/s) of a Baumgarte variant its linear theory covers, else None."""
+        from ours.stability import INTEGRATORS
+
+        settings = self.resolve(variant, options)
+        if settings["method"] != "baumgarte" or settings["integrator"] not in INTEGRATORS:
+            return None
+        k_s = float(settings["k_s"])
+        k_d = 2.0 * k_s ** 0.5 if settings["k_d"] is None else float(settings["k_d"])
+        return settings["integrator"], k_s, k_d
+
+    def spectral_radius(self, variant: str | None, options: Mapping[str, Any] | None, dt: float) -> float | None:
+        """ρ of one step of the linearized constraint error (C, Ċ) under Baumgarte feedback (ours/stability.py)."""
+        from ours.stability import spectral_radius
+
+        gains = self._baumgarte_gains(variant, options)
+        return None if gains is None else spectral_radius(gains[0], dt, gains[1], gains[2])
+
+    def largest_stable_dt(self, variant: str | None, options: Mapping[str, Any] | None) -> float | None:
+        """s: the largest dt with ρ ≤ 1 for a Baumgarte variant (None for other methods)."""
+        from ours.stability import largest_stable_dt
+
+        gains = self._baumgarte_gains(variant, options)
+        return None if gains is None else largest_stable_dt(*gains)
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone

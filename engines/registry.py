@@ -90,11 +90,6 @@ def engine_names() -> list[str]:
     return list(BUILTIN) + sorted(set(entry_points()) - set(BUILTIN))
 
 
-def plugin_names() -> list[str]:
-    """Names of installed plugins (entry points), including any shadowed by a built-in."""
-    return sorted(entry_points())
-
-
 # -- loading ---------------------------------------------------------------------
 
 

@@ -7,7 +7,7 @@ compute them the same way for every engine.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
@@ -89,10 +89,6 @@ class Trajectory:
     @property
     def n_samples(self) -> int:
         return len(self.t)
-
-    def with_info(self, **changes: Any) -> "Trajectory":
-        return replace(self, info=replace(self.info, **changes))
-
 
 def kinetic_energy(scene: Scene, velocities: np.ndarray) -> np.ndarray:
     """(n_samples,) J from velocities (n_samples, n_particles, 3) m/s."""

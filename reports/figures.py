@@ -96,11 +96,11 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
     """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt, status])."""
     xs, ys, custom = [], [], []
     for record in sweep.records:
-        metrics = record.get("metrics") or {}
-        dt = record["case"]["dt"]
+        metrics = record.metrics
+        dt = record.case.dt
         x = dt if x_key == "dt" else metrics.get(x_key)
         y = metrics.get(ORDER_METRIC)
-        if record["status"] == "ok" and _positive(x) and _positive(y):
+        if record.status == "ok" and _positive(x) and _positive(y):
             xs.append(x)
             ys.append(y)
             custom.append([plot_text(sweep.engine), dt])
@@ -186,13 +186,13 @@ def _chosen_cases(scene: SceneResults) -> list[tuple[int, VariantSweep, dict[str
     for index, sweep in enumerate(scene.sweeps):
         record = scene.case_at(sweep, scene.chosen_dt)
         # A failed run has no samples: nothing to draw (its message is in the problems list).
-        if record is not None and (record.get("series") or {}).get("t"):
+        if record is not None and (record.series or {}).get("t"):
             chosen.append((index, sweep, record))
     return chosen
 
 
 def _label(sweep: VariantSweep, record: dict[str, Any]) -> str:
-    return sweep.engine if record["status"] == "ok" else f"{sweep.engine} ({record['status']})"
+    return sweep.engine if record.status == "ok" else f"{sweep.engine} ({record.status.value})"
 
 
 def time_series(scene: SceneResults) -> Plot | None:
@@ -203,7 +203,7 @@ def time_series(scene: SceneResults) -> Plot | None:
     traces = []
     panel_values: list[list[Any]] = [[] for _ in SERIES_PANELS]
     for index, sweep, record in chosen:
-        series = record["series"]
+        series = record.series
         for panel, (key, _, absolute) in enumerate(SERIES_PANELS):
             values = series.get(key) or []
             if absolute:
@@ -239,12 +239,12 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     them, else from the reference engine's own case (at the chosen dt, or any).
     """
     for _, _, record in _chosen_cases(scene):
-        if record["series"].get("reference_positions"):
-            return record["series"]["reference_positions"], "the reference solution"
+        if record.series.get("reference_positions"):
+            return record.series["reference_positions"], "the reference solution"
     for sweep in filter(is_reference, scene.sweeps):
-        for record in sorted(sweep.records, key=lambda r: r["case"]["dt"] != scene.chosen_dt):
-            if record["status"] == "ok" and (record.get("series") or {}).get("positions"):
-                return record["series"]["positions"], f"{sweep.engine} at dt = {record['case']['dt']:.3g} s"
+        for record in sorted(sweep.records, key=lambda r: r.case.dt != scene.chosen_dt):
+            if record.status == "ok" and (record.series or {}).get("positions"):
+                return record.series["positions"], f"{sweep.engine} at dt = {record.case.dt:.3g} s"
     return None, ""
 
 
@@ -257,10 +257,10 @@ def _particle_xz(positions: list[Any], particle: int) -> tuple[list[Any], list[A
 def paths(scene: SceneResults) -> Plot | None:
     """Particle paths in the x–z plane at the chosen dt, drawn over the reference's (wide grey line)."""
     chosen = _chosen_cases(scene)
-    chosen = [(i, s, r) for i, s, r in chosen if r["series"].get("positions")]
+    chosen = [(i, s, r) for i, s, r in chosen if (r.series or {}).get("positions")]
     if not chosen:
         return None
-    n_particles = len(scene.scene.get("particles", [])) or len(chosen[0][2]["series"]["positions"][0])
+    n_particles = len(scene.scene.get("particles", [])) or len(chosen[0][2].series["positions"][0])
     traces = []
     reference, source = _reference_positions(scene)
     if reference:
@@ -272,7 +272,7 @@ def paths(scene: SceneResults) -> Plot | None:
             })
     for index, sweep, record in chosen:
         for particle in range(n_particles):
-            xs, zs = _particle_xz(record["series"]["positions"], particle)
+            xs, zs = _particle_xz(record.series["positions"], particle)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "legendgroup": f"v{index}", "showlegend": particle == 0,

@@ -13,9 +13,7 @@ CI run or a mail.
 from __future__ import annotations
 
 import functools
-import math
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,7 +22,9 @@ import jinja2
 from markupsafe import Markup
 
 from compare.results.files import atomic_write_text, check_writable
-from compare.results.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS, Bounds
+from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
+from compare.suite.reader import RunSettings, load_run_settings
+from engines.errors import UserError
 
 from reports.figures import Plot, scene_plots
 from reports.load import ReportData, load_report_data
@@ -60,22 +60,13 @@ def environment() -> jinja2.Environment:
 
 
 def suite_settings(directory: Path) -> dict[str, Any]:
-    """δ and the status bounds the run used, read from the stored suite.toml (defaults when it is unreadable).
-
-    Only these numbers are needed, for the "how to read this" section, so the
-    suite is not rebuilt (that would load every engine).
-    """
-    settings = {"delta": DEFAULT_DELTA, "energy_bound": Bounds.energy_drift, "constraint_bound": Bounds.constraint_error}
+    """δ and the status bounds the run used, from the stored suite.toml (read without loading engines)."""
     try:
-        data = tomllib.loads((directory / "suite.toml").read_text())
-    except (OSError, tomllib.TOMLDecodeError):
-        return settings
-    bounds = data.get("bounds") if isinstance(data.get("bounds"), dict) else {}
-    for key, value in (("delta", data.get("delta")), ("energy_bound", bounds.get("energy_drift")),
-                       ("constraint_bound", bounds.get("constraint_error"))):
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
-            settings[key] = value
-    return settings
+        settings = load_run_settings(directory / "suite.toml")
+    except UserError:
+        settings = RunSettings()
+    return {"delta": settings.delta, "energy_bound": settings.bounds.energy_drift,
+            "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
 
 def page_context(data: ReportData) -> dict[str, Any]:

@@ -123,20 +123,23 @@ def _log10(value: Any) -> float | None:
 
 
 def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
-    """Per integrator: stability, log10 constraint error and log10 energy drift over log10 k_s × log10 k_d,
-    with the theory's boundary (spectral radius ρ = 1 of the linearized step) drawn over each."""
-    xs = [math.log10(k) for k in document["k_s"]]
-    ys = [math.log10(k) for k in document["k_d"]]
+    """Per engine variant: stability, log10 constraint error and log10 energy drift over log10 x × log10 y
+    (the two swept options), with the engine's own theory boundary (spectral radius ρ = 1) where it has one."""
+    x_name, y_name = document["x"], document["y"]
+    xs = [math.log10(v) for v in document["x_values"]]
+    ys = [math.log10(v) for v in document["y_values"]]
     dt = document["dt"]
     plots = []
-    for number, (integrator, grid) in enumerate(document["maps"].items()):
-        theory = grid["theory"]
-        boundary = {
-            "type": "contour", "x": theory["log10_k_s"], "y": theory["log10_k_d"], "z": theory["log10_rho"],
-            "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
-            "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
-            "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
-        }
+    for number, (engine, grid) in enumerate(document["maps"].items()):
+        theory = grid.get("theory")
+        layers = []
+        if theory is not None:
+            layers.append({
+                "type": "contour", "x": theory["log10_x"], "y": theory["log10_y"], "z": theory["log10_rho"],
+                "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
+                "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
+                "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
+            })
         stable = [[None if s is None else (1 if s == "ok" else 0) for s in row] for row in grid["status"]]
         panels = [
             ("stability", stable, [[0, "#f4a582"], [0.5, "#f4a582"], [0.5, "#92c5de"], [1, "#92c5de"]],
@@ -146,22 +149,25 @@ def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
             ("energy drift", [[_log10(v) for v in row] for row in grid["energy_drift"]], "Viridis",
              "log10 energy drift / E*", {}),
         ]
+        theory_text = (
+            "Black line: the engine's own linear stability theory (stable inside, where the spectral radius of "
+            "its linearized one-step matrix is ≤ 1). " if theory is not None else "The engine states no theory. "
+        )
         for kind, z, colorscale, label, extra in panels:
             heat = {"type": "heatmap", "x": xs, "y": ys, "z": z, "colorscale": colorscale,
                     "colorbar": {"title": {"text": label}}, "name": label,
-                    "hovertemplate": "log10 k_s = %{x:.2f}<br>log10 k_d = %{y:.2f}<br>" + label + ": %{z:.3g}<extra></extra>",
+                    "hovertemplate": f"log10 {x_name} = %{{x:.2f}}<br>log10 {y_name} = %{{y:.2f}}<br>"
+                                     + label + ": %{z:.3g}<extra></extra>",
                     **extra}
-            figure = {"data": [heat, boundary], "layout": _layout(
+            figure = {"data": [heat, *layers], "layout": _layout(
                 1, height=460,
-                xaxis={"title": {"text": "log10 k_s / (1/s²)"}}, yaxis={"title": {"text": "log10 k_d / (1/s)"}},
+                xaxis={"title": {"text": f"log10 {x_name}"}}, yaxis={"title": {"text": f"log10 {y_name}"}},
                 legend={"orientation": "h", "y": 1.08})}
             slug = kind.replace(" ", "-")
             plots.append(ExtraPlot(
-                f"gainmap-{number}-{slug}", f"{integrator}: {kind}",
-                f"ours/baumgarte-{integrator} on {document['scene_id']} at dt = {dt:g} s. Black line: the boundary "
-                f"of the linearized constraint dynamics C'' + k_d C' + k_s C = 0 under {integrator} (stable inside, "
-                f"where the spectral radius of one step is ≤ 1; critical damping k_d = 2√k_s is stable up to "
-                f"h√k_s = {grid['critical_limit']:.3g}). {'Blue cells stayed within the bounds, orange ones did not.' if kind == 'stability' else 'Blank cells had no finite value (the run blew up).'}",
+                f"gainmap-{number}-{slug}", f"{engine}: {kind}",
+                f"{engine} on {document['scene_id']} at dt = {dt:g} s over {x_name} × {y_name}. {theory_text}"
+                f"{'Blue cells stayed within the bounds, orange ones did not.' if kind == 'stability' else 'Blank cells had no finite value (the run blew up).'}",
                 figure))
     return plots
 

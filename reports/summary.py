@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from compare.results import declared
 from compare.results.sweep import VariantSweep
 
 from reports.load import SceneResults, is_reference
@@ -36,16 +37,16 @@ class Column:
     fmt: Callable[[float], str] = lambda v: "0" if v == 0 else f"{v:.2e}"
 
 
-#: The metric columns, in order (status, dt and the order are added around them).
-METRIC_COLUMNS = (
-    Column("position_error_linf", "position error", "m", "low"),
-    # None means e(t) never passed δ·L: the best possible value, shown as "never".
-    Column("divergence_time", "divergence time", "s", "high", missing="never", fmt=lambda v: f"{v:.3g}"),
-    Column("energy_drift", "energy drift", "E*", "low"),
-    Column("constraint_error", "constraint error", "m", "low"),
-    Column("constraint_force_error", "constraint-force error", "N", "low", missing="not exposed"),
-    Column("cost_per_simulated_second", "cost", "s/s", "low"),
-)
+def metric_columns() -> tuple[Column, ...]:
+    """The metric columns, in order, from the declarations (compare.results.declared: ``report = True``);
+    status, dt and the order are added around them."""
+    columns = []
+    for metric in declared.reported():
+        better = "high" if metric.higher_is_better else "low"
+        # A time in seconds reads better without an exponent (divergence time: "never" when null).
+        fmt = (lambda v: f"{v:.3g}") if metric.unit == "s" else (lambda v: "0" if v == 0 else f"{v:.2e}")
+        columns.append(Column(metric.name, metric.title or metric.name, metric.unit, better, metric.missing, fmt))
+    return tuple(columns)
 ORDER_COLUMN = Column("observed_order", "observed order", "", "high", missing="–", fmt=lambda v: f"{v:.2f}")
 
 
@@ -87,7 +88,8 @@ def _rank_value(column: Column, value: Any) -> float | None:
     """A number to rank on (higher is better after the sign flip), or None when the value cannot rank."""
     if value is None:
         # A divergence time of None means "never diverged": better than any time.
-        return math.inf if column.key == "divergence_time" else None
+        metric = declared.METRICS.get(column.key)
+        return math.inf if metric is not None and metric.none_means == "infinite" else None
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         return None
     return float(value) if column.better == "high" else -float(value)
@@ -112,20 +114,21 @@ def summary_table(scene: SceneResults) -> SummaryTable:
     """The summary table of ``scene`` at its chosen dt."""
     dt = scene.chosen_dt
     cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
-    metrics = [(case or {}).get("metrics") or {} for case in cases]
+    metrics = [(case.metrics if case is not None else {}) for case in cases]
     # The reference is the yardstick, not a competitor: its zero error would always be "best".
-    ok = [case is not None and case["status"] == "ok" and not is_reference(sweep) for case, sweep in zip(cases, scene.sweeps)]
+    ok = [case is not None and case.status == "ok" and not is_reference(sweep) for case, sweep in zip(cases, scene.sweeps)]
     # Without a reference there is no position error, so a divergence time of
     # None would falsely read "never": such cells are unknown, not best.
     no_reference = [m.get("position_error_linf") is None for m in metrics]
     columns_cells: list[list[Cell]] = []
-    for column in METRIC_COLUMNS:
+    metric_cols = metric_columns()
+    for column in metric_cols:
         values = [m.get(column.key) for m in metrics]
         unknown = [column.key == "divergence_time" and nr for nr in no_reference]
         flags = _best_flags(column, values, [o and not u for o, u in zip(ok, unknown)])
         cells = []
         for value, best, case, unknown_here in zip(values, flags, cases, unknown):
-            if case is None or not case.get("metrics") or not case["metrics"].get("n_samples"):
+            if case is None or not case.metrics or not case.metrics.get("n_samples"):
                 # A run with no samples (it raised at once) has drift and constraint error 0 by
                 # definition; printing those zeros would read as a perfect result.
                 cells.append(Cell("–", title="no samples at this dt"))
@@ -146,11 +149,11 @@ def summary_table(scene: SceneResults) -> SummaryTable:
         rows.append(
             Row(
                 engine=sweep.engine,
-                status=case["status"] if case else "not run",
-                message=(case or {}).get("message", ""),
+                status=case.status if case else "not run",
+                message=case.message if case is not None else "",
                 sweep_statuses=_sweep_statuses(sweep),
                 cells=[cells[k] for cells in columns_cells],
                 order=order,
             )
         )
-    return SummaryTable(METRIC_COLUMNS + (ORDER_COLUMN,), rows, dt)
+    return SummaryTable(metric_cols + (ORDER_COLUMN,), rows, dt)

@@ -19,7 +19,7 @@ from engines.errors import UserError
 from report_support import PageStructure, copy_results, run_suite_once
 from reports.load import choose_dt, load_report_data
 from reports.render import render, write_report
-from reports.summary import METRIC_COLUMNS, Column, _best_flags
+from reports.summary import Column, _best_flags, metric_columns
 
 
 @pytest.fixture(scope="session")
@@ -270,7 +270,7 @@ def test_best_flags_rank_only_eligible_values_and_keep_ties():
     assert _best_flags(low, [2.0, 2.0], [True, True]) == [False, False]  # all tie: nothing to point at
     assert _best_flags(low, [2.0, 5.0], [True, False]) == [True, False]  # a single ranked value is still best
     assert _best_flags(low, [None, None], [True, True]) == [False, False]
-    divergence = next(c for c in METRIC_COLUMNS if c.key == "divergence_time")
+    divergence = next(c for c in metric_columns() if c.key == "divergence_time")
     # None is "never diverged": the best divergence time there is.
     assert _best_flags(divergence, [0.3, None, 0.9], [True, True, True]) == [False, True, False]
 

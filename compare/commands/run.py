@@ -44,7 +44,7 @@ def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
         except SchedulerLost as exc:
             click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
             sys.exit(1)
-    click.echo(scene_tables(summary.records), nl=False)
+    click.echo(scene_tables(summary.records, suite.verdict_tolerance), nl=False)
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     resumed = f", {summary.already_done} already done" if summary.already_done else ""
     click.echo(f"\n{summary.ran} cases run in {summary.wall_time:.1f} s{resumed} ({counts})")

@@ -32,8 +32,9 @@ from typing import Any
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
-from compare.results.store import StoredResults, jsonable, now
-from compare.results.sweep import sweeps
+from compare.results.record import CaseKey, CaseRecord
+from compare.results.store import Results, jsonable, now
+from compare.results.sweep import VariantSweep
 from compare.gate.tolerance import RULES, TIMING_METRIC
 
 #: Bump when a field of the baseline file changes meaning.
@@ -44,14 +45,21 @@ BASELINE_KIND = "xval-baseline"
 MACHINE_FIELDS = ("cpu", "cpu_count", "machine")
 
 
-def case_key(case: dict[str, Any], scene_hash: str) -> str:
+def case_key(case: CaseKey | dict[str, Any], scene_hash: str) -> str:
     """The key a case is stored and matched under: scene id and content hash, engine, variant, options, dt.
 
+    case : a record's CaseKey, or a baseline entry (a dict with the same fields).
     The scene id is part of it so two scenes with identical content (a
     suite may list one scene twice under different ids) stay distinct.
     """
-    options = json.dumps(case.get("options") or {}, sort_keys=True, separators=(",", ":"))
-    return f"{case['scene_id']}#{scene_hash}|{case['engine']}|{case.get('variant')}|{options}|dt={case['dt']:.12g}"
+    if isinstance(case, CaseKey):
+        scene_id, engine, variant, options, dt = case.scene_id, case.engine, case.variant, case.options, case.dt
+    else:
+        scene_id, engine, variant, options, dt = (
+            case["scene_id"], case["engine"], case.get("variant"), case.get("options"), case["dt"]
+        )
+    text = json.dumps(dict(options or {}), sort_keys=True, separators=(",", ":"))
+    return f"{scene_id}#{scene_hash}|{engine}|{variant}|{text}|dt={dt:.12g}"
 
 
 def case_name(entry: dict[str, Any]) -> str:
@@ -59,20 +67,18 @@ def case_name(entry: dict[str, Any]) -> str:
     return f"{entry['scene_id']} · {entry['engine']} · dt={entry['dt']:.3g}"
 
 
-def engine_version(record: dict[str, Any], header: dict[str, Any]) -> str | None:
+def engine_version(record: CaseRecord, header: dict[str, Any]) -> str | None:
     """The version of the engine that ran ``record``: from its RunInfo, else (skipped cases) from run.json."""
-    info = record.get("run_info") or {}
-    if info.get("engine_version"):
-        return info["engine_version"]
-    engine_name = record["case"]["engine_id"].split("/")[0]
+    if record.engine_version:
+        return record.engine_version
+    engine_name = record.case.engine_id.split("/")[0]
     return (header.get("environment") or {}).get("engines", {}).get(engine_name)
 
 
-def _timing(record: dict[str, Any]) -> dict[str, Any] | None:
+def _timing(record: CaseRecord) -> dict[str, Any] | None:
     """Median cost (s per simulated s) and the cost of every repeat, or None without timings."""
-    metrics = record.get("metrics") or {}
-    cost, wall = metrics.get(TIMING_METRIC), metrics.get("wall_time")
-    repeats = record.get("wall_times") or []
+    cost, wall = record.metrics.get(TIMING_METRIC), record.metrics.get("wall_time")
+    repeats = record.wall_times
     if cost is None or not wall or not repeats:
         return None
     # Each repeat stepped the same simulated time, so cost scales with wall time.
@@ -80,39 +86,41 @@ def _timing(record: dict[str, Any]) -> dict[str, Any] | None:
     return {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
 
 
-def entry_from_record(record: dict[str, Any], header: dict[str, Any], order: float | None) -> dict[str, Any]:
-    """The baseline entry of one case record; ``order`` is its sweep's observed order (or None)."""
-    case = record["case"]
-    metrics = dict(record.get("metrics") or {})
-    metrics["observed_order"] = order
+def entry_from_record(record: CaseRecord, header: dict[str, Any], sweep: VariantSweep | None = None) -> dict[str, Any]:
+    """The baseline entry of one case record; ``sweep`` gives its variant's order and consistency."""
+    case = record.case
+    metrics = dict(record.metrics)
+    metrics["observed_order"] = sweep.order.order if sweep is not None and sweep.order else None
+    verdict = sweep.consistency if sweep is not None else None
     return {
-        "scene_id": case["scene_id"],
-        "scene_hash": record["scene_hash"],
-        "engine": case["engine"],
-        "engine_id": case["engine_id"],
-        "variant": case.get("variant"),
-        "options": case.get("options") or {},
-        "dt": case["dt"],
-        "position": case.get("position", [0, 0, 0]),
+        "scene_id": case.scene_id,
+        "scene_hash": record.scene_hash,
+        "engine": case.engine,
+        "engine_id": case.engine_id,
+        "variant": case.variant,
+        "options": dict(case.options),
+        "dt": case.dt,
+        "position": list(case.position),
         "engine_version": engine_version(record, header),
-        "status": record["status"],
-        "message": record.get("message") or "",
-        "metrics": {name: metrics.get(name) for name in RULES} if record.get("metrics") else None,
+        "status": record.status.value,
+        "message": record.message,
+        "metrics": {name: metrics.get(name) for name in RULES} if record.has_metrics else None,
+        "consistent": verdict.consistent if verdict else None,
+        "consistency": verdict.reason if verdict else "",
         "timing": _timing(record),
     }
 
 
-def entries(results: StoredResults) -> dict[str, dict[str, Any]]:
+def entries(results: Results) -> dict[str, dict[str, Any]]:
     """Baseline entries of every case in ``results``, keyed by ``case_key``, in the suite's order."""
     out: dict[str, dict[str, Any]] = {}
-    for sweep in sweeps(results.records):
-        order = sweep.order.order if sweep.order else None
+    for sweep in results.sweeps():
         for record in sweep.records:
-            out[case_key(record["case"], record["scene_hash"])] = entry_from_record(record, results.header, order)
+            out[case_key(record.case, record.scene_hash)] = entry_from_record(record, results.header, sweep)
     return out
 
 
-def build_baseline(results: StoredResults, then: str = "make the baseline") -> dict[str, Any]:
+def build_baseline(results: Results, then: str = "make the baseline") -> dict[str, Any]:
     """The baseline document of a finished results directory.
 
     An unfinished run is refused (UserError ending "then ``then``"): its

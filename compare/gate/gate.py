@@ -19,6 +19,9 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   be reported only (``timing="report"``).
 - **not comparable** (reported, never failed): the scene's content changed,
   the engine's options or variant changed, or the engine's version changed.
+- consistency (per variant, from its dt sweep, compare.results.consistency):
+  a variant that converged to the reference in the baseline and converges
+  to something else now is **worse**.
 - **new** / **missing**: a case only in the results / only in the baseline.
 
 Everything here is a pure function of two baseline-shaped documents (the
@@ -34,7 +37,7 @@ from typing import Any
 from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, case_name
-from compare.gate.tolerance import ACCURACY_METRICS, TIMING_METRIC, GateSettings, MetricRule
+from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
 
 #: Case verdicts, in the order a table lists them (most urgent first).
 VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")
@@ -200,9 +203,12 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
         else:
             status = Change("status", "", b_status, c_status, None, "unchanged", note="not ok before either")
     changes = [status]
+    verdict_change = consistency_change(base, current)
+    if verdict_change is not None:
+        changes.append(verdict_change)
     if b_status == "ok" and c_status == "ok":
         b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
-        for rule in ACCURACY_METRICS:
+        for rule in RULES.values():
             change = accuracy_change(rule, b_metrics.get(rule.name), c_metrics.get(rule.name), settings)
             if change is not None:
                 changes.append(change)
@@ -212,6 +218,21 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
     gated = [c.verdict for c in changes if c.gated]
     verdict = "worse" if "worse" in gated else "better" if "better" in gated else "unchanged"
     return CaseResult(**common, verdict=verdict, changes=tuple(changes))
+
+
+def consistency_change(base: dict[str, Any], current: dict[str, Any]) -> Change | None:
+    """A variant that turned inconsistent (converges to something else now) is worse; the reverse is better.
+
+    None when neither side was judged (``consistent`` null or absent on both).
+    """
+    b, c = base.get("consistent"), current.get("consistent")
+    if b is None and c is None:
+        return None
+    if c is False and b is not False:
+        return Change("consistent", "", b, c, None, "worse", note=current.get("consistency", ""))
+    if b is False and c is True:
+        return Change("consistent", "", b, c, None, "better", note=current.get("consistency", ""))
+    return Change("consistent", "", b, c, None, "unchanged")
 
 
 def _identity(entry: dict[str, Any]) -> tuple:

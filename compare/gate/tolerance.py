@@ -22,65 +22,34 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Iterator, Mapping
+
+from compare.results import declared
+from compare.results.declared import TIMING_METRIC, Metric, Tolerance
 
 
-@dataclass(frozen=True)
-class Tolerance:
-    """rtol (fraction of the baseline) and atol (the metric's unit) forgiven before a change counts."""
+class _Rules(Mapping[str, Metric]):
+    """The gated accuracy metrics by name, read live from compare.results.declared (so a metric
+    registered later is gated too), in table order."""
 
-    rtol: float
-    atol: float
+    def __getitem__(self, name: str) -> Metric:
+        metric = declared.METRICS[name]
+        if not metric.gated:
+            raise KeyError(name)
+        return metric
 
+    def __iter__(self) -> Iterator[str]:
+        return iter([m.name for m in declared.gated()])
 
-@dataclass(frozen=True)
-class MetricRule:
-    """One gated accuracy metric: its record key, unit, which way is better, and the default tolerance.
-
-    higher_is_better : False for errors and drifts (worse = larger), True for
-        divergence time and observed order (worse = smaller).
-    none_means : how a null value ranks: ``"infinite"`` for divergence time
-        (null = never diverged, the best), ``"absent"`` otherwise (nothing to
-        compare).
-    """
-
-    name: str
-    unit: str
-    higher_is_better: bool
-    default: Tolerance
-    none_means: str = "absent"
+    def __len__(self) -> int:
+        return len(declared.gated())
 
 
-#: Relative tolerance shared by the accuracy metrics. 10 %: far above the
-#: cross-machine round-off of a deterministic run (~1e-12 relative on these
-#: short scenes, up to ~1e-6 where a chaotic scene amplifies it), far below
-#: the regressions worth catching (a doubled error, a lost order of
-#: accuracy, a drift cure switched off: factors of 2 to 1000).
-DEFAULT_RTOL = 0.1
+#: Gated accuracy metrics by name (live view of the declarations).
+RULES: Mapping[str, Metric] = _Rules()
+#: The old name of a gated metric's declaration.
+MetricRule = Metric
 
-#: Accuracy metrics the gate compares, in table order. The atols sit at the
-#: level below which a value is noise, not accuracy: 1e-9 m is where
-#: compare.results.metrics.ORDER_FLOOR puts the reference's own error (rtol = atol =
-#: 1e-12 over a few seconds) for ~1 m scenes; constraint error is pure
-#: round-off near 1e-13 m for a projecting solver, so 1e-10 m; forces come
-#: from differentiated states and are good to ~1e-6 N; divergence time is
-#: quantized by the sample interval, so two default samples (0.02 s); an
-#: observed order is a fitted slope whose asymptotic range may gain or lose
-#: a point, which moves it by up to ~0.2, while a lost order moves it by ≥ 1.
-ACCURACY_METRICS: tuple[MetricRule, ...] = (
-    MetricRule("position_error_linf", "m", False, Tolerance(DEFAULT_RTOL, 1e-9)),
-    MetricRule("position_error_l2", "m", False, Tolerance(DEFAULT_RTOL, 1e-9)),
-    MetricRule("position_error_final", "m", False, Tolerance(DEFAULT_RTOL, 1e-9)),
-    MetricRule("divergence_time", "s", True, Tolerance(DEFAULT_RTOL, 0.02), none_means="infinite"),
-    MetricRule("energy_drift", "E*", False, Tolerance(DEFAULT_RTOL, 1e-9)),
-    MetricRule("constraint_error", "m", False, Tolerance(DEFAULT_RTOL, 1e-10)),
-    MetricRule("constraint_force_error", "N", False, Tolerance(DEFAULT_RTOL, 1e-6)),
-    MetricRule("observed_order", "", True, Tolerance(0.0, 0.25)),
-)
-RULES = {rule.name: rule for rule in ACCURACY_METRICS}
-
-#: The timing metric (s of wall time per simulated s, median of repeats).
-TIMING_METRIC = "cost_per_simulated_second"
 #: A slowdown must exceed this factor (and the repeats' spread) to be worse.
 #: 1.5: shared CI machines move single timings by 10-40 %; a real
 #: regression worth a red build (an extra solve per step, a lost
@@ -92,15 +61,16 @@ DEFAULT_TIMING_FACTOR = 1.5
 class GateSettings:
     """Tolerances per accuracy metric (every name in RULES) and the timing factor (> 1)."""
 
-    tolerances: Mapping[str, Tolerance] = field(default_factory=lambda: {r.name: r.default for r in ACCURACY_METRICS})
+    tolerances: Mapping[str, Tolerance] = field(default_factory=lambda: {r.name: r.tolerance for r in declared.gated()})
     timing_factor: float = DEFAULT_TIMING_FACTOR
 
     def tolerance(self, metric: str) -> Tolerance:
-        return self.tolerances.get(metric, RULES[metric].default)
+        return self.tolerances.get(metric, RULES[metric].tolerance)
 
 
-#: Keys a [gate] table may hold.
-GATE_KEYS = ("timing_factor", *RULES)
+def gate_keys() -> tuple[str, ...]:
+    """Keys a [gate] table may hold."""
+    return ("timing_factor", *RULES)
 
 ErrorMaker = Callable[[str, str], Exception]
 
@@ -117,7 +87,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
     make_error(key, message) builds the exception to raise (the suite reader
     passes one that adds the file and line), so every mistake names the key.
     """
-    chosen = {r.name: r.default for r in ACCURACY_METRICS}
+    chosen = {r.name: r.tolerance for r in declared.gated()}
     factor = DEFAULT_TIMING_FACTOR
     if tolerances is not None:
         if not isinstance(tolerances, dict):
@@ -141,7 +111,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
                 raise make_error(key, f"must be a number > 1 (a slowdown factor), got {value!r}; write e.g. timing_factor = 1.5")
             factor = float(value)
         elif name not in RULES:
-            raise make_error(key, f"unknown key; valid keys are: {', '.join(GATE_KEYS)}")
+            raise make_error(key, f"unknown key; valid keys are: {', '.join(gate_keys())}")
         elif isinstance(value, dict):
             for part in value:
                 if part not in ("rtol", "atol"):

@@ -28,9 +28,8 @@ import numpy as np
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
+from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError, Status
 
-#: Version of run.json and every case record; bump it when a field changes meaning.
-SCHEMA_VERSION = 1
 #: Most points kept per stored time series (evenly spaced, first and last kept).
 MAX_SERIES_POINTS = 100
 #: Significant digits kept in stored series (metrics keep full precision).
@@ -137,8 +136,14 @@ class ResultsDir:
         return read_json(self.path / "run.json")
 
     def done_ids(self) -> set[str]:
-        """Ids of the cases that already have a record."""
-        return {record["case"]["id"] for record in iter_records(self.cases)}
+        """Ids of the cases that already have a whole, readable record (a damaged one is run again)."""
+        done = set()
+        for file in sorted(self.cases.glob("*.json")):
+            try:
+                done.add(CaseRecord.from_json(json.loads(file.read_text()), file).case.id)
+            except (OSError, ValueError, UserError):
+                continue
+        return done
 
     def write_case(self, record: dict[str, Any]) -> Path:
         """Write one case record atomically; returns its path."""
@@ -154,48 +159,90 @@ class ResultsDir:
 
 
 def read_json(path: Path) -> dict[str, Any]:
+    """The JSON object in ``path``; UserError naming the file when it is missing, not UTF-8 or not JSON."""
     try:
-        return json.loads(path.read_text())
+        return json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise UserError(f"{path}: not found") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not UTF-8 text; it is not an xval results file") from None
     except json.JSONDecodeError as exc:
         raise UserError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}); delete it and run with --resume") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
 
 
-def check_schema(data: dict[str, Any], path: Path) -> None:
-    version = data.get("schema_version")
+def check_schema(data: Any, path: Path) -> None:
+    version = data.get("schema_version") if isinstance(data, dict) else None
     if version != SCHEMA_VERSION:
-        raise UserError(
+        raise RecordError(
             f"{path}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
             f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
         )
 
 
-def iter_records(cases_dir: Path) -> Iterable[dict[str, Any]]:
-    """Every case record under ``cases_dir`` (temporary files of an interrupted write are ignored)."""
+def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
+    """Every case record under ``cases_dir``, typed (temporary files of an interrupted write are ignored)."""
     if not cases_dir.is_dir():
         return
     for file in sorted(cases_dir.glob("*.json")):
-        record = read_json(file)
-        check_schema(record, file)
-        yield record
+        yield CaseRecord.from_json(read_json(file), file)
 
 
 @dataclass(frozen=True)
-class StoredResults:
-    """A results directory as read back: ``header`` (run.json) and the case ``records``."""
+class Results:
+    """A results directory as read back, once: ``header`` (run.json) and the typed case ``records``.
+
+    The views the commands need: :meth:`by_scene`, :meth:`by_variant` and
+    :meth:`sweeps` (per scene × variant across dt, with the observed order and
+    the consistency verdict).
+    """
 
     path: Path
     header: dict[str, Any]
-    records: list[dict[str, Any]]
+    records: list[CaseRecord]
+
+    def by_scene(self) -> dict[str, list[CaseRecord]]:
+        """Records grouped by scene id, in suite order."""
+        groups: dict[str, list[CaseRecord]] = {}
+        for record in sorted(self.records, key=lambda r: r.case.position):
+            groups.setdefault(record.case.scene_id, []).append(record)
+        return groups
+
+    def by_variant(self) -> dict[tuple[str, str], list[CaseRecord]]:
+        """Records grouped by (scene id, engine label), in suite order (largest dt first)."""
+        groups: dict[tuple[str, str], list[CaseRecord]] = {}
+        for record in sorted(self.records, key=lambda r: r.case.position):
+            groups.setdefault((record.case.scene_id, record.case.engine), []).append(record)
+        return groups
+
+    @property
+    def verdict_tolerance(self) -> float:
+        """The consistency tolerance (fraction of L) of the suite that made these results."""
+        from compare.suite.reader import load_run_settings  # here: only readers that judge need the suite
+
+        return load_run_settings(self.path / "suite.toml").verdict_tolerance
+
+    def sweeps(self):
+        """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep)."""
+        from compare.results.sweep import sweeps
+
+        return sweeps(self.records, self.verdict_tolerance)
+
+    def counts(self) -> dict[str, int]:
+        """How many cases ended in each status."""
+        counts: dict[str, int] = {}
+        for record in self.records:
+            counts[record.status.value] = counts.get(record.status.value, 0) + 1
+        return counts
 
 
-def load_results(path: str | Path) -> StoredResults:
-    """Read a results directory; UserError when it is not one or has another schema version."""
+def load_results(path: str | Path) -> Results:
+    """Read a results directory once; UserError when it is not one, is damaged, or has another schema version."""
     path = Path(path)
     run_file = path / "run.json"
     if not run_file.exists():
         raise UserError(f"{path}: not a results directory (no run.json); give the --output directory of 'xval run'")
     header = read_json(run_file)
     check_schema(header, run_file)
-    return StoredResults(path, header, list(iter_records(path / "cases")))
+    return Results(path, header, list(iter_records(path / "cases")))

@@ -5,23 +5,25 @@ from __future__ import annotations
 import sys
 from typing import Any, Protocol, TextIO
 
+from compare.results.record import CaseRecord, Status
+
 
 class Progress(Protocol):
     """What the runner calls: ``start`` once, ``advance`` per finished case, ``stop`` at the end."""
 
     def start(self, total: int, already_done: int) -> None: ...
 
-    def advance(self, record: dict[str, Any]) -> None: ...
+    def advance(self, record: CaseRecord) -> None: ...
 
     def stop(self) -> None: ...
 
 
-def describe(record: dict[str, Any]) -> str:
+def describe(record: CaseRecord) -> str:
     """``bead · mujoco/hinge-euler · dt=0.001: ok`` (with the message when not ok)."""
-    case = record["case"]
-    text = f"{case['scene_id']} · {case['engine']} · dt={case['dt']:g}: {record['status']}"
-    if record["status"] != "ok" and record.get("message"):
-        text += f" ({record['message']})"
+    case = record.case
+    text = f"{case.scene_id} · {case.engine} · dt={case.dt:g}: {record.status.value}"
+    if record.status is not Status.OK and record.message:
+        text += f" ({record.message})"
     return text
 
 
@@ -29,7 +31,7 @@ class NullProgress:
     def start(self, total: int, already_done: int) -> None:
         pass
 
-    def advance(self, record: dict[str, Any]) -> None:
+    def advance(self, record: CaseRecord) -> None:
         pass
 
     def stop(self) -> None:
@@ -49,7 +51,7 @@ class PlainProgress:
         if already_done:
             print(f"resuming: {already_done} of {total} cases already done", file=self.stream, flush=True)
 
-    def advance(self, record: dict[str, Any]) -> None:
+    def advance(self, record: CaseRecord) -> None:
         self.done += 1
         width = len(str(self.total))
         print(f"[{self.done:>{width}}/{self.total}] {describe(record)}", file=self.stream, flush=True)
@@ -83,8 +85,8 @@ class RichProgress:
         self.bar.start()
         self.task = self.bar.add_task("cases", total=total, completed=already_done, failures="", last="")
 
-    def advance(self, record: dict[str, Any]) -> None:
-        if record["status"] in ("failed", "timeout", "unstable"):
+    def advance(self, record: CaseRecord) -> None:
+        if record.status in (Status.FAILED, Status.TIMEOUT, Status.UNSTABLE):
             self.failures += 1
             self.console.print(f"[yellow]{describe(record)}[/yellow]", highlight=False)
         label = f"{self.failures} not ok" if self.failures else ""

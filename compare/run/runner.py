@@ -40,6 +40,8 @@ from compare.run.environment import environment
 from compare.run.isolation import CaseOutcome, CaseTask, execute
 from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
+from compare.results.declared import MetricInputs, computed_extras
+from compare.results.record import SCHEMA_VERSION, CaseRecord
 from compare.results.store import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 
@@ -115,7 +117,7 @@ class RunSummary:
     ran: int
     already_done: int
     wall_time: float
-    records: list[dict[str, Any]]
+    records: list[CaseRecord]
 
 
 def default_jobs() -> int:
@@ -197,10 +199,10 @@ def compare_version() -> str:
         return "unknown"
 
 
-def _status_counts(records: list[dict[str, Any]]) -> dict[str, int]:
+def _status_counts(records: list[CaseRecord]) -> dict[str, int]:
     counts: dict[str, int] = {}
     for record in records:
-        counts[record["status"]] = counts.get(record["status"], 0) + 1
+        counts[record.status.value] = counts.get(record.status.value, 0) + 1
     return dict(sorted(counts.items()))
 
 
@@ -375,8 +377,8 @@ class _Writer:
 
     def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
         record = build_record(case, outcome, reference, self.suite, skipped=skipped)
-        self.results.write_case(record)
-        self.progress.advance(record)
+        path = self.results.write_case(record)
+        self.progress.advance(CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record}, path))
 
 
 def build_record(
@@ -460,7 +462,9 @@ def build_record(
     )
     status, message = apply_bounds(status, message, metrics, suite.bounds, scene)
     record["status"], record["message"] = status, message
-    record["metrics"] = metrics.to_dict()
+    n_ref = min(n, len(ref_positions))
+    extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
+    record["metrics"] = {**metrics.to_dict(), **extras}
     keep = downsample_indices(n)
     record["series"] = {
         "t": rounded(series.t[keep]),

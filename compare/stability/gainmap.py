@@ -1,28 +1,21 @@
-"""Baumgarte gain map: ours/baumgarte on one scene over a log-spaced k_s × k_d grid, with the theory's boundary.
+"""Gain map: one or more engine variants on one scene over a log-spaced grid of two numeric options.
 
-Theory (derived in docs/ours.md, "Stability of the Baumgarte feedback"):
-near the constraint manifold the constraint error x = (C, Ċ) obeys the
-linear system ẋ = A x, A = [[0, 1], [−k_s, −k_d]] (eigenvalues
-λ = (−k_d ± √(k_d² − 4 k_s))/2), plus forcing from the motion that does
-not change stability. One step of an explicit Runge–Kutta method maps x to
-R(hA) x, R the method's stability polynomial (R(z) = 1 + Σⱼ zʲ bᵀAʲ⁻¹𝟙 from
-its Butcher table, so the theory uses exactly the table ours steps with);
-symplectic Euler (kick, then drift with the new velocity) maps it to
-M = [[1 − h²k_s, h(1 − h k_d)], [−h k_s, 1 − h k_d]]. The feedback is
-stable when the spectral radius ρ of that step matrix is ≤ 1.
-
-Measured, per cell: the run's status under the suite's bounds (as in
-``xval run``), constraint error (m) and energy drift (E*). A cell whose ρ is
-only slightly above 1 may stay inside the bounds for the run's duration
-(ρⁿ must lift a tiny C past the bound): the theory line is the asymptotic
-boundary, the measured one lies a little outside it.
+The classic use is ours' Baumgarte gains (x = k_s, y = k_d), but any two
+numeric options of any variant can be mapped. Measured, per cell: the run's
+status under the suite's bounds (as in ``xval run``), constraint error (m)
+and energy drift (E*). Where the engine has a linear stability theory of its
+own (:meth:`engines.adapter.Engine.spectral_radius`), its spectral radius ρ
+is computed per cell and on a fine grid, and the report draws the ρ = 1
+boundary; a cell whose ρ is only slightly above 1 may stay inside the
+bounds for the run's duration (ρⁿ must lift a tiny error past the bound), so
+the measured boundary lies a little outside the theory's.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -30,173 +23,43 @@ import numpy as np
 
 from compare.results.store import now
 from compare.run.runner import default_jobs
-from compare.stability.search import check_output, document_head, load_document, run_probe, suite_table, write_document
-from compare.suite.reader import EngineSpec, Suite, geometric_sweep, load_engine
+from compare.stability.probe import check_output, document_head, load_document, run_probe, write_document
+from compare.suite.plans import GainMapPlan
+from compare.suite.reader import EngineSpec, Suite
 
 FILE_NAME = "gainmap.json"
 SCHEMA = "xval-gainmap"
-SCHEMA_VERSION = 1
-#: Integrators the theory covers (RATTLE is not a Baumgarte integrator).
-INTEGRATORS = ("euler", "symplectic-euler", "midpoint", "rk4")
-GAINMAP_KEYS = ("scene", "integrators", "dt", "k_s", "k_d", "theory_points", "sample_interval")
-#: ρ ≤ 1 + this counts as stable (round-off; small enough that undamped Euler, ρ = 1 + (ωh)²/2, is unstable at h = 1e-4/ω).
-RHO_SLACK = 1e-12
-
-
-# -- theory ----------------------------------------------------------------------------------
-
-
-def stability_polynomial(integrator: str) -> np.ndarray:
-    """Coefficients c₀..c_s (ascending powers of z) of R(z) for an explicit RK integrator of ours.
-
-    R(z) = 1 + Σ_{j≥1} zʲ · bᵀ A^{j−1} 𝟙 (A strictly lower triangular, so the sum stops at j = stages).
-    """
-    from ours.integrator import EXPLICIT_RK, get_integrator
-
-    scheme = get_integrator(integrator)
-    if scheme.code != EXPLICIT_RK:
-        raise ValueError(f"{integrator} is not an explicit Runge–Kutta method")
-    ones = np.ones(scheme.stages)
-    coefficients = [1.0]
-    power = ones
-    for _ in range(scheme.stages):
-        coefficients.append(float(scheme.b @ power))
-        power = scheme.A @ power
-    return np.array(coefficients)
-
-
-def step_matrix(integrator: str, h: float, k_s: float, k_d: float) -> np.ndarray:
-    """(2, 2): one step of the linearized constraint error (C, Ċ) under ``integrator`` with step h (s).
-
-    k_s : 1/s², k_d : 1/s.
-    """
-    if integrator == "symplectic-euler":
-        return np.array([[1.0 - h * h * k_s, h * (1.0 - h * k_d)], [-h * k_s, 1.0 - h * k_d]])
-    hA = h * np.array([[0.0, 1.0], [-k_s, -k_d]])
-    result, power = np.zeros((2, 2)), np.eye(2)
-    for c in stability_polynomial(integrator):
-        result += c * power
-        power = power @ hA
-    return result
-
-
-def spectral_radius(integrator: str, h: float, k_s: float, k_d: float) -> float:
-    """ρ of :func:`step_matrix`: the factor the constraint error grows by per step (asymptotically)."""
-    return float(np.abs(np.linalg.eigvals(step_matrix(integrator, h, k_s, k_d))).max())
-
-
-def theory_stable(integrator: str, h: float, k_s: float, k_d: float) -> bool:
-    return spectral_radius(integrator, h, k_s, k_d) <= 1.0 + RHO_SLACK
-
-
-def largest_stable_dt(integrator: str, k_s: float, k_d: float, h_max: float = 10.0) -> float | None:
-    """s: the largest h with ρ ≤ 1 (on the connected stable range from h → 0), to 1e-6 relative.
-
-    None when even the smallest h is unstable (k_d = 0 with Euler: |1 + iωh| > 1 for every h).
-    """
-    if integrator not in INTEGRATORS:
-        return None
-    scale = 1.0 / max(math.sqrt(k_s), k_d, 1e-12)  # the feedback's own time scale
-    h = 1e-4 * scale
-    if not theory_stable(integrator, h, k_s, k_d):
-        return None
-    lo = h
-    hi = lo
-    while theory_stable(integrator, hi, k_s, k_d):
-        lo, hi = hi, hi * 1.5
-        if hi > h_max:
-            return h_max
-    while hi / lo > 1 + 1e-6:
-        mid = math.sqrt(lo * hi)
-        if theory_stable(integrator, mid, k_s, k_d):
-            lo = mid
-        else:
-            hi = mid
-    return lo
-
-
-def critical_limit(integrator: str) -> float:
-    """h·√k_s at the stability limit for critical damping (k_d = 2√k_s), from the theory (dimensionless)."""
-    return largest_stable_dt(integrator, 1.0, 2.0)
-
-
-# -- the measured grid -------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class GainMapPlan:
-    """scene : a SceneSpec of the suite; integrators; dt (s); k_s (1/s²) and k_d (1/s) grids, ascending."""
-
-    scene: Any
-    integrators: tuple[str, ...]
-    dt: float
-    k_s: tuple[float, ...]
-    k_d: tuple[float, ...]
-    theory_points: int = 121
-    sample_interval: float | None = None
+SCHEMA_VERSION = 2
 
 
 def plan_gainmap(suite: Suite) -> GainMapPlan | None:
-    """The suite's ``[gainmap]`` table, validated; None when the suite has none.
+    """The suite's typed ``[gainmap]`` plan (validated when the suite was read); None when it has none."""
+    return suite.gainmap
 
-    Keys: ``scene`` (an id of the suite), ``integrators`` (default all four),
-    ``dt`` (s), ``k_s`` and ``k_d`` as {from, to, per_decade} sweeps or lists,
-    ``theory_points`` (resolution of the theory grid per axis, default 121),
-    ``sample_interval`` (s, default the suite's).
-    """
-    table, reader = suite_table(suite, "gainmap", GAINMAP_KEYS)
-    if table is None:
+
+def _cell_engine(engine: EngineSpec, x: str, x_value: float, y: str, y_value: float) -> EngineSpec:
+    options = {**engine.options, x: x_value, y: y_value}
+    return replace(engine, label=f"{engine.label}[{x}={x_value:g},{y}={y_value:g}]", options=options)
+
+
+def _rho(engine: EngineSpec, plan: GainMapPlan, x_value: float, y_value: float) -> float | None:
+    """The engine's own spectral radius at this cell (None: it has no theory)."""
+    if engine.engine is None:
         return None
-    for key in ("scene", "dt", "k_s", "k_d"):
-        if key not in table:
-            raise reader.error("gainmap", f"missing {key}; see compare/stability/gainmap.py for the keys")
-    known = {s.id: s for s in suite.scenes}
-    if table["scene"] not in known:
-        raise reader.error("gainmap.scene", f"unknown scene id {table['scene']!r}; this suite's are: {', '.join(known)}")
-    integrators = table.get("integrators", list(INTEGRATORS))
-    if not isinstance(integrators, list) or not integrators or any(i not in INTEGRATORS for i in integrators):
-        raise reader.error("gainmap.integrators", f"must be a list drawn from {', '.join(INTEGRATORS)}")
-    dt = reader.number("gainmap.dt", table["dt"])
-    scene = known[table["scene"]]
-    if dt > scene.scene.duration:
-        raise reader.error("gainmap.dt", f"{dt:g} s is longer than scene {scene.id!r}'s duration")
-    grids = {}
-    for key in ("k_s", "k_d"):
-        value = table[key]
-        if isinstance(value, dict):
-            sweep = reader.table(f"gainmap.{key}", value, ("from", "to", "per_decade"))
-            if set(sweep) != {"from", "to", "per_decade"}:
-                raise reader.error(f"gainmap.{key}", "write {key} = { from = 1, to = 1e8, per_decade = 2 }")
-            values = geometric_sweep(reader.number(f"gainmap.{key}.from", sweep["from"]),
-                                     reader.number(f"gainmap.{key}.to", sweep["to"]),
-                                     int(reader.number(f"gainmap.{key}.per_decade", sweep["per_decade"], integer=True)))
-        elif isinstance(value, list) and value:
-            values = [reader.number(f"gainmap.{key}[{k}]", v) for k, v in enumerate(value)]
-        else:
-            raise reader.error(f"gainmap.{key}", "must be a list of positive numbers or { from, to, per_decade }")
-        grids[key] = tuple(sorted(values))
-    points = int(reader.number("gainmap.theory_points", table.get("theory_points", 121), integer=True))
-    interval = table.get("sample_interval")
-    interval = None if interval is None else reader.number("gainmap.sample_interval", interval)
-    return GainMapPlan(scene, tuple(integrators), dt, grids["k_s"], grids["k_d"], points, interval)
+    return engine.engine.spectral_radius(engine.variant, {**engine.options, plan.x: x_value, plan.y: y_value}, plan.dt)
 
 
-def theory_grid(plan: GainMapPlan, integrator: str) -> dict[str, Any]:
-    """ρ on a fine log grid spanning the measured one, for drawing the ρ = 1 contour.
+def theory_grid(plan: GainMapPlan, engine: EngineSpec) -> dict[str, Any] | None:
+    """ρ on a fine log grid spanning the measured one, for drawing the ρ = 1 contour; None without a theory.
 
-    log10_k_s (n,), log10_k_d (m,), log10_rho (m, n): rows are k_d, columns k_s (plotly's z layout).
+    log10_x (n,), log10_y (m,), log10_rho (m, n): rows are y, columns x (plotly's z layout).
     """
-    xs = np.linspace(math.log10(plan.k_s[0]), math.log10(plan.k_s[-1]), plan.theory_points)
-    ys = np.linspace(math.log10(plan.k_d[0]), math.log10(plan.k_d[-1]), plan.theory_points)
-    rho = np.array([[spectral_radius(integrator, plan.dt, 10 ** x, 10 ** y) for x in xs] for y in ys])
-    return {"log10_k_s": xs, "log10_k_d": ys, "log10_rho": np.log10(np.maximum(rho, 1e-300))}
-
-
-def _engine(integrator: str, k_s: float, k_d: float) -> EngineSpec:
-    engine, _ = load_engine("ours")
-    variant = f"baumgarte-{integrator}"
-    options = {"k_s": k_s, "k_d": k_d}
-    return EngineSpec(f"ours/{variant}", f"ours/{variant}", variant, options, engine)
+    if _rho(engine, plan, plan.x_values[0], plan.y_values[0]) is None:
+        return None
+    xs = np.linspace(math.log10(plan.x_values[0]), math.log10(plan.x_values[-1]), plan.theory_points)
+    ys = np.linspace(math.log10(plan.y_values[0]), math.log10(plan.y_values[-1]), plan.theory_points)
+    rho = np.array([[_rho(engine, plan, 10 ** x, 10 ** y) for x in xs] for y in ys])
+    return {"log10_x": xs, "log10_y": ys, "log10_rho": np.log10(np.maximum(rho, 1e-300))}
 
 
 def run_gainmap(
@@ -217,30 +80,29 @@ def run_gainmap(
         return None
     target = check_output(output, FILE_NAME, force)
     timeout = timeout or suite.timeout
-    cells = [(i, a, b) for i in plan.integrators for b in range(len(plan.k_d)) for a in range(len(plan.k_s))]
+    nx, ny = len(plan.x_values), len(plan.y_values)
+    cells = [(k, a, b) for k in range(len(plan.engines)) for b in range(ny) for a in range(nx)]
 
-    def one(cell: tuple[str, int, int]):
-        integrator, a, b = cell
-        k_s, k_d = plan.k_s[a], plan.k_d[b]
-        probe = run_probe(plan.scene, _engine(integrator, k_s, k_d), plan.dt, suite, timeout, plan.sample_interval)
-        return cell, probe
+    def one(cell: tuple[int, int, int]):
+        k, a, b = cell
+        engine = _cell_engine(plan.engines[k], plan.x, plan.x_values[a], plan.y, plan.y_values[b])
+        return cell, run_probe(plan.scene, engine, plan.dt, suite, timeout, plan.sample_interval)
 
-    maps = {
-        integrator: {
-            "status": [[None] * len(plan.k_s) for _ in plan.k_d],
-            "constraint_error": [[None] * len(plan.k_s) for _ in plan.k_d],
-            "energy_drift": [[None] * len(plan.k_s) for _ in plan.k_d],
-            "message": [[""] * len(plan.k_s) for _ in plan.k_d],
-            "rho": [[spectral_radius(integrator, plan.dt, ks, kd) for ks in plan.k_s] for kd in plan.k_d],
-            "critical_limit": critical_limit(integrator),
-            "theory": theory_grid(plan, integrator),
+    maps = {}
+    for engine in plan.engines:
+        rho = [[_rho(engine, plan, xv, yv) for xv in plan.x_values] for yv in plan.y_values]
+        maps[engine.label] = {
+            "status": [[None] * nx for _ in range(ny)],
+            "constraint_error": [[None] * nx for _ in range(ny)],
+            "energy_drift": [[None] * nx for _ in range(ny)],
+            "message": [[""] * nx for _ in range(ny)],
+            "rho": None if rho[0][0] is None else rho,
+            "theory": theory_grid(plan, engine),
         }
-        for integrator in plan.integrators
-    }
     done = 0
     with cf.ThreadPoolExecutor(max_workers=jobs or default_jobs()) as pool:
-        for (integrator, a, b), probe in pool.map(one, cells):
-            cell = maps[integrator]
+        for (k, a, b), probe in pool.map(one, cells):
+            cell = maps[plan.engines[k].label]
             cell["status"][b][a] = probe.status
             cell["constraint_error"][b][a] = probe.constraint_error
             cell["energy_drift"][b][a] = probe.energy_drift
@@ -254,10 +116,12 @@ def run_gainmap(
         "scene": {"name": plan.scene.name, "duration": plan.scene.scene.duration,
                   "length": plan.scene.scene.characteristic_length},
         "dt": plan.dt,
-        "k_s": plan.k_s,
-        "k_d": plan.k_d,
-        "theory": "linearized constraint dynamics C'' + k_d C' + k_s C = 0; stable where the spectral radius "
-                  "of the integrator's one-step matrix is <= 1 (docs/ours.md)",
+        "x": plan.x,
+        "y": plan.y,
+        "x_values": plan.x_values,
+        "y_values": plan.y_values,
+        "theory": "the engine's own linear stability theory: stable where the spectral radius of its "
+                  "linearized one-step matrix is <= 1 (for ours' Baumgarte feedback, docs/ours.md)",
         "maps": maps,
         "finished": now(),
     }

@@ -29,26 +29,21 @@ found).
 from __future__ import annotations
 
 import concurrent.futures as cf
-import fnmatch
-import json
 import math
-import time
-import tomllib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-import numpy as np
 
-from engines.adapter import Schedule
-from engines.errors import UserError
 
-from compare.results.files import atomic_write_text
-from compare.run.isolation import CaseOutcome, CaseTask, execute
-from compare.results.metrics import Bounds, apply_bounds, case_metrics
+from compare.results.metrics import Bounds
 from compare.results.store import jsonable, now
-from compare.run.runner import compare_version, default_jobs, skip_reason
-from compare.suite.reader import EngineSpec, SceneSpec, Suite, _Reader
+from compare.run.runner import default_jobs, skip_reason
+from compare.stability.probe import (
+    Probe, check_output, document_head, load_document, run_probe, write_document,
+)
+from compare.suite.plans import SearchSettings, StabilityPlan
+from compare.suite.reader import EngineSpec, SceneSpec, Suite
 
 #: File the search writes in its output directory, and its format.
 FILE_NAME = "stability.json"
@@ -58,8 +53,6 @@ SCHEMA_VERSION = 1
 BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED = (
     "bounded", "stable-at-largest", "unstable-at-smallest", "skipped",
 )
-#: Keys of a suite's optional ``[stability]`` table.
-STABILITY_KEYS = ("scenes", "engines", "dt_max", "dt_min", "bracket_factor", "resolution", "sample_interval")
 
 
 def criterion_text(bounds: Bounds) -> str:
@@ -69,39 +62,6 @@ def criterion_text(bounds: Bounds) -> str:
         f"energy drift ≤ {bounds.energy_drift:g} E* and constraint error ≤ {bounds.constraint_error:g} L; "
         "unstable = a non-finite state, a bound exceeded, or the engine failed or timed out"
     )
-
-
-@dataclass(frozen=True)
-class SearchSettings:
-    """Where and how finely to search.
-
-    dt_max, dt_min : s, the largest and smallest time step probed.
-    bracket_factor : ratio between successive probes while stepping down (> 1).
-    resolution : the search stops when (smallest unstable dt) / (largest stable dt) ≤ resolution (> 1).
-    sample_interval : s between the samples the bounds are checked on (None: the suite's).
-    """
-
-    dt_max: float
-    dt_min: float
-    bracket_factor: float = math.sqrt(10.0)
-    resolution: float = 1.1
-    sample_interval: float | None = None
-
-
-@dataclass(frozen=True)
-class Probe:
-    """One run at one dt: status after the bounds, why, energy drift (E*), constraint error (m), elapsed (s)."""
-
-    dt: float
-    status: str
-    message: str = ""
-    energy_drift: float | None = None
-    constraint_error: float | None = None
-    elapsed: float = 0.0
-
-    @property
-    def stable(self) -> bool:
-        return self.status == "ok"
 
 
 @dataclass(frozen=True)
@@ -160,190 +120,24 @@ def search(probe: Callable[[float], Probe], settings: SearchSettings) -> tuple[s
     return BOUNDED, lo, hi, probes
 
 
-# -- one probe through the runner's isolation -------------------------------------------------
-
-
-def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
-              sample_interval: float | None = None) -> Probe:
-    """Simulate one (scene, variant) at ``dt`` (s) in a case host and classify it by the suite's bounds.
-
-    sample_interval : s between samples (None: the suite's).
-    """
-    scene = scene_spec.scene
-    sample_interval = sample_interval or suite.sample_interval
-    task = CaseTask(
-        case_id=f"stability|{scene_spec.id}|{engine.label}|dt={dt:.12g}",
-        engine_id=engine.id,
-        variant=engine.variant,
-        options=dict(engine.options),
-        scene=scene,
-        dt=dt,
-        sample_interval=sample_interval,
-        repeats=1,
-        timeout=timeout,
-    )
-    outcome: CaseOutcome = execute(task)
-    return classify(scene, outcome, dt, sample_interval, suite.bounds)
-
-
-def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Probe:
-    """The Probe of a finished case: the engine's status, then the suite's bounds (as ``xval run`` does)."""
-    trajectory = outcome.trajectory
-    if trajectory is None:
-        return Probe(dt, outcome.status, outcome.message, elapsed=outcome.elapsed)
-    status, message = trajectory.info.status, trajectory.info.message
-    scheduled = Schedule.make(scene.duration, dt, sample_interval).times
-    # Position metrics need the reference, which the criterion does not use: compare against NaN.
-    no_reference = np.full((len(scheduled), len(scene.particles), 3), np.nan)
-    metrics, _ = case_metrics(scene, trajectory, no_reference, None, scheduled_times=scheduled,
-                              wall_times=outcome.wall_times)
-    status, message = apply_bounds(status, message, metrics, bounds, scene)
-    return Probe(dt, status, message, _finite_or_none(metrics.energy_drift),
-                 _finite_or_none(metrics.constraint_error), outcome.elapsed)
-
-
-def _finite_or_none(value: float) -> float | None:
-    return float(value) if value is not None and math.isfinite(value) else None
-
-
-# -- configuration from the suite ----------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class StabilityPlan:
-    """Which pairs to search and the settings; built from the suite and its optional ``[stability]`` table."""
-
-    scenes: tuple[SceneSpec, ...]
-    engines: tuple[EngineSpec, ...]
-    settings: SearchSettings
-
-
-def suite_table(suite: Suite, name: str, allowed: tuple[str, ...]) -> tuple[dict[str, Any] | None, _Reader]:
-    """The suite file's optional table ``name`` (validated keys; None when absent) and a reader for line-numbered errors."""
-    reader = _Reader(suite.path, suite.source)
-    value = tomllib.loads(suite.source).get(name)
-    return (None if value is None else reader.table(name, value, allowed)), reader
-
-
-def plan_stability(suite: Suite) -> StabilityPlan:
-    """Scenes, engine variants and dt range of the search.
-
-    ``[stability]`` keys: ``scenes`` (ids, default all), ``engines`` (labels
-    or shell patterns such as ``"ours/*"``, default all), ``dt_max`` and
-    ``dt_min`` (s, default the suite's largest and smallest dt),
-    ``bracket_factor`` (default √10), ``resolution`` (default 1.1),
-    ``sample_interval`` (s, default the suite's: the samples the bounds are checked on).
-    """
-    table, reader = suite_table(suite, "stability", STABILITY_KEYS)
-    table = table or {}
-    scene_ids = table.get("scenes")
-    scenes = suite.scenes
-    if scene_ids is not None:
-        known = {s.id: s for s in suite.scenes}
-        if not isinstance(scene_ids, list) or not scene_ids:
-            raise reader.error("stability.scenes", "must be a non-empty list of scene ids of this suite")
-        for sid in scene_ids:
-            if sid not in known:
-                raise reader.error("stability.scenes", f"unknown scene id {sid!r}; this suite's are: {', '.join(known)}")
-        scenes = tuple(known[sid] for sid in scene_ids)
-    engines = suite.engines
-    patterns = table.get("engines")
-    if patterns is not None:
-        if not isinstance(patterns, list) or not patterns or not all(isinstance(p, str) for p in patterns):
-            raise reader.error("stability.engines", 'must be a non-empty list of labels or patterns, e.g. ["ours/*"]')
-        for pattern in patterns:
-            if not any(fnmatch.fnmatchcase(e.label, pattern) for e in suite.engines):
-                raise reader.error("stability.engines", f"{pattern!r} matches no engine variant of this suite")
-        engines = tuple(e for e in suite.engines if any(fnmatch.fnmatchcase(e.label, p) for p in patterns))
-    dt_max = reader.number("stability.dt_max", table.get("dt_max", max(suite.dts)))
-    dt_min = reader.number("stability.dt_min", table.get("dt_min", min(suite.dts)))
-    if dt_min > dt_max:
-        raise reader.error("stability.dt_min", f"{dt_min:g} s is larger than dt_max {dt_max:g} s; swap them")
-    factor = reader.number("stability.bracket_factor", table.get("bracket_factor", math.sqrt(10.0)))
-    resolution = reader.number("stability.resolution", table.get("resolution", 1.1))
-    for key, value in (("bracket_factor", factor), ("resolution", resolution)):
-        if value <= 1:
-            raise reader.error(f"stability.{key}", f"must be larger than 1, got {value!r}")
-    for spec in scenes:
-        if dt_max > spec.scene.duration:
-            raise reader.error("stability.dt_max", f"{dt_max:g} s is longer than scene {spec.id!r}'s duration "
-                               f"{spec.scene.duration:g} s; lower dt_max or leave the scene out")
-    interval = table.get("sample_interval")
-    interval = None if interval is None else reader.number("stability.sample_interval", interval)
-    return StabilityPlan(scenes, engines, SearchSettings(dt_max, dt_min, factor, resolution, interval))
-
-
 # -- the analytic limit where the theory covers the variant ---------------------------------------
 
 
 def analytic_dt(engine: EngineSpec) -> float | None:
-    """s: the largest dt the linearized Baumgarte constraint dynamics allow, for ours/baumgarte-*; else None."""
-    if engine.engine is None or engine.engine.name != "ours":
+    """s: the largest dt the engine's own linear theory calls stable for this variant (None: it has none)."""
+    if engine.engine is None:
         return None
-    settings = engine.engine.resolve(engine.variant, engine.options)
-    if settings["method"] != "baumgarte":
-        return None
-    from compare.stability.gainmap import largest_stable_dt  # here: gainmap imports this module's helpers
-
-    k_s = float(settings["k_s"])
-    k_d = settings["k_d"]
-    k_d = 2.0 * math.sqrt(k_s) if k_d is None else float(k_d)
-    return largest_stable_dt(settings["integrator"], k_s, k_d)
-
-
-# -- the output files (stability.json here, gainmap.json in compare.stability.gainmap) ----------------------
-
-#: The command that rewrites either file, named in every error about one.
-RERUN = "xval stability SUITE --output DIR --force"
-
-
-def document_head(suite: Suite, schema: str, version: int) -> dict[str, Any]:
-    """The fields both output files open with: format, suite, xval version and the bounds the probes were judged by."""
-    return {
-        "schema": schema,
-        "schema_version": version,
-        "suite": {"name": suite.name, "path": suite.path, "fingerprint": suite.fingerprint()},
-        "xval_version": compare_version(),
-        "bounds": {"energy_drift": suite.bounds.energy_drift, "constraint_error": suite.bounds.constraint_error},
-    }
-
-
-def write_document(target: Path, document: dict[str, Any], indent: int | None = None) -> None:
-    """Write ``document`` to ``target`` atomically (a reader never sees half a file)."""
-    atomic_write_text(target, json.dumps(jsonable(document), indent=indent, allow_nan=False) + "\n")
-
-
-def load_document(directory: str | Path, name: str, schema: str, version: int) -> dict[str, Any] | None:
-    """``directory/name`` as written by this module or gainmap; None when absent, UserError naming RERUN when unreadable."""
-    file = Path(directory) / name
-    if not file.exists():
-        return None
-    try:
-        data = json.loads(file.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise UserError(f"{file}: cannot read it ({exc}); rerun {RERUN}") from None
-    if not isinstance(data, dict) or data.get("schema") != schema or data.get("schema_version") != version:
-        found = data.get("schema_version") if isinstance(data, dict) else None
-        raise UserError(f"{file}: {schema} version {found!r}, but this xval reads version {version}; rerun {RERUN}")
-    return data
+    return engine.engine.largest_stable_dt(engine.variant, engine.options)
 
 
 # -- running it -------------------------------------------------------------------------------
 
 
-def check_output(output: str | Path, name: str, force: bool) -> Path:
-    """The file ``output/name`` to write: the directory is created; an existing file needs ``force``."""
-    directory = Path(output)
-    if directory.exists() and not directory.is_dir():
-        raise UserError(f"--output: {directory} is a file; give a directory")
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"--output: cannot create {directory} ({exc.strerror}); choose a writable directory") from None
-    target = directory / name
-    if target.exists() and not force:
-        raise UserError(f"--output: {target} exists; pass --force to replace it, or choose another directory")
-    return target
+def plan_stability(suite: Suite) -> StabilityPlan:
+    """The suite's typed ``[stability]`` plan (every scene and variant when it has no table)."""
+    if suite.stability is not None:
+        return suite.stability
+    return StabilityPlan(suite.scenes, suite.engines, SearchSettings(max(suite.dts), min(suite.dts)))
 
 
 def run_stability(

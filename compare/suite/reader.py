@@ -27,6 +27,12 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     timing_factor = 1.5
     energy_drift = { rtol = 0.2, atol = 1e-9 }
 
+    [verdict]                      # consistency: right when the error is under tolerance · L
+    tolerance = 1e-2
+
+    [stability]                    # xval stability: pairs and dt range (compare/suite/plans.py)
+    [gainmap]                      # a sweep over two numeric options of engine variants
+
     [[scenes]]
     id = "bead-60"                 # readable id, defaults to the scene name
     scene = "bead"                 # a catalog name
@@ -62,6 +68,7 @@ from engines.scene import Scene
 
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
 TOP_LEVEL_KEYS = {
@@ -79,8 +86,9 @@ TOP_LEVEL_KEYS = {
     "gate": "a table of metric = { rtol, atol } and timing_factor, for xval gate",
     "scenes": "an array of tables [[scenes]]",
     "engines": "an array of engine ids or tables [[engines]]",
-    "stability": "a table for xval stability (compare/stability/search.py): scenes, engines, dt_max, dt_min",
-    "gainmap": "a table for the Baumgarte gain map (compare/stability/gainmap.py): scene, integrators, dt, k_s, k_d",
+    "stability": "a table for xval stability (compare/suite/plans.py): scenes, engines, dt_max, dt_min",
+    "gainmap": "a table for the gain map (compare/suite/plans.py): scene, engines, x, y, x_values, y_values, dt",
+    "verdict": "a table with tolerance (a fraction of L) for the consistency verdict",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters")
@@ -88,8 +96,6 @@ ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
 BOUND_KEYS = ("energy_drift", "constraint_error")
-#: Metric names [tolerances] may name: the gated accuracy metrics and the timing metric (compare/gate/tolerance.py).
-TOLERANCE_KEYS = (*RULES, TIMING_METRIC)
 
 DEFAULTS = {"sample_interval": 0.01, "delta": DEFAULT_DELTA, "repeats": 1, "timeout": 120.0}
 
@@ -143,6 +149,9 @@ class Suite:
     atol: float
     bounds: Bounds
     gate: GateSettings = field(default_factory=GateSettings)
+    stability: StabilityPlan | None = None
+    gainmap: GainMapPlan | None = None
+    verdict_tolerance: float = DEFAULT_DELTA
 
     def fingerprint(self) -> str:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
@@ -180,12 +189,56 @@ def load_suite(path: str | Path) -> Suite:
     """Read and validate the suite at ``path``; UserError naming the file, key and fix."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"{path}: no such suite file; pass the path of a .toml suite such as suites/smoke.toml") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not UTF-8 text (byte {exc.start}); save the suite as UTF-8") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a directory; pass the path of a .toml suite file") from None
     except OSError as exc:
         raise UserError(f"{path}: cannot read the suite file ({exc.strerror})") from None
     return parse_suite(text, str(path))
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The parts of a suite that judge results, readable without loading any engine.
+
+    delta : δ (divergence threshold, fraction of L); bounds : the status bounds;
+    gate : the gate's tolerances; verdict_tolerance : the consistency tolerance (fraction of L).
+    """
+
+    delta: float = DEFAULT_DELTA
+    bounds: Bounds = field(default_factory=Bounds)
+    gate: GateSettings = field(default_factory=GateSettings)
+    verdict_tolerance: float = DEFAULT_DELTA
+
+
+def load_run_settings(path: str | Path) -> RunSettings:
+    """The :class:`RunSettings` of the suite file at ``path`` (a results directory's ``suite.toml``).
+
+    Defaults when the file does not exist (results written by hand); UserError naming the file for a
+    damaged one. The scenes and engines are not built, so gating and reports need no engine here.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return RunSettings()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read the stored suite ({exc}); the results directory is damaged") from None
+    data = _parse_toml(text, str(path))
+    reader = _Reader(str(path), text)
+    values = {**DEFAULTS, **data}
+    delta = reader.number("delta", values["delta"])
+    bounds_table = reader.table("bounds", data.get("bounds", {}), BOUND_KEYS)
+    bounds = Bounds(
+        reader.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
+        reader.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
+    )
+    gate = gate_settings(data.get("gate"), data.get("tolerances"), reader.error)
+    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict"), delta))
 
 
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
@@ -193,8 +246,13 @@ _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
 
 def parse_suite(text: str, path: str = "<suite>") -> Suite:
     """Parse suite TOML ``text``; ``path`` is used in error messages and stored in the Suite."""
+    return _Reader(path, text).suite(_parse_toml(text, path))
+
+
+def _parse_toml(text: str, path: str) -> dict[str, Any]:
+    """The TOML document; a syntax error is a UserError with the file, line and column."""
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         message = str(exc)
         where = _TOML_POSITION.search(message)
@@ -204,7 +262,6 @@ def parse_suite(text: str, path: str = "<suite>") -> Suite:
                 f"{path}:{where.group(1)}: invalid TOML at column {where.group(2)}: {reason}; fix the syntax there"
             ) from None
         raise UserError(f"{path}: invalid TOML: {message}") from None
-    return _Reader(path, text).suite(data)
 
 
 class _Reader:
@@ -302,7 +359,7 @@ class _Reader:
             self.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
         )
         # [tolerances] ends up in ``gate``; checked here first for its own messages (positive numbers, line numbers).
-        for key, value in self.table("tolerances", data.get("tolerances", {}), TOLERANCE_KEYS).items():
+        for key, value in self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC)).items():
             self.number(f"tolerances.{key}", value)
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
@@ -316,6 +373,9 @@ class _Reader:
                     f"{spec.scene.duration:g} s; use smaller time steps or a longer duration",
                 )
         engines = self.engines(data["engines"])
+        stability = read_stability(self, data.get("stability"), scenes, engines, dts)
+        gainmap = read_gainmap(self, data.get("gainmap"), scenes, self.expand)
+        verdict_tolerance = read_verdict(self, data.get("verdict"), delta)
         return Suite(
             name=name,
             description=description,
@@ -333,6 +393,9 @@ class _Reader:
             atol=atol,
             bounds=bounds,
             gate=gate,
+            stability=stability,
+            gainmap=gainmap,
+            verdict_tolerance=verdict_tolerance,
         )
 
     def dts(self, value: Any) -> tuple[float, ...]:
@@ -430,16 +493,6 @@ class _Reader:
             full = f"{base}/{name}"
             specs.append(EngineSpec(full, label or full, name, options, engine))
         return specs
-
-
-def geometric_sweep(start: float, stop: float, per_decade: int) -> list[float]:
-    """Time steps (s) from ``start`` to ``stop`` inclusive, ``per_decade`` per factor of 10, equal ratios.
-
-    Values are rounded to 12 significant digits so 10^(−k/2) prints cleanly.
-    """
-    decades = abs(math.log10(stop / start))
-    n = max(1, round(decades * per_decade))
-    return [float(f"{start * (stop / start) ** (k / n):.12g}") for k in range(n + 1)]
 
 
 def _describe(value: Any) -> str:
