@@ -466,6 +466,9 @@ def build_record(
     extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     record["metrics"] = {**metrics.to_dict(), **extras}
     keep = downsample_indices(n)
+    record = jsonable(record)
+    # Added after jsonable: rounded() already gives JSON-ready lists (floats, None), and walking
+    # their ~1600 numbers again was most of the cost of writing a record.
     record["series"] = {
         "t": rounded(series.t[keep]),
         "position_error": rounded(series.position_error[keep]),
@@ -475,7 +478,7 @@ def build_record(
         # The reference at the same samples, so a report can overlay paths without re-solving.
         "reference_positions": rounded(ref_positions[:n][keep]),
     }
-    return jsonable(record)
+    return record
 
 
 class SampledReference:
