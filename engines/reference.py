@@ -305,6 +305,15 @@ class ReferenceEngine(Engine):
     def version(self) -> str:
         return f"scipy {scipy.__version__}"
 
+    def preload(self, scenes) -> None:
+        """Import scipy's integrators and load the compiled right-hand side (numba's cache) in this
+        process, so that workers forked from it do not each do it again."""
+        import scipy.integrate  # noqa: F401
+
+        from engines._reference_kernels import chain_rhs
+
+        chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
+
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 

