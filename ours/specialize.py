@@ -13,8 +13,11 @@ The copy is written once per kernel source to
 ``<cache>/ours/ours_kernel_d<dim>[_p…c…b…n…]_<hash>.py`` (``<cache>`` from
 :func:`ours.cache.cache_dir`) and imported from there; numba caches its
 machine code next to it like any other module, so a later process compiles
-nothing. A new constraint kind added to ``ours.kernel`` reaches the copies
-through the source hash: nothing here names a kind or a scene.
+nothing. The name carries a hash of the kernel's text and of the files it
+calls (``banded.py``, ``constraint.py``, ``status.py``), so an edit to any of
+them makes a new copy and numba never runs stale machine code; a new
+constraint kind added to ``ours.kernel`` reaches the copies that way. Nothing
+here names a kind or a scene.
 """
 
 from __future__ import annotations
@@ -79,7 +82,11 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
     if module is not None:
         return module
     source = _source(dim, sizes)
-    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
+    # The kernel calls ours.banded and ours.constraint, whose edits numba's cache would not notice
+    # (it checks only the calling file): their text is part of the name, so an edit makes a new copy.
+    here = Path(__file__).parent
+    depends = "".join((here / f).read_text(encoding="utf-8") for f in ("banded.py", "constraint.py", "status.py"))
+    digest = hashlib.sha256((source + depends).encode()).hexdigest()[:16]
     shape = "" if sizes is None else "_p{}c{}b{}n{}".format(*sizes)
     name = f"ours_kernel_d{dim}{shape}_{digest}"
     folder = cache_dir() / "ours"
