@@ -33,7 +33,7 @@ def one_run() -> tuple[float, float]:
         out = Path(tmp) / "default"
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         subprocess.run([*XVAL, "run", "suites/default.toml", "--jobs", "1", "--output", str(out)], cwd=ROOT,
-                       check=True, stdout=subprocess.DEVNULL)
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in (out / "cases").glob("*.json"))
