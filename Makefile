@@ -6,7 +6,7 @@ XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
 
-.PHONY: demo stiff test bench baseline clean
+.PHONY: demo stiff test bench baseline clean examples
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -41,5 +41,10 @@ baseline: $(STAMP)
 		&& $(XVAL) baseline $$dir/smoke --output baselines/smoke.json; \
 		status=$$?; rm -rf $$dir; exit $$status
 
+# The C++ example solvers of the process protocol (docs/protocol.md), built with g++ into examples/cpp/build.
+examples:
+	$(MAKE) -C examples/cpp
+
 clean:
+	$(MAKE) -C examples/cpp clean
 	rm -rf $(VENV) build *.egg-info results artifacts

@@ -17,7 +17,8 @@ from typing import Any
 from compare.stability.gainmap import load_gainmap
 from compare.stability.search import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
 
-from reports.figures import PALETTE, Plot, _axis, _layout, plot_text
+from reports.figures import Plot, _axis, _layout, plot_text
+from reports.palette import FAMILY_COLOURS as PALETTE  # one colour per scene here (not per engine)
 
 
 @dataclass(frozen=True)
@@ -119,7 +120,25 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
 
 
 def _log10(value: Any) -> float | None:
-    return math.log10(value) if isinstance(value, (int, float)) and value > 0 and math.isfinite(value) else None
+    """log10 of a positive finite value to 3 decimals (a colour needs no more), else None."""
+    return round(math.log10(value), 3) if isinstance(value, (int, float)) and value > 0 and math.isfinite(value) else None
+
+
+#: Most grid lines per axis of a theory boundary drawn as a contour: the zero line of a smooth ρ − 1 needs
+#: no finer grid, and 121 × 121 full-precision values in each of a map's three panels were most of a report.
+THEORY_GRID = 61
+
+
+def _thinned_theory(theory: dict[str, Any]) -> tuple[list[Any], list[Any], list[list[Any]]]:
+    """(log10 x, log10 y, log10 ρ) of a theory grid, every k-th line so that at most THEORY_GRID remain, 4 digits."""
+    xs, ys, z = theory["log10_x"], theory["log10_y"], theory["log10_rho"]
+    kx = max(1, math.ceil(len(xs) / THEORY_GRID))
+    ky = max(1, math.ceil(len(ys) / THEORY_GRID))
+
+    def r(v: Any) -> Any:
+        return None if v is None else float(f"{v:.4g}")
+
+    return ([r(v) for v in xs[::kx]], [r(v) for v in ys[::ky]], [[r(v) for v in row[::kx]] for row in z[::ky]])
 
 
 def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
@@ -135,7 +154,7 @@ def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
         layers = []
         if theory is not None:
             layers.append({
-                "type": "contour", "x": theory["log10_x"], "y": theory["log10_y"], "z": theory["log10_rho"],
+                "type": "contour", **dict(zip(("x", "y", "z"), _thinned_theory(theory))),
                 "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
                 "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
                 "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",

@@ -236,4 +236,8 @@ theory_points = 5
     assert "ours/baumgarte-symplectic-euler" in html and "theory / s" in html
     for kind in ("stability", "constraint-error", "energy-drift"):
         assert f'id="gainmap-0-{kind}"' in html
-    assert html.count('"type": "contour"') == 3  # the theory boundary over each heat map
+    from report_support import PageStructure  # the page packs its figure specs; read them as the page does
+
+    specs = PageStructure(html).figure_specs()
+    contours = [t for spec in specs.values() for t in spec["data"] if t["type"] == "contour"]
+    assert len(contours) == 3  # the theory boundary over each heat map

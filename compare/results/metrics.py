@@ -95,14 +95,20 @@ def constraint_error(scene: Scene, positions: np.ndarray) -> float:
 
 
 def constraint_force_error(forces: np.ndarray, reference_forces: np.ndarray) -> float:
-    """max over samples and constraints of ‖F − Fʳᵉᶠ‖, in N.
+    """max over samples and reported constraints of ‖F − Fʳᵉᶠ‖, in N.
 
     forces : (n, C, 3) N; reference_forces : (≥ n, C, 3) N at the same times.
+    A constraint whose forces are NaN at every sample is not reported (a
+    solver that exposes some constraints' forces only) and is left out; NaN
+    when none is reported.
     """
     n = len(forces)
     if n == 0:
         return math.nan
-    return float(np.linalg.norm(forces - reference_forces[:n], axis=2).max())
+    reported = ~np.isnan(forces).all(axis=(0, 2))
+    if not reported.any():
+        return math.nan
+    return float(np.linalg.norm(forces[:, reported] - reference_forces[:n, reported], axis=2).max())
 
 
 def characteristic_force(scene: Scene) -> float:

@@ -25,6 +25,7 @@ runner then rebuilds).
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import signal
 import threading
@@ -56,6 +57,8 @@ class CaseTask:
     repeats: int = 1
     timeout: float = 120.0
     isolate: bool = True
+    #: An outside program's spec (engines.command.spec_of), so any worker, here or on another machine, can run it.
+    command: Mapping[str, Any] | None = None
 
 
 @dataclass
@@ -80,7 +83,16 @@ class CaseOutcome:
 def _engine_for(task: CaseTask) -> Engine:
     from engines.registry import load_engine  # here, not at import: loaded in the worker that runs the case
 
+    if task.command is not None:
+        from engines.command import adopt
+
+        return adopt(task.command)
     return load_engine(task.engine_id)[0]
+
+
+#: s a command engine's deadline leaves before the case's timeout, to kill its program's process
+#: group and answer ``timeout`` before the worker kills the host (which would orphan the program).
+COMMAND_MARGIN = 0.5
 
 
 def simulate(task: CaseTask) -> CaseOutcome:
@@ -89,15 +101,25 @@ def simulate(task: CaseTask) -> CaseOutcome:
     engine = _engine_for(task)
     first: Trajectory | None = None
     wall_times: list[float] = []
-    for _ in range(task.repeats):
-        trajectory = engine.simulate(
-            task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
-        )
-        wall_times.append(trajectory.info.wall_time)
-        first = first or trajectory
-        if trajectory.info.status != "ok":
-            break  # repeating a failed or unstable run would only time the failure
+    with _command_deadline(task):
+        for _ in range(task.repeats):
+            trajectory = engine.simulate(
+                task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
+            )
+            wall_times.append(trajectory.info.wall_time)
+            first = first or trajectory
+            if trajectory.info.status != "ok":
+                break  # repeating a failed or unstable run would only time the failure
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start)
+
+
+def _command_deadline(task: CaseTask) -> Any:
+    """The case's timeout as the deadline of a command engine's program (engines.command.deadline)."""
+    if task.command is None:
+        return contextlib.nullcontext()
+    from engines.command import deadline
+
+    return deadline(max(task.timeout - COMMAND_MARGIN, 0.5 * task.timeout))
 
 
 #: Engine variants this process has run once (see :func:`warm_up`).
@@ -111,7 +133,7 @@ def warm_up(task: CaseTask) -> None:
     ~0.5 s; MuJoCo and PyBullet initialize their libraries) then stay out of
     the case's stepping time. Errors are ignored here: the case reports them.
     """
-    if task.engine_id in _WARM:
+    if task.engine_id in _WARM or task.command is not None:  # a program starts afresh in every run
         return
     _WARM.add(task.engine_id)
     try:

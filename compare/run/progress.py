@@ -1,4 +1,11 @@
-"""Progress of a run: a rich bar on a terminal, one plain line per case otherwise (logs, CI, pipes)."""
+"""Progress of a run: one rich bar on a terminal, a few milestone lines otherwise, a line per case when asked.
+
+``xval run`` picks one with :func:`progress_for`: the default is a single
+bar (a terminal) or a line at every tenth of the run (logs, CI, pipes);
+``--verbose`` prints a line per case; ``--quiet`` prints nothing while
+running. What went wrong is listed once, at the end, by the run's summary
+(compare.results.verdict), not case by case.
+"""
 
 from __future__ import annotations
 
@@ -60,8 +67,43 @@ class PlainProgress:
         pass
 
 
+class MilestoneProgress:
+    """``running: 93/462 cases (20 %), 12 not ok`` at every tenth of the run: a log gets ~10 lines, not one per case."""
+
+    def __init__(self, stream: TextIO, steps: int = 10) -> None:
+        self.stream = stream
+        self.steps = steps
+        self.done = 0
+        self.total = 0
+        self.not_ok = 0
+        self.next_step = 1
+
+    def start(self, total: int, already_done: int) -> None:
+        self.total, self.done = total, already_done
+        if already_done:
+            print(f"resuming: {already_done} of {total} cases already done", file=self.stream, flush=True)
+        self.next_step = 1 + (already_done * self.steps) // max(total, 1)
+
+    def advance(self, record: CaseRecord) -> None:
+        self.done += 1
+        if record.status in NOT_OK:
+            self.not_ok += 1
+        if self.total and self.done * self.steps >= self.next_step * self.total:
+            self.next_step = (self.done * self.steps) // self.total + 1
+            percent = 100 * self.done // self.total
+            bad = f", {self.not_ok} not ok" if self.not_ok else ""
+            print(f"running: {self.done}/{self.total} cases ({percent} %){bad}", file=self.stream, flush=True)
+
+    def stop(self) -> None:
+        pass
+
+
+#: Statuses counted as "not ok" while running.
+NOT_OK = (Status.FAILED, Status.TIMEOUT, Status.UNSTABLE)
+
+
 class RichProgress:
-    """A bar with cases done, failures so far and time left."""
+    """One bar: cases done, not ok so far, time left, the case just finished. Nothing else is printed."""
 
     def __init__(self, stream: TextIO) -> None:
         from rich.console import Console
@@ -86,9 +128,8 @@ class RichProgress:
         self.task = self.bar.add_task("cases", total=total, completed=already_done, failures="", last="")
 
     def advance(self, record: CaseRecord) -> None:
-        if record.status in (Status.FAILED, Status.TIMEOUT, Status.UNSTABLE):
+        if record.status in NOT_OK:
             self.failures += 1
-            self.console.print(f"[yellow]{describe(record)}[/yellow]", highlight=False)
         label = f"{self.failures} not ok" if self.failures else ""
         self.bar.update(self.task, advance=1, failures=label, last=describe(record)[:60])
 
@@ -96,8 +137,16 @@ class RichProgress:
         self.bar.stop()
 
 
-def progress_for(stream: TextIO | None = None) -> Progress:
-    """A RichProgress on a terminal, a PlainProgress otherwise."""
-    stream = stream or sys.stderr
-    return RichProgress(stream) if stream.isatty() else PlainProgress(stream)
+#: What ``xval run`` may be asked to show while it runs.
+MODES = ("bar", "quiet", "verbose")
 
+
+def progress_for(stream: TextIO | None = None, mode: str = "bar") -> Progress:
+    """The progress display for ``mode``: "bar" (a RichProgress on a terminal, a MilestoneProgress otherwise),
+    "verbose" (a PlainProgress: a line per case) or "quiet" (nothing)."""
+    stream = stream or sys.stderr
+    if mode == "quiet":
+        return NullProgress()
+    if mode == "verbose":
+        return PlainProgress(stream)
+    return RichProgress(stream) if stream.isatty() else MilestoneProgress(stream)

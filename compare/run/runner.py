@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
+from engines.command import spec_of
 from engines.errors import Unsupported
 from engines.scene import Scene
 
@@ -245,6 +246,7 @@ class _Dispatcher:
             repeats=self.suite.repeats,
             timeout=self.timeout,
             isolate=self.isolate,
+            command=spec_of(case.engine.engine),
         )
 
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
@@ -512,7 +514,13 @@ def build_record(
         "positions": rounded(trajectory.positions[keep]),
         # The reference at the same samples, so a report can overlay paths without re-solving.
         "reference_positions": rounded(ref_positions[:n][keep]),
+        # For the report's phase plot (angular velocity) and constraint-force plot.
+        "velocities": rounded(trajectory.velocities[keep]),
     }
+    if trajectory.constraint_forces is not None:
+        record["series"]["constraint_forces"] = rounded(trajectory.constraint_forces[keep])
+        if ref_forces is not None and len(ref_forces) >= n:
+            record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
     return record
 
 

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
+from engines.command import spec_of
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
@@ -62,6 +63,7 @@ def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite
         sample_interval=sample_interval,
         repeats=1,
         timeout=timeout,
+        command=spec_of(engine.engine),
     )
     outcome: CaseOutcome = execute(task)
     return classify(scene, outcome, dt, sample_interval, suite.bounds)

@@ -42,6 +42,10 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     id = "mujoco/*"                # every variant; or "mujoco/hinge-rk4", or
     options = {}                   # "package.module:ATTRIBUTE[/variant]"
 
+    [[engines]]                    # an outside program (compare/suite/command.py)
+    command = ["python3", "solvers/bead.py"]
+    label = "my-bead"              # results call it command/my-bead
+
 ``engines`` items may also be plain strings (``engines = ["ours/*"]``).
 
 Every mistake is a :class:`UserError` whose message starts with the file
@@ -67,6 +71,7 @@ from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
 from compare.results.metrics import DEFAULT_DELTA, Bounds
+from compare.suite.command import command_engine_spec
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
 
@@ -157,7 +162,8 @@ class Suite:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
         physics = {
             "scenes": [[s.id, s.scene.content_hash] for s in self.scenes],
-            "engines": [[e.id, e.label, dict(e.options)] for e in self.engines],
+            # An outside program is what it runs: its argv and declared version decide its results too.
+            "engines": [[e.id, e.label, dict(e.options), *_program_of(e)] for e in self.engines],
             "dts": list(self.dts),
             "sample_interval": self.sample_interval,
             "delta": self.delta,
@@ -167,6 +173,12 @@ class Suite:
         }
         text = json.dumps(physics, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _program_of(engine: EngineSpec) -> list[Any]:
+    """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
+    spec = getattr(engine.engine, "spec", None)
+    return [] if spec is None else [list(spec.argv), spec.version]
 
 
 # -- engine ids ------------------------------------------------------------------
@@ -456,6 +468,14 @@ class _Reader:
         specs: list[EngineSpec] = []
         for k, item in enumerate(value):
             key = f"engines[{k}]"
+            if isinstance(item, dict) and "command" in item:  # an outside program: compare/suite/command.py
+                engine, options = command_engine_spec(item, key, self.path, self.error)
+                specs.append(EngineSpec(engine.spec.engine_id, engine.spec.engine_id, engine.spec.label, options,
+                                        engine))
+                if sum(s.label == engine.spec.engine_id for s in specs) > 1:
+                    raise self.error(f"{key}.label", f"{engine.spec.label!r} is used twice; give each command its "
+                                                     f"own label")
+                continue
             entry = {"id": item} if isinstance(item, str) else self.table(key, item, ENGINE_KEYS)
             if "id" not in entry:
                 raise self.error(key, 'missing id; add id = "engine/variant", e.g. id = "mujoco/hinge-rk4"')
