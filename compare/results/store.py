@@ -61,8 +61,21 @@ def rounded(values: np.ndarray, digits: int = SERIES_DIGITS) -> list:
     array = np.asarray(values, dtype=float)
     # Python floats and math.isfinite: np.isfinite on one scalar costs about 1 µs, ten times this.
     isfinite = math.isfinite
-    flat = [float(f"{x:.{digits}g}") if isfinite(x) else None for x in array.ravel().tolist()]
-    return np.array(flat, dtype=object).reshape(array.shape).tolist() if array.ndim > 1 else flat
+    spec = f".{digits}g"
+    flat = [float(format(x, spec)) if isfinite(x) else None for x in array.ravel().tolist()]
+    if array.ndim <= 1:
+        return flat
+    if array.size == 0:
+        return np.zeros(array.shape).tolist()  # nested empty lists of the right depth
+    return _nest(flat, array.shape)
+
+
+def _nest(flat: list, shape: tuple[int, ...]) -> list:
+    """``flat`` (row-major) as nested lists of ``shape``, by slicing (an object array and tolist()
+    cost as much as the rounding itself)."""
+    for size in reversed(shape[1:]):
+        flat = [flat[i:i + size] for i in range(0, len(flat), size)]
+    return flat
 
 
 def jsonable(value: Any) -> Any:
