@@ -84,11 +84,14 @@ class OursEngine(Engine):
         "integrator": Option("integrator", "rk4", "euler, symplectic-euler, midpoint, rk4 or rattle",
                              kind="str", choices=tuple(ours.INTEGRATORS)),
         "k_s": Option("k_s", ours.DEFAULT_K_S,
-                      "Baumgarte stiffness, 1/s² (default 100: a 0.1 s correction time constant)"),
-        "k_d": Option("k_d", None, "Baumgarte damping, 1/s (default 2·sqrt(k_s), critical damping)"),
+                      "Baumgarte stiffness, 1/s² (default 100: a 0.1 s correction time constant)", low=0.0, high=1e12),
+        "k_d": Option("k_d", None, "Baumgarte damping, 1/s (default 2·sqrt(k_s), critical damping)",
+                      low=0.0, high=1e6),
         "tolerance": Option("tolerance", 1e-12,
-                            "projection / RATTLE solve: stop at max |C|/l² ≤ tolerance (relative length error)"),
-        "max_iterations": Option("max_iterations", 50, "most Newton / SHAKE iterations per step", kind="int"),
+                            "projection / RATTLE solve: stop at max |C|/l² ≤ tolerance (relative length error)",
+                            low=0.0, high=1.0, low_open=True),
+        "max_iterations": Option("max_iterations", 50, "most Newton / SHAKE iterations per step", kind="int",
+                                 low=1, high=10_000),
     }
     variants = _variants()
     variant_docs = {
@@ -99,6 +102,22 @@ class OursEngine(Engine):
 
     def version(self) -> str:
         return ours.__version__
+
+    def preload(self, scenes) -> None:
+        """Compile, or load from numba's cache, the kernels these scenes will use, in this process.
+
+        A runner calls it before it forks its workers, which then inherit the loaded machine code
+        instead of each loading it again. A scene ours cannot express is passed over (its cases say why).
+        """
+        _ensure_compiled()
+        for scene in scenes:
+            try:
+                system, q0, v0, _ = _to_system(scene)
+                ours.simulate(system, q0, v0, 1e-3, 1, method="baumgarte")
+                if system.dim == 2 and system.chain_order() is None:
+                    ours.simulate(system, q0, v0, 1e-3, 1, method="lagrangian")
+            except (Unsupported, ours.OursError):
+                continue
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         try:
