@@ -399,6 +399,8 @@ def lyapunov_exponent(
     spherical pendulum) gives a value that falls towards 0 like ln(growth)/time; a chaotic one
     converges to a positive rate (about 1 per second for the default double pendulum).
     """
+    from scipy.integrate import solve_ivp  # imported here, as in solve()
+
     model = model_for(scene)
     duration = scene.duration if duration is None else float(duration)
     if not duration > 0 or not interval > 0:
