@@ -10,7 +10,7 @@ EXTRAS ?= all
 
 comma := ,
 
-.PHONY: demo stiff test bench baseline clean
+.PHONY: demo stiff test bench baseline clean examples
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -45,5 +45,10 @@ baseline: $(STAMP)
 		&& $(XVAL) baseline $$dir/smoke --output baselines/smoke.json; \
 		status=$$?; rm -rf $$dir; exit $$status
 
+# The C++ example solvers of the process protocol (docs/protocol.md), built with g++ into examples/cpp/build.
+examples:
+	$(MAKE) -C examples/cpp
+
 clean:
+	$(MAKE) -C examples/cpp clean
 	rm -rf $(VENV) build *.egg-info results artifacts

@@ -20,8 +20,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from compare.results import load_results  # noqa: E402
-from compare.runner import default_jobs  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import default_jobs  # noqa: E402
 
 
 def main() -> None:

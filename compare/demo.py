@@ -10,10 +10,10 @@ import shutil
 import sys
 from pathlib import Path
 
-from compare.progress import progress_for
-from compare.runner import run_suite
-from compare.suite import load_suite
-from compare.table import scene_tables
+from compare.run.progress import progress_for
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
+from compare.results.table import scene_tables
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "default.toml"
@@ -23,8 +23,9 @@ OUTPUT = ROOT / "results" / "default"
 def main() -> None:
     if (OUTPUT / "run.json").exists():
         shutil.rmtree(OUTPUT)
-    summary = run_suite(load_suite(SUITE), OUTPUT, progress=progress_for(sys.stderr))
-    print(scene_tables(summary.records))
+    suite = load_suite(SUITE)
+    summary = run_suite(suite, OUTPUT, progress=progress_for(sys.stderr))
+    print(scene_tables(summary.records, suite.verdict_tolerance))
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     print(f"{summary.ran} cases in {summary.wall_time:.1f} s ({counts})")
     print(f"results: {OUTPUT}  (xval show {OUTPUT.relative_to(ROOT)} --format csv; xval report ...)")

@@ -204,6 +204,22 @@ class Engine:
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         raise NotImplementedError
 
+    # -- optional: what only the engine knows ---------------------------------------
+
+    def spectral_radius(self, variant: str | None, options: Mapping[str, Any] | None, dt: float) -> float | None:
+        """ρ of the engine's own linearized step at ``dt`` (s) for this variant and options, or None.
+
+        An engine with a linear stability theory of its own (ours' Baumgarte
+        feedback) returns the spectral radius of one step: ≤ 1 stable, > 1 the
+        error grows by ρ per step. The gain map draws ρ = 1 over any two numeric
+        options; None (the default) means "no theory", and nothing is drawn.
+        """
+        return None
+
+    def largest_stable_dt(self, variant: str | None, options: Mapping[str, Any] | None) -> float | None:
+        """s: the largest time step the engine's own theory calls stable for these settings, or None (no theory)."""
+        return None
+
     # -- provided ----------------------------------------------------------------
 
     @property

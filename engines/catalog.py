@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
 from engines.errors import SceneError
-from engines.scene import Particle, Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Particle, Pin, Rod, Scene
 
 
 @dataclass(frozen=True)
@@ -120,6 +120,88 @@ def spherical_pendulum(m, radius, theta0, phi_dot0, g, duration, parameters=None
     )
 
 
+def slider_pendulum(M, m, l, theta0, omega0, g, duration, parameters=None) -> Scene:
+    """A slider (mass M) on the horizontal line z = 0 through the origin, starting at the origin at
+    rest, and a pendulum (mass m) hung from it on a rod of length l at theta0, turning at omega0."""
+    d, t = _direction(theta0), _tangent(theta0)
+    return Scene(
+        "slider-pendulum",
+        (Particle(M, (0.0, 0.0, 0.0)), Particle(m, tuple(l * c for c in d), tuple(l * omega0 * c for c in t))),
+        (Line(0, (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)), Rod(0, 1, l)),
+        (0.0, 0.0, -g),
+        duration,
+        parameters or {},
+    )
+
+
+#: The rule four_bar enforces, quoted in its refusal.
+FOUR_BAR_RULE = (
+    "the crank a must be the shortest link and a + max(b, c, d) < the sum of the other two "
+    "(Grashof), so the loop closes at every crank angle"
+)
+
+
+def four_bar_joint(p0, pivot, b: float, c: float, branch: int) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The coupler–rocker joint (x, z) m that closes the loop: where the coupler circle about p0 meets the
+    rocker circle about the pivot.
+
+    p0 : crank tip (x, z); pivot : ground pivot (x, z); b, c : coupler and rocker lengths (m).
+    branch +1 puts the joint left of the directed line from p0 to the pivot, −1 right of it.
+    Returns (joint, unit vector from p0 to the pivot).
+    """
+    dx, dz = pivot[0] - p0[0], pivot[1] - p0[1]
+    delta = math.hypot(dx, dz)
+    ux, uz = dx / delta, dz / delta
+    along = (b * b - c * c + delta * delta) / (2.0 * delta)
+    across = branch * math.sqrt(max(b * b - along * along, 0.0))
+    return (p0[0] + along * ux - across * uz, p0[1] + along * uz + across * ux), (ux, uz)
+
+
+def four_bar(a, b, c, d, m0, m1, theta0, omega0, branch, g, duration, parameters=None) -> Scene:
+    """Crank a pinned at the origin, rocker c pinned at (d, 0, 0), coupler b between their tips."""
+    lengths = {"a": a, "b": b, "c": c, "d": d}
+    others = sorted((b, c, d))
+    if not (a < others[0] and a + others[2] < others[0] + others[1]):
+        shown = ", ".join(f"{k}={v:g}" for k, v in lengths.items())
+        raise SceneError(f"four-bar: lengths {shown} are refused: {FOUR_BAR_RULE}")
+    if branch not in (1, -1):
+        raise SceneError(f"four-bar: parameter branch must be +1 or -1 (which assembly), got {branch!r}")
+    e, t = _direction(theta0), _tangent(theta0)
+    p0 = (a * e[0], a * e[2])
+    v0 = (a * omega0 * t[0], a * omega0 * t[2])
+    p1, _ = four_bar_joint(p0, (d, 0.0), b, c, branch)
+    # The joint moves on the rocker circle, tangent r ⊥ (p1 − pivot); its rate follows from
+    # (p1 − p0)·(v1 − v0) = 0, the time derivative of the coupler's length.
+    rx, rz = p1[0] - d, p1[1]
+    tx, tz = -rz / c, rx / c
+    cx, cz = p1[0] - p0[0], p1[1] - p0[1]
+    rate = (cx * v0[0] + cz * v0[1]) / (cx * tx + cz * tz)
+    v1 = (rate * tx, rate * tz)
+    return Scene(
+        "four-bar",
+        (Particle(m0, (p0[0], 0.0, p0[1]), (v0[0], 0.0, v0[1])), Particle(m1, (p1[0], 0.0, p1[1]), (v1[0], 0.0, v1[1]))),
+        (Pin(0, (0.0, 0.0, 0.0), a), Rod(0, 1, b), Pin(1, (d, 0.0, 0.0), c)),
+        (0.0, 0.0, -g),
+        duration,
+        parameters or {},
+    )
+
+
+def bead_ellipse(m, a, b, theta0, omega0, g, duration, parameters=None) -> Scene:
+    """A bead on the ellipse (x/a)² + (z/b)² = 1 about the origin, at wire parameter theta0."""
+    u = math.radians(theta0)
+    position = (a * math.sin(u), 0.0, -b * math.cos(u))
+    velocity = (a * math.cos(u) * omega0, 0.0, b * math.sin(u) * omega0)
+    return Scene(
+        "bead-ellipse",
+        (Particle(m, position, velocity),),
+        (Ellipse(0, (0.0, 0.0, 0.0), a, b),),
+        (0.0, 0.0, -g),
+        duration,
+        parameters or {},
+    )
+
+
 CATALOG: dict[str, SceneBuilder] = {
     b.name: b
     for b in (
@@ -174,6 +256,53 @@ CATALOG: dict[str, SceneBuilder] = {
             )
             + _common(10.0),
             spherical_pendulum,
+        ),
+        SceneBuilder(
+            "slider-pendulum",
+            "A slider on a horizontal rail (a line kind) carrying a pendulum, in the x–z plane; "
+            "horizontal momentum is conserved.",
+            (
+                Parameter("M", 1.0, "kg", "slider mass", positive=True),
+                Parameter("m", 1.0, "kg", "pendulum mass", positive=True),
+                Parameter("l", 1.0, "m", "rod length", positive=True),
+                Parameter("theta0", 30.0, "deg", "release angle of the rod from the downward vertical"),
+                Parameter("omega0", 0.0, "rad/s", "initial angular velocity of the rod (the slider starts at rest)"),
+            )
+            + _common(10.0),
+            slider_pendulum,
+        ),
+        SceneBuilder(
+            "four-bar",
+            "A four-bar linkage: crank a pinned at the origin, rocker c pinned at (d, 0, 0), coupler b "
+            "between the two moving masses; one closed loop, one degree of freedom, in the x–z plane.",
+            (
+                Parameter("a", 0.4, "m", "crank length (particle 0 from the origin)", positive=True),
+                Parameter("b", 1.2, "m", "coupler length (particle 0 to particle 1)", positive=True),
+                Parameter("c", 0.8, "m", "rocker length (particle 1 from the ground pivot)", positive=True),
+                Parameter("d", 1.0, "m", "ground length: the rocker's pivot is at (d, 0, 0)", positive=True),
+                Parameter("m0", 1.0, "kg", "mass at the crank tip", positive=True),
+                Parameter("m1", 1.0, "kg", "mass at the rocker tip", positive=True),
+                Parameter("theta0", 30.0, "deg", "crank angle from the downward vertical"),
+                Parameter("omega0", 0.0, "rad/s", "crank angular velocity"),
+                Parameter("branch", -1, "", "assembly: +1 puts the rocker tip left of the line from the crank "
+                          "tip to the ground pivot (above it), -1 right of it (below)", integer=True),
+            )
+            + _common(10.0),
+            four_bar,
+        ),
+        SceneBuilder(
+            "bead-ellipse",
+            "A bead on an elliptic wire about the origin with semi-axes a (x) and b (z), in the x–z plane.",
+            (
+                Parameter("m", 1.0, "kg", "bead mass", positive=True),
+                Parameter("a", 1.0, "m", "semi-axis along x", positive=True),
+                Parameter("b", 0.6, "m", "semi-axis along z", positive=True),
+                Parameter("theta0", 60.0, "deg", "release point as the wire's parameter angle u: "
+                          "(a sin u, 0, -b cos u); for a = b the angle from the downward vertical"),
+                Parameter("omega0", 0.0, "rad/s", "initial rate of the parameter angle, du/dt"),
+            )
+            + _common(10.0),
+            bead_ellipse,
         ),
     )
 }

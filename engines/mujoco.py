@@ -4,7 +4,14 @@
   constraint tree. A body's frame sits at its pivot (the Pin's anchor or the
   parent particle), its joint is a hinge about +y for a planar scene and a
   ball joint for a 3-D one, and its point mass sits at the end of the arm.
-  Every constraint holds by construction.
+  Every constraint holds by construction. A ``Line`` (a slider's rail) is a
+  ``slide`` joint along the line, so a slider-pendulum is a slide joint
+  carrying a hinge. A constraint that closes a loop (a four-bar's coupler)
+  cannot be a joint of the tree: it becomes a light *arm* body hinged at one
+  end of the constraint and reaching to the other, joined to that particle's
+  body by a ``connect`` equality — soft, with the ``solref``/``solimp`` and
+  ``timeconst_steps`` options (MuJoCo's defaults unless set). The arm's mass
+  and inertia are ``inertia_ratio`` · m · (1, L²), m the mean particle mass.
 - **connect** (maximal coordinates): one free body per particle, with its
   mass at the body origin. A ``connect`` equality is a ball joint between
   two bodies, not a distance constraint, so each Pin and Rod becomes a rigid,
@@ -14,7 +21,12 @@
   the angle between them), so the arms are assigned by a matching of
   constraints to particles. The arm's body turns with the rod, so it adds the
   rotational energy ½·ω·I·ω of the body's tiny inertia I: relative to the
-  particle energy this is ``inertia_ratio`` (1e-9 by default).
+  particle energy this is ``inertia_ratio`` (1e-9 by default). MuJoCo has no
+  equality that holds a point on a line, so a ``Line`` is refused here (the
+  hinge formulation's slide joint expresses it).
+
+An ``Ellipse`` is refused by both: MuJoCo's joints move a point on a circle
+(hinge) or a line (slide), and no equality constraint holds one on an ellipse.
 
 The model is built as MJCF text in the scene's *initial* configuration, so
 qpos0 is the initial state: hinge angles are 0 there (a child's hinge angle is
@@ -49,7 +61,7 @@ from mujoco import rollout as mj_rollout
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
 _ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
@@ -88,35 +100,43 @@ _WARNINGS = {
 class Tree:
     """The constraints of a scene read as a forest hung from Pins (for the hinge formulation).
 
-    parent : (n,) parent particle index, or −1 for a particle hung from a Pin.
-    pivot : (n, 3) m, the pivot of each particle's link (the Pin's anchor, or the parent's initial position).
+    parent : (n,) parent particle index, or −1 for a particle hung from a Pin or held on a Line.
+    pivot : (n, 3) m, the pivot of each particle's link (the Pin's anchor, or the parent's initial
+        position; a particle on a Line is its own pivot).
     constraint_of : (n,) index of the constraint joining the particle to its parent.
     order : particles, parents before children.
+    closures : constraints that close a loop (not joints of the tree): each becomes an arm body and a
+        ``connect`` equality (see :func:`closure_arm`).
     """
 
     parent: tuple[int, ...]
     pivot: np.ndarray
     constraint_of: tuple[int, ...]
     order: tuple[int, ...]
+    closures: tuple[int, ...] = ()
 
 
 def constraint_tree(scene: Scene) -> Tree:
-    """Orient the constraints away from the Pins; Unsupported unless every particle hangs by exactly one path."""
+    """Orient the constraints away from the Pins and Lines; a constraint met twice closes a loop.
+
+    Unsupported for an Ellipse, or unless every particle hangs from a Pin or Line.
+    """
     n = len(scene.particles)
     q = scene.initial_positions
     parent, constraint_of = [-2] * n, [-1] * n
     pivot = np.zeros((n, 3))
     neighbours: list[list[tuple[int, int]]] = [[] for _ in range(n)]
     queue: list[int] = []
+    closures: list[int] = []
     for k, c in enumerate(scene.constraints):
-        if isinstance(c, Pin):
+        if isinstance(c, Ellipse):
+            raise Unsupported(_NO_ELLIPSE.format(k=k))
+        if isinstance(c, (Pin, Line)):
             if parent[c.particle] != -2:
-                raise Unsupported(
-                    f"mujoco/hinge: particle {c.particle} has two Pins, a closed loop that reduced "
-                    "coordinates cannot express; use mujoco/connect"
-                )
+                closures.append(k)  # a second Pin or Line on one particle closes a loop through the ground
+                continue
             parent[c.particle], constraint_of[c.particle] = -1, k
-            pivot[c.particle] = c.anchor
+            pivot[c.particle] = c.anchor if isinstance(c, Pin) else q[c.particle]
             queue.append(c.particle)
         else:
             neighbours[c.a].append((c.b, k))
@@ -126,13 +146,11 @@ def constraint_tree(scene: Scene) -> Tree:
         i = queue.pop(0)
         order.append(i)
         for j, k in neighbours[i]:
-            if k == constraint_of[i]:
+            if k == constraint_of[i] or k in closures:
                 continue
             if parent[j] != -2:
-                raise Unsupported(
-                    f"mujoco/hinge: constraint {k} closes a loop, which reduced coordinates cannot "
-                    "express; use mujoco/connect"
-                )
+                closures.append(k)
+                continue
             parent[j], constraint_of[j], pivot[j] = i, k, q[i]
             queue.append(j)
     loose = [i for i in range(n) if parent[i] == -2]
@@ -141,7 +159,38 @@ def constraint_tree(scene: Scene) -> Tree:
             f"mujoco/hinge: particles {loose} are not hung from a Pin; the hinge formulation builds "
             "chains from a fixed anchor (use mujoco/connect for free-floating bodies)"
         )
-    return Tree(tuple(parent), pivot, tuple(constraint_of), tuple(order))
+    for k in closures:
+        if isinstance(scene.constraints[k], Line):
+            raise Unsupported(
+                f"mujoco/hinge: constraint {k} holds an already-jointed particle on a line, a loop MuJoCo "
+                "cannot close (it has no point-on-line equality)"
+            )
+    return Tree(tuple(parent), pivot, tuple(constraint_of), tuple(order), tuple(sorted(closures)))
+
+
+_NO_ELLIPSE = (
+    "MuJoCo cannot hold a body on an ellipse: its joints move a point on a circle (hinge) or a line "
+    "(slide), and no equality constraint holds one on a curve; constraints[{k}] is an 'ellipse'"
+)
+
+
+@dataclass(frozen=True)
+class ClosureArm:
+    """The arm that closes loop constraint k: a body hinged at ``pivot`` (a child of particle ``host``'s
+    body, or of the world when ``host`` is −1), reaching to particle ``far``, joined to it by a connect."""
+
+    constraint: int
+    host: int
+    far: int
+    pivot: np.ndarray
+
+
+def closure_arm(scene: Scene, k: int) -> ClosureArm:
+    """A Pin's arm is hinged at its anchor (on the world); a Rod's at its first particle (on that body)."""
+    c = scene.constraints[k]
+    if isinstance(c, Pin):
+        return ClosureArm(k, -1, c.particle, np.asarray(c.anchor, dtype=float))
+    return ClosureArm(k, c.a, c.b, scene.initial_positions[c.a])
 
 
 def arm_owners(scene: Scene) -> list[int]:
@@ -151,6 +200,14 @@ def arm_owners(scene: Scene) -> list[int]:
     two arms, so this is a bipartite matching (augmenting paths), preferring a
     Rod's second particle so a chain hung from a Pin matches at once.
     """
+    for k, c in enumerate(scene.constraints):
+        if isinstance(c, Ellipse):
+            raise Unsupported(_NO_ELLIPSE.format(k=k))
+        if isinstance(c, Line):
+            raise Unsupported(
+                f"mujoco/connect: MuJoCo has no equality constraint that holds a point on a line "
+                f"(constraints[{k}] is a 'line'); use mujoco/hinge, whose slide joint does"
+            )
     n = len(scene.particles)
     owner_of_particle = [-1] * n
     candidates = [
@@ -171,8 +228,8 @@ def arm_owners(scene: Scene) -> list[int]:
         if not place(k, set()):
             raise Unsupported(
                 f"mujoco/connect: constraint {k} cannot get an arm of its own (more constraints than "
-                "particles in a connected group: a rigid loop), and connect joints are ball joints, "
-                "not distance constraints"
+                "particles in a connected group: a closed loop), and connect joints are ball joints, "
+                "not distance constraints; use mujoco/hinge, which closes a loop with an equality"
             )
     owners = [-1] * len(scene.constraints)
     for i, k in enumerate(owner_of_particle):
@@ -204,32 +261,63 @@ def _inertial(mass: float, inertia: float, pos=(0.0, 0.0, 0.0)) -> str:
 
 
 def hinge_mjcf(scene: Scene, dt: float, settings: Mapping[str, Any], inertia: np.ndarray) -> str:
-    """Nested bodies, one per particle, with a hinge about +y (planar) or a ball joint (3-D)."""
+    """Nested bodies, one per particle, with a hinge about +y (planar) or a ball joint (3-D), a slide
+    joint for a particle on a Line; loop closures as arm bodies joined by connect equalities."""
     tree = constraint_tree(scene)
     q = scene.initial_positions
     joint = '<joint type="hinge" axis="0 1 0"/>' if scene.is_planar else '<joint type="ball"/>'
     children: dict[int, list[int]] = {}
     for i in tree.order:
         children.setdefault(tree.parent[i], []).append(i)
+    arms = [closure_arm(scene, k) for k in tree.closures]
+    arm_mass = settings["inertia_ratio"] * float(scene.masses.mean())
+    arm_inertia = arm_mass * scene.characteristic_length**2
+
+    def arm_body(arm: ClosureArm, origin: np.ndarray, pad: str) -> list[str]:
+        return [
+            f'{pad}<body name="arm{arm.constraint}" pos="{_fmt(origin)}">',
+            f"{pad}  {joint}",
+            f"{pad}  {_inertial(arm_mass, arm_inertia)}",
+            f"{pad}</body>",
+        ]
 
     def body(i: int, depth: int) -> list[str]:
         pad = "  " * depth
         origin = tree.pivot[i] if tree.parent[i] == -1 else q[tree.parent[i]] - tree.pivot[tree.parent[i]]
         arm = q[i] - tree.pivot[i]
+        root = scene.constraints[tree.constraint_of[i]]
+        own = f'<joint type="slide" axis="{_fmt(root.unit)}"/>' if isinstance(root, Line) else joint
         lines = [
             f'{pad}<body name="p{i}" pos="{_fmt(origin)}">',
-            f"{pad}  {joint}",
+            f"{pad}  {own}",
             f"{pad}  {_inertial(scene.particles[i].mass, inertia[i], arm)}",
             f'{pad}  <site name="s{i}" pos="{_fmt(arm)}"/>',
         ]
         for j in children.get(i, []):
             lines += body(j, depth + 1)
+        for a in arms:
+            if a.host == i:
+                lines += arm_body(a, q[i] - tree.pivot[i], pad + "  ")
         return lines + [f"{pad}</body>"]
 
     lines = _header(scene, dt, settings)
     for i in children.get(-1, []):
         lines += body(i, 2)
-    return "\n".join(lines + ["  </worldbody>", "</mujoco>"])
+    for a in arms:
+        if a.host == -1:
+            lines += arm_body(a, a.pivot, "    ")
+    lines.append("  </worldbody>")
+    if arms:
+        solref, solimp = equality_softness(settings, dt)
+        soft = f' solref="{_fmt(solref)}" solimp="{_fmt(solimp)}"'
+        lines.append("  <equality>")
+        for a in arms:
+            lines.append(
+                f'    <connect name="c{a.constraint}" body1="arm{a.constraint}" body2="p{a.far}" '
+                f'anchor="{_fmt(q[a.far] - a.pivot)}"{soft}/>'
+            )
+        lines.append("  </equality>")
+    return "\n".join(lines + ["</mujoco>"])
 
 
 def connect_mjcf(scene: Scene, dt: float, settings: Mapping[str, Any], inertia: np.ndarray) -> str:
@@ -475,12 +563,26 @@ def hinge_velocities(scene: Scene, model: mujoco.MjModel) -> np.ndarray:
     qvel = np.zeros(model.nv)
     for i in tree.order:
         parent = tree.parent[i]
+        joint = model.body_jntadr[model.body(f"p{i}").id]
+        dof = model.jnt_dofadr[joint]
+        root = scene.constraints[tree.constraint_of[i]]
+        if isinstance(root, Line):  # a slide joint: the speed along the line; the body does not turn
+            qvel[dof] = float(v[i] @ root.unit)
+            continue
         r = q[i] - tree.pivot[i]
         dv = v[i] - (v[parent] if parent >= 0 else 0.0)
         omega[i] = np.cross(r, dv) / float(r @ r)
         relative = omega[i] - (omega[parent] if parent >= 0 else 0.0)
-        joint = model.body_jntadr[model.body(f"p{i}").id]
-        dof = model.jnt_dofadr[joint]
+        if scene.is_planar:
+            qvel[dof] = relative[1]
+        else:
+            qvel[dof : dof + 3] = relative
+    for k in tree.closures:  # each arm turns so that its tip moves with the particle it reaches
+        arm = closure_arm(scene, k)
+        r = q[arm.far] - arm.pivot
+        dv = v[arm.far] - (v[arm.host] if arm.host >= 0 else 0.0)
+        relative = np.cross(r, dv) / float(r @ r) - (omega[arm.host] if arm.host >= 0 else 0.0)
+        dof = model.jnt_dofadr[model.body_jntadr[model.body(f"arm{k}").id]]
         if scene.is_planar:
             qvel[dof] = relative[1]
         else:
@@ -545,14 +647,22 @@ def read_samples(
 
 def _hinge_forces(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, tree: Tree) -> np.ndarray:
     """(C, 3) N. cfrc_int's force part is what the parent exerts on the body's subtree through the joint;
-    the body is a massless arm ending at its particle, so it is the link's force on that particle."""
+    the body is a massless arm ending at its particle, so it is the link's force on that particle.
+    A loop closure's force is its connect's efc force (on the arm, body1): the arm carries it to its
+    host (+), the particle it reaches gets the negative."""
     out = np.empty((len(scene.constraints), 3))
+    if tree.closures:
+        rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        for e, k in enumerate(tree.closures):
+            f = data.efc_force[rows[data.efc_id[rows] == e]]
+            # A closing Pin's first particle is the one the arm reaches; a closing Rod's (a) hosts the arm.
+            out[k] = -f if isinstance(scene.constraints[k], Pin) else f
     for i in range(len(scene.particles)):
         on_child = data.cfrc_int[model.body(f"p{i}").id, 3:]
         k = tree.constraint_of[i]
         c = scene.constraints[k]
         # The record's first particle is the child (Pin, or a Rod whose a is the child) or the parent.
-        out[k] = on_child if isinstance(c, Pin) or c.a == i else -on_child
+        out[k] = on_child if isinstance(c, (Pin, Line)) or c.a == i else -on_child
     return out
 
 

@@ -10,6 +10,9 @@ forces are the force each constraint exerts on its first particle
 (``Pin.particle``, ``Rod.a``), mapped back to the scene frame. The Lagrangian
 form exists only for planar chains hung from a fixed point (Pin on particle 0,
 then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
+A Line or Ellipse (planar scenes only) maps to ours' curve constraints, which
+ours steps by its general (dense) λ formula; a four-bar's closed loop of Pins
+and a Rod runs in the compiled distance loop like any other scene.
 The time recorded is the compiled stepping loop alone (compilation is done,
 or loaded from numba's cache, before the clock starts).
 """
@@ -23,7 +26,7 @@ import numpy as np
 import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
 
@@ -48,6 +51,11 @@ def _to_system(scene: Scene) -> tuple[ours.System, np.ndarray, np.ndarray, list[
             constraints.append(ours.Pin(c.particle, tuple(np.asarray(c.anchor)[axes]), c.length))
         elif isinstance(c, Rod):
             constraints.append(ours.Rod(c.a, c.b, c.length))
+        elif isinstance(c, Line) and len(axes) == 2:
+            constraints.append(ours.Line(c.particle, tuple(np.asarray(c.point)[axes]),
+                                         tuple(np.asarray(c.direction)[axes])))
+        elif isinstance(c, Ellipse) and len(axes) == 2:
+            constraints.append(ours.Ellipse(c.particle, tuple(np.asarray(c.centre)[axes]), (c.semi_x, c.semi_z)))
         else:  # pragma: no cover - a new scene kind must be mapped here first
             raise Unsupported(f"ours has no constraint for scene kind {c.kind!r}")
     system = ours.System(tuple(scene.masses), tuple(np.asarray(scene.gravity)[axes]), tuple(constraints))
@@ -97,6 +105,11 @@ class OursEngine(Engine):
             ours.resolve_pair(settings["method"], settings["integrator"])
         except ours.InvalidPair as exc:
             raise UserError(f"ours: {exc}") from None
+        curves = [c.kind for c in scene.constraints if isinstance(c, (Line, Ellipse))]
+        if curves and not scene.is_planar:
+            raise Unsupported(
+                f"ours' Line and Ellipse are planar (2-D) constraints; {scene.name!r} moves in 3-D"
+            )
         if settings["method"] == "lagrangian":
             if not scene.is_planar:
                 raise Unsupported(
@@ -108,6 +121,31 @@ class OursEngine(Engine):
                     f"ours/lagrangian needs a chain hung from a fixed point (Pin on particle 0, then "
                     f"Rod(k-1, k)); {scene.name!r} is not one: {why}"
                 )
+
+    def _baumgarte_gains(self, variant: str | None, options: Mapping[str, Any] | None) -> tuple[str, float, float] | None:
+        """(integrator, k_s 1/s², k_d 1/s) of a Baumgarte variant its linear theory covers, else None."""
+        from ours.stability import INTEGRATORS
+
+        settings = self.resolve(variant, options)
+        if settings["method"] != "baumgarte" or settings["integrator"] not in INTEGRATORS:
+            return None
+        k_s = float(settings["k_s"])
+        k_d = 2.0 * k_s ** 0.5 if settings["k_d"] is None else float(settings["k_d"])
+        return settings["integrator"], k_s, k_d
+
+    def spectral_radius(self, variant: str | None, options: Mapping[str, Any] | None, dt: float) -> float | None:
+        """ρ of one step of the linearized constraint error (C, Ċ) under Baumgarte feedback (ours/stability.py)."""
+        from ours.stability import spectral_radius
+
+        gains = self._baumgarte_gains(variant, options)
+        return None if gains is None else spectral_radius(gains[0], dt, gains[1], gains[2])
+
+    def largest_stable_dt(self, variant: str | None, options: Mapping[str, Any] | None) -> float | None:
+        """s: the largest dt with ρ ≤ 1 for a Baumgarte variant (None for other methods)."""
+        from ours.stability import largest_stable_dt
+
+        gains = self._baumgarte_gains(variant, options)
+        return None if gains is None else largest_stable_dt(*gains)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         system, q0, v0, axes = _to_system(scene)

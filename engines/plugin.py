@@ -12,6 +12,9 @@ A plugin imports from here only (docs/plugins.md walks through one)::
   builds the :class:`RawRun` that ``_run`` returns.
 - :func:`refuse_constraint_kinds` refuses scenes with constraints the solver
   does not model, naming the constraint.
+- :func:`planar_chain` converts between pendulum angles and particle
+  positions / velocities (:mod:`engines.pendulum`); :func:`force_array`
+  builds per-constraint forces with NaN for "not reported".
 
 What xval checks for every adapter, so a plugin need not (engines.adapter):
 shapes and sample count of what ``_run`` returns, that sample 0 is the
@@ -24,17 +27,19 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
 from engines.adapter import API_VERSION, Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
+from engines.pendulum import PlanarChain, force_array, planar_chain
 from engines.scene import Pin, Rod, Scene
 
 __all__ = [
-    "API_VERSION", "CONSTRAINT_FORCES", "THREE_D", "Engine", "Option", "RawRun", "Recorder", "Schedule",
-    "SceneArrays", "Unsupported", "UserError", "capabilities", "refuse_constraint_kinds", "scene_arrays",
+    "API_VERSION", "CONSTRAINT_FORCES", "THREE_D", "Engine", "Option", "PlanarChain", "RawRun", "Recorder",
+    "Schedule", "SceneArrays", "Unsupported", "UserError", "capabilities", "force_array", "planar_chain",
+    "refuse_constraint_kinds", "scene_arrays",
 ]
 
 #: The engine can move particles out of the x–z plane (3-D scenes).
@@ -113,7 +118,7 @@ class Recorder:
     Use it as::
 
         rec = Recorder(scene, schedule, forces=True)
-        rec.record(0, q, v, f)                  # the initial state (f: zeros, or your t = 0 forces)
+        rec.record(0, q, v, f)                  # the initial state (f: your t = 0 forces, or None)
         with rec.stepping():                    # only this is timed
             for step in range(1, schedule.n_steps + 1):
                 q, v, f = my_step(q, v)
@@ -122,9 +127,11 @@ class Recorder:
                         rec.record(step, q, v, f)
         return rec.raw_run()
 
-    q, v : (P, 3) m, m/s; f : (C, 3) N on each constraint's first particle.
-    A loop that stops early (the state ran away) returns fewer samples; xval
-    marks such a run ``unstable`` and keeps the samples recorded.
+    q, v : (P, 3) m, m/s; f : (C, 3) N on each constraint's first particle,
+    or ``{k: (3,)}`` for the constraints reported; a constraint not reported
+    (f None, absent from the dict, or NaN) stays NaN, "not reported", never
+    zero. A loop that stops early (the state ran away) returns fewer
+    samples; xval marks such a run ``unstable`` and keeps the samples recorded.
     """
 
     def __init__(self, scene: Scene, schedule: Schedule, *, forces: bool = False) -> None:
@@ -143,14 +150,18 @@ class Recorder:
         """True when ``step`` is a sample step."""
         return step in self._index
 
-    def record(self, step: int, q: np.ndarray, v: np.ndarray, f: np.ndarray | None = None) -> None:
-        """Store the state after ``step`` steps (a sample step; others are ignored)."""
+    def record(self, step: int, q: np.ndarray, v: np.ndarray,
+               f: np.ndarray | Mapping[int, np.ndarray] | None = None) -> None:
+        """Store the state after ``step`` steps (a sample step; others are ignored).
+
+        f : (C, 3) N, or {constraint index: (3,) N}; None or missing = not reported (NaN).
+        """
         k = self._index.get(step)
         if k is None:
             return
         self.positions[k], self.velocities[k] = q, v
-        if self.forces is not None:
-            self.forces[k] = 0.0 if f is None else f
+        if self.forces is not None and f is not None:
+            self.forces[k] = force_array(self.forces.shape[1], f) if isinstance(f, Mapping) else f
         self._recorded = max(self._recorded, k + 1)
         self._last_step = max(self._last_step, step)
 

@@ -22,8 +22,17 @@ Two formulations (variant families), as a PyBullet user would build them:
   ``useMaximalCoordinates`` rigid bodies because only multibody constraints
   report their force through ``getConstraintState`` (a rigid-body one
   raised "Couldn't getConstraintState"). A body that carried two arms would lock
-  the angle between them, so a scene whose constraints form a loop is
-  refused.
+  the angle between them, so a constraint that closes a loop (a four-bar's
+  coupler) gets a light arm body of its own (``ARM_MASS_RATIO``) between two
+  point-to-point constraints, one at each end. ``multibody`` refuses loops:
+  a multibody is a tree of joints.
+
+A ``Line`` (a slider's rail) is a prismatic joint in ``multibody`` (a
+prismatic link carrying the pendulum's revolute link) and a
+``JOINT_PRISMATIC`` constraint to a fixed anchor body in ``p2p``; that
+constraint's force is read from its first two rows, the impulses along the
+two axes Bullet builds perpendicular to the line (:func:`_slider_axes`). An
+``Ellipse`` is refused: no PyBullet joint or constraint holds a body on one.
 
 Point masses: PyBullet needs bodies with inertia, so each particle gets a body of
 its mass with an isotropic central inertia ``inertia_ratio · m · L²``
@@ -87,7 +96,7 @@ import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
 
@@ -168,6 +177,13 @@ SOLVERS = {
 #: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
 KEEPABLE = ("damping", "motors", "sleeping")
 
+#: A loop-closing arm body's mass, as a fraction of the mean particle mass (its central inertia is
+#: that mass · L²). On the four-bar (p2p-dantzig, dt = 1e-3 s, particle inertia_ratio 1e-6) any value
+#: from 1e-3 to 1e-9 gave errors of 5.6e-4 to 7.1e-4 m; 1e-6 keeps the mass it adds negligible.
+#: (The particles' own inertia_ratio matters more: 1e-4 leaves a floor of ~3e-3 m there, and
+#: 1e-9 broke the solve, 0.75 m.)
+ARM_MASS_RATIO = 1e-6
+
 #: A coordinate this many characteristic lengths from the origin has run away.
 RUNAWAY_LENGTHS = 1e6
 
@@ -181,8 +197,10 @@ class Link:
 
     particle : index in the scene; constraint : index in scene.constraints.
     parent : the parent particle's index, or None when the parent is the Pin's anchor.
-    joint : (3,) m, where the joint sits at the initial state (anchor or parent particle).
+    joint : (3,) m, where the joint sits at the initial state (anchor or parent particle; a particle
+        on a Line is its own joint).
     first_is_self : whether the constraint's first particle (Pin.particle, Rod.a) is ``particle``.
+    slide : (3,) the unit direction of a Line the particle slides on (a prismatic joint), or None.
     """
 
     particle: int
@@ -190,6 +208,7 @@ class Link:
     parent: int | None
     joint: np.ndarray
     first_is_self: bool
+    slide: np.ndarray | None = None
 
 
 #: Links PyBullet 3.2.7 builds into one multibody correctly. Measured on a chain
@@ -212,27 +231,56 @@ def _tree_sizes(links: list[Link]) -> dict[int, int]:
 
 
 def forest(scene: Scene) -> list[Link]:
-    """The links of the scene, parents before children, grown breadth-first from each Pin.
+    """The links of the scene, parents before children, grown breadth-first from each Pin or Line.
 
     Raises Unsupported when the constraints form a loop (two paths to one
-    particle) or a particle is not tied to any Pin: neither formulation
-    built here can express those.
+    particle) or a particle is not tied to any Pin: a multibody (a tree of
+    joints) cannot express those; ``p2p`` reads the loops with :func:`grow`.
+    """
+    links, closures = grow(scene)
+    if closures:
+        raise Unsupported(closures[0][1])
+    return links
+
+
+def grow(scene: Scene) -> tuple[list[Link], list[tuple[int, str]]]:
+    """(links of a spanning forest, loop closures): each closure is (constraint index, why a tree lacks it).
+
+    Raises Unsupported for an Ellipse, for a Line that would close a loop, and
+    for particles not tied to any Pin or Line.
     """
     n = len(scene.particles)
     q = scene.initial_positions
     links: dict[int, Link] = {}
     order: list[int] = []
+    closures: list[tuple[int, str]] = []
     for k, c in enumerate(scene.constraints):
-        if isinstance(c, Pin):
+        if isinstance(c, Ellipse):
+            raise Unsupported(
+                "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute joints move "
+                f"a point on a circle, prismatic ones on a line); constraints[{k}] is an 'ellipse'"
+            )
+        if isinstance(c, (Pin, Line)):
             if c.particle in links:
-                raise Unsupported(
-                    f"pybullet: particle {c.particle} has two Pins (constraints {links[c.particle].constraint} "
-                    f"and {k}); a closed loop cannot be built as a tree of joints"
-                )
-            links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
+                if isinstance(c, Line):
+                    raise Unsupported(
+                        f"pybullet: constraints[{k}] holds particle {c.particle} on a line as well as "
+                        f"constraints[{links[c.particle].constraint}]: a loop through a rail, which this adapter "
+                        "cannot close"
+                    )
+                closures.append((k, (
+                    f"pybullet: particle {c.particle} is fixed twice (constraints {links[c.particle].constraint} "
+                    f"and {k}): a closed loop, which a multibody (a tree of joints) cannot express; "
+                    "pybullet/p2p closes it with a light arm body"
+                )))
+                continue
+            if isinstance(c, Pin):
+                links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
+            else:
+                links[c.particle] = Link(c.particle, k, None, q[c.particle].copy(), True, c.unit)
             order.append(c.particle)
     head = 0
-    used = {link.constraint for link in links.values()}
+    used = {link.constraint for link in links.values()} | {k for k, _ in closures}
     while head < len(order):
         parent = order[head]
         head += 1
@@ -240,13 +288,14 @@ def forest(scene: Scene) -> list[Link]:
             if k in used or not isinstance(c, Rod) or parent not in (c.a, c.b):
                 continue
             child = c.b if c.a == parent else c.a
-            if child in links:
-                raise Unsupported(
-                    f"pybullet: constraint {k} closes a loop through particle {child}; "
-                    "only trees of constraints hung from Pins can be built"
-                )
-            links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
             used.add(k)
+            if child in links:
+                closures.append((k, (
+                    f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
+                    "of joints and cannot express it; pybullet/p2p closes it with a light arm body"
+                )))
+                continue
+            links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
             order.append(child)
     loose = [i for i in range(n) if i not in links]
     if loose:
@@ -254,12 +303,28 @@ def forest(scene: Scene) -> list[Link]:
             f"pybullet: particles {loose} are not tied to any Pin; this adapter builds only scenes "
             "hung from fixed anchors (no floating bodies)"
         )
-    return [links[i] for i in order]
+    return [links[i] for i in order], closures
 
 
 def _kept(settings: Mapping[str, Any]) -> list[str]:
     """The PyBullet defaults the ``keep_defaults`` option leaves in place."""
     return [name.strip() for name in str(settings["keep_defaults"]).split(",") if name.strip()]
+
+
+def _slider_axes(unit: np.ndarray) -> np.ndarray:
+    """(2, 3): the directions of a multibody slider constraint's two linear rows (world frame, body at rest).
+
+    As ``btMultiBodySliderConstraint::createConstraintRows``: the first frame axis eᵢ with
+    eᵢ × u ≠ 0 gives a₀ = unit(eᵢ × u), then a₁ = unit(u × a₀); each row's impulse acts on
+    the slider (body A) along its axis.
+    """
+    for e in np.eye(3):
+        a0 = np.cross(e, unit)
+        if np.linalg.norm(a0) > 1e-6:
+            a0 = a0 / np.linalg.norm(a0)
+            a1 = np.cross(unit, a0)
+            return np.array([a0, a1 / np.linalg.norm(a1)])
+    raise ValueError("a slider axis must be nonzero")  # pragma: no cover - Line refuses a zero direction
 
 
 def _angular_velocity(r: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -366,7 +431,7 @@ class PyBulletEngine(Engine):
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
-        links = forest(scene)
+        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)
             if largest > MAX_MULTIBODY_LINKS:
@@ -393,7 +458,10 @@ class _Run:
         self.scene = scene
         self.schedule = schedule
         self.settings = settings
-        self.links = forest(scene)
+        self.links, closures = grow(scene)
+        if closures and settings["formulation"] == "multibody":
+            raise Unsupported(closures[0][1])
+        self.closures = [k for k, _ in closures]
         self.inertia = float(settings["inertia_ratio"]) * scene.characteristic_length**2
         self.n_particles = len(scene.particles)
         self.n_constraints = len(scene.constraints)
@@ -466,8 +534,8 @@ class _Run:
                 linkInertialFramePositions=[list(q[l.particle] - l.joint) for l in members],
                 linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * count,
                 linkParentIndices=parents,
-                linkJointTypes=[joint_type] * count,
-                linkJointAxis=[[0.0, 1.0, 0.0]] * count,
+                linkJointTypes=[joint_type if l.slide is None else pb.JOINT_PRISMATIC for l in members],
+                linkJointAxis=[[0.0, 1.0, 0.0] if l.slide is None else list(map(float, l.slide)) for l in members],
                 physicsClientId=c,
             )
             pb.changeDynamics(body, -1, **self.damping, **self.activation, physicsClientId=c)
@@ -478,6 +546,14 @@ class _Run:
                     body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
                     jointDamping=0.0, **self.damping, physicsClientId=c,
                 )
+                if link.slide is not None:  # a prismatic joint: the speed along the line; no turning
+                    omega[i] = np.zeros(3)
+                    if not self.keep_motors:
+                        pb.setJointMotorControl2(
+                            body, j, pb.VELOCITY_CONTROL, targetVelocity=0.0, force=0.0, physicsClientId=c
+                        )
+                    pb.resetJointState(body, j, 0.0, targetVelocity=float(v[i] @ link.slide), physicsClientId=c)
+                    continue
                 v_parent = np.zeros(3) if link.parent is None else v[link.parent]
                 omega[i] = _angular_velocity(q[i] - link.joint, v[i] - v_parent)
                 relative = omega[i] - (np.zeros(3) if link.parent is None else omega[link.parent])
@@ -524,6 +600,8 @@ class _Run:
         # getConstraintState gives the impulse/dt on the constraint's child side (world frame): the
         # force on the particle carrying the arm is its negative (checked on a hanging bead: +m·g·z).
         self.force_sign = np.zeros(self.n_constraints)
+        #: A rail's (JOINT_PRISMATIC) first two rows are impulses along two axes ⊥ the line, on the slider.
+        self.slider_axes: dict[int, np.ndarray] = {}
         anchors: dict[tuple[float, ...], int] = {}
         for link in self.links:
             i = link.particle
@@ -540,6 +618,16 @@ class _Run:
             else:
                 other = self.bodies[link.parent]
                 v_parent = v[link.parent]
+            if link.slide is not None:  # a rail: a prismatic constraint to the anchor body, along the line
+                omega[i] = np.zeros(3)
+                cid = pb.createConstraint(
+                    self.bodies[i], -1, other, -1, pb.JOINT_PRISMATIC, list(map(float, link.slide)),
+                    parentFramePosition=[0.0, 0.0, 0.0], childFramePosition=[0.0, 0.0, 0.0], physicsClientId=c,
+                )
+                self.constraint_ids[link.constraint] = cid
+                self.force_sign[link.constraint] = 1.0
+                self.slider_axes[link.constraint] = _slider_axes(link.slide)
+                continue
             omega[i] = _angular_velocity(-arm, v[i] - v_parent)
             cid = pb.createConstraint(
                 self.bodies[i], -1, other, -1, pb.JOINT_POINT2POINT, [0.0, 0.0, 0.0],
@@ -549,6 +637,50 @@ class _Run:
             self.force_sign[link.constraint] = -1.0 if link.first_is_self else 1.0
         for i, body in enumerate(self.bodies):
             pb.resetBaseVelocity(body, list(map(float, v[i])), list(map(float, omega[i])), physicsClientId=c)
+        for k in self.closures:
+            self._closure_arm(k, anchors)
+
+    def _closure_arm(self, k: int, anchors: dict[tuple[float, ...], int]) -> None:
+        """Close loop constraint k with a light rigid arm body between two ball joints.
+
+        The arm's origin (and its mass, ``ARM_MASS_RATIO`` · the mean particle mass, with a
+        central inertia of that mass times L²) sits at the constraint's far end: particle b of a
+        Rod, or a Pin's anchor; a point-to-point constraint there, and one at the arm's other
+        end to the first particle. That second one's force is the constraint's force on its first
+        particle (getConstraintState gives it on the child side, the particle).
+        """
+        pb, c = _pb, self.client
+        q, v = self.scene.initial_positions, self.scene.initial_velocities
+        con = self.scene.constraints[k]
+        mass = ARM_MASS_RATIO * float(self.scene.masses.mean())
+        if isinstance(con, Pin):
+            first, origin, origin_velocity = con.particle, np.asarray(con.anchor, float), np.zeros(3)
+            key = tuple(origin)
+            if key not in anchors:
+                anchors[key] = pb.createMultiBody(
+                    baseMass=0.0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                    basePosition=list(origin), physicsClientId=c,
+                )
+            far_body = anchors[key]
+        else:
+            first, origin, origin_velocity = con.a, q[con.b], v[con.b]
+            far_body = self.bodies[con.b]
+        arm = pb.createMultiBody(baseMass=mass, baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                                 basePosition=list(origin), physicsClientId=c)
+        length = self.scene.characteristic_length
+        pb.changeDynamics(arm, -1, mass=mass, localInertiaDiagonal=[mass * length**2] * 3,
+                          **self.damping, **self.activation, physicsClientId=c)
+        r = q[first] - origin
+        pb.resetBaseVelocity(arm, list(map(float, origin_velocity)),
+                             list(map(float, _angular_velocity(r, v[first] - origin_velocity))), physicsClientId=c)
+        pb.createConstraint(arm, -1, far_body, -1, pb.JOINT_POINT2POINT, [0.0, 0.0, 0.0],
+                            parentFramePosition=[0.0, 0.0, 0.0], childFramePosition=[0.0, 0.0, 0.0],
+                            physicsClientId=c)
+        self.constraint_ids[k] = pb.createConstraint(
+            arm, -1, self.bodies[first], -1, pb.JOINT_POINT2POINT, [0.0, 0.0, 0.0],
+            parentFramePosition=list(map(float, r)), childFramePosition=[0.0, 0.0, 0.0], physicsClientId=c,
+        )
+        self.force_sign[k] = 1.0
 
     # -- reading --
 
@@ -576,7 +708,11 @@ class _Run:
         pb, c = _pb, self.client
         f = np.empty((self.n_constraints, 3))
         for k, cid in enumerate(self.constraint_ids):
-            f[k] = self.force_sign[k] * np.asarray(pb.getConstraintState(cid, physicsClientId=c)[:3])
+            rows = np.asarray(pb.getConstraintState(cid, physicsClientId=c))
+            if k in self.slider_axes:
+                f[k] = rows[:2] @ self.slider_axes[k]
+            else:
+                f[k] = self.force_sign[k] * rows[:3]
         return f
 
     # -- stepping --

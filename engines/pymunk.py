@@ -6,8 +6,15 @@ position is the particle's position (no rotational inertia needs to be made
 up or stated). A ``Pin`` is a ``PinJoint`` from the space's static body
 (anchor at the scene's anchor point) to the particle; a ``Rod`` is a
 ``PinJoint`` between the two particles. Anchors sit on the centres of mass,
-so a ``PinJoint`` is a true distance constraint. No shapes are created:
-nothing can collide.
+so a ``PinJoint`` is a true distance constraint. A ``Line`` (a slider's rail)
+is a ``GrooveJoint`` from the static body to the particle: pymunk's groove is
+a segment, so it is laid along the line from −GROOVE_LENGTHS·L to
++GROOVE_LENGTHS·L about the line's point (the scene's L), far beyond any
+excursion of the scenes, where its end stops never engage. Closed loops (a
+four-bar's two pins and coupler) need nothing special: pymunk's joints are
+independent constraints solved together. An ``Ellipse`` is refused: pymunk
+has no joint that holds a body on a curve other than a circle or a straight
+segment. No shapes are created: nothing can collide.
 
 Frame: pymunk is 2-D. The scene's (x, z) is pymunk's (x, y); the scene's y
 is 0 on the way out. The conversion happens here and nowhere else.
@@ -38,9 +45,9 @@ import numpy as np
 import pymunk
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import UserError
+from engines.errors import Unsupported, UserError
 from engines.plugin import refuse_constraint_kinds
-from engines.scene import Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
 _PROBE_SPACE = pymunk.Space()
@@ -51,6 +58,8 @@ del _PROBE_SPACE
 
 #: A state coordinate this many characteristic lengths from the origin has run away.
 RUNAWAY_LENGTHS = 1e6
+#: A Line's GrooveJoint runs this many characteristic lengths either side of the line's point.
+GROOVE_LENGTHS = 1e3
 
 
 class PymunkEngine(Engine):
@@ -94,13 +103,20 @@ class PymunkEngine(Engine):
         "PinJoint.distance": "the scene's length (pymunk measures it from the anchors when the joint is created)",
         "Space.gravity": "the scene's (g_x, g_z) (pymunk's default is (0, 0))",
         "shapes": "none (nothing collides; pymunk would need shapes for contact)",
+        "GrooveJoint": f"a Line is a groove ±{GROOVE_LENGTHS:g}·L about its point (pymunk's grooves are segments)",
     }
 
     def version(self) -> str:
         return f"{pymunk.version} (Munk2D {pymunk.chipmunk_version.split('-')[0]})"
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        refuse_constraint_kinds(scene, (Pin, Rod), "pymunk")
+        for k, c in enumerate(scene.constraints):
+            if isinstance(c, Ellipse):
+                raise Unsupported(
+                    f"pymunk has no joint that holds a body on an ellipse (only circles, via PinJoint, and "
+                    f"straight segments, via GrooveJoint); constraints[{k}] is an 'ellipse'"
+                )
+        refuse_constraint_kinds(scene, (Pin, Rod, Line), "pymunk")
         _check_settings(settings)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
@@ -206,8 +222,20 @@ class _Model:
         self.ends: list[tuple[int | None, int]] = []
         #: +1 when the constraint's first particle is the joint's body b (Pin), −1 when it is body a (Rod).
         self.first_sign = np.empty(len(scene.constraints))
+        #: A groove's constraint direction is its fixed normal (None for pins: their axis turns).
+        self.normals: list[np.ndarray | None] = []
+        reach = GROOVE_LENGTHS * scene.characteristic_length
         for k, c in enumerate(scene.constraints):
-            if isinstance(c, Pin):
+            self.normals.append(None)
+            if isinstance(c, Line):
+                u = np.array([c.unit[0], c.unit[2]])
+                point = np.array([c.point[0], c.point[2]])
+                joint = pymunk.GrooveJoint(space.static_body, self.bodies[c.particle], tuple(point - reach * u),
+                                           tuple(point + reach * u), (0, 0))
+                self.ends.append((None, c.particle))
+                self.first_sign[k] = 1.0
+                self.normals[k] = np.array([-u[1], u[0]])
+            elif isinstance(c, Pin):
                 joint = pymunk.PinJoint(space.static_body, self.bodies[c.particle], (c.anchor[0], c.anchor[2]), (0, 0))
                 self.ends.append((None, c.particle))
                 self.first_sign[k] = 1.0
@@ -216,7 +244,8 @@ class _Model:
                 self.ends.append((c.a, c.b))
                 self.first_sign[k] = -1.0
             # Created from positions, the distance carries their rounding: set it.
-            joint.distance = c.length
+            if not isinstance(c, Line):
+                joint.distance = c.length
             joint.error_bias = float(settings["error_bias"])
             if settings["max_bias"] is not None:
                 joint.max_bias = float(settings["max_bias"])
@@ -241,6 +270,9 @@ class _Model:
         """(n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b."""
         out = np.empty((len(self.joints), 2))
         for k, (a, b) in enumerate(self.ends):
+            if self.normals[k] is not None:
+                out[k] = self.normals[k]
+                continue
             start = self.anchors[k] if a is None else p2[a]
             delta = p2[b] - start
             out[k] = delta / (np.linalg.norm(delta) or math.inf)

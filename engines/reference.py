@@ -38,6 +38,7 @@ from scipy.integrate import solve_ivp
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
+from engines.reference_mechanisms import Mechanism, mechanism_model
 from engines.scene import Pin, Rod, Scene
 
 DEFAULT_RTOL = 1e-12
@@ -294,8 +295,15 @@ def spherical_pin(scene: Scene) -> SphericalPin:
 # -- solving -------------------------------------------------------------------
 
 
-def model_for(scene: Scene) -> PlanarChain | SphericalPin:
-    """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it."""
+def model_for(scene: Scene) -> PlanarChain | SphericalPin | Mechanism:
+    """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it.
+
+    Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
+    :mod:`engines.reference_mechanisms`; everything else is a chain or a spherical pin.
+    """
+    mechanism = mechanism_model(scene)
+    if mechanism is not None:
+        return mechanism
     return planar_chain(scene) if scene.is_planar else spherical_pin(scene)
 
 
@@ -307,7 +315,7 @@ class ReferenceSolution:
     """
 
     scene: Scene
-    model: PlanarChain | SphericalPin
+    model: PlanarChain | SphericalPin | Mechanism
     ode: Any  # scipy.integrate.OdeSolution
     rtol: float
     atol: float

@@ -8,7 +8,10 @@ Three kinds of engine, all loaded lazily so one that cannot load is
   ``xval.engines`` (``my-solver = "my_solver.adapter:ENGINE"``), named by the
   entry point's name;
 - **by path**: ``package.module:ATTRIBUTE[/variant]`` in a suite or on the
-  command line, for a solver that is not a package yet (and test engines).
+  command line, for a solver that is not a package yet (and test engines);
+- **command**: ``command/<label>``, an outside program speaking the process
+  protocol (:mod:`engines.command`), registered in this process by
+  :func:`engines.command.command_engine` (a suite's ``[[engines]] command``).
 
 A plugin (entry point or path) may point at an Engine instance or an Engine
 subclass (instantiated with no arguments); its ``api_version`` is checked
@@ -96,11 +99,6 @@ def _origin(point: importlib.metadata.EntryPoint) -> str:
 def engine_names() -> list[str]:
     """Built-in names, then installed plugins' names (sorted)."""
     return list(BUILTIN) + sorted(set(entry_points()) - set(BUILTIN))
-
-
-def plugin_names() -> list[str]:
-    """Names of installed plugins (entry points), including any shadowed by a built-in."""
-    return sorted(entry_points())
 
 
 # -- loading ---------------------------------------------------------------------
@@ -235,6 +233,13 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
         target, _, variant = engine_id.partition("/")
         return load_path(target), (variant or None)
     name, variant = parse_engine_id(engine_id)
+    if name == "command" and name not in BUILTIN:  # an outside program (engines.command), registered by label
+        from engines.command import registered
+
+        if not variant:
+            raise UserError("engine 'command' needs a label: command/<label>, declared in the suite as "
+                            "[[engines]] command = [...], label = \"...\"")
+        return registered(variant), variant
     return get_engine(name), variant
 
 

@@ -39,6 +39,19 @@ def _vector(value: Any, field_name: str) -> Vector:
     return components  # type: ignore[return-value]
 
 
+def _nonzero_vector(value: Any, field_name: str) -> Vector:
+    vector = _vector(value, field_name)
+    if math.hypot(*vector) == 0.0:
+        raise SceneError(f"{field_name}: must be a nonzero vector (it gives a direction), got {vector}")
+    return vector
+
+
+def _index(value: Any, field_name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise SceneError(f"{field_name}: must be a particle index (an integer), got {value!r}")
+    return int(value)
+
+
 def _positive(value: Any, field_name: str) -> float:
     try:
         number = float(value)
@@ -88,6 +101,11 @@ class Pin:
     def particles(self) -> tuple[int, ...]:
         return (self.particle,)
 
+    @property
+    def characteristic_length(self) -> float:
+        """m: the length (it counts towards the scene's L)."""
+        return self.length
+
 
 @dataclass(frozen=True)
 class Rod:
@@ -112,9 +130,148 @@ class Rod:
     def particles(self) -> tuple[int, ...]:
         return (self.a, self.b)
 
+    @property
+    def characteristic_length(self) -> float:
+        """m: the length (it counts towards the scene's L)."""
+        return self.length
 
-Constraint = Pin | Rod
-CONSTRAINT_KINDS: dict[str, type] = {"pin": Pin, "rod": Rod}
+
+@dataclass(frozen=True)
+class Line:
+    """Particle ``particle`` held on the straight line through ``point`` (m) along ``direction``.
+
+    ``direction`` is any nonzero vector (only its direction matters; it is
+    kept as given so a scene round-trips exactly). The constraint force is
+    the force on ``particle``; it is perpendicular to the line. A slider on a
+    frictionless rail is a Line. It has no length: it adds nothing to the
+    scene's characteristic length L.
+    """
+
+    particle: int
+    point: Vector
+    direction: Vector
+
+    kind = "line"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "line.particle"))
+        object.__setattr__(self, "point", _vector(self.point, "line.point"))
+        object.__setattr__(self, "direction", _nonzero_vector(self.direction, "line.direction"))
+
+    @property
+    def particles(self) -> tuple[int, ...]:
+        return (self.particle,)
+
+    @property
+    def unit(self) -> np.ndarray:
+        """(3,) the unit vector along the line."""
+        d = np.asarray(self.direction, dtype=float)
+        return d / np.linalg.norm(d)
+
+    @property
+    def characteristic_length(self) -> float:
+        return 0.0
+
+    def offsets(self, positions: np.ndarray) -> np.ndarray:
+        """(..., 3) m: each position minus its foot on the line (the perpendicular offset)."""
+        r = np.asarray(positions, dtype=float) - np.asarray(self.point)
+        u = self.unit
+        return r - (r @ u)[..., None] * u
+
+    def distances(self, positions: np.ndarray) -> np.ndarray:
+        """(...,) m: distance of each position (..., 3) from the line."""
+        return np.linalg.norm(self.offsets(positions), axis=-1)
+
+
+@dataclass(frozen=True)
+class Ellipse:
+    """Particle ``particle`` held on an elliptic wire in the x–z plane through ``centre`` (m).
+
+    semi_x, semi_z : m, the semi-axes along x and along z. The wire is the
+    curve ((x − cₓ)/semi_x)² + ((z − c_z)/semi_z)² = 1 at y = c_y: in a 3-D
+    scene the particle is also held in that plane. With semi_x = semi_z = r
+    it is a circular wire of radius r (the same system as a Pin of length r).
+    The constraint force is the force on ``particle``, normal to the wire.
+    Its characteristic length is the larger semi-axis.
+    """
+
+    particle: int
+    centre: Vector
+    semi_x: float
+    semi_z: float
+
+    kind = "ellipse"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "ellipse.particle"))
+        object.__setattr__(self, "centre", _vector(self.centre, "ellipse.centre"))
+        object.__setattr__(self, "semi_x", _positive(self.semi_x, "ellipse.semi_x"))
+        object.__setattr__(self, "semi_z", _positive(self.semi_z, "ellipse.semi_z"))
+
+    @property
+    def particles(self) -> tuple[int, ...]:
+        return (self.particle,)
+
+    @property
+    def characteristic_length(self) -> float:
+        return max(self.semi_x, self.semi_z)
+
+    def distances(self, positions: np.ndarray) -> np.ndarray:
+        """(...,) m: Euclidean distance of each position (..., 3) from the wire (exact, not |C|/‖∇C‖)."""
+        r = np.asarray(positions, dtype=float) - np.asarray(self.centre)
+        in_plane = ellipse_distance(r[..., 0], r[..., 2], self.semi_x, self.semi_z)
+        return np.hypot(in_plane, r[..., 1])
+
+    def normals(self, positions: np.ndarray) -> np.ndarray:
+        """(..., 3) the unit normal of the level set through each position (in the x–z plane)."""
+        r = np.asarray(positions, dtype=float) - np.asarray(self.centre)
+        n = np.zeros(r.shape)
+        n[..., 0] = r[..., 0] / self.semi_x**2
+        n[..., 2] = r[..., 2] / self.semi_z**2
+        return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def ellipse_distance(x: Any, z: Any, semi_x: float, semi_z: float) -> np.ndarray:
+    """Distance (m) from points (x, z) (m, any matching shapes) to the ellipse (x/semi_x)² + (z/semi_z)² = 1.
+
+    Exact to round-off, by Eberly's method ("Distance from a point to an
+    ellipse", 2013): the closest point solves a monotone scalar equation in
+    one unknown, bracketed and bisected (vectorized; 200 halvings reach the
+    bracket's round-off). A circle (semi_x = semi_z) is |‖(x, z)‖ − r|.
+    """
+    x, z = np.broadcast_arrays(np.abs(np.asarray(x, dtype=float)), np.abs(np.asarray(z, dtype=float)))
+    if semi_x == semi_z:
+        return np.abs(np.hypot(x, z) - semi_x)
+    # Put the major axis first: e0 > e1, point (y0, y1) in the first quadrant.
+    (e0, y0), (e1, y1) = ((semi_x, x), (semi_z, z)) if semi_x > semi_z else ((semi_z, z), (semi_x, x))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z0, z1 = y0 / e0, y1 / e1
+        g = z0 * z0 + z1 * z1 - 1.0
+        r0 = (e0 / e1) ** 2
+        n0 = r0 * z0
+        lo = z1 - 1.0
+        hi = np.where(g < 0.0, 0.0, np.hypot(n0, z1) - 1.0)
+        for _ in range(200):
+            s = 0.5 * (lo + hi)
+            ratio0, ratio1 = n0 / (s + r0), z1 / (s + 1.0)
+            f = ratio0 * ratio0 + ratio1 * ratio1 - 1.0
+            lo = np.where(f > 0.0, s, lo)
+            hi = np.where(f > 0.0, hi, s)
+        s = 0.5 * (lo + hi)
+        general = np.hypot(r0 * y0 / (s + r0) - y0, y1 / (s + 1.0) - y1)
+        # On the minor axis (y0 = 0) the closest point is the co-vertex.
+        minor = np.abs(y1 - e1)
+        # On the major axis (y1 = 0): inside the evolute's cusp the closest point is off-axis.
+        numer, denom = e0 * y0, e0 * e0 - e1 * e1
+        x0 = e0 * numer / denom
+        inside = numer < denom
+        off_axis = np.hypot(x0 - y0, e1 * np.sqrt(np.clip(1.0 - (x0 / e0) ** 2, 0.0, None)))
+        major = np.where(inside, off_axis, np.abs(y0 - e0))
+    return np.where(y1 > 0.0, np.where(y0 > 0.0, general, minor), major)
+
+
+Constraint = Pin | Rod | Line | Ellipse
+CONSTRAINT_KINDS: dict[str, type] = {"pin": Pin, "rod": Rod, "line": Line, "ellipse": Ellipse}
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,7 +280,7 @@ class Scene:
 
     name : catalog name the scene was built from (or any label).
     particles : the point masses.
-    constraints : Pin and Rod records; indices refer to ``particles``.
+    constraints : Pin, Rod, Line and Ellipse records; indices refer to ``particles``.
     gravity : (3,) m/s², along −z in the scene frame.
     duration : s, how long to simulate.
     parameters : the catalog parameters the scene was built from (for display
@@ -181,13 +338,16 @@ class Scene:
         """True when every position, velocity, anchor and gravity has y = 0 (motion stays in x–z)."""
         ys = [p.position[1] for p in self.particles] + [p.velocity[1] for p in self.particles]
         ys += [c.anchor[1] for c in self.constraints if isinstance(c, Pin)]
+        ys += [y for c in self.constraints if isinstance(c, Line) for y in (c.point[1], c.direction[1])]
+        ys += [c.centre[1] for c in self.constraints if isinstance(c, Ellipse)]
         ys.append(self.gravity[1])
         return all(y == 0.0 for y in ys)
 
     @property
     def characteristic_length(self) -> float:
-        """L (m): the sum of constraint lengths (wire radius for a bead)."""
-        return float(sum(c.length for c in self.constraints)) or 1.0
+        """L (m): the sum of constraint lengths (wire radius for a bead; a Line adds nothing,
+        an Ellipse its larger semi-axis)."""
+        return float(sum(c.characteristic_length for c in self.constraints)) or 1.0
 
     @property
     def characteristic_energy(self) -> float:
@@ -202,6 +362,9 @@ class Scene:
         v = self.initial_velocities
         speed_scale = max(float(np.abs(v).max()), 1.0)
         for k, c in enumerate(self.constraints):
+            if isinstance(c, (Line, Ellipse)):
+                self._check_on_curve(k, c, q[c.particle], v[c.particle], speed_scale)
+                continue
             if isinstance(c, Pin):
                 d = q[c.particle] - np.array(c.anchor)
                 dv = v[c.particle]
@@ -219,6 +382,26 @@ class Scene:
                     f"constraints[{k}] ({c.kind}): the initial velocity has a component along "
                     f"the constraint; give velocities tangent to it"
                 )
+
+    def _check_on_curve(self, k: int, c: "Line | Ellipse", q: np.ndarray, v: np.ndarray, speed_scale: float) -> None:
+        """The particle starts on the line / wire, moving along it."""
+        scale = max(c.characteristic_length, 1.0)
+        distance = float(c.distances(q))
+        if distance > POSITION_TOLERANCE * scale:
+            raise SceneError(
+                f"constraints[{k}] ({c.kind}): particle {c.particle} starts {distance:.3g} m off the {c.kind}; "
+                f"place it on the {c.kind}"
+            )
+        if isinstance(c, Line):
+            off = float(np.linalg.norm(v - (v @ c.unit) * c.unit))
+        else:
+            normal = c.normals(q)
+            off = abs(float(normal @ v)) + abs(v[1])
+        if off > VELOCITY_TOLERANCE * speed_scale:
+            raise SceneError(
+                f"constraints[{k}] ({c.kind}): the initial velocity of particle {c.particle} leaves the "
+                f"{c.kind}; give it a velocity along the {c.kind}"
+            )
 
     # -- serialization -----------------------------------------------------------
 
@@ -291,4 +474,9 @@ class Scene:
 def _constraint_to_dict(c: Constraint) -> dict[str, Any]:
     if isinstance(c, Pin):
         return {"kind": "pin", "particle": c.particle, "anchor": list(c.anchor), "length": c.length}
+    if isinstance(c, Line):
+        return {"kind": "line", "particle": c.particle, "point": list(c.point), "direction": list(c.direction)}
+    if isinstance(c, Ellipse):
+        return {"kind": "ellipse", "particle": c.particle, "centre": list(c.centre),
+                "semi_x": c.semi_x, "semi_z": c.semi_z}
     return {"kind": "rod", "a": c.a, "b": c.b, "length": c.length}

@@ -7,12 +7,12 @@ compute them the same way for every engine.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
-from engines.scene import Pin, Scene
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 STATUSES = ("ok", "unstable", "failed", "skipped", "timeout")
 
@@ -90,10 +90,6 @@ class Trajectory:
     def n_samples(self) -> int:
         return len(self.t)
 
-    def with_info(self, **changes: Any) -> "Trajectory":
-        return replace(self, info=replace(self.info, **changes))
-
-
 def kinetic_energy(scene: Scene, velocities: np.ndarray) -> np.ndarray:
     """(n_samples,) J from velocities (n_samples, n_particles, 3) m/s."""
     return 0.5 * np.einsum("p,spi,spi->s", scene.masses, velocities, velocities)
@@ -110,20 +106,32 @@ def total_energy(scene: Scene, positions: np.ndarray, velocities: np.ndarray) ->
 
 
 def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:
-    """(n_samples, n_constraints, 3) m: first particle minus the other end (anchor or particle b)."""
-    out = np.empty((positions.shape[0], len(scene.constraints), 3))
+    """(n_samples, n_constraints, 3) m: first particle minus the other end (anchor or particle b).
+
+    Distance kinds (Pin, Rod) only; a Line or Ellipse has no other end, so its rows are NaN.
+    """
+    out = np.full((positions.shape[0], len(scene.constraints), 3), np.nan)
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Pin):
             out[:, k] = positions[:, c.particle] - np.asarray(c.anchor)
-        else:
+        elif isinstance(c, Rod):
             out[:, k] = positions[:, c.a] - positions[:, c.b]
     return out
 
 
 def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
-    """(n_samples, n_constraints) m: |‖a − b‖ − l|, the distance form whatever a solver uses inside."""
-    lengths = np.array([c.length for c in scene.constraints])
-    return np.abs(np.linalg.norm(constraint_vectors(scene, positions), axis=2) - lengths)
+    """(n_samples, n_constraints) m: the distance form whatever a solver uses inside.
+
+    |‖a − b‖ − l| for a Pin or Rod; the particle's Euclidean distance from
+    the line (Line) or from the wire (Ellipse).
+    """
+    lengths = np.array([getattr(c, "length", 0.0) for c in scene.constraints])
+    with np.errstate(invalid="ignore"):
+        out = np.abs(np.linalg.norm(constraint_vectors(scene, positions), axis=2) - lengths)
+    for k, c in enumerate(scene.constraints):
+        if isinstance(c, (Line, Ellipse)):
+            out[:, k] = c.distances(positions[:, c.particle])
+    return out
 
 
 def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
@@ -133,10 +141,54 @@ def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return constraint_errors(scene, positions).max(axis=1)
 
 
+def linear_momentum(scene: Scene, velocities: np.ndarray) -> np.ndarray:
+    """(n_samples, 3) kg·m/s: Σ mᵢ vᵢ from velocities (n_samples, n_particles, 3) m/s."""
+    return np.einsum("p,spi->si", scene.masses, velocities)
+
+
+def free_direction(scene: Scene) -> np.ndarray | None:
+    """(3,) the unit direction along which no external force acts, so linear momentum along it is conserved.
+
+    That is the case when gravity is perpendicular to it and every constraint
+    is either internal (a Rod) or a Line along it (whose force is
+    perpendicular to the line). Pins and Ellipses pull in every direction of
+    the plane over a swing, so a scene with one has None; so has a scene
+    whose Lines disagree, or with no Line at all.
+    """
+    lines = [c for c in scene.constraints if isinstance(c, Line)]
+    if not lines or any(not isinstance(c, (Line, Rod)) for c in scene.constraints):
+        return None
+    u = lines[0].unit
+    if any(abs(abs(float(c.unit @ u)) - 1.0) > 1e-12 for c in lines[1:]):
+        return None
+    g = np.asarray(scene.gravity)
+    if abs(float(g @ u)) > 1e-12 * max(float(np.linalg.norm(g)), 1.0):
+        return None
+    return u
+
+
+def linear_momentum_drift(scene: Scene, velocities: np.ndarray) -> float | None:
+    """max_t |P(t)·u − P(0)·u| / (M √(g L)) along the scene's :func:`free_direction` u, or None without one.
+
+    Dimensionless: the momentum change relative to the total mass M moving at
+    the characteristic speed √(|g| L) (√L m/s when g = 0). Exactly zero for the
+    true motion of a slider-pendulum; a solver that leaks momentum along the
+    rail shows it here.
+    """
+    u = free_direction(scene)
+    if u is None or len(velocities) == 0:
+        return None
+    along = linear_momentum(scene, velocities) @ u
+    g = float(np.linalg.norm(scene.gravity)) or 1.0
+    scale = float(scene.masses.sum()) * np.sqrt(g * scene.characteristic_length)
+    return float(np.abs(along - along[0]).max() / scale)
+
+
 def tensions(scene: Scene, positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
     """(n_samples, n_constraints) N: the pull of each constraint (positive when it pulls the ends together).
 
     forces : (n_samples, n_constraints, 3), the force on each constraint's first particle.
+    Pins and Rods only (a Line or Ellipse gives NaN: see :func:`constraint_vectors`).
     """
     d = constraint_vectors(scene, positions)
     unit = d / np.linalg.norm(d, axis=2, keepdims=True)

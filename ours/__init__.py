@@ -1,8 +1,10 @@
 """ours: constrained dynamics of point masses (after Baraff & Witkin), a library of its own.
 
 Build a :class:`System` of masses, gravity and constraints (:class:`Pin`,
-:class:`Wire`, :class:`Rod`), then :func:`simulate` a whole trajectory in one
-call; the stepping loop is compiled with numba (cached between runs).
+:class:`Wire`, :class:`Rod`; in 2-D also :class:`Line` and :class:`Ellipse`), then
+:func:`simulate` a whole trajectory in one call; the stepping loop is compiled with numba
+(cached between runs) for distance constraints, and a system with a curve
+constraint runs the general dense λ formula (``ours.general``, numpy).
 
     >>> from ours import System, Wire, simulate
     >>> bead = System((1.0,), (0.0, -9.81), (Wire(0, (0.0, 0.0), 1.0),))
@@ -10,7 +12,7 @@ call; the stepping loop is compiled with numba (cached between runs).
 """
 
 from ours.bead import bead_multiplier
-from ours.constraint import DistanceConstraint, Pin, Rod, Wire
+from ours.constraint import CurveConstraint, DistanceConstraint, Ellipse, Line, Pin, Rod, Wire
 from ours.errors import InvalidPair, ModelError, OursError
 from ours.integrator import INTEGRATORS, Integrator, get_integrator
 from ours.method import DEFAULT_K_S, METHODS, critical_damping, resolve_pair, valid_pairs
@@ -20,7 +22,7 @@ from ours.system import System
 __version__ = "0.1.0"
 
 __all__ = [
-    "DEFAULT_K_S", "INTEGRATORS", "METHODS", "DistanceConstraint", "Integrator", "InvalidPair",
+    "DEFAULT_K_S", "INTEGRATORS", "METHODS", "CurveConstraint", "DistanceConstraint", "Ellipse", "Line", "Integrator", "InvalidPair",
     "ModelError", "OursError", "Pin", "Result", "Rod", "System", "Wire", "bead_multiplier",
     "compile_all", "critical_damping", "get_integrator", "multipliers", "resolve_pair",
     "simulate", "valid_pairs",

@@ -1,6 +1,10 @@
 """Constraint kinds: C(q), its Jacobian J = ∂C/∂q and J̇q̇, each in closed form.
 
-Every kind here is a *distance* constraint between a particle i and an
+Two families: distance constraints (Pin, Wire, Rod; below) and curve
+constraints (Line, Ellipse: one particle on an implicit curve of a 2-D
+system; at the end of the file).
+
+Every kind of the distance family is a *distance* constraint between a particle i and an
 "other end" (a second particle j, or a fixed point a):
 
     C = ½(‖d‖² − l²),   d = xᵢ − x_other   (m²)
@@ -166,3 +170,142 @@ class Rod(DistanceConstraint):
     @property
     def length(self) -> float:
         return self.distance
+
+
+# -- curve constraints: one particle on an implicit curve c(x) = 0 (planar) -------------------
+
+
+@dataclass(frozen=True)
+class CurveConstraint:
+    """Base of the curve family: particle i held on the implicit curve c(x) = 0 in a 2-D system.
+
+        C = c(xᵢ),   ∂C/∂xᵢ = ∇c(xᵢ),   J̇q̇ = vᵢᵀ H(xᵢ) vᵢ   (H the Hessian of c)
+
+    so a subclass gives c, ∇c and H in closed form. These are not distances,
+    so they do not go through the compiled distance loop (``ours.kernel``);
+    a system holding one is stepped by the general λ formula in
+    ``ours.general`` (dense J W Jᵀ). ``violation`` is |C| made relative
+    (≈ the distance off the curve over the curve's size) for the projection
+    and RATTLE stopping rule.
+    """
+
+    @property
+    def particle_index(self) -> int:
+        raise NotImplementedError
+
+    @property
+    def particles(self) -> tuple[int, ...]:
+        return (self.particle_index,)
+
+    def c(self, x: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def hessian(self, x: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def violation(self, q: np.ndarray) -> float:
+        raise NotImplementedError
+
+    # -- the same closed-form interface as the distance family ---------------------
+
+    def value(self, q: np.ndarray) -> float:
+        """C(q) = c(xᵢ)."""
+        return self.c(np.asarray(q[self.particle_index], dtype=float))
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """(n_particles, dim): ∇c(xᵢ) on particle i, zero elsewhere."""
+        row = np.zeros_like(q, dtype=float)
+        row[self.particle_index] = self.gradient(np.asarray(q[self.particle_index], dtype=float))
+        return row
+
+    def jdot_qdot(self, q: np.ndarray, v: np.ndarray) -> float:
+        """J̇q̇ = vᵢᵀ H(xᵢ) vᵢ."""
+        i = self.particle_index
+        vi = np.asarray(v[i], dtype=float)
+        return float(vi @ self.hessian(np.asarray(q[i], dtype=float)) @ vi)
+
+
+def _planar_point(value, field: str) -> tuple[float, float]:
+    point = _point(value, field)
+    if len(point) != 2:
+        raise ModelError(f"{field}: curve constraints are planar (2-D systems); give 2 numbers, got {value!r}")
+    return point  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Line(CurveConstraint):
+    """Particle ``particle`` held on the straight line through ``point`` (m) along ``direction`` (2-D):
+    C = n·(x − p) in m, n the unit normal (−d_y, d_x)/‖d‖; ∇C = n, H = 0 (so J̇q̇ = 0)."""
+
+    particle: int
+    point: tuple[float, ...]
+    direction: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "Line.particle"))
+        object.__setattr__(self, "point", _planar_point(self.point, "Line.point"))
+        direction = _planar_point(self.direction, "Line.direction")
+        if np.hypot(*direction) == 0.0:
+            raise ModelError(f"Line.direction: must be a nonzero vector, got {self.direction!r}")
+        object.__setattr__(self, "direction", direction)
+
+    @property
+    def particle_index(self) -> int:
+        return self.particle
+
+    @property
+    def normal(self) -> np.ndarray:
+        d = np.asarray(self.direction)
+        return np.array([-d[1], d[0]]) / np.hypot(*d)
+
+    def c(self, x):
+        return float(self.normal @ (x - np.asarray(self.point)))
+
+    def gradient(self, x):
+        return self.normal
+
+    def hessian(self, x):
+        return np.zeros((2, 2))
+
+    def violation(self, q):
+        """|C| in m (relative to 1 m: a line has no length of its own)."""
+        return abs(self.value(q))
+
+
+@dataclass(frozen=True)
+class Ellipse(CurveConstraint):
+    """Particle ``particle`` on the ellipse about ``centre`` (m) with semi-axes ``semi_axes`` = (a, b) (m)
+    along the system's two axes (2-D): C = ½((X/a)² + (Y/b)² − 1), (X, Y) = x − centre, dimensionless;
+    ∇C = (X/a², Y/b²) (1/m), H = diag(1/a², 1/b²). With a = b = r it is the Wire of radius r scaled by 1/r²."""
+
+    particle: int
+    centre: tuple[float, ...]
+    semi_axes: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "particle", _index(self.particle, "Ellipse.particle"))
+        object.__setattr__(self, "centre", _planar_point(self.centre, "Ellipse.centre"))
+        axes = _planar_point(self.semi_axes, "Ellipse.semi_axes")
+        object.__setattr__(self, "semi_axes", (_length(axes[0], "Ellipse.semi_axes[0]"),
+                                               _length(axes[1], "Ellipse.semi_axes[1]")))
+
+    @property
+    def particle_index(self) -> int:
+        return self.particle
+
+    def c(self, x):
+        X = (x - np.asarray(self.centre)) / np.asarray(self.semi_axes)
+        return 0.5 * (float(X @ X) - 1.0)
+
+    def gradient(self, x):
+        return (x - np.asarray(self.centre)) / np.asarray(self.semi_axes) ** 2
+
+    def hessian(self, x):
+        return np.diag(1.0 / np.asarray(self.semi_axes) ** 2)
+
+    def violation(self, q):
+        """|C| ≈ the relative radial error (dimensionless)."""
+        return abs(self.value(q))

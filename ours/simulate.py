@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ours import kernel, lagrangian
+from ours import general, kernel, lagrangian
 from ours.errors import ModelError, OursError
 from ours.method import (
     BAUMGARTE,
@@ -131,6 +131,14 @@ def simulate(
     tolerance = _positive(tolerance, "tolerance", "1e-12 is near round-off for lengths of order 1 m")
     max_iterations = _count(max_iterations, "max_iterations")
 
+    if system.packed is None:  # a curve constraint: the general λ formula (ours.general)
+        run = general.run(system, q, v, dt, n_steps, stride, chosen, scheme, ks, kd, tolerance, max_iterations)
+        settings = {"method": chosen.name, "integrator": scheme.name, "tolerance": tolerance,
+                    "max_iterations": max_iterations, "path": "general (dense J W Jᵀ, numpy)"}
+        if chosen.code == BAUMGARTE:
+            settings.update(k_s=ks, k_d=kd)
+        return Result(t=run.t, q=run.q, v=run.v, multipliers=run.multipliers, forces=run.forces, steps=run.steps,
+                      wall_time=run.wall_time, status=STATUS_TEXT[run.status], settings=settings)
     n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     out_q = np.full((n_samples, system.n_particles, system.dim), np.nan)
     out_v = np.full_like(out_q, np.nan)
@@ -196,6 +204,8 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     """(C,) λ (N/m) at one state from the compiled banded solve (same code as the stepping loop)."""
     q = _state(system, q, "q")
     v = _state(system, v, "v")
+    if system.packed is None:  # a curve constraint: the dense general formula
+        return system.dense_multipliers(q, v, k_s, k_d)
     p = system.packed
     C = system.n_constraints
     lam = np.zeros(C)

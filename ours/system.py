@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ours.constraint import DistanceConstraint, Pin, Rod, Wire
+from ours.constraint import CurveConstraint, DistanceConstraint, Pin, Rod, Wire
 from ours.errors import ModelError
 
 
@@ -45,7 +45,9 @@ class System:
     """Point masses under uniform gravity with distance constraints.
 
     masses : (P,) kg.  gravity : (dim,) m/s², dim 2 or 3.
-    constraints : Pin / Wire / Rod records (``ours.constraint``).
+    constraints : Pin / Wire / Rod records (``ours.constraint``), and in 2-D Line / Ellipse.
+    packed : the compiled loop's arrays, or None when a curve constraint (Line,
+        Ellipse) is present: such a system is stepped by ``ours.general``.
     The Jacobian's band (and so the cost of a solve) follows the order of
     ``constraints``: list a chain's constraints from its root to its tip.
     """
@@ -68,20 +70,30 @@ class System:
         object.__setattr__(self, "gravity", gravity)
         object.__setattr__(self, "constraints", tuple(self.constraints))
         for k, c in enumerate(self.constraints):
-            if not isinstance(c, DistanceConstraint):
-                raise ModelError(f"constraints[{k}]: expected Pin, Wire or Rod, got {type(c).__name__}")
+            if not isinstance(c, (DistanceConstraint, CurveConstraint)):
+                raise ModelError(
+                    f"constraints[{k}]: expected Pin, Wire, Rod, Line or Ellipse, got {type(c).__name__}"
+                )
             for p in c.particles:
                 if p >= len(masses):
                     raise ModelError(
                         f"constraints[{k}]: particle {p} is out of range (the system has 0..{len(masses) - 1})"
                     )
+            if isinstance(c, CurveConstraint):
+                if len(gravity) != 2:
+                    raise ModelError(
+                        f"constraints[{k}]: {type(c).__name__} is a planar (2-D) constraint; this system is "
+                        f"{len(gravity)}-D"
+                    )
+                continue
             _, j, anchor = c.ends()
             if j < 0 and len(anchor) != len(gravity):
                 raise ModelError(
                     f"constraints[{k}]: the fixed point has {len(anchor)} coordinates but the system is "
                     f"{len(gravity)}-D; give it {len(gravity)}"
                 )
-        object.__setattr__(self, "packed", _pack(self))
+        distance_only = all(isinstance(c, DistanceConstraint) for c in self.constraints)
+        object.__setattr__(self, "packed", _pack(self) if distance_only else None)
 
     @property
     def dim(self) -> int:

@@ -11,6 +11,13 @@ text) goes through :func:`plot_text`: plotly.js interprets a subset of HTML
 in those strings, so an engine label such as ``<b>x</b>`` would otherwise be
 rendered as markup. HTML-escaped text is decoded back to the literal
 characters by plotly.js, so the user sees exactly what the file says.
+
+Colours come from :class:`reports.palette.Palette` (a hue per engine
+family, the same in every report); legends list a family's variants
+together under the family's name. Time series are thinned to at most
+:data:`reports.decimate.MAX_POINTS` points a trace, and a value past
+``CLIP_FACTOR`` × its bound is drawn at that ceiling and marked "blew up at
+t = …", so no axis is stretched by a blow-up.
 """
 
 from __future__ import annotations
@@ -18,21 +25,20 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Sequence
 
-from compare.sweep import ORDER_METRIC, VariantSweep
+from compare.results.record import CaseRecord, Status
+from compare.results.sweep import ORDER_METRIC, VariantSweep
 
+from reports.decimate import MAX_POINTS, decimate
 from reports.load import SceneResults, is_reference
+from reports.palette import REFERENCE_COLOUR, Palette, family_of
 
-#: Distinct colours, one per engine variant in a scene (D3/Tableau category20 without its pale halves first).
-PALETTE = (
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-    "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd",
-    "#e6550d", "#31a354", "#756bb1", "#636363",
-)
-#: Line dashes cycled once the palette is used up, so two variants never look alike.
-DASHES = ("solid", "dot", "dash", "longdash", "dashdot")
-REFERENCE_STYLE = {"color": "rgba(0,0,0,0.45)", "width": 5}
+REFERENCE_STYLE = {"color": REFERENCE_COLOUR, "width": 5}
+#: A value past this many times its bound is clipped to it (and the blow-up marked).
+CLIP_FACTOR = 10.0
+#: Significant digits of the numbers in a figure spec (the stored series keep 6).
+DIGITS = 4
 
 
 @dataclass(frozen=True)
@@ -49,14 +55,35 @@ class Plot:
         return len(self.figure["data"])
 
 
+@dataclass(frozen=True)
+class Ceilings:
+    """Where each time-series quantity is clipped: position error m, energy drift E*, constraint error m, force N."""
+
+    position_error: float
+    energy_drift: float
+    constraint_error: float
+    force: float = math.inf
+
+    @classmethod
+    def for_scene(cls, length: float, energy_bound: float, constraint_bound: float, force: float = math.inf) -> "Ceilings":
+        """CLIP_FACTOR × (L, the energy bound, the constraint bound · L); ``force`` : N (CLIP_FACTOR × m g)."""
+        return cls(CLIP_FACTOR * length, CLIP_FACTOR * energy_bound, CLIP_FACTOR * constraint_bound * length, force)
+
+
 def plot_text(value: Any) -> str:
     """``value`` as text that plotly.js shows literally (its pseudo-HTML escaped)."""
     return html.escape(str(value), quote=False)
 
 
-def style(index: int) -> dict[str, Any]:
-    """Line colour and dash of the ``index``-th variant of a scene."""
-    return {"color": PALETTE[index % len(PALETTE)], "dash": DASHES[(index // len(PALETTE)) % len(DASHES)]}
+def _round(value: Any) -> Any:
+    """A number to DIGITS significant digits (None stays None): smaller specs, same plot."""
+    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(f"{value:.{DIGITS}g}")
+
+
+def _rounded(values: Iterable[Any]) -> list[Any]:
+    return [_round(v) for v in values]
 
 
 def _positive(value: Any) -> bool:
@@ -78,7 +105,7 @@ def _layout(n_legend: int, height: int = 460, **extra: Any) -> dict[str, Any]:
         "height": max(height, 80 + LEGEND_ROW * n_legend),
         "margin": {"l": 70, "r": 20, "t": 30, "b": 50},
         "hovermode": "closest",
-        "legend": {"font": {"size": 11}},
+        "legend": {"font": {"size": 11}, "groupclick": "toggleitem"},
         "plot_bgcolor": "#fbfbfb",
     }
     base.update(extra)
@@ -89,46 +116,65 @@ def _axis(title: str, kind: str = "log", **extra: Any) -> dict[str, Any]:
     return {"title": {"text": title}, "type": kind, "exponentformat": "power", "gridcolor": "#e4e4e4", **extra}
 
 
+def _by_family(items: Sequence[Any], engine: Callable[[Any], str]) -> list[Any]:
+    """``items`` with each family's together, families in order of first appearance (stable within a family)."""
+    order: dict[str, int] = {}
+    for item in items:
+        order.setdefault(family_of(engine(item)), len(order))
+    return sorted(items, key=lambda item: order[family_of(engine(item))])
+
+
+def _group(trace: dict[str, Any], engine: str, titled: set[str]) -> dict[str, Any]:
+    """Put ``trace`` in its family's legend group (the first of a family carries the group's title)."""
+    name = family_of(engine)
+    trace["legendgroup"] = plot_text(name)
+    if name not in titled:
+        trace["legendgrouptitle"] = {"text": plot_text(name)}
+        titled.add(name)
+    return trace
+
+
 # -- across the dt sweep ------------------------------------------------------------
 
 
 def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[float], list[list[Any]]]:
-    """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt, status])."""
+    """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt])."""
     xs, ys, custom = [], [], []
     for record in sweep.records:
-        metrics = record.get("metrics") or {}
-        dt = record["case"]["dt"]
-        x = dt if x_key == "dt" else metrics.get(x_key)
-        y = metrics.get(ORDER_METRIC)
-        if record["status"] == "ok" and _positive(x) and _positive(y):
+        dt = record.case.dt
+        x = dt if x_key == "dt" else record.metrics.get(x_key)
+        y = record.metrics.get(ORDER_METRIC)
+        if record.status is Status.OK and _positive(x) and _positive(y):
             xs.append(x)
             ys.append(y)
             custom.append([plot_text(sweep.engine), dt])
     return xs, ys, custom
 
 
-def _sweep_traces(scene: SceneResults, x_key: str, name: Callable[[VariantSweep], str], hovertemplate: str) -> tuple[list[dict[str, Any]], str]:
-    """One lines+markers trace per variant through its dt sweep (see :func:`_sweep_points`), and a note naming
-    the variants left out; ``name(sweep)`` is the legend text."""
+def _sweep_traces(scene: SceneResults, palette: Palette, x_key: str, name: Callable[[VariantSweep], str],
+                  hovertemplate: str) -> tuple[list[dict[str, Any]], str]:
+    """One lines+markers trace per variant through its dt sweep (see :func:`_sweep_points`), grouped by
+    family, and a note naming the variants left out; ``name(sweep)`` is the legend text."""
     traces, missing = [], []
-    for index, sweep in enumerate(scene.sweeps):
+    titled: set[str] = set()
+    for sweep in _by_family(scene.sweeps, lambda s: s.engine):
         xs, ys, custom = _sweep_points(sweep, x_key)
         if not xs:
             missing.append(sweep.engine)
             continue
-        traces.append({
+        traces.append(_group({
             "type": "scatter", "mode": "lines+markers", "name": plot_text(name(sweep)),
-            "x": xs, "y": ys, "customdata": custom, "line": style(index), "hovertemplate": hovertemplate,
-        })
+            "x": xs, "y": ys, "customdata": custom, "line": palette.style(sweep.engine), "hovertemplate": hovertemplate,
+        }, sweep.engine, titled))
     needs = "a positive error and cost" if x_key != "dt" else "a positive error"
     note = f" Not drawn (no ok case with {needs}): " + ", ".join(missing) + "." if missing else ""
     return traces, note
 
 
-def work_precision(scene: SceneResults) -> Plot | None:
+def work_precision(scene: SceneResults, palette: Palette) -> Plot | None:
     """Max position error (m) against stepping cost per simulated second (s/s), log-log, one line per variant."""
     traces, not_drawn = _sweep_traces(
-        scene, "cost_per_simulated_second", lambda sweep: sweep.engine,
+        scene, palette, "cost_per_simulated_second", lambda sweep: sweep.engine,
         "%{customdata[0]}<br>dt = %{customdata[1]:.3g} s<br>error = %{y:.3g} m<br>cost = %{x:.3g} s/s<extra></extra>",
     )
     if not traces:
@@ -136,7 +182,7 @@ def work_precision(scene: SceneResults) -> Plot | None:
     figure = {
         "data": traces,
         "layout": _layout(
-            len(traces),
+            len(traces) + len({t["legendgroup"] for t in traces}),
             xaxis=_axis("stepping cost per simulated second / (s/s)"),
             yaxis=_axis("max position error / m"),
         ),
@@ -153,83 +199,298 @@ def _order_label(sweep: VariantSweep) -> str:
     return f"{sweep.engine} (order {fit.order:.2f})"
 
 
-def error_vs_dt(scene: SceneResults) -> Plot | None:
+def error_vs_dt(scene: SceneResults, palette: Palette) -> Plot | None:
     """Max position error (m) against dt (s), log-log; the legend gives each variant's observed order."""
     traces, not_drawn = _sweep_traces(
-        scene, "dt", _order_label, "%{customdata[0]}<br>dt = %{x:.3g} s<br>error = %{y:.3g} m<extra></extra>",
+        scene, palette, "dt", _order_label, "%{customdata[0]}<br>dt = %{x:.3g} s<br>error = %{y:.3g} m<extra></extra>",
     )
     if not traces:
         return None
     figure = {
         "data": traces,
-        "layout": _layout(len(traces), xaxis=_axis("time step dt / s"), yaxis=_axis("max position error / m")),
+        "layout": _layout(len(traces) + len({t["legendgroup"] for t in traces}),
+                          xaxis=_axis("time step dt / s"), yaxis=_axis("max position error / m")),
     }
     caption = ("The slope of each line is the observed order (fitted over the asymptotic range, see the table); "
-               "a line that flattens has reached the reference's accuracy or saturated." + not_drawn)
+               "a line that flattens has reached the reference's accuracy or saturated. A line that flattens above "
+               "the verdict tolerance converges to something other than the reference (inconsistent)." + not_drawn)
     return Plot("dt", "Error against time step", caption, figure)
 
 
 # -- at the chosen dt -----------------------------------------------------------------
 
 
-#: The time-series panels: series key, axis title, whether the absolute value is drawn.
+#: The time-series panels: series key, axis title, whether the absolute value is drawn, the Ceilings field.
 SERIES_PANELS = (
-    ("position_error", "position error / m", False),
-    ("energy_drift", "|E(t) − E(0)| / E*", True),
-    ("constraint_error", "constraint error / m", False),
+    ("position_error", "position error / m", False, "position_error"),
+    ("energy_drift", "|E(t) − E(0)| / E*", True, "energy_drift"),
+    ("constraint_error", "constraint error / m", False, "constraint_error"),
 )
 
 
-def _chosen_cases(scene: SceneResults) -> list[tuple[int, VariantSweep, dict[str, Any]]]:
-    """(variant index, sweep, record) of every variant with stored series at the chosen dt."""
+def _chosen_cases(scene: SceneResults, dt: float | None = None) -> list[tuple[int, VariantSweep, CaseRecord]]:
+    """(variant index, sweep, record) of every variant with stored series at ``dt`` (s; default the chosen dt)."""
+    dt = scene.chosen_dt if dt is None else dt
     chosen = []
     for index, sweep in enumerate(scene.sweeps):
-        record = scene.case_at(sweep, scene.chosen_dt)
+        record = scene.case_at(sweep, dt)
         # A failed run has no samples: nothing to draw (its message is in the problems list).
-        if record is not None and (record.get("series") or {}).get("t"):
+        if record is not None and (record.series or {}).get("t"):
             chosen.append((index, sweep, record))
     return chosen
 
 
-def _label(sweep: VariantSweep, record: dict[str, Any]) -> str:
-    return sweep.engine if record["status"] == "ok" else f"{sweep.engine} ({record['status']})"
+def _label(sweep: VariantSweep, record: CaseRecord) -> str:
+    return sweep.engine if record.status is Status.OK else f"{sweep.engine} ({record.status.value})"
 
 
-def time_series(scene: SceneResults) -> Plot | None:
-    """Position error, |energy drift| and constraint error against t at the chosen dt: three stacked panels."""
-    chosen = _chosen_cases(scene)
+def clip(t: Sequence[float], values: Sequence[Any], ceiling: float) -> tuple[list[Any], float | None]:
+    """``values`` with every finite value above ``ceiling`` set to it, and the first t at which that happened
+    (None: never); a None (non-finite) sample after a clipped one stays clipped, so the line ends at the ceiling."""
+    out: list[Any] = []
+    blew: float | None = None
+    for time, value in zip(t, values):
+        if value is not None and isinstance(value, (int, float)) and value > ceiling:
+            blew = time if blew is None else blew
+            out.append(ceiling)
+        elif value is None and blew is not None:
+            out.append(ceiling)
+        else:
+            out.append(value)
+    return out, blew
+
+
+def last_finite(t: Sequence[float], values: Sequence[Any], duration: float) -> tuple[float, float] | None:
+    """(t, value) of the last finite sample of a series that ends before ``duration`` (s) or turns
+    non-finite; None when it runs to the end."""
+    finite = [k for k, v in enumerate(values) if isinstance(v, (int, float)) and math.isfinite(v)]
+    if not finite:
+        return None
+    k = finite[-1]
+    ends_early = t[min(len(t), len(values)) - 1] < duration * (1 - 1e-9) - 1e-12
+    if k == len(values) - 1 and not ends_early:
+        return None
+    return t[k], values[k]
+
+
+def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engine: str,
+                   text: str = "blew up at t = {t:.3g} s") -> dict[str, Any]:
+    """An × at (t, y) with ``text`` beside it (formatted with t): where a run left the plot."""
+    label = text.format(t=t)
+    return {
+        "type": "scatter", "mode": "markers+text", "x": [_round(t)], "y": [_round(y)],
+        "marker": {"symbol": "x", "size": 11, "color": colour}, "text": [label],
+        "textposition": "bottom right", "textfont": {"size": 10, "color": colour}, "showlegend": False,
+        "name": plot_text(engine), "xaxis": axis[0], "yaxis": axis[1],
+        "hovertemplate": plot_text(engine) + "<br>" + label + "<extra></extra>",
+    }
+
+
+def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None) -> Plot | None:
+    """Position error, |energy drift| and constraint error against t at ``dt`` (s; default the chosen dt):
+    three stacked panels."""
+    dt = scene.chosen_dt if dt is None else dt
+    chosen = _by_family(_chosen_cases(scene, dt), lambda c: c[1].engine)
     if not chosen:
         return None
-    traces = []
+    traces, markers = [], []
     panel_values: list[list[Any]] = [[] for _ in SERIES_PANELS]
     for index, sweep, record in chosen:
-        series = record["series"]
-        for panel, (key, _, absolute) in enumerate(SERIES_PANELS):
-            values = series.get(key) or []
+        series = record.series or {}
+        colour = palette.colour(sweep.engine)
+        for panel, (key, _, absolute, ceiling_name) in enumerate(SERIES_PANELS):
+            values = list(series.get(key) or [])
             if absolute:
                 values = [None if v is None else abs(v) for v in values]
+            ceiling = getattr(ceilings, ceiling_name)
+            values, blew = clip(series["t"], values, ceiling)
+            t, values = decimate(series["t"][:len(values)], values)
             panel_values[panel].extend(values)
+            axis = ("x", "y" if panel == 0 else f"y{panel + 1}")
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "legendgroup": f"v{index}", "showlegend": panel == 0,
-                "x": series["t"], "y": values, "line": {**style(index), "width": 1.5},
-                "xaxis": "x", "yaxis": "y" if panel == 0 else f"y{panel + 1}",
+                "x": _rounded(t), "y": _rounded(values), "line": {**palette.style(sweep.engine), "width": 1.5},
+                "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>%{y:.3g}<extra></extra>",
             })
+            if blew is not None:
+                markers.append(_blowup_marker(blew, ceiling, colour, axis, sweep.engine))
+            elif record.status is Status.UNSTABLE and panel == 0:
+                # Cut at its first non-finite state before passing the ceiling: mark where it stops.
+                end = last_finite(series["t"], values, float(scene.scene.get("duration") or 0.0))
+                if end is not None:
+                    markers.append(_blowup_marker(end[0], end[1], colour, axis, sweep.engine,
+                                                  "non-finite after t = {t:.3g} s"))
     # Three panels stacked on one shared time axis (plotly's low-level subplot layout).
     domains = ([0.70, 1.0], [0.36, 0.64], [0.0, 0.30])
     axes = {}
-    for panel, (_, title, _) in enumerate(SERIES_PANELS):
+    for panel, (_, title, _, _) in enumerate(SERIES_PANELS):
         name = "yaxis" if panel == 0 else f"yaxis{panel + 1}"
         axes[name] = _axis(title, _axis_type(panel_values[panel]), domain=domains[panel])
     figure = {
-        "data": traces,
+        "data": traces + markers,
         "layout": _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes),
     }
-    caption = (f"Every variant at dt = {scene.chosen_dt:.3g} s. A panel is logarithmic when its values span more "
-               "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A line that "
-               "stops early is a run cut at its first non-finite state.")
-    return Plot("ts", "Time series at the chosen dt", caption, figure)
+    caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
+               "with the table). A panel is logarithmic when its values span more "
+               "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A value past "
+               f"{CLIP_FACTOR:g}× its bound is drawn at that ceiling and marked “blew up at t = …”.")
+    return Plot("ts", f"Time series at dt = {dt:.3g} s", caption, figure)
+
+
+def _norms(forces: Sequence[Any], constraint: int) -> list[Any]:
+    """‖F‖ (N) of one constraint over samples; None where a sample is missing."""
+    out = []
+    for sample in forces:
+        f = None if sample is None or constraint >= len(sample) else sample[constraint]
+        if f is None or any(c is None for c in f):
+            out.append(None)
+        else:
+            out.append(math.sqrt(sum(c * c for c in f)))
+    return out
+
+
+#: Most particles whose paths are all drawn; a longer chain shows its first particle and its tip.
+MAX_PATH_PARTICLES = 4
+#: Most constraints given a panel of their own in the constraint-force plot.
+MAX_FORCE_PANELS = 3
+
+
+def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Plot | None:
+    """‖F‖ (N) of each constraint (up to MAX_FORCE_PANELS, stacked) against t at the chosen dt, over the reference's."""
+    chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine)
+              if (c[2].series or {}).get("constraint_forces")]
+    if not chosen:
+        return None
+    n_constraints = min(MAX_FORCE_PANELS, max(len(next((s for s in c[2].series["constraint_forces"] if s), []))
+                                              for c in chosen))
+    if n_constraints == 0:
+        return None
+    traces, markers = [], []
+    reference = next((c[2].series.get("reference_constraint_forces") for c in chosen
+                      if c[2].series.get("reference_constraint_forces")), None)
+    t_reference = next((c[2].series["t"] for c in chosen if c[2].series.get("reference_constraint_forces")), None)
+    domains = [[k / n_constraints + 0.04, (k + 1) / n_constraints - 0.02] for k in reversed(range(n_constraints))]
+    for k in range(n_constraints):
+        axis = ("x", "y" if k == 0 else f"y{k + 1}")
+        if reference is not None and t_reference is not None:
+            t, values = decimate(t_reference, _norms(reference, k))
+            traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
+                           "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values), "line": REFERENCE_STYLE,
+                           "xaxis": axis[0], "yaxis": axis[1], "hoverinfo": "skip"})
+        for index, sweep, record in chosen:
+            values, blew = clip(record.series["t"], _norms(record.series["constraint_forces"], k), ceilings.force)
+            t, values = decimate(record.series["t"][:len(values)], values)
+            traces.append({
+                "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
+                "legendgroup": f"v{index}", "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values),
+                "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": axis[0], "yaxis": axis[1],
+                "hovertemplate": f"%{{fullData.name}}<br>constraint {k}<br>t = %{{x:.3g}} s<br>‖F‖ = %{{y:.3g}} N<extra></extra>",
+            })
+            if blew is not None:
+                markers.append(_blowup_marker(blew, ceilings.force, palette.colour(sweep.engine), axis, sweep.engine))
+    axes = {("yaxis" if k == 0 else f"yaxis{k + 1}"): _axis(f"‖F{k}‖ / N", "linear", domain=domains[k])
+            for k in range(n_constraints)}
+    figure = {"data": traces + markers,
+              "layout": _layout(len(chosen) + 1, height=220 * n_constraints + 120,
+                                xaxis=_axis("t / s", "linear", anchor=f"y{n_constraints}" if n_constraints > 1 else "y"),
+                                **axes)}
+    caption = (f"The magnitude of the force each constraint exerts on its (first) particle, at dt = "
+               f"{scene.chosen_dt:.3g} s, over the reference's (wide grey line); only the variants whose engine "
+               "reports constraint forces.")
+    return Plot("force", "Constraint forces", caption, figure)
+
+
+def _pendulum_pin(scene: SceneResults) -> dict[str, Any] | None:
+    """The scene's first pin (a pendulum's pivot), or None when it has none."""
+    return next((c for c in scene.scene.get("constraints", []) if c.get("kind") == "pin"), None)
+
+
+def phase_curve(t: Sequence[float], positions: Sequence[Any], velocities: Sequence[Any] | None,
+                particle: int, anchor: Sequence[float], planar: bool) -> tuple[list[Any], list[Any]]:
+    """(θ rad, ω rad/s) of ``particle`` about ``anchor``: θ from the downward vertical (signed in the x–z
+    plane for a planar scene, the polar angle otherwise); ω from the velocities, or by central differences of
+    θ over the samples when they are not stored."""
+    thetas: list[Any] = []
+    omegas: list[Any] = []
+    for k, sample in enumerate(positions):
+        p = None if sample is None or particle >= len(sample) else sample[particle]
+        if p is None or any(c is None for c in p):
+            thetas.append(None)
+            omegas.append(None)
+            continue
+        rx, ry, rz = (p[i] - anchor[i] for i in range(3))
+        horizontal = rx if planar else math.hypot(rx, ry)
+        thetas.append(math.atan2(horizontal, -rz))
+        v = None
+        if velocities is not None and k < len(velocities) and velocities[k] is not None:
+            v = velocities[k][particle]
+        if v is not None and all(c is not None for c in v):
+            r2 = rx * rx + rz * rz if planar else rx * rx + ry * ry + rz * rz
+            if planar:
+                omegas.append((rx * v[2] - rz * v[0]) / r2 if r2 else None)
+            else:
+                # Rate of the polar angle: d/dt atan2(ρ, −z) with ρ = √(x² + y²).
+                rho = math.hypot(rx, ry)
+                rho_dot = (rx * v[0] + ry * v[1]) / rho if rho else 0.0
+                omegas.append((-rz * rho_dot + rho * v[2]) / r2 if r2 else None)
+        else:
+            omegas.append(None)
+    if velocities is None:
+        omegas = []
+        for k in range(len(thetas)):
+            a, b = max(k - 1, 0), min(k + 1, len(thetas) - 1)
+            if thetas[a] is None or thetas[b] is None or t[b] == t[a]:
+                omegas.append(None)
+            else:
+                d = thetas[b] - thetas[a]
+                d = (d + math.pi) % (2 * math.pi) - math.pi  # across the ±π seam
+                omegas.append(d / (t[b] - t[a]))
+    return thetas, omegas
+
+
+def _thin(xs: list[Any], ys: list[Any]) -> tuple[list[Any], list[Any]]:
+    """Every k-th point of a curve that is not a function of x (a phase curve), at most MAX_POINTS of them."""
+    step = max(1, math.ceil(len(xs) / MAX_POINTS))
+    return xs[::step], ys[::step]
+
+
+def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
+    """Angle against angular velocity of the first pinned particle (pendulum scenes), every variant and the reference."""
+    pin = _pendulum_pin(scene)
+    chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
+    if pin is None or not chosen:
+        return None
+    particle, anchor = pin["particle"], pin["anchor"]
+    planar = all(abs(p["position"][1]) < 1e-12 and abs(p["velocity"][1]) < 1e-12
+                 for p in scene.scene.get("particles", []))
+    traces = []
+    first = chosen[0][2].series
+    if first.get("reference_positions"):
+        theta, omega = phase_curve(first["t"], first["reference_positions"], first.get("reference_velocities"),
+                                   particle, anchor, planar)
+        theta, omega = _thin(theta, omega)
+        traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
+                       "x": _rounded(theta), "y": _rounded(omega), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
+    titled: set[str] = set()
+    for index, sweep, record in chosen:
+        series = record.series
+        theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor, planar))
+        traces.append(_group({
+            "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
+            "x": _rounded(theta), "y": _rounded(omega),
+            "line": {**palette.style(sweep.engine), "width": 1.5},
+            "hovertemplate": "%{fullData.name}<br>θ = %{x:.3g} rad<br>ω = %{y:.3g} rad/s<extra></extra>",
+        }, sweep.engine, titled))
+    how = "from the stored velocities" if first.get("velocities") else "by differences of θ between samples"
+    figure = {"data": traces, "layout": _layout(len(traces) + len(titled), height=480,
+                                                xaxis=_axis("θ / rad", "linear"), yaxis=_axis("ω / (rad/s)", "linear"))}
+    kind = "signed, in the x–z plane" if planar else "the polar angle"
+    caption = (f"Particle {particle} about its pivot at dt = {scene.chosen_dt:.3g} s: θ from the downward vertical "
+               f"({kind}) against ω ({how}). A closed curve is a conserved swing; a spiral in or out is energy lost "
+               "or gained.")
+    return Plot("phase", "Phase plot (angle, angular velocity)", caption, figure)
 
 
 def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
@@ -239,12 +500,12 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     them, else from the reference engine's own case (at the chosen dt, or any).
     """
     for _, _, record in _chosen_cases(scene):
-        if record["series"].get("reference_positions"):
-            return record["series"]["reference_positions"], "the reference solution"
+        if (record.series or {}).get("reference_positions"):
+            return record.series["reference_positions"], "the reference solution"
     for sweep in filter(is_reference, scene.sweeps):
-        for record in sorted(sweep.records, key=lambda r: r["case"]["dt"] != scene.chosen_dt):
-            if record["status"] == "ok" and (record.get("series") or {}).get("positions"):
-                return record["series"]["positions"], f"{sweep.engine} at dt = {record['case']['dt']:.3g} s"
+        for record in sorted(sweep.records, key=lambda r: r.case.dt != scene.chosen_dt):
+            if record.status is Status.OK and (record.series or {}).get("positions"):
+                return record.series["positions"], f"{sweep.engine} at dt = {record.case.dt:.3g} s"
     return None, ""
 
 
@@ -254,29 +515,45 @@ def _particle_xz(positions: list[Any], particle: int) -> tuple[list[Any], list[A
     return xs, zs
 
 
-def paths(scene: SceneResults) -> Plot | None:
+def _clip_path(xs: list[Any], zs: list[Any], box: float) -> tuple[list[Any], list[Any]]:
+    """A path cut where it leaves ±``box`` m (a blow-up), so the axes keep to the scene."""
+    out_x, out_z = [], []
+    for x, z in zip(xs, zs):
+        if x is None or z is None or abs(x) > box or abs(z) > box:
+            out_x.append(None)
+            out_z.append(None)
+        else:
+            out_x.append(x)
+            out_z.append(z)
+    return out_x, out_z
+
+
+def paths(scene: SceneResults, palette: Palette) -> Plot | None:
     """Particle paths in the x–z plane at the chosen dt, drawn over the reference's (wide grey line)."""
-    chosen = _chosen_cases(scene)
-    chosen = [(i, s, r) for i, s, r in chosen if r["series"].get("positions")]
+    chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
     if not chosen:
         return None
-    n_particles = len(scene.scene.get("particles", [])) or len(chosen[0][2]["series"]["positions"][0])
+    n_particles = len(scene.scene.get("particles", [])) or len(chosen[0][2].series["positions"][0])
+    # A chain's every link would be hundreds of traces: its first particle and its tip tell the story.
+    drawn = list(range(n_particles)) if n_particles <= MAX_PATH_PARTICLES else [0, n_particles - 1]
+    box = CLIP_FACTOR * scene.length
     traces = []
     reference, source = _reference_positions(scene)
     if reference:
-        for particle in range(n_particles):
+        for particle in drawn:
             xs, zs = _particle_xz(reference, particle)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                "showlegend": particle == 0, "x": xs, "y": zs, "line": REFERENCE_STYLE, "hoverinfo": "skip",
+                "showlegend": particle == drawn[0], "x": _rounded(xs), "y": _rounded(zs), "line": REFERENCE_STYLE,
+                "hoverinfo": "skip",
             })
     for index, sweep, record in chosen:
-        for particle in range(n_particles):
-            xs, zs = _particle_xz(record["series"]["positions"], particle)
+        for particle in drawn:
+            xs, zs = _clip_path(*_particle_xz(record.series["positions"], particle), box)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": particle == 0,
-                "x": xs, "y": zs, "line": {**style(index), "width": 1.5},
+                "legendgroup": f"v{index}", "showlegend": particle == drawn[0],
+                "x": _rounded(xs), "y": _rounded(zs), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "hovertemplate": f"%{{fullData.name}}<br>particle {particle}<br>x = %{{x:.3g}} m<br>z = %{{y:.3g}} m<extra></extra>",
             })
     figure = {
@@ -290,16 +567,22 @@ def paths(scene: SceneResults) -> Plot | None:
         ),
     }
     under = f"the wide grey line is {source}" if reference else "no reference path is stored in these results"
-    caption = (f"Every particle of every variant at dt = {scene.chosen_dt:.3g} s in the x–z plane; {under}. "
-               "Click a legend entry to hide a variant.")
+    which = "Every particle" if len(drawn) == n_particles else f"The first and the last of the {n_particles} particles"
+    caption = (f"{which} of every variant at dt = {scene.chosen_dt:.3g} s in the x–z plane; {under}. "
+               f"A path is cut where it leaves ±{box:.3g} m (a blow-up). Click a legend entry to hide a variant.")
     return Plot("path", "Particle paths (x–z plane)", caption, figure)
 
 
-def scene_plots(scene: SceneResults, number: int) -> list[Plot]:
+def scene_plots(scene: SceneResults, number: int, palette: Palette | None = None,
+                ceilings: Ceilings | None = None) -> list[Plot]:
     """Every plot of ``scene`` that has something to draw, in page order.
 
     number : the scene's position on the page; DOM ids are built from it
     (``s0-wp``), never from the scene id, which comes from a file.
+    ceilings : where blow-ups are clipped (default: CLIP_FACTOR × L, 1 E*, 0.1 L).
     """
-    built = (work_precision(scene), error_vs_dt(scene), time_series(scene), paths(scene))
+    palette = palette or Palette(s.engine for s in scene.sweeps)
+    ceilings = ceilings or Ceilings.for_scene(scene.length, 1.0, 0.1)
+    built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings),
+             constraint_forces(scene, palette, ceilings), phase_plot(scene, palette), paths(scene, palette))
     return [replace(plot, id=f"s{number}-{plot.id}") for plot in built if plot is not None]

@@ -1,7 +1,7 @@
 """A results directory read back and arranged the way the report shows it: by scene, by engine variant.
 
-Reading and grouping go through :mod:`compare.results` and
-:mod:`compare.sweep`, so the report shows the same numbers (observed orders,
+Reading and grouping go through :mod:`compare.results.store` and
+:mod:`compare.results.sweep`, so the report shows the same numbers (observed orders,
 work-precision points) as ``xval show``. Nothing here formats text or builds
 plots; it only decides *what* is shown:
 
@@ -20,8 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compare.results import load_results
-from compare.sweep import VariantSweep, sweeps
+from compare.results.store import load_results
+from compare.results.record import CaseRecord
+from compare.results.sweep import VariantSweep, sweeps
 
 #: Statuses that mean "something went wrong" and are listed with their messages.
 PROBLEM_STATUSES = ("unstable", "failed", "timeout")
@@ -60,9 +61,9 @@ class SceneResults:
     dts: list[float]
     chosen_dt: float | None
 
-    def case_at(self, sweep: VariantSweep, dt: float | None) -> dict[str, Any] | None:
+    def case_at(self, sweep: VariantSweep, dt: float | None) -> CaseRecord | None:
         """``sweep``'s record at time step ``dt`` (s), or None."""
-        return next((r for r in sweep.records if dt is not None and r["case"]["dt"] == dt), None)
+        return next((r for r in sweep.records if dt is not None and r.case.dt == dt), None)
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,7 @@ class ReportData:
     header: dict[str, Any]
     scenes: list[SceneResults]
     counts: dict[str, int]
-    problems: list[dict[str, Any]] = field(default_factory=list)
+    problems: list[CaseRecord] = field(default_factory=list)
 
     @property
     def n_cases(self) -> int:
@@ -82,14 +83,14 @@ class ReportData:
 
 def is_reference(sweep: VariantSweep) -> bool:
     """Whether ``sweep`` is the reference engine run as a suite engine (the yardstick, not a competitor)."""
-    return sweep.records[0]["case"].get("engine_id", "").startswith("reference/")
+    return sweep.records[0].case.engine_id.startswith("reference/")
 
 
-def status_counts(records: list[dict[str, Any]]) -> dict[str, int]:
+def status_counts(records: list[CaseRecord]) -> dict[str, int]:
     """Cases per status, in ``STATUS_ORDER`` (statuses with no case left out)."""
     counts: dict[str, int] = {}
     for record in records:
-        counts[record["status"]] = counts.get(record["status"], 0) + 1
+        counts[record.status] = counts.get(record.status, 0) + 1
     ordered = {s: counts.pop(s) for s in STATUS_ORDER if s in counts}
     return {**ordered, **dict(sorted(counts.items()))}
 
@@ -110,45 +111,47 @@ def choose_dt(scene_sweeps: list[VariantSweep], dts: list[float], requested: flo
         return min(dts, key=lambda dt: abs(math.log(dt / requested)))
 
     def ok_count(dt: float) -> int:
-        return sum(1 for s in scene_sweeps for r in s.records if r["case"]["dt"] == dt and r["status"] == "ok")
+        return sum(1 for s in scene_sweeps for r in s.records if r.case.dt == dt and r.status == "ok")
 
     return max(dts, key=lambda dt: (ok_count(dt), -dt))
 
 
 def _skip_reason(sweep: VariantSweep) -> str:
-    messages = [r["message"] for r in sweep.records if r["message"]]
+    messages = [r.message for r in sweep.records if r.message]
     return messages[0] if messages else "no reason recorded"
 
 
-def arrange(path: Path, header: dict[str, Any], records: list[dict[str, Any]], dt: float | None = None) -> ReportData:
-    """Group ``records`` by scene (suite order) and variant; ``dt`` (s) is the requested chosen dt, if any."""
+def arrange(path: Path, header: dict[str, Any], records: list[CaseRecord], dt: float | None = None,
+            tolerance: float | None = None) -> ReportData:
+    """Group ``records`` by scene (suite order) and variant; ``dt`` (s) is the requested chosen dt, if any;
+    tolerance : the consistency verdict's tolerance (fraction of L; None: the default δ)."""
     by_scene: dict[str, list[VariantSweep]] = {}
-    for sweep in sweeps(records):
+    for sweep in sweeps(records, tolerance):
         by_scene.setdefault(sweep.scene_id, []).append(sweep)
     scenes = []
     for scene_id, scene_sweeps in by_scene.items():
         ran = [s for s in scene_sweeps if s.statuses.get("skipped", 0) < len(s.records)]
         skipped = [SkippedPair(scene_id, s.engine, _skip_reason(s)) for s in scene_sweeps if s not in ran]
         first = scene_sweeps[0].records[0]
-        dts = sorted({r["case"]["dt"] for s in ran for r in s.records}, reverse=True)
+        dts = sorted({r.case.dt for s in ran for r in s.records}, reverse=True)
         scenes.append(
             SceneResults(
                 scene_id=scene_id,
-                scene_name=first["case"].get("scene_name", scene_id),
-                scene=first.get("scene") or {},
-                scene_hash=first.get("scene_hash", ""),
-                length=(first.get("characteristic") or {}).get("length", 1.0),
+                scene_name=first.case.scene_name,
+                scene=dict(first.scene),
+                scene_hash=first.scene_hash,
+                length=first.characteristic.length,
                 sweeps=ran,
                 skipped=skipped,
                 dts=dts,
                 chosen_dt=choose_dt(ran, dts, dt),
             )
         )
-    problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r["status"] in PROBLEM_STATUSES]
+    problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r.status in PROBLEM_STATUSES]
     return ReportData(path, header, scenes, status_counts(records), problems)
 
 
 def load_report_data(directory: str | Path, dt: float | None = None) -> ReportData:
     """Read the results in ``directory`` (UserError when it is not a results directory) and arrange them."""
     stored = load_results(directory)
-    return arrange(stored.path, stored.header, stored.records, dt)
+    return arrange(stored.path, stored.header, stored.records, dt, stored.verdict_tolerance)

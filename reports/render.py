@@ -6,16 +6,23 @@ escaped wherever it lands in the HTML. Figure specs go into
 ``<script type="application/json">`` blocks through Jinja's ``tojson``
 filter, which escapes ``<``, ``>`` and ``&`` so no string can close the
 script element. plotly.js is embedded once, inline, from the plotly
-package: the page makes no request, so it works offline and attached to a
-CI run or a mail.
+package, gzip-compressed and base64-encoded (1.96 MB instead of 4.8 MB);
+the page unpacks it with the browser's own DecompressionStream and makes
+no request, so it works offline and attached to a CI run or a mail.
+
+The page opens with the verdict (:mod:`reports.verdict`); every other plot
+is built when its section is opened.
 """
 
 from __future__ import annotations
 
+import base64
+import json
 import functools
+import gzip
 import math
+import re
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,26 +30,51 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
-from compare.files import atomic_write_text, check_writable
-from compare.metrics import DEFAULT_DELTA, ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS, Bounds
+from compare.results.verdict import families
+from engines.errors import UserError
 
-from reports.figures import Plot, scene_plots
+from compare.results.files import atomic_write_text, check_writable
+from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
+from compare.suite.reader import RunSettings, load_run_settings
+
+from reports.animation import animation_data
+from reports.decimate import MAX_POINTS
+from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
 from reports.load import ReportData, load_report_data
+from reports.palette import Palette
 from reports.stability import stability_context
-from reports.summary import summary_table
+from reports.summary import summary_tables
+from reports.verdict import verdict_views
 
 #: File name of the report inside the results directory when no --output is given.
 DEFAULT_NAME = "report.html"
 
 
+#: How the plotly.js bundle is embedded: "gzip-base64" (the page unpacks it) or "plain".
+PLOTLY_ENCODING = "gzip-base64"
+
+
 @functools.lru_cache(maxsize=1)
 def plotly_js() -> Markup:
-    """The plotly.js bundle shipped with the plotly package, safe to inline in a ``<script>`` element."""
+    """The plotly.js bundle shipped with the plotly package, gzip-compressed and base64-encoded.
+
+    Base64 has no ``<`` or ``&``, so it is safe inside any element; mtime 0 keeps the bytes (and so
+    every report of the same results) identical from run to run.
+    """
     from plotly.offline import get_plotlyjs
 
-    source = get_plotlyjs()
-    # "</script" would end the element early; in JavaScript source "<\/" means the same as "</".
-    return Markup(source.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT"))
+    return packed_text(get_plotlyjs())
+
+
+def packed_text(text: str) -> Markup:
+    """``text`` gzip-compressed (mtime 0: the same bytes every time) and base64-encoded, safe in any element."""
+    packed = gzip.compress(text.encode("utf-8"), compresslevel=9, mtime=0)
+    return Markup(base64.b64encode(packed).decode("ascii"))
+
+
+def pack(items: dict[str, Any]) -> Markup:
+    """A section's figure specs and animation data (DOM id -> JSON value), packed (see :func:`packed_text`)."""
+    return packed_text(json.dumps(items, separators=(",", ":"), allow_nan=False))
 
 
 @functools.lru_cache(maxsize=1)
@@ -56,42 +88,67 @@ def environment() -> jinja2.Environment:
     )
     env.filters["seconds"] = lambda v: "–" if v is None else f"{v:.3g} s"
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
+    env.filters["packed"] = lambda text: packed_text(str(text))
     return env
 
 
 def suite_settings(directory: Path) -> dict[str, Any]:
-    """δ and the status bounds the run used, read from the stored suite.toml (defaults when it is unreadable).
-
-    Only these numbers are needed, for the "how to read this" section, so the
-    suite is not rebuilt (that would load every engine).
-    """
-    settings = {"delta": DEFAULT_DELTA, "energy_bound": Bounds.energy_drift, "constraint_bound": Bounds.constraint_error}
+    """δ, the status bounds and the verdict tolerance the run used, from the stored suite.toml (read without
+    loading engines; the defaults when it is unreadable)."""
     try:
-        data = tomllib.loads((directory / "suite.toml").read_text())
-    except (OSError, tomllib.TOMLDecodeError):
-        return settings
-    bounds = data.get("bounds") if isinstance(data.get("bounds"), dict) else {}
-    for key, value in (("delta", data.get("delta")), ("energy_bound", bounds.get("energy_drift")),
-                       ("constraint_bound", bounds.get("constraint_error"))):
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
-            settings[key] = value
-    return settings
+        settings = load_run_settings(directory / "suite.toml")
+    except UserError:
+        settings = RunSettings()
+    return {"delta": settings.delta, "energy_bound": settings.bounds.energy_drift,
+            "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
 
-def page_context(data: ReportData) -> dict[str, Any]:
-    """Everything the template needs, computed here so the template only lays it out."""
+def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
+    """Everything the template needs, computed here so the template only lays it out.
+
+    focus : the engine family the verdict compares with the others (default: the suite's first).
+    """
+    focus = check_focus(data, focus)
+    settings = suite_settings(data.path)
+    palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
+    verdicts = verdict_views(data, palette, focus)
     scenes = []
     for number, scene in enumerate(data.scenes):
+        ceilings = Ceilings.for_scene(scene.length, settings["energy_bound"], settings["constraint_bound"],
+                                      CLIP_FACTOR * _weight(scene.scene))
         scenes.append({
             "number": number,
             "results": scene,
-            "table": summary_table(scene) if scene.sweeps else None,
-            "plots": scene_plots(scene, number),
+            "tables": summary_tables(scene, palette) if scene.sweeps else [],
+            "plots": scene_plots(scene, number, palette, ceilings),
+            "animation": animation_data(scene, palette),
+            "ceilings": ceilings,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
+    packs: dict[str, Markup] = {}
+    pack_of: dict[str, str] = {}
+    for scene in scenes:
+        name = f"pack-{scene['number']}"
+        items: dict[str, Any] = {p.id: p.figure for p in scene["plots"]}
+        results = scene["results"]
+        if any(p.id == f"s{scene['number']}-ts" for p in scene["plots"]):
+            # The time series at the scene's other dts: the dt selector switches the plot with the table.
+            for j, dt in enumerate(results.dts):
+                if dt != results.chosen_dt:
+                    other = time_series(results, palette, scene["ceilings"], dt)
+                    if other is not None:
+                        items[f"s{scene['number']}-ts@{j}"] = other.figure
+        if scene["animation"] is not None:
+            items[f"anim-{scene['number']}"] = scene["animation"].data
+        packs[name] = pack(items)
+        pack_of.update({p.id: name for p in scene["plots"]})
     stability = stability_context(data.path)  # None unless DIR holds xval stability output
     if stability is not None:
         plots = plots + stability["plots"]
+        for name, members in (("pack-stability", [stability["search"]["bars"]] if stability.get("search") and stability["search"].get("bars") else []),
+                              ("pack-gainmap", stability["gainmap"]["plots"] if stability.get("gainmap") else [])):
+            packs[name] = pack({p.id: p.figure for p in members})
+            pack_of.update({p.id: name for p in members})
     header = data.header
     return {
         "data": data,
@@ -103,18 +160,52 @@ def page_context(data: ReportData) -> dict[str, Any]:
         "scenes": scenes,
         "n_plots": len(plots),
         "n_traces": sum(p.n_traces for p in plots),
-        "settings": suite_settings(data.path),
+        "settings": settings,
+        "verdicts": verdicts,
+        "focus": focus,
+        "scene_numbers": {scene.scene_id: number for number, scene in enumerate(data.scenes)},
+        "clip_factor": f"{CLIP_FACTOR:g}",
+        "max_points": f"{MAX_POINTS:,}",
+        "plotly_encoding": PLOTLY_ENCODING,
         "order_floor": f"{ORDER_FLOOR:g}",
         "order_ceiling": f"{ORDER_CEILING:g}",
         "order_min_points": ORDER_MIN_POINTS,
         "plotly_js": plotly_js(),
+        "packs": packs,
+        "pack_of": pack_of,
         "stability": stability,
     }
 
 
-def render(data: ReportData) -> str:
-    """The report page of ``data`` as HTML text."""
-    return environment().get_template("report.html.j2").render(page_context(data))
+def _weight(scene: dict[str, Any]) -> float:
+    """Total mass · |g| of a scene dict (N): the scale of its constraint forces."""
+    mass = sum(p.get("mass", 0.0) for p in scene.get("particles", []))
+    g = math.sqrt(sum(c * c for c in scene.get("gravity", [0.0, 0.0, -9.81])))
+    return mass * g if mass * g > 0 else math.inf
+
+
+def check_focus(data: ReportData, focus: str | None) -> str | None:
+    """``focus``, or the suite's first engine family when None; UserError naming the families when unknown."""
+    found = families([s for scene in data.scenes for s in scene.sweeps])
+    if focus is None:
+        return found[0] if found else None
+    if focus not in found:
+        choices = ", ".join(found) or "none ran"
+        raise UserError(f"--focus: no engine family {focus!r} in these results; choose one of: {choices}")
+    return focus
+
+
+#: Indentation before a tag at the start of a line: the template's, not the data's (text from a file is escaped,
+#: so a line of it never starts with "<").
+_INDENT = re.compile(r"\n[ \t]+<")
+
+
+def render(data: ReportData, focus: str | None = None) -> str:
+    """The report page of ``data`` as HTML text (``focus``: the engine family the verdict compares).
+
+    The template's indentation is dropped (a fifth of a large report's bytes); the page is unchanged.
+    """
+    return _INDENT.sub("\n<", environment().get_template("report.html.j2").render(page_context(data, focus)))
 
 
 @dataclass(frozen=True)
@@ -126,15 +217,18 @@ class Written:
     seconds: float
 
 
-def write_report(directory: str | Path, output: str | Path | None = None, dt: float | None = None) -> Written:
+def write_report(directory: str | Path, output: str | Path | None = None, dt: float | None = None,
+                 focus: str | None = None) -> Written:
     """Render the results in ``directory`` to ``output`` (default DIR/report.html), atomically.
 
     dt : s, the time step of the summary tables and time series (the nearest
-    one each scene has); chosen per scene when None.
+    one each scene has); chosen per scene when None. focus : the engine family the verdict compares
+    with the best of the others (default: the first family of the suite).
     """
     started = time.perf_counter()
     data = load_report_data(directory, dt)  # first, so a wrong DIR is named as such
+    check_focus(data, focus)
     target = check_writable(Path(output) if output is not None else Path(directory) / DEFAULT_NAME)
-    text = render(data)
+    text = render(data, focus)
     atomic_write_text(target, text)
     return Written(target, len(text.encode()), time.perf_counter() - started)

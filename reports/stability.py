@@ -1,7 +1,7 @@
 """Report sections for ``xval stability`` output: the largest-stable-dt table and bar chart, the gain-map heat maps.
 
 Shown only when the results directory holds ``stability.json`` and/or
-``gainmap.json`` (:mod:`compare.stability`, :mod:`compare.gainmap`). Figures
+``gainmap.json`` (:mod:`compare.stability.search`, :mod:`compare.stability.gainmap`). Figures
 are plotly.js specs like :mod:`reports.figures`; their ``n_traces`` counts
 only scatter traces, the ones the page's drawing check finds in the DOM
 (bars, heat maps and contours are drawn in other layers).
@@ -14,10 +14,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from compare.gainmap import load_gainmap
-from compare.stability import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
+from compare.stability.gainmap import load_gainmap
+from compare.stability.search import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
 
-from reports.figures import PALETTE, Plot, _axis, _layout, plot_text
+from reports.figures import Plot, _axis, _layout, plot_text
+from reports.palette import FAMILY_COLOURS as PALETTE  # one colour per scene here (not per engine)
 
 
 @dataclass(frozen=True)
@@ -119,24 +120,45 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
 
 
 def _log10(value: Any) -> float | None:
-    return math.log10(value) if isinstance(value, (int, float)) and value > 0 and math.isfinite(value) else None
+    """log10 of a positive finite value to 3 decimals (a colour needs no more), else None."""
+    return round(math.log10(value), 3) if isinstance(value, (int, float)) and value > 0 and math.isfinite(value) else None
+
+
+#: Most grid lines per axis of a theory boundary drawn as a contour: the zero line of a smooth ρ − 1 needs
+#: no finer grid, and 121 × 121 full-precision values in each of a map's three panels were most of a report.
+THEORY_GRID = 61
+
+
+def _thinned_theory(theory: dict[str, Any]) -> tuple[list[Any], list[Any], list[list[Any]]]:
+    """(log10 x, log10 y, log10 ρ) of a theory grid, every k-th line so that at most THEORY_GRID remain, 4 digits."""
+    xs, ys, z = theory["log10_x"], theory["log10_y"], theory["log10_rho"]
+    kx = max(1, math.ceil(len(xs) / THEORY_GRID))
+    ky = max(1, math.ceil(len(ys) / THEORY_GRID))
+
+    def r(v: Any) -> Any:
+        return None if v is None else float(f"{v:.4g}")
+
+    return ([r(v) for v in xs[::kx]], [r(v) for v in ys[::ky]], [[r(v) for v in row[::kx]] for row in z[::ky]])
 
 
 def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
-    """Per integrator: stability, log10 constraint error and log10 energy drift over log10 k_s × log10 k_d,
-    with the theory's boundary (spectral radius ρ = 1 of the linearized step) drawn over each."""
-    xs = [math.log10(k) for k in document["k_s"]]
-    ys = [math.log10(k) for k in document["k_d"]]
+    """Per engine variant: stability, log10 constraint error and log10 energy drift over log10 x × log10 y
+    (the two swept options), with the engine's own theory boundary (spectral radius ρ = 1) where it has one."""
+    x_name, y_name = document["x"], document["y"]
+    xs = [math.log10(v) for v in document["x_values"]]
+    ys = [math.log10(v) for v in document["y_values"]]
     dt = document["dt"]
     plots = []
-    for number, (integrator, grid) in enumerate(document["maps"].items()):
-        theory = grid["theory"]
-        boundary = {
-            "type": "contour", "x": theory["log10_k_s"], "y": theory["log10_k_d"], "z": theory["log10_rho"],
-            "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
-            "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
-            "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
-        }
+    for number, (engine, grid) in enumerate(document["maps"].items()):
+        theory = grid.get("theory")
+        layers = []
+        if theory is not None:
+            layers.append({
+                "type": "contour", **dict(zip(("x", "y", "z"), _thinned_theory(theory))),
+                "contours": {"start": 0, "end": 0, "size": 1, "coloring": "lines"}, "showscale": False,
+                "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
+                "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
+            })
         stable = [[None if s is None else (1 if s == "ok" else 0) for s in row] for row in grid["status"]]
         panels = [
             ("stability", stable, [[0, "#f4a582"], [0.5, "#f4a582"], [0.5, "#92c5de"], [1, "#92c5de"]],
@@ -146,22 +168,25 @@ def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
             ("energy drift", [[_log10(v) for v in row] for row in grid["energy_drift"]], "Viridis",
              "log10 energy drift / E*", {}),
         ]
+        theory_text = (
+            "Black line: the engine's own linear stability theory (stable inside, where the spectral radius of "
+            "its linearized one-step matrix is ≤ 1). " if theory is not None else "The engine states no theory. "
+        )
         for kind, z, colorscale, label, extra in panels:
             heat = {"type": "heatmap", "x": xs, "y": ys, "z": z, "colorscale": colorscale,
                     "colorbar": {"title": {"text": label}}, "name": label,
-                    "hovertemplate": "log10 k_s = %{x:.2f}<br>log10 k_d = %{y:.2f}<br>" + label + ": %{z:.3g}<extra></extra>",
+                    "hovertemplate": f"log10 {x_name} = %{{x:.2f}}<br>log10 {y_name} = %{{y:.2f}}<br>"
+                                     + label + ": %{z:.3g}<extra></extra>",
                     **extra}
-            figure = {"data": [heat, boundary], "layout": _layout(
+            figure = {"data": [heat, *layers], "layout": _layout(
                 1, height=460,
-                xaxis={"title": {"text": "log10 k_s / (1/s²)"}}, yaxis={"title": {"text": "log10 k_d / (1/s)"}},
+                xaxis={"title": {"text": f"log10 {x_name}"}}, yaxis={"title": {"text": f"log10 {y_name}"}},
                 legend={"orientation": "h", "y": 1.08})}
             slug = kind.replace(" ", "-")
             plots.append(ExtraPlot(
-                f"gainmap-{number}-{slug}", f"{integrator}: {kind}",
-                f"ours/baumgarte-{integrator} on {document['scene_id']} at dt = {dt:g} s. Black line: the boundary "
-                f"of the linearized constraint dynamics C'' + k_d C' + k_s C = 0 under {integrator} (stable inside, "
-                f"where the spectral radius of one step is ≤ 1; critical damping k_d = 2√k_s is stable up to "
-                f"h√k_s = {grid['critical_limit']:.3g}). {'Blue cells stayed within the bounds, orange ones did not.' if kind == 'stability' else 'Blank cells had no finite value (the run blew up).'}",
+                f"gainmap-{number}-{slug}", f"{engine}: {kind}",
+                f"{engine} on {document['scene_id']} at dt = {dt:g} s over {x_name} × {y_name}. {theory_text}"
+                f"{'Blue cells stayed within the bounds, orange ones did not.' if kind == 'stability' else 'Blank cells had no finite value (the run blew up).'}",
                 figure))
     return plots
 

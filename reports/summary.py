@@ -1,11 +1,15 @@
-"""The per-scene summary table: one row per engine variant at the scene's chosen dt, best value per column marked.
+"""The per-scene summary tables: one per dt of the scene, one row per engine variant, best value per column marked.
 
-Values are compared only between variants whose case at the chosen dt is
+The columns are the declared metrics (:mod:`compare.results.declared`)
+with ``report = True``, then the per-variant observed order: a metric
+declared for the report gets a column with no edit here.
+
+Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
 "best". The reference engine, when a suite runs it, is shown but not ranked.
-A column in which every ranked variant ties gets no mark at all. Ties (equal to the shown precision) are all marked. The observed
-order is a property of the whole sweep, so it is ranked over every variant
-that has one.
+A column in which every ranked variant ties gets no mark at all. Ties (equal
+to the shown precision) are all marked. The observed order is a property of
+the whole sweep, so it is ranked over every variant that has one.
 """
 
 from __future__ import annotations
@@ -14,9 +18,16 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from compare.sweep import VariantSweep
+from compare.results import declared
+from compare.results.record import Status
+from compare.results.sweep import VariantSweep
 
 from reports.load import SceneResults, is_reference
+from reports.palette import Palette
+
+
+def _exponent(value: float) -> str:
+    return "0" if value == 0 else f"{value:.2e}"
 
 
 @dataclass(frozen=True)
@@ -33,34 +44,47 @@ class Column:
     better: str | None
     missing: str = "–"
     # One exponent format for the whole column, so magnitudes line up down the column (as in `xval show`).
-    fmt: Callable[[float], str] = lambda v: "0" if v == 0 else f"{v:.2e}"
+    fmt: Callable[[float], str] = _exponent
+    description: str = ""
 
 
-#: The metric columns, in order (status, dt and the order are added around them).
-METRIC_COLUMNS = (
-    Column("position_error_linf", "position error", "m", "low"),
-    # None means e(t) never passed δ·L: the best possible value, shown as "never".
-    Column("divergence_time", "divergence time", "s", "high", missing="never", fmt=lambda v: f"{v:.3g}"),
-    Column("energy_drift", "energy drift", "E*", "low"),
-    Column("constraint_error", "constraint error", "m", "low"),
-    Column("constraint_force_error", "constraint-force error", "N", "low", missing="not exposed"),
-    Column("cost_per_simulated_second", "cost", "s/s", "low"),
-)
-ORDER_COLUMN = Column("observed_order", "observed order", "", "high", missing="–", fmt=lambda v: f"{v:.2f}")
+def metric_columns() -> tuple[Column, ...]:
+    """The metric columns, in order, from the declarations (compare.results.declared: ``report = True``);
+    status, consistency and the order are added around them."""
+    columns = []
+    for metric in declared.reported():
+        better = "high" if metric.higher_is_better else "low"
+        # A time in seconds reads better without an exponent (divergence time: "never" when null).
+        fmt = (lambda v: f"{v:.3g}") if metric.unit == "s" else _exponent
+        columns.append(Column(metric.name, metric.title or metric.name, metric.unit, better, metric.missing, fmt,
+                              metric.description))
+    return tuple(columns)
+
+
+def order_column() -> Column:
+    metric = declared.METRICS["observed_order"]
+    return Column(metric.name, metric.title or "observed order", metric.unit, "high", "–", lambda v: f"{v:.2f}",
+                  metric.description)
+
+
+#: The columns at import time (a metric registered later appears in the next table built).
+METRIC_COLUMNS = metric_columns()
+ORDER_COLUMN = order_column()
 
 
 @dataclass(frozen=True)
 class Cell:
-    """One table cell: the text shown, whether it is its column's best, and an optional tooltip."""
+    """One table cell: the text shown, whether it is its column's best, a tooltip, and the value to sort on."""
 
     text: str
     best: bool = False
     title: str = ""
+    sort: str = ""
 
 
 @dataclass(frozen=True)
 class Row:
-    """One engine variant: name, status at the chosen dt, statuses over the sweep, metric cells, order cell."""
+    """One engine variant: name, status at the table's dt, statuses over the sweep, consistency, metric cells, order."""
 
     engine: str
     status: str
@@ -68,6 +92,9 @@ class Row:
     sweep_statuses: str
     cells: list[Cell]
     order: Cell
+    colour: str = "#888"
+    consistent: bool | None = None
+    consistency: str = ""
 
 
 @dataclass(frozen=True)
@@ -87,7 +114,8 @@ def _rank_value(column: Column, value: Any) -> float | None:
     """A number to rank on (higher is better after the sign flip), or None when the value cannot rank."""
     if value is None:
         # A divergence time of None means "never diverged": better than any time.
-        return math.inf if column.key == "divergence_time" else None
+        metric = declared.METRICS.get(column.key)
+        return math.inf if metric is not None and metric.none_means == "infinite" else None
     if not isinstance(value, (int, float)) or not math.isfinite(value):
         return None
     return float(value) if column.better == "high" else -float(value)
@@ -108,49 +136,71 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
     return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
 
 
-def summary_table(scene: SceneResults) -> SummaryTable:
-    """The summary table of ``scene`` at its chosen dt."""
-    dt = scene.chosen_dt
+def _sort_key(column: Column, value: Any) -> str:
+    """What a sortable table sorts the cell on when its text will not do ("Infinity" for never), else ""
+    (the page then sorts on the text, which for a number is the number: "1.2e-04")."""
+    metric = declared.METRICS.get(column.key)
+    if value is None and metric is not None and metric.none_means == "infinite":
+        return "Infinity"
+    return ""
+
+
+def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette | None = None) -> SummaryTable:
+    """The summary table of ``scene`` at ``dt`` (s; default its chosen dt)."""
+    dt = scene.chosen_dt if dt is None else dt
+    palette = palette or Palette(s.engine for s in scene.sweeps)
+    columns = metric_columns()
+    order_col = order_column()
     cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
-    metrics = [(case or {}).get("metrics") or {} for case in cases]
+    metrics = [(case.metrics if case is not None else {}) for case in cases]
     # The reference is the yardstick, not a competitor: its zero error would always be "best".
-    ok = [case is not None and case["status"] == "ok" and not is_reference(sweep) for case, sweep in zip(cases, scene.sweeps)]
+    ok = [case is not None and case.status is Status.OK and not is_reference(sweep)
+          for case, sweep in zip(cases, scene.sweeps)]
     # Without a reference there is no position error, so a divergence time of
     # None would falsely read "never": such cells are unknown, not best.
     no_reference = [m.get("position_error_linf") is None for m in metrics]
     columns_cells: list[list[Cell]] = []
-    for column in METRIC_COLUMNS:
-        values = [m.get(column.key) for m in metrics]
-        unknown = [column.key == "divergence_time" and nr for nr in no_reference]
-        flags = _best_flags(column, values, [o and not u for o, u in zip(ok, unknown)])
+    for col in columns:
+        values = [m.get(col.key) for m in metrics]
+        infinite = getattr(declared.METRICS.get(col.key), "none_means", "") == "infinite"
+        unknown = [infinite and nr for nr in no_reference]
+        flags = _best_flags(col, values, [o and not u for o, u in zip(ok, unknown)])
         cells = []
         for value, best, case, unknown_here in zip(values, flags, cases, unknown):
-            if case is None or not case.get("metrics") or not case["metrics"].get("n_samples"):
+            if case is None or not case.metrics or not case.metrics.get("n_samples"):
                 # A run with no samples (it raised at once) has drift and constraint error 0 by
                 # definition; printing those zeros would read as a perfect result.
                 cells.append(Cell("–", title="no samples at this dt"))
             elif unknown_here:
                 cells.append(Cell("–", title="no position error (no reference solution)"))
             else:
-                cells.append(Cell(column.missing if value is None else column.fmt(value), best))
+                cells.append(Cell(col.missing if value is None else col.fmt(value), best, sort=_sort_key(col, value)))
         columns_cells.append(cells)
     orders = [s.order.order if s.order is not None else None for s in scene.sweeps]
-    order_flags = _best_flags(ORDER_COLUMN, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
+    order_flags = _best_flags(order_col, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
     rows = []
     for k, (sweep, case) in enumerate(zip(scene.sweeps, cases)):
         fit = sweep.order
         if orders[k] is None:
             order = Cell("–", title=(fit.reason if fit is not None else ""))
         else:
-            order = Cell(ORDER_COLUMN.fmt(orders[k]), order_flags[k], f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)")
-        rows.append(
-            Row(
-                engine=sweep.engine,
-                status=case["status"] if case else "not run",
-                message=(case or {}).get("message", ""),
-                sweep_statuses=_sweep_statuses(sweep),
-                cells=[cells[k] for cells in columns_cells],
-                order=order,
-            )
-        )
-    return SummaryTable(METRIC_COLUMNS + (ORDER_COLUMN,), rows, dt)
+            order = Cell(order_col.fmt(orders[k]), order_flags[k],
+                         f"fitted over dt {fit.dt_min:.3g}–{fit.dt_max:.3g} s ({fit.n_points} points)")
+        verdict = sweep.consistency
+        rows.append(Row(
+            engine=sweep.engine,
+            status=case.status.value if case is not None else "not run",
+            message=case.message if case is not None else "",
+            sweep_statuses=_sweep_statuses(sweep),
+            cells=[cells[k] for cells in columns_cells],
+            order=order,
+            colour=palette.colour(sweep.engine),
+            consistent=None if verdict is None else verdict.consistent,
+            consistency="" if verdict is None else verdict.reason,
+        ))
+    return SummaryTable(columns + (order_col,), rows, dt)
+
+
+def summary_tables(scene: SceneResults, palette: Palette | None = None) -> list[SummaryTable]:
+    """One summary table per dt of ``scene``, largest dt first (the dt selector switches between them)."""
+    return [summary_table(scene, dt, palette) for dt in scene.dts]

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compare.metrics import constraint_error, energy_drift, position_error
+from compare.results.metrics import constraint_error, energy_drift, position_error
 from engines import catalog
 from engines.mujoco import ENGINE
 from engines.reference import solve

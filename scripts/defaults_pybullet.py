@@ -27,7 +27,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from compare.metrics import constraint_error, energy_drift, position_error
+from compare.results.metrics import constraint_error, energy_drift, position_error
 from engines import catalog
 from engines.pybullet import ENGINE
 from engines.reference import solve

@@ -31,7 +31,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from compare.metrics import constraint_error, energy_drift, energy_drift_series, position_error
+from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error
 from engines import catalog
 from engines.closed_form import pendulum_period
 from engines.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS

@@ -5,7 +5,7 @@ but the misbehaving ones returns the reference solution itself, so a case
 that behaves has zero position error.
 
 The engine runs in a case host, a child forked from the executor's worker
-(compare.isolation), so its parent process is that worker: ``kill-worker``
+(compare.run.isolation), so its parent process is that worker: ``kill-worker``
 SIGKILLs it, as an out-of-memory killer or a lost machine would (a pool
 worker locally, a Dask worker on a cluster).
 """

@@ -16,9 +16,9 @@ from typing import Any, Callable
 import pytest
 
 from compare.cli import main
-from compare.results import ResultsDir, iter_records, read_json
-from compare.runner import run_suite
-from compare.suite import load_suite
+from compare.results.store import ResultsDir, read_json
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
 
 TESTS = Path(__file__).resolve().parent
 SUITE = TESTS / "gate_suite.toml"
@@ -40,9 +40,11 @@ def copy_results(source: Path, target: Path) -> Path:
 
 def edit_case(directory: Path, case_id: str, change: Callable[[dict[str, Any]], None]) -> dict[str, Any]:
     """Apply ``change`` to the record of ``case_id`` in ``directory`` and write it back; returns the new record."""
-    for record in iter_records(directory / "cases"):
+    for file in sorted((directory / "cases").glob("*.json")):
+        record = read_json(file)  # the raw JSON: tests edit what a file holds
         if record["case"]["id"] == case_id:
             change(record)
+            record.pop("schema_version", None)
             ResultsDir(directory).write_case(record)
             return record
     raise KeyError(case_id)

@@ -9,6 +9,8 @@ fields changed, as another producer or an interrupted run would leave them.
 
 from __future__ import annotations
 
+import base64
+import gzip
 import json
 import shutil
 from dataclasses import dataclass, field
@@ -64,8 +66,8 @@ _runs: dict[str, Path] = {}
 
 def run_suite_once(base: Path, suite_path: Path = SUITE, edit: Callable[[str], str] | None = None) -> Path:
     """Run ``suite_path`` (its text passed through ``edit``) into a directory under ``base``, once per session."""
-    from compare.runner import run_suite
-    from compare.suite import parse_suite
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
 
     text = suite_path.read_text()
     if edit is not None:
@@ -181,13 +183,39 @@ class PageStructure(HTMLParser):
     def plots(self) -> list[tuple[str, int]]:
         return [p for s in self.sections for p in s.plots]
 
-    def figure_specs(self) -> dict[str, dict[str, Any]]:
-        """Plot DOM id -> the figure spec the page embeds for it."""
-        specs = {}
+    def packs(self) -> dict[str, Any]:
+        """Every packed element's content (id -> text), unpacked as the page does (base64, then gzip)."""
+        found = {}
         for attrs, body in zip(self.scripts, self.script_bodies):
-            if attrs.get("type") == "application/json":
-                specs[attrs["id"].removesuffix("-spec")] = json.loads(body)
-        return specs
+            if attrs.get("data-encoding") == "gzip-base64":
+                found[attrs["id"]] = gzip.decompress(base64.b64decode(body)).decode("utf-8")
+        return found
+
+    def figure_specs(self) -> dict[str, dict[str, Any]]:
+        """Plot DOM id -> the figure spec the page packs for it (animation data under ``anim-N``)."""
+        specs: dict[str, Any] = {}
+        for name, text in self.packs().items():
+            if name.startswith("pack-"):
+                specs.update(json.loads(text))
+        return {k: v for k, v in specs.items() if not k.startswith("anim-")}
+
+    def animations(self) -> dict[str, dict[str, Any]]:
+        specs: dict[str, Any] = {}
+        for name, text in self.packs().items():
+            if name.startswith("pack-"):
+                specs.update(json.loads(text))
+        return {k: v for k, v in specs.items() if k.startswith("anim-")}
+
+    def problems_table(self) -> Table | None:
+        """The table of unstable and failed cases (packed in the page), or None when there is none."""
+        text = self.packs().get("problems-packed", "")
+        tables = PageStructure(f"<section id='x'>{text}</section>").sections[0].tables if text else []
+        return tables[0] if tables else None
+
+    def other_dt_tables(self, scene: int) -> list[Table]:
+        """The summary tables of scene number ``scene`` at its other dts (packed in the page)."""
+        text = self.packs().get(f"tables-{scene}-packed", "")
+        return PageStructure(f"<section id='x'>{text}</section>").sections[0].tables if text else []
 
 
 # -- hostile strings ----------------------------------------------------------------------
@@ -222,8 +250,8 @@ def hostile_results(base: Path) -> Path:
     """
     if "hostile" in _runs:
         return _runs["hostile"]
-    from compare.runner import run_suite
-    from compare.suite import parse_suite
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
 
     run = base / "hostile-run"
     run_suite(parse_suite(HOSTILE_SUITE, HOSTILE), run, jobs=2)

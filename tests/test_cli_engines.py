@@ -19,6 +19,16 @@ VARIANTS = [v for name in BUILT_IN for v in registry.get_engine(name).variant_id
 LEFT_OUT = {
     ("pymunk", "spherical-pendulum"): "pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'",
     ("ours/lagrangian", "spherical-pendulum"): "planar chain",
+    # Mechanisms (tests/test_mechanisms_engines.py pins these refusals in full).
+    ("ours/lagrangian", "slider-pendulum"): "ours/lagrangian needs a chain hung from a fixed point",
+    ("ours/lagrangian", "four-bar"): "ours/lagrangian needs a chain hung from a fixed point",
+    ("ours/lagrangian", "bead-ellipse"): "ours/lagrangian needs a chain hung from a fixed point",
+    ("mujoco/connect", "slider-pendulum"): "MuJoCo has no equality constraint that holds a point on a line",
+    ("mujoco/connect", "four-bar"): "use mujoco/hinge, which closes a loop with an equality",
+    ("mujoco", "bead-ellipse"): "MuJoCo cannot hold a body on an ellipse",
+    ("pybullet/multibody", "four-bar"): "closes a loop through particle 1",
+    ("pybullet", "bead-ellipse"): "no joint or constraint of PyBullet holds a body on an ellipse",
+    ("pymunk", "bead-ellipse"): "pymunk has no joint that holds a body on an ellipse",
 }
 
 

@@ -21,11 +21,11 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # test engines beside this file; spawned Dask workers inherit sys.path
     sys.path.insert(0, str(HERE))
 
-from compare import environment  # noqa: E402
-from compare.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster  # noqa: E402
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import load_suite, parse_suite  # noqa: E402
+from compare.run import environment  # noqa: E402
+from compare.run.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import load_suite, parse_suite  # noqa: E402
 from engines.errors import UserError  # noqa: E402
 
 XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
@@ -44,8 +44,8 @@ TIMING = {"wall_time", "cost_per_simulated_second", "steps_per_second"}
 TIMING_SETTINGS = {"ours.compile_or_cache_load_s"}
 
 
-def deterministic(record: dict) -> dict:
-    record = {k: v for k, v in record.items() if k not in ("elapsed", "wall_times", "finished")}
+def deterministic(record) -> dict:
+    record = {k: v for k, v in record.to_json().items() if k not in ("elapsed", "wall_times", "finished")}
     record["metrics"] = {k: v for k, v in (record["metrics"] or {}).items() if k not in TIMING}
     for part in ("run_info", "reference"):
         if record[part]:
@@ -57,7 +57,7 @@ def deterministic(record: dict) -> dict:
 
 
 def records_by_id(path: Path) -> dict[str, dict]:
-    return {r["case"]["id"]: r for r in load_results(path).records}
+    return {r.case.id: r for r in load_results(path).records}
 
 
 def suite_text(engines: list[str], timeout: float = 20, dt: str = "[1e-2]") -> str:
@@ -77,7 +77,7 @@ def test_a_cluster_gives_the_local_pools_records_and_solves_each_reference_once(
     local, remote = records_by_id(tmp_path / "local"), records_by_id(tmp_path / "cluster")
     assert len(remote) == len(suite.scenes) * len(suite.engines) * len(suite.dts)
     assert {k: deterministic(r) for k, r in remote.items()} == {k: deterministic(r) for k, r in local.items()}
-    assert all(r["status"] == "ok" for r in remote.values())
+    assert all(r.status == "ok" for r in remote.values())
 
     # One reference task per scene; every case got its reference's metrics from it.
     references = sorted(task["key"].rsplit(" ", 1)[0] for task in stream.data if task["key"].startswith("solve_reference"))
@@ -126,7 +126,7 @@ def test_a_killed_worker_fails_only_its_case(cluster, tmp_path):
     start = time.perf_counter()
     summary = run_on_cluster(parse_suite(suite_text(engines, timeout=3)), tmp_path / "r", cluster.scheduler_address)
     assert time.perf_counter() - start < 60
-    status = {r["case"]["engine"].split("/")[-1]: (r["status"], r["message"]) for r in load_results(tmp_path / "r").records}
+    status = {r.case.engine.split("/")[-1]: (r.status, r.message) for r in load_results(tmp_path / "r").records}
     # The worker killer took down a worker on each of its two attempts (allowed-failures = 1, as the local pool retries once).
     assert status.pop("kill-worker")[0] == "failed"
     assert status == {
@@ -136,8 +136,8 @@ def test_a_killed_worker_fails_only_its_case(cluster, tmp_path):
         "raise": ("failed", "RuntimeError: deliberate failure in the stepping loop"),
         "hinge": ("ok", ""),
     }
-    [killer] = [r for r in load_results(tmp_path / "r").records if r["case"]["variant"] == "kill-worker"]
-    assert killer["message"].startswith("WorkerDied: the Dask worker process running it died (2 attempts, the last on tcp://")
+    [killer] = [r for r in load_results(tmp_path / "r").records if r.case.variant == "kill-worker"]
+    assert killer.message.startswith("WorkerDied: the Dask worker process running it died (2 attempts, the last on tcp://")
     assert summary.counts == {"failed": 3, "ok": 2, "timeout": 1}
 
 
@@ -177,7 +177,7 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
         assert stderr.splitlines()[-1] == (f"xval: error: lost the connection to the Dask scheduler at {address}; "
                                            f"the finished cases are in {out}: run again with --resume")
         assert "Traceback" not in stderr
-        kept = sorted(r["case"]["engine"] for r in load_results(out).records)
+        kept = sorted(r.case.engine for r in load_results(out).records)
         assert kept == ["compare_engines:MISBEHAVING/exact", "mujoco/hinge", "pymunk/pin"]
         assert json.loads((out / "run.json").read_text())["finished"] is None
     finally:
@@ -187,7 +187,7 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
                              cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "2 cases run" in resumed.stdout and "3 already done" in resumed.stdout
-    status = {r["case"]["engine"]: r["status"] for r in load_results(out).records}
+    status = {r.case.engine: r.status for r in load_results(out).records}
     assert status["compare_engines:MISBEHAVING/sleep"] == "timeout" and len(status) == 5
 
 
@@ -208,7 +208,7 @@ def test_scheduler_local_from_the_command_line(tmp_path):
                          cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert f"results: {out}" in run.stdout and "2 cases run" in run.stdout
-    status = {r["case"]["engine"]: (r["status"], r["message"]) for r in load_results(out).records}
+    status = {r.case.engine: (r.status, r.message) for r in load_results(out).records}
     assert status == {"pymunk/pin": ("ok", ""),
                       "compare_engines:MISBEHAVING/raise": ("failed", "RuntimeError: deliberate failure in the stepping loop")}
     info = load_results(out).header["environment"]["cluster"]

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from compare.metrics import (
+from compare.results.metrics import (
     Bounds,
     apply_bounds,
     case_metrics,

@@ -19,10 +19,10 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # compare_engines is a test-only module beside this file
     sys.path.insert(0, str(HERE))
 
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import parse_suite  # noqa: E402
-from compare.sweep import sweeps  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import parse_suite  # noqa: E402
+from compare.results.sweep import sweeps  # noqa: E402
 from engines.errors import UserError  # noqa: E402
 
 XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
@@ -38,7 +38,7 @@ def suite_text(engines: list[str], dt: str = "[1e-2]", duration: float = 0.5, sc
 
 
 def by_engine(path: Path) -> dict[str, dict]:
-    return {r["case"]["engine"]: r for r in load_results(path).records}
+    return {r.case.engine: r for r in load_results(path).records}
 
 
 def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
@@ -48,7 +48,7 @@ def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
     summary = run_suite(suite, tmp_path / "r", jobs=2, timeout=3)
     assert time.perf_counter() - start < 30  # the sleeper was cut at its timeout
     records = by_engine(tmp_path / "r")
-    status = {k.split("/")[-1]: (r["status"], r["message"]) for k, r in records.items()}
+    status = {k.split("/")[-1]: (r.status, r.message) for k, r in records.items()}
     assert status["exact"] == ("ok", "")
     assert status["raise"] == ("failed", "RuntimeError: deliberate failure in the stepping loop")
     assert status["nan"][0] == "unstable" and status["nan"][1].startswith("non-finite state at t = 0.25")
@@ -57,9 +57,9 @@ def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
     assert status["exit"] == ("failed", "the engine's process died (exit code 3) before returning a result")
     assert status["drift"][0] == "unstable" and "constraint error 0.5 m exceeds the bound 0.1 L" in status["drift"][1]
     assert status["hinge"][0] == "ok"
-    assert records["compare_engines:MISBEHAVING/exact"]["metrics"]["position_error_linf"] == 0.0
+    assert records["compare_engines:MISBEHAVING/exact"].metrics["position_error_linf"] == 0.0
     # The NaN run's metrics cover the samples before the first non-finite one.
-    assert records["compare_engines:MISBEHAVING/nan"]["metrics"]["n_samples"] == 25
+    assert records["compare_engines:MISBEHAVING/nan"].metrics["n_samples"] == 25
     assert summary.counts == {"failed": 3, "ok": 2, "timeout": 1, "unstable": 2}
 
 
@@ -71,7 +71,7 @@ def test_a_case_that_kills_its_pool_worker_is_failed_and_no_other_case_is_blamed
     engines = ["compare_engines:MISBEHAVING/kill-worker", "compare_engines:MISBEHAVING/exact",
                "mujoco/hinge", "pymunk/pin"]
     summary = run_suite(parse_suite(suite_text(engines)), tmp_path / "r", jobs=jobs)
-    status = {r["case"]["engine"]: (r["status"], r["message"]) for r in load_results(tmp_path / "r").records}
+    status = {r.case.engine: (r.status, r.message) for r in load_results(tmp_path / "r").records}
     assert status.pop("compare_engines:MISBEHAVING/kill-worker") == (
         "failed", "a worker process of the executor died while it ran")
     assert {engine: s for engine, (s, _) in status.items()} == {
@@ -113,9 +113,9 @@ def test_any_executor_and_skipped_pairs(tmp_path):
     with cf.ThreadPoolExecutor(2) as executor:
         run_suite(suite, tmp_path / "r", executor=executor)
     records = load_results(tmp_path / "r").records
-    skipped = [r for r in records if r["status"] == "skipped"]
-    assert [(r["case"]["scene_id"], r["case"]["engine"]) for r in skipped] == [("spherical-pendulum", "pymunk/pin")]
-    assert skipped[0]["message"] == "pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'"
+    skipped = [r for r in records if r.status == "skipped"]
+    assert [(r.case.scene_id, r.case.engine) for r in skipped] == [("spherical-pendulum", "pymunk/pin")]
+    assert skipped[0].message == "pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'"
     assert len(records) == 4
 
 
@@ -134,8 +134,8 @@ def test_a_results_directory_is_not_overwritten_and_resume_needs_the_same_suite(
 TIMING = {"wall_time", "cost_per_simulated_second", "steps_per_second"}
 
 
-def deterministic(record: dict) -> dict:
-    record = dict(record)
+def deterministic(record) -> dict:
+    record = record.to_json()
     for key in ("elapsed", "wall_times", "finished"):
         record.pop(key)
     record["metrics"] = {k: v for k, v in (record["metrics"] or {}).items() if k not in TIMING}
@@ -180,8 +180,8 @@ def test_sigkill_part_way_then_resume_equals_an_uninterrupted_run(tmp_path):
 
     fresh = tmp_path / "fresh"
     run_suite(parse_suite(suite_file.read_text(), str(suite_file)), fresh, jobs=2)
-    a = {r["case"]["id"]: deterministic(r) for r in load_results(interrupted).records}
-    b = {r["case"]["id"]: deterministic(r) for r in load_results(fresh).records}
+    a = {r.case.id: deterministic(r) for r in load_results(interrupted).records}
+    b = {r.case.id: deterministic(r) for r in load_results(fresh).records}
     assert a == b
 
 
@@ -211,12 +211,13 @@ def test_run_and_show_commands(tmp_path):
     run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"],
                          cwd=ROOT, capture_output=True, text=True, env=env, timeout=60)
     assert run.returncode == 0, run.stderr
-    assert "engine" in run.stdout and "pymunk/pin" in run.stdout and f"results: {out}" in run.stdout
-    assert "[1/2] bead" in run.stderr and "[2/2] bead" in run.stderr  # plain progress lines off a terminal
+    assert "most accurate at equal cost" in run.stdout and "pymunk/pin" in run.stdout and f"results: {out}" in run.stdout
+    # Off a terminal: a line at every tenth of the run (here each of the two cases), not the cases themselves.
+    assert run.stderr.splitlines() == ["running: 1/2 cases (50 %)", "running: 2/2 cases (100 %), 1 not ok"]
     show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=env)
     table = show.stdout.splitlines()
     assert table[2] == "scene bead"
-    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order"]
+    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order", "consistent"]
     assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
     assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
     assert table[6] == "  compare_engines:MISBEHAVING/raise: RuntimeError: deliberate failure in the stepping loop"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from compare.suite import geometric_sweep, load_suite, parse_suite
+from compare.suite.reader import geometric_sweep, load_suite, parse_suite
 from engines.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -74,7 +74,7 @@ def test_invalid_toml_gives_the_line():
 def test_unknown_top_level_key():
     bad(GOOD.replace("duration = 1.0", "durations = 1.0"),
         "s.toml:2: durations: unknown key; valid keys are: name, description, duration, sample_interval, "
-        "delta, repeats, timeout, dt, reference, bounds, tolerances, gate, scenes, engines, stability, gainmap")
+        "delta, repeats, timeout, dt, reference, bounds, tolerances, gate, scenes, engines, stability, gainmap, verdict")
 
 
 def test_missing_required_key():
@@ -131,7 +131,7 @@ def test_dt_longer_than_the_duration():
 
 def test_unknown_scene():
     bad(GOOD.replace('scene = "bead"', 'scene = "beed"'),
-        "s.toml:7: scenes[0].scene: unknown scene 'beed'; choose one of: bead, double-pendulum, chain, spherical-pendulum")
+        "s.toml:7: scenes[0].scene: unknown scene 'beed'; choose one of: bead, double-pendulum, chain, spherical-pendulum, slider-pendulum, four-bar, bead-ellipse")
 
 
 def test_bad_scene_parameter():
@@ -186,3 +186,17 @@ def test_module_attribute_that_is_not_an_engine():
 def test_engines_as_plain_strings():
     suite = parse_suite(GOOD.split("[[engines]]")[0].replace('name = "t"', 'name = "t"\nengines = ["pymunk/pin"]'), "s.toml")
     assert [e.label for e in suite.engines] == ["pymunk/pin"]
+
+
+def test_a_command_engines_program_and_version_are_part_of_the_fingerprint(tmp_path):
+    """--resume must not mix results of two different programs under one label."""
+    def suite(argv: str, version: str) -> str:
+        return GOOD.replace('[[engines]]\nid = "mujoco/hinge"',
+                            f'[[engines]]\ncommand = {argv}\nlabel = "mine"\nversion = "{version}"')
+
+    path = str(tmp_path / "s.toml")
+    (tmp_path / "s.toml").write_text("")
+    base = parse_suite(suite('["python3", "a.py"]', "1"), path).fingerprint()
+    assert parse_suite(suite('["python3", "a.py"]', "1"), path).fingerprint() == base
+    assert parse_suite(suite('["python3", "b.py"]', "1"), path).fingerprint() != base
+    assert parse_suite(suite('["python3", "a.py"]', "2"), path).fingerprint() != base

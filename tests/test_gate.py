@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from compare.baseline import BASELINE_SCHEMA_VERSION, build_baseline, case_key, load_baseline, write_baseline
-from compare.gate_report import format_value
-from compare.results import load_results, read_json
-from compare.sweep import sweeps
+from compare.gate.baseline import BASELINE_SCHEMA_VERSION, build_baseline, case_key, load_baseline, write_baseline
+from compare.gate.report import format_value
+from compare.results.store import load_results, read_json
+from compare.results.sweep import sweeps
 
 from gate_engines import REGRESSION
 from gate_support import CASE, SUITE, copy_results, edit_case, remove_case, run, set_timings, xval
@@ -60,11 +60,11 @@ def test_baseline_stores_per_case_metrics_timing_spread_and_versions(runs):
     assert document["schema_version"] == BASELINE_SCHEMA_VERSION
     assert document["suite"]["name"] == "gate-test"
     assert len(document["cases"]) == 6
-    record = next(r for r in _records(runs["first"]) if r["case"]["id"] == CASE)
-    entry = document["cases"][case_key(record["case"], record["scene_hash"])]
-    assert entry["engine_version"] == record["run_info"]["engine_version"]
+    record = next(r for r in _records(runs["first"]) if r.case.id == CASE)
+    entry = document["cases"][case_key(record.case, record.scene_hash)]
+    assert entry["engine_version"] == record.run_info["engine_version"]
     assert entry["status"] == "ok"
-    assert entry["metrics"]["position_error_linf"] == record["metrics"]["position_error_linf"]
+    assert entry["metrics"]["position_error_linf"] == record.metrics["position_error_linf"]
     # The sweep's fitted order is stored with each of its cases.
     for sweep in sweeps(_records(runs["first"])):
         stored = {e["metrics"]["observed_order"] for e in document["cases"].values() if e["engine"] == sweep.engine}
@@ -72,7 +72,7 @@ def test_baseline_stores_per_case_metrics_timing_spread_and_versions(runs):
     timing = entry["timing"]
     assert len(timing["repeats"]) == 3
     assert timing["spread"] == [min(timing["repeats"]), max(timing["repeats"])]
-    assert timing["cost"] == pytest.approx(record["metrics"]["cost_per_simulated_second"])
+    assert timing["cost"] == pytest.approx(record.metrics["cost_per_simulated_second"])
 
 
 def _records(directory: Path):
@@ -324,8 +324,9 @@ def test_a_bad_gate_table_names_the_key(runs, rerun, capsys):
     suite.write_text(suite.read_text() + "\n[gate]\ntiming_factor = 0.5\n")
     code, _, err = xval(capsys, "gate", rerun, "--baseline", runs["baseline"])
     assert code == 2
+    line = suite.read_text().splitlines().index("timing_factor = 0.5") + 1
     assert err == (
-        f"xval: error: {suite}: gate.timing_factor: must be a number > 1 (a slowdown factor), got 0.5; "
+        f"xval: error: {suite}:{line}: gate.timing_factor: must be a number > 1 (a slowdown factor), got 0.5; "
         f"write e.g. timing_factor = 1.5\n"
     )
 

@@ -21,11 +21,11 @@ import os
 
 import pytest
 
-from compare.baseline import load_baseline
-from compare.gate import gate_results
-from compare.gate_report import format_table, to_markdown
-from compare.junit import to_junit
-from compare.tolerance import GateSettings
+from compare.gate.baseline import load_baseline
+from compare.gate.gate import gate_results
+from compare.gate.report import format_table, to_markdown
+from compare.gate.junit import to_junit
+from compare.gate.tolerance import GateSettings
 
 from gate_support import GOLDEN
 

@@ -6,9 +6,9 @@ import pytest
 
 from engines.errors import UserError
 
-from compare.gate import accuracy_change, compare_case, machine_difference, timing_change
-from compare.suite import parse_suite
-from compare.tolerance import RULES, GateSettings, Tolerance, gate_settings
+from compare.gate.gate import accuracy_change, compare_case, machine_difference, timing_change
+from compare.suite.reader import parse_suite
+from compare.gate.tolerance import RULES, GateSettings, Tolerance, gate_settings
 
 SETTINGS = GateSettings()
 

@@ -21,12 +21,12 @@ ROOT = HERE.parent
 if str(HERE) not in sys.path:  # plugin_engines and plugin_broken_import are test-only modules beside this file
     sys.path.insert(0, str(HERE))
 
-from compare.baseline import build_baseline, load_baseline  # noqa: E402
-from compare.gate import gate_results  # noqa: E402
-from compare.results import load_results  # noqa: E402
-from compare.runner import run_suite  # noqa: E402
-from compare.suite import load_suite, parse_suite  # noqa: E402
-from compare.tolerance import GateSettings  # noqa: E402
+from compare.gate.baseline import build_baseline, load_baseline  # noqa: E402
+from compare.gate.gate import gate_results  # noqa: E402
+from compare.results.store import load_results  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import load_suite, parse_suite  # noqa: E402
+from compare.gate.tolerance import GateSettings  # noqa: E402
 from engines import catalog, registry  # noqa: E402
 from engines.adapter import API_VERSION, api_version_problem  # noqa: E402
 from engines.errors import UserError  # noqa: E402
@@ -126,10 +126,10 @@ def test_module_attribute_ids_load_from_a_suite_file(tmp_path):
     assert [e.label for e in suite.engines] == ["plugin_engines:EXACT_CLASS/default",
                                                 "my_solver.xval_adapter:ENGINE/shake"]
     run_suite(suite, tmp_path / "r", jobs=1)
-    records = {r["case"]["engine"]: r for r in load_results(tmp_path / "r").records}
-    assert records["plugin_engines:EXACT_CLASS/default"]["status"] == "ok"
-    assert records["plugin_engines:EXACT_CLASS/default"]["metrics"]["position_error_linf"] == 0.0
-    assert records["my_solver.xval_adapter:ENGINE/shake"]["status"] == "ok"
+    records = {r.case.engine: r for r in load_results(tmp_path / "r").records}
+    assert records["plugin_engines:EXACT_CLASS/default"].status == "ok"
+    assert records["plugin_engines:EXACT_CLASS/default"].metrics["position_error_linf"] == 0.0
+    assert records["my_solver.xval_adapter:ENGINE/shake"].status == "ok"
 
 
 @pytest.mark.parametrize(
@@ -186,14 +186,14 @@ def test_broken_plugins_are_reported_and_every_other_engine_still_runs(tmp_path)
     suite = parse_suite(f'duration = 0.3\ndt = [1e-2]\ntimeout = 30\n[[scenes]]\nscene = "bead"\n{ids}'
                         '[[engines]]\nid = "my-solver/rattle"\n[[engines]]\nid = "reference/dop853"\n')
     run_suite(suite, tmp_path / "r", jobs=2)
-    records = {r["case"]["engine"]: r for r in load_results(tmp_path / "r").records}
+    records = {r.case.engine: r for r in load_results(tmp_path / "r").records}
     for engine_id, (status, message) in BROKEN.items():
         record = records[engine_id]
-        assert (record["status"], record["message"][: len(message)]) == (status, message), engine_id
-    assert records["my-solver/rattle"]["status"] == "ok"
-    assert records["reference/dop853"]["status"] == "ok"
+        assert (record.status, record.message[: len(message)]) == (status, message), engine_id
+    assert records["my-solver/rattle"].status == "ok"
+    assert records["reference/dop853"].status == "ok"
     # The NaN plugin keeps its samples before the first non-finite one (t = 0 .. 0.14 s).
-    assert records["plugin_engines:NAN_HALFWAY/default"]["metrics"]["n_samples"] == 15
+    assert records["plugin_engines:NAN_HALFWAY/default"].metrics["n_samples"] == 15
 
 
 def test_a_broken_entry_point_is_unavailable_with_its_name_and_the_reason():

@@ -14,12 +14,12 @@ import plotly.graph_objects as go
 import pytest
 
 from compare.cli import main
-from compare.sweep import sweeps
+from compare.results.sweep import sweeps
 from engines.errors import UserError
 from report_support import PageStructure, copy_results, run_suite_once
 from reports.load import choose_dt, load_report_data
 from reports.render import render, write_report
-from reports.summary import METRIC_COLUMNS, Column, _best_flags
+from reports.summary import Column, _best_flags, metric_columns
 
 
 @pytest.fixture(scope="session")
@@ -40,29 +40,34 @@ GOLDEN = {
         "heading": "Scene bead",
         "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"), ("pymunk/pin", "ok"),
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
-        "tables": ["summary"],
+        "tables": ["summary sortable filterable"],
         # work-precision and error-vs-dt: the 3 variants with ok cases; time series: 4 variants with samples
-        # x 3 panels; paths: the reference + 4 variants, 1 particle.
-        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 12), ("s0-path", 5)],
+        # x 3 panels and the × where broken/blow-up stops; constraint forces: the reference's + the 3 variants whose engines report them (the
+        # broken engine returns none); phase plot and paths: the reference + 4 variants, 1 particle.
+        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 13), ("s0-force", 4), ("s0-phase", 5), ("s0-path", 5)],
     },
     "scene-1": {
         "heading": "Scene spherical",
         "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"),
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
-        "tables": ["summary", "skipped"],
-        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 9), ("s1-path", 4)],
+        "tables": ["summary sortable filterable", "skipped"],
+        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 10), ("s1-force", 3), ("s1-phase", 4), ("s1-path", 4)],
     },
 }
 
 
-def test_page_has_the_sections_in_order(small_page):
+def test_page_has_the_sections_in_order_the_verdict_first(small_page):
     assert [(s.id, s.heading) for s in small_page.sections] == [
-        ("run", "xval report: report-small"),
+        ("top", "xval report: report-small"),
+        ("verdict", "Verdict"),
+        ("run", "Run"),
         ("scene-0", "Scene bead"),
         ("scene-1", "Scene spherical"),
         ("problems", "Unstable and failed cases"),
         ("how-to-read", "How to read this"),
     ]
+    # Before the verdict: the title and the filter bar only, no table and no plot.
+    assert small_page.sections[0].tables == [] and small_page.sections[0].plots == []
 
 
 def test_header_counts_every_status(small_page):
@@ -91,7 +96,7 @@ def test_scene_sections_have_the_golden_tables_and_plots(small_page, section_id)
     assert section.heading == golden["heading"]
     assert [t.css_class for t in section.tables] == golden["tables"]
     summary = section.tables[0]
-    assert summary.rows[0][:3] == ["engine variant", "status at this dt", "over the dt sweep"]
+    assert summary.rows[0][:4] == ["engine variant", "status at this dt", "consistent", "over the dt sweep"]
     assert [(row[0], row[1]) for row in summary.rows[1:]] == golden["rows"]
     assert section.plots == golden["plots"]
 
@@ -110,13 +115,13 @@ def test_summary_marks_the_best_value_of_each_column(small_page):
     divergence = column["divergence time / s"]
     assert [rows[n][divergence] for n in ("mujoco/hinge-rk4", "pymunk/pin")] == ["never", "never"]
     # Every other column has exactly one star (the order only pymunk's first-order sweep could fit).
-    stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(3, len(header)) if k != divergence]
+    stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(4, len(header)) if k != divergence]
     assert stars == [1] * len(stars)
 
 
 def test_a_run_without_samples_shows_no_numbers(small_page):
     row = next(r for r in small_page.section("scene-0").tables[0].rows if r[0] == "broken/raise")
-    assert row[3:] == ["–"] * 7
+    assert row[4:] == ["–"] * 7  # six declared report metrics and the order
 
 
 def test_skipped_pairs_are_listed_with_their_reason(small_page):
@@ -125,7 +130,7 @@ def test_skipped_pairs_are_listed_with_their_reason(small_page):
 
 
 def test_problems_list_every_unstable_and_failed_case_with_its_message(small_page):
-    problems = small_page.section("problems").tables[0]
+    problems = small_page.problems_table()
     rows = problems.rows[1:]
     assert len(rows) == 12
     assert {(r[1], r[3]) for r in rows} == {("broken/blow-up", "unstable"), ("broken/raise", "failed")}
@@ -144,7 +149,7 @@ def test_how_to_read_states_every_metric_and_its_unit(small_results):
 
 def test_status_element_announces_plots_and_traces(small_page):
     plots = small_page.plots
-    assert small_page.status["data-plots"] == str(len(plots)) == "8"
+    assert small_page.status["data-plots"] == str(len(plots)) == "12"
     assert small_page.status["data-traces"] == str(sum(n for _, n in plots))
 
 
@@ -153,10 +158,14 @@ def test_status_element_announces_plots_and_traces(small_page):
 
 def test_every_figure_spec_is_valid_plotly_with_the_announced_traces(small_page):
     specs = small_page.figure_specs()
-    assert sorted(specs) == sorted(plot_id for plot_id, _ in small_page.plots)
+    # Besides each plot, the time series at the scene's two other dts, for the dt selector.
+    others = {f"s{n}-ts@{j}" for n in (0, 1) for j in (0, 1)}
+    assert sorted(specs) == sorted([plot_id for plot_id, _ in small_page.plots] + list(others))
     for plot_id, n_traces in small_page.plots:
         figure = go.Figure(specs[plot_id])  # raises on any property plotly does not know
         assert len(figure.data) == n_traces
+    for plot_id in others:
+        go.Figure(specs[plot_id])
 
 
 def test_work_precision_is_log_log_with_dt_in_the_hover(small_page):
@@ -174,6 +183,13 @@ def test_error_vs_dt_legend_gives_the_observed_order(small_page):
     assert "mujoco/hinge-rk4 (order –)" in names, names
 
 
+def test_a_run_that_blows_up_is_marked_where_it_stops(small_page):
+    spec = small_page.figure_specs()["s0-ts"]
+    marks = [t for t in spec["data"] if t.get("mode") == "markers+text"]
+    # The test engine's state turns NaN at t = 0.25 s; its last finite sample is at 0.24 s.
+    assert [(t["name"], t["text"]) for t in marks] == [("broken/blow-up", ["non-finite after t = 0.24 s"])]
+
+
 def test_paths_are_drawn_over_the_reference_at_equal_scale(small_page):
     spec = small_page.figure_specs()["s0-path"]
     assert spec["data"][0]["name"] == "reference"
@@ -185,16 +201,16 @@ def test_paths_are_drawn_over_the_reference_at_equal_scale(small_page):
 
 def test_plotly_is_embedded_once_and_nothing_is_fetched(small_results, small_page):
     html = render(load_report_data(small_results))
-    executable = [body for attrs, body in zip(small_page.scripts, small_page.script_bodies)
-                  if attrs.get("type") != "application/json"]
-    assert len(executable) == 2  # the plotly.js bundle and the few lines that draw the plots
-    assert sum("Plotly" in body and len(body) > 1_000_000 for body in executable) == 1
-    assert html.count("plotly.js v") <= 2  # the bundle's own banner, not a copy per figure
+    executable = [body for attrs, body in zip(small_page.scripts, small_page.script_bodies) if "type" not in attrs]
+    assert len(executable) == 1  # the page's own script; plotly.js and the data are packed, not executable as such
+    packs = small_page.packs()
+    bundle = packs["xval-plotly"]
+    assert len(bundle) > 3_000_000 and "plotly.js v" in bundle[:1000]
+    assert sum("plotly.js v" in text for text in packs.values()) == 1  # once, not a copy per figure
     assert all("src" not in attrs for attrs in small_page.scripts)
     assert not [url for url in small_page.urls if not url.startswith("#")]
-    bundle = max(executable, key=len)
-    outside = html.replace(bundle, "")
-    assert "http:" not in outside and "https:" not in outside  # no CDN, no link: the page names no server at all
+    for text in [html] + [t for name, t in packs.items() if name != "xval-plotly"]:
+        assert "http:" not in text and "https:" not in text  # no CDN, no link: the page names no server at all
     assert "default-src 'none'" in html  # the page's CSP forbids any request
 
 
@@ -205,11 +221,11 @@ def test_a_single_case_renders(small_results, tmp_path):
     single = copy_results(small_results, tmp_path / "one",
                           keep=lambda r: r["case"]["id"] == "bead|pymunk/pin|dt=0.003")
     page = PageStructure(render(load_report_data(single)))
-    assert [s.id for s in page.sections] == ["run", "scene-0", "problems", "how-to-read"]
+    assert [s.id for s in page.sections] == ["top", "verdict", "run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
     # One point: nothing to fit an order to, but every plot still draws its one variant;
-    # the paths plot adds the reference's path, stored in the record beside the engine's.
-    assert [n for _, n in page.plots] == [1, 1, 3, 2]
+    # the force, phase and paths plots add the reference's, stored in the record beside the engine's.
+    assert [n for _, n in page.plots] == [1, 1, 3, 2, 2, 2]
 
 
 def test_only_failures_and_skips_render(small_results, tmp_path):
@@ -217,7 +233,7 @@ def test_only_failures_and_skips_render(small_results, tmp_path):
                           keep=lambda r: r["status"] in ("failed", "skipped"))
     page = PageStructure(render(load_report_data(broken)))
     assert page.plots == []
-    assert len(page.section("problems").tables[0].rows) == 1 + 6
+    assert len(page.problems_table().rows) == 1 + 6
     assert page.section("scene-1").tables[1].css_class == "skipped"
 
 
@@ -225,7 +241,7 @@ def test_a_scene_whose_every_pair_was_skipped_renders(small_results, tmp_path):
     skipped = copy_results(small_results, tmp_path / "skipped", keep=lambda r: r["status"] == "skipped")
     html = render(load_report_data(skipped))
     page = PageStructure(html)
-    assert [s.heading for s in page.sections[1:2]] == ["Scene spherical"]
+    assert [s.heading for s in page.sections if s.id.startswith("scene-")] == ["Scene spherical"]
     assert "No engine variant ran on this scene." in html
     assert [t.css_class for t in page.section("scene-0").tables] == ["skipped"]
     assert page.plots == [] and "None: no case ran." in html
@@ -239,7 +255,7 @@ def test_an_empty_or_unfinished_run_renders(small_results, tmp_path):
     empty = copy_results(small_results, tmp_path / "empty", keep=lambda r: False, change_header=unfinished)
     html = render(load_report_data(empty))
     assert "not finished" in html
-    assert [s.id for s in PageStructure(html).sections] == ["run", "problems", "how-to-read"]
+    assert [s.id for s in PageStructure(html).sections] == ["top", "verdict", "run", "problems", "how-to-read"]
 
 
 def test_missing_metrics_and_series_render(small_results, tmp_path):
@@ -256,7 +272,7 @@ def test_missing_metrics_and_series_render(small_results, tmp_path):
 
 
 def test_chosen_dt_is_the_smallest_with_the_most_ok_variants(small_results):
-    from compare.results import load_results
+    from compare.results.store import load_results
 
     scene_sweeps = [s for s in sweeps(load_results(small_results).records) if s.scene_id == "bead"]
     assert choose_dt(scene_sweeps, [1e-2, 3e-3, 1e-3]) == 1e-3
@@ -270,7 +286,7 @@ def test_best_flags_rank_only_eligible_values_and_keep_ties():
     assert _best_flags(low, [2.0, 2.0], [True, True]) == [False, False]  # all tie: nothing to point at
     assert _best_flags(low, [2.0, 5.0], [True, False]) == [True, False]  # a single ranked value is still best
     assert _best_flags(low, [None, None], [True, True]) == [False, False]
-    divergence = next(c for c in METRIC_COLUMNS if c.key == "divergence_time")
+    divergence = next(c for c in metric_columns() if c.key == "divergence_time")
     # None is "never diverged": the best divergence time there is.
     assert _best_flags(divergence, [0.3, None, 0.9], [True, True, True]) == [False, True, False]
 
@@ -302,12 +318,12 @@ def test_report_command_output_and_dt(small_results, tmp_path, capsys):
     code, _, err = run_cli(capsys, "report", str(small_results), "--output", str(target), "--dt", "0.01")
     assert code == 0, err
     page = PageStructure(target.read_text())
-    assert "Summary at dt = 0.01 s" in target.read_text()
+    assert '<option value="0" selected>0.01 s</option>' in target.read_text()
     assert page.section("scene-0").tables[0].rows[1][:2] == ["reference/dop853", "ok"]
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["report", "{tmp}/nowhere"], r"^xval: error: .*nowhere: not a results directory \(no run\.json\); give the --output directory of 'xval run'\n$"),
+    (["report", "{tmp}/nowhere"], r"^xval: error: .*nowhere: not a results directory.*; give the --output directory of 'xval run'\n$"),
     (["report", "{results}", "--output", "{tmp}/no/such/dir/r.html"], r"^xval: error: --output: directory .* does not exist; create it or choose another path\n$"),
     (["report", "{results}", "--dt", "-1"], r"^xval: error: .*--dt.*\n$"),
 ])
@@ -330,5 +346,52 @@ def test_a_record_of_another_schema_version_is_refused(small_results, tmp_path):
 def test_write_report_reports_size_and_time(small_results, tmp_path):
     written = write_report(small_results, tmp_path / "r.html")
     assert written.size == (tmp_path / "r.html").stat().st_size
-    assert 3_000_000 < written.size < 10_000_000  # the plotly.js bundle (~4.8 MB) and a little data
+    assert 1_900_000 < written.size < 3_000_000  # the packed plotly.js bundle (~2 MB) and a little data
     assert written.seconds < 10
+
+
+# -- the verdict section --------------------------------------------------------------------------
+
+
+def _answers(html: str) -> list[str]:
+    return [re.sub(r"\s+", " ", m) for m in re.findall(r'<p class="answer">(.*?)</p>', html, re.S)]
+
+
+def test_the_verdict_compares_the_suites_first_family_unless_told_otherwise(small_results):
+    data = load_report_data(small_results)
+    # The reference is the yardstick, so the first competing family is mujoco; pymunk's first-order pin
+    # never reaches 1e-6 L = 1e-6 m in this short sweep, so the sentence gives both sides.
+    first = _answers(render(data))
+    assert first[0].startswith("to reach 1e-06 m: mujoco/hinge-rk4 ≤ ") and "pymunk/pin not reached" in first[0]
+    assert _answers(render(data, "pymunk"))[0].startswith("to reach 1e-06 m: pymunk/pin not reached (best 0.002 m); mujoco/hinge-rk4 ≤ ")
+    # The spherical scene has no pymunk variant (2-D engine): the verdict says so instead of comparing.
+    assert _answers(render(data, "pymunk"))[1] == "no pymunk variant ran on this scene."
+
+
+def test_the_verdict_lists_problems_with_links_to_their_evidence(small_page, small_results):
+    html = render(load_report_data(small_results))
+    items = re.findall(r'<li data-engine="([^"]+)" data-status="([^"]+)">.*?<a href="(#[^"]+)">evidence</a></li>', html)
+    assert items[:2] == [("broken/raise", "failed", "#s0-d0-v4"), ("broken/blow-up", "unstable", "#s0-d0-v3")]
+    # The links point at rows of the scene's tables (the largest dt's is packed; its rows carry those ids).
+    rows = [row[0] for row in small_page.other_dt_tables(0)[0].rows]
+    assert rows[4] == "broken/blow-up" and rows[5] == "broken/raise"
+    assert 'id="s0-d0-v3"' in small_page.packs()["tables-0-packed"]
+
+
+def test_an_unknown_focus_family_is_one_line_and_exit_2(small_results, tmp_path, capsys):
+    code, out, err = run_cli(capsys, "report", str(small_results), "--output", str(tmp_path / "r.html"), "--focus", "nope")
+    assert code == 2 and out == ""
+    assert err == "xval: error: --focus: no engine family 'nope' in these results; choose one of: mujoco, pymunk, broken\n"
+
+
+def test_a_stored_probe_result_lists_hidden_dissipation(small_results, tmp_path):
+    """``xval probe ENGINE --format json > DIR/probe-NAME.json``: a variant found damping shows as a problem."""
+    results = copy_results(small_results, tmp_path / "probed")
+    (results / "probe-pymunk.json").write_text(json.dumps(
+        {"engine": "pymunk/pin", "scene": "bead", "rate": 0.0123, "uncertainty": 0.001, "hidden_dissipation": True}))
+    (results / "probe-mujoco.json").write_text(json.dumps(
+        {"engine": "mujoco/hinge-rk4", "scene": "bead", "rate": 1e-9, "uncertainty": 1e-9, "hidden_dissipation": False}))
+    html = render(load_report_data(results))
+    items = re.findall(r'<li data-engine="([^"]+)" data-status="hidden dissipation">(.*?)</li>', html, re.S)
+    assert [engine for engine, _ in items] == ["pymunk/pin"]  # bead only: pymunk does not run the 3-D scene
+    assert "(0.012 E*/s)" in items[0][1]

@@ -16,10 +16,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-from compare.baseline import build_baseline, load_baseline
-from compare.gate import gate_results
-from compare.results import load_results
-from compare.tolerance import GateSettings
+from compare.gate.baseline import build_baseline, load_baseline
+from compare.gate.gate import gate_results
+from compare.results.store import load_results
+from compare.gate.tolerance import GateSettings
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "smoke.toml"

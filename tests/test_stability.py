@@ -12,10 +12,11 @@ import pytest
 
 from engines.errors import UserError
 
-from compare.gainmap import critical_limit, largest_stable_dt, load_gainmap, run_gainmap, spectral_radius, theory_stable
-from compare.results import load_results
-from compare.runner import run_suite
-from compare.stability import (
+from compare.stability.gainmap import load_gainmap, run_gainmap
+from ours.stability import critical_limit, largest_stable_dt, spectral_radius, theory_stable
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.stability.search import (
     BOUNDED,
     STABLE_AT_LARGEST,
     UNSTABLE_AT_SMALLEST,
@@ -26,7 +27,7 @@ from compare.stability import (
     run_stability,
     search,
 )
-from compare.suite import parse_suite
+from compare.suite.reader import parse_suite
 
 K_S = 1e6  # stiff enough that the feedback, not explicit Euler's slow energy growth, sets the limit
 K_D = 2 * math.sqrt(K_S)
@@ -157,15 +158,17 @@ def test_gain_map_agrees_with_theory_away_from_the_boundary(tmp_path):
     text = BEAD_SUITE + """
 [gainmap]
 scene = "bead"
-integrators = ["euler", "rk4"]
+engines = ["ours/baumgarte-euler", "ours/baumgarte-rk4"]
+x = "k_s"
+y = "k_d"
 dt = 1e-3
-k_s = { from = 1, to = 1e8, per_decade = 1 }
-k_d = { from = 1e-1, to = 1e5, per_decade = 1 }
+x_values = { from = 1, to = 1e8, per_decade = 1 }
+y_values = { from = 1e-1, to = 1e5, per_decade = 1 }
 theory_points = 11
 """
     path = run_gainmap(parse_suite(text, str(tmp_path / "g.toml")), tmp_path / "out", jobs=2)
     document = json.loads(path.read_text())
-    assert document["dt"] == 1e-3 and len(document["k_s"]) == 9 and len(document["k_d"]) == 7
+    assert document["dt"] == 1e-3 and len(document["x_values"]) == 9 and len(document["y_values"]) == 7
     for integrator, grid in document["maps"].items():
         cells = [(s, rho) for row_s, row_rho in zip(grid["status"], grid["rho"]) for s, rho in zip(row_s, row_rho)]
         clearly_stable = [s for s, rho in cells if rho < 0.999]  # the run must stay ok
@@ -194,14 +197,14 @@ options = {{ k_s = {K_S}, k_d = {K_D} }}
 id = "ours/rattle"
 """
     summary = run_suite(parse_suite(text, "blowup.toml"), tmp_path / "run", jobs=2)
-    records = {(r["case"]["engine"], r["case"]["dt"]): r for r in load_results(summary.path).records}
+    records = {(r.case.engine, r.case.dt): r for r in load_results(summary.path).records}
     blown = records[("ours/baumgarte-euler", 5e-3)]  # h√k_s = 5 > 2
-    assert blown["status"] == "unstable"
-    t = blown["series"]["t"]
+    assert blown.status == "unstable"
+    t = blown.series["t"]
     assert 0 < len(t) and t[-1] < 1.0  # the samples up to the blow-up are kept
-    assert blown["metrics"]["complete"] is False
-    assert records[("ours/baumgarte-euler", 1e-3)]["status"] == "ok"  # h√k_s = 1: inside the region
-    assert all(records[("ours/rattle", dt)]["status"] == "ok" for dt in (5e-3, 1e-3))
+    assert blown.metrics["complete"] is False
+    assert records[("ours/baumgarte-euler", 1e-3)].status == "ok"  # h√k_s = 1: inside the region
+    assert all(records[("ours/rattle", dt)].status == "ok" for dt in (5e-3, 1e-3))
 
 
 # -- report sections -----------------------------------------------------------------------------
@@ -213,10 +216,12 @@ def test_report_shows_the_stability_table_bars_and_gain_maps(tmp_path):
     text = BEAD_SUITE.replace("duration = 0.5", "duration = 0.2").replace("dt_min = 1e-4", "dt_min = 1e-3") + """
 [gainmap]
 scene = "bead"
-integrators = ["symplectic-euler"]
+engines = ["ours/baumgarte-symplectic-euler"]
+x = "k_s"
+y = "k_d"
 dt = 1e-3
-k_s = [1e2, 1e7]
-k_d = [1.0, 1e4]
+x_values = [1e2, 1e7]
+y_values = [1.0, 1e4]
 theory_points = 5
 """
     suite = parse_suite(text, str(tmp_path / "r.toml"))
@@ -231,4 +236,8 @@ theory_points = 5
     assert "ours/baumgarte-symplectic-euler" in html and "theory / s" in html
     for kind in ("stability", "constraint-error", "energy-drift"):
         assert f'id="gainmap-0-{kind}"' in html
-    assert html.count('"type": "contour"') == 3  # the theory boundary over each heat map
+    from report_support import PageStructure  # the page packs its figure specs; read them as the page does
+
+    specs = PageStructure(html).figure_specs()
+    contours = [t for spec in specs.values() for t in spec["data"] if t["type"] == "contour"]
+    assert len(contours) == 3  # the theory boundary over each heat map

@@ -12,8 +12,8 @@ import pytest
 from engines.reference import solve
 from engines.trajectory import total_energy
 
-from compare.runner import skip_reason
-from compare.suite import load_suite
+from compare.run.runner import skip_reason
+from compare.suite.reader import load_suite
 
 SUITE = load_suite(Path(__file__).resolve().parent.parent / "suites" / "stiff.toml")
 SCENES = {s.id: s for s in SUITE.scenes}

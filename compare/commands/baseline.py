@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from compare.baseline import build_baseline, write_baseline
-from compare.files import check_writable
-from compare.results import load_results
+from compare.gate.baseline import build_baseline, write_baseline
+from compare.results.files import check_writable
+from compare.results.store import load_results
 
 
 @click.command("baseline")

@@ -3,36 +3,25 @@
 from __future__ import annotations
 
 import sys
-import tomllib
 from pathlib import Path
 
 import click
 
-from engines.errors import UserError
 
-from compare.baseline import build_baseline, load_baseline
-from compare.files import atomic_write_text, check_writable
-from compare.gate import TIMING_MODES, gate_results
-from compare.gate_report import format_table, to_markdown
-from compare.junit import to_junit
-from compare.results import load_results
-from compare.tolerance import GateSettings, gate_settings
+from compare.gate.baseline import build_baseline, load_baseline
+from compare.results.files import atomic_write_text, check_writable
+from compare.gate.gate import TIMING_MODES, gate_results
+from compare.gate.report import format_table, to_markdown
+from compare.gate.junit import to_junit
+from compare.results.store import load_results
+from compare.gate.tolerance import GateSettings
+from compare.suite.reader import load_run_settings
 
 
 def settings_of(directory: Path) -> GateSettings:
-    """The [gate] (and legacy [tolerances]) settings of the suite stored with the results.
-
-    Only those tables are read, not the whole suite: gating must not need
-    the engines the suite names to be importable here.
-    """
-    path = directory / "suite.toml"
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        return GateSettings()
-    except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"{path}: invalid TOML ({exc}); the results directory is damaged, run the suite again") from None
-    return gate_settings(data.get("gate"), data.get("tolerances"), lambda key, message: UserError(f"{path}: {key}: {message}"))
+    """The [gate] (and legacy [tolerances]) settings of the suite stored with the results
+    (read by the suite reader without loading any engine)."""
+    return load_run_settings(directory / "suite.toml").gate
 
 
 @click.command("gate")

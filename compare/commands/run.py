@@ -1,4 +1,4 @@
-"""``xval run``: run a suite into a results directory, then print a table per scene."""
+"""``xval run``: run a suite into a results directory, then print the verdict (and, with --verbose, the tables)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,14 @@ import sys
 
 import click
 
-from compare.progress import progress_for
-from compare.runner import run_suite
-from compare.suite import load_suite
-from compare.table import scene_tables
+from engines.errors import UserError
+
+from compare.results.sweep import sweeps
+from compare.results.table import scene_tables
+from compare.results.verdict import format_verdicts, scene_verdicts
+from compare.run.progress import progress_for
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
 
 
 @click.command("run")
@@ -23,29 +27,45 @@ from compare.table import scene_tables
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT|local[:N]",
               help="Run the cases on a Dask cluster: a scheduler's address, or local[:N] for an "
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")
-def command(suite_path, output, jobs, resume, timeout, scheduler) -> None:
+@click.option("--quiet", "-q", is_flag=True, help="No progress while running; at the end only the verdict and the problems.")
+@click.option("--verbose", "-v", is_flag=True, help="A line per case while running, and every scene's table at the end.")
+def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 
-    A case that fails, goes unstable or times out is recorded with its status
-    and does not stop the others. Exit code 0 when the run completed (whatever
-    the cases' statuses), 2 for bad input, 1 when the Dask scheduler was lost
-    (finished cases are kept; --resume finishes the run).
+    While it runs: one progress bar (a line at every tenth of the run when
+    the output is not a terminal). At the end, per scene: the most accurate
+    variant of each engine at equal cost, how the suite's first engine family
+    compares with the best other one, and the problems (inconsistent,
+    failed, timed out, unstable — with the dts). A case that fails, goes
+    unstable or times out is recorded with its status and does not stop the
+    others. Exit code 0 when the run completed (whatever the cases'
+    statuses), 2 for bad input, 1 when the Dask scheduler was lost (finished
+    cases are kept; --resume finishes the run).
     """
+    if quiet and verbose:
+        raise UserError("--quiet and --verbose: choose one (--quiet prints only the verdict, --verbose a line per case)")
+    mode = "quiet" if quiet else "verbose" if verbose else "bar"
     suite = load_suite(suite_path)
     if scheduler is None:
-        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr))
+        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr, mode))
     else:
-        from compare.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
+        from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
 
         try:
             summary = run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
-                                     progress=progress_for(sys.stderr),
+                                     progress=progress_for(sys.stderr, mode),
                                      warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
         except SchedulerLost as exc:
             click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
             sys.exit(1)
-    click.echo(scene_tables(summary.records), nl=False)
+    if verbose:
+        click.echo(scene_tables(summary.records, suite.verdict_tolerance), nl=False)
+        click.echo()
+    verdicts = scene_verdicts(sweeps(summary.records, suite.verdict_tolerance))
+    click.echo(format_verdicts(verdicts), nl=False)
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     resumed = f", {summary.already_done} already done" if summary.already_done else ""
     click.echo(f"\n{summary.ran} cases run in {summary.wall_time:.1f} s{resumed} ({counts})")
     click.echo(f"results: {summary.path}")
+    if not quiet and not verbose:
+        click.echo(f"tables: xval show {summary.path}; report: xval report {summary.path}")

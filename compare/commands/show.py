@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from compare.results import load_results
-from compare.table import scene_tables, to_csv, to_json
+from compare.results.store import load_results
+from compare.results.table import scene_tables, to_csv, to_json
 
 
 @click.command("show")
@@ -16,11 +16,11 @@ def command(directory, output_format) -> None:
     """Show the results in DIR (the --output of 'xval run')."""
     results = load_results(directory)
     if output_format == "csv":
-        click.echo(to_csv(results.records), nl=False)
+        click.echo(to_csv(results.records, results.verdict_tolerance), nl=False)
     elif output_format == "json":
-        click.echo(to_json(results.records), nl=False)
+        click.echo(to_json(results.records, results.verdict_tolerance), nl=False)
     else:
         header = results.header
         state = "finished " + header["finished"] if header.get("finished") else "unfinished (resume it with --resume)"
         click.echo(f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n")
-        click.echo(scene_tables(results.records), nl=False)
+        click.echo(scene_tables(results.records, results.verdict_tolerance), nl=False)

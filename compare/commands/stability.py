@@ -6,9 +6,9 @@ import sys
 
 import click
 
-from compare.gainmap import plan_gainmap, run_gainmap
-from compare.stability import BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, PairResult, plan_stability, run_stability
-from compare.suite import load_suite
+from compare.stability.gainmap import plan_gainmap, run_gainmap
+from compare.stability.search import BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, PairResult, plan_stability, run_stability
+from compare.suite.reader import load_suite
 
 
 def describe(result: PairResult) -> str:

@@ -1,0 +1,74 @@
+"""``xval score``: grade CSV files a user already has against xval's reference for a scene."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from compare.cli import parse_assignments
+from compare.results.metrics import DEFAULT_DELTA
+from compare.results.score import score
+from engines import catalog
+
+#: Table columns: (heading, row key, unit).
+COLUMNS = (
+    ("status", "status", ""),
+    ("samples", "n_samples", ""),
+    ("t_end/s", "t_end", ""),
+    ("final/m", "position_error_final", ""),
+    ("l2/m", "position_error_l2", ""),
+    ("linf/m", "position_error_linf", ""),
+    ("diverged/s", "divergence_time", ""),
+    ("drift/E*", "energy_drift", ""),
+    ("c.err/m", "constraint_error", ""),
+    ("force/N", "constraint_force_error", ""),
+)
+
+
+@click.command("score")
+@click.argument("scene_name", metavar="SCENE")
+@click.argument("files", metavar="FILE.csv...", nargs=-1, required=True)
+@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
+              help="Scene parameter the files were made with (see 'xval scenes'); repeatable.")
+@click.option("--delta", default=DEFAULT_DELTA, show_default=True, type=float,
+              help="Divergence threshold: the first t with position error > delta * L.")
+@click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
+              show_default=True, help="table: one line per file; json: a list of objects, one per file.")
+def command(scene_name, files, params, delta, output_format) -> None:
+    """Grade CSV files from any program against the reference solution of SCENE.
+
+    Each FILE has the columns t, p{i}_x..z, v{i}_x..z (optionally f{k}_x..z),
+    any time step and any sample times, the first row at t = 0.
+
+    The metrics are named as in 'xval show --format json'. Exit code 0 when
+    every file was graded, 2 for bad input (a column that does not fit the
+    scene, a first row that is not the scene's initial state).
+    """
+    scene = catalog.build(scene_name, parse_assignments(params, "--param"))
+    rows = score(files, scene, delta=delta)
+    if output_format == "json":
+        click.echo(json.dumps(rows, indent=1))
+        return
+    click.echo(render(rows))
+
+
+def render(rows: list[dict]) -> str:
+    """A plain-text table: one line per file, then each file's message."""
+    header = ["file", *(heading for heading, _, _ in COLUMNS)]
+    body = [[row["file"], *(_cell(row[key]) for _, key, _ in COLUMNS)] for row in rows]
+    widths = [max(len(line[k]) for line in [header, *body]) for k in range(len(header))]
+    lines = ["  ".join(cell.ljust(width) if k == 0 else cell.rjust(width)
+                       for k, (cell, width) in enumerate(zip(line, widths))).rstrip() for line in [header, *body]]
+    lines += [f"  {row['file']}: {row['message']}" for row in rows if row["message"]]
+    return "\n".join(lines)
+
+
+def _cell(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return str(value)
+    return f"{value:.2e}"

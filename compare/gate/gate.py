@@ -1,0 +1,337 @@
+"""The gate: compare a results directory with a baseline and decide, per case, better / worse / unchanged / ….
+
+Rules (asv's ``continuous``: fail only on a change larger than the noise):
+
+- accuracy metric (lower is better: errors, drifts): **worse** when
+  current > baseline·(1 + rtol) + atol, **better** when baseline >
+  current·(1 + rtol) + atol; mirrored for metrics where higher is better
+  (divergence time, observed order). A null divergence time means "never
+  diverged" and ranks above any time.
+- status: ok → unstable / failed / timeout is always **worse**; back to ok is
+  **better**. A case that ran in the baseline but is skipped now is **worse**
+  (its engine no longer loads here — a broken plug-in, a missing library — or
+  no longer expresses the scene): a solver that stopped running must fail
+  the gate. Skipped in the baseline only is **not comparable**.
+- timing (cost per simulated second): **worse** only when the median slowed
+  by more than ``timing_factor`` *and* by more than the spread of the
+  repeats on both sides (max − min of each); never gated when the two runs
+  were timed on different machines, or when the caller asks for timing to
+  be reported only (``timing="report"``).
+- **not comparable** (reported, never failed): the scene's content changed,
+  the engine's options or variant changed, or the engine's version changed.
+- consistency (per variant, from its dt sweep, compare.results.consistency):
+  a variant that converged to the reference in the baseline and converges
+  to something else now is **worse**.
+- **new** / **missing**: a case only in the results / only in the baseline.
+
+Everything here is a pure function of two baseline-shaped documents (the
+results are turned into baseline entries first), so the rules are tested
+without running anything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from engines.errors import UserError
+
+from compare.gate.baseline import MACHINE_FIELDS, case_name
+from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
+
+#: Case verdicts, in the order a table lists them (most urgent first).
+VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")
+#: Statuses that count as broken when a case was ``ok`` before.
+BROKEN = ("unstable", "failed", "timeout")
+#: How timing is treated: "gate" (a real slowdown fails) or "report" (shown, never fails).
+TIMING_MODES = ("gate", "report")
+#: Fewest timing repeats on each side for a timing change to be gated (the spread needs two).
+MIN_TIMING_REPEATS = 2
+
+
+@dataclass(frozen=True)
+class Change:
+    """One compared quantity of one case.
+
+    metric : a metric name, ``"status"``, or ``TIMING_METRIC``.
+    baseline, current : the two values (a status is a string; None: absent).
+    limit : the value past which ``current`` counts as worse (None when not numeric).
+    verdict : "worse", "better" or "unchanged".
+    gated : False for a timing change that is shown but cannot fail the gate.
+    note : why, in words (the bound exceeded, the timing rule, …).
+    """
+
+    metric: str
+    unit: str
+    baseline: Any
+    current: Any
+    limit: float | None
+    verdict: str
+    gated: bool = True
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """The gate's verdict on one case (scene × engine × dt) with every change it compared."""
+
+    scene_id: str
+    engine: str
+    dt: float
+    position: tuple
+    verdict: str
+    reason: str = ""
+    changes: tuple[Change, ...] = ()
+    baseline_status: str | None = None
+    current_status: str | None = None
+
+    @property
+    def name(self) -> str:
+        return case_name({"scene_id": self.scene_id, "engine": self.engine, "dt": self.dt})
+
+    def decisive(self) -> list[Change]:
+        """The gated changes that made the verdict (all worse ones for ``worse``, better ones for ``better``)."""
+        return [c for c in self.changes if c.gated and c.verdict == self.verdict]
+
+
+@dataclass(frozen=True)
+class GateReport:
+    """Every case's verdict, in table order, plus what the comparison was made under."""
+
+    suite: str
+    cases: tuple[CaseResult, ...]
+    settings: GateSettings
+    timing: str
+    timing_note: str = ""
+    notes: tuple[str, ...] = ()
+
+    @property
+    def counts(self) -> dict[str, int]:
+        counts = {v: 0 for v in VERDICTS}
+        for case in self.cases:
+            counts[case.verdict] += 1
+        return counts
+
+    @property
+    def passed(self) -> bool:
+        return self.counts["worse"] == 0
+
+
+# -- one metric -------------------------------------------------------------------------
+
+
+def accuracy_change(rule: MetricRule, baseline: float | None, current: float | None, settings: GateSettings) -> Change | None:
+    """Compare one accuracy metric; None when either side has no value to compare."""
+    tol = settings.tolerance(rule.name)
+    infinite = rule.none_means == "infinite"
+    if baseline is None or current is None:
+        if not infinite:
+            return None
+        # Divergence time: null = never diverged.
+        if baseline is None and current is None:
+            return Change(rule.name, rule.unit, None, None, None, "unchanged")
+        if baseline is None:
+            return Change(rule.name, rule.unit, None, current, None, "worse", note="diverges now, never did before")
+        return Change(rule.name, rule.unit, baseline, None, None, "better", note="no longer diverges")
+
+    def exceeds(a: float, b: float) -> bool:
+        """a is past b's allowance: a > b·(1 + rtol) + atol."""
+        return a > b * (1 + tol.rtol) + tol.atol
+
+    if rule.higher_is_better:
+        worse, better = exceeds(baseline, current), exceeds(current, baseline)
+        limit = (baseline - tol.atol) / (1 + tol.rtol)  # lowest current that still passes
+    else:
+        worse, better = exceeds(current, baseline), exceeds(baseline, current)
+        limit = baseline * (1 + tol.rtol) + tol.atol
+    verdict = "worse" if worse else "better" if better else "unchanged"
+    return Change(rule.name, rule.unit, baseline, current, limit, verdict)
+
+
+def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | None, factor: float, gated: bool, why_not: str = "") -> Change | None:
+    """Compare timings ({"cost", "repeats", "spread": [min, max]}); a change must beat the factor and both spreads.
+
+    With a single repeat on either side the noise is unknown (a spread of
+    zero would let one disturbed run fail the gate), so the change is shown
+    but not gated; suites that gate timing set ``repeats`` ≥ MIN_TIMING_REPEATS.
+    """
+    if not baseline or not current:
+        return None
+    b, c = baseline["cost"], current["cost"]
+    if gated and min(len(baseline.get("repeats", ())), len(current.get("repeats", ()))) < MIN_TIMING_REPEATS:
+        gated, why_not = False, f"fewer than {MIN_TIMING_REPEATS} timing repeats, so the noise is unknown (set repeats in the suite)"
+    noise = (baseline["spread"][1] - baseline["spread"][0]) + (current["spread"][1] - current["spread"][0])
+    if c > factor * b and c - b > noise:
+        verdict, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
+    elif b > factor * c and b - c > noise:
+        verdict, note = "better", f"{b / c:.2f}× faster"
+    else:
+        verdict, note = "unchanged", ""
+    if verdict != "unchanged" and not gated:
+        note += f"; not gated: {why_not}"
+    return Change(TIMING_METRIC, "s/s", b, c, factor * b, verdict, gated=gated, note=note)
+
+
+# -- one case ------------------------------------------------------------------------
+
+
+def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSettings, timing_gated: bool, why_not: str) -> CaseResult:
+    """The verdict on one case present in both the baseline and the results, under the same key."""
+    b_status, c_status = base["status"], current["status"]
+    common = dict(
+        scene_id=current["scene_id"], engine=current["engine"], dt=current["dt"],
+        position=tuple(current.get("position", (0, 0, 0))), baseline_status=b_status, current_status=c_status,
+    )
+    if c_status == "skipped" and b_status != "skipped":
+        # The engine no longer loads here (a broken plug-in, a missing library) or no longer
+        # expresses the scene: a solver that stopped running must not pass the gate silently.
+        lost = Change("status", "", b_status, "skipped", None, "worse", note=current["message"])
+        return CaseResult(**common, verdict="worse", reason=f"skipped now: {current['message']}", changes=(lost,))
+    if b_status == "skipped" and c_status != "skipped":
+        return CaseResult(**common, verdict="not comparable", reason=f"skipped in the baseline: {base['message']}")
+    if base.get("engine_version") != current.get("engine_version"):
+        return CaseResult(
+            **common, verdict="not comparable",
+            reason=f"engine version changed: {base.get('engine_version')} → {current.get('engine_version')}",
+        )
+    status = Change("status", "", b_status, c_status, None, "unchanged")
+    if b_status != c_status:
+        if b_status == "ok" and c_status in BROKEN:
+            status = Change("status", "", b_status, c_status, None, "worse", note=current["message"])
+        elif c_status == "ok":
+            status = Change("status", "", b_status, c_status, None, "better")
+        else:
+            status = Change("status", "", b_status, c_status, None, "unchanged", note="not ok before either")
+    changes = [status]
+    verdict_change = consistency_change(base, current)
+    if verdict_change is not None:
+        changes.append(verdict_change)
+    if b_status == "ok" and c_status == "ok":
+        b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
+        for rule in RULES.values():
+            change = accuracy_change(rule, b_metrics.get(rule.name), c_metrics.get(rule.name), settings)
+            if change is not None:
+                changes.append(change)
+        timing = timing_change(base.get("timing"), current.get("timing"), settings.timing_factor, timing_gated, why_not)
+        if timing is not None:
+            changes.append(timing)
+    gated = [c.verdict for c in changes if c.gated]
+    verdict = "worse" if "worse" in gated else "better" if "better" in gated else "unchanged"
+    return CaseResult(**common, verdict=verdict, changes=tuple(changes))
+
+
+def consistency_change(base: dict[str, Any], current: dict[str, Any]) -> Change | None:
+    """A variant that turned inconsistent (converges to something else now) is worse; the reverse is better.
+
+    None when neither side was judged (``consistent`` null or absent on both).
+    """
+    b, c = base.get("consistent"), current.get("consistent")
+    if b is None and c is None:
+        return None
+    if c is False and b is not False:
+        return Change("consistent", "", b, c, None, "worse", note=current.get("consistency", ""))
+    if b is False and c is True:
+        return Change("consistent", "", b, c, None, "better", note=current.get("consistency", ""))
+    return Change("consistent", "", b, c, None, "unchanged")
+
+
+def _identity(entry: dict[str, Any]) -> tuple:
+    """What names a case to a reader (scene id, engine label, dt): used to pair cases whose key changed."""
+    return (entry["scene_id"], entry["engine"], round(entry["dt"], 15))
+
+
+def _key_change(base: dict[str, Any], current: dict[str, Any]) -> str:
+    if base["scene_hash"] != current["scene_hash"]:
+        return f"scene changed (content hash {base['scene_hash']} → {current['scene_hash']})"
+    return (
+        f"engine variant or options changed ({base.get('variant')} {base.get('options')} → "
+        f"{current.get('variant')} {current.get('options')})"
+    )
+
+
+# -- the whole gate -------------------------------------------------------------------
+
+
+def check_same_suite(baseline: dict[str, Any], suite: dict[str, Any], baseline_path: str) -> list[str]:
+    """UserError when the baseline was made from another suite; notes when the same suite was edited."""
+    name = baseline["suite"].get("name")
+    if name != suite.get("name"):
+        raise UserError(
+            f"--baseline: {baseline_path} is a baseline of suite {name!r}, but the results are of suite "
+            f"{suite.get('name')!r}; pass the baseline of {suite.get('name')!r}, or make one with "
+            f"'xval baseline DIR --output FILE'"
+        )
+    if baseline["suite"].get("fingerprint") != suite.get("fingerprint"):
+        return [
+            f"suite {name!r} changed since the baseline (fingerprint {baseline['suite'].get('fingerprint')} → "
+            f"{suite.get('fingerprint')}): cases it added are new, cases it dropped are missing"
+        ]
+    return []
+
+
+def machine_difference(baseline_machine: dict[str, Any], current_machine: dict[str, Any]) -> str:
+    """Why timings of the two runs do not compare ("" when they were taken on the same kind of machine)."""
+    differing = [
+        f"{k} {baseline_machine.get(k)!r} → {current_machine.get(k)!r}"
+        for k in MACHINE_FIELDS
+        if baseline_machine.get(k) != current_machine.get(k)
+    ]
+    return "timed on another machine (" + ", ".join(differing) + ")" if differing else ""
+
+
+def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, *, timing: str = "gate") -> GateReport:
+    """Compare two baseline documents (``current`` built from the results being gated).
+
+    timing : "gate" judges timing when both runs were timed on the same kind
+        of machine (MACHINE_FIELDS); "report" shows timing changes without
+        ever failing on them.
+    """
+    if timing not in TIMING_MODES:
+        raise UserError(f"--timing: {timing!r}; choose one of: {', '.join(TIMING_MODES)}")
+    why_not = "timing is reported only (--timing report)" if timing == "report" else machine_difference(
+        baseline.get("machine") or {}, current.get("machine") or {}
+    )
+    timing_gated = not why_not
+    base_cases: dict[str, dict] = baseline["cases"]
+    current_cases: dict[str, dict] = current["cases"]
+    results: list[CaseResult] = []
+    for key, entry in current_cases.items():
+        if key in base_cases:
+            results.append(compare_case(base_cases[key], entry, settings, timing_gated, why_not))
+    # Cases whose key changed but whose name did not: the same case, made different.
+    unmatched_base = {_identity(e): e for k, e in base_cases.items() if k not in current_cases}
+    for key, entry in current_cases.items():
+        if key in base_cases:
+            continue
+        base = unmatched_base.pop(_identity(entry), None)
+        position = tuple(entry.get("position", (0, 0, 0)))
+        if base is not None:
+            results.append(CaseResult(
+                entry["scene_id"], entry["engine"], entry["dt"], position, "not comparable",
+                reason=_key_change(base, entry), baseline_status=base["status"], current_status=entry["status"],
+            ))
+        else:
+            results.append(CaseResult(
+                entry["scene_id"], entry["engine"], entry["dt"], position, "new",
+                reason="not in the baseline", current_status=entry["status"],
+            ))
+    for base in unmatched_base.values():
+        results.append(CaseResult(
+            base["scene_id"], base["engine"], base["dt"], tuple(base.get("position", (0, 0, 0))), "missing",
+            reason="in the baseline, not in the results", baseline_status=base["status"],
+        ))
+    results.sort(key=lambda r: (VERDICTS.index(r.verdict), r.position, r.scene_id, r.engine, -r.dt))
+    return GateReport(
+        suite=current["suite"].get("name", ""),
+        cases=tuple(results),
+        settings=settings,
+        timing=timing,
+        timing_note=why_not,
+    )
+
+
+def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, baseline_path: str, *, timing: str = "gate") -> GateReport:
+    """:func:`gate` after checking both come from the same suite; the report carries the suite notes."""
+    notes = check_same_suite(baseline, current["suite"], baseline_path)
+    return replace(gate(baseline, current, settings, timing=timing), notes=tuple(notes))
+

@@ -1,0 +1,319 @@
+"""The case record: one frozen, validated object per case file, and the status a case can end in.
+
+A case file (``DIR/cases/<id>.json``, written by :mod:`compare.run.runner`)
+is read once, by :meth:`CaseRecord.from_json`; everything downstream — show,
+report, baseline, gate, stability — works on these objects, never on the raw
+dict, so a misspelt field is an AttributeError at once, not a silent None.
+
+JSON layout (schema version 1, unchanged from the dict records it types)::
+
+    {"schema_version": 1,
+     "case": {"id", "scene_id", "scene_name", "engine", "engine_id", "variant",
+              "options", "dt", "position"},
+     "status", "message", "metrics" (name -> number | null, see compare.results.declared),
+     "run_info" (the engine's RunInfo.to_dict(), engine_version among it), "wall_times", "elapsed",
+     "scene" (Scene.to_dict()), "scene_hash", "characteristic": {"length", "energy"},
+     "series" (downsampled plot series), "reference" (how the reference was solved), "finished",
+     optional: "consistent", "consistency", "reference_horizon", "tolerance" (in "case")}
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+from engines.errors import UserError
+
+#: Version of run.json and every case record; bump it when a field changes meaning.
+SCHEMA_VERSION = 1
+
+
+class Status(str, enum.Enum):
+    """How a case ended (the JSON spelling is the value).
+
+    ok : ran to the end inside the bounds (did not blow up; see ``consistent`` for "is right").
+    unstable : a non-finite state, or energy drift / constraint error past the suite's bounds.
+    failed : the engine raised or its process died.
+    timeout : ran past the case timeout and was killed.
+    skipped : left out (the engine cannot express the scene, or is not installed); message says why.
+    """
+
+    OK = "ok"
+    UNSTABLE = "unstable"
+    FAILED = "failed"
+    TIMEOUT = "timeout"
+    SKIPPED = "skipped"
+
+    def __str__(self) -> str:  # f"{status}" gives "ok", as the JSON does
+        return self.value
+
+
+class RecordError(UserError):
+    """A case file that is damaged, foreign, or of another schema version; the message names the file."""
+
+
+@dataclass(frozen=True)
+class CaseKey:
+    """What identifies a case.
+
+    id : ``scene|engine|dt=…`` (unique in a run). scene_id : the suite's id of the scene;
+    scene_name : the catalog scene it builds. engine : the label shown (``mujoco/hinge``,
+    ``ours/baumgarte-rk4[k_s=…]``); engine_id : what the registry resolves; variant : the
+    engine's variant; options : engine options (JSON values). dt : s; tolerance : for
+    error-controlled cases, else None. position : (scene, engine, dt) indices in suite order.
+    """
+
+    id: str
+    scene_id: str
+    scene_name: str
+    engine: str
+    engine_id: str
+    variant: str | None
+    options: Mapping[str, Any]
+    dt: float
+    position: tuple[int, ...] = (0, 0, 0)
+    tolerance: float | None = None
+
+
+@dataclass(frozen=True)
+class Characteristic:
+    """length : L, m (sum of rod lengths or wire radius); energy : E* = total mass · g · L, J."""
+
+    length: float
+    energy: float
+
+
+@dataclass(frozen=True)
+class CaseRecord:
+    """One case as stored. ``metrics`` maps declared metric names to values (empty when not run).
+
+    consistent : per scene × variant from its dt sweep (see compare.results.consistency):
+        True = the error still falls towards the reference or is under the tolerance;
+        False = it stopped falling above the tolerance (converges to something else);
+        None = fewer than two ok dts, or not judged. consistency : the one-line reason.
+    reference_horizon : s, the time the reference's own two solves part by more than the
+        stated fraction of the tolerance (None: they agree over the whole run).
+    """
+
+    case: CaseKey
+    status: Status
+    message: str
+    metrics: Mapping[str, Any]
+    run_info: Mapping[str, Any] | None
+    wall_times: tuple[float, ...]
+    elapsed: float
+    scene: Mapping[str, Any]
+    scene_hash: str
+    characteristic: Characteristic
+    series: Mapping[str, Any] | None
+    reference: Mapping[str, Any] | None
+    finished: str
+    consistent: bool | None = None
+    consistency: str = ""
+    reference_horizon: float | None = None
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    # -- views ------------------------------------------------------------------------------
+
+    @property
+    def ok(self) -> bool:
+        return self.status is Status.OK
+
+    @property
+    def dt(self) -> float:
+        return self.case.dt
+
+    @property
+    def engine(self) -> str:
+        return self.case.engine
+
+    @property
+    def scene_id(self) -> str:
+        return self.case.scene_id
+
+    @property
+    def engine_version(self) -> str | None:
+        return (self.run_info or {}).get("engine_version")
+
+    @property
+    def has_metrics(self) -> bool:
+        return bool(self.metrics)
+
+    def metric(self, name: str) -> Any:
+        """The value of declared metric ``name`` (None when this case has none); KeyError for an undeclared name."""
+        from compare.results.declared import METRICS
+
+        if name not in METRICS and name not in ("n_samples", "complete"):
+            raise KeyError(f"{name!r} is not a declared metric (compare/results/declared.py)")
+        return self.metrics.get(name)
+
+    # -- JSON -------------------------------------------------------------------------------
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON document (as the runner writes it, schema_version included)."""
+        case = {
+            "id": self.case.id, "scene_id": self.case.scene_id, "scene_name": self.case.scene_name,
+            "engine": self.case.engine, "engine_id": self.case.engine_id, "variant": self.case.variant,
+            "options": dict(self.case.options), "dt": self.case.dt, "position": list(self.case.position),
+        }
+        if self.case.tolerance is not None:
+            case["tolerance"] = self.case.tolerance
+        document = {
+            "schema_version": SCHEMA_VERSION,
+            "case": case,
+            "status": self.status.value,
+            "message": self.message,
+            "metrics": dict(self.metrics) if self.metrics else None,
+            "run_info": None if self.run_info is None else dict(self.run_info),
+            "wall_times": list(self.wall_times),
+            "elapsed": self.elapsed,
+            "scene": dict(self.scene),
+            "scene_hash": self.scene_hash,
+            "characteristic": {"length": self.characteristic.length, "energy": self.characteristic.energy},
+            "series": None if self.series is None else dict(self.series),
+            "reference": None if self.reference is None else dict(self.reference),
+            "finished": self.finished,
+            **dict(self.extra),
+        }
+        if self.consistent is not None or self.consistency:
+            document["consistent"] = self.consistent
+            document["consistency"] = self.consistency
+        if self.reference_horizon is not None:
+            document["reference_horizon"] = self.reference_horizon
+        return document
+
+    @classmethod
+    def from_json(cls, data: Any, path: str | Path = "<record>") -> "CaseRecord":
+        """Validate and type one case document; RecordError naming ``path`` and the field otherwise."""
+        where = str(path)
+        if not isinstance(data, dict):
+            raise RecordError(f"{where}: not a case record (a JSON object expected, got {type(data).__name__})")
+        version = data.get("schema_version")
+        if version != SCHEMA_VERSION:
+            raise RecordError(
+                f"{where}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
+                f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
+            )
+        reader = _FieldReader(where)
+        case = reader.mapping(data, "case")
+        key = CaseKey(
+            id=reader.text(case, "case.id"),
+            scene_id=reader.text(case, "case.scene_id"),
+            scene_name=reader.text(case, "case.scene_name"),
+            engine=reader.text(case, "case.engine"),
+            engine_id=reader.text(case, "case.engine_id"),
+            variant=reader.optional_text(case, "case.variant"),
+            options=reader.mapping(case, "case.options"),
+            dt=reader.number(case, "case.dt"),
+            position=tuple(int(i) for i in reader.sequence(case, "case.position", default=(0, 0, 0))),
+            tolerance=reader.optional_number(case, "case.tolerance"),
+        )
+        raw_status = data.get("status")
+        try:
+            status = Status(raw_status)
+        except ValueError:
+            choices = ", ".join(s.value for s in Status)
+            raise RecordError(f"{where}: field status is {raw_status!r}; expected one of {choices}") from None
+        metrics = data.get("metrics") or {}
+        if not isinstance(metrics, dict):
+            raise RecordError(f"{where}: field metrics must be an object or null, got {type(metrics).__name__}")
+        for name, value in metrics.items():
+            if value is not None and not isinstance(value, (int, float, bool)):
+                raise RecordError(f"{where}: metric {name} must be a number or null, got {value!r}")
+        characteristic = reader.mapping(data, "characteristic")
+        known = set(_KNOWN_FIELDS)
+        consistent = data.get("consistent")
+        if consistent is not None and not isinstance(consistent, bool):
+            raise RecordError(f"{where}: field consistent must be true, false or null, got {consistent!r}")
+        return cls(
+            case=key,
+            status=status,
+            message=str(data.get("message") or ""),
+            metrics=metrics,
+            run_info=reader.optional_mapping(data, "run_info"),
+            wall_times=tuple(float(w) for w in reader.sequence(data, "wall_times", default=())),
+            elapsed=float(data.get("elapsed") or 0.0),
+            scene=reader.mapping(data, "scene"),
+            scene_hash=reader.text(data, "scene_hash"),
+            characteristic=Characteristic(
+                reader.number(characteristic, "characteristic.length"),
+                reader.number(characteristic, "characteristic.energy"),
+            ),
+            series=reader.optional_mapping(data, "series"),
+            reference=reader.optional_mapping(data, "reference"),
+            finished=str(data.get("finished") or ""),
+            consistent=consistent,
+            consistency=str(data.get("consistency") or ""),
+            reference_horizon=reader.optional_number(data, "reference_horizon"),
+            extra={k: v for k, v in data.items() if k not in known},
+        )
+
+
+_KNOWN_FIELDS = (
+    "schema_version", "case", "status", "message", "metrics", "run_info", "wall_times", "elapsed", "scene",
+    "scene_hash", "characteristic", "series", "reference", "finished", "consistent", "consistency",
+    "reference_horizon",
+)
+
+
+class _FieldReader:
+    """Typed access to a record's fields; every mistake is a RecordError naming the file and the field."""
+
+    def __init__(self, where: str) -> None:
+        self.where = where
+
+    def _get(self, data: Mapping[str, Any], dotted: str) -> Any:
+        key = dotted.rsplit(".", 1)[-1]
+        if key not in data:
+            raise RecordError(f"{self.where}: missing field {dotted}; the file is damaged or not an xval case record")
+        return data[key]
+
+    def _wrong(self, dotted: str, want: str, value: Any) -> RecordError:
+        return RecordError(f"{self.where}: field {dotted} must be {want}, got {value!r}"[:300])
+
+    def mapping(self, data: Mapping[str, Any], dotted: str) -> dict[str, Any]:
+        value = self._get(data, dotted)
+        if not isinstance(value, dict):
+            raise self._wrong(dotted, "an object", value)
+        return value
+
+    def optional_mapping(self, data: Mapping[str, Any], dotted: str) -> dict[str, Any] | None:
+        value = data.get(dotted.rsplit(".", 1)[-1])
+        if value is not None and not isinstance(value, dict):
+            raise self._wrong(dotted, "an object or null", value)
+        return value
+
+    def text(self, data: Mapping[str, Any], dotted: str) -> str:
+        value = self._get(data, dotted)
+        if not isinstance(value, str):
+            raise self._wrong(dotted, "a string", value)
+        return value
+
+    def optional_text(self, data: Mapping[str, Any], dotted: str) -> str | None:
+        value = data.get(dotted.rsplit(".", 1)[-1])
+        if value is not None and not isinstance(value, str):
+            raise self._wrong(dotted, "a string or null", value)
+        return value
+
+    def number(self, data: Mapping[str, Any], dotted: str) -> float:
+        value = self._get(data, dotted)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self._wrong(dotted, "a finite number", value)
+        return float(value)
+
+    def optional_number(self, data: Mapping[str, Any], dotted: str) -> float | None:
+        value = data.get(dotted.rsplit(".", 1)[-1])
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self._wrong(dotted, "a number or null", value)
+        return float(value)
+
+    def sequence(self, data: Mapping[str, Any], dotted: str, default: Any) -> list[Any]:
+        value = data.get(dotted.rsplit(".", 1)[-1], default)
+        if not isinstance(value, (list, tuple)):
+            raise self._wrong(dotted, "a list", value)
+        return list(value)

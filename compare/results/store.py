@@ -1,0 +1,248 @@
+"""A results directory: one versioned JSON record per case, written atomically as each case finishes.
+
+Layout::
+
+    DIR/run.json          schema version, suite name and fingerprint, environment,
+                          started / finished timestamps, case counts
+    DIR/suite.toml        the suite file exactly as it was run
+    DIR/cases/<id>.json   one record per finished case (any status)
+
+Each record is written to a temporary file and renamed into place, so a run
+killed at any instant leaves only whole records; ``--resume`` runs the cases
+that have none. Records carry ``schema_version``; a reader meeting another
+version raises a UserError saying what to do (asv's ``api_version``).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from engines.errors import UserError
+
+from compare.results.files import atomic_write_text
+from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError, Status
+
+#: Most points kept per stored time series (evenly spaced, first and last kept).
+MAX_SERIES_POINTS = 100
+#: Significant digits kept in stored series (metrics keep full precision).
+SERIES_DIGITS = 6
+
+
+def now() -> str:
+    """The current time, ISO 8601 with the UTC offset."""
+    return _dt.datetime.now(_dt.timezone.utc).astimezone().isoformat(timespec="seconds")
+
+
+def case_file_name(case_id: str) -> str:
+    """A file name for ``case_id``: readable, filesystem-safe, and unique (a short hash of the id)."""
+    readable = re.sub(r"[^A-Za-z0-9._=-]+", "_", case_id)[:120]
+    digest = hashlib.sha1(case_id.encode()).hexdigest()[:8]
+    return f"{readable}-{digest}.json"
+
+
+def downsample_indices(n: int, limit: int = MAX_SERIES_POINTS) -> np.ndarray:
+    """At most ``limit`` indices into n samples, evenly spaced, always including the first and last."""
+    if n <= limit:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
+
+
+def rounded(values: np.ndarray, digits: int = SERIES_DIGITS) -> list:
+    """A nested list of floats rounded to ``digits`` significant digits (None for non-finite)."""
+    array = np.asarray(values, dtype=float)
+    flat = [float(f"{x:.{digits}g}") if np.isfinite(x) else None for x in array.ravel()]
+    return np.array(flat, dtype=object).reshape(array.shape).tolist() if array.ndim > 1 else flat
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` with numpy scalars and arrays as Python numbers and lists, tuples as lists,
+    non-finite floats as None (JSON has no NaN) and anything else unknown as its str()."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+class ResultsDir:
+    """A results directory being written by a run."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.cases = path / "cases"
+
+    @classmethod
+    def open_for_run(cls, path: str | Path, suite_source: str, run_header: dict[str, Any], resume: bool) -> "ResultsDir":
+        """Create ``path`` for a new run, or reopen it with ``resume``.
+
+        Without ``resume`` a directory that already holds a run is refused (so
+        finished results are never overwritten by accident); with it, the
+        stored suite fingerprint must match ``run_header["suite"]["fingerprint"]``.
+        """
+        path = Path(path)
+        results = cls(path)
+        run_file = path / "run.json"
+        if path.exists() and not path.is_dir():
+            raise UserError(f"--output: {path} is a file; give a directory for the results")
+        if run_file.exists():
+            if not resume:
+                raise UserError(
+                    f"--output: {path} already holds results; pass --resume to finish that run, "
+                    f"or choose another directory"
+                )
+            stored = read_json(run_file)
+            check_schema(stored, run_file)
+            want = run_header["suite"]["fingerprint"]
+            if stored["suite"]["fingerprint"] != want:
+                raise UserError(
+                    f"--resume: {path} holds results of a different suite (fingerprint "
+                    f"{stored['suite']['fingerprint']}, this suite is {want}); run into a new --output directory"
+                )
+            # Keep the original start time and environment; note the resumption.
+            stored.setdefault("resumed", []).append(now())
+            stored["finished"] = None
+            results.write_header(stored)
+            return results
+        try:
+            results.cases.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"--output: cannot create {path} ({exc.strerror}); choose a writable directory") from None
+        atomic_write_text(path / "suite.toml", suite_source)
+        results.write_header({"schema_version": SCHEMA_VERSION, **run_header, "started": now(), "finished": None})
+        return results
+
+    def write_header(self, header: dict[str, Any]) -> None:
+        atomic_write_text(self.path / "run.json", json.dumps(header, indent=1, sort_keys=True) + "\n")
+
+    def header(self) -> dict[str, Any]:
+        return read_json(self.path / "run.json")
+
+    def done_ids(self) -> set[str]:
+        """Ids of the cases that already have a whole, readable record (a damaged one is run again)."""
+        done = set()
+        for file in sorted(self.cases.glob("*.json")):
+            try:
+                done.add(CaseRecord.from_json(json.loads(file.read_text()), file).case.id)
+            except (OSError, ValueError, UserError):
+                continue
+        return done
+
+    def write_case(self, record: dict[str, Any]) -> Path:
+        """Write one case record atomically; returns its path."""
+        target = self.cases / case_file_name(record["case"]["id"])
+        atomic_write_text(target, json.dumps({"schema_version": SCHEMA_VERSION, **record}, allow_nan=False) + "\n")
+        return target
+
+    def finish(self, counts: dict[str, int]) -> None:
+        header = self.header()
+        header["finished"] = now()
+        header["counts"] = counts
+        self.write_header(header)
+
+
+def read_json(path: Path) -> dict[str, Any]:
+    """The JSON object in ``path``; UserError naming the file when it is missing, not UTF-8 or not JSON."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: not found") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not UTF-8 text; it is not an xval results file") from None
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}); delete it and run with --resume") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
+
+
+def check_schema(data: Any, path: Path) -> None:
+    version = data.get("schema_version") if isinstance(data, dict) else None
+    if version != SCHEMA_VERSION:
+        raise RecordError(
+            f"{path}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
+            f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
+        )
+
+
+def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
+    """Every case record under ``cases_dir``, typed (temporary files of an interrupted write are ignored)."""
+    if not cases_dir.is_dir():
+        return
+    for file in sorted(cases_dir.glob("*.json")):
+        yield CaseRecord.from_json(read_json(file), file)
+
+
+@dataclass(frozen=True)
+class Results:
+    """A results directory as read back, once: ``header`` (run.json) and the typed case ``records``.
+
+    The views the commands need: :meth:`by_scene`, :meth:`by_variant` and
+    :meth:`sweeps` (per scene × variant across dt, with the observed order and
+    the consistency verdict).
+    """
+
+    path: Path
+    header: dict[str, Any]
+    records: list[CaseRecord]
+
+    def by_scene(self) -> dict[str, list[CaseRecord]]:
+        """Records grouped by scene id, in suite order."""
+        groups: dict[str, list[CaseRecord]] = {}
+        for record in sorted(self.records, key=lambda r: r.case.position):
+            groups.setdefault(record.case.scene_id, []).append(record)
+        return groups
+
+    def by_variant(self) -> dict[tuple[str, str], list[CaseRecord]]:
+        """Records grouped by (scene id, engine label), in suite order (largest dt first)."""
+        groups: dict[tuple[str, str], list[CaseRecord]] = {}
+        for record in sorted(self.records, key=lambda r: r.case.position):
+            groups.setdefault((record.case.scene_id, record.case.engine), []).append(record)
+        return groups
+
+    @property
+    def verdict_tolerance(self) -> float:
+        """The consistency tolerance (fraction of L) of the suite that made these results."""
+        from compare.suite.reader import load_run_settings  # here: only readers that judge need the suite
+
+        return load_run_settings(self.path / "suite.toml").verdict_tolerance
+
+    def sweeps(self):
+        """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep)."""
+        from compare.results.sweep import sweeps
+
+        return sweeps(self.records, self.verdict_tolerance)
+
+    def counts(self) -> dict[str, int]:
+        """How many cases ended in each status."""
+        counts: dict[str, int] = {}
+        for record in self.records:
+            counts[record.status.value] = counts.get(record.status.value, 0) + 1
+        return counts
+
+
+def load_results(path: str | Path) -> Results:
+    """Read a results directory once; UserError when it is not one, is damaged, or has another schema version."""
+    path = Path(path)
+    run_file = path / "run.json"
+    if not run_file.exists():
+        raise UserError(f"{path}: not a results directory (no run.json); give the --output directory of 'xval run'")
+    header = read_json(run_file)
+    check_schema(header, run_file)
+    return Results(path, header, list(iter_records(path / "cases")))

@@ -1,0 +1,80 @@
+"""Across a dt sweep: per (scene, engine variant), its records in order, the observed order and the consistency.
+
+Works on typed case records (:class:`compare.results.record.CaseRecord`),
+so ``xval show``, the report, the baseline and the gate compute the same
+numbers from a results directory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable
+
+from compare.results.consistency import Consistency, judge
+from compare.results.metrics import DEFAULT_DELTA, OrderFit, observed_order
+from compare.results.record import CaseRecord, Status
+
+#: The error an order is fitted to and work-precision points plot: max position error, m.
+ORDER_METRIC = "position_error_linf"
+
+
+@dataclass(frozen=True)
+class VariantSweep:
+    """One engine variant on one scene across the suite's time steps.
+
+    records : that variant's case records, largest dt first.
+    order : the observed order fitted to ``ORDER_METRIC`` over ``ok`` cases.
+    consistency : whether the error falls towards the reference (compare.results.consistency).
+    """
+
+    scene_id: str
+    engine: str
+    records: list[CaseRecord] = field(default_factory=list)
+    order: OrderFit | None = None
+    consistency: Consistency | None = None
+
+    @property
+    def statuses(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for record in self.records:
+            counts[record.status.value] = counts.get(record.status.value, 0) + 1
+        return counts
+
+    @property
+    def ok_records(self) -> list[CaseRecord]:
+        return [r for r in self.records if r.status is Status.OK and r.has_metrics]
+
+    @property
+    def finest_ok(self) -> CaseRecord | None:
+        """The ``ok`` case with the smallest dt, or None."""
+        ok = self.ok_records
+        return min(ok, key=lambda r: r.case.dt) if ok else None
+
+    @property
+    def all_skipped(self) -> bool:
+        return all(r.status is Status.SKIPPED for r in self.records)
+
+
+def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> list[VariantSweep]:
+    """Group records by (scene, engine variant) in the suite's order; fit each variant's order and judge it.
+
+    tolerance : the verdict's tolerance as a fraction of L (None: the default δ).
+    """
+    groups: dict[tuple[str, str], list[CaseRecord]] = {}
+    for record in sorted(records, key=lambda r: r.case.position):
+        groups.setdefault((record.case.scene_id, record.case.engine), []).append(record)
+    result = []
+    for (scene_id, engine), members in groups.items():
+        sweep = VariantSweep(scene_id, engine, members)
+        ok = sweep.ok_records
+        length = members[0].characteristic.length
+        order = None if sweep.all_skipped else observed_order(
+            [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok], length=length
+        )
+        verdict = judge(
+            [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok],
+            tolerance=(DEFAULT_DELTA if tolerance is None else tolerance) * length,
+            horizon_limited=any(r.reference_horizon is not None for r in ok),
+        )
+        result.append(VariantSweep(scene_id, engine, members, order, verdict))
+    return result

@@ -1,0 +1,519 @@
+"""Running a suite: cases through a concurrent.futures.Executor, one record written per finished case.
+
+Division of work (why it is split this way):
+
+- **Workers** only simulate. Each case goes to the executor as a
+  :class:`~compare.run.isolation.CaseTask`; the worker runs it in its case host,
+  a forked child (see :mod:`compare.run.isolation`), so a case that raises, hangs
+  or kills its process is recorded and the pool carries on.
+- **The reference** for each scene is solved once, as its own task on the
+  same executor (so it overlaps with the engines' cases), and comes back to
+  the parent as a pickled dense solution (a few hundred kB).
+- **The parent** evaluates the reference at each case's own sample times
+  (a dt sweep gives different times per dt), computes the metrics (cheap,
+  pure functions), applies the status bounds and writes the record. Cases
+  that finish before their scene's reference wait in memory for it.
+
+Cases are submitted longest first (smallest dt) so that on a few cores the
+long cases do not end up alone at the tail of the run.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import multiprocessing
+import os
+import time
+from collections import deque
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engines.adapter import Schedule
+from engines.command import spec_of
+from engines.errors import Unsupported
+from engines.scene import Scene
+
+from compare.run.environment import environment
+from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.results.metrics import apply_bounds, case_metrics
+from compare.run.progress import NullProgress, Progress
+from compare.results.declared import MetricInputs, computed_extras
+from compare.results.record import SCHEMA_VERSION, CaseRecord
+from compare.results.store import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
+from compare.suite.reader import EngineSpec, SceneSpec, Suite
+
+#: Runs of a case whose executor breaks under it: once among others, then once alone
+#: (the Dask executor's allowed-failures follows this).
+MAX_ATTEMPTS = 2
+#: Why a case that broke its executor twice (the second time alone) is failed.
+LOST_MESSAGE = "a worker process of the executor died while it ran"
+
+
+class RunStopped(Exception):
+    """Raised by an executor's future when the executor can run nothing more (a lost cluster scheduler).
+
+    Unlike a case that failed, it stops the run: cases not yet finished get no
+    record (so ``--resume`` runs them later), finished ones stay on disk.
+    """
+
+
+@dataclass(frozen=True)
+class Case:
+    """One scene × engine variant × dt of a suite; ``position`` is its (scene, engine, dt) index in the suite."""
+
+    scene: SceneSpec
+    engine: EngineSpec
+    dt: float
+    position: tuple[int, int, int] = (0, 0, 0)
+
+    @property
+    def id(self) -> str:
+        return case_id(self.scene.id, self.engine.label, self.dt)
+
+
+def case_id(scene_id: str, engine_label: str, dt: float) -> str:
+    """``bead|mujoco/hinge-rk4|dt=0.001``: stable across runs, the key ``--resume`` matches on."""
+    return f"{scene_id}|{engine_label}|dt={dt:.12g}"
+
+
+def plan(suite: Suite) -> list[Case]:
+    """Every case of the suite, scene-major, in the suite's order."""
+    return [
+        Case(s, e, dt, (i, j, k))
+        for i, s in enumerate(suite.scenes)
+        for j, e in enumerate(suite.engines)
+        for k, dt in enumerate(suite.dts)
+    ]
+
+
+def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
+    """Why ``engine`` cannot run ``scene`` (unavailable here, or cannot express it), or None."""
+    if engine.engine is None:
+        return engine.unavailable
+    try:
+        engine.engine.check(scene, engine.variant, engine.options)
+    except Unsupported as exc:
+        return str(exc)
+    return None
+
+
+def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
+    """The reference's dense solution of ``scene`` (runs in a worker; module-level so it pickles)."""
+    from engines.reference import solve
+
+    return solve(scene, rtol=rtol, atol=atol)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a run did: where results are, status counts, cases run now / resumed, wall time (s),
+    and every case record in ``path`` (read once at the end, for the counts and the tables)."""
+
+    path: Path
+    counts: dict[str, int]
+    ran: int
+    already_done: int
+    wall_time: float
+    records: list[CaseRecord]
+
+
+def default_jobs() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def run_suite(
+    suite: Suite,
+    output: str | Path,
+    *,
+    jobs: int | None = None,
+    executor: cf.Executor | None = None,
+    resume: bool = False,
+    timeout: float | None = None,
+    progress: Progress | None = None,
+    isolate: bool = True,
+    environment_extra: dict[str, Any] | None = None,
+) -> RunSummary:
+    """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
+
+    jobs : worker processes of the default ProcessPoolExecutor (all cores
+        when None); ignored when ``executor`` is given (any Executor works:
+        a ThreadPoolExecutor, a cluster's; cases are still isolated in
+        forked children unless ``isolate`` is False).
+    timeout : s per case; the suite's ``timeout`` when None.
+    resume : continue the run already in ``output`` (same suite required).
+    environment_extra : more entries for run.json's ``environment`` (a
+        cluster's address and workers, see :mod:`compare.run.cluster`).
+    """
+    started = time.perf_counter()
+    progress = progress or NullProgress()
+    header = {
+        "suite": {
+            "name": suite.name,
+            "description": suite.description,
+            "path": suite.path,
+            "fingerprint": suite.fingerprint(),
+        },
+        "environment": {**environment(), **(environment_extra or {})},
+        "xval_version": compare_version(),
+    }
+    results = ResultsDir.open_for_run(output, suite.source, header, resume)
+    cases = plan(suite)
+    done = results.done_ids() if resume else set()
+    todo = [c for c in cases if c.id not in done]
+    progress.start(len(cases), len(cases) - len(todo))
+    writer = _Writer(results, suite, progress)
+    try:
+        runnable = []
+        reasons: dict[tuple[str, str], str | None] = {}
+        for case in todo:
+            key = (case.scene.id, case.engine.label)
+            if key not in reasons:
+                reasons[key] = skip_reason(case.scene.scene, case.engine)
+            if reasons[key] is not None:
+                writer.write(case, None, skipped=reasons[key])
+            else:
+                runnable.append(case)
+        if runnable:
+            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate).run()
+    finally:
+        progress.stop()
+    records = list(iter_records(results.cases))
+    counts = _status_counts(records)
+    results.finish(counts)
+    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records)
+
+
+def compare_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("xval")
+    except Exception:
+        return "unknown"
+
+
+def _status_counts(records: list[CaseRecord]) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for record in records:
+        counts[record.status.value] = counts.get(record.status.value, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+class _Dispatcher:
+    """Submits references and cases, collects them as they finish, rebuilds a broken pool it owns."""
+
+    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate) -> None:
+        self.suite = suite
+        self.cases = {c.id: c for c in cases}
+        self.writer = writer
+        self.jobs = jobs or default_jobs()
+        self.own_executor = executor is None
+        self.executor = executor or self._new_pool()
+        self.timeout = timeout
+        self.isolate = isolate
+        self.references: dict[str, Any] = {}  # scene id -> solution, or the exception that stopped it
+        self.waiting: dict[str, list[tuple[Case, CaseOutcome]]] = {}
+        # Longest first: cost grows like 1/dt.
+        self.queue: deque[str] = deque(sorted(self.cases, key=lambda cid: self.cases[cid].dt))
+        # Cases lost when the pool broke: each is run again alone, so the one that kills
+        # its worker is known and no case that merely shared the pool with it is blamed.
+        self.suspects: deque[str] = deque()
+        self.alone: str | None = None
+
+    def _new_pool(self) -> cf.Executor:
+        # fork: workers inherit the imported engines; the workers are forked
+        # before the progress bar starts its thread (all at first submit).
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"))
+
+    def task(self, case: Case) -> CaseTask:
+        return CaseTask(
+            case_id=case.id,
+            engine_id=case.engine.id,
+            variant=case.engine.variant,
+            options=dict(case.engine.options),
+            scene=case.scene.scene,
+            dt=case.dt,
+            sample_interval=self.suite.sample_interval,
+            repeats=self.suite.repeats,
+            timeout=self.timeout,
+            isolate=self.isolate,
+            command=spec_of(case.engine.engine),
+        )
+
+    def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
+        scenes = {s.id: s.scene for s in self.suite.scenes}
+        return {
+            self.executor.submit(solve_reference, scenes[sid], self.suite.rtol, self.suite.atol): ("reference", sid)
+            for sid in scene_ids
+        }
+
+    def fill(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
+        """Submit cases while there is room: ``jobs`` at a time on a pool we own, all at once otherwise.
+
+        A window on our own pool means a worker's death loses only the cases
+        running then, not the whole queue (an executor passed in, e.g. the
+        Dask one, keeps its own window). After a break, suspects run one at a
+        time with nothing else in flight. Returns ``pending``, or a new dict
+        when the pool turned out broken at submission.
+        """
+        while True:
+            try:
+                self._fill(pending)
+                return pending
+            except cf.BrokenExecutor:
+                # Its manager saw a worker die before any of our futures said so.
+                pending = self.recover(pending)
+
+    def _fill(self, pending: dict[cf.Future, tuple[str, str]]) -> None:
+        if self.suspects:
+            if not pending:
+                self._submit(pending, self.suspects, alone=True)
+            return
+        in_flight = sum(kind == "case" for kind, _ in pending.values())
+        room = self.jobs - in_flight if self.own_executor else len(self.queue)
+        for _ in range(min(room, len(self.queue))):
+            self._submit(pending, self.queue)
+
+    def _submit(self, pending: dict[cf.Future, tuple[str, str]], source: deque[str], alone: bool = False) -> None:
+        cid = source.popleft()
+        try:
+            future = self.executor.submit(execute, self.task(self.cases[cid]))
+        except cf.BrokenExecutor:
+            source.appendleft(cid)  # not run: it goes first once the pool is rebuilt
+            raise
+        pending[future] = ("case", cid)
+        self.alone = cid if alone else None
+
+    def run(self) -> None:
+        scene_ids = sorted({c.scene.id for c in self.cases.values()})
+        pending = self.fill(self.submit_references(scene_ids))
+        try:
+            while pending:
+                finished, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                broken = False
+                for future in finished:
+                    kind, key = pending.pop(future)
+                    try:
+                        value = future.result()
+                    except RunStopped:
+                        raise  # no record for this case: --resume runs it
+                    except cf.BrokenExecutor:
+                        broken = True
+                        pending[future] = (kind, key)  # re-handled below
+                        continue
+                    except Exception as exc:
+                        # A reference that could not be solved is kept as its exception;
+                        # a case whose task itself raised (not the engine) is failed.
+                        value = exc if kind == "reference" else CaseOutcome(
+                            key, None, status="failed", message=f"{type(exc).__name__}: {exc}".splitlines()[0]
+                        )
+                    self.handle(kind, key, value)
+                if broken:
+                    pending = self.recover(pending)
+                pending = self.fill(pending)
+        except BaseException:
+            # Ctrl-C or a bug: stop the workers now; finished records are already on disk.
+            self.executor.shutdown(wait=False, cancel_futures=True)
+            raise
+        if self.own_executor:
+            self.executor.shutdown(wait=True)
+
+    def handle(self, kind: str, key: str, value: Any) -> None:
+        if kind == "reference":
+            value = value if isinstance(value, Exception) else SampledReference(value)
+            self.references[key] = value
+            for case, outcome in self.waiting.pop(key, []):
+                self.writer.write(case, outcome, reference=value)
+            return
+        case = self.cases[key]
+        if case.scene.id in self.references:
+            self.writer.write(case, value, reference=self.references[case.scene.id])
+        else:
+            self.waiting.setdefault(case.scene.id, []).append((case, value))
+
+    def recover(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
+        """The pool broke (a worker died outside a case's child): rebuild it and run again what was lost.
+
+        Lost cases become suspects, each run again alone (MAX_ATTEMPTS = 2 in
+        all); a suspect that breaks the pool while alone is the culprit and is
+        recorded failed. With an executor we do not own, everything lost is
+        recorded as failed.
+        """
+        lost = list(pending.values())
+        self.executor.shutdown(wait=False, cancel_futures=True)
+        reference_ids = [key for kind, key in lost if kind == "reference"]
+        case_ids = [key for kind, key in lost if kind == "case"]
+        if not self.own_executor:
+            # Not ours to rebuild: what was lost, and what had not been submitted yet, is failed.
+            for key in case_ids + list(self.queue):
+                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+            self.queue.clear()
+            for scene_id in reference_ids:
+                self.handle("reference", scene_id, RuntimeError("the executor broke before the reference was solved"))
+            return {}
+        for key in case_ids:
+            if key == self.alone:
+                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+            else:
+                self.suspects.append(key)
+        self.alone = None
+        self.executor = self._new_pool()
+        return self.submit_references(reference_ids)
+
+
+class _Writer:
+    """Turns outcomes into records (metrics computed here, in the parent) and writes them."""
+
+    def __init__(self, results: ResultsDir, suite: Suite, progress: Progress) -> None:
+        self.results = results
+        self.suite = suite
+        self.progress = progress
+
+    def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
+        record = build_record(case, outcome, reference, self.suite, skipped=skipped)
+        path = self.results.write_case(record)
+        self.progress.advance(CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record}, path))
+
+
+def build_record(
+    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None
+) -> dict[str, Any]:
+    """The JSON-ready record of one case.
+
+    reference : the scene's SampledReference, or the exception that kept it
+    from being solved (position metrics are then null and the message says why).
+    """
+    scene = case.scene.scene
+    record: dict[str, Any] = {
+        "case": {
+            "id": case.id,
+            "scene_id": case.scene.id,
+            "scene_name": case.scene.name,
+            "engine": case.engine.label,
+            "engine_id": case.engine.id,
+            "variant": case.engine.variant,
+            "options": dict(case.engine.options),
+            "dt": case.dt,
+            "position": list(case.position),
+        },
+        "status": "skipped",
+        "message": skipped or "",
+        "metrics": None,
+        "run_info": None,
+        "wall_times": [],
+        "elapsed": 0.0,
+        "scene": scene.to_dict(),
+        "scene_hash": scene.content_hash,
+        "characteristic": {"length": scene.characteristic_length, "energy": scene.characteristic_energy},
+        "series": None,
+        "reference": None,
+        "finished": now(),
+    }
+    if outcome is None:
+        return jsonable(record)
+    record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
+    record["wall_times"] = outcome.wall_times
+    trajectory = outcome.trajectory
+    if trajectory is None:
+        return jsonable(record)
+    info = trajectory.info
+    record["run_info"] = info.to_dict()
+    status, message = info.status, info.message
+    finite = np.isfinite(trajectory.positions).all(axis=(1, 2)) & np.isfinite(trajectory.velocities).all(axis=(1, 2))
+    if not finite.all():
+        # Engine.simulate already cuts a run at its first non-finite state; an engine
+        # that bypasses it (a plug-in overriding simulate) must not pass NaN off as ok.
+        if status == "ok":
+            status, message = "unstable", "non-finite state in the returned trajectory"
+        trajectory = _truncate(trajectory, int(np.argmin(finite)))
+    scheduled = Schedule.make(scene.duration, case.dt, suite.sample_interval).times
+    n = trajectory.n_samples
+    if isinstance(reference, Exception) or reference is None:
+        why = reference if reference is not None else "no reference"
+        ref_positions = np.full((n, len(scene.particles), 3), math.nan)
+        ref_forces = None
+        message = "; ".join(m for m in (message, f"no reference solution ({why}), so no position metrics") if m)
+    else:
+        # At the scheduled times (shared by every engine of this dt), of which the trajectory holds the first n.
+        ref_positions, ref_forces = reference.at(scheduled)
+        if not np.array_equal(trajectory.t, scheduled[:n]):  # an engine that samples at times of its own
+            ref_positions, _, ref_forces = reference.solution.at(trajectory.t)
+        solution = reference.solution
+        record["reference"] = {
+            "rtol": solution.rtol,
+            "atol": solution.atol,
+            "steps": solution.n_steps,
+            "wall_time": solution.wall_time,
+        }
+    metrics, series = case_metrics(
+        scene,
+        trajectory,
+        ref_positions,
+        ref_forces,
+        scheduled_times=scheduled,
+        wall_times=outcome.wall_times,
+        delta=suite.delta,
+    )
+    status, message = apply_bounds(status, message, metrics, suite.bounds, scene)
+    record["status"], record["message"] = status, message
+    n_ref = min(n, len(ref_positions))
+    extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
+    record["metrics"] = {**metrics.to_dict(), **extras}
+    keep = downsample_indices(n)
+    record["series"] = {
+        "t": rounded(series.t[keep]),
+        "position_error": rounded(series.position_error[keep]),
+        "energy_drift": rounded(series.energy_drift[keep]),
+        "constraint_error": rounded(series.constraint_error[keep]),
+        "positions": rounded(trajectory.positions[keep]),
+        # The reference at the same samples, so a report can overlay paths without re-solving.
+        "reference_positions": rounded(ref_positions[:n][keep]),
+        # For the report's phase plot (angular velocity) and constraint-force plot.
+        "velocities": rounded(trajectory.velocities[keep]),
+    }
+    if trajectory.constraint_forces is not None:
+        record["series"]["constraint_forces"] = rounded(trajectory.constraint_forces[keep])
+        if ref_forces is not None and len(ref_forces) >= n:
+            record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
+    return jsonable(record)
+
+
+class SampledReference:
+    """A scene's reference solution and its samples at each dt's scheduled times, each evaluated once.
+
+    Every engine variant of one dt is sampled at the same times, so they share
+    one evaluation of the dense solution (~35 µs a sample: 0.7 s for each case
+    of the 20,001-sample 1,000 s bead of suites/stiff.toml when done per case).
+    """
+
+    def __init__(self, solution: Any) -> None:
+        self.solution = solution
+        self._samples: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """positions (N, P, 3) m and constraint forces (N, C, 3) N at ``times`` (N,) s."""
+        key = times.tobytes()
+        if key not in self._samples:
+            positions, _, forces = self.solution.at(times)
+            self._samples[key] = (positions, forces)
+        return self._samples[key]
+
+
+def _truncate(trajectory, n: int):
+    """The first n samples of ``trajectory``."""
+    forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
+    return replace(
+        trajectory,
+        t=trajectory.t[:n],
+        positions=trajectory.positions[:n],
+        velocities=trajectory.velocities[:n],
+        constraint_forces=forces,
+    )

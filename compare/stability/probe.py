@@ -1,0 +1,141 @@
+"""One probe (a run at one dt, judged by the suite's bounds) and the output files of the stability stage.
+
+Shared by the stability search (:mod:`compare.stability.search`) and the gain
+map (:mod:`compare.stability.gainmap`); neither imports the other.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engines.adapter import Schedule
+from engines.command import spec_of
+from engines.errors import UserError
+
+from compare.results.files import atomic_write_text
+from compare.results.metrics import Bounds, apply_bounds, case_metrics
+from compare.results.store import jsonable
+from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.run.runner import compare_version
+from compare.suite.reader import EngineSpec, SceneSpec, Suite
+
+
+@dataclass(frozen=True)
+class Probe:
+    """One run at one dt: status after the bounds, why, energy drift (E*), constraint error (m), elapsed (s)."""
+
+    dt: float
+    status: str
+    message: str = ""
+    energy_drift: float | None = None
+    constraint_error: float | None = None
+    elapsed: float = 0.0
+
+    @property
+    def stable(self) -> bool:
+        return self.status == "ok"
+
+
+# -- one probe through the runner's isolation -------------------------------------------------
+
+
+def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
+              sample_interval: float | None = None) -> Probe:
+    """Simulate one (scene, variant) at ``dt`` (s) in a case host and classify it by the suite's bounds.
+
+    sample_interval : s between samples (None: the suite's).
+    """
+    scene = scene_spec.scene
+    sample_interval = sample_interval or suite.sample_interval
+    task = CaseTask(
+        case_id=f"stability|{scene_spec.id}|{engine.label}|dt={dt:.12g}",
+        engine_id=engine.id,
+        variant=engine.variant,
+        options=dict(engine.options),
+        scene=scene,
+        dt=dt,
+        sample_interval=sample_interval,
+        repeats=1,
+        timeout=timeout,
+        command=spec_of(engine.engine),
+    )
+    outcome: CaseOutcome = execute(task)
+    return classify(scene, outcome, dt, sample_interval, suite.bounds)
+
+
+def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Probe:
+    """The Probe of a finished case: the engine's status, then the suite's bounds (as ``xval run`` does)."""
+    trajectory = outcome.trajectory
+    if trajectory is None:
+        return Probe(dt, outcome.status, outcome.message, elapsed=outcome.elapsed)
+    status, message = trajectory.info.status, trajectory.info.message
+    scheduled = Schedule.make(scene.duration, dt, sample_interval).times
+    # Position metrics need the reference, which the criterion does not use: compare against NaN.
+    no_reference = np.full((len(scheduled), len(scene.particles), 3), np.nan)
+    metrics, _ = case_metrics(scene, trajectory, no_reference, None, scheduled_times=scheduled,
+                              wall_times=outcome.wall_times)
+    status, message = apply_bounds(status, message, metrics, bounds, scene)
+    return Probe(dt, status, message, _finite_or_none(metrics.energy_drift),
+                 _finite_or_none(metrics.constraint_error), outcome.elapsed)
+
+
+def _finite_or_none(value: float) -> float | None:
+    return float(value) if value is not None and math.isfinite(value) else None
+
+
+# -- the output files (stability.json here, gainmap.json in compare.stability.gainmap) ----------------------
+
+#: The command that rewrites either file, named in every error about one.
+RERUN = "xval stability SUITE --output DIR --force"
+
+
+def document_head(suite: Suite, schema: str, version: int) -> dict[str, Any]:
+    """The fields both output files open with: format, suite, xval version and the bounds the probes were judged by."""
+    return {
+        "schema": schema,
+        "schema_version": version,
+        "suite": {"name": suite.name, "path": suite.path, "fingerprint": suite.fingerprint()},
+        "xval_version": compare_version(),
+        "bounds": {"energy_drift": suite.bounds.energy_drift, "constraint_error": suite.bounds.constraint_error},
+    }
+
+
+def write_document(target: Path, document: dict[str, Any], indent: int | None = None) -> None:
+    """Write ``document`` to ``target`` atomically (a reader never sees half a file)."""
+    atomic_write_text(target, json.dumps(jsonable(document), indent=indent, allow_nan=False) + "\n")
+
+
+def load_document(directory: str | Path, name: str, schema: str, version: int) -> dict[str, Any] | None:
+    """``directory/name`` as written by this module or gainmap; None when absent, UserError naming RERUN when unreadable."""
+    file = Path(directory) / name
+    if not file.exists():
+        return None
+    try:
+        data = json.loads(file.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise UserError(f"{file}: cannot read it ({exc}); rerun {RERUN}") from None
+    if not isinstance(data, dict) or data.get("schema") != schema or data.get("schema_version") != version:
+        found = data.get("schema_version") if isinstance(data, dict) else None
+        raise UserError(f"{file}: {schema} version {found!r}, but this xval reads version {version}; rerun {RERUN}")
+    return data
+
+
+def check_output(output: str | Path, name: str, force: bool) -> Path:
+    """The file ``output/name`` to write: the directory is created; an existing file needs ``force``."""
+    directory = Path(output)
+    if directory.exists() and not directory.is_dir():
+        raise UserError(f"--output: {directory} is a file; give a directory")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"--output: cannot create {directory} ({exc.strerror}); choose a writable directory") from None
+    target = directory / name
+    if target.exists() and not force:
+        raise UserError(f"--output: {target} exists; pass --force to replace it, or choose another directory")
+    return target

@@ -1,0 +1,209 @@
+"""Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
+
+Criterion (the same one ``xval run`` applies to every case, see
+:func:`compare.results.metrics.apply_bounds`): a probe at time step dt is *stable*
+when the engine delivers every scheduled sample over the scene's duration
+with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
+and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
+(non-finite state, a bound exceeded, the engine raised, died or timed out)
+is not stable.
+
+Search (per pair, :func:`search`): probe ``dt_max``; if it is stable the
+pair is ``stable-at-largest``. Otherwise step down by ``bracket_factor``
+(√10: two probes per decade) until a probe is stable (then bisect on a log
+scale between the stable and the unstable dt until their ratio is ≤
+``resolution``, 1.1 = 10 % in dt) or ``dt_min`` is reached unstable
+(``unstable-at-smallest``). The search assumes one boundary: a variant
+stable at dt but not at some dt' < dt (a chaotic scene whose drift crosses
+a bound by chance) is reported at the first boundary found, and every
+probe is kept so the report can show it.
+
+Every probe runs through :func:`compare.run.isolation.execute` (a forked case
+host per thread), so a crash or a hang costs that probe only. Pairs run in
+parallel on ``jobs`` threads; each pair's probes are sequential (each one
+depends on the last). Results go to ``DIR/stability.json`` (versioned,
+rewritten atomically after each pair, so a stopped search keeps what it
+found).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+
+
+from compare.results.metrics import Bounds
+from compare.results.store import jsonable, now
+from compare.run.runner import default_jobs, skip_reason
+from compare.stability.probe import (
+    Probe, check_output, document_head, load_document, run_probe, write_document,
+)
+from compare.suite.plans import SearchSettings, StabilityPlan
+from compare.suite.reader import EngineSpec, SceneSpec, Suite
+
+#: File the search writes in its output directory, and its format.
+FILE_NAME = "stability.json"
+SCHEMA = "xval-stability"
+SCHEMA_VERSION = 1
+#: Verdicts of one pair.
+BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED = (
+    "bounded", "stable-at-largest", "unstable-at-smallest", "skipped",
+)
+
+
+def criterion_text(bounds: Bounds) -> str:
+    """The stability criterion in words, stored with the results and shown in the report."""
+    return (
+        "stable at dt = every scheduled sample delivered over the scene's duration with a finite state, "
+        f"energy drift ≤ {bounds.energy_drift:g} E* and constraint error ≤ {bounds.constraint_error:g} L; "
+        "unstable = a non-finite state, a bound exceeded, or the engine failed or timed out"
+    )
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """The search's answer for one scene × engine variant.
+
+    verdict : bounded, stable-at-largest, unstable-at-smallest or skipped.
+    largest_stable_dt : s, the largest dt found stable (None when none was).
+    smallest_unstable_dt : s, the smallest dt found unstable above it (None when none was).
+    analytic_dt : s, the linear theory's limit where one exists (ours/baumgarte), else None.
+    probes : in the order they ran.
+    """
+
+    scene_id: str
+    engine: str
+    verdict: str
+    largest_stable_dt: float | None = None
+    smallest_unstable_dt: float | None = None
+    reason: str = ""
+    analytic_dt: float | None = None
+    probes: tuple[Probe, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return jsonable(asdict(self))
+
+
+# -- the search itself (pure: the probe is a function of dt) ---------------------------------
+
+
+def search(probe: Callable[[float], Probe], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Probe]]:
+    """(verdict, largest stable dt, smallest unstable dt, probes) for one pair; see the module docstring."""
+    probes: list[Probe] = []
+
+    def stable(dt: float) -> bool:
+        result = probe(dt)
+        probes.append(result)
+        return result.stable
+
+    if stable(settings.dt_max):
+        return STABLE_AT_LARGEST, settings.dt_max, None, probes
+    hi, lo = settings.dt_max, None
+    while lo is None:
+        if hi <= settings.dt_min * (1 + 1e-12):
+            return UNSTABLE_AT_SMALLEST, None, hi, probes
+        dt = max(hi / settings.bracket_factor, settings.dt_min)
+        if stable(dt):
+            lo = dt
+        else:
+            hi = dt
+    while hi / lo > settings.resolution * (1 + 1e-12):
+        mid = math.sqrt(lo * hi)
+        if stable(mid):
+            lo = mid
+        else:
+            hi = mid
+    return BOUNDED, lo, hi, probes
+
+
+# -- the analytic limit where the theory covers the variant ---------------------------------------
+
+
+def analytic_dt(engine: EngineSpec) -> float | None:
+    """s: the largest dt the engine's own linear theory calls stable for this variant (None: it has none)."""
+    if engine.engine is None:
+        return None
+    return engine.engine.largest_stable_dt(engine.variant, engine.options)
+
+
+# -- running it -------------------------------------------------------------------------------
+
+
+def plan_stability(suite: Suite) -> StabilityPlan:
+    """The suite's typed ``[stability]`` plan (every scene and variant when it has no table)."""
+    if suite.stability is not None:
+        return suite.stability
+    return StabilityPlan(suite.scenes, suite.engines, SearchSettings(max(suite.dts), min(suite.dts)))
+
+
+def run_stability(
+    suite: Suite,
+    output: str | Path,
+    *,
+    jobs: int | None = None,
+    timeout: float | None = None,
+    force: bool = False,
+    on_pair: Callable[[PairResult], None] | None = None,
+) -> Path:
+    """Search every planned pair; write ``output/stability.json`` (after each pair) and return its path."""
+    target = check_output(output, FILE_NAME, force)
+    stability = plan_stability(suite)
+    timeout = timeout or suite.timeout
+    document: dict[str, Any] = {
+        **document_head(suite, SCHEMA, SCHEMA_VERSION),
+        "criterion": criterion_text(suite.bounds),
+        "settings": asdict(stability.settings),
+        "scenes": {s.id: {"name": s.name, "duration": s.scene.duration, "length": s.scene.characteristic_length}
+                   for s in stability.scenes},
+        "engines": [e.label for e in stability.engines],
+        "started": now(),
+        "finished": None,
+        "results": [],
+    }
+    order = {(s.id, e.label): k for k, (s, e) in enumerate(
+        (s, e) for s in stability.scenes for e in stability.engines)}
+
+    def save() -> None:
+        document["results"].sort(key=lambda r: order[(r["scene_id"], r["engine"])])
+        write_document(target, document, indent=1)
+
+    def one(scene: SceneSpec, engine: EngineSpec) -> PairResult:
+        reason = skip_reason(scene.scene, engine)
+        if reason is not None:
+            return PairResult(scene.id, engine.label, SKIPPED, reason=reason)
+        verdict, lo, hi, probes = search(
+            lambda dt: run_probe(scene, engine, dt, suite, timeout, stability.settings.sample_interval),
+            stability.settings,
+        )
+        last_unstable = next((p for p in reversed(probes) if not p.stable), None)
+        why = "" if last_unstable is None else f"at dt = {last_unstable.dt:.4g} s: {last_unstable.status} ({last_unstable.message})"
+        return PairResult(scene.id, engine.label, verdict, lo, hi, why, analytic_dt(engine), tuple(probes))
+
+    save()
+    pairs = [(s, e) for s in stability.scenes for e in stability.engines]
+    # Threads, not processes: each thread only waits on its own case host (a forked child).
+    with cf.ThreadPoolExecutor(max_workers=jobs or default_jobs()) as pool:
+        futures = [pool.submit(one, s, e) for s, e in pairs]
+        try:
+            for future in cf.as_completed(futures):
+                result = future.result()
+                document["results"].append(result.to_dict())
+                save()
+                if on_pair is not None:
+                    on_pair(result)
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+    document["finished"] = now()
+    save()
+    return target
+
+
+def load_stability(path: str | Path) -> dict[str, Any] | None:
+    """The stability document in results directory ``path`` (None when it has none); UserError for another version."""
+    return load_document(path, FILE_NAME, SCHEMA, SCHEMA_VERSION)

@@ -1,0 +1,520 @@
+"""Suites: which scenes, engine variants and time steps to compare, read from TOML.
+
+A suite file (see ``suites/default.toml`` for a commented example)::
+
+    name = "smoke"                 # optional, defaults to the file's stem
+    description = "..."            # optional
+    duration = 2.0                 # s, optional: overrides every scene's duration
+    sample_interval = 0.01         # s between stored samples
+    delta = 1e-2                   # divergence threshold δ (e(t) > δ·L)
+    repeats = 1                    # timing repeats per case (median taken)
+    timeout = 120                  # s per case, before it is recorded as `timeout`
+    dt = [1e-2, 1e-3]              # a list, or a geometric sweep:
+    # dt = { from = 1e-1, to = 1e-4, per_decade = 2 }
+
+    [reference]                    # settings of the DOP853 reference
+    rtol = 1e-12
+    atol = 1e-12
+
+    [bounds]                       # an `ok` run past these is `unstable`
+    energy_drift = 1.0             # × E*
+    constraint_error = 0.1         # × L
+
+    [tolerances]                   # per-metric tolerances, for the gate
+    position_error_linf = 0.1
+
+    [gate]                         # `xval gate` overrides (compare/gate/tolerance.py)
+    timing_factor = 1.5
+    energy_drift = { rtol = 0.2, atol = 1e-9 }
+
+    [verdict]                      # consistency: right when the error is under tolerance · L
+    tolerance = 1e-2
+
+    [stability]                    # xval stability: pairs and dt range (compare/suite/plans.py)
+    [gainmap]                      # a sweep over two numeric options of engine variants
+
+    [[scenes]]
+    id = "bead-60"                 # readable id, defaults to the scene name
+    scene = "bead"                 # a catalog name
+    parameters = { theta0 = 60 }
+
+    [[engines]]
+    id = "mujoco/*"                # every variant; or "mujoco/hinge-rk4", or
+    options = {}                   # "package.module:ATTRIBUTE[/variant]"
+
+    [[engines]]                    # an outside program (compare/suite/command.py)
+    command = ["python3", "solvers/bead.py"]
+    label = "my-bead"              # results call it command/my-bead
+
+``engines`` items may also be plain strings (``engines = ["ours/*"]``).
+
+Every mistake is a :class:`UserError` whose message starts with the file
+(and line, where one is known), names the key and says how to fix it. An
+engine whose library cannot be imported here is kept as *unavailable*: its
+cases are recorded as ``skipped`` with the reason, like asv.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from engines import catalog, registry
+from engines.adapter import Engine
+from engines.errors import SceneError, UserError
+from engines.scene import Scene
+
+from compare.results.metrics import DEFAULT_DELTA, Bounds
+from compare.suite.command import command_engine_spec
+from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
+
+#: Keys a suite file may hold at the top level, with what each must be.
+TOP_LEVEL_KEYS = {
+    "name": "a string",
+    "description": "a string",
+    "duration": "a positive number of seconds",
+    "sample_interval": "a positive number of seconds",
+    "delta": "a positive number",
+    "repeats": "a positive integer",
+    "timeout": "a positive number of seconds",
+    "dt": "a list of time steps or a table {from, to, per_decade}",
+    "reference": "a table with rtol and atol",
+    "bounds": "a table with energy_drift and constraint_error",
+    "tolerances": "a table of metric name = number",
+    "gate": "a table of metric = { rtol, atol } and timing_factor, for xval gate",
+    "scenes": "an array of tables [[scenes]]",
+    "engines": "an array of engine ids or tables [[engines]]",
+    "stability": "a table for xval stability (compare/suite/plans.py): scenes, engines, dt_max, dt_min",
+    "gainmap": "a table for the gain map (compare/suite/plans.py): scene, engines, x, y, x_values, y_values, dt",
+    "verdict": "a table with tolerance (a fraction of L) for the consistency verdict",
+}
+REQUIRED_KEYS = ("dt", "scenes", "engines")
+SCENE_KEYS = ("id", "scene", "parameters")
+ENGINE_KEYS = ("id", "options", "label")
+SWEEP_KEYS = ("from", "to", "per_decade")
+REFERENCE_KEYS = ("rtol", "atol")
+BOUND_KEYS = ("energy_drift", "constraint_error")
+
+DEFAULTS = {"sample_interval": 0.01, "delta": DEFAULT_DELTA, "repeats": 1, "timeout": 120.0}
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """One scene of a suite: readable ``id``, catalog ``name``, ``parameters`` as written, the built Scene."""
+
+    id: str
+    name: str
+    parameters: Mapping[str, Any]
+    scene: Scene
+
+
+@dataclass(frozen=True)
+class EngineSpec:
+    """One engine variant of a suite.
+
+    id : what the suite wrote, expanded (``mujoco/hinge-rk4``, or
+        ``tests.engines:BROKEN/raise``); used to load the engine in a worker.
+    label : the readable id shown in tables and results (``id`` unless set).
+    engine : the adapter, or None when it cannot be loaded here (``unavailable`` says why).
+    variant : key of ``engine.variants``; options : as written in the suite.
+    """
+
+    id: str
+    label: str
+    variant: str | None
+    options: Mapping[str, Any]
+    engine: Engine | None
+    unavailable: str = ""
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A parsed, validated suite. ``source`` is the file's text (stored with results)."""
+
+    name: str
+    description: str
+    path: str
+    source: str
+    scenes: tuple[SceneSpec, ...]
+    engines: tuple[EngineSpec, ...]
+    dts: tuple[float, ...]
+    duration: float | None
+    sample_interval: float
+    delta: float
+    repeats: int
+    timeout: float
+    rtol: float
+    atol: float
+    bounds: Bounds
+    gate: GateSettings = field(default_factory=GateSettings)
+    stability: StabilityPlan | None = None
+    gainmap: GainMapPlan | None = None
+    verdict_tolerance: float = DEFAULT_DELTA
+
+    def fingerprint(self) -> str:
+        """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
+        physics = {
+            "scenes": [[s.id, s.scene.content_hash] for s in self.scenes],
+            # An outside program is what it runs: its argv and declared version decide its results too.
+            "engines": [[e.id, e.label, dict(e.options), *_program_of(e)] for e in self.engines],
+            "dts": list(self.dts),
+            "sample_interval": self.sample_interval,
+            "delta": self.delta,
+            "repeats": self.repeats,
+            "reference": [self.rtol, self.atol],
+            "bounds": [self.bounds.energy_drift, self.bounds.constraint_error],
+        }
+        text = json.dumps(physics, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _program_of(engine: EngineSpec) -> list[Any]:
+    """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
+    spec = getattr(engine.engine, "spec", None)
+    return [] if spec is None else [list(spec.argv), spec.version]
+
+
+# -- engine ids ------------------------------------------------------------------
+
+
+def load_engine(engine_id: str) -> tuple[Engine, str | None]:
+    """(engine, variant or None) for ``name[/variant]`` or ``package.module:ATTRIBUTE[/variant]``.
+
+    The ``module:attribute`` form loads an Engine object from any importable
+    module (test engines, plug-ins). Raises UserError for an unknown engine,
+    ``registry.EngineUnavailable`` when an engine cannot load here.
+    """
+    return registry.load_engine(engine_id)  # the registry is the one place engine ids are resolved
+
+
+# -- reading -----------------------------------------------------------------------
+
+
+def load_suite(path: str | Path) -> Suite:
+    """Read and validate the suite at ``path``; UserError naming the file, key and fix."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such suite file; pass the path of a .toml suite such as suites/smoke.toml") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not UTF-8 text (byte {exc.start}); save the suite as UTF-8") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a directory; pass the path of a .toml suite file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read the suite file ({exc.strerror})") from None
+    return parse_suite(text, str(path))
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The parts of a suite that judge results, readable without loading any engine.
+
+    delta : δ (divergence threshold, fraction of L); bounds : the status bounds;
+    gate : the gate's tolerances; verdict_tolerance : the consistency tolerance (fraction of L).
+    """
+
+    delta: float = DEFAULT_DELTA
+    bounds: Bounds = field(default_factory=Bounds)
+    gate: GateSettings = field(default_factory=GateSettings)
+    verdict_tolerance: float = DEFAULT_DELTA
+
+
+def load_run_settings(path: str | Path) -> RunSettings:
+    """The :class:`RunSettings` of the suite file at ``path`` (a results directory's ``suite.toml``).
+
+    Defaults when the file does not exist (results written by hand); UserError naming the file for a
+    damaged one. The scenes and engines are not built, so gating and reports need no engine here.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return RunSettings()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read the stored suite ({exc}); the results directory is damaged") from None
+    data = _parse_toml(text, str(path))
+    reader = _Reader(str(path), text)
+    values = {**DEFAULTS, **data}
+    delta = reader.number("delta", values["delta"])
+    bounds_table = reader.table("bounds", data.get("bounds", {}), BOUND_KEYS)
+    bounds = Bounds(
+        reader.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
+        reader.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
+    )
+    gate = gate_settings(data.get("gate"), data.get("tolerances"), reader.error)
+    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict"), delta))
+
+
+_TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
+
+
+def parse_suite(text: str, path: str = "<suite>") -> Suite:
+    """Parse suite TOML ``text``; ``path`` is used in error messages and stored in the Suite."""
+    return _Reader(path, text).suite(_parse_toml(text, path))
+
+
+def _parse_toml(text: str, path: str) -> dict[str, Any]:
+    """The TOML document; a syntax error is a UserError with the file, line and column."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        message = str(exc)
+        where = _TOML_POSITION.search(message)
+        if where:
+            reason = _TOML_POSITION.sub("", message).strip()
+            raise UserError(
+                f"{path}:{where.group(1)}: invalid TOML at column {where.group(2)}: {reason}; fix the syntax there"
+            ) from None
+        raise UserError(f"{path}: invalid TOML: {message}") from None
+
+
+class _Reader:
+    """Validates one parsed suite; every error names ``path``, the key and, where it can, the line."""
+
+    def __init__(self, path: str, text: str) -> None:
+        self.path = path
+        self.lines = text.splitlines()
+
+    # -- errors ------------------------------------------------------------------
+
+    def error(self, key: str, message: str) -> UserError:
+        line = self.line_of(key)
+        where = f"{self.path}:{line}" if line else self.path
+        return UserError(f"{where}: {key}: {message}")
+
+    def line_of(self, key: str) -> int | None:
+        """Best-effort line (1-based) of ``key`` such as ``delta``, ``scenes[1].scene`` or ``bounds.energy_drift``.
+
+        tomllib gives positions only for syntax errors, so this finds the
+        n-th ``[[array]]`` header or ``[table]`` and the first ``name =``
+        after it. None when the key is written some other way (inline tables).
+        """
+        parts = re.findall(r"[A-Za-z_]+|\[\d+\]", key)
+        headers = [i for i, line in enumerate(self.lines) if re.match(r"\s*\[", line)]
+
+        def region_after(header: int | None) -> range:
+            first = 0 if header is None else header + 1
+            following = [h for h in headers if h >= first]
+            return range(first, following[0] if following else len(self.lines))
+
+        region = region_after(None)
+        if len(parts) >= 2 and parts[1].startswith("["):
+            arrays = [i for i in headers if re.match(rf"\s*\[\[\s*{parts[0]}\s*\]\]", self.lines[i])]
+            index = int(parts[1][1:-1])
+            if index < len(arrays):
+                if len(parts) == 2:
+                    return arrays[index] + 1
+                region, parts = region_after(arrays[index]), parts[2:]
+        elif len(parts) >= 2:
+            tables = [i for i in headers if re.match(rf"\s*\[\s*{parts[0]}\s*\]", self.lines[i])]
+            if tables:
+                region, parts = region_after(tables[0]), parts[1:]
+        for i in region:
+            if re.match(rf'\s*"?{re.escape(parts[0])}"?\s*=', self.lines[i]):
+                return i + 1
+        return None
+
+    # -- typed getters -------------------------------------------------------------
+
+    def number(self, key: str, value: Any, *, integer: bool = False) -> float:
+        kind = "a positive integer" if integer else "a positive number"
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (integer and not isinstance(value, int)):
+            raise self.error(key, f"must be {kind}, got {_describe(value)}; write e.g. {key.split('.')[-1]} = {'1' if integer else '0.01'}")
+        if not math.isfinite(value) or value <= 0:
+            raise self.error(key, f"must be {kind}, got {value!r}")
+        return int(value) if integer else float(value)
+
+    def string(self, key: str, value: Any) -> str:
+        if not isinstance(value, str) or not value.strip():
+            raise self.error(key, f"must be a non-empty string, got {_describe(value)}")
+        return value
+
+    def table(self, key: str, value: Any, allowed: tuple[str, ...]) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.error(key, f"must be a table, got {_describe(value)}")
+        for name in value:
+            if name not in allowed:
+                raise self.error(f"{key}.{name}", f"unknown key; valid keys are: {', '.join(allowed)}")
+        return value
+
+    # -- the suite -----------------------------------------------------------------
+
+    def suite(self, data: dict[str, Any]) -> Suite:
+        for key in data:
+            if key not in TOP_LEVEL_KEYS:
+                raise self.error(key, f"unknown key; valid keys are: {', '.join(TOP_LEVEL_KEYS)}")
+        for key in REQUIRED_KEYS:
+            if key not in data:
+                raise UserError(f"{self.path}: {key}: missing; add {key} = ... ({TOP_LEVEL_KEYS[key]})")
+        values = {**DEFAULTS, **data}
+        duration = None if "duration" not in data else self.number("duration", data["duration"])
+        sample_interval = self.number("sample_interval", values["sample_interval"])
+        delta = self.number("delta", values["delta"])
+        repeats = int(self.number("repeats", values["repeats"], integer=True))
+        timeout = self.number("timeout", values["timeout"])
+        name = self.string("name", data["name"]) if "name" in data else Path(self.path).stem
+        description = self.string("description", data["description"]) if "description" in data else ""
+        reference = self.table("reference", data.get("reference", {}), REFERENCE_KEYS)
+        rtol = self.number("reference.rtol", reference.get("rtol", 1e-12))
+        atol = self.number("reference.atol", reference.get("atol", 1e-12))
+        bounds_table = self.table("bounds", data.get("bounds", {}), BOUND_KEYS)
+        bounds = Bounds(
+            self.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
+            self.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
+        )
+        # [tolerances] ends up in ``gate``; checked here first for its own messages (positive numbers, line numbers).
+        for key, value in self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC)).items():
+            self.number(f"tolerances.{key}", value)
+        gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
+        dts = self.dts(data["dt"])
+        scenes = self.scenes(data["scenes"], duration)
+        longest_dt = max(dts)
+        for spec in scenes:
+            if longest_dt > spec.scene.duration:
+                raise self.error(
+                    "dt",
+                    f"the time step {longest_dt:g} s is longer than scene {spec.id!r}'s duration "
+                    f"{spec.scene.duration:g} s; use smaller time steps or a longer duration",
+                )
+        engines = self.engines(data["engines"])
+        stability = read_stability(self, data.get("stability"), scenes, engines, dts)
+        gainmap = read_gainmap(self, data.get("gainmap"), scenes, self.expand)
+        verdict_tolerance = read_verdict(self, data.get("verdict"), delta)
+        return Suite(
+            name=name,
+            description=description,
+            path=self.path,
+            source="\n".join(self.lines) + "\n",
+            scenes=scenes,
+            engines=engines,
+            dts=dts,
+            duration=duration,
+            sample_interval=sample_interval,
+            delta=delta,
+            repeats=repeats,
+            timeout=timeout,
+            rtol=rtol,
+            atol=atol,
+            bounds=bounds,
+            gate=gate,
+            stability=stability,
+            gainmap=gainmap,
+            verdict_tolerance=verdict_tolerance,
+        )
+
+    def dts(self, value: Any) -> tuple[float, ...]:
+        if isinstance(value, list):
+            if not value:
+                raise self.error("dt", "is empty; list at least one time step, e.g. dt = [1e-2, 1e-3]")
+            dts = [self.number(f"dt[{k}]", v) for k, v in enumerate(value)]
+        elif isinstance(value, dict):
+            sweep = self.table("dt", value, SWEEP_KEYS)
+            for key in SWEEP_KEYS:
+                if key not in sweep:
+                    raise self.error("dt", f"the sweep needs {key}; write dt = {{ from = 1e-1, to = 1e-4, per_decade = 2 }}")
+            start = self.number("dt.from", sweep["from"])
+            stop = self.number("dt.to", sweep["to"])
+            per_decade = int(self.number("dt.per_decade", sweep["per_decade"], integer=True))
+            dts = geometric_sweep(start, stop, per_decade)
+        else:
+            raise self.error("dt", f"must be {TOP_LEVEL_KEYS['dt']}, got {_describe(value)}")
+        if len(set(dts)) != len(dts):
+            raise self.error("dt", "lists the same time step twice; remove the duplicate")
+        return tuple(sorted(dts, reverse=True))
+
+    def scenes(self, value: Any, duration: float | None) -> tuple[SceneSpec, ...]:
+        if not isinstance(value, list) or not value:
+            raise self.error("scenes", "must be a non-empty array of tables; add [[scenes]] with scene = \"bead\"")
+        specs: list[SceneSpec] = []
+        for k, item in enumerate(value):
+            key = f"scenes[{k}]"
+            entry = self.table(key, item, SCENE_KEYS)
+            if "scene" not in entry:
+                raise self.error(key, f"missing scene; add scene = one of {', '.join(catalog.scene_names())}")
+            name = self.string(f"{key}.scene", entry["scene"])
+            if name not in catalog.CATALOG:
+                raise self.error(
+                    f"{key}.scene", f"unknown scene {name!r}; choose one of: {', '.join(catalog.scene_names())}"
+                )
+            scene_id = self.string(f"{key}.id", entry.get("id", name))
+            if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
+                raise self.error(f"{key}.id", f"{scene_id!r} is not a readable id; use letters, digits, '.', '_' and '-'")
+            if any(s.id == scene_id for s in specs):
+                raise self.error(f"{key}.id", f"{scene_id!r} is used twice; give each scene a distinct id")
+            parameters = self.table(f"{key}.parameters", entry.get("parameters", {}), tuple(entry.get("parameters", {})))
+            overrides = dict(parameters)
+            if duration is not None:
+                overrides.setdefault("duration", duration)
+            try:
+                scene = catalog.build(name, overrides)
+            except SceneError as exc:
+                raise self.error(f"{key}.parameters", f"{exc}") from None
+            specs.append(SceneSpec(scene_id, name, dict(parameters), scene))
+        return tuple(specs)
+
+    def engines(self, value: Any) -> tuple[EngineSpec, ...]:
+        if not isinstance(value, list) or not value:
+            raise self.error(
+                "engines", 'must be a non-empty array; write engines = ["ours/*"] or add [[engines]] with id = "..."'
+            )
+        specs: list[EngineSpec] = []
+        for k, item in enumerate(value):
+            key = f"engines[{k}]"
+            if isinstance(item, dict) and "command" in item:  # an outside program: compare/suite/command.py
+                engine, options = command_engine_spec(item, key, self.path, self.error)
+                specs.append(EngineSpec(engine.spec.engine_id, engine.spec.engine_id, engine.spec.label, options,
+                                        engine))
+                if sum(s.label == engine.spec.engine_id for s in specs) > 1:
+                    raise self.error(f"{key}.label", f"{engine.spec.label!r} is used twice; give each command its "
+                                                     f"own label")
+                continue
+            entry = {"id": item} if isinstance(item, str) else self.table(key, item, ENGINE_KEYS)
+            if "id" not in entry:
+                raise self.error(key, 'missing id; add id = "engine/variant", e.g. id = "mujoco/hinge-rk4"')
+            engine_id = self.string(f"{key}.id", entry["id"])
+            options = self.table(f"{key}.options", entry.get("options", {}), tuple(entry.get("options", {})))
+            label = self.string(f"{key}.label", entry["label"]) if "label" in entry else None
+            for spec in self.expand(key, engine_id, options, label):
+                if any(s.label == spec.label for s in specs):
+                    raise self.error(
+                        f"{key}.id",
+                        f"{spec.label!r} is listed twice; remove one, or give variants with different options a label",
+                    )
+                specs.append(spec)
+        return tuple(specs)
+
+    def expand(self, key: str, engine_id: str, options: dict[str, Any], label: str | None) -> list[EngineSpec]:
+        """The EngineSpecs for one entry: one per variant for ``name/*``, else one."""
+        try:
+            engine, variant = load_engine(engine_id)
+        except registry.EngineUnavailable as exc:
+            return [EngineSpec(engine_id, label or engine_id, None, options, None, str(exc))]
+        except UserError as exc:
+            raise self.error(f"{key}.id", str(exc)) from None
+        base = engine_id.partition("/")[0]
+        variants = list(engine.variants) if variant == "*" else [variant or engine.default_variant]
+        if label is not None and len(variants) > 1:
+            raise self.error(f"{key}.label", f"a label names one variant, but {engine_id!r} has {len(variants)}; drop the label or name a variant")
+        specs = []
+        for name in variants:
+            try:
+                engine.resolve(name, options)
+            except UserError as exc:
+                which = "options" if name in engine.variants else "id"
+                raise self.error(f"{key}.{which}", str(exc)) from None
+            full = f"{base}/{name}"
+            specs.append(EngineSpec(full, label or full, name, options, engine))
+        return specs
+
+
+def _describe(value: Any) -> str:
+    kind = {str: "a string", bool: "a boolean", int: "an integer", float: "a number", list: "an array", dict: "a table"}
+    return f"{kind.get(type(value), type(value).__name__)} {value!r}"

@@ -1,0 +1,410 @@
+"""Reference models of the mechanisms: a slider-pendulum, a four-bar linkage, a bead on an ellipse.
+
+Each is a reduced-coordinate model with the interface of the chain and
+spherical models in :mod:`engines.reference` (``initial_state(scene)``,
+``rhs(t, y)``, ``evaluate(scene, states)``), integrated there with DOP853.
+Each is read from a scene's *structure* (which constraints join which
+particles), never from its name, and is independent of ``ours/``.
+
+- :class:`SliderPendulum` — a Line on the slider S (mass M) and a Rod from S to
+  the bob P (mass m, length l). Coordinates: s (m) along the line from its
+  point, and θ (rad) the rod's absolute angle from the downward vertical.
+  With û the line's unit vector, e = (cos θ, sin θ), n = (sin θ, −cos θ) in (x, z):
+  ``[[M+m, m l û·e], [m l û·e, m l²]] [s̈, θ̈] = [(M+m) g·û + m l θ̇² û·n, m l g·e]``.
+- :class:`FourBar` — two Pins (crank a about A, rocker c about B) and a Rod b
+  between the two tips. Coordinate: the crank angle φ. The loop is closed at
+  every evaluation by intersecting the coupler and rocker circles on the
+  scene's assembly branch (read from the initial state); the rocker's rate
+  is ψ̇ = k(φ) φ̇ and ψ̈ = k φ̈ + h(φ) φ̇² from the first and second time
+  derivatives of ‖p₁ − p₀‖² = b², and d'Alembert's principle along φ gives
+  ``(m₀a² + m₁c²k²) φ̈ = m₀a g·e_φ + m₁c k g·e_ψ − m₁c²k h φ̇²``.
+  φ is a global coordinate only for a Grashof crank (the crank shortest and
+  a + max < the sum of the other two); other linkages are refused.
+- :class:`EllipseBead` — one particle on an Ellipse, by the wire's parameter u:
+  p = c + (a sin u, −b cos u), t = ∂p/∂u, and ``(t·t) ü = t·g + u̇² t·(p − c)``.
+
+Constraint forces come from Newton's law on each particle with the reduced
+accelerations (for the four-bar: the three scalar pulls along each
+constraint's direction, from the four equations by least squares — they are
+consistent, so the residual is round-off).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from engines.errors import Unsupported
+from engines.scene import Ellipse, Line, Pin, Rod, Scene
+
+
+def _xz(vector) -> np.ndarray:
+    v = np.asarray(vector, dtype=float)
+    return v[..., [0, 2]]
+
+
+def _embed(xz: np.ndarray) -> np.ndarray:
+    """(..., 2) (x, z) → (..., 3) with y = 0."""
+    out = np.zeros(xz.shape[:-1] + (3,))
+    out[..., 0], out[..., 2] = xz[..., 0], xz[..., 1]
+    return out
+
+
+# -- slider-pendulum ------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SliderPendulum:
+    """Slider ``slider`` (mass M) on a line through ``point`` along ``unit``; bob ``bob`` (mass m) on a rod of ``length``.
+
+    point, unit, gravity : (2,) in (x, z). State [s, θ, ṡ, θ̇] in m, rad, m/s, rad/s.
+    """
+
+    slider: int
+    bob: int
+    line_index: int
+    rod_index: int
+    rod_first_is_bob: bool
+    point: np.ndarray
+    unit: np.ndarray
+    length: float
+    slider_mass: float
+    bob_mass: float
+    gravity: np.ndarray
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
+        s = float((q[self.slider] - self.point) @ self.unit)
+        sd = float(v[self.slider] @ self.unit)
+        d = q[self.bob] - q[self.slider]
+        dv = v[self.bob] - v[self.slider]
+        theta = math.atan2(d[0], -d[1])
+        theta_dot = float(d[0] * dv[1] - d[1] * dv[0]) / self.length**2
+        return np.array([s, theta, sd, theta_dot])
+
+    def accelerations(self, theta: float, theta_dot: float) -> tuple[float, float]:
+        """(s̈ m/s², θ̈ rad/s²) from the 2×2 mass matrix (Cramer's rule; it is positive definite)."""
+        M, m, l = self.slider_mass, self.bob_mass, self.length
+        ux, uz = self.unit
+        gx, gz = self.gravity
+        c, s = math.cos(theta), math.sin(theta)
+        ue = ux * c + uz * s
+        un = ux * s - uz * c
+        m11, m12, m22 = M + m, m * l * ue, m * l * l
+        r1 = (M + m) * (gx * ux + gz * uz) + m * l * theta_dot * theta_dot * un
+        r2 = m * l * (gx * c + gz * s)
+        det = m11 * m22 - m12 * m12
+        return (r1 * m22 - m12 * r2) / det, (m11 * r2 - m12 * r1) / det
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        s_ddot, theta_ddot = self.accelerations(y[1], y[3])
+        return np.array([y[2], y[3], s_ddot, theta_ddot])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        s, theta, sd, td = states.T
+        acc = np.array([self.accelerations(a, b) for a, b in zip(theta, td)]).reshape(-1, 2)
+        sdd, tdd = acc[:, 0], acc[:, 1]
+        l, u = self.length, self.unit
+        e = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+        n = np.stack([np.sin(theta), -np.cos(theta)], axis=-1)
+        q_s = self.point + s[:, None] * u
+        q_p = q_s + l * n
+        v_s = sd[:, None] * u
+        v_p = v_s + l * td[:, None] * e
+        a_s = sdd[:, None] * u
+        a_p = a_s + l * tdd[:, None] * e - l * (td**2)[:, None] * n
+        on_bob = self.bob_mass * (a_p - self.gravity)  # the rod's force on the bob
+        on_line = self.slider_mass * (a_s - self.gravity) + on_bob  # the rail's force on the slider
+        positions = np.zeros((len(states), len(scene.particles), 3))
+        velocities = np.zeros_like(positions)
+        forces = np.zeros((len(states), len(scene.constraints), 3))
+        positions[:, self.slider], positions[:, self.bob] = _embed(q_s), _embed(q_p)
+        velocities[:, self.slider], velocities[:, self.bob] = _embed(v_s), _embed(v_p)
+        forces[:, self.line_index] = _embed(on_line)
+        forces[:, self.rod_index] = _embed(on_bob if self.rod_first_is_bob else -on_bob)
+        return positions, velocities, forces
+
+
+def slider_pendulum(scene: Scene) -> SliderPendulum | None:
+    """The slider-pendulum reading of ``scene``, or None when it is not one (a Line and a Rod on two particles)."""
+    kinds = sorted(type(c).__name__ for c in scene.constraints)
+    if len(scene.particles) != 2 or kinds != ["Line", "Rod"]:
+        return None
+    line_index = next(k for k, c in enumerate(scene.constraints) if isinstance(c, Line))
+    rod_index = 1 - line_index
+    line, rod = scene.constraints[line_index], scene.constraints[rod_index]
+    if {rod.a, rod.b} != {0, 1}:
+        return None
+    bob = 1 - line.particle
+    unit = _xz(line.unit)
+    return SliderPendulum(
+        slider=line.particle,
+        bob=bob,
+        line_index=line_index,
+        rod_index=rod_index,
+        rod_first_is_bob=rod.a == bob,
+        point=_xz(line.point),
+        unit=unit / np.linalg.norm(unit),
+        length=rod.length,
+        slider_mass=scene.particles[line.particle].mass,
+        bob_mass=scene.particles[bob].mass,
+        gravity=_xz(scene.gravity),
+    )
+
+
+# -- four-bar linkage -------------------------------------------------------------------
+
+
+def is_grashof_crank(a: float, b: float, c: float, d: float) -> bool:
+    """True when a crank of length a turns fully: a is the shortest link and a + max(b, c, d) < the other two."""
+    others = sorted((b, c, d))
+    return a < others[0] and a + others[2] < others[0] + others[1]
+
+
+def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    return u[..., 0] * w[..., 1] - u[..., 1] * w[..., 0]
+
+
+@dataclass(frozen=True)
+class FourBar:
+    """Crank tip ``crank`` (mass m0) at a from ``crank_pivot``; rocker tip ``rocker`` (mass m1) at c from
+    ``rocker_pivot``; coupler b between the tips; ``branch`` ±1 the side of the line from the crank tip to
+    the rocker pivot the rocker tip lies on (+1 left). Vectors are (x, z). State [φ, φ̇] rad, rad/s.
+    """
+
+    crank: int
+    rocker: int
+    crank_pin: int
+    rocker_pin: int
+    rod_index: int
+    rod_first_is_crank: bool
+    crank_pivot: np.ndarray
+    rocker_pivot: np.ndarray
+    a: float
+    b: float
+    c: float
+    m0: float
+    m1: float
+    branch: float
+    gravity: np.ndarray
+
+    def closure(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Crank tip and rocker tip (..., 2) m closing the loop at crank angles ``phi`` (...,) rad."""
+        phi = np.asarray(phi, dtype=float)
+        p0 = self.crank_pivot + self.a * np.stack([np.sin(phi), -np.cos(phi)], axis=-1)
+        to_pivot = self.rocker_pivot - p0
+        delta = np.linalg.norm(to_pivot, axis=-1)
+        u = to_pivot / delta[..., None]
+        along = (self.b**2 - self.c**2 + delta**2) / (2.0 * delta)
+        across = self.branch * np.sqrt(np.maximum(self.b**2 - along**2, 0.0))
+        perp = np.stack([-u[..., 1], u[..., 0]], axis=-1)
+        return p0, p0 + along[..., None] * u + across[..., None] * perp
+
+    def _rates(self, phi: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """Crank and rocker tips (2,) m, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
+        x0, z0, x1, z1, k, h = self._scalar_rates(phi)
+        return np.array([x0, z0]), np.array([x1, z1]), k, h
+
+    def _scalar_rates(self, phi: float) -> tuple[float, float, float, float, float, float]:
+        """(x0, z0, x1, z1, k, h): the closure and the rates in scalars (the right-hand side is called
+        ~10⁴ times per solve, and numpy's per-call cost on 2-vectors is ~10× the arithmetic here)."""
+        a, b, c = self.a, self.b, self.c
+        ax, az = self.crank_pivot
+        bx, bz = self.rocker_pivot
+        s, co = math.sin(phi), math.cos(phi)
+        x0, z0 = ax + a * s, az - a * co
+        dx, dz = bx - x0, bz - z0
+        delta = math.hypot(dx, dz)
+        ux, uz = dx / delta, dz / delta
+        along = (b * b - c * c + delta * delta) / (2.0 * delta)
+        across = self.branch * math.sqrt(max(b * b - along * along, 0.0))
+        x1, z1 = x0 + along * ux - across * uz, z0 + along * uz + across * ux
+        upx, upz = s, -co  # u_φ = (p0 − A) / a
+        epx, epz = co, s  # e_φ
+        uqx, uqz = (x1 - bx) / c, (z1 - bz) / c  # u_ψ
+        eqx, eqz = -uqz, uqx  # e_ψ
+        rx, rz = x1 - x0, z1 - z0
+        denominator = c * (rx * eqx + rz * eqz)
+        k = a * (rx * epx + rz * epz) / denominator
+        relx, relz = c * k * eqx - a * epx, c * k * eqz - a * epz
+        h = (c * k * k * (rx * uqx + rz * uqz) - a * (rx * upx + rz * upz) - (relx * relx + relz * relz)) / denominator
+        return x0, z0, x1, z1, k, h
+
+    def angular_acceleration(self, phi: float, phi_dot: float) -> float:
+        """φ̈ (rad/s²) by d'Alembert's principle along the crank coordinate."""
+        x0, z0, x1, z1, k, h = self._scalar_rates(phi)
+        a, c, m0, m1 = self.a, self.c, self.m0, self.m1
+        gx, gz = self.gravity
+        g_phi = gx * math.cos(phi) + gz * math.sin(phi)  # g·e_φ
+        g_psi = (-gx * (z1 - self.rocker_pivot[1]) + gz * (x1 - self.rocker_pivot[0])) / c  # g·e_ψ
+        force = m0 * a * g_phi + m1 * c * k * g_psi - m1 * c * c * k * h * phi_dot * phi_dot
+        return force / (m0 * a * a + m1 * c * c * k * k)
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
+        d = q[self.crank] - self.crank_pivot
+        phi = math.atan2(d[0], -d[1])
+        phi_dot = float(d[0] * v[self.crank][1] - d[1] * v[self.crank][0]) / self.a**2
+        return np.array([phi, phi_dot])
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        return np.array([y[1], self.angular_acceleration(y[0], y[1])])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n_samples = len(states)
+        positions = np.zeros((n_samples, len(scene.particles), 3))
+        velocities = np.zeros_like(positions)
+        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        g = self.gravity
+        for i, (phi, phi_dot) in enumerate(states):
+            p0, p1, k, h = self._rates(phi)
+            phi_ddot = self.angular_acceleration(phi, phi_dot)
+            u_phi = (p0 - self.crank_pivot) / self.a
+            u_psi = (p1 - self.rocker_pivot) / self.c
+            e_phi, e_psi = np.array([-u_phi[1], u_phi[0]]), np.array([-u_psi[1], u_psi[0]])
+            psi_dot, psi_ddot = k * phi_dot, k * phi_ddot + h * phi_dot**2
+            v0, v1 = self.a * phi_dot * e_phi, self.c * psi_dot * e_psi
+            a0 = self.a * (phi_ddot * e_phi - phi_dot**2 * u_phi)
+            a1 = self.c * (psi_ddot * e_psi - psi_dot**2 * u_psi)
+            w = (p0 - p1) / self.b  # the rod pulls the crank tip along −w, the rocker tip along +w
+            system = np.zeros((4, 3))
+            system[:2, 0], system[2:, 1] = u_phi, u_psi
+            system[:2, 2], system[2:, 2] = w, -w
+            rhs = np.concatenate([self.m0 * (a0 - g), self.m1 * (a1 - g)])
+            lam = np.linalg.lstsq(system, rhs, rcond=None)[0]
+            positions[i, self.crank], positions[i, self.rocker] = _embed(p0), _embed(p1)
+            velocities[i, self.crank], velocities[i, self.rocker] = _embed(v0), _embed(v1)
+            forces[i, self.crank_pin] = _embed(lam[0] * u_phi)
+            forces[i, self.rocker_pin] = _embed(lam[1] * u_psi)
+            forces[i, self.rod_index] = _embed(lam[2] * w if self.rod_first_is_crank else -lam[2] * w)
+        return positions, velocities, forces
+
+
+def four_bar(scene: Scene) -> FourBar | None:
+    """The four-bar reading of ``scene`` (two Pins on different particles and a Rod between them), or None.
+
+    Raises Unsupported for a four-bar neither of whose pinned links is a
+    Grashof crank (the crank coordinate would reach a dead point).
+    """
+    if len(scene.particles) != 2 or len(scene.constraints) != 3:
+        return None
+    pins = [k for k, c in enumerate(scene.constraints) if isinstance(c, Pin)]
+    rods = [k for k, c in enumerate(scene.constraints) if isinstance(c, Rod)]
+    if len(pins) != 2 or len(rods) != 1:
+        return None
+    first, second = (scene.constraints[k] for k in pins)
+    rod = scene.constraints[rods[0]]
+    if first.particle == second.particle or {rod.a, rod.b} != {first.particle, second.particle}:
+        return None
+    ground = float(np.linalg.norm(_xz(first.anchor) - _xz(second.anchor)))
+    for crank_pin, rocker_pin in ((pins[0], pins[1]), (pins[1], pins[0])):
+        crank, rocker = scene.constraints[crank_pin], scene.constraints[rocker_pin]
+        if not is_grashof_crank(crank.length, rod.length, rocker.length, ground):
+            continue
+        q = _xz(scene.initial_positions)
+        p0, p1 = q[crank.particle], q[rocker.particle]
+        side = float(_cross(_xz(rocker.anchor) - p0, p1 - p0))
+        return FourBar(
+            crank=crank.particle,
+            rocker=rocker.particle,
+            crank_pin=crank_pin,
+            rocker_pin=rocker_pin,
+            rod_index=rods[0],
+            rod_first_is_crank=rod.a == crank.particle,
+            crank_pivot=_xz(crank.anchor),
+            rocker_pivot=_xz(rocker.anchor),
+            a=crank.length,
+            b=rod.length,
+            c=rocker.length,
+            m0=scene.particles[crank.particle].mass,
+            m1=scene.particles[rocker.particle].mass,
+            branch=1.0 if side >= 0.0 else -1.0,
+            gravity=_xz(scene.gravity),
+        )
+    raise Unsupported(
+        f"the reference's four-bar form integrates a crank angle, which needs a Grashof crank; "
+        f"neither pinned link of {scene.name!r} is one (the crank must be the shortest link and "
+        f"crank + longest < the sum of the other two)"
+    )
+
+
+# -- bead on an ellipse ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EllipseBead:
+    """A bead of ``mass`` on the ellipse about ``centre`` (x, z) with semi-axes ``semi`` (a along x, b along z).
+
+    State [u, u̇]: the wire parameter, position c + (a sin u, −b cos u) (u = θ on a circle).
+    """
+
+    centre: np.ndarray
+    semi: np.ndarray
+    mass: float
+    gravity: np.ndarray
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        d = _xz(scene.initial_positions[0]) - self.centre
+        v = _xz(scene.initial_velocities[0])
+        a, b = self.semi
+        u = math.atan2(d[0] / a, -d[1] / b)
+        t = np.array([a * math.cos(u), b * math.sin(u)])
+        return np.array([u, float(v @ t) / float(t @ t)])
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        u, u_dot = y
+        a, b = self.semi
+        s, c = math.sin(u), math.cos(u)
+        tx, tz = a * c, b * s
+        # t·(p − c) = (a² − b²) sin u cos u; zero on a circle.
+        u_ddot = (tx * self.gravity[0] + tz * self.gravity[1] + u_dot * u_dot * (a * a - b * b) * s * c) / (
+            tx * tx + tz * tz
+        )
+        return np.array([u_dot, u_ddot])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        u, u_dot = states.T
+        u_ddot = np.array([self.rhs(0.0, y)[1] for y in states])
+        a, b = self.semi
+        s, c = np.sin(u), np.cos(u)
+        offset = np.stack([a * s, -b * c], axis=-1)
+        t = np.stack([a * c, b * s], axis=-1)
+        q = self.centre + offset
+        v = u_dot[:, None] * t
+        acc = u_ddot[:, None] * t - (u_dot**2)[:, None] * offset
+        forces = self.mass * (acc - self.gravity)
+        return _embed(q)[:, None], _embed(v)[:, None], _embed(forces)[:, None]
+
+
+def ellipse_bead(scene: Scene) -> EllipseBead | None:
+    """The ellipse-bead reading of ``scene`` (one particle, one Ellipse), or None."""
+    if len(scene.particles) != 1 or len(scene.constraints) != 1 or not isinstance(scene.constraints[0], Ellipse):
+        return None
+    wire = scene.constraints[0]
+    return EllipseBead(_xz(wire.centre), np.array([wire.semi_x, wire.semi_z]), scene.particles[0].mass,
+                       _xz(scene.gravity))
+
+
+# -- dispatch ---------------------------------------------------------------------------------
+
+
+Mechanism = SliderPendulum | FourBar | EllipseBead
+
+
+def mechanism_model(scene: Scene) -> Mechanism | None:
+    """The reduced model of a planar mechanism scene, None when ``scene`` is a tree of Pins and Rods
+    (the chain / spherical forms take it), Unsupported when it uses a mechanism kind in a way none fits."""
+    if scene.is_planar:
+        for reader in (slider_pendulum, four_bar, ellipse_bead):
+            model = reader(scene)
+            if model is not None:
+                return model
+    uses_new_kind = any(isinstance(c, (Line, Ellipse)) for c in scene.constraints)
+    if uses_new_kind:
+        raise Unsupported(
+            f"the reference expresses a line only as a planar slider carrying one pendulum, and an ellipse "
+            f"only as a planar bead on it; {scene.name!r} is neither"
+        )
+    return None

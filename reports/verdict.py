@@ -1,0 +1,213 @@
+"""The report's first section: per scene, the answer before the tables.
+
+From :mod:`compare.results.verdict` (the same numbers ``xval run`` ends
+with), arranged for the page:
+
+1. the Pareto front of error against cost over every variant and dt (inline SVG, drawn without
+   plotly.js, so the verdict shows as soon as the page is parsed);
+2. the cost to reach 1e-6·L per variant (a sortable table);
+3. the focus family's best against the best other engine, as a ratio (a sentence);
+4. a stability heat map, variants × dt, each cell coloured by its status and
+   linking to that case's row in the scene's tables;
+5. the problems (inconsistent, failed, timed out, unstable, hidden dissipation
+   where a probe result is stored), each linking to its evidence.
+
+DOM ids are built from positions (scene number, variant number, dt number),
+never from strings in the results.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from compare.results.verdict import (
+    Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
+)
+
+from markupsafe import Markup
+
+from reports.load import ReportData, SceneResults
+from reports.palette import Palette
+from reports.svgplot import Series, loglog_svg
+
+#: Text of a heat-map cell per status.
+STATUS_MARK = {"ok": "✓", "unstable": "↑", "failed": "✗", "timeout": "⌛", "skipped": "–"}
+
+
+def row_id(scene: int, variant: int, dt: int) -> str:
+    """DOM id of a variant's row in a scene's table at the scene's ``dt``-th time step."""
+    return f"s{scene}-d{dt}-v{variant}"
+
+
+@dataclass(frozen=True)
+class HeatCell:
+    """One case in the heat map: its status, the mark shown, and the link to its row ("" when it did not run)."""
+
+    status: str
+    mark: str
+    href: str
+
+
+@dataclass(frozen=True)
+class HeatRow:
+    engine: str
+    family: str
+    colour: str
+    cells: list[HeatCell]
+
+
+@dataclass(frozen=True)
+class ProblemItem:
+    kind: str
+    engine: str
+    text: str
+    href: str
+
+
+@dataclass(frozen=True)
+class ReachRow:
+    engine: str
+    family: str
+    colour: str
+    reach: Reach
+    focus: bool
+
+    @property
+    def sort_value(self) -> float:
+        return self.reach.cost if self.reach.cost is not None else float("inf")
+
+
+@dataclass(frozen=True)
+class SceneVerdictView:
+    """One scene's verdict as the template lays it out."""
+
+    number: int
+    scene_id: str
+    verdict: SceneVerdict
+    sentence: str
+    pareto: ParetoPlot | None
+    reaches: list[ReachRow]
+    dts: list[float]
+    heat: list[HeatRow]
+    problems: list[ProblemItem] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class LegendEntry:
+    """One variant in the Pareto plot's legend: its series index in the SVG, label and colour."""
+
+    index: int
+    engine: str
+    colour: str
+
+
+@dataclass(frozen=True)
+class ParetoPlot:
+    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries)."""
+
+    svg: Markup
+    legend: list[tuple[str, list[LegendEntry]]]
+
+
+def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette: Palette) -> ParetoPlot | None:
+    """Every ok (cost, error) point of every competing variant, and the Pareto front; None when there is none."""
+    competing = {r.engine for r in verdict.reaches}
+    sweeps = [s for s in scene.sweeps if s.engine in competing]
+    order: dict[str, int] = {}
+    for sweep in sweeps:
+        order.setdefault(family(sweep.engine), len(order))
+    sweeps.sort(key=lambda s: order[family(s.engine)])  # a family's variants together
+    series, legend = [], []  # type: ignore[var-annotated]
+    groups: dict[str, list[LegendEntry]] = {}
+    for sweep in sweeps:
+        pts = points(sweep)
+        if not pts:
+            continue
+        colour = palette.colour(sweep.engine)
+        series.append(Series(sweep.engine, colour, family(sweep.engine), [
+            (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
+            for p in pts]))
+        groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour))
+    if not series:
+        return None
+    svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
+                     x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
+                     target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}")
+    return ParetoPlot(svg, list(groups.items()))
+
+
+def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> str:
+    """Where a problem's evidence is: the case's row (unstable, failed, timeout), else the error-vs-dt plot."""
+    k = variants.get(problem.engine)
+    if k is None:
+        return f"#scene-{number}"
+    if problem.kind == "inconsistent":
+        return f"#s{number}-dt"
+    if problem.dts and problem.dts[0] in scene.dts:
+        return "#" + row_id(number, k, scene.dts.index(problem.dts[0]))
+    return f"#scene-{number}"
+
+
+def load_probes(directory: Path) -> list[dict[str, Any]]:
+    """Stored ``xval probe`` results (``DIR/probe*.json``: an object or a list of objects, each with
+    ``engine`` and ``hidden_dissipation``), or [] when there are none or they cannot be read."""
+    found: list[dict[str, Any]] = []
+    for file in sorted(Path(directory).glob("probe*.json")):
+        try:
+            data = json.loads(file.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        for item in data if isinstance(data, list) else [data]:
+            if isinstance(item, dict) and isinstance(item.get("engine"), str) and "hidden_dissipation" in item:
+                found.append(item)
+    return found
+
+
+def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) -> list[SceneVerdictView]:
+    """The verdict of every scene that ran, in suite order (numbers match the scene sections')."""
+    all_sweeps = [s for scene in data.scenes for s in scene.sweeps]
+    focus = focus or default_focus(all_sweeps)
+    probes = [p for p in load_probes(data.path) if p.get("hidden_dissipation") is True]
+    views = []
+    for number, scene in enumerate(data.scenes):
+        if not scene.sweeps:
+            continue
+        verdict = scene_verdicts(scene.sweeps, focus)[0]
+        variants = {s.engine: k for k, s in enumerate(scene.sweeps)}
+        heat = []
+        for k, sweep in enumerate(scene.sweeps):
+            by_dt = {r.case.dt: r for r in sweep.records}
+            cells = []
+            for j, dt in enumerate(scene.dts):
+                record = by_dt.get(dt)
+                if record is None:
+                    cells.append(HeatCell("none", "", ""))
+                    continue
+                status = record.status.value
+                # No tooltip: the message is one click away (the case's row), and 1,000 of them doubled the section.
+                cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), "#" + row_id(number, k, j)))
+            heat.append(HeatRow(sweep.engine, family(sweep.engine), palette.colour(sweep.engine), cells))
+        items = [ProblemItem(p.kind, p.engine, p.text, _evidence(p, number, scene, variants)) for p in verdict.problems]
+        for probe in probes:
+            if probe["engine"] in variants:
+                rate = probe.get("rate")
+                text = "the energy-loss rate extrapolated to dt → 0 is above zero" + (
+                    f" ({rate:.2g} E*/s)" if isinstance(rate, (int, float)) else "")
+                items.append(ProblemItem("hidden dissipation", probe["engine"], text, f"#scene-{number}"))
+        reaches = [ReachRow(r.engine, family(r.engine), palette.colour(r.engine), r, family(r.engine) == focus)
+                   for r in verdict.reaches]
+        if verdict.comparison is not None:
+            sentence = verdict.comparison.describe()
+        elif focus is None or not families(scene.sweeps):
+            sentence = "no engine variant competed on this scene"
+        elif focus not in families(scene.sweeps):
+            sentence = f"no {focus} variant ran on this scene"
+        else:
+            sentence = f"only one engine family ran on this scene; nothing to compare {focus} with"
+        views.append(SceneVerdictView(number, scene.scene_id, verdict, sentence,
+                                      pareto_plot(scene, number, verdict, palette), reaches, scene.dts, heat, items))
+    return views
+

@@ -1,0 +1,130 @@
+"""The package layering of DESIGN.md, checked on the source: ours ← engines ← compare ← reports, no circles.
+
+Walks every module's imports with ast (module level and inside functions alike: a lazy import is still a
+dependency) and fails on an import that points back up the stack, on a module of compare/ or reports/
+naming ours, and on a cycle among the modules of the four packages.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Each package and the packages it may import.
+ALLOWED = {
+    "ours": {"ours"},
+    "engines": {"engines", "ours"},
+    "compare": {"compare", "engines"},
+    "reports": {"reports", "compare", "engines"},
+}
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def imports_of(path: Path) -> set[str]:
+    """Dotted names of the project modules ``path`` imports (relative imports resolved)."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = module_name(path).split(".")
+    if path.name != "__init__.py":
+        package = package[:-1]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package[: len(package) - node.level + 1] + ([base] if base else []))
+            found.add(base)
+            found.update(f"{base}.{alias.name}" for alias in node.names)
+    return {name for name in found if name.split(".")[0] in ALLOWED}
+
+
+def project_modules() -> dict[str, Path]:
+    return {module_name(p): p for top in ALLOWED for p in (ROOT / top).rglob("*.py")}
+
+
+def test_no_import_points_back_up_the_stack():
+    wrong = []
+    for name, path in project_modules().items():
+        top = name.split(".")[0]
+        for target in imports_of(path):
+            if target.split(".")[0] not in ALLOWED[top]:
+                wrong.append(f"{path.relative_to(ROOT)} imports {target}")
+    assert wrong == []
+
+
+def test_compare_and_reports_never_name_ours():
+    """What only an engine knows (its stability theory) it says through the engine protocol."""
+    offenders = []
+    for name, path in project_modules().items():
+        if name.split(".")[0] not in ("compare", "reports"):
+            continue
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Compare) and any(
+                isinstance(c, ast.Constant) and c.value == "ours" for c in [node.left, *node.comparators]
+            ):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} compares with 'ours'")
+            if isinstance(node, ast.JoinedStr) and any(
+                isinstance(v, ast.Constant) and isinstance(v.value, str) and v.value.startswith("ours/")
+                for v in node.values
+            ):
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} builds an ours/ engine id")
+    assert offenders == []
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Module -> the project modules it imports (an attribute import counts as its module)."""
+    modules = project_modules()
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets = set()
+        for target in imports_of(path):
+            # "from a.b import c" names a.b.c, which may be a module or an attribute of a.b.
+            while target and target not in modules:
+                target = target.rpartition(".")[0]
+            # A module importing its own package (or a package its submodule) is not a cycle.
+            if target and target != name and not name.startswith(target + ".") and not target.startswith(name + "."):
+                targets.add(target)
+        graph[name] = targets
+    return graph
+
+
+def find_cycles(graph: dict[str, set[str]]) -> list[str]:
+    """Every back edge of a depth-first walk, as the cycle it closes (``a -> b -> a``)."""
+    cycles: list[str] = []
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                cycles.append(" -> ".join(stack[stack.index(nxt):] + [nxt]))
+            elif nxt not in state:
+                visit(nxt)
+        stack.pop()
+        state[node] = 2
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node)
+    return cycles
+
+
+def test_no_import_cycles_between_modules():
+    assert find_cycles(module_graph()) == []
+
+
+def test_the_checker_resolves_imports_and_finds_a_planted_cycle():
+    assert "compare.results.consistency" in imports_of(ROOT / "compare" / "results" / "sweep.py")
+    assert find_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a -> b -> c -> a"]
+    assert find_cycles({"a": {"b"}, "b": set()}) == []

@@ -1,0 +1,97 @@
+"""The report's building blocks: colours per engine family, LTTB thinning, clipped blow-ups, the verdict's SVG."""
+
+from __future__ import annotations
+
+import math
+
+from reports.decimate import decimate, lttb_indices
+from reports.figures import clip, phase_curve
+from reports.palette import FAMILY_COLOURS, Palette, family_colours
+from reports.svgplot import Series, loglog_svg
+
+
+def _hue(colour: str) -> float:
+    import colorsys
+
+    r, g, b = (int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))
+    return colorsys.rgb_to_hls(r, g, b)[0]
+
+
+def test_a_variant_has_the_same_colour_in_every_report():
+    alone = Palette(["mujoco/hinge"])
+    crowded = Palette(["ours/rk4", "pybullet/p2p", "mujoco/hinge", "pymunk/pin", "reference/dop853"])
+    assert alone.style("mujoco/hinge") == crowded.style("mujoco/hinge")
+    # Trace order does not matter either.
+    assert Palette(reversed(["ours/rk4", "mujoco/hinge"])).colour("ours/rk4") == crowded.colour("ours/rk4")
+
+
+def test_families_get_distinct_hues_and_variants_shades_of_theirs():
+    families = family_colours(["ours", "mujoco", "pybullet", "pymunk"])
+    assert len(set(families.values())) == 4
+    palette = Palette(["mujoco/hinge", "mujoco/connect", "ours/rk4"])
+    hinge, connect, ours = (palette.colour(e) for e in ("mujoco/hinge", "mujoco/connect", "ours/rk4"))
+    assert abs(_hue(hinge) - _hue(connect)) < 0.02 < abs(_hue(hinge) - _hue(ours))
+    assert palette.style("mujoco/hinge") != palette.style("mujoco/connect")
+    assert Palette(["reference/dop853"]).style("reference/dop853")["color"].startswith("rgba(0,0,0")
+
+
+def test_colliding_families_are_moved_apart():
+    names = [f"family{k}" for k in range(len(FAMILY_COLOURS))]
+    assert len(set(family_colours(names).values())) == len(FAMILY_COLOURS)
+
+
+def test_lttb_keeps_at_most_the_limit_the_ends_and_a_spike():
+    x = list(range(100_000))
+    y = [math.sin(i / 500) for i in x]
+    y[61_234] = 40.0  # a blow-up spike one sample wide
+    kept = lttb_indices(x, y, 2000)
+    assert len(kept) <= 2000 and kept[0] == 0 and kept[-1] == len(x) - 1
+    assert 61_234 in kept
+    assert kept == sorted(kept)
+    short_x, short_y = decimate([0.0, 1.0], [1.0, 2.0])
+    assert (short_x, short_y) == ([0.0, 1.0], [1.0, 2.0])
+
+
+def test_lttb_keeps_a_gap_as_a_gap():
+    x = list(range(10_000))
+    y = [1.0] * 5_000 + [None] * 5_000  # a run cut at its first non-finite state
+    kept = lttb_indices(x, y, 100)
+    assert any(y[i] is None for i in kept) and any(y[i] == 1.0 for i in kept)
+
+
+def test_clip_caps_a_blow_up_and_says_when():
+    values, blew = clip([0.0, 0.1, 0.2, 0.3, 0.4], [1.0, 5.0, 1e300, None, 2.0], ceiling=10.0)
+    assert values == [1.0, 5.0, 10.0, 10.0, 2.0] and blew == 0.2
+    assert clip([0.0, 1.0], [1.0, 2.0], 10.0) == ([1.0, 2.0], None)
+
+
+def test_phase_curve_of_a_planar_pendulum_from_velocities_and_from_differences():
+    # θ(t) = 0.3 sin t for a 1 m rod: positions and velocities exact.
+    t = [k * 0.01 for k in range(101)]
+    theta = [0.3 * math.sin(s) for s in t]
+    omega = [0.3 * math.cos(s) for s in t]
+    positions = [[[math.sin(a), 0.0, -math.cos(a)]] for a in theta]
+    velocities = [[[w * math.cos(a), 0.0, w * math.sin(a)]] for a, w in zip(theta, omega)]
+    th, om = phase_curve(t, positions, velocities, 0, [0.0, 0.0, 0.0], planar=True)
+    assert max(abs(a - b) for a, b in zip(th, theta)) < 1e-12
+    assert max(abs(a - b) for a, b in zip(om, omega)) < 1e-12
+    _, differenced = phase_curve(t, positions, None, 0, [0.0, 0.0, 0.0], planar=True)
+    # Central differences over 0.02 s: error ≈ ω h² / 6 ≈ 2e-5 rad/s inside; one-sided at the ends.
+    assert max(abs(a - b) for a, b in zip(differenced[1:-1], omega[1:-1])) < 1e-4
+
+
+def test_the_verdict_svg_escapes_its_text_and_draws_the_front():
+    hostile = '<script>x()</script>"'
+    svg = str(loglog_svg([Series(hostile, "#123456", "g", [(1e-3, 1e-4, hostile), (1e-2, 1e-8, "b")])],
+                         [(1e-3, 1e-4), (1e-2, 1e-8)], x_title=hostile, y_title="e", target=1e-6, target_label="t"))
+    assert "<script" not in svg and "&lt;script&gt;" in svg
+    assert svg.count("<circle") == 2 and 'class="front"' in svg
+    assert loglog_svg([], [], x_title="x", y_title="y") == ""
+
+
+def test_a_run_cut_short_is_marked_where_it_stops():
+    from reports.figures import last_finite
+
+    assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, None], 0.2) == (0.1, 2.0)  # turned non-finite
+    assert last_finite([0.0, 0.1], [1.0, 2.0], 0.2) == (0.1, 2.0)  # stored series stops early
+    assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], 0.2) is None  # ran to the end

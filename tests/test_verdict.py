@@ -1,0 +1,222 @@
+"""The verdict (compare/results/verdict.py) and the end of ``xval run``: exact numbers on hand-made sweeps, the
+problems of a real run, and what the terminal shows in each mode.
+
+Hand-made records are plain case documents read through ``CaseRecord.from_json``, exactly as a results
+directory holds them; the numbers (errors, costs) are chosen so that every expected value is exact.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import pytest
+
+from compare.cli import main
+from compare.results.record import CaseRecord
+from compare.results.store import load_results
+from compare.results.sweep import sweeps
+from compare.results.verdict import (
+    best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, format_verdicts, pareto_front,
+    problems, scene_verdicts,
+)
+from report_support import run_suite_once
+
+
+def record(engine: str, dt: float, error: float | None, cost: float | None, *, status: str = "ok",
+           scene: str = "s", index: int = 0, message: str = "") -> CaseRecord:
+    """One case document of scene ``scene`` (L = 1 m) with the given max position error (m) and cost (s/s)."""
+    return CaseRecord.from_json({
+        "schema_version": 1,
+        "case": {"id": f"{scene}|{engine}|dt={dt}", "scene_id": scene, "scene_name": "bead", "engine": engine,
+                 "engine_id": engine, "variant": engine.split("/")[1], "options": {}, "dt": dt,
+                 "position": [0, index, int(round(-math.log10(dt) * 10))]},
+        "status": status, "message": message,
+        "metrics": {"position_error_linf": error, "cost_per_simulated_second": cost, "n_samples": 10},
+        "run_info": None, "wall_times": [], "elapsed": 0.0, "scene": {}, "scene_hash": "h",
+        "characteristic": {"length": 1.0, "energy": 9.81}, "series": None, "reference": None, "finished": "",
+    })
+
+
+def test_family_is_the_label_before_the_first_slash():
+    assert family("mujoco/hinge-rk4") == "mujoco"
+    assert family("command/my/solver") == "command"
+    assert family("plain") == "plain"
+
+
+def test_pareto_front_keeps_only_the_undominated_runs_cheapest_first():
+    runs = sweeps([
+        record("a/x", 0.1, 1e-1, 0.5, index=0), record("a/x", 0.01, 1e-2, 1.0, index=0),
+        record("b/y", 0.1, 1e-3, 3.0, index=1), record("b/y", 0.01, 1e-4, 2.0, index=1),
+    ])
+    front = pareto_front(runs)
+    assert [(p.engine, p.cost, p.error) for p in front] == [("a/x", 0.5, 1e-1), ("a/x", 1.0, 1e-2), ("b/y", 2.0, 1e-4)]
+
+
+def test_cost_to_reach_interpolates_on_the_log_log_curve():
+    runs = sweeps([record("a/x", 0.1, 1e-4, 1e-3), record("a/x", 0.01, 1e-8, 1e-2)])
+    reach = cost_to_reach(runs[0], 1e-6)
+    # Half way from 1e-4 to 1e-8 in log error is half way from 1e-3 to 1e-2 in log cost: 10^-2.5 s/s.
+    assert reach.how == "interpolated" and reach.dts == (0.1, 0.01)
+    assert reach.cost == pytest.approx(10 ** -2.5, rel=1e-12)
+    assert cost_to_reach(runs[0], 1e-3).how == "at most" and cost_to_reach(runs[0], 1e-3).cost == 1e-3
+    assert cost_to_reach(runs[0], 1e-9).cost is None and cost_to_reach(runs[0], 1e-9).how == "not reached"
+    failed = sweeps([record("b/y", 0.1, None, None, status="failed")])
+    assert cost_to_reach(failed[0], 1e-6).how == "no ok run"
+
+
+def test_equal_cost_budget_is_the_most_every_family_spent():
+    runs = sweeps([
+        record("a/x", 0.1, 1e-2, 1e-4, index=0), record("a/x", 0.01, 1e-5, 1e-3, index=0),
+        record("a/x", 0.001, 1e-8, 1e-2, index=0),
+        record("b/y", 0.1, 1e-3, 5e-4, index=1), record("b/y", 0.01, 1e-4, 5e-3, index=1),
+    ])
+    budget, best = best_at_equal_cost(runs)
+    assert budget == 5e-3  # family b's dearest run; family a's 1e-2 s/s run is over it
+    assert [(b.family, b.point.engine, b.point.dt) for b in best] == [("a", "a/x", 0.01), ("b", "b/y", 0.01)]
+
+
+def test_focus_comparison_is_the_ratio_of_the_costs_to_reach_the_target():
+    runs = sweeps([
+        record("a/x", 0.1, 1e-4, 1e-3, index=0), record("a/x", 0.01, 1e-8, 1e-2, index=0),
+        record("b/y", 0.1, 1e-5, 1e-2, index=1), record("b/y", 0.01, 1e-7, 1e-1, index=1),
+    ])
+    assert default_focus(runs) == "a"
+    comparison = focus_comparison(runs, "a", 1e-6)
+    # b reaches 1e-6 half way between its two runs in log terms: 10^-1.5 s/s; a needs 10^-2.5.
+    assert comparison.ratio == pytest.approx(10.0, rel=1e-12)
+    assert comparison.describe() == "best a (a/x) reaches 1e-06 m 10× cheaper than the best other engine (b/y)"
+    assert focus_comparison(runs, "b", 1e-6).describe().startswith("best b (b/y) reaches 1e-06 m 10× dearer")
+
+
+def test_a_solver_that_converges_to_the_wrong_answer_is_an_inconsistent_problem():
+    # Errors stop falling at 5 cm, far above the 1 cm tolerance: clean convergence, to something else.
+    runs = sweeps([record("a/wrong", 0.1, 1e-1, 1e-3), record("a/wrong", 0.01, 5e-2, 1e-2),
+                   record("a/wrong", 0.001, 5e-2, 1e-1)], tolerance=1e-2)
+    found = problems(runs)
+    assert [(p.kind, p.engine) for p in found] == [("inconsistent", "a/wrong")]
+    assert "converges to something else" in found[0].text
+
+
+@pytest.fixture(scope="module")
+def small_verdicts(tmp_path_factory):
+    return scene_verdicts(load_results(run_suite_once(tmp_path_factory.getbasetemp())).sweeps())
+
+
+def test_problems_of_a_real_run_name_the_statuses_and_their_dts(small_verdicts):
+    bead = small_verdicts[0]
+    assert bead.scene_id == "bead"
+    assert [(p.kind, p.engine, p.dts) for p in bead.problems] == [
+        ("failed", "broken/raise", (1e-2, 3e-3, 1e-3)),
+        ("unstable", "broken/blow-up", (1e-2, 3e-3, 1e-3)),
+    ]
+    assert bead.problems[1].text.startswith("unstable at dt 0.01, 0.003, 0.001 s (the largest dt of the suite; never ok)")
+    # The two real engines converge towards the reference: neither is called inconsistent.
+    assert all(p.kind != "inconsistent" for v in small_verdicts for p in v.problems)
+
+
+def test_the_verdict_ranks_the_real_engines(small_verdicts):
+    bead = small_verdicts[0]
+    # The reference is the yardstick, never a competitor; the families are the suite's others, in order.
+    assert [b.family for b in bead.best] == ["mujoco", "pymunk", "broken"]
+    assert bead.comparison is not None and bead.comparison.focus_family == "mujoco"
+    # MuJoCo's RK4 is at ~1e-9 m already at dt = 0.01 s; pymunk's first-order pin never reaches 1e-6 L here.
+    reaches = {r.engine: r for r in bead.reaches}
+    assert reaches["mujoco/hinge-rk4"].how == "at most"
+    assert reaches["pymunk/pin"].how == "not reached"
+    assert reaches["broken/raise"].how == "no ok run"
+    text = format_verdicts(small_verdicts)
+    assert "bead:\n  most accurate at equal cost" in text
+    assert re.search(r"\n    failed       broken/raise: failed at dt 0\.01, 0\.003, 0\.001 s: RuntimeError", text)
+
+
+# -- the terminal ----------------------------------------------------------------------------------
+
+TINY = """
+name = "tiny"
+duration = 0.1
+sample_interval = 0.01
+dt = [1e-2, 5e-3]
+
+[[scenes]]
+scene = "bead"
+
+[[engines]]
+id = "mujoco/hinge"
+
+[[engines]]
+id = "pymunk/pin"
+
+[[engines]]
+id = "report_support:BROKEN/raise"
+label = "broken/raise"
+"""
+
+
+def run_cli(capsys, *argv):
+    try:
+        main(list(argv))
+        code = 0
+    except SystemExit as stop:
+        code = stop.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def tiny_suite(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return path
+
+
+@pytest.mark.parametrize("mode", ["default", "--quiet", "--verbose"])
+def test_run_ends_with_the_verdict_and_shows_progress_as_asked(tiny_suite, tmp_path, capsys, mode):
+    argv = ["run", str(tiny_suite), "--output", str(tmp_path / "out"), "--jobs", "1"]
+    code, out, err = run_cli(capsys, *argv, *([] if mode == "default" else [mode]))
+    assert code == 0, err
+    assert "bead:\n  most accurate at equal cost" in out
+    assert re.search(r"\n    failed       broken/raise: failed at dt 0\.01, 0\.005 s", out), out
+    assert "6 cases run in" in out
+    per_case = [line for line in err.splitlines() if re.match(r"\[\s*\d+/6\] bead · ", line)]
+    if mode == "--quiet":
+        assert err == ""
+    elif mode == "--verbose":
+        assert len(per_case) == 6
+        assert "observed order" in out or "order" in out  # the per-scene tables come back with --verbose
+    else:
+        # Off a terminal the bar becomes a line at every tenth of the run (here, every case of six).
+        assert per_case == []
+        assert err.splitlines()[-1] == "running: 6/6 cases (100 %), 2 not ok"
+        assert len(err.splitlines()) <= 10
+
+
+def test_quiet_and_verbose_together_is_bad_input(tiny_suite, tmp_path, capsys):
+    code, out, err = run_cli(capsys, "run", str(tiny_suite), "--output", str(tmp_path / "o"), "-q", "-v")
+    assert code == 2 and out == ""
+    assert err == "xval: error: --quiet and --verbose: choose one (--quiet prints only the verdict, --verbose a line per case)\n"
+    assert not (tmp_path / "o").exists()
+
+
+
+def test_equal_cost_falls_back_to_where_every_family_has_a_run():
+    # Family a only ran cheap, family b only dear: the ranges do not overlap, so the budget is b's cheapest
+    # run, and a competes with its best run.
+    runs = sweeps([
+        record("a/x", 0.1, 1e-2, 1e-5, index=0), record("a/x", 0.01, 1e-4, 1e-4, index=0),
+        record("b/y", 0.1, 1e-3, 1e-2, index=1), record("b/y", 0.01, 1e-6, 1e-1, index=1),
+    ])
+    budget, best = best_at_equal_cost(runs)
+    assert budget == 1e-2
+    assert [(b.family, b.point.dt) for b in best] == [("a", 0.01), ("b", 0.1)]
+
+
+def test_a_side_that_never_reaches_the_target_is_represented_by_its_closest_variant():
+    runs = sweeps([
+        record("a/failing", 0.1, None, None, status="failed", index=0),
+        record("a/close", 0.1, 1e-3, 1e-3, index=1), record("a/close", 0.01, 1e-5, 1e-2, index=1),
+        record("b/y", 0.1, 1e-2, 1e-3, index=2), record("b/y", 0.01, 1e-3, 1e-2, index=2),
+    ])
+    comparison = focus_comparison(runs, "a", 1e-6)
+    assert comparison.ratio is None and comparison.focus.engine == "a/close"
+    assert comparison.describe().startswith("to reach 1e-06 m: a/close not reached (best 1e-05 m); b/y not reached (best 0.001 m)")
