@@ -69,7 +69,7 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import Tree, constraint_tree
-from engines.scene import Pin, Scene
+from engines.scene import Pin, Rod, Scene
 
 import pydrake
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
@@ -185,12 +185,26 @@ class DrakeEngine(Engine):
                 f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
                 f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
+        for k, c in enumerate(scene.constraints):
+            if not isinstance(c, (Pin, Rod)):
+                raise Unsupported(
+                    f"drake: constraints[{k}] is a {type(c).__name__} constraint; this adapter builds only Pins and "
+                    f"Rods, as revolute (or ball) joints"
+                )
+        try:
+            tree = constraint_tree(scene)
+        except Unsupported as exc:
+            raise Unsupported(f"drake: {str(exc).partition(': ')[2]}") from None
+        if tree.closures:
+            raise Unsupported(
+                f"drake: constraint {tree.closures[0]} closes a loop; the adapter builds a tree of joints, and a "
+                f"continuous MultibodyPlant has no constraint to close it"
+            )
         if not scene.is_planar and len(scene.particles) != 1:
             raise Unsupported(
                 "drake: a 3-D scene is built with a ball joint per particle, and only one-particle 3-D scenes "
                 "keep the roll-pitch-yaw ball joint away from its singular pitch"
             )
-        constraint_tree(scene)
 
     # -- building ----------------------------------------------------------------------
 

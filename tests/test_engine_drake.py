@@ -12,6 +12,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -211,3 +212,15 @@ def test_without_the_extras_a_suite_records_their_cases_skipped(tmp_path):
     for engine, extra in (("drake/rk3", "drake"), ("mjx/hinge", "mjx")):
         assert records[engine]["status"] == "skipped"
         assert f"pip install 'xval[{extra}]'" in records[engine]["message"]
+
+
+@needs_drake
+@pytest.mark.parametrize("scene_name, words", [
+    ("slider-pendulum", "drake: constraints[0] is a Line constraint; this adapter builds only Pins and Rods"),
+    ("four-bar", "drake: constraint 1 closes a loop"),
+])
+def test_scenes_beyond_a_tree_of_pins_and_rods_are_left_out_with_the_reason(scene_name, words):
+    from engines.errors import Unsupported
+
+    with pytest.raises(Unsupported, match=re.escape(words)):
+        drake().check(catalog.build(scene_name))

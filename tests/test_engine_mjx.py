@@ -86,3 +86,11 @@ def test_jit_compile_time_is_recorded_apart_from_stepping(mjx):
     assert second.info.settings["jit_cache_hit"] is True and second.info.settings["jit_compile_time"] == 0.0
     assert first.info.settings["jit_cache_hit"] or first.info.settings["jit_compile_time"] > 0
     assert second.info.steps == 500 and second.info.wall_time > 0
+
+
+def test_a_deep_chain_is_left_out_with_the_reason_and_the_fix(mjx):
+    from engines.errors import Unsupported
+
+    with pytest.raises(Unsupported, match="body tree is 32 deep .* set option max_depth = 32 to run it anyway"):
+        mjx.check(catalog.build("chain", {"n": 32}), "hinge")
+    mjx.check(catalog.build("chain", {"n": 32}), "hinge", {"max_depth": 32})  # the user may insist
