@@ -72,6 +72,7 @@ from engines.scene import Scene
 
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
+from compare.suite.tolerance_axis import read_tolerances
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
 
@@ -85,6 +86,7 @@ TOP_LEVEL_KEYS = {
     "repeats": "a positive integer",
     "timeout": "a positive number of seconds",
     "dt": "a list of time steps or a table {from, to, per_decade}",
+    "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
     "reference": "a table with rtol and atol",
     "bounds": "a table with energy_drift and constraint_error",
     "tolerances": "a table of metric name = number",
@@ -157,6 +159,8 @@ class Suite:
     stability: StabilityPlan | None = None
     gainmap: GainMapPlan | None = None
     verdict_tolerance: float = DEFAULT_DELTA
+    #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
+    tolerances: tuple[float, ...] = ()
 
     def fingerprint(self) -> str:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
@@ -171,6 +175,8 @@ class Suite:
             "reference": [self.rtol, self.atol],
             "bounds": [self.bounds.energy_drift, self.bounds.constraint_error],
         }
+        if self.tolerances:  # only then, so suites without the axis keep their fingerprints
+            physics["tolerances"] = list(self.tolerances)
         text = json.dumps(physics, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -408,6 +414,7 @@ class _Reader:
             stability=stability,
             gainmap=gainmap,
             verdict_tolerance=verdict_tolerance,
+            tolerances=read_tolerances(self, data.get("tolerance")),
         )
 
     def dts(self, value: Any) -> tuple[float, ...]:
