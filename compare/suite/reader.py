@@ -11,6 +11,8 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     timeout = 120                  # s per case, before it is recorded as `timeout`
     dt = [1e-2, 1e-3]              # a list, or a geometric sweep:
     # dt = { from = 1e-1, to = 1e-4, per_decade = 2 }
+    tolerance = { from = 1e-4, to = 1e-10, per_decade = 1 }   # optional: error-controlled
+                                   # variants sweep this instead of dt (compare/suite/tolerance_axis.py)
 
     [reference]                    # settings of the DOP853 reference
     rtol = 1e-12
