@@ -88,7 +88,6 @@ TOP_LEVEL_KEYS = {
     "repeats": "a positive integer",
     "timeout": "a positive number of seconds",
     "dt": "a list of time steps or a table {from, to, per_decade}",
-    "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
     "reference": "a table with rtol and atol",
     "bounds": "a table with energy_drift and constraint_error",
     "tolerances": "a table of metric name = number",
@@ -98,6 +97,7 @@ TOP_LEVEL_KEYS = {
     "stability": "a table for xval stability (compare/suite/plans.py): scenes, engines, dt_max, dt_min",
     "gainmap": "a table for the gain map (compare/suite/plans.py): scene, engines, x, y, x_values, y_values, dt",
     "verdict": "a table with tolerance (a fraction of L) for the consistency verdict",
+    "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters")
