@@ -85,6 +85,7 @@ def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> lis
             [_step(r) for r in ok], [r.metric(ORDER_METRIC) for r in ok],
             tolerance=(DEFAULT_DELTA if tolerance is None else tolerance) * length,
             horizon_limited=any(r.reference_horizon is not None for r in ok),
+            axis="tolerance" if on_tolerance_axis else "dt",
         )
         result.append(VariantSweep(scene_id, engine, members, order, verdict))
     return result
