@@ -93,3 +93,9 @@ def test_a_tolerance_sweep_runs_and_its_error_falls_with_the_tolerance(tmp_path)
     assert sweep.finest_ok.case.tolerance == 1e-8
     fixed = next(s for s in sweeps(records) if s.engine == "drake/semi-explicit-euler")
     assert fixed.order is not None  # a dt sweep still gets its order
+    # Exports carry the tolerance; the short table shows it where a dt sweep shows its finest dt.
+    from compare.results.table import case_rows, scene_tables
+
+    assert sorted(r["tolerance"] for r in case_rows(records) if r["engine"] == "drake/rk3") == [1e-8, 1e-7, 1e-6,
+                                                                                               1e-5, 1e-4]
+    assert "tol 1e-08" in scene_tables(records)
