@@ -348,7 +348,9 @@ class ReferenceEngine(Engine):
     """The reference as an engine, so it can be simulated, listed and compared like any other."""
 
     name = "reference"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "tolerance"})
+    #: A suite's tolerance axis (compare/suite/tolerance_axis.py) sets both DOP853 tolerances.
+    tolerance_options = ("rtol", "atol")
     options = {
         "rtol": Option("rtol", DEFAULT_RTOL, "relative tolerance of DOP853"),
         "atol": Option("atol", DEFAULT_ATOL, "absolute tolerance of DOP853 (rad, rad/s)"),
@@ -358,6 +360,10 @@ class ReferenceEngine(Engine):
 
     def version(self) -> str:
         return f"scipy {scipy.__version__}"
+
+    def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
+        """DOP853 is always error-controlled: on a tolerance axis it sweeps rtol = atol."""
+        return True
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)

@@ -99,3 +99,9 @@ def test_a_tolerance_sweep_runs_and_its_error_falls_with_the_tolerance(tmp_path)
     assert sorted(r["tolerance"] for r in case_rows(records) if r["engine"] == "drake/rk3") == [1e-8, 1e-7, 1e-6,
                                                                                                1e-5, 1e-4]
     assert "tol 1e-08" in scene_tables(records)
+
+
+def test_the_reference_sweeps_both_of_its_tolerances():
+    suite = parse_suite(SUITE.replace('id = "drake/rk3"', 'id = "reference/dop853"'))
+    cases = [c for c in plan(suite) if c.engine.label == "reference/dop853"]
+    assert [c.engine.options for c in cases][:2] == [{"rtol": 1e-4, "atol": 1e-4}, {"rtol": 1e-5, "atol": 1e-5}]
