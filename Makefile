@@ -10,7 +10,7 @@ EXTRAS ?= all
 
 comma := ,
 
-.PHONY: demo stiff test bench baseline clean examples
+.PHONY: demo stiff test bench baseline clean examples history-demo
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -44,6 +44,15 @@ baseline: $(STAMP)
 	@dir=$$(mktemp -d) && $(XVAL) run suites/smoke.toml --output $$dir/smoke > /dev/null \
 		&& $(XVAL) baseline $$dir/smoke --output baselines/smoke.json; \
 		status=$$?; rm -rf $$dir; exit $$status
+
+# The project's own accuracy story (not part of make test): suites/smoke.toml at each of the last
+# HISTORY_COMMITS commits, each in a temporary git worktree with its own virtual environment (asv-style),
+# into results/history-demo/history.sqlite, then its trend page results/history-demo/trend.html.
+# A few minutes per commit; commits already in the history are not run again.
+HISTORY_COMMITS ?= 4
+history-demo: $(STAMP)
+	$(PY) scripts/history_demo.py --commits $(HISTORY_COMMITS) --jobs $(JOBS) \
+		--history results/history-demo/history.sqlite --output results/history-demo/trend.html
 
 # The C++ example solvers of the process protocol (docs/protocol.md), built with g++ into examples/cpp/build.
 examples:

@@ -20,7 +20,7 @@ from engines.errors import UserError
 #: Built-in verbs: name -> the module defining a click command ``command`` of that name.
 COMMAND_MODULES = {
     name: f"compare.commands.{name}"
-    for name in ("scenes", "engines", "simulate", "score", "run", "show", "baseline", "gate", "stability")
+    for name in ("scenes", "engines", "simulate", "score", "run", "show", "baseline", "gate", "stability", "history")
 }
 
 

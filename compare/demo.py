@@ -13,7 +13,9 @@ from pathlib import Path
 from compare.run.progress import progress_for
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
+from compare.results.sweep import sweeps
 from compare.results.table import scene_tables
+from compare.results.verdict import format_verdicts, scene_verdicts
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "default.toml"
@@ -26,6 +28,7 @@ def main() -> None:
     suite = load_suite(SUITE)
     summary = run_suite(suite, OUTPUT, progress=progress_for(sys.stderr))
     print(scene_tables(summary.records, suite.verdict_tolerance))
+    print(format_verdicts(scene_verdicts(sweeps(summary.records, suite.verdict_tolerance))))
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     print(f"{summary.ran} cases in {summary.wall_time:.1f} s ({counts})")
     print(f"results: {OUTPUT}  (xval show {OUTPUT.relative_to(ROOT)} --format csv; xval report ...)")

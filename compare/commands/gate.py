@@ -7,11 +7,14 @@ from pathlib import Path
 
 import click
 
+from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.results.files import atomic_write_text, check_writable
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
+from compare.history.location import check_option
+from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
 from compare.results.store import load_results
 from compare.gate.tolerance import GateSettings
@@ -26,16 +29,21 @@ def settings_of(directory: Path) -> GateSettings:
 
 @click.command("gate")
 @click.argument("directory", metavar="DIR")
-@click.option("--baseline", "baseline_path", required=True, metavar="BASELINE.json",
+@click.option("--baseline", "baseline_path", default=None, metavar="BASELINE.json",
               help="The baseline to compare with (made by 'xval baseline').")
+@click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
+              help="Instead of a baseline: the last runs of the suite on this machine in this history "
+                   "(accuracy against the best of them, timing against their spread).")
+@click.option("--window", type=click.IntRange(min=1), default=None, metavar="N",
+              help=f"With --history: how many of the last runs (default {DEFAULT_WINDOW}).")
 @click.option("--junit", metavar="FILE.xml", default=None, help="Also write JUnit XML: one test case per scene x engine x dt.")
 @click.option("--summary", metavar="FILE.md", default=None, help="Also write a Markdown summary (for a CI job summary).")
 @click.option("--timing", type=click.Choice(TIMING_MODES), default="gate", show_default=True,
               help="gate: a slowdown past the suite's timing factor and the repeats' spread fails; "
                    "report: timing changes are shown but never fail (for shared or mixed CI machines).")
-def command(directory, baseline_path, junit, summary, timing) -> None:
-    """Compare the results in DIR with BASELINE.json and print a table of cases marked
-    worse, not comparable, missing, new, better or unchanged.
+def command(directory, baseline_path, history, window, junit, summary, timing) -> None:
+    """Compare the results in DIR with BASELINE.json (or the last runs in a history) and print
+    a table of cases marked worse, not comparable, missing, new, better or unchanged.
 
     Exit 0 when no case got worse, 1 when one did, 2 for bad input. A changed
     scene, engine version or engine options makes a case "not comparable":
@@ -44,15 +52,21 @@ def command(directory, baseline_path, junit, summary, timing) -> None:
     # Refuse unwritable output paths before any work, like every other verb.
     junit_file = check_writable(junit, "--junit") if junit else None
     summary_file = check_writable(summary, "--summary") if summary else None
-    baseline = load_baseline(baseline_path)
+    if (baseline_path is None) == (history is None):
+        raise UserError("give either --baseline BASELINE.json or --history FILE (the last runs in a history), not both or neither")
+    if window is not None and history is None:
+        raise UserError("--window: only with --history FILE")
+    baseline = load_baseline(baseline_path) if history is None else None
     results = load_results(directory)
     current = build_baseline(results, then="gate it")
+    if history is not None:
+        baseline, baseline_path, heading = history_baseline(history, results, window or DEFAULT_WINDOW)
     report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
-    made = baseline.get("results") or {}
-    click.echo(
-        f"baseline {baseline_path}: suite {baseline['suite'].get('name')}, {len(baseline['cases'])} cases, "
-        f"made {baseline.get('created')} from commit {made.get('git_commit')}\n"
-    )
+    if history is None:
+        made = baseline.get("results") or {}
+        heading = (f"baseline {baseline_path}: suite {baseline['suite'].get('name')}, {len(baseline['cases'])} cases, "
+                   f"made {baseline.get('created')} from commit {made.get('git_commit')}")
+    click.echo(heading + "\n")
     click.echo(format_table(report), nl=False)
     if junit_file:
         atomic_write_text(junit_file, to_junit(report))

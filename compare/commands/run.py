@@ -11,6 +11,7 @@ from engines.errors import UserError
 from compare.results.sweep import sweeps
 from compare.results.table import scene_tables
 from compare.results.verdict import format_verdicts, scene_verdicts
+from compare.history.location import check_option
 from compare.run.progress import progress_for
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
@@ -29,7 +30,9 @@ from compare.suite.reader import load_suite
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")
 @click.option("--quiet", "-q", is_flag=True, help="No progress while running; at the end only the verdict and the problems.")
 @click.option("--verbose", "-v", is_flag=True, help="A line per case while running, and every scene's table at the end.")
-def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose) -> None:
+@click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
+              help="Also append the finished run to this history (xval history; a SQLite file or a postgresql:// URL).")
+def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose, history) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 
     While it runs: one progress bar (a line at every tenth of the run when
@@ -69,3 +72,7 @@ def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose
     click.echo(f"results: {summary.path}")
     if not quiet and not verbose:
         click.echo(f"tables: xval show {summary.path}; report: xval report {summary.path}")
+    if history is not None:
+        from compare.commands.history import add_directory
+
+        click.echo(add_directory(summary.path, history, suite_path=suite_path))

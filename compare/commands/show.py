@@ -6,6 +6,7 @@ import click
 
 from compare.results.store import load_results
 from compare.results.table import scene_tables, to_csv, to_json
+from compare.results.verdict import format_verdicts, scene_verdicts
 
 
 @click.command("show")
@@ -24,3 +25,4 @@ def command(directory, output_format) -> None:
         state = "finished " + header["finished"] if header.get("finished") else "unfinished (resume it with --resume)"
         click.echo(f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n")
         click.echo(scene_tables(results.records, results.verdict_tolerance), nl=False)
+        click.echo("\n" + format_verdicts(scene_verdicts(results.sweeps())), nl=False)

@@ -1,0 +1,152 @@
+"""The gate against the recent past: a results directory against the last N runs of its suite on the same machine.
+
+compare.gate compares two baseline-shaped documents; this module builds the
+first one from a window of stored runs and hands both to the same
+:func:`compare.gate.gate.gate_results`, so every rule (tolerances, statuses,
+consistency, not-comparable cases, the timing rule) is the gate's own. What
+the window changes is the baseline each case is held to:
+
+- **accuracy**: per metric, the best value any ``ok`` run in the window
+  reached (the lowest error, the latest divergence time — null, "never",
+  ranks first — the highest observed order). A slow creep that stays
+  inside the tolerance from one commit to the next still fails once it is
+  past the tolerance of the best recent run.
+- **status**: ``ok`` if the case was ok in any run of the window (so a case
+  that broke since fails); consistency: true if any run converged.
+- **timing**: the median of the window's run costs, with the window's
+  spread (every repeat of every run in the window, min to max) as the noise.
+  A slowdown must exceed the suite's timing factor *and* that spread plus
+  the current run's own — a machine whose timings wander by 30 % from run
+  to run widens the allowance by as much, where one baseline run would not
+  know it. The gate's rule that the current run needs at least two repeats
+  for its timing to be gated is kept.
+- **engine version**: only window runs made with the current engine version
+  give the best values; when none was, the latest entry is the baseline, so
+  the case is "not comparable" as with a baseline file.
+
+Only runs on the same machine (compare.history.origin.machine_of) and of the
+same suite name count. The run being gated is left out of its own window
+(``xval run --history`` stores it before ``xval gate --history`` runs).
+"""
+
+from __future__ import annotations
+
+import statistics
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+from compare.gate.tolerance import RULES
+from compare.history.origin import machine_of
+from compare.history.store import History, StoredRun
+from compare.results.store import Results
+
+#: Runs in the window when --window is not given.
+DEFAULT_WINDOW = 5
+
+
+@dataclass(frozen=True)
+class Window:
+    """The runs a gate compares with (oldest first) and the baseline document made from them."""
+
+    runs: tuple[StoredRun, ...]
+    document: dict[str, Any]
+    machine: str
+    suite: str
+
+    def describe(self, history: str) -> str:
+        """One line for the gate's output."""
+        if not self.runs:
+            return (f"history {history}: no earlier run of suite {self.suite!r} on this machine ({self.machine}); "
+                    f"every case is new")
+        first, last = self.runs[0], self.runs[-1]
+        return (f"history {history}: window of the last {len(self.runs)} runs of suite {self.suite!r} on this machine "
+                f"({self.machine}), runs {first.id}–{last.id}, commits {first.origin.short}..{last.origin.short}")
+
+
+def window_runs(history: History, results: Results, size: int) -> list[StoredRun]:
+    """The last ``size`` runs of the results' suite on the results' machine, oldest first, the run itself excluded."""
+    machine = machine_of(results.header)
+    suite = str((results.header.get("suite") or {}).get("name", ""))
+    itself = history.find(results)
+    runs = [r for r in history.runs(suite=suite, machine=machine.fingerprint) if itself is None or r.id != itself.id]
+    return runs[-size:] if size > 0 else []
+
+
+def _best(values: Sequence[Any], rule: Any) -> Any:
+    """The best of one metric's values across the window (None-aware, by the metric's declaration)."""
+    if rule.none_means == "infinite" and any(v is None for v in values):
+        return None
+    numbers = [v for v in values if v is not None]
+    if not numbers:
+        return None
+    return max(numbers) if rule.higher_is_better else min(numbers)
+
+
+def _window_timing(timings: Sequence[Mapping[str, Any] | None]) -> dict[str, Any] | None:
+    """The window's timing: median of the runs' costs; repeats and spread over every repeat of every run."""
+    timed = [t for t in timings if t]
+    if not timed:
+        return None
+    repeats = [c for t in timed for c in t.get("repeats") or (t["cost"],)]
+    return {"cost": statistics.median(t["cost"] for t in timed), "repeats": repeats,
+            "spread": [min(repeats), max(repeats)], "runs": len(timed)}
+
+
+def combine(entries: Sequence[Mapping[str, Any]], current_version: str | None) -> dict[str, Any]:
+    """One baseline entry from a case's entries across the window (oldest first): the best of each."""
+    latest = entries[-1]
+    same = [e for e in entries if e.get("engine_version") == current_version]
+    if not same:
+        return dict(latest)  # the engine version changed: "not comparable", as against a baseline file
+    latest = same[-1]
+    ok = [e for e in same if e["status"] == "ok"]
+    if not ok:
+        return dict(latest)  # never ok in the window: its latest state is the baseline
+    combined = dict(ok[-1])
+    combined["status"], combined["message"] = "ok", ok[-1].get("message", "")
+    with_metrics = [e for e in ok if e.get("metrics")]
+    if with_metrics:
+        combined["metrics"] = {
+            name: _best([(e["metrics"] or {}).get(name) for e in with_metrics], rule) for name, rule in RULES.items()
+        }
+    verdicts = [e.get("consistent") for e in same]
+    combined["consistent"] = True if True in verdicts else False if False in verdicts else None
+    combined["timing"] = _window_timing([e.get("timing") for e in ok])
+    return combined
+
+
+def window_baseline(history: History, results: Results, size: int = DEFAULT_WINDOW) -> Window:
+    """The baseline document of the window for ``results`` (see the module docstring)."""
+    machine = machine_of(results.header)
+    suite = str((results.header.get("suite") or {}).get("name", ""))
+    runs = window_runs(history, results, size)
+    head = runs[-1].baseline_head() if runs else {
+        "suite": {"name": suite, "fingerprint": (results.header.get("suite") or {}).get("fingerprint"), "path": None},
+        "created": None, "results": {}, "machine": dict(machine.fields), "engines": {},
+    }
+    per_key: dict[str, list[Mapping[str, Any]]] = {}
+    for run in runs:  # oldest first
+        for case in history.cases([run.id]):
+            per_key.setdefault(case.case_key, []).append(case.entry)
+    latest_keys = {c.case_key for c in history.cases([runs[-1].id])} if runs else set()
+    current_versions = _current_versions(results)
+    cases = {}
+    for key, entries in per_key.items():
+        if key in latest_keys or key in current_versions:
+            cases[key] = combine(entries, current_versions.get(key, entries[-1].get("engine_version")))
+    document = {**head, "cases": cases, "window": [r.id for r in runs]}
+    return Window(tuple(runs), document, machine.name, suite)
+
+
+def _current_versions(results: Results) -> dict[str, str | None]:
+    """Case key -> engine version of the run being gated."""
+    from compare.gate.baseline import case_key, engine_version
+
+    return {case_key(r.case, r.scene_hash): engine_version(r, results.header) for r in results.records}
+
+
+def history_baseline(location: str, results: Results, size: int = DEFAULT_WINDOW) -> tuple[dict[str, Any], str, str]:
+    """For ``xval gate --history``: (the window's baseline document, a name for messages, the heading line)."""
+    with History.open(location) as history:
+        window = window_baseline(history, results, size)
+        return window.document, f"{history.name} (window of {len(window.runs)} runs)", window.describe(history.name)

@@ -1,0 +1,116 @@
+"""Shared by tests/test_history*.py: one small real run, and synthetic histories made from it.
+
+A synthetic run is the real run with its start time moved and chosen
+metrics of chosen variants scaled (accuracy metrics by one factor, the
+timing — median cost, wall time, every repeat — by another), as a
+regression or machine noise would move them. Runs are added to the store
+as :class:`compare.results.store.Results` objects, so no suite is run more
+than once per session.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+import pytest
+
+from compare.cli import main
+from compare.history.origin import Origin
+from compare.history.store import History, StoredRun
+from compare.results.record import CaseRecord
+from compare.results.store import Results, load_results
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite
+
+TESTS = Path(__file__).resolve().parent
+#: One scene, two "solvers" (the reference at loose tolerances), three dts, three timing repeats: ~1 s.
+SUITE = TESTS / "gate_suite.toml"
+#: The variant the regressions are planted in.
+ENGINE = "reference/loose"
+ERRORS = ("position_error_linf", "position_error_l2", "position_error_final")
+TIMING = ("wall_time", "cost_per_simulated_second")
+T0 = _dt.datetime(2026, 11, 1, 12, 0, tzinfo=_dt.timezone.utc)
+
+
+def real_run(output: Path) -> Results:
+    run_suite(load_suite(SUITE), output, jobs=1)
+    return load_results(output)
+
+
+def scaled(record: CaseRecord, error: float = 1.0, timing: float = 1.0, tight: bool = False) -> CaseRecord:
+    """``record`` with its position errors × error and its timings × timing (steps per second ÷ timing);
+    ``tight``: its three repeats set to the median wall time × (0.99, 1, 1.01) first."""
+    metrics = dict(record.metrics)
+    if not metrics:
+        return record
+    for name in ERRORS:
+        if metrics.get(name) is not None:
+            metrics[name] *= error
+    for name in TIMING:
+        if metrics.get(name) is not None:
+            metrics[name] *= timing
+    if metrics.get("steps_per_second"):
+        metrics["steps_per_second"] /= timing
+    repeats = record.wall_times
+    if tight and record.metrics.get("wall_time"):
+        repeats = tuple(record.metrics["wall_time"] * f for f in (0.99, 1.0, 1.01))
+    return dataclasses.replace(record, metrics=metrics, wall_times=tuple(w * timing for w in repeats))
+
+
+def synthetic(base: Results, index: int, error: float = 1.0, timing: float | Callable[[CaseRecord], float] = 1.0,
+              engine: str = ENGINE, machine: dict[str, Any] | None = None, tight: bool = False) -> Results:
+    """Run number ``index`` of a synthetic history: started ``index`` hours after T0; the errors of
+    ``engine`` × error; every case's timing × timing (a number, or a function of the record)."""
+    environment = {**base.header.get("environment", {}), **(machine or {})}
+    header = {**base.header, "started": (T0 + _dt.timedelta(hours=index)).isoformat(), "environment": environment}
+    records = []
+    for record in base.records:
+        factor = timing(record) if callable(timing) else timing
+        records.append(scaled(record, error if record.case.engine == engine else 1.0, factor, tight))
+    return dataclasses.replace(base, header=header, records=records)
+
+
+def origin(index: int, dirty: bool = False) -> Origin:
+    """A made-up commit per synthetic run, dated like the run."""
+    return Origin(f"{index + 1:040x}", dirty, (T0 + _dt.timedelta(hours=index)).isoformat())
+
+
+def add(history: History, results: Results, index: int) -> StoredRun:
+    return history.add(results, origin(index))
+
+
+def write_results(results: Results, target: Path) -> Path:
+    """``results`` as a results directory at ``target`` (run.json, suite.toml, one file per case)."""
+    shutil.copytree(results.path, target)
+    (target / "run.json").write_text(json.dumps(results.header, indent=1, sort_keys=True) + "\n")
+    by_id = {r.case.id: r for r in results.records}
+    for file in (target / "cases").glob("*.json"):
+        record = CaseRecord.from_json(json.loads(file.read_text()), file)
+        file.write_text(json.dumps(by_id[record.case.id].to_json(), allow_nan=False) + "\n")
+    return target
+
+
+def xval(capsys: pytest.CaptureFixture, *argv: Any) -> tuple[int, str, str]:
+    """Run the CLI in-process: (exit code, stdout, stderr)."""
+    try:
+        main([str(a) for a in argv])
+        code = 0
+    except SystemExit as stop:
+        code = stop.code or 0
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def xval_process(*argv: Any, cwd: Path | None = None) -> subprocess.Popen:
+    """The CLI in its own process (stdout and stderr captured)."""
+    return subprocess.Popen(
+        [sys.executable, "-c", "from compare.cli import main; main()", *map(str, argv)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
+    )
