@@ -8,13 +8,18 @@ line on stderr and exit code 2, with no traceback.
 
 from __future__ import annotations
 
+import errno
 import importlib
+import math
+import re
+import signal
 import sys
 from importlib.metadata import entry_points
 from typing import Any, NoReturn
 
 import click
 
+from compare.text import InertStream, inert
 from engines.errors import UserError
 
 #: Built-in verbs: name -> the module defining a click command ``command`` of that name.
@@ -51,12 +56,51 @@ def cli() -> None:
 
 
 def fail(message: str) -> NoReturn:
-    """Print one error line and exit 2."""
-    click.echo(f"xval: error: {message}", err=True)
+    """Print one error line (control characters in it made visible, see compare/text.py) and exit 2."""
+    click.echo(f"xval: error: {inert(message)}", err=True)
     sys.exit(2)
 
 
+#: OSError numbers that mean "no room to write": a run stopped by one keeps its finished cases (exit 1).
+NO_SPACE = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread so a run stops as it does on Ctrl-C (workers killed, temporaries removed)."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def os_error_line(exc: OSError) -> tuple[str, int]:
+    """One line naming the file and the problem, and the exit code: 1 for a full disk, 2 otherwise."""
+    where = f"{exc.filename}: " if exc.filename else ""
+    reason = exc.strerror or str(exc)
+    if exc.errno in NO_SPACE:
+        return (f"{where}{reason}: no room to write; cases already finished are kept: free space, then run "
+                f"the same command with --resume (xval run) or again", 1)
+    if exc.errno == errno.ENAMETOOLONG:
+        return f"{where}{reason}; choose a shorter path or name", 2
+    return f"{where}{reason}", 2
+
+
 def main(argv: list[str] | None = None) -> None:
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread (an embedding program): leave SIGTERM alone
+        previous = None
+    stdout = sys.stdout
+    sys.stdout = InertStream(stdout)  # labels from files print as text, never as terminal commands
+    try:
+        _main(argv)
+    finally:
+        sys.stdout = stdout
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> None:
     try:
         # Outside standalone mode click *returns* the code of a click.exceptions.Exit
         # (e.g. simulate's exit 1 for an unstable run) instead of exiting with it.
@@ -72,11 +116,71 @@ def main(argv: list[str] | None = None) -> None:
         fail(exc.format_message())
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except (click.Abort, KeyboardInterrupt):
+    except (click.Abort, KeyboardInterrupt) as exc:
+        # click turns a KeyboardInterrupt (and so our Terminated) into Abort; its cause says which it was.
+        if isinstance(exc, Terminated) or isinstance(exc.__cause__, Terminated):
+            click.echo("xval: terminated", err=True)
+            sys.exit(143)
         click.echo("xval: interrupted", err=True)
         sys.exit(130)
     except BrokenPipeError:
         sys.exit(0)
+    except OSError as exc:  # a full disk, a name too long, a file that vanished: one line, never a traceback
+        line, code = os_error_line(exc)
+        click.echo(f"xval: error: {inert(line)}", err=True)
+        sys.exit(code)
+
+
+class Seconds(click.ParamType):
+    """A finite number of seconds, > 0 and at most ``maximum`` (click's FloatRange lets nan and inf through)."""
+
+    name = "seconds"
+
+    def __init__(self, maximum: float = 1e6) -> None:
+        self.maximum = maximum
+
+    def convert(self, value, param, ctx):
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number of seconds", param, ctx)
+        if not math.isfinite(number) or not 0 < number <= self.maximum:
+            self.fail(f"{value!r} is outside the allowed range: more than 0 and at most {self.maximum:g} s", param, ctx)
+        return number
+
+
+#: Multipliers of --memory-limit's suffixes (binary: 4G is 4 GiB).
+_SIZE_SUFFIXES = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+#: Smallest --memory-limit (address space a case may add to its host's): less fails ordinary cases.
+MIN_MEMORY_LIMIT = 256 * 2**20
+
+
+class MemorySize(click.ParamType):
+    """``4G``, ``512M``, ``8589934592`` (bytes) or ``none``; converted to bytes (None for ``none``)."""
+
+    name = "size"
+
+    def convert(self, value, param, ctx):
+        if value is None or isinstance(value, int):
+            return value
+        text = str(value).strip().upper()
+        if text in ("NONE", "OFF", "UNLIMITED"):
+            return None
+        match = re.fullmatch(r"(\d+(?:\.\d+)?)\s*([KMGT]?)I?B?", text)
+        if not match:
+            self.fail(f"{value!r} is not a size; write e.g. 4G, 512M or none", param, ctx)
+        size = int(float(match.group(1)) * _SIZE_SUFFIXES[match.group(2)])
+        if size < MIN_MEMORY_LIMIT:
+            self.fail(f"{value!r} is below the allowed minimum of 256M; write e.g. 4G, or none for no limit",
+                      param, ctx)
+        return size
+
+
+def output_path(ctx: click.Context | None, param: click.Parameter | None, value: str | None) -> str | None:
+    """A click callback refusing an empty or blank --output."""
+    if value is not None and not value.strip():
+        raise click.BadParameter("is empty; give a path (or - for standard output where the command allows it)")
+    return value
 
 
 def parse_assignments(pairs: tuple[str, ...], flag: str) -> dict[str, str]:

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
+from engines import limits
 from engines.errors import SceneError
 from engines.scene import Ellipse, Line, Particle, Pin, Rod, Scene
 
@@ -27,6 +28,7 @@ class Parameter:
     integer: bool = False
     positive: bool = False
     minimum: float | None = None
+    maximum: float | None = None
 
     def parse(self, raw: Any, scene: str) -> float | int:
         """Convert a CLI string or a number; raise SceneError naming the parameter."""
@@ -45,7 +47,21 @@ class Parameter:
             raise SceneError(f"{scene}: parameter {self.name} must be positive, got {raw!r}")
         if self.minimum is not None and value < self.minimum:
             raise SceneError(f"{scene}: parameter {self.name} must be at least {self.minimum:g}, got {raw!r}")
+        low, high = _UNIT_RANGES.get(self.unit, (-math.inf, math.inf))
+        if self.maximum is not None:
+            high = min(high, self.maximum)
+        if self.positive and not low <= value <= high:
+            unit = f" {self.unit}" if self.unit else ""
+            raise SceneError(
+                f"{scene}: parameter {self.name} = {value:g}{unit} is outside the allowed range "
+                f"({low:g} to {high:g}{unit})" if low > 0 else
+                f"{scene}: parameter {self.name} = {value:g}{unit} is more than the allowed {high:g}{unit}"
+            )
         return value
+
+
+#: Allowed ranges of positive parameters by unit (engines/limits.py says why).
+_UNIT_RANGES = {"kg": limits.MASS_RANGE, "m": limits.LENGTH_RANGE, "s": (0.0, limits.MAX_DURATION)}
 
 
 @dataclass(frozen=True)
@@ -237,7 +253,8 @@ CATALOG: dict[str, SceneBuilder] = {
             "chain",
             "n equal links hung from the origin, released straight at theta0, in the x–z plane.",
             (
-                Parameter("n", 4, "", "number of links (and particles)", integer=True, positive=True),
+                Parameter("n", 4, "", "number of links (and particles)", integer=True, positive=True,
+                          maximum=limits.MAX_PARTICLES),
                 Parameter("length", 0.25, "m", "length of each link", positive=True),
                 Parameter("mass", 0.25, "kg", "mass of each particle", positive=True),
                 Parameter("theta0", 90.0, "deg", "release angle of the straight chain (90 = horizontal)"),
@@ -333,4 +350,10 @@ def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
                 f"{name}: unknown parameter {key!r}; its parameters are: {', '.join(known)}"
             )
         values[key] = known[key].parse(raw, name)
-    return entry.build(**values, parameters=values)
+    try:
+        return entry.build(**values, parameters=values)
+    except SceneError as exc:  # a rule only the built scene can check (a speed from omega0 and radius)
+        if str(exc).startswith(f"{name}: "):
+            raise  # the builder's own message, already naming the scene and its parameters
+        given = ", ".join(f"{k} = {values[k]:g}" for k in (overrides or {}))
+        raise SceneError(f"{name}: {exc}" + (f" (from {given})" if given else "")) from None

@@ -71,6 +71,11 @@ _deadline: contextvars.ContextVar[tuple[float, float] | None] = contextvars.Cont
                                                                                       default=None)
 
 
+#: Process groups of programs running now (their leaders' pids): a case host that must die at once
+#: (its worker died, compare/run/isolation.py) kills these too, since they left its own group.
+LIVE_GROUPS: set[int] = set()
+
+
 @contextlib.contextmanager
 def deadline(seconds: float | None) -> Iterator[None]:
     """Within this context a command engine kills its program ``seconds`` s from now (None: no limit).
@@ -363,6 +368,7 @@ def run_program(spec: CommandSpec, payload: bytes, limit: tuple[float, float] | 
                             f"(chmod +x it, or name its interpreter first)") from None
     except OSError as exc:
         raise CommandFailed(f"{spec.engine_id}: cannot start {spec.display}: {exc.strerror or exc}") from None
+    LIVE_GROUPS.add(process.pid)
     try:
         stdout, stderr = _exchange(process, payload, deadline_at)
         timed_out = stdout is None
@@ -379,6 +385,7 @@ def run_program(spec: CommandSpec, payload: bytes, limit: tuple[float, float] | 
                 stream.close()
         process.wait()
         _kill_stragglers(process.pid)
+        LIVE_GROUPS.discard(process.pid)
     elapsed = time.perf_counter() - started
     if timed_out:
         seconds = limit[1] if limit is not None else elapsed

@@ -84,11 +84,14 @@ class OursEngine(Engine):
         "integrator": Option("integrator", "rk4", "euler, symplectic-euler, midpoint, rk4 or rattle",
                              kind="str", choices=tuple(ours.INTEGRATORS)),
         "k_s": Option("k_s", ours.DEFAULT_K_S,
-                      "Baumgarte stiffness, 1/s² (default 100: a 0.1 s correction time constant)"),
-        "k_d": Option("k_d", None, "Baumgarte damping, 1/s (default 2·sqrt(k_s), critical damping)"),
+                      "Baumgarte stiffness, 1/s² (default 100: a 0.1 s correction time constant)", low=0.0, high=1e12),
+        "k_d": Option("k_d", None, "Baumgarte damping, 1/s (default 2·sqrt(k_s), critical damping)",
+                      low=0.0, high=1e6),
         "tolerance": Option("tolerance", 1e-12,
-                            "projection / RATTLE solve: stop at max |C|/l² ≤ tolerance (relative length error)"),
-        "max_iterations": Option("max_iterations", 50, "most Newton / SHAKE iterations per step", kind="int"),
+                            "projection / RATTLE solve: stop at max |C|/l² ≤ tolerance (relative length error)",
+                            low=0.0, high=1.0, low_open=True),
+        "max_iterations": Option("max_iterations", 50, "most Newton / SHAKE iterations per step", kind="int",
+                                 low=1, high=10_000),
     }
     variants = _variants()
     variant_docs = {

@@ -366,6 +366,7 @@ class PyBulletEngine(Engine):
             PYBULLET_ITERATIONS,
             f"solver iterations per step (PyBullet's default {PYBULLET_ITERATIONS}); at least 1",
             "int",
+            high=10_000,
         ),
         "keep_defaults": Option(
             "keep_defaults",

@@ -75,7 +75,8 @@ class PymunkEngine(Engine):
             f"{PYMUNK_ERROR_BIAS:.6g} = 0.9^60: 10% per 1/60 s; 0 = full correction every step); in [0, 1]",
         ),
         "iterations": Option(
-            "iterations", PYMUNK_ITERATIONS, f"solver passes per step (pymunk's default {PYMUNK_ITERATIONS})", "int"
+            "iterations", PYMUNK_ITERATIONS, f"solver passes per step (pymunk's default {PYMUNK_ITERATIONS})", "int",
+            high=10_000,
         ),
         "max_bias": Option(
             "max_bias",

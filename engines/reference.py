@@ -352,8 +352,10 @@ class ReferenceEngine(Engine):
     #: A suite's tolerance axis (compare/suite/tolerance_axis.py) sets both DOP853 tolerances.
     tolerance_options = ("rtol", "atol")
     options = {
-        "rtol": Option("rtol", DEFAULT_RTOL, "relative tolerance of DOP853"),
-        "atol": Option("atol", DEFAULT_ATOL, "absolute tolerance of DOP853 (rad, rad/s)"),
+        # scipy raises rtol below 100 eps to 100 eps with a warning: refuse it instead.
+        "rtol": Option("rtol", DEFAULT_RTOL, "relative tolerance of DOP853", low=1e-14, high=0.1),
+        "atol": Option("atol", DEFAULT_ATOL, "absolute tolerance of DOP853 (rad, rad/s)", low=0.0, high=1.0,
+                       low_open=True),
     }
     variants = {"dop853": {}}
     variant_docs = {"dop853": "reduced coordinates, scipy DOP853 at rtol = atol = 1e-12, dense output"}

@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from engines import limits
 from engines.errors import SceneError
 
 #: Largest |‖a − b‖ − l| (relative to l) accepted in a scene's initial state.
@@ -36,7 +37,25 @@ def _vector(value: Any, field_name: str) -> Vector:
         raise SceneError(f"{field_name}: must be three numbers (x, y, z), got {len(components)}")
     if not all(math.isfinite(c) for c in components):
         raise SceneError(f"{field_name}: every component must be finite, got {components}")
+    largest, unit = _VECTOR_LIMITS.get(field_name, (limits.MAX_COORDINATE, "m"))
+    if max(abs(c) for c in components) > largest:
+        raise SceneError(
+            f"{field_name}: components must lie in [-{largest:g}, {largest:g}] {unit}, got {components}"
+        )
     return components  # type: ignore[return-value]
+
+
+#: Field name -> (largest |component|, unit); any other vector is a position (m).
+_VECTOR_LIMITS = {"velocity": (limits.MAX_SPEED, "m/s"), "gravity": (limits.MAX_GRAVITY, "m/s^2")}
+#: Field name -> (allowed range, unit) of a positive quantity (engines/limits.py says why).
+_POSITIVE_LIMITS = {
+    "mass": (limits.MASS_RANGE, " kg"),
+    "length": (limits.LENGTH_RANGE, " m"),
+    "radius": (limits.LENGTH_RANGE, " m"),
+    "duration": ((0.0, limits.MAX_DURATION), " s"),
+    "semi_x": (limits.LENGTH_RANGE, " m"),
+    "semi_z": (limits.LENGTH_RANGE, " m"),
+}
 
 
 def _nonzero_vector(value: Any, field_name: str) -> Vector:
@@ -53,13 +72,9 @@ def _index(value: Any, field_name: str) -> int:
 
 
 def _positive(value: Any, field_name: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise SceneError(f"{field_name}: must be a number, got {value!r}") from None
-    if not math.isfinite(number) or number <= 0.0:
-        raise SceneError(f"{field_name}: must be positive and finite, got {number!r}")
-    return number
+    # By the field's last name: "ellipse.semi_x" is a length like "length".
+    (low, high), unit = _POSITIVE_LIMITS.get(field_name.rsplit(".", 1)[-1], ((0.0, math.inf), ""))
+    return limits.in_range(value, field_name, low, high, unit)
 
 
 @dataclass(frozen=True)
@@ -305,6 +320,10 @@ class Scene:
         object.__setattr__(self, "duration", _positive(self.duration, "duration"))
         if not self.particles:
             raise SceneError("particles: a scene needs at least one particle")
+        if len(self.particles) > limits.MAX_PARTICLES:
+            raise SceneError(
+                f"particles: {len(self.particles)} is more than the allowed {limits.MAX_PARTICLES} per scene"
+            )
         n = len(self.particles)
         for k, constraint in enumerate(self.constraints):
             for index in constraint.particles:

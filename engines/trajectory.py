@@ -25,6 +25,9 @@ class RunInfo:
     engine_version : the engine library's version string.
     dt : s, the time step; steps : steps actually taken.
     wall_time : s, wall time of the stepping loop alone (model building excluded).
+    cpu_time : s, this thread's CPU time of the run (the adapter's stepping loop's when it measures it),
+        see engines.adapter.loop_cpu_time;
+        what the timing gate compares, since a busy neighbour stretches wall time, not CPU time.
     status : one of ``STATUSES``; message : why, when not ok.
     settings : every option used, and every engine default overridden.
     """
@@ -38,6 +41,7 @@ class RunInfo:
     status: str = "ok"
     message: str = ""
     settings: Mapping[str, Any] = field(default_factory=dict)
+    cpu_time: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -50,6 +54,7 @@ class RunInfo:
             "status": self.status,
             "message": self.message,
             "settings": dict(self.settings),
+            "cpu_time": self.cpu_time,
         }
 
 

@@ -33,7 +33,7 @@ from markupsafe import Markup
 from compare.results.verdict import families
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text, check_writable
+from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings, load_run_settings
 
@@ -228,7 +228,8 @@ def write_report(directory: str | Path, output: str | Path | None = None, dt: fl
     started = time.perf_counter()
     data = load_report_data(directory, dt)  # first, so a wrong DIR is named as such
     check_focus(data, focus)
-    target = check_writable(Path(output) if output is not None else Path(directory) / DEFAULT_NAME)
+    target = check_writable(Path(output) if output is not None else Path(directory) / DEFAULT_NAME,
+                            inputs=results_inputs(directory))
     text = render(data, focus)
     atomic_write_text(target, text)
     return Written(target, len(text.encode()), time.perf_counter() - started)

@@ -45,11 +45,12 @@ TIMING_SETTINGS = {"ours.compile_or_cache_load_s"}
 
 
 def deterministic(record) -> dict:
-    record = {k: v for k, v in record.to_json().items() if k not in ("elapsed", "wall_times", "finished")}
+    clocks = ("elapsed", "wall_times", "finished", "cpu_times", "calibrations")
+    record = {k: v for k, v in record.to_json().items() if k not in clocks}
     record["metrics"] = {k: v for k, v in (record["metrics"] or {}).items() if k not in TIMING}
     for part in ("run_info", "reference"):
         if record[part]:
-            record[part] = {k: v for k, v in record[part].items() if k != "wall_time"}
+            record[part] = {k: v for k, v in record[part].items() if k not in ("wall_time", "cpu_time")}
     if record["run_info"] and record["run_info"].get("settings"):
         record["run_info"]["settings"] = {k: v for k, v in record["run_info"]["settings"].items()
                                           if k not in TIMING_SETTINGS}

@@ -136,11 +136,11 @@ TIMING = {"wall_time", "cost_per_simulated_second", "steps_per_second"}
 
 def deterministic(record) -> dict:
     record = record.to_json()
-    for key in ("elapsed", "wall_times", "finished"):
-        record.pop(key)
+    for key in ("elapsed", "wall_times", "finished", "cpu_times", "calibrations"):
+        record.pop(key, None)
     record["metrics"] = {k: v for k, v in (record["metrics"] or {}).items() if k not in TIMING}
     if record["run_info"]:
-        record["run_info"] = {k: v for k, v in record["run_info"].items() if k != "wall_time"}
+        record["run_info"] = {k: v for k, v in record["run_info"].items() if k not in ("wall_time", "cpu_time")}
     if record["reference"]:
         record["reference"] = {k: v for k, v in record["reference"].items() if k != "wall_time"}
     return record

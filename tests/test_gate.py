@@ -243,13 +243,15 @@ def test_a_changed_scene_is_not_comparable(runs, rerun, capsys):
     assert row[-1].startswith("scene changed (content hash ") and row[-1].endswith(" → 0123456789abcdef)")
 
 
-def test_a_missing_case_is_reported(runs, rerun, capsys):
+def test_a_missing_case_of_the_same_suite_fails_the_gate_and_is_named(runs, rerun, capsys):
+    # A run of the same suite that lacks a case is partial (interrupted, or a case file lost): it must not pass.
     remove_case(rerun, CASE)
     code, out, _ = xval(capsys, "gate", rerun, "--baseline", runs["baseline"], *REAL_TIMING)
-    assert code == 0, out
+    assert code == 1, out
     assert rows(out, "missing") == [["missing", "bead", "reference/loose", "0.005", "-", "ok", "-",
                                      "in the baseline, not in the results"]]
-    assert "1 missing" in out
+    assert "note: 1 of the baseline's" in out and "(bead · reference/loose · dt=0.005); finish the run" in out
+    assert "gate FAILED" in out and "1 missing" in out
 
 
 # -- bad input --------------------------------------------------------------------------------

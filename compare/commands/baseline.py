@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import click
 
+from compare.cli import output_path
+
 from compare.gate.baseline import build_baseline, write_baseline
-from compare.results.files import check_writable
+from compare.results.files import check_writable, results_inputs
 from compare.results.store import load_results
 
 
 @click.command("baseline")
 @click.argument("directory", metavar="DIR")
-@click.option("--output", required=True, metavar="BASELINE.json", help="Baseline file to write (replaced if it exists).")
+@click.option("--output", required=True, metavar="BASELINE.json", callback=output_path,
+              help="Baseline file to write (replaced if it exists; never one of DIR's own files).")
 def command(directory, output) -> None:
     """Make a baseline of the results in DIR (the --output of 'xval run') for 'xval gate'.
 
@@ -20,7 +23,7 @@ def command(directory, output) -> None:
     repeats, and the engine version; keyed by scene content hash, engine,
     variant, options and dt. Commit the file next to the suite it came from.
     """
-    target = check_writable(output)
+    target = check_writable(output, inputs=results_inputs(directory))
     results = load_results(directory)
     document = build_baseline(results)
     write_baseline(document, target)

@@ -10,7 +10,7 @@ import click
 from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, load_baseline
-from compare.results.files import atomic_write_text, check_writable
+from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
 from compare.history.location import check_option
@@ -50,8 +50,10 @@ def command(directory, baseline_path, history, window, junit, summary, timing) -
     reported, not failed. Tolerances come from the suite's [gate] table.
     """
     # Refuse unwritable output paths before any work, like every other verb.
-    junit_file = check_writable(junit, "--junit") if junit else None
-    summary_file = check_writable(summary, "--summary") if summary else None
+    # Neither may replace what the gate reads: the baseline, the history, or the results' own files.
+    inputs = [p for p in (baseline_path, history) if p is not None] + results_inputs(directory)
+    junit_file = check_writable(junit, "--junit", inputs) if junit is not None else None
+    summary_file = check_writable(summary, "--summary", inputs) if summary is not None else None
     if (baseline_path is None) == (history is None):
         raise UserError("give either --baseline BASELINE.json or --history FILE (the last runs in a history), not both or neither")
     if window is not None and history is None:

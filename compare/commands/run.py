@@ -7,6 +7,10 @@ import sys
 import click
 
 from engines.errors import UserError
+from engines.limits import MAX_JOBS
+
+from compare.cli import MemorySize, Seconds, output_path
+from compare.run.isolation import DEFAULT_MEMORY_LIMIT
 
 from compare.results.sweep import sweeps
 from compare.results.table import scene_tables
@@ -19,12 +23,18 @@ from compare.suite.reader import load_suite
 
 @click.command("run")
 @click.argument("suite_path", metavar="SUITE")
-@click.option("--output", required=True, metavar="DIR", help="Results directory to create (or finish, with --resume).")
-@click.option("--jobs", type=click.IntRange(min=1), default=None,
-              help="Worker processes (default: all cores).")
+@click.option("--output", required=True, metavar="DIR", callback=output_path,
+              help="Results directory to create (or finish, with --resume).")
+@click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
+              help=f"Worker processes, 1 to {MAX_JOBS} (default: all cores).")
 @click.option("--resume", is_flag=True, help="Run only the cases DIR does not hold yet.")
-@click.option("--timeout", type=click.FloatRange(min=0, min_open=True), default=None, metavar="S",
-              help="Seconds per case before it is killed and recorded as timeout (default: the suite's).")
+@click.option("--timeout", type=Seconds(), default=None, metavar="S",
+              help="Seconds per case (and per scene's reference solve) before it is killed and recorded as "
+                   "timeout, at most 1e6 (default: the suite's).")
+@click.option("--memory-limit", type=MemorySize(), default=f"{DEFAULT_MEMORY_LIMIT // 2**30}G", metavar="SIZE",
+              show_default=True,
+              help="Memory (address space) each case may add to its process's own, at least 256M, or "
+                   "'none'. A case past it is recorded failed with the reason.")
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT|local[:N]",
               help="Run the cases on a Dask cluster: a scheduler's address, or local[:N] for an "
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")
@@ -32,7 +42,7 @@ from compare.suite.reader import load_suite
 @click.option("--verbose", "-v", is_flag=True, help="A line per case while running, and every scene's table at the end.")
 @click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
               help="Also append the finished run to this history (xval history; a SQLite file or a postgresql:// URL).")
-def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose, history) -> None:
+def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, quiet, verbose, history) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 
     While it runs: one progress bar (a line at every tenth of the run when
@@ -50,13 +60,14 @@ def command(suite_path, output, jobs, resume, timeout, scheduler, quiet, verbose
     mode = "quiet" if quiet else "verbose" if verbose else "bar"
     suite = load_suite(suite_path)
     if scheduler is None:
-        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr, mode))
+        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr, mode),
+                            memory_limit=memory_limit)
     else:
         from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
 
         try:
             summary = run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
-                                     progress=progress_for(sys.stderr, mode),
+                                     memory_limit=memory_limit, progress=progress_for(sys.stderr, mode),
                                      warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
         except SchedulerLost as exc:
             click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)

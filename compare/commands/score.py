@@ -6,7 +6,8 @@ import json
 
 import click
 
-from compare.cli import parse_assignments
+from compare.cli import output_path, parse_assignments
+from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
 from engines import catalog
@@ -35,7 +36,9 @@ COLUMNS = (
               help="Divergence threshold: the first t with position error > delta * L.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
               show_default=True, help="table: one line per file; json: a list of objects, one per file.")
-def command(scene_name, files, params, delta, output_format) -> None:
+@click.option("--output", default=STDOUT, show_default=True, callback=output_path, metavar="FILE",
+              help="Where to write: - for standard output, or a file (never one of the FILE.csv graded).")
+def command(scene_name, files, params, delta, output_format, output) -> None:
     """Grade CSV files from any program against the reference solution of SCENE.
 
     Each FILE has the columns t, p{i}_x..z, v{i}_x..z (optionally f{k}_x..z),
@@ -45,12 +48,14 @@ def command(scene_name, files, params, delta, output_format) -> None:
     every file was graded, 2 for bad input (a column that does not fit the
     scene, a first row that is not the scene's initial state).
     """
+    target = check_writable(output, inputs=files)
     scene = catalog.build(scene_name, parse_assignments(params, "--param"))
     rows = score(files, scene, delta=delta)
-    if output_format == "json":
-        click.echo(json.dumps(rows, indent=1))
-        return
-    click.echo(render(rows))
+    text = (json.dumps(rows, indent=1) if output_format == "json" else render(rows)) + "\n"
+    if str(target) == STDOUT:
+        click.echo(text, nl=False)
+    else:
+        atomic_write_text(target, text)
 
 
 def render(rows: list[dict]) -> str:

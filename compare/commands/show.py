@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import click
 
+from compare.cli import output_path
+from compare.results.files import STDOUT, atomic_write_text, check_writable, results_inputs
+
 from compare.results.store import load_results
 from compare.results.table import scene_tables, to_csv, to_json
 from compare.results.verdict import format_verdicts, scene_verdicts
@@ -13,16 +16,23 @@ from compare.results.verdict import format_verdicts, scene_verdicts
 @click.argument("directory", metavar="DIR")
 @click.option("--format", "output_format", type=click.Choice(["table", "csv", "json"]), default="table",
               show_default=True, help="table: one row per engine variant per scene; csv/json: one row per case.")
-def command(directory, output_format) -> None:
+@click.option("--output", default=STDOUT, show_default=True, callback=output_path, metavar="FILE",
+              help="Where to write: - for standard output, or a file (never one of DIR's own files).")
+def command(directory, output_format, output) -> None:
     """Show the results in DIR (the --output of 'xval run')."""
+    target = check_writable(output, inputs=results_inputs(directory))
     results = load_results(directory)
     if output_format == "csv":
-        click.echo(to_csv(results.records, results.verdict_tolerance), nl=False)
+        text = to_csv(results.records, results.verdict_tolerance)
     elif output_format == "json":
-        click.echo(to_json(results.records, results.verdict_tolerance), nl=False)
+        text = to_json(results.records, results.verdict_tolerance)
     else:
         header = results.header
         state = "finished " + header["finished"] if header.get("finished") else "unfinished (resume it with --resume)"
-        click.echo(f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n")
-        click.echo(scene_tables(results.records, results.verdict_tolerance), nl=False)
-        click.echo("\n" + format_verdicts(scene_verdicts(results.sweeps())), nl=False)
+        text = f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n\n"
+        text += scene_tables(results.records, results.verdict_tolerance)
+        text += "\n" + format_verdicts(scene_verdicts(results.sweeps()))
+    if str(target) == STDOUT:
+        click.echo(text, nl=False)
+    else:
+        atomic_write_text(target, text)

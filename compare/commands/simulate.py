@@ -4,18 +4,37 @@ from __future__ import annotations
 
 import re
 import shlex
+import types
 from pathlib import Path
 
 import click
+import numpy as np
 
-from compare.cli import parse_assignments
-from compare.results.export import trajectory_csv
-from compare.results.files import atomic_write_text, check_writable
-from compare.results.metrics import constraint_error, energy_drift
+from compare.cli import Seconds, output_path, parse_assignments
+from compare.results.export import trajectory_columns, trajectory_csv
+from compare.results.files import STDOUT, atomic_write_text, check_writable
+from compare.results.metrics import Bounds, apply_bounds, constraint_error, energy_drift
 from engines import catalog, registry
-from engines.adapter import check_time_step
+from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.command import command_engine
 from engines.errors import UserError
+from engines.limits import check_case_size
+
+
+def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
+    """``("energy_drift=2", "constraint_error=0.01")`` -> Bounds; UserError naming the bound and its range."""
+    values = {"energy_drift": Bounds.energy_drift, "constraint_error": Bounds.constraint_error}
+    for name, raw in parse_assignments(pairs, "--bounds").items():
+        if name not in values:
+            raise UserError(f"--bounds: unknown bound {name!r}; the bounds are: {', '.join(values)}")
+        try:
+            value = float(raw)
+        except ValueError:
+            raise UserError(f"--bounds: {name} must be a positive number, got {raw!r}") from None
+        if not np.isfinite(value) or value <= 0:
+            raise UserError(f"--bounds: {name} must be a positive finite number, got {raw!r}")
+        values[name] = value
+    return Bounds(**values)
 
 
 @click.command("simulate")
@@ -28,25 +47,35 @@ from engines.errors import UserError
               help="Scene parameter (see 'xval scenes'); repeatable.")
 @click.option("--option", "options", multiple=True, metavar="NAME=VALUE",
               help="Engine option (see 'xval engines'); repeatable.")
-@click.option("--sample-interval", default=None, type=float,
+@click.option("--sample-interval", default=None, type=Seconds(),
               help="Seconds between stored samples (default 0.01; at least one step).")
 @click.option("--command", "program", default=None, metavar='"PROG ARGS"',
               help="Run an outside program speaking the process protocol (docs/protocol.md) instead of --engine; "
                    "split like a shell would, run without one, in the current directory.")
 @click.option("--forces", is_flag=True, help="Also write the constraint forces f{k}_x..z (NaN when not reported).")
-@click.option("--output", required=True, help="CSV file to write.")
-def command(scene_name, engine_id, dt, duration, params, options, sample_interval, program, forces, output) -> None:
+@click.option("--bounds", "bounds", multiple=True, metavar="NAME=VALUE",
+              help=f"Past these an ok run is unstable (exit 1), as in a suite's [bounds]: energy_drift "
+                   f"(x E*, default {Bounds.energy_drift:g}) and constraint_error (x L, default "
+                   f"{Bounds.constraint_error:g}); repeatable.")
+@click.option("--output", required=True, callback=output_path,
+              help="CSV file to write, or - for standard output (the summary then goes to standard error).")
+def command(scene_name, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
+            output) -> None:
     """Simulate SCENE with one engine and write one CSV row per sample.
 
-    Exit code 0 when the run ends ok, 1 when it ends unstable or failed (the
-    CSV still holds the samples up to the end; for --command, the line
-    names the command, its exit code and its last stderr line), 2 for bad input.
+    Exit code 0 when the run ends ok, 1 when it ends unstable (a non-finite
+    state, or past the bounds) or failed (the CSV still holds the samples up
+    to the end; for --command, the line names the command, its exit code and
+    its last stderr line), 2 for bad input.
     """
     overrides = parse_assignments(params, "--param")
     if duration is not None:
         overrides["duration"] = duration
     scene = catalog.build(scene_name, overrides)
     check_time_step(dt, scene.duration)
+    check_case_size(len(scene.particles), scene.duration, float(dt),
+                    DEFAULT_SAMPLE_INTERVAL if sample_interval is None else sample_interval)
+    limits = parse_bounds(bounds)
     if program is not None:
         engine, variant = _command_engine(program, engine_id)
     else:
@@ -58,21 +87,31 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     trajectory = engine.simulate(
         scene, float(dt), variant=variant, options=engine_options, sample_interval=sample_interval
     )
-    atomic_write_text(path, trajectory_csv(scene, trajectory, forces=forces))
+    if trajectory.n_samples:
+        text = trajectory_csv(scene, trajectory, forces=forces)
+    else:  # failed before its first sample: the header alone
+        text = ",".join(trajectory_columns(scene, forces)) + "\n"
+    atomic_write_text(path, text)
 
     info = trajectory.info
-    summary = f"{info.variant} on {scene.name}: {info.status}, {trajectory.n_samples} samples to {path}"
+    status, message = info.status, info.message
+    where = "standard output" if str(path) == STDOUT else str(path)
+    details = ""
     if trajectory.n_samples:
-        drift = energy_drift(scene, trajectory.positions, trajectory.velocities)
-        error = constraint_error(scene, trajectory.positions)
-        summary += (
+        with np.errstate(all="ignore"):  # a run that blew up overflows here; its numbers say so
+            drift = energy_drift(scene, trajectory.positions, trajectory.velocities)
+            error = constraint_error(scene, trajectory.positions)
+        status, message = apply_bounds(status, message, types.SimpleNamespace(energy_drift=drift, constraint_error=error),
+                                       limits, scene)
+        details = (
             f"; {info.steps} steps in {info.wall_time:.3g} s; energy drift {drift:.2e} E*;"
             f" constraint error {error:.2e} m"
         )
-    if info.message:
-        summary += f" ({info.message})"
-    click.echo(summary)
-    if info.status != "ok":
+    summary = f"{info.variant} on {scene.name}: {status}, {trajectory.n_samples} samples to {where}{details}"
+    if message:
+        summary += f" ({message})"
+    click.echo(summary, err=str(path) == STDOUT)
+    if status != "ok":
         raise click.exceptions.Exit(1)
 
 

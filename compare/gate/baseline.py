@@ -83,7 +83,16 @@ def _timing(record: CaseRecord) -> dict[str, Any] | None:
         return None
     # Each repeat stepped the same simulated time, so cost scales with wall time.
     per_repeat = [w * cost / wall for w in repeats]
-    return {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
+    timing = {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
+    cpu_times = record.extra.get("cpu_times") or []
+    calibrations = record.extra.get("calibrations") or []
+    if (len(cpu_times) == len(calibrations) == len(repeats)
+            and all(isinstance(c, (int, float)) and c > 0 for c in [*cpu_times, *calibrations])):
+        # CPU s per simulated s of each repeat, and the calibration kernel's CPU s timed beside it:
+        # what the timing gate compares when both sides have them.
+        timing["cpu"] = [c * cost / wall for c in cpu_times]
+        timing["calibration"] = list(calibrations)
+    return timing
 
 
 def entry_from_record(record: CaseRecord, header: dict[str, Any], sweep: VariantSweep | None = None) -> dict[str, Any]:
@@ -165,9 +174,11 @@ def load_baseline(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     fix = REMAKE.format(path=path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"--baseline: {path}: no such file; {fix}") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"--baseline: {path}: not UTF-8 text (byte {exc.start}), so not an xval baseline; {fix}") from None
     except IsADirectoryError:
         raise UserError(f"--baseline: {path} is a directory; give the baseline JSON file (xval baseline DIR --output FILE)") from None
     except OSError as exc:

@@ -12,17 +12,35 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   (its engine no longer loads here — a broken plug-in, a missing library — or
   no longer expresses the scene): a solver that stopped running must fail
   the gate. Skipped in the baseline only is **not comparable**.
-- timing (cost per simulated second): **worse** only when the median slowed
-  by more than ``timing_factor`` *and* by more than the spread of the
-  repeats on both sides (max − min of each); never gated when the two runs
-  were timed on different machines, or when the caller asks for timing to
-  be reported only (``timing="report"``).
+- timing (cost per simulated second), when both sides recorded the stepping
+  loop's CPU time and the calibration kernel's (:func:`cpu_timing_change`,
+  docs/reliability.md): each repeat's CPU cost is divided by the smallest
+  calibration time of its run, and the *best* (smallest) of the repeats is
+  compared: **worse** when current best > baseline best · ``timing_factor`` ·
+  (1 + s_b + s_c), where s = (second best − best) / best of a side (how far
+  its best is from being reproduced): the threshold widens with the noise
+  measured in both runs. CPU time does not count the time a process waits
+  for a core; the calibration cancels a CPU that is itself slower now (a
+  shared physical core, a lower clock); the best of the repeats drops those
+  hit by a burst. Older records (wall time only): **worse** only when the
+  median slowed by more than ``timing_factor`` *and* by more than the spread
+  of the repeats on both sides (max − min of each). Either way, never gated
+  with fewer than two repeats a side, when the two runs were timed on
+  different machines, or when the caller asks for timing to be reported only
+  (``timing="report"``).
 - **not comparable** (reported, never failed): the scene's content changed,
   the engine's options or variant changed, or the engine's version changed.
 - consistency (per variant, from its dt sweep, compare.results.consistency):
   a variant that converged to the reference in the baseline and converges
   to something else now is **worse**.
 - **new** / **missing**: a case only in the results / only in the baseline.
+  Missing cases fail the gate (named in a note) when the results were made
+  from the same suite as the baseline (an interrupted or partial run must not
+  pass), or when not one baseline case is in the results; after the suite
+  was edited, the cases it dropped are reported only.
+- a metric the baseline had a number for and the results have none (null:
+  the reference could not be solved, the engine stopped giving forces) is
+  **worse**: an absent number must not pass as unchanged.
 
 Everything here is a pure function of two baseline-shaped documents (the
 results are turned into baseline entries first), so the rules are tested
@@ -104,6 +122,8 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
+    #: True when the missing cases fail the gate (see the module docstring).
+    missing_fails: bool = False
 
     @property
     def counts(self) -> dict[str, int]:
@@ -114,7 +134,8 @@ class GateReport:
 
     @property
     def passed(self) -> bool:
-        return self.counts["worse"] == 0
+        counts = self.counts
+        return counts["worse"] == 0 and not (self.missing_fails and counts["missing"])
 
 
 # -- one metric -------------------------------------------------------------------------
@@ -160,6 +181,8 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
     b, c = baseline["cost"], current["cost"]
     if gated and min(len(baseline.get("repeats", ())), len(current.get("repeats", ()))) < MIN_TIMING_REPEATS:
         gated, why_not = False, f"fewer than {MIN_TIMING_REPEATS} timing repeats, so the noise is unknown (set repeats in the suite)"
+    if baseline.get("cpu") and current.get("cpu") and baseline.get("calibration") and current.get("calibration"):
+        return cpu_timing_change(baseline, current, factor, gated, why_not)
     noise = (baseline["spread"][1] - baseline["spread"][0]) + (current["spread"][1] - current["spread"][0])
     if c > factor * b and c - b > noise:
         verdict, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
@@ -170,6 +193,45 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
     if verdict != "unchanged" and not gated:
         note += f"; not gated: {why_not}"
     return Change(TIMING_METRIC, "s/s", b, c, factor * b, verdict, gated=gated, note=note)
+
+
+def best_spread(values: list[float]) -> float:
+    """(second best − best) / best of one side's repeats: how far its best is from being reproduced (0 for one)."""
+    ordered = sorted(values)
+    if len(ordered) < 2 or ordered[0] <= 0:
+        return 0.0
+    return (ordered[1] - ordered[0]) / ordered[0]
+
+
+def calibrated(timing: dict[str, Any]) -> list[float]:
+    """Each repeat's CPU cost (s/s) in units of the run's fastest calibration kernel (s)."""
+    unit = min(timing["calibration"])
+    return [c / unit for c in timing["cpu"]]
+
+
+def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor: float, gated: bool,
+                      why_not: str = "") -> Change:
+    """The statistical timing rule (module docstring) on two timing entries with "cpu" and "calibration".
+
+    worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated
+    costs, s = :func:`best_spread`; better in mirror. The Change shows the best CPU costs (s/s).
+    """
+    b_cal, c_cal = calibrated(baseline), calibrated(current)
+    ratio = min(c_cal) / min(b_cal)
+    widen = 1 + best_spread(b_cal) + best_spread(c_cal)
+    limit = factor * widen
+    b, c = min(baseline["cpu"]), min(current["cpu"])
+    how = (f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} repeats; "
+           f"limit {factor:g} × {widen:.3g} = {limit:.3g}")
+    if ratio > limit:
+        verdict, note = "worse", f"{ratio:.2f}× slower ({how})"
+    elif 1 / ratio > limit:
+        verdict, note = "better", f"{1 / ratio:.2f}× faster ({how})"
+    else:
+        verdict, note = "unchanged", ""
+    if verdict != "unchanged" and not gated:
+        note += f"; not gated: {why_not}"
+    return Change(TIMING_METRIC, "s/s", b, c, limit * b, verdict, gated=gated, note=note)
 
 
 # -- one case ------------------------------------------------------------------------
@@ -209,7 +271,11 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
     if b_status == "ok" and c_status == "ok":
         b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
         for rule in RULES.values():
-            change = accuracy_change(rule, b_metrics.get(rule.name), c_metrics.get(rule.name), settings)
+            b_value, c_value = b_metrics.get(rule.name), c_metrics.get(rule.name)
+            change = accuracy_change(rule, b_value, c_value, settings)
+            if change is None and b_value is not None and c_value is None:
+                change = Change(rule.name, rule.unit, b_value, None, None, "worse",
+                                note=f"no value now, the baseline had one: {current.get('message') or 'see the case'}")
             if change is not None:
                 changes.append(change)
         timing = timing_change(base.get("timing"), current.get("timing"), settings.timing_factor, timing_gated, why_not)
@@ -321,17 +387,28 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
             reason="in the baseline, not in the results", baseline_status=base["status"],
         ))
     results.sort(key=lambda r: (VERDICTS.index(r.verdict), r.position, r.scene_id, r.engine, -r.dt))
+    missing = [r for r in results if r.verdict == "missing"]
+    same_suite = (baseline.get("suite") or {}).get("fingerprint") == (current.get("suite") or {}).get("fingerprint")
+    missing_fails = bool(missing) and (same_suite or len(missing) == len(base_cases))
+    notes: tuple[str, ...] = ()
+    if missing_fails:
+        names = ", ".join(r.name for r in missing[:10]) + (f" and {len(missing) - 10} more" if len(missing) > 10 else "")
+        notes = (f"{len(missing)} of the baseline's {len(base_cases)} cases are missing from the results ({names}); "
+                 f"finish the run with 'xval run SUITE --output DIR --resume'",)
     return GateReport(
         suite=current["suite"].get("name", ""),
         cases=tuple(results),
         settings=settings,
         timing=timing,
         timing_note=why_not,
+        notes=notes,
+        missing_fails=missing_fails,
     )
 
 
 def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, baseline_path: str, *, timing: str = "gate") -> GateReport:
     """:func:`gate` after checking both come from the same suite; the report carries the suite notes."""
     notes = check_same_suite(baseline, current["suite"], baseline_path)
-    return replace(gate(baseline, current, settings, timing=timing), notes=tuple(notes))
+    report = gate(baseline, current, settings, timing=timing)
+    return replace(report, notes=(*notes, *report.notes))
 

@@ -3,7 +3,8 @@
 One ``<testcase>`` per scene × engine × dt: classname ``xval.<suite>.<scene>``,
 name ``<engine> dt=<dt>``. A worse case carries a ``<failure>`` whose
 message names the metric and both numbers; not comparable and missing cases
-are ``<skipped>`` with the reason (reported, not failed); better, unchanged
+are ``<skipped>`` with the reason (reported, not failed; missing cases are
+failures when they fail the gate, compare/gate/gate.py); better, unchanged
 and new cases pass, with what changed in ``<system-out>``.
 """
 
@@ -37,9 +38,9 @@ def to_junit(report: GateReport) -> str:
         "testsuite",
         name=f"xval gate: {report.suite}",
         tests=str(len(report.cases)),
-        failures=str(counts["worse"]),
+        failures=str(counts["worse"] + (counts["missing"] if report.missing_fails else 0)),
         errors="0",
-        skipped=str(counts["not comparable"] + counts["missing"]),
+        skipped=str(counts["not comparable"] + (0 if report.missing_fails else counts["missing"])),
     )
     for case in report.cases:
         element = ET.SubElement(
@@ -48,6 +49,9 @@ def to_junit(report: GateReport) -> str:
         detail = "\n".join("  ".join(v for v in row if v) for row in case_rows(case))
         if case.verdict == "worse":
             failure = ET.SubElement(element, "failure", message=f"{case.name}: {_failure_message(case)}", type="worse")
+            failure.text = detail
+        elif case.verdict == "missing" and report.missing_fails:
+            failure = ET.SubElement(element, "failure", message=f"{case.name}: missing: {case.reason}", type="missing")
             failure.text = detail
         elif case.verdict in ("not comparable", "missing"):
             ET.SubElement(element, "skipped", message=f"{case.verdict}: {case.reason}")

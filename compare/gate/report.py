@@ -11,9 +11,11 @@ with the case's verdict, so a row that starts ``worse`` always failed the gate.
 
 from __future__ import annotations
 
+import html
 from typing import Any
 
 from compare.gate.gate import CaseResult, Change, GateReport
+from compare.text import inert
 
 COLUMNS = ("verdict", "scene", "engine", "dt", "metric", "baseline", "current", "note")
 #: The metric an unchanged case is summarised by.
@@ -87,17 +89,19 @@ def format_table(report: GateReport) -> str:
 
 
 def _md_escape(text: str) -> str:
-    return text.replace("|", "\\|")
+    """A table cell or line of gate.md: HTML-escaped (a label ``<img src=x onerror=...>`` is text),
+    control characters made visible, and pipes escaped so a cell cannot split the row."""
+    return html.escape(inert(text), quote=False).replace("|", "\\|")
 
 
 def to_markdown(report: GateReport) -> str:
     """Markdown for a CI job summary: verdict, counts, the changed cases, the unchanged ones folded away."""
     state = "passed" if report.passed else "FAILED"
-    lines = [f"## xval gate {state}: suite {report.suite}", ""]
+    lines = [f"## xval gate {state}: suite {_md_escape(report.suite)}", ""]
     lines.append(", ".join(f"**{n}** {verdict}" for verdict, n in report.counts.items() if n) + ".")
     if report.timing_note:
-        lines.append(f"Timing not gated: {report.timing_note}.")
-    lines += [f"Note: {note}" for note in report.notes]
+        lines.append(f"Timing not gated: {_md_escape(report.timing_note)}.")
+    lines += [f"Note: {_md_escape(note)}" for note in report.notes]
     header = ["| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
 
     def rows_of(cases: list[CaseResult]) -> list[str]:

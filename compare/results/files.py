@@ -1,32 +1,138 @@
-"""Writing files so that a reader never sees half of one, and refusing unwritable paths up front."""
+"""Writing files so that a reader never sees half of one, and refusing bad output paths up front.
+
+Rules every output of xval follows (issue 21):
+
+- an output never replaces one of the command's inputs (a baseline, a
+  results directory's files, the suite): UserError, exit 2, before any work;
+- ``-`` is standard output, for the commands that offer it;
+- a symlink is written through: its target gets the new content and the
+  link stays a link;
+- a path that exists and is not a regular file is never replaced by one: a
+  directory is refused, a device or FIFO (``/dev/null``) is written in place;
+- a new file gets the mode the user's umask gives (``0666 & ~umask``), an
+  existing one keeps its mode (``tempfile.mkstemp`` alone would make 0600).
+"""
 
 from __future__ import annotations
 
 import os
+import stat
+import sys
 import tempfile
 from pathlib import Path
+from typing import Iterable
 
 from engines.errors import UserError
 
+#: The output path that means standard output.
+STDOUT = "-"
 
-def check_writable(path: str | os.PathLike, flag: str = "--output") -> Path:
-    """Raise UserError now, before any work, when ``path`` cannot be written."""
+
+def _inside(path: Path, directory: Path) -> bool:
+    try:
+        path.relative_to(directory)
+        return True
+    except ValueError:
+        return False
+
+
+def check_not_input(path: str | os.PathLike, inputs: Iterable[str | os.PathLike], flag: str = "--output") -> None:
+    """UserError when ``path`` is (or, for an input directory, lies inside) one of ``inputs``.
+
+    Paths are compared after resolving symlinks, so a link to an input is caught too.
+    """
+    if str(path) == STDOUT:
+        return
+    target = Path(path).resolve()
+    for given in inputs:
+        if given is None or str(given) == STDOUT:
+            continue
+        source = Path(given).resolve()
+        if target == source or (source.is_dir() and _inside(target, source)):
+            what = f"inside the input directory {given}" if target != source else f"the input {given}"
+            raise UserError(f"{flag}: {path} is {what}; writing it would replace what this command reads; "
+                            f"choose another path")
+
+
+def results_inputs(directory: str | os.PathLike) -> list[Path]:
+    """The files of a results directory a command reads (run.json, suite.toml, every case file):
+    what an output must never replace. Other files in the directory (report.html) may be written."""
+    root = Path(directory)
+    return [root / "run.json", root / "suite.toml", root / "cases"]
+
+
+def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iterable[str | os.PathLike] = ()) -> Path:
+    """Raise UserError now, before any work, when ``path`` cannot be written (or is one of ``inputs``).
+
+    Returns the path to give :func:`atomic_write_text`; ``-`` is returned as is (standard output).
+    """
+    if not str(path).strip():
+        raise UserError(f"{flag}: the path is empty; give a file name")
+    if str(path) == STDOUT:
+        return Path(STDOUT)
+    name = Path(path).name
+    if len(name.encode()) > 255:
+        raise UserError(f"{flag}: the file name {name[:40]}... is {len(name.encode())} bytes, "
+                        f"longer than the 255 a file system allows; choose a shorter name")
+    check_not_input(path, inputs, flag)
     target = Path(path)
-    parent = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():
+    real = target.resolve() if target.is_symlink() else target
+    parent = real.parent if str(real.parent) else Path(".")
+    if real.is_dir():
         raise UserError(f"{flag}: {target} is a directory; give a file name")
     if not parent.is_dir():
         raise UserError(f"{flag}: directory {parent} does not exist; create it or choose another path")
-    if not os.access(parent, os.W_OK) or (target.exists() and not os.access(target, os.W_OK)):
+    if real.exists() and not stat.S_ISREG(real.stat().st_mode):
+        if not os.access(real, os.W_OK):
+            raise UserError(f"{flag}: {target} is not writable; choose a path you can write")
+        return target  # a device or FIFO: written in place
+    if not os.access(parent, os.W_OK) or (real.exists() and not os.access(real, os.W_OK)):
         raise UserError(f"{flag}: {target} is not writable; choose a path you can write")
     return target
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to a temporary file beside ``path``, fsync it, then rename it into place."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
+def _umask() -> int:
+    """This process's umask (read from /proc where possible: setting it to read it is not thread-safe)."""
     try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` so that no reader sees half of it (the rules in the module docstring).
+
+    A regular file: a temporary beside it, fsynced, renamed into place. ``-``:
+    standard output. A symlink: its final target, the link kept. A device or
+    FIFO: written in place.
+    """
+    if str(path) == STDOUT:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return
+    target = Path(path)
+    if target.is_symlink():
+        target = target.resolve()  # write through the link; os.replace on the link would replace the link
+    try:
+        info = target.stat()
+    except FileNotFoundError:
+        info = None
+    if info is not None and not stat.S_ISREG(info.st_mode):
+        if stat.S_ISDIR(info.st_mode):
+            raise IsADirectoryError(21, "is a directory", str(target))
+        with open(target, "w", newline="") as handle:  # a device or FIFO is written, never replaced
+            handle.write(text)
+        return
+    mode = stat.S_IMODE(info.st_mode) if info is not None else 0o666 & ~_umask()
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name[:200]}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, mode)
         with os.fdopen(fd, "w", newline="") as handle:
             handle.write(text)
             handle.flush()
@@ -35,3 +141,17 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def remove_stale_temporaries(directory: str | os.PathLike) -> list[Path]:
+    """Delete the temporary files (``.NAME.*.tmp``) an atomic write left when its process was killed.
+
+    Only called under the run's lock (compare/run/lock.py), so no writer of
+    this directory is alive. Returns the paths removed.
+    """
+    removed = []
+    for tmp in Path(directory).rglob(".*.tmp"):
+        if tmp.is_file() and not tmp.is_symlink():
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed

@@ -13,6 +13,20 @@ seconds for the answer:
 - no answer in time: the host is killed, the case is ``timeout``, and the
   next case gets a new host.
 
+The reference solve of a scene (a :class:`ReferenceTask`) runs in the same
+host under the same timeout and memory limit, so a scene whose reference
+would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
+
+Lifetime: nothing xval starts outlives it. Each host is the leader of its
+own process group (so the engine's own children are killed with it on a
+timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGTERM
+when its worker dies, on which it SIGKILLs its whole group; pool workers get
+the same request for their parent, the ``xval`` process
+(:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before each task so that the
+task may map at most ``memory_limit`` bytes more than the host did at its
+start: a case past it raises MemoryError (or its allocation fails inside
+the engine) and is ``failed`` with the reason.
+
 Because the worker itself never runs engine code, a case that kills its
 process never breaks a ``ProcessPoolExecutor``. Reusing the host across
 cases (rather than forking per case) matters for speed: a fork per case
@@ -26,12 +40,15 @@ runner then rebuilds).
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
+import os
 import signal
+import sys
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 from engines.adapter import Engine
@@ -57,8 +74,38 @@ class CaseTask:
     repeats: int = 1
     timeout: float = 120.0
     isolate: bool = True
+    memory_limit: int | None = None
     #: An outside program's spec (engines.command.spec_of), so any worker, here or on another machine, can run it.
     command: Mapping[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class ReferenceTask:
+    """The reference solve of one scene, run in a case host like a case (picklable).
+
+    rtol, atol : DOP853's tolerances. timeout : s. memory_limit : bytes of address space, or None.
+    """
+
+    scene_id: str
+    scene: Scene
+    rtol: float
+    atol: float
+    timeout: float = 120.0
+    isolate: bool = True
+    memory_limit: int | None = None
+
+    @property
+    def name(self) -> str:
+        """The scene's name (what a Dask dashboard shows beside ``solve_reference``)."""
+        return self.scene.name
+
+    @property
+    def case_id(self) -> str:
+        return f"reference of scene {self.scene_id}"
+
+
+class ReferenceFailed(RuntimeError):
+    """The reference of a scene could not be solved (raised, timed out, died); the message says which."""
 
 
 @dataclass
@@ -68,6 +115,8 @@ class CaseOutcome:
     trajectory : the first run's Trajectory (its RunInfo holds the engine's
         own status), or None when the case failed or timed out outside the engine.
     wall_times : s, the stepping-loop wall time of each repeat.
+    cpu_times : s, the stepping-loop CPU time of each repeat (RunInfo.cpu_time).
+    calibrations : s, CPU time of :func:`calibration_cpu_time` run just before each repeat.
     status, message : ``ok`` when the trajectory's status applies; else ``failed`` or ``timeout``.
     elapsed : s, wall time of the whole case (model building and all repeats).
     """
@@ -78,6 +127,28 @@ class CaseOutcome:
     status: str = "ok"
     message: str = ""
     elapsed: float = 0.0
+    cpu_times: list[float] = field(default_factory=list)
+    calibrations: list[float] = field(default_factory=list)
+
+
+def calibration_cpu_time() -> float:
+    """s of this thread's CPU time for a fixed small kernel (~3 ms: 800 products of 24x24 matrices in a
+    Python loop, so both the interpreter and compiled code are in it).
+
+    Timed beside each repeat of a case, it measures how fast this CPU is
+    *right now*: a core shared with another VM's thread, a lower clock or a
+    cache shared with a busy neighbour slow the kernel and the engine alike,
+    so the timing gate divides one by the other (compare/gate/gate.py).
+    """
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((24, 24)), rng.standard_normal((24, 24)) / 5
+    started = time.thread_time()
+    for _ in range(800):
+        a = a @ b
+        a /= np.abs(a).max()
+    return time.thread_time() - started
 
 
 def _engine_for(task: CaseTask) -> Engine:
@@ -101,16 +172,23 @@ def simulate(task: CaseTask) -> CaseOutcome:
     engine = _engine_for(task)
     first: Trajectory | None = None
     wall_times: list[float] = []
+    cpu_times: list[float] = []
+    calibrations: list[float] = []
     with _command_deadline(task):
         for _ in range(task.repeats):
+            calibrations.append(calibration_cpu_time())
             trajectory = engine.simulate(
                 task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
             )
             wall_times.append(trajectory.info.wall_time)
+            cpu_times.append(trajectory.info.cpu_time)
+            if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
+                trajectory = _out_of_memory(task, trajectory)
             first = first or trajectory
             if trajectory.info.status != "ok":
                 break  # repeating a failed or unstable run would only time the failure
-    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start)
+    return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
+                       calibrations=calibrations[:len(cpu_times)])
 
 
 def _command_deadline(task: CaseTask) -> Any:
@@ -143,11 +221,137 @@ def warm_up(task: CaseTask) -> None:
         pass
 
 
-def _failure(task: CaseTask, exc: BaseException) -> CaseOutcome:
+#: Default address space a case may add to its host's, bytes (``--memory-limit``).
+DEFAULT_MEMORY_LIMIT = 4 * 2**30
+
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(sig: int = signal.SIGKILL) -> None:
+    """Ask the kernel to send ``sig`` to this process when its parent dies (Linux; a no-op elsewhere).
+
+    Used as the pool workers' initializer and by every case host, so a
+    ``kill -9`` of ``xval`` takes its workers, and they their hosts, with it.
+    The check of the parent after the call closes the window in which the
+    parent died before the request was made.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl here: the pipes still end orphaned hosts
+        return
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _kill_own_group(signum: int, frame: Any) -> None:
+    """The host's SIGTERM handler: SIGKILL the process groups of any outside program the engine runs
+    (engines.command starts each in a session of its own), then the host's own group (the host and
+    any child of the engine)."""
+    command = sys.modules.get("engines.command")
+    for group in list(getattr(command, "LIVE_GROUPS", ())):
+        try:
+            os.killpg(group, signal.SIGKILL)
+        except OSError:
+            pass
+    os.killpg(os.getpgrp(), signal.SIGKILL)
+
+
+def _become_host() -> None:
+    """Lead a process group of our own; on the worker's death, take the group down."""
+    try:
+        os.setpgid(0, 0)
+    except OSError:
+        pass
+    signal.signal(signal.SIGTERM, _kill_own_group)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the xval process's to handle
+    die_with_parent(signal.SIGTERM)
+
+
+def _address_space() -> int:
+    """Bytes of address space this process maps now (VmSize; 0 where /proc is missing)."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
+#: The host's address space when it started, bytes: the limit is counted from it.
+_START_SIZE: list[int] = []
+
+
+def _limit_memory(limit: int | None) -> None:
+    """Let this process map at most ``limit`` bytes more than it did at start (soft RLIMIT_AS; None: no limit).
+
+    Counted from the host's own start size (~0.7 GB with numba, MuJoCo and
+    PyBullet imported; more on a machine where libraries reserve per-core
+    thread arenas), so one ``--memory-limit`` means the same on every machine.
+    """
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return
+    if not _START_SIZE:
+        _START_SIZE.append(_address_space())
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    want = hard if limit is None else _START_SIZE[0] + limit
+    if hard != resource.RLIM_INFINITY:
+        want = min(want, hard)
+    if want != soft:
+        resource.setrlimit(resource.RLIMIT_AS, (want, hard))
+
+
+def format_bytes(n: int) -> str:
+    """``4294967296`` -> ``4 GiB``."""
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= size:
+            return f"{n / size:g} {unit}"
+    return f"{n} B"
+
+
+def _memory_message(task: Any, message: str) -> str:
+    return (f"ran out of memory past the memory limit of {format_bytes(task.memory_limit)} "
+            f"({message}); raise --memory-limit if the case needs more")
+
+
+def _out_of_memory(task: CaseTask, trajectory: Trajectory) -> Trajectory:
+    """The engine's ``failed`` trajectory with the memory limit named in its message (Engine.simulate
+    caught the MemoryError); the host then exits, since a process that hit its limit may be in any state."""
+    if task.memory_limit is None:
+        return trajectory
+    _HIT_LIMIT.set()
+    info = replace(trajectory.info, message=_memory_message(task, trajectory.info.message))
+    return replace(trajectory, info=info)
+
+
+#: Set when a task in this host ran out of memory: the host answers, then exits.
+_HIT_LIMIT = threading.Event()
+
+
+def _failure(task: Any, exc: BaseException) -> CaseOutcome:
     frame = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
     where = f" (at {frame[0].filename.rsplit('/', 1)[-1]}:{frame[0].lineno})" if frame else ""
     message = f"{type(exc).__name__}: {exc}".splitlines()[0] + where
+    if isinstance(exc, MemoryError) and task.memory_limit is not None:
+        message = _memory_message(task, message)
     return CaseOutcome(task.case_id, None, status="failed", message=message)
+
+
+def _run_in_host(task: Any) -> Any:
+    """What the host does with one task: a case's CaseOutcome, or a reference's solution."""
+    if isinstance(task, ReferenceTask):
+        from engines.reference import solve
+
+        return solve(task.scene, rtol=task.rtol, atol=task.atol)
+    warm_up(task)
+    return simulate(task)
 
 
 def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
@@ -159,20 +363,31 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
     """
     for end in worker_ends:
         end.close()
+    _become_host()
+    _START_SIZE[:] = [_address_space()]
     while True:
         try:
             task = requests.recv()
         except (EOFError, OSError):
             return
+        out_of_memory = False
         try:
-            warm_up(task)
-            outcome = simulate(task)
+            _limit_memory(task.memory_limit)
+            outcome = _run_in_host(task)
         except BaseException as exc:  # anything the engine throws is this case's result
+            out_of_memory = isinstance(exc, MemoryError)
             outcome = _failure(task, exc)
+        finally:
+            _limit_memory(None)
+        # A process that hit its limit may be in any state: it says so with its answer and exits, so
+        # the worker starts a new host for the next case rather than send it to one on its way out.
+        exiting = out_of_memory or _HIT_LIMIT.is_set()
         try:
-            replies.send(outcome)
+            replies.send((outcome, exiting))
         except Exception as exc:  # an unpicklable trajectory must still give an answer
-            replies.send(_failure(task, exc))
+            replies.send((_failure(task, exc), exiting))
+        if exiting:
+            return
 
 
 class _Host:
@@ -186,12 +401,19 @@ class _Host:
         self.process = context.Process(target=_host_loop, args=(child_requests, child_replies, self.requests, self.replies),
                                        daemon=True, name="xval-case-host")
         self.process.start()
+        try:
+            os.setpgid(self.process.pid, self.process.pid)  # also done by the host: whichever runs first
+        except OSError:
+            pass
         child_requests.close()
         child_replies.close()  # so a host that dies closes the pipe and recv() sees EOF
 
     def close(self, kill: bool = False) -> None:
-        if kill:
-            self.process.kill()
+        if kill:  # the host's whole group: the engine's own children too
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)
+            except OSError:
+                self.process.kill()
         self.requests.close()
         self.replies.close()
         self.process.join(timeout=10)
@@ -211,6 +433,24 @@ def _signal_name(exitcode: int | None) -> str:
     return f"exit code {exitcode}"
 
 
+def execute_reference(task: ReferenceTask) -> Any:
+    """The scene's reference solution, solved in this thread's case host under ``task.timeout``.
+
+    Raises ReferenceFailed saying why (the solver raised, ran past the
+    timeout, died or ran out of memory); the runner records it in each case
+    of the scene, whose position metrics are then null.
+    """
+    if not task.isolate:
+        from engines.reference import solve
+
+        return solve(task.scene, rtol=task.rtol, atol=task.atol)
+    answer = _ask_host(task)
+    if isinstance(answer, CaseOutcome):
+        reason = answer.message.replace("; raise --timeout if it is only slow", "")
+        raise ReferenceFailed(f"the reference of scene {task.scene_id!r} {reason}")
+    return answer
+
+
 def execute(task: CaseTask) -> CaseOutcome:
     """Run ``task`` in this thread's case host (unless ``task.isolate`` is False); never raises for the engine's sake."""
     start = time.perf_counter()
@@ -221,6 +461,18 @@ def execute(task: CaseTask) -> CaseOutcome:
             outcome = _failure(task, exc)
             outcome.elapsed = time.perf_counter() - start
             return outcome
+    outcome = _ask_host(task)
+    outcome.elapsed = time.perf_counter() - start
+    return outcome
+
+
+def _ask_host(task: Any) -> Any:
+    """Send ``task`` to this thread's host and wait at most ``task.timeout`` s for its answer.
+
+    Returns the host's answer, or a ``timeout`` / ``failed`` CaseOutcome when
+    it gave none (killed at the timeout, or died).
+    """
+    start = time.perf_counter()
     host: _Host | None = getattr(_local, "host", None)
     if host is None or not host.process.is_alive():
         host = _local.host = _Host()
@@ -241,7 +493,7 @@ def execute(task: CaseTask) -> CaseOutcome:
             elapsed=time.perf_counter() - start,
         )
     try:
-        outcome: CaseOutcome = host.replies.recv()
+        answer, exiting = host.replies.recv()
     except (EOFError, OSError):
         host.close()
         _local.host = None
@@ -252,5 +504,7 @@ def execute(task: CaseTask) -> CaseOutcome:
             message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
             elapsed=time.perf_counter() - start,
         )
-    outcome.elapsed = time.perf_counter() - start
-    return outcome
+    if exiting:
+        host.close()
+        _local.host = None
+    return answer

@@ -33,12 +33,16 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
+from engines.limits import check_case_size
 from engines.command import spec_of
 from engines.errors import Unsupported
 from engines.scene import Scene
 
 from compare.run.environment import environment
-from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.run.lock import RunLock
+from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseOutcome, CaseTask, ReferenceTask, die_with_parent,
+                                   execute, execute_reference)
+from compare.results.files import remove_stale_temporaries
 from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
@@ -114,11 +118,10 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
     return None
 
 
-def solve_reference(scene: Scene, rtol: float, atol: float) -> Any:
-    """The reference's dense solution of ``scene`` (runs in a worker; module-level so it pickles)."""
-    from engines.reference import solve
-
-    return solve(scene, rtol=rtol, atol=atol)
+def solve_reference(task: ReferenceTask) -> Any:
+    """The reference's dense solution of ``task.scene``, solved in the worker's case host under the
+    case timeout (runs in a worker; module-level so it pickles). Raises ReferenceFailed saying why not."""
+    return execute_reference(task)
 
 
 @dataclass(frozen=True)
@@ -142,7 +145,27 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def run_suite(
+def run_suite(suite: Suite, output: str | Path, **options: Any) -> RunSummary:
+    """Run ``suite`` into ``output`` (see :func:`_run_suite` for the options), holding the directory's lock.
+
+    Every case's size (steps, samples) is checked first: an absurd one is a
+    UserError before anything is written. A second run of the same directory
+    while this one holds it is a UserError naming this one's pid.
+    """
+    check_sizes(suite)
+    with RunLock(output):
+        return _run_suite(suite, output, **options)
+
+
+def check_sizes(suite: Suite) -> None:
+    """UserError naming the scene and dt of the first case too big to run (engines/limits.py)."""
+    for spec in suite.scenes:
+        for dt in suite.dts:
+            check_case_size(len(spec.scene.particles), spec.scene.duration, dt, suite.sample_interval,
+                            where=f"{suite.path}: scene {spec.id!r}")
+
+
+def _run_suite(
     suite: Suite,
     output: str | Path,
     *,
@@ -153,6 +176,7 @@ def run_suite(
     progress: Progress | None = None,
     isolate: bool = True,
     environment_extra: dict[str, Any] | None = None,
+    memory_limit: int | None = DEFAULT_MEMORY_LIMIT,
 ) -> RunSummary:
     """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
 
@@ -164,6 +188,8 @@ def run_suite(
     resume : continue the run already in ``output`` (same suite required).
     environment_extra : more entries for run.json's ``environment`` (a
         cluster's address and workers, see :mod:`compare.run.cluster`).
+    memory_limit : bytes of address space per case host (None: no limit);
+        a case past it is ``failed`` with the reason.
     """
     started = time.perf_counter()
     progress = progress or NullProgress()
@@ -178,6 +204,8 @@ def run_suite(
         "xval_version": compare_version(),
     }
     results = ResultsDir.open_for_run(output, suite.source, header, resume)
+    if resume:
+        remove_stale_temporaries(results.path)  # of a run killed mid-write; we hold the lock
     cases = plan(suite)
     done = results.done_ids() if resume else set()
     todo = [c for c in cases if c.id not in done]
@@ -195,7 +223,8 @@ def run_suite(
             else:
                 runnable.append(case)
         if runnable:
-            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate).run()
+            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate,
+                        memory_limit).run()
     finally:
         progress.stop()
     records = list(iter_records(results.cases))
@@ -220,10 +249,19 @@ def _status_counts(records: list[CaseRecord]) -> dict[str, int]:
     return dict(sorted(counts.items()))
 
 
+def _init_worker() -> None:
+    """A pool worker's start: die with the xval process, and import the reference solver once, here,
+    so the case hosts forked from this worker do not spend their first reference's timeout importing it."""
+    die_with_parent()
+    import engines.reference  # noqa: F401
+
+
 class _Dispatcher:
     """Submits references and cases, collects them as they finish, rebuilds a broken pool it owns."""
 
-    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate) -> None:
+    def __init__(self, suite, cases, writer, jobs, executor, timeout, isolate,
+                 memory_limit: int | None = DEFAULT_MEMORY_LIMIT) -> None:
+        self.memory_limit = memory_limit
         self.suite = suite
         self.cases = {c.id: c for c in cases}
         self.writer = writer
@@ -244,7 +282,9 @@ class _Dispatcher:
     def _new_pool(self) -> cf.Executor:
         # fork: workers inherit the imported engines; the workers are forked
         # before the progress bar starts its thread (all at first submit).
-        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"))
+        # die_with_parent: a kill -9 of xval takes its workers with it (and they their case hosts).
+        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
+                                      initializer=_init_worker)
 
     def task(self, case: Case) -> CaseTask:
         return CaseTask(
@@ -258,13 +298,16 @@ class _Dispatcher:
             repeats=self.suite.repeats,
             timeout=self.timeout,
             isolate=self.isolate,
+            memory_limit=self.memory_limit,
             command=spec_of(case.engine.engine),
         )
 
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
         scenes = {s.id: s.scene for s in self.suite.scenes}
         return {
-            self.executor.submit(solve_reference, scenes[sid], self.suite.rtol, self.suite.atol): ("reference", sid)
+            self.executor.submit(solve_reference, ReferenceTask(
+                sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit
+            )): ("reference", sid)
             for sid in scene_ids
         }
 
@@ -333,11 +376,23 @@ class _Dispatcher:
                     pending = self.recover(pending)
                 pending = self.fill(pending)
         except BaseException:
-            # Ctrl-C or a bug: stop the workers now; finished records are already on disk.
+            # Ctrl-C, SIGTERM or a bug: stop the workers now (their case hosts die with them);
+            # finished records are already on disk, and --resume runs the rest.
+            self.stop_workers()
             self.executor.shutdown(wait=False, cancel_futures=True)
             raise
         if self.own_executor:
             self.executor.shutdown(wait=True)
+
+    def stop_workers(self) -> None:
+        """SIGKILL the worker processes of a pool we own, rather than wait for their cases to end."""
+        if not self.own_executor:
+            return
+        for process in list((getattr(self.executor, "_processes", None) or {}).values()):
+            try:
+                process.kill()
+            except (OSError, AttributeError):
+                pass
 
     def handle(self, kind: str, key: str, value: Any) -> None:
         if kind == "reference":
@@ -435,6 +490,8 @@ def build_record(
         return jsonable(record)
     record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
     record["wall_times"] = outcome.wall_times
+    record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares,
+    record["calibrations"] = outcome.calibrations  # in units of this kernel's CPU time, timed beside each
     trajectory = outcome.trajectory
     if trajectory is None:
         return jsonable(record)
@@ -450,11 +507,13 @@ def build_record(
         trajectory = _truncate(trajectory, int(np.argmin(finite)))
     scheduled = Schedule.make(scene.duration, case.dt, suite.sample_interval).times
     n = trajectory.n_samples
+    reference_note = ""
     if isinstance(reference, Exception) or reference is None:
         why = reference if reference is not None else "no reference"
         ref_positions = np.full((n, len(scene.particles), 3), math.nan)
         ref_forces = None
-        message = "; ".join(m for m in (message, f"no reference solution ({why}), so no position metrics") if m)
+        reference_note = f"no reference solution ({why}), so no position metrics"
+        message = "; ".join(m for m in (message, reference_note) if m)
     else:
         # At the scheduled times (shared by every engine of this dt), of which the trajectory holds the first n.
         ref_positions, ref_forces = reference.at(scheduled)
@@ -476,7 +535,7 @@ def build_record(
         wall_times=outcome.wall_times,
         delta=suite.delta,
     )
-    status, message = apply_bounds(status, message, metrics, suite.bounds, scene)
+    status, message = _with_note(apply_bounds(status, message, metrics, suite.bounds, scene), reference_note)
     record["status"], record["message"] = status, message
     n_ref = min(n, len(ref_positions))
     extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
@@ -498,6 +557,14 @@ def build_record(
         if ref_forces is not None and len(ref_forces) >= n:
             record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
     return jsonable(record)
+
+
+def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
+    """(status, message) with ``note`` kept in the message (the bounds' verdict replaces the message)."""
+    status, message = verdict
+    if note and note not in message:
+        message = "; ".join(m for m in (message, note) if m)
+    return status, message
 
 
 class SampledReference:
