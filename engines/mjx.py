@@ -64,8 +64,9 @@ if importlib.util.find_spec("mujoco.mjx") is None:
 MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
 
 #: Deepest body tree the adapter compiles by default. Measured CPU time of jit(mjx.step).lower().compile()
-#: on a planar chain (mujoco-mjx 3.17.0, jax 0.10.2): 3.3 s at depth 2, 5.4 s at 4, 12.8 s at 8; depth 32
-#: had not finished after 17 minutes of wall time on a loaded 2-core machine. Deeper scenes are left out with this reason unless max_depth is raised.
+#: on a planar chain (mujoco-mjx 3.17.0, jax 0.10.2; scripts/peers_findings.py compile): 3.7 s at depth 2,
+#: 5.7 s at 4, 11.9 s at 8, growing faster than the depth; and the compiled loop is rebuilt in every case's
+#: process. Deeper scenes are left out with this reason unless max_depth is raised.
 MAX_DEPTH = 8
 
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
@@ -142,7 +143,7 @@ class MJXEngine(Engine):
         if depth > settings["max_depth"]:
             raise Unsupported(
                 f"mjx: the body tree is {depth} deep and MJX's jit compile on the CPU grows steeply with depth "
-                f"(12.8 s of CPU at depth 8; depth 32 unfinished after 17 min); set option max_depth = {depth} to run it anyway"
+                f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
             )
 
     def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str]:

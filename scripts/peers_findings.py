@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python scripts/peers_findings.py`` (needs ``pip install 'xval[all]'``; a
 few minutes, most of it MJX's jit compiles and ours' dt sweep; name sections to run only
-those: ``discrete mjx accuracy ours``). Prints four Markdown tables:
+those: ``discrete mjx accuracy ours compile``). Prints five Markdown tables:
 
 1. Drake RK3 at accuracy 1e-6 against ours' most accurate variant and dt whose cost
    (stepping wall time per simulated second, the best of 3 repeats) is no larger: bead
@@ -13,6 +13,8 @@ those: ``discrete mjx accuracy ours``). Prints four Markdown tables:
    each engine's default point-mass inertia, and with the same inertia (1e-9), and cost.
 4. Drake's error-controlled integrators on the double pendulum (2 s): error and steps
    against the accuracy setting, 1e-4 to 1e-10 (dt = 1e-2, the largest step).
+5. MJX's jit compile time of one step on chains of 2, 4 and 8 links (why deeper trees are
+   left out, engines/mjx.py).
 
 Errors are max over samples of the largest particle distance from the reference (DOP853,
 rtol = atol = 1e-12), in metres. Costs are ratios measured in this run, never absolutes.
@@ -144,16 +146,41 @@ def drake_accuracy() -> None:
         print(f"| drake/{variant} | " + " | ".join(cells) + " |")
 
 
+def mjx_compile_time() -> None:
+    """CPU time of jit(mjx.step).lower().compile() on planar chains of growing depth (float64, Euler)."""
+    import time
+
+    import mujoco
+
+    from engines.mjx import _jax
+
+    jax, mjx = _jax()  # imported as the adapter does (quiet about the absent warp)
+
+    print("\n### MJX jit compile of one step against the depth of the body tree (chain, float64, Euler)\n")
+    print("| links | compile CPU (s) | compile wall (s) |")
+    print("|---|---|---|")
+    for n in (2, 4, 8):
+        scene = catalog.build("chain", {"n": n, "duration": 1})
+        model, _ = MJX.build(scene, 1e-3, MJX.resolve("hinge"))
+        with jax.enable_x64(True):
+            jax.clear_caches()
+            mx, dx = mjx.put_model(model, impl="jax"), mjx.put_data(model, mujoco.MjData(model), impl="jax")
+            cpu, wall = time.process_time(), time.perf_counter()
+            jax.jit(mjx.step).lower(mx, dx).compile()
+            print(f"| {n} | {time.process_time() - cpu:.1f} | {time.perf_counter() - wall:.1f} |")
+
+
 SECTIONS = {
     "discrete": drake_discrete_against_mujoco,
     "mjx": mjx_precision,
     "accuracy": drake_accuracy,
     "ours": drake_against_ours,
+    "compile": mjx_compile_time,
 }
 
 
 def main(argv: list[str]) -> None:
-    """Print every section, or those named on the command line (discrete, mjx, accuracy, ours)."""
+    """Print every section, or those named on the command line (discrete, mjx, accuracy, ours, compile)."""
     print(f"drake {DRAKE.version()}; {MJX.version()}")
     for name in argv or list(SECTIONS):
         SECTIONS[name]()
