@@ -99,6 +99,12 @@ def test_a_tolerance_sweep_runs_and_its_error_falls_with_the_tolerance(tmp_path)
     assert sorted(r["tolerance"] for r in case_rows(records) if r["engine"] == "drake/rk3") == [1e-8, 1e-7, 1e-6,
                                                                                                1e-5, 1e-4]
     assert "tol 1e-08" in scene_tables(records)
+    # The verdict lines name a tolerance point by its tolerance.
+    from compare.results.verdict import points
+
+    rk3_sweep = next(s for s in sweeps(records) if s.engine == "drake/rk3")
+    assert [p.tolerance for p in points(rk3_sweep)] == [1e-4, 1e-5, 1e-6, 1e-7, 1e-8]
+    assert points(rk3_sweep)[-1].step.strip() == "tol 1e-08"
 
 
 def test_the_reference_sweeps_both_of_its_tolerances():
