@@ -1,24 +1,38 @@
-"""Speed of ours' compiled stepping loop, measured next to MuJoCo in the same run.
+"""Speed of ours, measured against a peer in the same run: one table, and the same rows as JSON.
 
-Prints:
-1. compile time of ours' loops: cold (empty numba cache, in a fresh process)
-   and warm (cache hit, in a fresh process);
-2. steps per second on the default double pendulum (dt = 1e-3, 10 s):
-   ours/baumgarte-rk4 and ours/rattle (stepping loop only, samples every
-   10 steps as the adapter records them), MuJoCo hinge + Euler as a Python
-   loop of mj_step (no recording) and through mujoco.rollout (one C call);
-3. per-step cost of ours on chains of 4, 16, 64 and 256 links (should grow
-   about linearly: the J W Jᵀ solve is a tridiagonal Cholesky).
+Sections (each row gives µs per step and its ratio to the row's peer):
 
-Times are medians of repeats of wall time on this machine, as it is loaded
-right now; compare numbers within one run, not across machines.
-Run: .venv/bin/python bench/bench_ours.py [--no-cold]
+1. compile — cold (fresh process, empty cache directory) and warm (fresh process,
+   same directory) for what the default suite compiles: ours' kernels for the
+   bead and the double pendulum, the Lagrangian loop, the reference's
+   right-hand side. Seconds of wall time and of CPU time (the machine is shared).
+2. yardstick — the double pendulum (dt 1e-4 s, 2 s) stepped by ours and by the
+   hand-fused kernels of the same arithmetic (``bench/fused.py`` in numba,
+   ``bench/fused.c`` with gcc -O3 when a compiler is present). The fused
+   kernels' final states are checked against ours' first. Targets: ours'
+   Baumgarte-RK4 ≤ 4× and RATTLE ≤ 3× the numba kernel.
+3. like with like — the double pendulum (dt 1e-3 s, 10 s) through each
+   engine's adapter (its recorded stepping time): ours' RK4 against MuJoCo's
+   RK4, ours' Euler variants against MuJoCo's Euler and PyBullet.
+4. chains of 4, 16, 64 and 256 links (dt 1e-3 s, 1 s): ours (RK4,
+   symplectic Euler, RATTLE) against MuJoCo (RK4, Euler) and PyBullet.
+
+Times are minima over repeats of thread CPU time (sections 2) or of the
+adapters' stepping wall time (3, 4): the minimum is the least disturbed
+run on a loaded machine. Compare ratios within a run, not across machines.
+
+    .venv/bin/python bench/bench_ours.py [--no-cold] [--quick] [--json PATH]
+
+``--quick``: fewer repeats and only the 4- and 16-link chains.
+The JSON (default results/bench/bench_ours.json) holds every row and the machine's load average.
 """
 
 from __future__ import annotations
 
+import ctypes
+import json
 import os
-import statistics
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -27,114 +41,225 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
+import numpy as np  # noqa: E402
+
+import fused  # noqa: E402
 import ours  # noqa: E402
 from engines import catalog  # noqa: E402
+from engines.ours import _to_system  # noqa: E402
 from engines.registry import resolve  # noqa: E402
 
-REPEATS = 5
-DT = 1e-3
+RK4_TARGET = 4.0
+SKIPPED: list[dict] = []
+RATTLE_TARGET = 3.0
+
+_COMPILE = r"""
+import json, time, numpy as np
+w, c = time.perf_counter(), time.process_time()
+import ours
+from engines import catalog
+from engines.ours import _to_system
+for name in ("bead", "double-pendulum"):
+    system, q0, v0, _ = _to_system(catalog.build(name))
+    for method in ("baumgarte", "lagrangian"):
+        ours.simulate(system, q0, v0, 1e-3, 1, method=method)
+        ours.multipliers(system, q0, v0)
+from engines._reference_kernels import chain_rhs
+chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
+print(json.dumps({"wall": time.perf_counter() - w, "cpu": time.process_time() - c}))
+"""
 
 
-def compile_seconds(cache_dir: str | None) -> float:
-    """Seconds ``ours.compile_all()`` takes in a fresh interpreter (``cache_dir``: a fresh numba cache)."""
-    env = dict(os.environ)
-    if cache_dir is not None:
-        env["NUMBA_CACHE_DIR"] = cache_dir
-    code = "import ours, sys; sys.stdout.write(repr(ours.compile_all()))"
-    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True, check=True)
-    return float(out.stdout)
+def compile_seconds(cache: str) -> dict[str, float]:
+    """Wall and CPU seconds to import and compile (or load) the default suite's kernels in a fresh process."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XVAL_CACHE_DIR"] = cache
+    out = subprocess.run([sys.executable, "-c", _COMPILE], env=env, cwd=ROOT, capture_output=True, text=True,
+                         check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def median_wall(run) -> float:
-    return statistics.median(run() for _ in range(REPEATS))
+def fastest(run, repeats: int) -> float:
+    """Least thread CPU time (s) of ``repeats`` calls of ``run``."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.thread_time()
+        run()
+        best = min(best, time.thread_time() - start)
+    return best
 
 
-def ours_seconds(scene, variant: str) -> tuple[float, int]:
-    engine, variant = resolve(f"ours/{variant}")
-    engine.simulate(scene, DT, variant=variant)  # warm-up (loads the compiled loop)
-    runs = [engine.simulate(scene, DT, variant=variant) for _ in range(REPEATS)]
-    bad = [r.info.message for r in runs if r.info.status != "ok"]
-    if bad:
-        raise RuntimeError(f"ours/{variant} did not run cleanly: {bad[0]}")
-    return statistics.median(r.info.wall_time for r in runs), runs[0].info.steps
+def c_kernels():
+    """The C yardsticks built with gcc -O3 into a temporary library, or None without a compiler."""
+    compiler = shutil.which("gcc") or shutil.which("cc")
+    if compiler is None:
+        return None
+    folder = tempfile.mkdtemp(prefix="xval-bench-")
+    library = os.path.join(folder, "fused.so")
+    subprocess.run([compiler, "-O3", "-ffp-contract=off", "-shared", "-fPIC", "-o", library,
+                    str(ROOT / "bench" / "fused.c"), "-lm"], check=True)
+    lib = ctypes.CDLL(library)
+    p = ctypes.POINTER(ctypes.c_double)
+    lib.double_pendulum_rk4.argtypes = [p, p, p, p, p, p, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                                        ctypes.c_long]
+    lib.double_pendulum_rattle.argtypes = [p, p, p, p, p, p, ctypes.c_double, ctypes.c_long, ctypes.c_double,
+                                           ctypes.c_long]
+    lib.double_pendulum_rattle.restype = ctypes.c_long
+    return lib
 
 
-def mujoco_rows(scene, n_steps: int) -> list[tuple[str, float]]:
-    try:
-        import mujoco
-        from mujoco import rollout
+def _ptr(a: np.ndarray):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
 
-        from engines.mujoco import ENGINE as MUJOCO, hinge_velocities
-    except ImportError as exc:
-        print(f"  mujoco: skipped ({exc})")
-        return []
-    settings = MUJOCO.resolve("hinge")
-    model, _xml, _inertia = MUJOCO.build(scene, DT, settings)
-    data = mujoco.MjData(model)
-    data.qvel[:] = hinge_velocities(scene, model)
-    mujoco.mj_forward(model, data)
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    initial = [0.0] * mujoco.mj_stateSize(model, spec)
-    import numpy as np
 
-    initial = np.empty(mujoco.mj_stateSize(model, spec))
-    mujoco.mj_getState(model, data, initial, spec)
+def yardstick_rows(repeats: int) -> list[dict]:
+    scene = catalog.build("double-pendulum", {"duration": 2.0})
+    system, q0, v0, _ = _to_system(scene)
+    dt, n = 1e-4, 20000
+    masses, gravity = np.array(system.masses), np.array(system.gravity)
+    anchor = np.array(system.constraints[0].anchor)
+    lengths = np.array([c.length for c in system.constraints])
+    ks, kd = ours.DEFAULT_K_S, ours.critical_damping(ours.DEFAULT_K_S)
+    lib = c_kernels()
+    rows = []
+    for label, method, target in (("Baumgarte-RK4", "baumgarte", RK4_TARGET), ("RATTLE", "rattle", RATTLE_TARGET)):
+        reference = ours.simulate(system, q0, v0, dt, n, n, method=method)
 
-    def python_loop() -> float:
-        mujoco.mj_setState(model, data, initial, spec)
-        step = mujoco.mj_step
-        start = time.perf_counter()
-        for _ in range(n_steps):
-            step(model, data)
-        return time.perf_counter() - start
+        def run_numba(q, v, method=method):
+            if method == "baumgarte":
+                fused.double_pendulum_rk4(q, v, masses, gravity, anchor, lengths, ks, kd, dt, n)
+            else:
+                fused.double_pendulum_rattle(q, v, masses, gravity, anchor, lengths, 1e-12, 50, dt, n)
 
-    def one_rollout() -> float:
-        start = time.perf_counter()
-        rollout.rollout(model, data, initial[None, :], nstep=n_steps)
-        return time.perf_counter() - start
+        def run_c(q, v, method=method):
+            args = (_ptr(q), _ptr(v), _ptr(masses), _ptr(gravity), _ptr(anchor), _ptr(lengths))
+            if method == "baumgarte":
+                lib.double_pendulum_rk4(*args, ks, kd, dt, n)
+            else:
+                lib.double_pendulum_rattle(*args, 1e-12, 50, dt, n)
 
-    python_loop()
-    one_rollout()
-    rows = [("mujoco hinge Euler, Python loop of mj_step", median_wall(python_loop)),
-            ("mujoco hinge Euler, mujoco.rollout", median_wall(one_rollout))]
-    adapter = [MUJOCO.simulate(scene, DT, variant="hinge").info.wall_time for _ in range(REPEATS)]
-    rows.append(("mujoco/hinge through its adapter (loop + recording)", statistics.median(adapter)))
+        kernels = [("hand-fused numba", run_numba)] + ([("hand-fused C (gcc -O3)", run_c)] if lib else [])
+        seconds = {"ours": fastest(lambda: ours.simulate(system, q0, v0, dt, n, 100, method=method), repeats)}
+        agreement = {}
+        for name, run in kernels:
+            q, v = q0.copy(), v0.copy()
+            run(q, v)
+            agreement[name] = float(max(np.abs(q - reference.q[-1]).max(), np.abs(v - reference.v[-1]).max()))
+            seconds[name] = fastest(lambda run=run: run(q0.copy(), v0.copy()), repeats)
+        peer = seconds["hand-fused numba"]
+        case = f"double pendulum, {label}, dt 1e-4"
+        rows.append({"section": "yardstick", "case": case, "engine": f"ours/{'baumgarte-rk4' if method == 'baumgarte' else 'rattle'}",
+                     "us_per_step": seconds["ours"] / n * 1e6, "peer": "hand-fused numba",
+                     "ratio": seconds["ours"] / peer, "target": f"≤ {target:g}×",
+                     "met": seconds["ours"] / peer <= target})
+        for name, _ in kernels:
+            rows.append({"section": "yardstick", "case": case, "engine": name, "us_per_step": seconds[name] / n * 1e6,
+                         "peer": "hand-fused numba", "ratio": seconds[name] / peer,
+                         "note": f"final state within {agreement[name]:.1e} of ours"})
     return rows
 
 
-def main() -> None:
-    cold = "--no-cold" not in sys.argv
-    print("ours: compile time of the stepping loops (fresh process each)")
-    if cold:
-        with tempfile.TemporaryDirectory() as empty:
-            print(f"  cold, empty numba cache : {compile_seconds(empty):8.2f} s")
-    print(f"  warm, from the cache    : {compile_seconds(None):8.2f} s")
-    ours.compile_all()
+def adapter_seconds(engine_id: str, scene, dt: float, repeats: int) -> tuple[float, int] | None:
+    """Least stepping wall time (s) of ``repeats`` runs through the engine's adapter, and its steps."""
+    try:
+        engine, variant = resolve(engine_id)
+        runs = [engine.simulate(scene, dt, variant=variant) for _ in range(repeats + 1)][1:]
+    except Exception as exc:  # noqa: BLE001 - a missing engine or a scene it refuses is a skipped row
+        SKIPPED.append({"engine": engine_id, "case": scene.name, "why": str(exc).splitlines()[0][:160]})
+        return None
+    bad = [r.info for r in runs if r.info.status != "ok"]
+    if bad:
+        print(f"  {engine_id}: not ok ({bad[0].status}: {bad[0].message})", file=sys.stderr)
+        return None
+    return min(r.info.wall_time for r in runs), runs[0].info.steps
 
-    scene = catalog.build("double-pendulum")
-    print(f"\nsteps per second, default double pendulum, dt = {DT:g} s, {scene.duration:g} s "
-          f"(median of {REPEATS})")
+
+def compare_rows(section: str, case: str, scene, dt: float, pairs, repeats: int) -> list[dict]:
+    """Rows for each (ours variant, [peer engine ids]) in ``pairs``: every peer's own row, then ours' ratios."""
     rows = []
-    n_steps = 0
-    for variant in ("baumgarte-rk4", "rattle"):
-        seconds, n_steps = ours_seconds(scene, variant)
-        rows.append((f"ours/{variant}", seconds))
-    rows += mujoco_rows(scene, n_steps)
-    for label, seconds in rows:
-        print(f"  {label:<55s} {n_steps / seconds:12,.0f} steps/s  ({seconds / n_steps * 1e6:6.2f} µs/step)")
+    cache: dict[str, tuple[float, int] | None] = {}
+    for ours_id, peers in pairs:
+        for engine_id in (ours_id, *peers):
+            if engine_id not in cache:
+                cache[engine_id] = adapter_seconds(engine_id, scene, dt, repeats)
+        mine = cache[ours_id]
+        if mine is None:
+            continue
+        for peer in peers:
+            theirs = cache[peer]
+            if theirs is None:
+                continue
+            rows.append({"section": section, "case": case, "engine": ours_id,
+                         "us_per_step": mine[0] / mine[1] * 1e6, "peer": peer,
+                         "peer_us_per_step": theirs[0] / theirs[1] * 1e6,
+                         "ratio": (mine[0] / mine[1]) / (theirs[0] / theirs[1])})
+    return rows
 
-    print("\nper-step cost on chains (catalog 'chain', 1 s, dt = 1e-3; median of repeats)")
-    print(f"  {'links':>5s} {'baumgarte-rk4 µs':>17s} {'per link':>9s} {'rattle µs':>10s} {'per link':>9s}")
-    for n in (4, 16, 64, 256):
+
+def main(argv: list[str]) -> int:
+    quick = "--quick" in argv
+    repeats, adapter_repeats = (5, 2) if quick else (20, 5)
+    json_path = Path(argv[argv.index("--json") + 1]) if "--json" in argv else ROOT / "results" / "bench" / "bench_ours.json"
+    rows: list[dict] = []
+
+    if "--no-cold" not in argv:
+        with tempfile.TemporaryDirectory() as cache:
+            cold = compile_seconds(cache)
+            warm = compile_seconds(cache)
+        for label, value in (("cold (empty cache)", cold), ("warm (cached)", warm)):
+            rows.append({"section": "compile", "case": f"default suite's kernels, {label}", "engine": "ours + reference",
+                         "wall_s": value["wall"], "cpu_s": value["cpu"], "target": "≤ 20 s" if "cold" in label else "",
+                         "met": value["wall"] <= 20.0 if "cold" in label else None})
+
+    ours.compile_all()
+    rows += yardstick_rows(repeats)
+
+    dp = catalog.build("double-pendulum")
+    rows += compare_rows("like with like", "double pendulum, dt 1e-3, 10 s", dp, 1e-3, [
+        ("ours/baumgarte-rk4", ["mujoco/hinge-rk4"]),
+        ("ours/rattle", ["mujoco/hinge", "pybullet/multibody"]),
+        ("ours/baumgarte-symplectic-euler", ["mujoco/hinge", "pybullet/multibody"]),
+        ("ours/baumgarte-euler", ["mujoco/hinge", "pybullet/multibody"]),
+        ("ours/plain-euler", ["mujoco/hinge", "pybullet/multibody"]),
+    ], adapter_repeats)
+
+    for n in (4, 16) if quick else (4, 16, 64, 256):
         chain = catalog.build("chain", {"n": n, "duration": 1.0})
-        cells = []
-        for variant in ("baumgarte-rk4", "rattle"):
-            seconds, steps = ours_seconds(chain, variant)
-            per_step = seconds / steps * 1e6
-            cells += [per_step, per_step / n]
-        print(f"  {n:5d} {cells[0]:17.2f} {cells[1]:9.3f} {cells[2]:10.2f} {cells[3]:9.3f}")
+        rows += compare_rows("chains", f"chain of {n} links, dt 1e-3, 1 s", chain, 1e-3, [
+            ("ours/baumgarte-rk4", ["mujoco/hinge-rk4"]),
+            ("ours/baumgarte-symplectic-euler", ["mujoco/hinge", "pybullet/multibody", "pybullet/p2p"]),
+            ("ours/rattle", ["mujoco/hinge", "pybullet/multibody", "pybullet/p2p"]),
+        ], adapter_repeats)
+
+    print_table(rows)
+    for skip in SKIPPED:
+        print(f"skipped: {skip['engine']} on {skip['case']}: {skip['why']}")
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps({"load_average": os.getloadavg(), "cpus": os.cpu_count(), "rows": rows,
+                                     "skipped": SKIPPED}, indent=1), encoding="utf-8")
+    print(f"\nrows written to {json_path}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    return 0
+
+
+def print_table(rows: list[dict]) -> None:
+    header = f"{'section':<15} {'case':<42} {'engine':<33} {'µs/step':>9} {'peer':<24} {'peer µs':>9} {'ratio':>7}  target"
+    print(header)
+    print("-" * len(header))
+    for r in rows:
+        if r["section"] == "compile":
+            print(f"{r['section']:<15} {r['case']:<42} {r['engine']:<33} "
+                  f"{r['wall_s']:8.1f}s wall, {r['cpu_s']:.1f} s CPU{'':<17} {r.get('target', '')}"
+                  + ("" if r.get("met") is None else ("  met" if r["met"] else "  MISSED")))
+            continue
+        peer_us = r.get("peer_us_per_step")
+        target = r.get("target", "")
+        if target:
+            target += "  met" if r.get("met") else "  MISSED"
+        print(f"{r['section']:<15} {r['case']:<42} {r['engine']:<33} {r['us_per_step']:9.3f} {r['peer']:<24} "
+              f"{'' if peer_us is None else f'{peer_us:9.3f}':>9} {r['ratio']:6.2f}×  {target or r.get('note', '')}")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main(sys.argv[1:]))

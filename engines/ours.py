@@ -103,6 +103,22 @@ class OursEngine(Engine):
     def version(self) -> str:
         return ours.__version__
 
+    def preload(self, scenes) -> None:
+        """Compile, or load from numba's cache, the kernels these scenes will use, in this process.
+
+        A runner calls it before it forks its workers, which then inherit the loaded machine code
+        instead of each loading it again. A scene ours cannot express is passed over (its cases say why).
+        """
+        _ensure_compiled()
+        for scene in scenes:
+            try:
+                system, q0, v0, _ = _to_system(scene)
+                ours.simulate(system, q0, v0, 1e-3, 1, method="baumgarte")
+                if system.dim == 2 and system.chain_order() is None:
+                    ours.simulate(system, q0, v0, 1e-3, 1, method="lagrangian")
+            except (Unsupported, ours.OursError):
+                continue
+
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])

@@ -31,10 +31,8 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Mapping
 
-import numba
 import numpy as np
 import scipy
-from scipy.integrate import solve_ivp
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
@@ -98,11 +96,15 @@ class PlanarChain:
     def accelerations(self, theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
         """(n,) rad/s²: θ̈ from Lagrange's equations."""
         gx, gz = self.gravity
-        return _chain_accelerations(theta, theta_dot, self._inertia, self._weight, gx, gz)
+        from engines._reference_kernels import chain_accelerations
+
+        return chain_accelerations(theta, theta_dot, self._inertia, self._weight, gx, gz)
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         gx, gz = self.gravity
-        return _chain_rhs(y, self._inertia, self._weight, gx, gz)
+        from engines._reference_kernels import chain_rhs
+
+        return chain_rhs(y, self._inertia, self._weight, gx, gz)
 
     def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Positions, velocities (n_samples, P, 3) and constraint forces (n_samples, C, 3) from states (n_samples, 2n)."""
@@ -133,56 +135,6 @@ class PlanarChain:
             c = self.constraint_of_link[k]
             forces[:, c, 0], forces[:, c, 2] = sign * f[:, k, 0], sign * f[:, k, 1]
         return positions, velocities, forces
-
-
-@numba.njit(cache=True)
-def _chain_accelerations(theta, theta_dot, inertia, weight, gx, gz):  # pragma: no cover - compiled
-    """θ̈ (n,) solving M θ̈ = G − S θ̇² by Cholesky (M is symmetric positive definite).
-
-    Compiled because DOP853 at 1e-12 calls it ~10⁵ times per scene and numpy's
-    per-call overhead on 2×2 arrays is ~15× the arithmetic.
-    """
-    n = theta.shape[0]
-    m = np.empty((n, n))
-    b = np.empty(n)
-    for i in range(n):
-        r = weight[i] * (gx * np.cos(theta[i]) + gz * np.sin(theta[i]))
-        for j in range(n):
-            d = theta[i] - theta[j]
-            m[i, j] = inertia[i, j] * np.cos(d)
-            r -= inertia[i, j] * np.sin(d) * theta_dot[j] ** 2
-        b[i] = r
-    # In-place Cholesky M = L Lᵀ (lower triangle), then two triangular solves.
-    for j in range(n):
-        s = m[j, j]
-        for k in range(j):
-            s -= m[j, k] * m[j, k]
-        m[j, j] = np.sqrt(s)
-        for i in range(j + 1, n):
-            s = m[i, j]
-            for k in range(j):
-                s -= m[i, k] * m[j, k]
-            m[i, j] = s / m[j, j]
-    for i in range(n):
-        s = b[i]
-        for k in range(i):
-            s -= m[i, k] * b[k]
-        b[i] = s / m[i, i]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for k in range(i + 1, n):
-            s -= m[k, i] * b[k]
-        b[i] = s / m[i, i]
-    return b
-
-
-@numba.njit(cache=True)
-def _chain_rhs(y, inertia, weight, gx, gz):  # pragma: no cover - compiled
-    n = y.shape[0] // 2
-    out = np.empty(2 * n)
-    out[:n] = y[n:]
-    out[n:] = _chain_accelerations(y[:n], y[n:], inertia, weight, gx, gz)
-    return out
 
 
 def planar_chain(scene: Scene) -> PlanarChain:
@@ -335,6 +287,8 @@ def solve(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) 
     model = model_for(scene)
     y0 = model.initial_state(scene)
     start = time.perf_counter()
+    from scipy.integrate import solve_ivp  # imported here: `xval engines` need not load it
+
     result = solve_ivp(
         model.rhs, (0.0, scene.duration), y0, method="DOP853", rtol=rtol, atol=atol, dense_output=True
     )
@@ -366,6 +320,15 @@ class ReferenceEngine(Engine):
     def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
         """DOP853 is always error-controlled: on a tolerance axis it sweeps rtol = atol."""
         return True
+
+    def preload(self, scenes) -> None:
+        """Import scipy's integrators and load the compiled right-hand side (numba's cache) in this
+        process, so that workers forked from it do not each do it again."""
+        import scipy.integrate  # noqa: F401
+
+        from engines._reference_kernels import chain_rhs
+
+        chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)

@@ -11,13 +11,17 @@ constraint runs the general dense λ formula (``ours.general``, numpy).
     >>> run = simulate(bead, [[1.0, 0.0]], [[0.0, 0.0]], 1e-3, 1000, 10, method="rattle")
 """
 
-from ours.bead import bead_multiplier
-from ours.constraint import CurveConstraint, DistanceConstraint, Ellipse, Line, Pin, Rod, Wire
-from ours.errors import InvalidPair, ModelError, OursError
-from ours.integrator import INTEGRATORS, Integrator, get_integrator
-from ours.method import DEFAULT_K_S, METHODS, critical_damping, resolve_pair, valid_pairs
-from ours.simulate import Result, compile_all, multipliers, simulate
-from ours.system import System
+from ours.cache import configure_numba
+
+configure_numba()  # before anything imports numba (ours imports it on the first simulate)
+
+from ours.bead import bead_multiplier  # noqa: E402
+from ours.constraint import CurveConstraint, DistanceConstraint, Ellipse, Line, Pin, Rod, Wire  # noqa: E402
+from ours.errors import InvalidPair, ModelError, OursError  # noqa: E402
+from ours.integrator import INTEGRATORS, Integrator, get_integrator  # noqa: E402
+from ours.method import DEFAULT_K_S, METHODS, critical_damping, resolve_pair, valid_pairs  # noqa: E402
+from ours.simulate import Result, compile_all, multipliers, simulate  # noqa: E402
+from ours.system import System  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -19,22 +19,34 @@ from numba import njit
 #: about 2x slower per step on the double pendulum. The price: compiled code must
 #: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
 #: numba's switch for this (an underscored option of numba 0.68's ``njit``).
-try:
-    # Probe once: if a numba release drops the private switch, fall back to the
-    # public decorator (same results; the compiled code allocates nothing either way).
-    njit(_nrt=False)(lambda: 0)()
+def _has_nrt_switch() -> bool:
+    """Whether this numba accepts ``_nrt`` (checked on its option table: probing by compiling
+    a function would cost a compilation at every import)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+    except ImportError:  # pragma: no cover - a numba that moved its options
+        return False
+    return hasattr(CPUTargetOptions, "_nrt")
+
+
+if _has_nrt_switch():
     compiled = njit(cache=True, _nrt=False)
-except Exception:  # noqa: BLE001 - any rejection of the option means "not available"
+    inlined = njit(cache=True, _nrt=False, inline="always")
+else:  # pragma: no cover - same results; the compiled code allocates nothing either way
     compiled = njit(cache=True)
+    inlined = njit(cache=True, inline="always")
+
+#: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
+#: per-constraint functions called inside the step, where a call would copy every array argument).
 
 
 @compiled
-def cholesky_banded(band, b):
+def cholesky_banded(band, n, b):
     """Factor A = L Lᵀ in place (L in ``band``); False when A is not positive definite.
 
-    band : (n, b + 1) the lower band of A; b : bandwidth.
+    band : (n, b + 1) the lower band of A; n : its rows; b : bandwidth. (n is an
+    argument so that a caller that knows it as a constant gets the loops unrolled.)
     """
-    n = band.shape[0]
     for i in range(n):
         lo = max(0, i - b)
         for j in range(lo, i + 1):
@@ -52,9 +64,8 @@ def cholesky_banded(band, b):
 
 
 @compiled
-def solve_banded(band, b, x):
-    """Solve L Lᵀ x = r in place (``x`` holds r on entry) with L from :func:`cholesky_banded`."""
-    n = band.shape[0]
+def solve_banded(band, n, b, x):
+    """Solve L Lᵀ x = r in place (``x`` holds r on entry, n entries) with L from :func:`cholesky_banded`."""
     for i in range(n):
         s = x[i]
         for k in range(max(0, i - b), i):

@@ -4,17 +4,22 @@ Two families: distance constraints (Pin, Wire, Rod; below) and curve
 constraints (Line, Ellipse: one particle on an implicit curve of a 2-D
 system; at the end of the file).
 
-Every kind of the distance family is a *distance* constraint between a particle i and an
-"other end" (a second particle j, or a fixed point a):
+Every distance constraint joins a particle i to an "other end" (a second
+particle j, or a fixed point a) and depends only on the separation
+d = xᵢ − x_other, so its Jacobian is g = ∂C/∂d on i and −g on j:
 
-    C = ½(‖d‖² − l²),   d = xᵢ − x_other   (m²)
-    ∂C/∂xᵢ = d,  ∂C/∂xⱼ = −d               (m)
-    J̇q̇ = ‖ḋ‖² = ‖vᵢ − vⱼ‖²                (m²/s²)
+    C = ½(‖d‖² − l²)   (m²),   g = d   (m),   J̇q̇ = ‖ḋ‖² = ‖vᵢ − vⱼ‖²   (m²/s²)
 
-so each class only says which ends it joins and its length. The compiled
-stepping loop (``ours.kernel``) reads the packed form from :meth:`encode`;
-a new distance-family kind is one small class like those below. The numpy
-methods here are the readable closed forms, used by tests and the dense
+so each class only says which ends it joins and its length.
+
+The compiled loop (``ours.kernel``) reads the packed form from :meth:`encode`:
+(i, j, anchor, kind, parameters, scale). To add a kind that depends on d
+alone: a class here whose ``encode`` returns a new kind code and its
+parameters, and one branch for that code in ``ours.kernel.constraint_value``
+(C and g) and ``ours.kernel.constraint_rate`` (J̇q̇ and Ċ); the specialised
+copies of the kernel (``ours.specialize``) pick the branch up with no other
+change. (The curve constraints are stepped by ``ours.general`` instead.) The
+numpy methods here are the readable closed forms, used by tests and the dense
 check against the compiled banded solve.
 
 Indices are particle indices of the :class:`ours.system.System`; positions
@@ -28,6 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ours.errors import ModelError
+
+#: Kind codes of the compiled loop (``ours.kernel``); one per closed form.
+DISTANCE = 0
 
 
 def _point(value, field: str) -> tuple[float, ...]:
@@ -97,11 +105,13 @@ class DistanceConstraint:
         dv = v[i] - (v[j] if j >= 0 else 0.0)
         return float(dv @ dv)
 
-    def encode(self, dim: int) -> tuple[int, int, tuple[float, ...], float]:
-        """(i, j, anchor padded to ``dim``, length): one row of the compiled loop's constraint table."""
+    def encode(self, dim: int) -> tuple[int, int, tuple[float, ...], int, tuple[float, ...], float]:
+        """One row of the compiled loop's constraint table: (i, j, anchor padded to ``dim``, kind,
+        parameters, scale). For a distance: kind ``DISTANCE``, parameters (l²,), scale l² (the
+        tolerance of projection and RATTLE applies to |C| / scale, about the relative length error)."""
         i, j, anchor = self.ends()
         point = tuple(anchor[:dim]) if anchor is not None else (0.0,) * dim
-        return i, j, point, self.length
+        return i, j, point, DISTANCE, (self.length**2,), self.length**2
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ours import kernel
+from ours import status as kernel  # the stop codes (OK, …), shared with the compiled loop
 from ours.constraint import CurveConstraint
 from ours.errors import ModelError
 from ours.method import BAUMGARTE, LAGRANGIAN, PROJECTION, Method

@@ -1,15 +1,30 @@
 """The compiled stepping loop in maximal coordinates (positions and velocities of every particle).
 
 Everything here is numba-compiled (``ours.banded.compiled``: cached, no
-reference counting): the first call compiles (tens of seconds), later calls and
-later processes load the cached machine code. All calls use the same argument
-types (float64 / int64 C arrays, dim 2 or 3 as a runtime size), so each
-function has one compiled specialization. The compiled code allocates
-nothing: scratch arrays come from :func:`workspace`.
+reference counting). The compiled code allocates nothing: scratch arrays come
+from :func:`workspace`.
+
+Specialisation. The sizes the loops run over come from the small functions in
+the block marked ``SIZES`` (``_dim``: 2 or 3). ``ours.specialize`` writes a
+copy of this file in which that block returns constants (``_dim`` → 2), so
+LLVM unrolls the per-coordinate loops and keeps them in registers; that copy is
+what :func:`ours.simulate` runs. Imported as it stands, this module is the
+generic form (sizes read from the arrays at run time) with the same results
+bit for bit.
+
+Constraints. Every constraint k joins its first particle i to an "other end"
+(particle j, or the fixed point ``anchor[k]`` when j = −1) and depends only on
+the separation d = xᵢ − x_other. So its Jacobian row is g on i and −g on j, with
+g = ∂C/∂d, and J W Jᵀ has (k, l) entry Σ_p ±w_p g_k·g_l over the particles p
+they share (the ``pair_*`` tables of :class:`ours.system.Packed`). What a kind
+contributes — C, g, J̇q̇ and the scale of its violation — is in
+:func:`constraint_value` and :func:`constraint_rate`, one branch per kind; a
+new kind is one branch in each (and a class in ``ours.constraint``).
 
 Shapes: P particles, C constraints, dim 2 or 3. ``model`` is the tuple
-(inverse_mass (P,), force (P, dim), ends (C, 2), anchor (C, dim), length2 (C,),
-pair_k, pair_l, pair_w (N,), bandwidth) of :class:`ours.system.Packed`.
+(inverse_mass (P,), force (P, dim), ends (C, 2), anchor (C, dim), kind (C,),
+param (C, n_param), scale (C,), pair_k, pair_l, pair_w (N,), bandwidth) of
+:class:`ours.system.Packed`.
 """
 
 from __future__ import annotations
@@ -19,6 +34,43 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
+from ours.constraint import DISTANCE
+from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
+
+# ---- SIZES (ours.specialize replaces this block with constants) ----
+
+
+@compiled
+def _dim(x):
+    """Number of coordinates per particle (columns of a (P, dim) or (C, dim) array)."""
+    return x.shape[1]
+
+
+@compiled
+def _particles(x):
+    """P, the rows of a (P, dim) array."""
+    return x.shape[0]
+
+
+@compiled
+def _constraints(x):
+    """C, the rows of a (C, …) array."""
+    return x.shape[0]
+
+
+@compiled
+def _band_columns(band):
+    """bandwidth + 1, the columns of the (C, bandwidth + 1) band of J W Jᵀ."""
+    return band.shape[1]
+
+
+@compiled
+def _pairs(pair_k):
+    """N, the nonzeros of the lower band of J W Jᵀ (entries of the pair tables)."""
+    return pair_k.shape[0]
+
+
+# ---- END SIZES ----
 
 
 def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
@@ -29,152 +81,166 @@ def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
             z((P, dim)), z((P, dim)), rattle)
 
 
-#: Why the loop stopped (0 = ran to the end).
-OK, NON_FINITE, SINGULAR, NOT_CONVERGED = 0, 1, 2, 3
+# Why the loop stopped (0 = ran to the end): ours.status.
 
 # Method and integrator codes (mirrors of ours.method / ours.integrator, kept
 # literal here so the compiled code has no Python-object lookups).
 _PLAIN, _BAUMGARTE, _PROJECTION, _RATTLE_METHOD = 0, 1, 2, 3
 _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 
+# Constraint kinds (set by ``encode`` in ``ours.constraint``):
+# DISTANCE: C = ½(‖d‖² − l²), param = (l²,), g = d, J̇q̇ = ‖ḋ‖², scale l².
+
 
 @compiled
-def constraint_vectors(q, ends, anchor, D):
-    """D[k] = x_i − x_j (or − the fixed point), m."""
-    dim = q.shape[1]
-    for k in range(ends.shape[0]):
-        i, j = ends[k, 0], ends[k, 1]
+def constraint_value(k, q, ends, anchor, kind, param, G):
+    """C_k (the constraint's own unit) at q; writes g = ∂C_k/∂d into G[k] (dim,).
+
+    ends, anchor, kind, param : the fields of ``model`` (passed one by one: a call that
+    is not inlined copies its arguments)."""
+    i, j = ends[k, 0], ends[k, 1]
+    dim = _dim(q)
+    if kind[k] == DISTANCE:
+        s = 0.0
         for a in range(dim):
-            D[k, a] = q[i, a] - (q[j, a] if j >= 0 else anchor[k, a])
+            d = q[i, a] - (q[j, a] if j >= 0 else anchor[k, a])
+            G[k, a] = d
+            s += d * d
+        return 0.5 * (s - param[k, 0])
+    return np.nan
 
 
 @compiled
-def relative_velocities(v, ends, V):
-    """V[k] = v_i − v_j (a fixed end does not move), m/s."""
-    dim = v.shape[1]
-    for k in range(ends.shape[0]):
-        i, j = ends[k, 0], ends[k, 1]
+def constraint_rate(k, v, ends, kind, param, G):
+    """(J̇q̇, Ċ) of constraint k with g = G[k] already set by :func:`constraint_value`.
+
+    J̇q̇ = ḋᵀ (∂²C/∂d²) ḋ and Ċ = g·ḋ, with ḋ = vᵢ − vⱼ (a fixed end does not move).
+    """
+    i, j = ends[k, 0], ends[k, 1]
+    dim = _dim(v)
+    jdot = 0.0
+    rate = 0.0
+    if kind[k] == DISTANCE:
         for a in range(dim):
-            V[k, a] = v[i, a] - (v[j, a] if j >= 0 else 0.0)
+            dd = v[i, a] - (v[j, a] if j >= 0 else 0.0)
+            jdot += dd * dd
+            rate += G[k, a] * dd
+    return jdot, rate
 
 
 @compiled
-def _dot(X, k, Y, l):
-    s = 0.0
-    for a in range(X.shape[1]):
-        s += X[k, a] * Y[l, a]
-    return s
-
-
-@compiled
-def assemble(D, pair_k, pair_l, pair_w, band):
-    """The lower band of J W Jᵀ (m²/kg) from the constraint vectors D."""
-    for k in range(band.shape[0]):
-        for j in range(band.shape[1]):
+def assemble(G, pair_k, pair_l, pair_w, band):
+    """The lower band of J W Jᵀ from the gradients G (C, dim)."""
+    dim = _dim(G)
+    for k in range(_constraints(band)):
+        for j in range(_band_columns(band)):
             band[k, j] = 0.0
-    for n in range(pair_k.shape[0]):
+    for n in range(_pairs(pair_k)):
         k, l = pair_k[n], pair_l[n]
-        band[k, k - l] += pair_w[n] * _dot(D, k, D, l)
+        s = 0.0
+        for a in range(dim):
+            s += G[k, a] * G[l, a]
+        band[k, k - l] += pair_w[n] * s
 
 
 @compiled
-def solve_jwjt(D, model, band, x):
-    """x ← (J W Jᵀ)⁻¹ x in place, J from the constraint vectors D; False when J W Jᵀ is singular."""
-    bandwidth = model[8]
-    assemble(D, model[5], model[6], model[7], band)
-    if not cholesky_banded(band, bandwidth):
+def solve_jwjt(G, model, band, x):
+    """x ← (J W Jᵀ)⁻¹ x in place, J from the gradients G; False when J W Jᵀ is singular."""
+    n, bandwidth = _constraints(band), _band_columns(band) - 1
+    assemble(G, model[7], model[8], model[9], band)
+    if not cholesky_banded(band, n, bandwidth):
         return False
-    solve_banded(band, bandwidth, x)
+    solve_banded(band, n, bandwidth, x)
     return True
 
 
 @compiled
-def add_constraint_term(x, scale, inverse_mass, ends, D, lam):
-    """x += scale · W Jᵀ λ (per particle: +w_i λ_k d_k on the first end, −w_j λ_k d_k on the second)."""
-    dim = x.shape[1]
-    for k in range(ends.shape[0]):
+def add_constraint_term(x, scale, inverse_mass, ends, G, lam):
+    """x += scale · W Jᵀ λ (per particle: +w_i λ_k g_k on the first end, −w_j λ_k g_k on the second)."""
+    dim = _dim(x)
+    for k in range(_constraints(ends)):
         i, j = ends[k, 0], ends[k, 1]
+        si = scale * inverse_mass[i] * lam[k]
         for a in range(dim):
-            x[i, a] += scale * inverse_mass[i] * lam[k] * D[k, a]
-            if j >= 0:
-                x[j, a] -= scale * inverse_mass[j] * lam[k] * D[k, a]
+            x[i, a] += si * G[k, a]
+        if j >= 0:
+            sj = scale * inverse_mass[j] * lam[k]
+            for a in range(dim):
+                x[j, a] -= sj * G[k, a]
 
 
 @compiled
-def multipliers(q, v, model, k_s, k_d, D, V, band, lam):
-    """λ (N/m) from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular."""
-    inverse_mass, force, ends, anchor, length2 = model[0], model[1], model[2], model[3], model[4]
-    constraint_vectors(q, ends, anchor, D)
-    relative_velocities(v, ends, V)
-    dim = q.shape[1]
-    for k in range(ends.shape[0]):
+def multipliers(q, v, model, k_s, k_d, G, V, band, lam):
+    """λ from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular.
+
+    V is unused scratch (kept for the signature). G (C, dim) receives the gradients.
+    """
+    inverse_mass, force, ends = model[0], model[1], model[2]
+    dim = _dim(q)
+    for k in range(_constraints(ends)):
+        c = constraint_value(k, q, ends, model[3], model[4], model[5], G)
+        jdot, c_dot = constraint_rate(k, v, ends, model[4], model[5], G)
         i, j = ends[k, 0], ends[k, 1]
         jwf = 0.0
         for a in range(dim):
             # J W f: the unconstrained acceleration's component along the constraint.
             accel = inverse_mass[i] * force[i, a] - (inverse_mass[j] * force[j, a] if j >= 0 else 0.0)
-            jwf += D[k, a] * accel
-        c = 0.5 * (_dot(D, k, D, k) - length2[k])
-        c_dot = _dot(D, k, V, k)
-        lam[k] = -_dot(V, k, V, k) - jwf - k_s * c - k_d * c_dot
-    return solve_jwjt(D, model, band, lam)
+            jwf += G[k, a] * accel
+        lam[k] = -jdot - jwf - k_s * c - k_d * c_dot
+    return solve_jwjt(G, model, band, lam)
 
 
 @compiled
-def acceleration(q, v, model, k_s, k_d, D, V, band, lam, acc):
+def acceleration(q, v, model, k_s, k_d, G, V, band, lam, acc):
     """acc = W (f + Jᵀλ), m/s²; False when J W Jᵀ is singular."""
     inverse_mass, force = model[0], model[1]
-    ok = multipliers(q, v, model, k_s, k_d, D, V, band, lam)
-    for p in range(q.shape[0]):
-        for a in range(q.shape[1]):
+    ok = multipliers(q, v, model, k_s, k_d, G, V, band, lam)
+    dim = _dim(q)
+    for p in range(_particles(q)):
+        for a in range(dim):
             acc[p, a] = inverse_mass[p] * force[p, a]
-    add_constraint_term(acc, 1.0, inverse_mass, model[2], D, lam)
+    add_constraint_term(acc, 1.0, inverse_mass, model[2], G, lam)
     return ok
 
 
 @compiled
-def max_violation(D, length2):
-    """max_k |C_k| / l_k² (≈ the largest relative length error)."""
+def violations(q, model, G, out):
+    """out[k] = C_k at q (G receives the gradients); returns max_k |C_k| / scale_k (≈ relative length error)."""
+    ends, scale = model[2], model[6]
     worst = 0.0
-    for k in range(D.shape[0]):
-        worst = max(worst, abs(0.5 * (_dot(D, k, D, k) - length2[k])) / length2[k])
+    for k in range(_constraints(out)):
+        c = constraint_value(k, q, ends, model[3], model[4], model[5], G)
+        out[k] = c
+        worst = max(worst, abs(c) / scale[k])
     return worst
 
 
 @compiled
-def project_velocities(q, v, model, D, band, mu):
+def project_velocities(q, v, model, G, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
-    inverse_mass, ends, anchor = model[0], model[2], model[3]
-    constraint_vectors(q, ends, anchor, D)
-    dim = q.shape[1]
-    for k in range(ends.shape[0]):
-        i, j = ends[k, 0], ends[k, 1]
-        s = 0.0
-        for a in range(dim):
-            s += D[k, a] * (v[i, a] - (v[j, a] if j >= 0 else 0.0))
-        mu[k] = s
-    if not solve_jwjt(D, model, band, mu):
+    inverse_mass, ends = model[0], model[2]
+    for k in range(_constraints(ends)):
+        constraint_value(k, q, ends, model[3], model[4], model[5], G)
+        mu[k] = constraint_rate(k, v, ends, model[4], model[5], G)[1]
+    if not solve_jwjt(G, model, band, mu):
         return False
-    add_constraint_term(v, -1.0, inverse_mass, ends, D, mu)
+    add_constraint_term(v, -1.0, inverse_mass, ends, G, mu)
     return True
 
 
 @compiled
-def project_positions(q, model, tolerance, max_iterations, D, band, delta):
-    """Newton in the mass-weighted metric: q ← q − W Jᵀ (J W Jᵀ)⁻¹ C until max|C|/l² ≤ tolerance.
+def project_positions(q, model, tolerance, max_iterations, G, band, delta):
+    """Newton in the mass-weighted metric: q ← q − W Jᵀ (J W Jᵀ)⁻¹ C until max|C|/scale ≤ tolerance.
 
     Returns OK, SINGULAR or NOT_CONVERGED.
     """
-    inverse_mass, ends, anchor, length2 = model[0], model[2], model[3], model[4]
+    inverse_mass, ends = model[0], model[2]
     for _ in range(max_iterations + 1):
-        constraint_vectors(q, ends, anchor, D)
-        if max_violation(D, length2) <= tolerance:
+        if violations(q, model, G, delta) <= tolerance:
             return OK
-        for k in range(ends.shape[0]):
-            delta[k] = 0.5 * (_dot(D, k, D, k) - length2[k])
-        if not solve_jwjt(D, model, band, delta):
+        if not solve_jwjt(G, model, band, delta):
             return SINGULAR
-        add_constraint_term(q, -1.0, inverse_mass, ends, D, delta)
+        add_constraint_term(q, -1.0, inverse_mass, ends, G, delta)
     return NOT_CONVERGED
 
 
@@ -187,39 +253,43 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     per step; it contracts by O((hω)²) per iteration). Then the second half kick
     and v projected so that J(q_{n+1}) v_{n+1} = 0.
     """
-    inverse_mass, force, ends, anchor, length2, pair_k, pair_l, pair_w, bandwidth = model
-    D0, D, band, Lam, delta, q_new = work
-    P, dim = q.shape
-    constraint_vectors(q, ends, anchor, D0)
-    assemble(D0, pair_k, pair_l, pair_w, band)
-    if not cholesky_banded(band, bandwidth):
+    inverse_mass, force, ends = model[0], model[1], model[2]
+    pair_k, pair_l, pair_w = model[7], model[8], model[9]
+    G0, G, band, Lam, delta, q_new = work
+    P = _particles(q)
+    dim = _dim(q)
+    C = _constraints(ends)
+    for k in range(C):
+        constraint_value(k, q, ends, model[3], model[4], model[5], G0)
+    bandwidth = _band_columns(band) - 1
+    assemble(G0, pair_k, pair_l, pair_w, band)
+    if not cholesky_banded(band, C, bandwidth):
         return SINGULAR
     for p in range(P):
         for a in range(dim):
             q_new[p, a] = q[p, a] + h * v[p, a] + 0.5 * h * h * inverse_mass[p] * force[p, a]
-    for k in range(Lam.shape[0]):
+    for k in range(C):
         Lam[k] = 0.0
     converged = False
     for _ in range(max_iterations + 1):
-        constraint_vectors(q_new, ends, anchor, D)
-        if max_violation(D, length2) <= tolerance:
+        if violations(q_new, model, G, delta) <= tolerance:
             converged = True
             break
-        for k in range(ends.shape[0]):
-            delta[k] = -0.5 * (_dot(D, k, D, k) - length2[k])
-        solve_banded(band, bandwidth, delta)
-        for k in range(ends.shape[0]):
+        for k in range(C):
+            delta[k] = -delta[k]
+        solve_banded(band, C, bandwidth, delta)
+        for k in range(C):
             Lam[k] += delta[k]
-        add_constraint_term(q_new, 1.0, inverse_mass, ends, D0, delta)
+        add_constraint_term(q_new, 1.0, inverse_mass, ends, G0, delta)
     if not converged:
         return NOT_CONVERGED
     # v_{n+1/2} = v_n + h/2 W f + W J_nᵀ Λ / h, then the second half kick with f.
     for p in range(P):
         for a in range(dim):
             v[p, a] += h * inverse_mass[p] * force[p, a]
-    add_constraint_term(v, 1.0 / h, inverse_mass, ends, D0, Lam)
+    add_constraint_term(v, 1.0 / h, inverse_mass, ends, G0, Lam)
     _copy(q, q_new)
-    if not project_velocities(q, v, model, D, band, delta):
+    if not project_velocities(q, v, model, G, band, delta):
         return SINGULAR
     return OK
 
@@ -227,38 +297,68 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
 @compiled
 def _copy(y, x):
     """y[...] = x for (P, dim) arrays (slice assignment may allocate a temporary)."""
-    for p in range(y.shape[0]):
-        for a in range(y.shape[1]):
+    dim = _dim(y)
+    for p in range(_particles(y)):
+        for a in range(dim):
             y[p, a] = x[p, a]
 
 
 @compiled
-def _axpy(y, x, alpha, s):
-    """y = x + alpha · s (all (P, dim))."""
-    for p in range(y.shape[0]):
-        for a in range(y.shape[1]):
-            y[p, a] = x[p, a] + alpha * s[p, a]
-
-
-@compiled
 def _finite(x):
-    """True when every entry of the (rows, cols) array is finite."""
-    for p in range(x.shape[0]):
-        for a in range(x.shape[1]):
+    """True when every entry of the (P, dim) array is finite."""
+    dim = _dim(x)
+    for p in range(_particles(x)):
+        for a in range(dim):
             if not math.isfinite(x[p, a]):
                 return False
     return True
 
 
 @compiled
-def _record(n, q, v, model, k_s, k_d, D, V, band, out_q, out_v, out_lam):
-    for p in range(q.shape[0]):
-        for a in range(q.shape[1]):
+def _record(n, q, v, model, k_s, k_d, G, V, band, out_q, out_v, out_lam):
+    dim = _dim(q)
+    for p in range(_particles(q)):
+        for a in range(dim):
             out_q[n, p, a] = q[p, a]
             out_v[n, p, a] = v[p, a]
-    if not multipliers(q, v, model, k_s, k_d, D, V, band, out_lam[n]):
+    if not multipliers(q, v, model, k_s, k_d, G, V, band, out_lam[n]):
         for k in range(out_lam.shape[1]):
             out_lam[n, k] = np.nan
+
+
+@compiled
+def _axpy(y, x, alpha, s):
+    """y = x + alpha · s (all (P, dim))."""
+    dim = _dim(y)
+    for p in range(_particles(y)):
+        for a in range(dim):
+            y[p, a] = x[p, a] + alpha * s[p, a]
+
+
+@compiled
+def rk_step(A, b, h, q, v, model, ks, kd, G, V, band, lam, Kq, Kv, qs, vs):
+    """One explicit Runge–Kutta step with the table (A, b) in place; False when J W Jᵀ was singular.
+
+    Stage i: qs = q + h Σ_j A_ij Kq_j, vs = v + h Σ_j A_ij Kv_j (terms added in
+    order of j, zero entries skipped), Kq_i = vs, Kv_i = acceleration(qs, vs).
+    Then q += h Σ_i b_i Kq_i and v += h Σ_i b_i Kv_i.
+    """
+    ok = True
+    for i in range(b.shape[0]):
+        _copy(qs, q)
+        _copy(vs, v)
+        for j in range(i):
+            if A[i, j] != 0.0:
+                _axpy(qs, qs, h * A[i, j], Kq[j])
+                _axpy(vs, vs, h * A[i, j], Kv[j])
+        _copy(Kq[i], vs)
+        if not acceleration(qs, vs, model, ks, kd, G, V, band, lam, Kv[i]):
+            ok = False
+    for i in range(b.shape[0]):
+        if b[i] != 0.0:
+            _axpy(q, q, h * b[i], Kq[i])
+            _axpy(v, v, h * b[i], Kv[i])
+    return ok
 
 
 @compiled
@@ -270,14 +370,15 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     method, integrator : codes from ours.method / ours.integrator. A (s, s), b (s,) : Butcher table.
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
-    stages = b.shape[0]
-    D, V, band, lam, Kq, Kv, qs, vs, rattle_work = work
+    G, V, band, lam, Kq, Kv, qs, vs, rattle_work = work
     # Only baumgarte feeds C and Ċ back; its λ at a sample includes the feedback it applied.
     ks = k_s if method == _BAUMGARTE else 0.0
     kd = k_d if method == _BAUMGARTE else 0.0
     h = dt
+    P = _particles(q)
+    dim = _dim(q)
 
-    _record(0, q, v, model, ks, kd, D, V, band, out_q, out_v, out_lam)
+    _record(0, q, v, model, ks, kd, G, V, band, out_q, out_v, out_lam)
     n = 1
     status = OK
     step = 0
@@ -285,28 +386,17 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
         if integrator == _RATTLE:
             status = rattle_step(q, v, h, model, tolerance, max_iterations, rattle_work)
         elif integrator == _SYMPLECTIC_EULER:
-            if not acceleration(q, v, model, ks, kd, D, V, band, lam, Kv[0]):
+            if not acceleration(q, v, model, ks, kd, G, V, band, lam, Kv[0]):
                 status = SINGULAR
-            _axpy(v, v, h, Kv[0])
-            _axpy(q, q, h, v)
-        else:
-            for i in range(stages):
-                _copy(qs, q)
-                _copy(vs, v)
-                for j in range(i):
-                    if A[i, j] != 0.0:
-                        _axpy(qs, qs, h * A[i, j], Kq[j])
-                        _axpy(vs, vs, h * A[i, j], Kv[j])
-                _copy(Kq[i], vs)
-                if not acceleration(qs, vs, model, ks, kd, D, V, band, lam, Kv[i]):
-                    status = SINGULAR
-            for i in range(stages):
-                if b[i] != 0.0:
-                    _axpy(q, q, h * b[i], Kq[i])
-                    _axpy(v, v, h * b[i], Kv[i])
+            for p in range(P):
+                for a in range(dim):
+                    v[p, a] = v[p, a] + h * Kv[0, p, a]
+                    q[p, a] = q[p, a] + h * v[p, a]
+        elif not rk_step(A, b, h, q, v, model, ks, kd, G, V, band, lam, Kq, Kv, qs, vs):
+            status = SINGULAR
         if status == OK and method == _PROJECTION:
-            status = project_positions(q, model, tolerance, max_iterations, D, band, lam)
-            if status == OK and not project_velocities(q, v, model, D, band, lam):
+            status = project_positions(q, model, tolerance, max_iterations, G, band, lam)
+            if status == OK and not project_velocities(q, v, model, G, band, lam):
                 status = SINGULAR
         step += 1
         if status != OK:
@@ -317,6 +407,25 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
             if not (_finite(q) and _finite(v)):
                 status = NON_FINITE
                 break
-            _record(n, q, v, model, ks, kd, D, V, band, out_q, out_v, out_lam)
+            _record(n, q, v, model, ks, kd, G, V, band, out_q, out_v, out_lam)
             n += 1
     return n, step, status
+
+
+@compiled
+def sample_gradients(out_q, model, out_G):
+    """out_G[s, k] = ∂C_k/∂d at the sample out_q[s] (S, P, dim) → (S, C, dim); the force on the first
+    particle of constraint k is λ_k g_k."""
+    for s in range(out_q.shape[0]):
+        for k in range(out_G.shape[1]):
+            constraint_value(k, out_q[s], model[2], model[3], model[4], model[5], out_G[s])
+
+
+@compiled
+def sample_multipliers(out_q, out_v, model, G, V, band, out_lam):
+    """out_lam[s] = λ at the sample (out_q[s], out_v[s]) with no Baumgarte feedback (NaN where
+    J W Jᵀ is singular): the constraint forces of a motion stepped elsewhere (``ours.lagrangian``)."""
+    for s in range(out_q.shape[0]):
+        if not multipliers(out_q[s], out_v[s], model, 0.0, 0.0, G, V, band, out_lam[s]):
+            for k in range(out_lam.shape[1]):
+                out_lam[s, k] = np.nan

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
-from ours.kernel import NON_FINITE, OK, SINGULAR, multipliers
+from ours.status import NON_FINITE, OK, SINGULAR
 
 
 @compiled
@@ -34,9 +34,9 @@ def angular_acceleration(theta, omega, tail, lengths, gravity, M, alpha):
             if j <= i:
                 M[i, i - j] = mu * math.cos(theta[i] - theta[j])
         alpha[i] = s
-    if not cholesky_banded(M, n - 1):
+    if not cholesky_banded(M, n, n - 1):
         return False
-    solve_banded(M, n - 1, alpha)
+    solve_banded(M, n, n - 1, alpha)
     return True
 
 
@@ -54,12 +54,8 @@ def to_cartesian(theta, omega, lengths, anchor, q, v):
 
 
 @compiled
-def _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam):
+def _record(n, theta, omega, lengths, anchor, out_q, out_v):
     to_cartesian(theta, omega, lengths, anchor, out_q[n], out_v[n])
-    # The constraint forces of the exact motion: the acceleration-level solve with no feedback.
-    if not multipliers(out_q[n], out_v[n], model, 0.0, 0.0, D, V, band, out_lam[n]):
-        for k in range(out_lam.shape[1]):
-            out_lam[n, k] = np.nan
 
 
 @compiled
@@ -71,17 +67,21 @@ def _finite(x):
 
 
 @compiled
-def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, work, dt, n_steps, stride, out_q, out_v, out_lam):
+def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, stride, out_q, out_v):
     """Step (θ, θ̇) with the explicit Runge–Kutta table (A, b), recording Cartesian samples.
+
+    The multipliers at the samples (the constraint forces of the exact motion: the
+    acceleration-level solve with no feedback) are computed afterwards by
+    ``sample_multipliers`` of the maximal-coordinate kernel (``ours.simulate``).
 
     tail : (n,) kg, μ_ii = Σ_{k ≥ i} m_k.  lengths : (n,) m.  gravity, anchor : (2,).
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
     n_links = theta.shape[0]
     stages = b.shape[0]
-    M, Kt, Kw, ts, ws, D, V, band = work
+    M, Kt, Kw, ts, ws = work
     h = dt
-    _record(0, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
+    _record(0, theta, omega, lengths, anchor, out_q, out_v)
     n = 1
     status = OK
     step = 0
@@ -109,15 +109,15 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, model, work, dt, n_s
         if status != OK:
             break
         if step % stride == 0 or step == n_steps:
-            _record(n, theta, omega, lengths, anchor, model, D, V, band, out_q, out_v, out_lam)
+            _record(n, theta, omega, lengths, anchor, out_q, out_v)
             n += 1
     return n, step, status
 
 
-def workspace(n: int, bandwidth: int, stages: int) -> tuple:
+def workspace(n: int, stages: int) -> tuple:
     """Scratch arrays for :func:`run` (the compiled code allocates nothing)."""
     z = np.zeros
-    return (z((n, n)), z((stages, n)), z((stages, n)), z(n), z(n), z((n, 2)), z((n, 2)), z((n, bandwidth + 1)))
+    return (z((n, n)), z((stages, n)), z((stages, n)), z(n), z(n))
 
 
 def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -9,7 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from ours import general, kernel, lagrangian
+from ours import general
+from ours.specialize import kernel_for, sizes_of
+from ours.status import STATUS_TEXT
 from ours.errors import ModelError, OursError
 from ours.method import (
     BAUMGARTE,
@@ -22,12 +24,6 @@ from ours.method import (
 )
 from ours.system import System
 
-STATUS_TEXT = {
-    kernel.OK: "ok",
-    kernel.NON_FINITE: "non-finite",
-    kernel.SINGULAR: "singular",
-    kernel.NOT_CONVERGED: "not-converged",
-}
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,6 +147,8 @@ def simulate(
         settings.update(k_s=ks, k_d=kd)
 
     if chosen.code == LAGRANGIAN:
+        from ours import lagrangian  # imports numba: only when a run needs it
+
         why = system.chain_order()
         if system.dim != 2 or why is not None:
             raise ModelError(
@@ -162,20 +160,32 @@ def simulate(
         tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
         lengths = np.array([c.length for c in system.constraints])
         anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
-        work = lagrangian.workspace(system.n_particles, p.bandwidth, scheme.stages)
+        work = lagrangian.workspace(system.n_particles, scheme.stages)
         start = time.perf_counter()
         written, steps, status = lagrangian.run(
-            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, model, work,
-            dt, n_steps, stride, out_q, out_v, out_lam,
+            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, work,
+            dt, n_steps, stride, out_q, out_v,
+        )
+        wall_time = time.perf_counter() - start
+        C = system.n_constraints
+        _kernel(system).sample_multipliers(
+            out_q[:written], out_v[:written], model, np.zeros((C, system.dim)), np.zeros((C, system.dim)),
+            np.zeros((C, p.bandwidth + 1)), out_lam[:written],
         )
     else:
-        work = kernel.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages)
+        compiled = _kernel(system)
+        work = compiled.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages)
+        if id(compiled) not in _warmed:
+            # Compile (or load from the cache) before the clock starts: one step on copies.
+            compiled.run(chosen.code, scheme.code, scheme.A, scheme.b, q.copy(), v.copy(), model, work, ks, kd, dt,
+                         1, 1, tolerance, max_iterations, out_q[:2].copy(), out_v[:2].copy(), out_lam[:2].copy())
+            _warmed.add(id(compiled))
         start = time.perf_counter()
-        written, steps, status = kernel.run(
+        written, steps, status = compiled.run(
             chosen.code, scheme.code, scheme.A, scheme.b, q, v, model, work, ks, kd, dt, n_steps, stride,
             tolerance, max_iterations, out_q, out_v, out_lam,
         )
-    wall_time = time.perf_counter() - start
+        wall_time = time.perf_counter() - start
 
     sample_steps = np.minimum(np.arange(n_samples) * stride, n_steps)
     forces = out_lam[:written, :, None] * _constraint_vectors(system, out_q[:written])
@@ -193,11 +203,11 @@ def simulate(
 
 
 def _constraint_vectors(system: System, q: np.ndarray) -> np.ndarray:
-    """(S, C, dim) m: d_k = first particle − other end."""
-    p = system.packed
-    i, j = p.ends[:, 0], p.ends[:, 1]
-    other = np.where((j >= 0)[None, :, None], q[:, np.maximum(j, 0)], p.anchor[None])
-    return q[:, i] - other
+    """(S, C, dim): g_k = ∂C_k/∂xᵢ at each sample (d_k = first particle − other end, m, for a distance)."""
+    out = np.zeros((q.shape[0], system.n_constraints, system.dim))
+    if q.shape[0] and system.n_constraints:
+        _kernel(system).sample_gradients(np.ascontiguousarray(q), system.packed.model, out)
+    return out
 
 
 def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.ndarray:
@@ -209,14 +219,27 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     p = system.packed
     C = system.n_constraints
     lam = np.zeros(C)
-    if not kernel.multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
+    if not _kernel(system).multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
                               np.zeros((C, system.dim)), np.zeros((C, p.bandwidth + 1)), lam):
         raise ModelError("J W Jᵀ is singular at this state: the constraints are dependent or degenerate")
     return lam
 
 
+_warmed: set[int] = set()
+
+
+def _kernel(system: System):
+    """The kernel specialised for ``system``'s dimension (and sizes, when it is small)."""
+    p = system.packed
+    return kernel_for(system.dim, sizes_of(system.n_particles, system.n_constraints, p.bandwidth, len(p.pair_k)))
+
+
 def compile_all() -> float:
-    """Compile (or load from the cache) every compiled loop; returns the seconds it took."""
+    """Compile (or load from the cache) the loops of a planar double pendulum; returns the seconds it took.
+
+    Each structure's kernel (``ours.specialize``) is compiled on its first :func:`simulate`
+    anyway, before the clock starts; this is a warm-up for the common case.
+    """""
     from ours.constraint import Pin, Rod
 
     start = time.perf_counter()

@@ -16,7 +16,10 @@ class Packed:
 
     inverse_mass : (P,) 1/kg.  force : (P, dim) N, the applied force m·g.
     ends : (C, 2) particle indices (i, j), j = −1 for a fixed end.
-    anchor : (C, dim) m, the fixed end (unused for rods).  length2 : (C,) m².
+    anchor : (C, dim) m, the fixed end (unused for rods).
+    kind : (C,) the constraint kind codes (``ours.constraint.DISTANCE``, …).
+    param : (C, n) each constraint's parameters (l² in m² for a distance), zero-padded.
+    scale : (C,) what |C_k| is divided by in the tolerance test (l² for a distance).
     pair_k, pair_l, pair_w : (N,) the nonzeros of the lower band of J W Jᵀ:
         entry (k, l), l ≤ k, gets pair_w · d_k·d_l (pair_w = ±1/mₚ for the shared particle p).
     bandwidth : largest k − l over those pairs (1 for a chain in order, so the
@@ -27,7 +30,9 @@ class Packed:
     force: np.ndarray
     ends: np.ndarray
     anchor: np.ndarray
-    length2: np.ndarray
+    kind: np.ndarray
+    param: np.ndarray
+    scale: np.ndarray
     pair_k: np.ndarray
     pair_l: np.ndarray
     pair_w: np.ndarray
@@ -36,8 +41,8 @@ class Packed:
     @property
     def model(self) -> tuple:
         """The fields in order, as the ``model`` tuple of the compiled functions (``ours.kernel``)."""
-        return (self.inverse_mass, self.force, self.ends, self.anchor, self.length2, self.pair_k, self.pair_l,
-                self.pair_w, self.bandwidth)
+        return (self.inverse_mass, self.force, self.ends, self.anchor, self.kind, self.param, self.scale,
+                self.pair_k, self.pair_l, self.pair_w, self.bandwidth)
 
 
 @dataclass(frozen=True)
@@ -158,13 +163,15 @@ def _pack(system: System) -> Packed:
     n = len(system.constraints)
     ends = np.zeros((n, 2), dtype=np.int64)
     anchor = np.zeros((n, dim))
-    length2 = np.zeros(n)
+    rows = [c.encode(dim) for c in system.constraints]
+    kind = np.array([row[3] for row in rows], dtype=np.int64)
+    param = np.zeros((n, max((len(row[4]) for row in rows), default=1)))
+    scale = np.array([row[5] for row in rows], dtype=np.float64)
     touching: dict[int, list[tuple[int, float]]] = {}
-    for k, c in enumerate(system.constraints):
-        i, j, point, length = c.encode(dim)
+    for k, (i, j, point, _, parameters, _) in enumerate(rows):
         ends[k] = (i, j)
         anchor[k] = point
-        length2[k] = length**2
+        param[k, : len(parameters)] = parameters
         touching.setdefault(i, []).append((k, 1.0))
         if j >= 0:
             touching.setdefault(j, []).append((k, -1.0))
@@ -180,7 +187,9 @@ def _pack(system: System) -> Packed:
         force=np.ascontiguousarray(force),
         ends=ends,
         anchor=anchor,
-        length2=length2,
+        kind=kind,
+        param=param,
+        scale=scale,
         pair_k=np.array([k for k, _ in keys], dtype=np.int64),
         pair_l=np.array([l for _, l in keys], dtype=np.int64),
         pair_w=np.array([pairs[key] for key in keys], dtype=np.float64),

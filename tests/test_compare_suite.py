@@ -201,3 +201,8 @@ def test_a_command_engines_program_and_version_are_part_of_the_fingerprint(tmp_p
     assert parse_suite(suite('["python3", "a.py"]', "1"), path).fingerprint() == base
     assert parse_suite(suite('["python3", "b.py"]', "1"), path).fingerprint() != base
     assert parse_suite(suite('["python3", "a.py"]', "2"), path).fingerprint() != base
+
+
+def test_reference_tolerances_outside_the_reference_engines_range_are_refused():
+    bad(GOOD.replace('dt = [1e-2, 1e-3]', 'dt = [1e-2, 1e-3]\n[reference]\nrtol = 1e-300'),
+        "s.toml:5: reference.rtol: reference: option rtol = 1e-300 is outside the allowed range [1e-14, 0.1]")

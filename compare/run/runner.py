@@ -47,7 +47,7 @@ from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import SCHEMA_VERSION, CaseRecord
-from compare.results.store import ResultsDir, downsample_indices, iter_records, jsonable, now, rounded
+from compare.results.store import ResultsDir, downsample_indices, jsonable, now, read_json, rounded
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
@@ -227,7 +227,7 @@ def _run_suite(
                         memory_limit).run()
     finally:
         progress.stop()
-    records = list(iter_records(results.cases))
+    records = writer.records()
     counts = _status_counts(records)
     results.finish(counts)
     return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records)
@@ -282,6 +282,7 @@ class _Dispatcher:
     def _new_pool(self) -> cf.Executor:
         # fork: workers inherit the imported engines; the workers are forked
         # before the progress bar starts its thread (all at first submit).
+        _preload(self.suite, self.cases.values())
         # die_with_parent: a kill -9 of xval takes its workers with it (and they their case hosts).
         return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
                                       initializer=_init_worker)
@@ -437,6 +438,30 @@ class _Dispatcher:
         return self.submit_references(reference_ids)
 
 
+_preloaded: set[int] = set()
+
+
+def _preload(suite: Suite, cases) -> None:
+    """Let each engine of these cases (and the reference) load what it will need once, here, before
+    the pool forks: workers and case hosts inherit it instead of each importing and loading it again
+    (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
+    that fails is ignored (the cases report their own errors)."""
+    from engines.reference import ENGINE as REFERENCE
+
+    engines = {id(c.engine.engine): c.engine.engine for c in cases if c.engine.engine is not None}
+    engines.setdefault(id(REFERENCE), REFERENCE)
+    scenes = [s.scene for s in suite.scenes]
+    for key, engine in engines.items():
+        preload = getattr(engine, "preload", None)
+        if key in _preloaded or preload is None:
+            continue
+        _preloaded.add(key)
+        try:
+            preload(scenes)
+        except Exception:  # noqa: BLE001 - a preload is an optimisation, never a failure
+            continue
+
+
 class _Writer:
     """Turns outcomes into records (metrics computed here, in the parent) and writes them."""
 
@@ -444,11 +469,21 @@ class _Writer:
         self.results = results
         self.suite = suite
         self.progress = progress
+        #: The records written by this run, by file, so the summary need not read them back.
+        self.written: dict[Path, CaseRecord] = {}
 
     def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
         record = build_record(case, outcome, reference, self.suite, skipped=skipped)
         path = self.results.write_case(record)
-        self.progress.advance(CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record}, path))
+        typed = CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record}, path)
+        self.written[path] = typed
+        self.progress.advance(typed)
+
+    def records(self) -> list[CaseRecord]:
+        """Every record in the results directory, in file order: those written now from memory,
+        those of an earlier (resumed) run read from their files."""
+        files = sorted(self.results.cases.glob("*.json")) if self.results.cases.is_dir() else []
+        return [self.written.get(f) or CaseRecord.from_json(read_json(f), f) for f in files]
 
 
 def build_record(
@@ -541,6 +576,9 @@ def build_record(
     extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     record["metrics"] = {**metrics.to_dict(), **extras}
     keep = downsample_indices(n)
+    record = jsonable(record)
+    # Added after jsonable: rounded() already gives JSON-ready lists (floats, None), and walking
+    # their ~1600 numbers again was most of the cost of writing a record.
     record["series"] = {
         "t": rounded(series.t[keep]),
         "position_error": rounded(series.position_error[keep]),
@@ -556,7 +594,7 @@ def build_record(
         record["series"]["constraint_forces"] = rounded(trajectory.constraint_forces[keep])
         if ref_forces is not None and len(ref_forces) >= n:
             record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
-    return jsonable(record)
+    return record
 
 
 def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:

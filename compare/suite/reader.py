@@ -373,6 +373,7 @@ class _Reader:
         reference = self.table("reference", data.get("reference", {}), REFERENCE_KEYS)
         rtol = self.number("reference.rtol", reference.get("rtol", 1e-12))
         atol = self.number("reference.atol", reference.get("atol", 1e-12))
+        self.reference_tolerances(rtol, atol)
         bounds_table = self.table("bounds", data.get("bounds", {}), BOUND_KEYS)
         bounds = Bounds(
             self.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
@@ -418,6 +419,19 @@ class _Reader:
             verdict_tolerance=verdict_tolerance,
             tolerances=read_tolerances(self, data.get("tolerance")),
         )
+
+    def reference_tolerances(self, rtol: float, atol: float) -> None:
+        """The reference engine's own option ranges apply to [reference] (rtol = 1e-300 would be clamped by
+        scipy with a warning, and the results would claim a tolerance that was never used)."""
+        try:
+            engine, _ = registry.load_engine("reference")
+        except UserError:
+            return
+        for key, value in (("rtol", rtol), ("atol", atol)):
+            try:
+                engine.resolve(None, {key: value})
+            except UserError as exc:
+                raise self.error(f"reference.{key}", str(exc)) from None
 
     def dts(self, value: Any) -> tuple[float, ...]:
         if isinstance(value, list):

@@ -1,0 +1,116 @@
+"""ours' trajectories before and after a change: save them, or check today's against a saved file.
+
+Runs ``ours.simulate`` for every variant of the ours adapter on the bead, the
+double pendulum, chains of 4 and 8 links and the spherical pendulum (3-D), at
+every time step of the default suite (1e-1 … 1e-4 s, two per decade), for 2 s
+with a sample every 10 ms, and stores positions, velocities, multipliers,
+steps taken and the status.
+
+    .venv/bin/python scripts/ours_equivalence.py save bench/data/ours_trajectories.npz
+    .venv/bin/python scripts/ours_equivalence.py check bench/data/ours_trajectories.npz
+
+``check`` prints the largest relative difference per quantity (max |new − old| /
+max |old| over a run, NaN where both are NaN counting as equal) and exits 1
+when any exceeds 1e-12 or a status or step count differs.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import ours  # noqa: E402
+from engines import catalog  # noqa: E402
+from engines.adapter import Schedule  # noqa: E402
+from engines.ours import ENGINE, _to_system  # noqa: E402
+
+SCENES = {
+    "bead": ("bead", {"theta0": 60}),
+    "double-pendulum": ("double-pendulum", {}),
+    "chain4": ("chain", {"n": 4}),
+    "chain8": ("chain", {"n": 8}),
+    "spherical": ("spherical-pendulum", {}),
+}
+DTS = [10.0 ** (-k / 2) for k in range(2, 9)]
+DURATION = 2.0
+SAMPLE = float(os.environ.get("OURS_EQ_SAMPLE", "0.25"))  # s between stored samples
+TOLERANCE = 1e-12
+
+
+def runs(scenes=None):
+    """Yield (key, arrays) for every scene (of ``scenes``, default all) × variant × dt."""
+    for scene_id, (name, params) in SCENES.items():
+        if scenes is not None and scene_id not in scenes:
+            continue
+        scene = catalog.build(name, {**params, "duration": DURATION})
+        system, q0, v0, _ = _to_system(scene)
+        for variant, settings in ENGINE.variants.items():
+            if settings["method"] == "lagrangian" and system.chain_order() is not None:
+                continue
+            if settings["method"] == "lagrangian" and system.dim != 2:
+                continue
+            for dt in DTS:
+                s = Schedule.make(DURATION, dt, SAMPLE)
+                r = ours.simulate(system, q0, v0, s.dt, s.n_steps, s.stride, **settings)
+                key = f"{scene_id}|{variant}|{dt:.6g}"
+                yield key, {"q": r.q, "v": r.v, "lam": r.multipliers,
+                            "meta": np.array([r.steps, ["ok", "non-finite", "singular", "not-converged"].index(r.status)])}
+
+
+def _rel(new: np.ndarray, old: np.ndarray) -> float:
+    if new.shape != old.shape:
+        return np.inf
+    same = (new == old) | (np.isnan(new) & np.isnan(old))
+    with np.errstate(invalid="ignore"):
+        diff = np.where(same, 0.0, np.abs(new - old))
+    if np.isnan(diff).any():
+        return np.inf
+    finite = np.abs(old[np.isfinite(old)])
+    scale = finite.max() if finite.size else 1.0
+    return float(diff.max() / max(scale, 1e-300)) if diff.size else 0.0
+
+
+def compare(path, scenes=None) -> tuple[int, dict[str, float], list[str]]:
+    """(runs checked, largest relative difference per quantity, failures) against the file at ``path``."""
+    old = np.load(path)
+    worst = {"q": 0.0, "v": 0.0, "lam": 0.0}
+    failures = []
+    count = 0
+    for key, arrays in runs(scenes):
+        count += 1
+        if not np.array_equal(arrays["meta"], old[f"{key}|meta"]):
+            failures.append(f"{key}: steps/status {arrays['meta'].tolist()} != {old[f'{key}|meta'].tolist()}")
+        for name in worst:
+            rel = _rel(arrays[name], old[f"{key}|{name}"])
+            worst[name] = max(worst[name], rel)
+            if rel > TOLERANCE:
+                failures.append(f"{key}: {name} differs by {rel:.3g} (relative)")
+    return count, worst, failures
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 2 or argv[0] not in ("save", "check"):
+        print(__doc__)
+        return 2
+    mode, path = argv
+    if mode == "save":
+        data = {f"{key}|{name}": a for key, arrays in runs() for name, a in arrays.items()}
+        np.savez_compressed(path, **data)
+        print(f"saved {len(data) // 4} runs to {path}")
+        return 0
+    count, worst, failures = compare(path)
+    print(f"checked {count} runs; largest relative difference: "
+          + ", ".join(f"{k} {v:.3g}" for k, v in worst.items()))
+    for line in failures[:20]:
+        print("  " + line)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
