@@ -5,13 +5,17 @@ PY := $(VENV)/bin/python
 XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
+# Optional engine extras installed with xval (pyproject.toml): `make EXTRAS= test` leaves Drake and MJX out.
+EXTRAS ?= all
+
+comma := ,
 
 .PHONY: demo stiff test bench bench-all baseline clean examples history-demo
 
 $(STAMP): pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test$(if $(EXTRAS),$(comma)$(EXTRAS))]'
 	$(PY) -m pip install --quiet -e examples/my-solver
 	touch $(STAMP)
 

@@ -432,7 +432,9 @@ class ReferenceEngine(Engine):
     """The reference as an engine, so it can be simulated, listed and compared like any other."""
 
     name = "reference"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "tolerance"})
+    #: A suite's tolerance axis (compare/suite/tolerance_axis.py) sets both DOP853 tolerances.
+    tolerance_options = ("rtol", "atol")
     options = {
         # scipy raises rtol below 100 eps to 100 eps with a warning: refuse it instead.
         "rtol": Option("rtol", DEFAULT_RTOL, "relative tolerance of DOP853", low=1e-14, high=0.1),
@@ -444,6 +446,10 @@ class ReferenceEngine(Engine):
 
     def version(self) -> str:
         return f"scipy {scipy.__version__}"
+
+    def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
+        """DOP853 is always error-controlled: on a tolerance axis it sweeps rtol = atol."""
+        return True
 
     def preload(self, scenes) -> None:
         """Import scipy's integrators and load the compiled right-hand side (numba's cache) in this

@@ -37,6 +37,14 @@ BUILTIN: dict[str, str] = {
     "mujoco": "engines.mujoco",
     "pybullet": "engines.pybullet",
     "pymunk": "engines.pymunk",
+    "drake": "engines.drake",
+    "mjx": "engines.mjx",
+}
+
+#: Built-ins whose library is an optional extra: the pip line that installs it, shown when it is missing.
+INSTALL: dict[str, str] = {
+    "drake": "pip install 'xval[drake]'",
+    "mjx": "pip install 'xval[mjx]'",
 }
 
 #: The entry-point group installed packages register engines under.
@@ -126,7 +134,8 @@ def _load_builtin(name: str) -> EngineStatus:
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        return EngineStatus(name, module_name, None, f"cannot import: {exc}")
+        hint = f"; install it with: {INSTALL[name]}" if name in INSTALL else ""
+        return EngineStatus(name, module_name, None, f"cannot import: {exc}{hint}")
     return EngineStatus(name, module_name, module.ENGINE)
 
 

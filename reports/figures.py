@@ -142,6 +142,8 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
     xs, ys, custom = [], [], []
     for record in sweep.records:
         dt = record.case.dt
+        if x_key == "dt" and record.case.tolerance is not None:
+            continue  # a tolerance-axis case has no time step to plot against (its dt is only the largest step)
         x = dt if x_key == "dt" else record.metrics.get(x_key)
         y = record.metrics.get(ORDER_METRIC)
         if record.status is Status.OK and _positive(x) and _positive(y):

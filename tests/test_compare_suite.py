@@ -74,7 +74,8 @@ def test_invalid_toml_gives_the_line():
 def test_unknown_top_level_key():
     bad(GOOD.replace("duration = 1.0", "durations = 1.0"),
         "s.toml:2: durations: unknown key; valid keys are: name, description, duration, sample_interval, "
-        "delta, repeats, timeout, dt, reference, bounds, tolerances, gate, scenes, engines, stability, gainmap, verdict")
+        "delta, repeats, timeout, dt, reference, bounds, tolerances, gate, scenes, engines, stability, gainmap, verdict, "
+        "tolerance")
 
 
 def test_missing_required_key():

@@ -41,6 +41,7 @@ import datetime as _dt
 import hashlib
 import json
 import sqlite3
+import time
 import zlib
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -139,10 +140,23 @@ class _SQLite:
             self.connection = sqlite3.connect(path, timeout=BUSY_TIMEOUT, isolation_level=None)
             self.connection.execute(f"PRAGMA busy_timeout = {int(BUSY_TIMEOUT * 1000)}")
             self.connection.execute("PRAGMA foreign_keys = ON")
-            self.connection.execute("PRAGMA journal_mode = WAL")
+            self._set_wal()
             self.connection.execute("PRAGMA synchronous = NORMAL")  # durable at each checkpoint; safe in WAL
         except sqlite3.Error as exc:
             raise self.error(exc) from None
+
+    def _set_wal(self) -> None:
+        """Switch to WAL, waiting for other writers: SQLite answers "locked" at once, without calling its
+        busy handler, when two processes change a new file's journal mode together."""
+        deadline = time.monotonic() + BUSY_TIMEOUT
+        while True:
+            try:
+                self.connection.execute("PRAGMA journal_mode = WAL")
+                return
+            except sqlite3.OperationalError as exc:
+                if "locked" not in str(exc) and "busy" not in str(exc) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.05)
 
     def error(self, exc: Exception) -> HistoryError:
         text = str(exc)

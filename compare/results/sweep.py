@@ -1,5 +1,8 @@
 """Across a dt sweep: per (scene, engine variant), its records in order, the observed order and the consistency.
 
+On the tolerance axis (compare/suite/tolerance_axis.py) a variant sweeps a tolerance instead:
+no order is fitted, and consistency is judged with the tolerance in dt's place.
+
 Works on typed case records (:class:`compare.results.record.CaseRecord`),
 so ``xval show``, the report, the baseline and the gate compute the same
 numbers from a results directory.
@@ -46,13 +49,18 @@ class VariantSweep:
 
     @property
     def finest_ok(self) -> CaseRecord | None:
-        """The ``ok`` case with the smallest dt, or None."""
+        """The ``ok`` case with the smallest dt (the tightest tolerance on the tolerance axis), or None."""
         ok = self.ok_records
-        return min(ok, key=lambda r: r.case.dt) if ok else None
+        return min(ok, key=_step) if ok else None
 
     @property
     def all_skipped(self) -> bool:
         return all(r.status is Status.SKIPPED for r in self.records)
+
+
+def _step(record: CaseRecord) -> float:
+    """What a sweep runs along: the tolerance on the tolerance axis, else dt (s)."""
+    return record.case.dt if record.case.tolerance is None else record.case.tolerance
 
 
 def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> list[VariantSweep]:
@@ -68,13 +76,16 @@ def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> lis
         sweep = VariantSweep(scene_id, engine, members)
         ok = sweep.ok_records
         length = members[0].characteristic.length
-        order = None if sweep.all_skipped else observed_order(
+        # A tolerance sweep has no order in dt; its consistency is judged along the tolerance.
+        on_tolerance_axis = any(r.case.tolerance is not None for r in members)
+        order = None if sweep.all_skipped or on_tolerance_axis else observed_order(
             [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok], length=length
         )
         verdict = judge(
-            [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok],
+            [_step(r) for r in ok], [r.metric(ORDER_METRIC) for r in ok],
             tolerance=(DEFAULT_DELTA if tolerance is None else tolerance) * length,
             horizon_limited=any(r.reference_horizon is not None for r in ok),
+            axis="tolerance" if on_tolerance_axis else "dt",
         )
         result.append(VariantSweep(scene_id, engine, members, order, verdict))
     return result

@@ -35,6 +35,7 @@ def row_fields() -> tuple[str, ...]:
         "consistency",
         "engine_version",
         "scene_hash",
+        "tolerance",
     )
 
 
@@ -60,6 +61,7 @@ def case_rows(records: Iterable[CaseRecord], tolerance: float | None = None) -> 
                 "consistency": verdict.reason if verdict else "",
                 "engine_version": record.engine_version,
                 "scene_hash": record.scene_hash,
+                "tolerance": record.case.tolerance,  # the tolerance axis's (compare/suite/tolerance_axis.py)
             }
             rows.append({k: row.get(k) for k in fields_now})
     return rows
@@ -122,7 +124,7 @@ def scene_tables(records: Iterable[CaseRecord], tolerance: float | None = None) 
             else:
                 values.append(_number(finest.metrics.get(metric.name) if finest else None))
         by_scene.setdefault(sweep.scene_id, []).append(
-            [sweep.engine, _statuses(sweep), f"{finest.case.dt:.3g}" if finest else "-", *values, _verdict(sweep)]
+            [sweep.engine, _statuses(sweep), _step(finest), *values, _verdict(sweep)]
         )
         reason = _reason(sweep)
         if reason:
@@ -139,3 +141,10 @@ def scene_tables(records: Iterable[CaseRecord], tolerance: float | None = None) 
         lines.extend(notes.get(scene_id, []))
         blocks.append("\n".join(line.rstrip() for line in lines))
     return "\n\n".join(blocks) + "\n"
+
+
+def _step(finest: CaseRecord | None) -> str:
+    """The short table's dt column: the finest ok dt, or ``tol 1e-08`` on the tolerance axis."""
+    if finest is None:
+        return "-"
+    return f"{finest.case.dt:.3g}" if finest.case.tolerance is None else f"tol {finest.case.tolerance:.3g}"

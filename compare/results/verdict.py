@@ -81,10 +81,17 @@ class Point:
     cost: float
     error: float
     case_id: str
+    #: On the tolerance axis (compare/suite/tolerance_axis.py): the case's tolerance; dt is then its largest step.
+    tolerance: float | None = None
 
     @property
     def family(self) -> str:
         return family(self.engine)
+
+    @property
+    def step(self) -> str:
+        """``dt 0.001`` or ``tol 1e-08``: what this point's variant sweeps, padded for a column."""
+        return f"dt {self.dt:<9.3g}" if self.tolerance is None else f"tol {self.tolerance:<8.3g}"
 
 
 def point(record: CaseRecord) -> Point | None:
@@ -94,12 +101,13 @@ def point(record: CaseRecord) -> Point | None:
     cost, error = record.metric(COST_METRIC), record.metric(ORDER_METRIC)
     if not (_finite_positive(cost) and _finite_positive(error)):
         return None
-    return Point(record.case.engine, record.case.dt, float(cost), float(error), record.case.id)
+    return Point(record.case.engine, record.case.dt, float(cost), float(error), record.case.id, record.case.tolerance)
 
 
 def points(sweep: VariantSweep) -> list[Point]:
-    """The Points of one variant, largest dt first."""
-    found = (point(r) for r in sorted(sweep.records, key=lambda r: -r.case.dt))
+    """The Points of one variant, largest dt (loosest tolerance, on the tolerance axis) first."""
+    found = (point(r) for r in sorted(
+        sweep.records, key=lambda r: -(r.case.dt if r.case.tolerance is None else r.case.tolerance)))
     return [p for p in found if p is not None]
 
 
@@ -375,7 +383,7 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
                         lines.append(f"    {best.family}: none within the budget ({cheapest})")
                     else:
                         p = best.point
-                        lines.append(f"    {p.engine:<{width}}  dt {p.dt:<9.3g} error {p.error:.2e} m  cost {p.cost:.2e} s/s")
+                        lines.append(f"    {p.engine:<{width}}  {p.step} error {p.error:.2e} m  cost {p.cost:.2e} s/s")
             else:
                 lines.append("  no ok run with an error and a cost")
             if verdict.comparison is not None:

@@ -49,6 +49,7 @@ from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import SCHEMA_VERSION, CaseRecord
 from compare.results.store import ResultsDir, downsample_indices, jsonable, now, read_json, rounded
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
+from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
 #: Runs of a case whose executor breaks under it: once among others, then once alone
 #: (the Dask executor's allowed-failures follows this).
@@ -73,25 +74,37 @@ class Case:
     engine: EngineSpec
     dt: float
     position: tuple[int, int, int] = (0, 0, 0)
+    #: On the tolerance axis: the tolerance (already in ``engine.options``); dt is then the largest step.
+    tolerance: float | None = None
 
     @property
     def id(self) -> str:
-        return case_id(self.scene.id, self.engine.label, self.dt)
+        return case_id(self.scene.id, self.engine.label, self.dt, self.tolerance)
 
 
-def case_id(scene_id: str, engine_label: str, dt: float) -> str:
-    """``bead|mujoco/hinge-rk4|dt=0.001``: stable across runs, the key ``--resume`` matches on."""
-    return f"{scene_id}|{engine_label}|dt={dt:.12g}"
+def case_id(scene_id: str, engine_label: str, dt: float, tolerance: float | None = None) -> str:
+    """``bead|mujoco/hinge-rk4|dt=0.001`` (``…|dt=0.01|tol=1e-06`` on the tolerance axis):
+    stable across runs, the key ``--resume`` matches on."""
+    tail = "" if tolerance is None else f"|tol={tolerance:.12g}"
+    return f"{scene_id}|{engine_label}|dt={dt:.12g}{tail}"
 
 
 def plan(suite: Suite) -> list[Case]:
-    """Every case of the suite, scene-major, in the suite's order."""
-    return [
-        Case(s, e, dt, (i, j, k))
-        for i, s in enumerate(suite.scenes)
-        for j, e in enumerate(suite.engines)
-        for k, dt in enumerate(suite.dts)
-    ]
+    """Every case of the suite, scene-major, in the suite's order.
+
+    A variant that takes a tolerance gets one case per suite tolerance instead of one per dt
+    (compare/suite/tolerance_axis.py), when the suite sweeps one.
+    """
+    cases = []
+    for i, s in enumerate(suite.scenes):
+        for j, e in enumerate(suite.engines):
+            names = tolerance_options(e.engine, e.variant, e.options) if suite.tolerances else ()
+            if names:
+                cases += [Case(s, replace(e, options=with_tolerance(e.options, names, tol)), suite.sample_interval,
+                               (i, j, k), tol) for k, tol in enumerate(suite.tolerances)]
+            else:
+                cases += [Case(s, e, dt, (i, j, k)) for k, dt in enumerate(suite.dts)]
+    return cases
 
 
 def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
@@ -494,6 +507,7 @@ def build_record(
             "options": dict(case.engine.options),
             "dt": case.dt,
             "position": list(case.position),
+            "tolerance": case.tolerance,
         },
         "status": "skipped",
         "message": skipped or "",

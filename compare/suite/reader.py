@@ -11,6 +11,8 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     timeout = 120                  # s per case, before it is recorded as `timeout`
     dt = [1e-2, 1e-3]              # a list, or a geometric sweep:
     # dt = { from = 1e-1, to = 1e-4, per_decade = 2 }
+    tolerance = { from = 1e-4, to = 1e-10, per_decade = 1 }   # optional: error-controlled
+                                   # variants sweep this instead of dt (compare/suite/tolerance_axis.py)
 
     [reference]                    # settings of the DOP853 reference
     rtol = 1e-12
@@ -72,6 +74,7 @@ from engines.scene import Scene
 
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
+from compare.suite.tolerance_axis import read_tolerances
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
 
@@ -94,6 +97,7 @@ TOP_LEVEL_KEYS = {
     "stability": "a table for xval stability (compare/suite/plans.py): scenes, engines, dt_max, dt_min",
     "gainmap": "a table for the gain map (compare/suite/plans.py): scene, engines, x, y, x_values, y_values, dt",
     "verdict": "a table with tolerance (a fraction of L) for the consistency verdict",
+    "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters")
@@ -157,6 +161,8 @@ class Suite:
     stability: StabilityPlan | None = None
     gainmap: GainMapPlan | None = None
     verdict_tolerance: float = DEFAULT_DELTA
+    #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
+    tolerances: tuple[float, ...] = ()
 
     def fingerprint(self) -> str:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
@@ -171,6 +177,8 @@ class Suite:
             "reference": [self.rtol, self.atol],
             "bounds": [self.bounds.energy_drift, self.bounds.constraint_error],
         }
+        if self.tolerances:  # only then, so suites without the axis keep their fingerprints
+            physics["tolerances"] = list(self.tolerances)
         text = json.dumps(physics, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -409,6 +417,7 @@ class _Reader:
             stability=stability,
             gainmap=gainmap,
             verdict_tolerance=verdict_tolerance,
+            tolerances=read_tolerances(self, data.get("tolerance")),
         )
 
     def reference_tolerances(self, rtol: float, atol: float) -> None:

@@ -1,0 +1,64 @@
+"""The tolerance axis: a suite's ``tolerance`` sweep, for engines whose error is set by a tolerance.
+
+A suite may sweep ``tolerance = [1e-4, 1e-6]`` or ``tolerance = { from = 1e-4, to = 1e-10,
+per_decade = 1 }`` beside its ``dt``. An engine variant takes part when its engine declares
+the capability ``"tolerance"``, names the options a tolerance sets (``tolerance_options``,
+e.g. Drake's ``("accuracy",)``), and says these settings are error-controlled
+(``tolerance_capable(settings)``; a fixed-step variant of the same engine is not). Such a
+variant gets one case per tolerance *instead of* one per dt: the tolerance is written into
+each of its tolerance options, and dt is the suite's sample interval, which such an engine
+takes as its largest step. Every other variant keeps its dt sweep. Both kinds of point land
+on the same error-against-cost plane; an order is fitted only to a dt sweep, and consistency
+is judged along the tolerance (does the error fall as it tightens).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from compare.suite.plans import geometric_sweep
+
+SWEEP_KEYS = ("from", "to", "per_decade")
+#: The capability an engine declares to take part (engines.drake.DrakeEngine).
+CAPABILITY = "tolerance"
+
+
+def read_tolerances(reader: Any, value: Any) -> tuple[float, ...]:
+    """The suite's tolerances, tightest last; ``reader`` is the suite reader (its ``error`` names the line)."""
+    if value is None:
+        return ()
+    if isinstance(value, list):
+        if not value:
+            raise reader.error("tolerance", "is empty; list at least one tolerance, e.g. tolerance = [1e-4, 1e-6]")
+        values = [reader.number(f"tolerance[{k}]", v) for k, v in enumerate(value)]
+    elif isinstance(value, dict):
+        sweep = reader.table("tolerance", value, SWEEP_KEYS)
+        for key in SWEEP_KEYS:
+            if key not in sweep:
+                raise reader.error("tolerance", f"the sweep needs {key}; write tolerance = "
+                                                f"{{ from = 1e-4, to = 1e-10, per_decade = 1 }}")
+        values = geometric_sweep(reader.number("tolerance.from", sweep["from"]),
+                                 reader.number("tolerance.to", sweep["to"]),
+                                 int(reader.number("tolerance.per_decade", sweep["per_decade"], integer=True)))
+    else:
+        raise reader.error("tolerance", f"must be a list of tolerances or a table {{from, to, per_decade}}, "
+                                        f"got {value!r}")
+    if len(set(values)) != len(values):
+        raise reader.error("tolerance", "lists the same tolerance twice; remove the duplicate")
+    return tuple(sorted(values, reverse=True))
+
+
+def tolerance_options(engine: Any, variant: str | None, options: Any) -> tuple[str, ...]:
+    """The options a tolerance sets for this engine variant, or () when it takes no tolerance."""
+    if engine is None or CAPABILITY not in getattr(engine, "capabilities", ()):
+        return ()
+    names = tuple(getattr(engine, "tolerance_options", ()))
+    capable: Callable[[Any], bool] | None = getattr(engine, "tolerance_capable", None)
+    if not names or capable is None:
+        return ()
+    return names if capable(engine.resolve(variant, options)) else ()
+
+
+def with_tolerance(options: Any, names: tuple[str, ...], tolerance: float) -> dict[str, Any]:
+    """``options`` with each tolerance option set to ``tolerance``."""
+    return {**dict(options), **{name: tolerance for name in names}}

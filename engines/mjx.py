@@ -1,0 +1,236 @@
+"""MuJoCo MJX adapter: the MuJoCo adapter's hinge model, stepped by MJX (MuJoCo in JAX) on the CPU.
+
+MJX is the JAX port of MuJoCo that most new MuJoCo users run, batched and
+in float32 by default. This adapter builds exactly the model of
+``mujoco/hinge`` (the MuJoCo adapter's own ``build``: nested bodies, a hinge
+about +y per particle, or a ball joint for a 3-D scene, a slide joint on a
+Line, a connect equality closing a loop, point masses with inertia
+``inertia_ratio``·m·L², contacts disabled), refuses what it refuses,
+compiles it with the MuJoCo C library, and hands it to MJX with ``mjx.put_model(impl="jax")``.
+
+- **Precision.** ``mjx/hinge`` runs with JAX's 64-bit mode on (float64
+  throughout, so it should agree with ``mujoco/hinge`` to round-off);
+  ``mjx/hinge-f32`` with it off, JAX's default: every array and every
+  operation in float32. The mode is set for this adapter's calls only
+  (``jax.enable_x64`` as a context), so both run in one process.
+- **Package.** MJX is the ``mujoco-mjx`` package (3.17.0 on the package
+  index), which installs as ``mujoco.mjx`` inside the MuJoCo that xval uses
+  (4.0.0) and runs beside it: the JAX implementation is used (MJX's Warp
+  implementation, which would need ``warp-lang``, is not). Its import prints
+  "Failed to import warp" to stdout when warp is absent; that is swallowed.
+- **Stepping and timing.** ``mjx.step`` is wrapped in a ``jax.lax.fori_loop``
+  over the steps between two samples and jit-compiled once per model
+  structure, precision and integrator in a process (dt is an array in MJX's
+  model, so a dt sweep reuses the compiled code). Compilation
+  (``jit(...).lower(...).compile()``) is timed apart and recorded in RunInfo
+  as ``jit_compile_time`` (0 when an earlier run in the process compiled it,
+  ``jit_cache_hit`` true); the stepping wall time is that of the compiled
+  calls alone, waiting for the last result.
+- **Read-back.** Positions, velocities and constraint forces are computed
+  from MJX's joint states (cast to float64) by the MuJoCo C library exactly as
+  for ``mujoco/hinge`` (:func:`engines.mujoco.read_samples`): the forces are
+  those the model applies at MJX's state, evaluated in float64.
+- **Instability.** MuJoCo C resets a state it finds bad (mjWARN_BADQACC);
+  MJX does not check. A state that runs away to non-finite values ends the run
+  ``unstable`` at the first such sample.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import importlib.util
+import io
+import os
+import re
+import time
+from typing import Any, Mapping
+
+import mujoco
+import numpy as np
+
+from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.errors import Unsupported, UserError
+from engines.mujoco import ENGINE as MUJOCO
+from engines.mujoco import constraint_tree, hinge_velocities, read_samples
+from engines.scene import Scene
+
+if importlib.util.find_spec("jax") is None:
+    raise ImportError("No module named 'jax' (MJX runs on JAX)")
+if importlib.util.find_spec("mujoco.mjx") is None:
+    raise ImportError("No module named 'mujoco.mjx' (the mujoco-mjx package)")
+
+#: MJX's integrators that this adapter offers (MJX has no 'implicit').
+MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
+
+#: Deepest body tree the adapter compiles by default. Measured CPU time of jit(mjx.step).lower().compile()
+#: on a planar chain (mujoco-mjx 3.17.0, jax 0.10.2; scripts/peers_findings.py compile): 3.7 s at depth 2,
+#: 5.7 s at 4, 11.9 s at 8, growing faster than the depth; and the compiled loop is rebuilt in every case's
+#: process. Deeper scenes are left out with this reason unless max_depth is raised.
+MAX_DEPTH = 8
+
+#: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
+_compiled: dict[tuple, Any] = {}
+_last_trace_x64: list[bool] = []
+
+
+def _jax():
+    """(jax, mjx), imported on first use: `xval engines` lists this engine without paying for JAX's import."""
+    os.environ.setdefault("JAX_PLATFORMS", "cpu")
+    import jax
+
+    with contextlib.redirect_stdout(io.StringIO()):  # "Failed to import warp: ..." without warp-lang
+        from mujoco import mjx
+    return jax, mjx
+
+
+def mjx_version() -> str:
+    """``mujoco-mjx X, jax Y`` from the installed distributions' metadata."""
+    return f"mujoco-mjx {importlib.metadata.version('mujoco-mjx')}, jax {importlib.metadata.version('jax')}"
+
+
+class MJXEngine(Engine):
+    """MuJoCo MJX (JAX, CPU): the mujoco/hinge model in float64 or float32."""
+
+    name = "mjx"
+    capabilities = frozenset({"3d", "constraint-forces"})
+    options = {
+        "precision": Option(
+            "precision", "float64", "float64: JAX 64-bit mode on; float32: off (JAX's and MJX's default)",
+            kind="str", choices=("float64", "float32"),
+        ),
+        "integrator": Option(
+            "integrator", "Euler", "MJX integrator (Euler, semi-implicit, is MuJoCo's default)",
+            kind="str", choices=MJX_INTEGRATORS,
+        ),
+        "inertia_ratio": Option(
+            "inertia_ratio", 1e-9,
+            "rotational inertia of each point-mass body, as a fraction of m·L² (as mujoco/hinge)",
+        ),
+        "max_depth": Option(
+            "max_depth", MAX_DEPTH,
+            "deepest body tree compiled: MJX's jit compile grows steeply with the tree's depth on the CPU",
+            kind="int",
+        ),
+    }
+    variants = {
+        "hinge": {},
+        "hinge-f32": {"precision": "float32"},
+        "hinge-rk4": {"integrator": "RK4"},
+        "hinge-rk4-f32": {"integrator": "RK4", "precision": "float32"},
+    }
+    variant_docs = {
+        "hinge": "mujoco/hinge's model stepped by MJX, float64 (jax x64), Euler",
+        "hinge-f32": "as hinge, float32 (JAX's default precision)",
+        "hinge-rk4": "mujoco/hinge-rk4's model stepped by MJX, float64, RK4",
+        "hinge-rk4-f32": "as hinge-rk4, float32",
+    }
+    overrides = {
+        "flag.contact": "disable (default enable): the scenes have nothing to collide",
+        "jax_enable_x64": "on for float64 variants (JAX's default is off: float32)",
+        "impl": "jax (put_model's default picks by device; JAX on a CPU)",
+    }
+
+    def version(self) -> str:
+        return f"{mjx_version()}, mujoco {mujoco.mj_versionString()}"
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if settings["inertia_ratio"] <= 0:
+            raise UserError(f"mjx: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
+        MUJOCO.check(scene, "hinge", _mujoco_options(settings))
+        tree = constraint_tree(scene)
+        depth = max(_depth(tree.parent, i) for i in range(len(tree.parent)))
+        if depth > settings["max_depth"]:
+            raise Unsupported(
+                f"mjx: the body tree is {depth} deep and MJX's jit compile on the CPU grows steeply with depth "
+                f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
+            )
+
+    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str]:
+        """(compiled MuJoCo model, MJCF text): the MuJoCo adapter's hinge model with this integrator and inertia."""
+        model, xml, _inertia = MUJOCO.build(scene, dt, _mujoco_settings(settings))
+        return model, xml
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        jax, mjx = _jax()
+        model, xml = self.build(scene, schedule.dt, settings)
+        data = mujoco.MjData(model)
+        data.qvel[:] = hinge_velocities(scene, model)
+        mujoco.mj_forward(model, data)
+        x64 = settings["precision"] == "float64"
+        strides = np.diff(schedule.sample_steps).astype(np.int32)
+        # The compiled loop depends on the model's structure, not on dt (an array in MJX's model).
+        key = (re.sub(r'timestep="[^"]*"', "", xml), x64)
+        record: dict[str, Any] = {}
+        with jax.enable_x64(x64):
+            mx = mjx.put_model(model, impl="jax")
+            dx = mjx.put_data(model, data, impl="jax")
+            record["dtype"] = str(dx.qpos.dtype)
+            compiled = _compiled.get(key)
+            record["jit_cache_hit"] = compiled is not None
+            t0 = time.perf_counter()
+            if compiled is None:
+                if _last_trace_x64 and _last_trace_x64[-1] != x64:
+                    # JAX's trace caches outlive a change of x64 mode: an inner jit (MJX's RK4 calls jnp.tril)
+                    # traced in float64 is reused in float32 and fails to lower. Start the traces afresh.
+                    jax.clear_caches()
+                _last_trace_x64[:] = [x64]
+                compiled = _compiled[key] = jax.jit(_advance).lower(mx, dx, np.int32(1)).compile()
+            record["jit_compile_time"] = 0.0 if record["jit_cache_hit"] else time.perf_counter() - t0
+            outputs = []
+            t0 = time.perf_counter()
+            for stride in strides:
+                dx = compiled(mx, dx, stride)
+                outputs.append((dx.qpos, dx.qvel))
+            jax.block_until_ready(dx)
+            wall = time.perf_counter() - t0
+            qpos = np.array([data.qpos] + [np.asarray(q, dtype=np.float64) for q, _ in outputs])
+            qvel = np.array([data.qvel] + [np.asarray(v, dtype=np.float64) for _, v in outputs])
+        finite = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
+        n = len(qpos) if finite.all() else int(np.argmin(finite)) + 1
+        states = _full_states(model, qpos[:n], qvel[:n], schedule.times[:n])
+        positions, velocities, forces = read_samples(scene, model, mujoco.MjData(model), states, hinge=True)
+        record["point_mass_inertia"] = [float(x) for x in settings["inertia_ratio"] * scene.masses
+                                        * scene.characteristic_length**2]
+        record["stepping"] = "jit(fori_loop(mjx.step)) per sample interval"
+        return RawRun(positions, velocities, forces, steps=int(schedule.sample_steps[-1] if n == len(qpos) else schedule.sample_steps[n]),
+                      wall_time=wall, settings=record)
+
+
+def _mujoco_options(settings: Mapping[str, Any]) -> dict[str, Any]:
+    return {"integrator": settings["integrator"], "inertia_ratio": settings["inertia_ratio"]}
+
+
+def _mujoco_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """The MuJoCo adapter's settings for mujoco/hinge with this integrator and point-mass inertia."""
+    return MUJOCO.resolve("hinge", _mujoco_options(settings))
+
+
+def _depth(parent: tuple[int, ...], i: int) -> int:
+    """Bodies from the world down to particle ``i`` (1 for a particle hung from a Pin)."""
+    depth = 1
+    while parent[i] >= 0:
+        i, depth = parent[i], depth + 1
+    return depth
+
+
+def _advance(m, d, n):
+    """``n`` MJX steps of ``d`` under model ``m`` (a fori_loop with a traced count: one compile for any n)."""
+    import jax
+    from mujoco import mjx
+
+    return jax.lax.fori_loop(0, n, lambda _, x: mjx.step(m, x), d)
+
+
+def _full_states(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(n, nstate) MuJoCo full-physics states for joint positions (n, nq) and velocities (n, nv) at times (n,) s."""
+    data = mujoco.MjData(model)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    out = np.empty((len(qpos), mujoco.mj_stateSize(model, spec)))
+    for s, (q, v, t) in enumerate(zip(qpos, qvel, times)):
+        data.qpos[:], data.qvel[:], data.time = q, v, t
+        mujoco.mj_getState(model, data, out[s], spec)
+    return out
+
+
+ENGINE = MJXEngine()

@@ -1,0 +1,96 @@
+"""The MJX adapter against MuJoCo, the elliptic period and the reference, with the real MJX on JAX's CPU.
+
+MJX is an optional extra (``pip install 'xval[mjx]'``): without it these tests
+skip with that reason (tests/test_engine_drake.py checks what a machine
+without the extras shows). Each model structure and precision costs one jit
+compile (~2-5 s of CPU on the bead), so every test here uses the bead or the
+double pendulum, and short runs. Numbers in comments were measured with
+mujoco-mjx 3.17.0, jax 0.10.2, mujoco 4.0.0.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+
+from engines import catalog
+from engines.closed_form import pendulum_period
+from engines.mujoco import ENGINE as MUJOCO
+from engines.reference import ENGINE as REFERENCE
+
+HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_spec("mujoco.mjx") is not None
+pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip install 'xval[mjx]'")
+G = 9.81
+
+
+@pytest.fixture(scope="module")
+def mjx():
+    from engines.mjx import ENGINE
+
+    return ENGINE
+
+
+def test_float64_equals_mujoco_hinge(mjx):
+    # Same model, same Euler step, both in float64: round-off apart (measured 4e-16 m on the bead,
+    # 5e-15 m on the double pendulum, 4e-15 m on a 4-link chain, over 1-2 s). Forces are MuJoCo's at
+    # MJX's state, so they agree as closely. (The bead only: each model structure costs a compile.)
+    scene = catalog.build("bead", {"duration": 1})
+    run = mjx.simulate(scene, 1e-3, variant="hinge")
+    mujoco = MUJOCO.simulate(scene, 1e-3, variant="hinge")
+    assert run.info.status == "ok", run.info.message
+    assert run.info.settings["dtype"] == "float64" and run.info.steps == 1000
+    assert np.abs(run.positions - mujoco.positions).max() < 1e-12
+    assert np.abs(run.velocities - mujoco.velocities).max() < 1e-11
+    assert np.abs(run.constraint_forces - mujoco.constraint_forces).max() < 1e-9
+
+
+def test_bead_period_matches_the_elliptic_integral(mjx):
+    # Euler's relative period error is below ω·dt = 3.1e-3 at dt = 1e-3 (as mujoco/hinge, whose
+    # test derives the bound). Linear interpolation at a zero crossing, where x'' = 0, is exact to O(h³).
+    scene = catalog.build("bead", {"theta0": 10, "duration": 4.5})  # two full periods
+    run = mjx.simulate(scene, 1e-3, variant="hinge", sample_interval=2e-3)
+    x, t = run.positions[:, 0, 0], run.t
+    i = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    crossings = t[i] - x[i] * (t[i + 1] - t[i]) / (x[i + 1] - x[i])
+    period = (crossings[-1] - crossings[0]) / (len(crossings) - 1)
+    assert abs(period / pendulum_period(1.0, G, math.radians(10)) - 1) < 3.2e-3
+
+
+def test_float32_error_floor_is_measured_above_float64s(mjx):
+    # RK4 on the bead (1 s) at dt = 2.5e-3 and 1e-3: float64 sits on the 1e-9 inertia floor
+    # (~2.6e-9 m, as mujoco/hinge-rk4), while RK4's truncation error is already below it. Float32
+    # stops at its round-off, accumulated over the steps: measured 1.5e-6 and 2.5e-6 m over 2 s,
+    # i.e. 10-20 ε₃₂·L (ε₃₂ = 1.2e-7, L = 1 m). Bounds: above ε₃₂·L, below 100 ε₃₂·L, and at
+    # least 10× float64's error.
+    scene = catalog.build("bead", {"duration": 1})
+    eps32 = float(np.finfo(np.float32).eps)
+    for dt in (2.5e-3, 1e-3):
+        reference = REFERENCE.simulate(scene, dt)
+        f64 = mjx.simulate(scene, dt, variant="hinge-rk4")
+        f32 = mjx.simulate(scene, dt, variant="hinge-rk4-f32")
+        e64 = np.abs(f64.positions - reference.positions).max()
+        e32 = np.abs(f32.positions - reference.positions).max()
+        assert e64 < 1e-8
+        assert eps32 < e32 < 100 * eps32
+        assert e32 > 10 * e64
+
+
+def test_jit_compile_time_is_recorded_apart_from_stepping(mjx):
+    # A dt sweep reuses the compiled loop (dt is an array in MJX's model): the second run compiles nothing.
+    scene = catalog.build("bead", {"duration": 0.5})
+    first = mjx.simulate(scene, 2e-3, variant="hinge")
+    second = mjx.simulate(scene, 1e-3, variant="hinge")
+    assert second.info.settings["jit_cache_hit"] is True and second.info.settings["jit_compile_time"] == 0.0
+    assert first.info.settings["jit_cache_hit"] or first.info.settings["jit_compile_time"] > 0
+    assert second.info.steps == 500 and second.info.wall_time > 0
+
+
+def test_a_deep_chain_is_left_out_with_the_reason_and_the_fix(mjx):
+    from engines.errors import Unsupported
+
+    with pytest.raises(Unsupported, match="body tree is 32 deep .* set option max_depth = 32 to run it anyway"):
+        mjx.check(catalog.build("chain", {"n": 32}), "hinge")
+    mjx.check(catalog.build("chain", {"n": 32}), "hinge", {"max_depth": 32})  # the user may insist
