@@ -152,7 +152,7 @@ def test_discrete_plant_equals_mujoco_hinge(scene_name, params):
     from engines.mujoco import ENGINE as MUJOCO
 
     scene = catalog.build(scene_name, {"duration": 2, **params})
-    mujoco = MUJOCO.simulate(scene, 1e-3, variant="hinge")
+    mujoco = MUJOCO.simulate(scene, 1e-3, variant="hinge", options={"inertia_ratio": 1e-9})
     discrete = drake().simulate(scene, 1e-3, variant="discrete", options={"inertia_ratio": 1e-9})
     assert discrete.info.steps == 2000 and discrete.info.settings["discrete_contact_approximation"] == "kSap"
     assert np.abs(discrete.positions - mujoco.positions).max() < 1e-12
