@@ -191,13 +191,13 @@ def test_a_case_past_the_memory_limit_fails_with_the_reason_and_the_others_carry
 
 
 def _small_files() -> None:
-    # Past 8 kB a write fails with EFBIG (Python ignores SIGXFSZ): a disk that fills after the first files.
-    resource.setrlimit(resource.RLIMIT_FSIZE, (8192, resource.RLIM_INFINITY))
+    # Past 12 kB a write fails with EFBIG (Python ignores SIGXFSZ): a disk that fills after the first files.
+    resource.setrlimit(resource.RLIMIT_FSIZE, (12288, resource.RLIM_INFINITY))
 
 
 def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     suite_file = tmp_path / "s.toml"
-    # A bead's record (~5 kB) fits under the 8 kB limit, a double pendulum's (~15 kB) does not.
+    # A bead's record (~8.2 kB) fits under the 12 kB limit, a double pendulum's (~15 kB) does not.
     suite_file.write_text('dt = [1e-2]\nengines = ["mujoco/hinge"]\n[[scenes]]\nscene = "bead"\nparameters = { duration = 0.3 }\n'
                           '[[scenes]]\nscene = "double-pendulum"\nparameters = { duration = 1.0 }\n')
     out = tmp_path / "r"
