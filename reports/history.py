@@ -17,7 +17,6 @@ Content-Security-Policy that forbids any request: it works offline.
 from __future__ import annotations
 
 import functools
-import html
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +30,8 @@ from compare.history.location import check_option
 from compare.history.store import History, StoredRun
 from compare.history.trend import Series, build_series, trend_metrics
 from compare.results.files import atomic_write_text, check_writable
+
+from reports.figures import Plot, plot_text
 
 #: One colour per dt of a variant (largest dt first).
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
@@ -47,24 +48,7 @@ def plotly_js() -> Markup:
     return Markup(source.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT"))
 
 
-def plot_text(value: Any) -> str:
-    """``value`` as text plotly.js shows literally (it reads a subset of HTML in labels)."""
-    return html.escape(str(value), quote=False)
-
-
-@dataclass(frozen=True)
-class Figure:
-    id: str
-    title: str
-    caption: str
-    figure: dict[str, Any]
-
-    @property
-    def n_traces(self) -> int:
-        return len(self.figure["data"])
-
-
-def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Series], runs: Sequence[StoredRun]) -> Figure:
+def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Series], runs: Sequence[StoredRun]) -> Plot:
     """One figure: a row per metric (in declaration order), a line per dt, step markers."""
     present = {s.metric.name for s in series}
     metrics = [m for m in trend_metrics() if m.name in present]
@@ -124,7 +108,7 @@ def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Serie
     title = f"{scene} · {engine}"
     caption = (f"{len(runs)} runs; one row per metric, one line per dt; a dashed line marks a step change "
                f"(red: worse, green: better) before the first run after it. Gaps are runs where the case was not ok.")
-    return Figure(f"trend-{number}", title, caption, {"data": data, "layout": layout})
+    return Plot(f"trend-{number}", title, caption, {"data": data, "layout": layout})
 
 
 def page_context(history: History, suite: str | None = None, last: int | None = None) -> dict[str, Any]:

@@ -13,12 +13,11 @@ import statistics
 from pathlib import Path
 from typing import Any, Callable
 
-import pytest
 
-from compare.cli import main
 from compare.results.store import ResultsDir, read_json
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
+from cli_support import run_cli as xval  # noqa: F401 (tests import it from here)
 
 TESTS = Path(__file__).resolve().parent
 SUITE = TESTS / "gate_suite.toml"
@@ -73,12 +72,3 @@ def set_timings(record: dict[str, Any], wall_times: list[float]) -> None:
     metrics["steps_per_second"] = steps / median
 
 
-def xval(capsys: pytest.CaptureFixture, *argv: str) -> tuple[int, str, str]:
-    """Run the CLI in-process: (exit code, stdout, stderr)."""
-    try:
-        main([str(a) for a in argv])
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err

@@ -19,15 +19,14 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
-import pytest
 
-from compare.cli import main
 from compare.history.origin import Origin
 from compare.history.store import History, StoredRun
 from compare.results.record import CaseRecord
 from compare.results.store import Results, load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
+from cli_support import run_cli as xval  # noqa: F401 (tests import it from here)
 
 TESTS = Path(__file__).resolve().parent
 #: One scene, two "solvers" (the reference at loose tolerances), three dts, three timing repeats: ~1 s.
@@ -97,15 +96,6 @@ def write_results(results: Results, target: Path) -> Path:
     return target
 
 
-def xval(capsys: pytest.CaptureFixture, *argv: Any) -> tuple[int, str, str]:
-    """Run the CLI in-process: (exit code, stdout, stderr)."""
-    try:
-        main([str(a) for a in argv])
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def xval_process(*argv: Any, cwd: Path | None = None) -> subprocess.Popen:

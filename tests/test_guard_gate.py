@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import pytest
@@ -13,19 +12,12 @@ import pytest
 from compare.cli import main
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
+from cli_support import run_cli as xval
 
 SUITE = ('name = "guard"\ndt = [2e-2, 1e-2]\nduration = 0.2\nengines = ["mujoco/hinge", "pymunk/pin"]\n'
          '[[scenes]]\nscene = "bead"\n')
 
 
-def xval(capsys, *argv):
-    try:
-        main([str(a) for a in argv])
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

@@ -10,19 +10,11 @@ import stat
 
 import pytest
 
-from compare.cli import main
 from compare.results.files import atomic_write_text, check_writable
 from engines.errors import UserError
+from cli_support import run_cli as run
 
 
-def run(capsys, *argv):
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture

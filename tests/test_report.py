@@ -13,13 +13,13 @@ import re
 import plotly.graph_objects as go
 import pytest
 
-from compare.cli import main
 from compare.results.sweep import sweeps
 from engines.errors import UserError
 from report_support import PageStructure, copy_results, run_suite_once
 from reports.load import choose_dt, load_report_data
 from reports.render import render, write_report
 from reports.summary import Column, _best_flags, metric_columns
+from cli_support import run_cli
 
 
 @pytest.fixture(scope="session")
@@ -294,15 +294,6 @@ def test_best_flags_rank_only_eligible_values_and_keep_ties():
 # -- the command -----------------------------------------------------------------------------
 
 
-def run_cli(capsys, *argv):
-    """(exit code, stdout, stderr) of ``xval ARGV`` run in-process; 0 when main() returns."""
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as stop:
-        code = stop.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_report_command_writes_dir_report_html_by_default(small_results, tmp_path, capsys):

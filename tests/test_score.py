@@ -15,18 +15,11 @@ from compare.results.score import SCORE_METRICS, score
 from compare.results.table import row_fields
 from engines import catalog, protocol
 from engines.reference import solve
+from cli_support import run_cli as run
 
 SCENE = catalog.build("double-pendulum", {"duration": 2.0, "theta1": 60})
 
 
-def run(capsys, *argv):
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

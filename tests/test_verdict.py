@@ -12,7 +12,6 @@ import re
 
 import pytest
 
-from compare.cli import main
 from compare.results.record import CaseRecord
 from compare.results.store import load_results
 from compare.results.sweep import sweeps
@@ -21,6 +20,7 @@ from compare.results.verdict import (
     problems, scene_verdicts,
 )
 from report_support import run_suite_once
+from cli_support import run_cli
 
 
 def record(engine: str, dt: float, error: float | None, cost: float | None, *, status: str = "ok",
@@ -153,14 +153,6 @@ label = "broken/raise"
 """
 
 
-def run_cli(capsys, *argv):
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as stop:
-        code = stop.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture
