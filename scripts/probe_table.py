@@ -19,7 +19,7 @@ from quoted import Row, report  # noqa: E402
 from compare.stability.dissipation import RULE, probe  # noqa: E402
 from engines import catalog, registry  # noqa: E402
 
-BUILTIN = ("ours", "mujoco", "pybullet", "pymunk")
+BUILTIN = ("ours", "mujoco", "pybullet", "pymunk", "drake", "mjx")
 QUICK = ("mujoco/hinge", "mujoco/connect", "pymunk/pin", "pybullet/p2p")
 SCENE = catalog.build("bead", {"duration": 20.0})
 #: Measured as a user would set it, with the rest: pymunk with its own damping option.
