@@ -330,14 +330,22 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     for panel, (_, title, _, _) in enumerate(SERIES_PANELS):
         name = "yaxis" if panel == 0 else f"yaxis{panel + 1}"
         axes[name] = _axis(title, _axis_type(panel_values[panel]), domain=domains[panel])
-    figure = {
-        "data": traces + markers,
-        "layout": _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes),
-    }
+    layout = _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes)
+    horizon = next((r.reference_horizon for _, _, r in chosen if r.reference_horizon is not None), None)
+    duration = float(scene.scene.get("duration") or 0.0)
+    if horizon is not None and horizon < duration:
+        # Past the horizon the reference's own two solves disagree (chaos): errors there are not the engine's.
+        layout["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": horizon, "x1": duration,
+                             "y0": 0, "y1": 1, "fillcolor": "#888888", "opacity": 0.15, "line": {"width": 0},
+                             "layer": "below"}]
+    figure = {"data": traces + markers, "layout": layout}
     caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
                "with the table). A panel is logarithmic when its values span more "
                "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A value past "
                f"{CLIP_FACTOR:g}× its bound is drawn at that ceiling and marked “blew up at t = …”.")
+    if horizon is not None and horizon < duration:
+        caption += (f" Shaded from t = {horizon:.3g} s: past the reference horizon, where the reference's own two "
+                    "solves (its tolerance and one 100× tighter) part; the case's error metrics are taken before it.")
     return Plot("ts", f"Time series at dt = {dt:.3g} s", caption, figure)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from reports.decimate import decimate, lttb_indices
 from reports.figures import clip, phase_curve
@@ -95,3 +96,26 @@ def test_a_run_cut_short_is_marked_where_it_stops():
     assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, None], 0.2) == (0.1, 2.0)  # turned non-finite
     assert last_finite([0.0, 0.1], [1.0, 2.0], 0.2) == (0.1, 2.0)  # stored series stops early
     assert last_finite([0.0, 0.1, 0.2], [1.0, 2.0, 3.0], 0.2) is None  # ran to the end
+
+
+def test_the_time_series_shade_the_run_past_the_reference_horizon(tmp_path):
+    """A chaotic scene's errors past the reference horizon are not the engine's: the plot shades them."""
+    import json
+    import shutil
+
+    from reports.figures import scene_plots
+    from reports.load import load_report_data
+
+    run = tmp_path / "run"
+    shutil.copytree(Path(__file__).parent / "fixtures" / "run-v1-smoke", run)
+    for file in (run / "cases").glob("double-pendulum_*.json"):
+        record = json.loads(file.read_text())
+        record["reference_horizon"] = 0.6
+        file.write_text(json.dumps(record))
+    scenes = {s.scene_id: s for s in load_report_data(run).scenes}
+    shaded = next(p for p in scene_plots(scenes["double-pendulum"], 1) if p.id.endswith("-ts"))
+    [shape] = shaded.figure["layout"]["shapes"]
+    assert (shape["x0"], shape["x1"]) == (0.6, 1.0)
+    assert "Shaded from t = 0.6 s: past the reference horizon" in shaded.caption
+    plain = next(p for p in scene_plots(scenes["bead"], 0) if p.id.endswith("-ts"))
+    assert "shapes" not in plain.figure["layout"] and "horizon" not in plain.caption

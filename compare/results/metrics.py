@@ -286,7 +286,8 @@ def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds
 
 
 #: Errors below this fraction of L are treated as round-off, reference error or an engine's own floor
-#: (MuJoCo's RK4 on the bead levels off near 1e-9 L; points near a floor bend the fitted slope).
+#: (an engine's point-mass inertia sets one: MuJoCo's RK4 levels off near 2.6·ratio m on the bead, docs/engines.md;
+#: points near a floor bend the fitted slope).
 ORDER_FLOOR = 1e-8
 #: Errors above this fraction of L are treated as saturated (no longer asymptotic).
 ORDER_CEILING = 1e-1
