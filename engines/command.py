@@ -56,7 +56,7 @@ from engines.trajectory import Trajectory
 #: The engine name every command engine shares; its variant is the label (``command/my-bead``).
 NAME = "command"
 #: Capabilities a command may declare (docs/protocol.md).
-KNOWN_CAPABILITIES = ("3d", "constraint-forces")
+KNOWN_CAPABILITIES = ("3d", "constraint-forces", "tolerance")
 #: The exit code by which a program says "I cannot express this scene" (its last stderr line says why): the
 #: case is ``skipped`` with that reason, as for a built-in engine's refusal. 77 is the "skip" of automake's
 #: test harness.
@@ -108,7 +108,8 @@ class CommandSpec:
         (one with a ``/``) is resolved against ``cwd``.
     cwd : the working directory it runs in (a suite file's folder), absolute.
     version : recorded with every case; a change makes the gate call its cases "not comparable".
-    capabilities : ``"3d"``, ``"constraint-forces"``.
+    capabilities : ``"3d"``, ``"constraint-forces"``, ``"tolerance"`` (the program is error-controlled:
+        on a suite's tolerance axis it gets ``options.tolerance`` and takes dt as its largest step).
     options : passed through to the program in the document's ``options``.
     """
 
@@ -212,6 +213,14 @@ class CommandEngine(Engine):
 
     def version(self) -> str:
         return self.spec.version or "unversioned"
+
+    #: The option a suite's tolerance axis sets (compare/suite/tolerance_axis.py), for a program that
+    #: declares the capability "tolerance"; it reaches the program as ``options.tolerance``.
+    tolerance_options = ("tolerance",)
+
+    def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
+        """Every run of a program that declares "tolerance" is error-controlled (it says so itself)."""
+        return "tolerance" in self.capabilities
 
     def resolve(self, variant: str | None = None, options: Mapping[str, Any] | None = None) -> dict[str, Any]:
         """The spec's options with ``options`` on top, passed to the program untouched (it owns their meaning)."""

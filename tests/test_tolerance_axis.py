@@ -7,6 +7,8 @@ sweep); the run at the end uses the real Drake and skips, with the pip line, wit
 from __future__ import annotations
 
 import concurrent.futures as cf
+import sys
+from pathlib import Path
 import importlib.util
 
 import numpy as np
@@ -111,3 +113,29 @@ def test_the_reference_sweeps_both_of_its_tolerances():
     suite = parse_suite(SUITE.replace('id = "drake/rk3"', 'id = "reference/dop853"'))
     cases = [c for c in plan(suite) if c.engine.label == "reference/dop853"]
     assert [c.engine.options for c in cases][:2] == [{"rtol": 1e-4, "atol": 1e-4}, {"rtol": 1e-5, "atol": 1e-5}]
+
+
+def test_a_command_engine_that_declares_tolerance_joins_the_tolerance_axis(tmp_path):
+    """Protocol 1 unchanged: the tolerance reaches the program as options.tolerance."""
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f"""
+name = "command-tolerance"
+duration = 1.0
+dt = [1e-2]
+tolerance = [1e-8, 1e-10, 1e-12]
+[[scenes]]
+scene = "bead"
+[[engines]]
+command = ["{sys.executable}", "{Path(__file__).parent / "tolerance_program.py"}"]
+label = "adaptive"
+capabilities = ["tolerance"]
+""")
+    run_suite(parse_suite(suite.read_text(), str(suite)), tmp_path / "r", jobs=1)
+    records = sorted(load_results(tmp_path / "r").records, key=lambda r: -r.case.tolerance)
+    assert [(r.case.engine, r.case.tolerance, r.status.value) for r in records] == [
+        ("command/adaptive", 1e-8, "ok"), ("command/adaptive", 1e-10, "ok"), ("command/adaptive", 1e-12, "ok")]
+    errors = [r.metric("position_error_linf") for r in records]
+    # h = tolerance^(1/4) (10, 3.2 and 1 ms) and RK4's error ~ h⁴: about 100× less per step of the sweep.
+    assert errors[0] > 10 * errors[1] > 100 * errors[2]
+    sweep = next(s for s in sweeps(load_results(tmp_path / "r").records))
+    assert sweep.order is None and sweep.consistency.consistent is True
