@@ -131,6 +131,12 @@ class CaseOutcome:
     calibrations: list[float] = field(default_factory=list)
 
 
+#: Fewest repeats for which the calibration kernel runs: the timing gate judges only cases timed at
+#: least twice (compare.gate.gate.MIN_TIMING_REPEATS), so a single repeat's ~3 ms calibration would be
+#: spent for nothing (about a tenth of the harness's CPU on the default suite, which runs once).
+MIN_CALIBRATED_REPEATS = 2
+
+
 def calibration_cpu_time() -> float:
     """s of this thread's CPU time for a fixed small kernel (~3 ms: 800 products of 24x24 matrices in a
     Python loop, so both the interpreter and compiled code are in it).
@@ -176,7 +182,8 @@ def simulate(task: CaseTask) -> CaseOutcome:
     calibrations: list[float] = []
     with _command_deadline(task):
         for _ in range(task.repeats):
-            calibrations.append(calibration_cpu_time())
+            if task.repeats >= MIN_CALIBRATED_REPEATS:
+                calibrations.append(calibration_cpu_time())
             trajectory = engine.simulate(
                 task.scene, task.dt, variant=task.variant, options=task.options, sample_interval=task.sample_interval
             )
