@@ -115,30 +115,6 @@ def read_stability(reader: Any, table: Any, scenes, engines, dts) -> StabilityPl
     return StabilityPlan(chosen_scenes, chosen_engines, SearchSettings(dt_max, dt_min, factor, resolution, interval))
 
 
-def geometric_sweep(start: float, stop: float, per_decade: int) -> list[float]:
-    """Values from ``start`` to ``stop`` inclusive, ``per_decade`` per factor of 10, equal ratios.
-
-    Rounded to 12 significant digits so 10^(−k/2) prints cleanly.
-    """
-    decades = abs(math.log10(stop / start))
-    n = max(1, round(decades * per_decade))
-    return [float(f"{start * (stop / start) ** (k / n):.12g}") for k in range(n + 1)]
-
-
-def _grid(reader: Any, key: str, value: Any) -> tuple[float, ...]:
-    if isinstance(value, dict):
-        sweep = reader.table(key, value, ("from", "to", "per_decade"))
-        if set(sweep) != {"from", "to", "per_decade"}:
-            raise reader.error(key, f"write {key.split('.')[-1]} = {{ from = 1, to = 1e8, per_decade = 2 }}")
-        values = geometric_sweep(reader.number(f"{key}.from", sweep["from"]), reader.number(f"{key}.to", sweep["to"]),
-                                 int(reader.number(f"{key}.per_decade", sweep["per_decade"], integer=True)))
-    elif isinstance(value, list) and value:
-        values = [reader.number(f"{key}[{k}]", v) for k, v in enumerate(value)]
-    else:
-        raise reader.error(key, "must be a list of positive numbers or { from, to, per_decade }")
-    return tuple(sorted(values))
-
-
 def read_gainmap(reader: Any, table: Any, scenes, expand) -> GainMapPlan | None:
     """``[gainmap]``: ``scene`` (an id of the suite), ``engines`` (engine ids, e.g.
     ``["ours/baumgarte-rk4"]``), ``x`` and ``y`` (names of two numeric options of those variants),
@@ -166,8 +142,10 @@ def read_gainmap(reader: Any, table: Any, scenes, expand) -> GainMapPlan | None:
     x, y = reader.string("gainmap.x", table["x"]), reader.string("gainmap.y", table["y"])
     if x == y:
         raise reader.error("gainmap.y", f"must name another option than x ({x!r})")
-    x_values = _grid(reader, "gainmap.x_values", table["x_values"])
-    y_values = _grid(reader, "gainmap.y_values", table["y_values"])
+    x_values = tuple(sorted(reader.sweep("gainmap.x_values", table["x_values"], "value", "[1e2, 1e4]",
+                                         "{ from = 1, to = 1e8, per_decade = 2 }")))
+    y_values = tuple(sorted(reader.sweep("gainmap.y_values", table["y_values"], "value", "[1, 1e2]",
+                                         "{ from = 1e-1, to = 1e5, per_decade = 2 }")))
     engines = []
     for k, engine_id in enumerate(ids):
         for spec in expand(f"gainmap.engines[{k}]", engine_id, {}, None):

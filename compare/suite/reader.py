@@ -76,7 +76,7 @@ from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
-from compare.suite.plans import GainMapPlan, StabilityPlan, geometric_sweep, read_gainmap, read_stability, read_verdict
+from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
 TOP_LEVEL_KEYS = {
@@ -433,24 +433,33 @@ class _Reader:
             except UserError as exc:
                 raise self.error(f"reference.{key}", str(exc)) from None
 
-    def dts(self, value: Any) -> tuple[float, ...]:
+    def sweep(self, key: str, value: Any, noun: str, example_list: str, example_sweep: str) -> list[float]:
+        """Positive values from a list or a geometric sweep table {from, to, per_decade}, in the order written.
+
+        The one reader of every sweep a suite holds (dt, tolerance, the gain map's axes); ``noun`` names one
+        value in messages ("time step"), the examples show the two forms.
+        """
+        leaf = key.split(".")[-1]
         if isinstance(value, list):
             if not value:
-                raise self.error("dt", "is empty; list at least one time step, e.g. dt = [1e-2, 1e-3]")
-            dts = [self.number(f"dt[{k}]", v) for k, v in enumerate(value)]
+                raise self.error(key, f"is empty; list at least one {noun}, e.g. {leaf} = {example_list}")
+            values = [self.number(f"{key}[{k}]", v) for k, v in enumerate(value)]
         elif isinstance(value, dict):
-            sweep = self.table("dt", value, SWEEP_KEYS)
-            for key in SWEEP_KEYS:
-                if key not in sweep:
-                    raise self.error("dt", f"the sweep needs {key}; write dt = {{ from = 1e-1, to = 1e-4, per_decade = 2 }}")
-            start = self.number("dt.from", sweep["from"])
-            stop = self.number("dt.to", sweep["to"])
-            per_decade = int(self.number("dt.per_decade", sweep["per_decade"], integer=True))
-            dts = geometric_sweep(start, stop, per_decade)
+            table = self.table(key, value, SWEEP_KEYS)
+            for part in SWEEP_KEYS:
+                if part not in table:
+                    raise self.error(key, f"the sweep needs {part}; write {leaf} = {example_sweep}")
+            values = geometric_sweep(self.number(f"{key}.from", table["from"]), self.number(f"{key}.to", table["to"]),
+                                     int(self.number(f"{key}.per_decade", table["per_decade"], integer=True)))
         else:
-            raise self.error("dt", f"must be {TOP_LEVEL_KEYS['dt']}, got {_describe(value)}")
-        if len(set(dts)) != len(dts):
-            raise self.error("dt", "lists the same time step twice; remove the duplicate")
+            raise self.error(key, f"must be a list of {noun}s or a table {{from, to, per_decade}}, got {_describe(value)}")
+        if len(set(values)) != len(values):
+            raise self.error(key, f"lists the same {noun} twice; remove the duplicate")
+        return values
+
+    def dts(self, value: Any) -> tuple[float, ...]:
+        """The suite's time steps (s), largest first."""
+        dts = self.sweep("dt", value, "time step", "[1e-2, 1e-3]", "{ from = 1e-1, to = 1e-4, per_decade = 2 }")
         return tuple(sorted(dts, reverse=True))
 
     def scenes(self, value: Any, duration: float | None) -> tuple[SceneSpec, ...]:
@@ -536,6 +545,16 @@ class _Reader:
             full = f"{base}/{name}"
             specs.append(EngineSpec(full, label or full, name, options, engine))
         return specs
+
+
+def geometric_sweep(start: float, stop: float, per_decade: int) -> list[float]:
+    """Values from ``start`` to ``stop`` inclusive, ``per_decade`` per factor of 10, equal ratios.
+
+    Rounded to 12 significant digits so 10^(−k/2) prints cleanly.
+    """
+    decades = abs(math.log10(stop / start))
+    n = max(1, round(decades * per_decade))
+    return [float(f"{start * (stop / start) ** (k / n):.12g}") for k in range(n + 1)]
 
 
 def _describe(value: Any) -> str:

@@ -16,35 +16,16 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from compare.suite.plans import geometric_sweep
 
-SWEEP_KEYS = ("from", "to", "per_decade")
 #: The capability an engine declares to take part (engines.drake.DrakeEngine).
 CAPABILITY = "tolerance"
 
 
 def read_tolerances(reader: Any, value: Any) -> tuple[float, ...]:
-    """The suite's tolerances, tightest last; ``reader`` is the suite reader (its ``error`` names the line)."""
+    """The suite's tolerances, tightest last; ``reader`` is the suite reader (its ``sweep`` reads both forms)."""
     if value is None:
         return ()
-    if isinstance(value, list):
-        if not value:
-            raise reader.error("tolerance", "is empty; list at least one tolerance, e.g. tolerance = [1e-4, 1e-6]")
-        values = [reader.number(f"tolerance[{k}]", v) for k, v in enumerate(value)]
-    elif isinstance(value, dict):
-        sweep = reader.table("tolerance", value, SWEEP_KEYS)
-        for key in SWEEP_KEYS:
-            if key not in sweep:
-                raise reader.error("tolerance", f"the sweep needs {key}; write tolerance = "
-                                                f"{{ from = 1e-4, to = 1e-10, per_decade = 1 }}")
-        values = geometric_sweep(reader.number("tolerance.from", sweep["from"]),
-                                 reader.number("tolerance.to", sweep["to"]),
-                                 int(reader.number("tolerance.per_decade", sweep["per_decade"], integer=True)))
-    else:
-        raise reader.error("tolerance", f"must be a list of tolerances or a table {{from, to, per_decade}}, "
-                                        f"got {value!r}")
-    if len(set(values)) != len(values):
-        raise reader.error("tolerance", "lists the same tolerance twice; remove the duplicate")
+    values = reader.sweep("tolerance", value, "tolerance", "[1e-4, 1e-6]", "{ from = 1e-4, to = 1e-10, per_decade = 1 }")
     return tuple(sorted(values, reverse=True))
 
 
