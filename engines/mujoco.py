@@ -64,7 +64,6 @@ is cut at the first sample whose clock does not match its step and ends
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -75,7 +74,7 @@ from mujoco import rollout as mj_rollout
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Scene
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
 _ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)

@@ -31,7 +31,7 @@ from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
 from reports.decimate import MAX_POINTS, decimate
-from reports.load import SceneResults, is_reference
+from reports.load import SceneResults
 from reports.palette import REFERENCE_COLOUR, Palette, family_of
 
 REFERENCE_STYLE = {"color": REFERENCE_COLOUR, "width": 5}
@@ -512,7 +512,7 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     for _, _, record in _chosen_cases(scene):
         if (record.series or {}).get("reference_positions"):
             return record.series["reference_positions"], "the reference solution"
-    for sweep in filter(is_reference, scene.sweeps):
+    for sweep in (s for s in scene.sweeps if s.is_reference):
         for record in sorted(sweep.records, key=lambda r: r.case.dt != scene.chosen_dt):
             if record.status is Status.OK and (record.series or {}).get("positions"):
                 return record.series["positions"], f"{sweep.engine} at dt = {record.case.dt:.3g} s"

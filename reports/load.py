@@ -81,11 +81,6 @@ class ReportData:
         return sum(self.counts.values())
 
 
-def is_reference(sweep: VariantSweep) -> bool:
-    """Whether ``sweep`` is the reference engine run as a suite engine (the yardstick, not a competitor)."""
-    return sweep.records[0].case.engine_id.startswith("reference/")
-
-
 def status_counts(records: list[CaseRecord]) -> dict[str, int]:
     """Cases per status, in ``STATUS_ORDER`` (statuses with no case left out)."""
     counts: dict[str, int] = {}

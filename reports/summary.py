@@ -22,7 +22,7 @@ from compare.results import declared
 from compare.results.record import Status
 from compare.results.sweep import VariantSweep
 
-from reports.load import SceneResults, is_reference
+from reports.load import SceneResults
 from reports.palette import Palette
 
 
@@ -154,7 +154,7 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
     cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
     metrics = [(case.metrics if case is not None else {}) for case in cases]
     # The reference is the yardstick, not a competitor: its zero error would always be "best".
-    ok = [case is not None and case.status is Status.OK and not is_reference(sweep)
+    ok = [case is not None and case.status is Status.OK and not sweep.is_reference
           for case, sweep in zip(cases, scene.sweeps)]
     # Without a reference there is no position error, so a divergence time of
     # None would falsely read "never": such cells are unknown, not best.
@@ -177,7 +177,7 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
                 cells.append(Cell(col.missing if value is None else col.fmt(value), best, sort=_sort_key(col, value)))
         columns_cells.append(cells)
     orders = [s.order.order if s.order is not None else None for s in scene.sweeps]
-    order_flags = _best_flags(order_col, orders, [o is not None and not is_reference(s) for o, s in zip(orders, scene.sweeps)])
+    order_flags = _best_flags(order_col, orders, [o is not None and not s.is_reference for o, s in zip(orders, scene.sweeps)])
     rows = []
     for k, (sweep, case) in enumerate(zip(scene.sweeps, cases)):
         fit = sweep.order

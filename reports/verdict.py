@@ -120,7 +120,7 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
     for sweep in sweeps:
         order.setdefault(family(sweep.engine), len(order))
     sweeps.sort(key=lambda s: order[family(s.engine)])  # a family's variants together
-    series, legend = [], []  # type: ignore[var-annotated]
+    series: list[Series] = []
     groups: dict[str, list[LegendEntry]] = {}
     for sweep in sweeps:
         pts = points(sweep)

@@ -17,7 +17,7 @@ direction and gate tolerance, and stored in the baseline per variant.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, Callable
 
 import numpy as np
@@ -180,19 +180,14 @@ def gated() -> list[Metric]:
     return [m for m in METRICS.values() if m.gated]
 
 
-#: Export column order of the metrics the runner computes itself (compare.results.metrics.CaseMetrics' order,
-#: which CSV readers of earlier releases rely on); declared metrics not listed follow in declaration order.
-EXPORT_ORDER = (
-    "position_error_final", "position_error_l2", "position_error_linf", "divergence_time", "energy_drift",
-    "constraint_error", "constraint_force_error", "constraint_force_error_relative", "wall_time",
-    "cost_per_simulated_second", "steps_per_second",
-)
-
-
 def case_metrics() -> list[Metric]:
-    """The per-case metrics in export order (exports have a column for each)."""
+    """The per-case metrics in export order (exports have a column for each): the ones the runner computes
+    itself in compare.results.metrics.CaseMetrics' field order (which CSV readers of earlier releases rely
+    on), then the others in declaration order."""
+    from compare.results.metrics import CaseMetrics  # the dataclass is the order; no copy of it here
+
     per_case = [m for m in METRICS.values() if m.per == "case"]
-    rank = {name: k for k, name in enumerate(EXPORT_ORDER)}
+    rank = {f.name: k for k, f in enumerate(fields(CaseMetrics))}
     return sorted(per_case, key=lambda m: rank.get(m.name, len(rank)))
 
 

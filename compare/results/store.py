@@ -16,6 +16,7 @@ version raises a UserError saying what to do (asv's ``api_version``).
 from __future__ import annotations
 
 import datetime as _dt
+import functools
 import hashlib
 import json
 import math
@@ -29,7 +30,7 @@ import numpy as np
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
-from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError, Status
+from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError
 
 #: Most points kept per stored time series (evenly spaced, first and last kept).
 MAX_SERIES_POINTS = 100
@@ -241,7 +242,7 @@ class Results:
             groups.setdefault((record.case.scene_id, record.case.engine), []).append(record)
         return groups
 
-    @property
+    @functools.cached_property
     def verdict_tolerance(self) -> float:
         """The consistency tolerance (fraction of L) of the suite that made these results."""
         from compare.suite.reader import load_run_settings  # here: only readers that judge need the suite

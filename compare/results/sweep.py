@@ -54,6 +54,11 @@ class VariantSweep:
         return min(ok, key=_step) if ok else None
 
     @property
+    def is_reference(self) -> bool:
+        """Whether this is the reference engine run as a suite engine (the yardstick, not a competitor)."""
+        return bool(self.records) and self.records[0].case.engine_id.startswith("reference/")
+
+    @property
     def all_skipped(self) -> bool:
         return all(r.status is Status.SKIPPED for r in self.records)
 

@@ -50,14 +50,9 @@ def family(engine: str) -> str:
     return engine.split("/", 1)[0]
 
 
-def is_reference(sweep: VariantSweep) -> bool:
-    """Whether ``sweep`` is the reference engine run as a suite engine (the yardstick, not a competitor)."""
-    return bool(sweep.records) and sweep.records[0].case.engine_id.startswith("reference/")
-
-
 def competitors(sweeps: Iterable[VariantSweep]) -> list[VariantSweep]:
     """The sweeps that compete: not the reference, not skipped throughout."""
-    return [s for s in sweeps if not is_reference(s) and not s.all_skipped]
+    return [s for s in sweeps if not s.is_reference and not s.all_skipped]
 
 
 def families(sweeps: Iterable[VariantSweep]) -> list[str]:
@@ -296,7 +291,7 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
         if sweep.all_skipped:
             continue
         verdict = sweep.consistency
-        if verdict is not None and verdict.consistent is False and not is_reference(sweep):
+        if verdict is not None and verdict.consistent is False and not sweep.is_reference:
             ok = sweep.ok_records
             found.append(Problem(sweep.scene_id, sweep.engine, "inconsistent", verdict.reason,
                                  case_ids=tuple(r.case.id for r in ok)))

@@ -29,7 +29,7 @@ the engine through the runner's case host (:func:`compare.run.isolation.execute`
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
