@@ -127,12 +127,13 @@ def simulate(
     tolerance = _positive(tolerance, "tolerance", "1e-12 is near round-off for lengths of order 1 m")
     max_iterations = _count(max_iterations, "max_iterations")
 
+    settings = {"method": chosen.name, "integrator": scheme.name, "tolerance": tolerance,
+                "max_iterations": max_iterations}
+    if chosen.code == BAUMGARTE:
+        settings.update(k_s=ks, k_d=kd)
     if system.packed is None:  # a curve constraint: the general λ formula (ours.general)
         run = general.run(system, q, v, dt, n_steps, stride, chosen, scheme, ks, kd, tolerance, max_iterations)
-        settings = {"method": chosen.name, "integrator": scheme.name, "tolerance": tolerance,
-                    "max_iterations": max_iterations, "path": "general (dense J W Jᵀ, numpy)"}
-        if chosen.code == BAUMGARTE:
-            settings.update(k_s=ks, k_d=kd)
+        settings["path"] = "general (dense J W Jᵀ, numpy)"
         return Result(t=run.t, q=run.q, v=run.v, multipliers=run.multipliers, forces=run.forces, steps=run.steps,
                       wall_time=run.wall_time, status=STATUS_TEXT[run.status], settings=settings)
     n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
@@ -141,10 +142,6 @@ def simulate(
     out_lam = np.full((n_samples, system.n_constraints), np.nan)
     p = system.packed
     model = p.model
-    settings = {"method": chosen.name, "integrator": scheme.name, "tolerance": tolerance,
-                "max_iterations": max_iterations}
-    if chosen.code == BAUMGARTE:
-        settings.update(k_s=ks, k_d=kd)
 
     if chosen.code == LAGRANGIAN:
         from ours import lagrangian  # imports numba: only when a run needs it
