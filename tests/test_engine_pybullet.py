@@ -240,3 +240,55 @@ def test_multibody_refuses_chains_longer_than_pybullet_builds_correctly():
     with pytest.raises(Unsupported, match=r"builds at most 122 links into one multibody .* needs 123; use pybullet/p2p"):
         ENGINE.check(longer, "multibody")
     ENGINE.check(longer, "p2p")
+
+
+# -- the reused client ----------------------------------------------------------------------------
+
+
+def test_a_run_does_not_depend_on_what_ran_in_the_reused_client_before_it():
+    """The adapter keeps one client per thread and empties it (resetSimulation) between runs: every
+    variant, after runs of other variants, solvers and time steps in that client, gives bit for bit
+    what it gives in a client just connected."""
+    import engines.pybullet as adapter
+
+    scenes = [catalog.build("bead", {"theta0": 60, "duration": 0.3}),
+              catalog.build("double-pendulum", {"duration": 0.3})]
+    runs = [(scene, variant, dt) for scene in scenes for variant in VARIANTS for dt in (1e-2, 1e-3)]
+
+    def simulate(scene, variant, dt):
+        return ENGINE.simulate(scene, dt, variant=variant, sample_interval=0.01)
+
+    fresh = []
+    for run in runs:
+        adapter._clients.drop_all()  # the next run connects a new client
+        fresh.append(simulate(*run))
+    # Reversed, so each run follows a different variant, solver, scene or dt than it did above.
+    for run, expected in reversed(list(zip(runs, fresh))):
+        got = simulate(*run)
+        assert got.info.status == expected.info.status
+        np.testing.assert_array_equal(got.positions, expected.positions)
+        np.testing.assert_array_equal(got.velocities, expected.velocities)
+        if expected.constraint_forces is None:
+            assert got.constraint_forces is None
+        else:
+            np.testing.assert_array_equal(got.constraint_forces, expected.constraint_forces)
+
+
+def test_a_run_that_raised_leaves_no_client_behind_to_be_reused(monkeypatch):
+    import engines.pybullet as adapter
+
+    scene = catalog.build("bead", {"theta0": 60, "duration": 0.05})
+    ENGINE.simulate(scene, 1e-3, variant="p2p")  # leaves an idle client
+    idle = dict(adapter._clients._idle)
+    assert idle
+
+    def explode(self):
+        raise RuntimeError("boom while building")
+
+    monkeypatch.setattr(adapter._Run, "execute", explode)
+    failed = ENGINE.simulate(scene, 1e-3, variant="p2p")
+    assert failed.info.status == "failed" and "boom while building" in failed.info.message
+    monkeypatch.undo()
+    assert not any(c in adapter._clients._idle.values() for c in idle.values())
+    assert all(not adapter._pb.isConnected(physicsClientId=c) for c in idle.values())
+    assert ENGINE.simulate(scene, 1e-3, variant="p2p").info.status == "ok"

@@ -105,16 +105,31 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` so that no reader sees half of it (the rules in the module docstring).
+def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bool = True) -> None:
+    """Write ``text`` (str, or bytes already encoded as UTF-8) to ``path`` so that no reader sees half
+    of it (the rules in the module docstring).
 
-    A regular file: a temporary beside it, fsynced, renamed into place. ``-``:
-    standard output. A symlink: its final target, the link kept. A device or
-    FIFO: written in place.
+    A regular file: a temporary beside it, written, fsynced when ``durable``,
+    renamed into place. ``-``: standard output. A symlink: its final target, the
+    link kept. A device or FIFO: written in place.
+
+    durable : fsync before the rename, so that even a machine that loses power
+        keeps either the old file or the whole new one. Without it a killed
+        process still leaves one or the other (the rename is atomic); only a
+        crash of the machine itself may leave the new name on an empty file.
+        A run's case records are written without it (each fsync cost more CPU
+        than building the record), since a damaged record is not counted as
+        done and ``--resume`` runs its case again.
     """
+    binary = isinstance(text, bytes)
     if str(path) == STDOUT:
-        sys.stdout.write(text)
-        sys.stdout.flush()
+        if binary:
+            sys.stdout.flush()
+            sys.stdout.buffer.write(text)
+            sys.stdout.buffer.flush()
+        else:
+            sys.stdout.write(text)
+            sys.stdout.flush()
         return
     target = Path(path)
     if target.is_symlink():
@@ -126,17 +141,18 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     if info is not None and not stat.S_ISREG(info.st_mode):
         if stat.S_ISDIR(info.st_mode):
             raise IsADirectoryError(21, "is a directory", str(target))
-        with open(target, "w", newline="") as handle:  # a device or FIFO is written, never replaced
-            handle.write(text)
+        with open(target, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
+            handle.write(text)  # a device or FIFO is written, never replaced
         return
     mode = stat.S_IMODE(info.st_mode) if info is not None else 0o666 & ~_umask()
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name[:200]}.", suffix=".tmp")
     try:
         os.fchmod(fd, mode)
-        with os.fdopen(fd, "w", newline="") as handle:
+        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
             handle.write(text)
             handle.flush()
-            os.fsync(handle.fileno())
+            if durable:
+                os.fsync(handle.fileno())
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

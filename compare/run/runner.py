@@ -21,6 +21,7 @@ long cases do not end up alone at the tail of the run.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import gc
 import math
 import multiprocessing
 import os
@@ -47,7 +48,9 @@ from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import SCHEMA_VERSION, CaseRecord
-from compare.results.store import ResultsDir, downsample_indices, jsonable, now, read_json, rounded
+from compare.results.store import (
+    ResultsDir, SeriesView, downsample_indices, jsonable, now, read_json, round_significant,
+)
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
@@ -461,6 +464,10 @@ def _preload(suite: Suite, cases) -> None:
             preload(scenes)
         except Exception:  # noqa: BLE001 - a preload is an optimisation, never a failure
             continue
+    # What is loaded now (modules, numba's kernels, engine libraries' objects) lives as long as the
+    # run: moved out of the collector's generations, a full collection no longer walks it (eight of
+    # them walked it for 0.5 s of the default suite's CPU), here and in the workers forked from here.
+    gc.freeze()
 
 
 class _Writer:
@@ -476,7 +483,10 @@ class _Writer:
     def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
         record = build_record(case, outcome, reference, self.suite, skipped=skipped)
         path = self.results.write_case(record)
-        typed = CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record}, path)
+        series = record.get("series")
+        typed = CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record, "series": None}, path)
+        if series is not None:
+            typed = replace(typed, series=SeriesView(series))
         self.written[path] = typed
         self.progress.advance(typed)
 
@@ -490,7 +500,8 @@ class _Writer:
 def build_record(
     case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None
 ) -> dict[str, Any]:
-    """The JSON-ready record of one case.
+    """The record of one case, JSON-ready except its ``series``: float arrays rounded to
+    SERIES_DIGITS significant digits (ResultsDir.write_case writes them as lists).
 
     reference : the scene's SampledReference, or the exception that kept it
     from being solved (position metrics are then null and the message says why).
@@ -591,23 +602,23 @@ def build_record(
         )
     keep = downsample_indices(n)
     record = jsonable(record)
-    # Added after jsonable: rounded() already gives JSON-ready lists (floats, None), and walking
-    # their ~1600 numbers again was most of the cost of writing a record.
+    # Added after jsonable, as rounded float arrays: ResultsDir.write_case writes them as lists, and
+    # making ~5,000 Python floats a record here was most of the cost of writing it.
     record["series"] = {
-        "t": rounded(series.t[keep]),
-        "position_error": rounded(series.position_error[keep]),
-        "energy_drift": rounded(series.energy_drift[keep]),
-        "constraint_error": rounded(series.constraint_error[keep]),
-        "positions": rounded(trajectory.positions[keep]),
+        "t": round_significant(series.t[keep]),
+        "position_error": round_significant(series.position_error[keep]),
+        "energy_drift": round_significant(series.energy_drift[keep]),
+        "constraint_error": round_significant(series.constraint_error[keep]),
+        "positions": round_significant(trajectory.positions[keep]),
         # The reference at the same samples, so a report can overlay paths without re-solving.
-        "reference_positions": rounded(ref_positions[:n][keep]),
+        "reference_positions": round_significant(ref_positions[:n][keep]),
         # For the report's phase plot (angular velocity) and constraint-force plot.
-        "velocities": rounded(trajectory.velocities[keep]),
+        "velocities": round_significant(trajectory.velocities[keep]),
     }
     if trajectory.constraint_forces is not None:
-        record["series"]["constraint_forces"] = rounded(trajectory.constraint_forces[keep])
+        record["series"]["constraint_forces"] = round_significant(trajectory.constraint_forces[keep])
         if ref_forces is not None and len(ref_forces) >= n:
-            record["series"]["reference_constraint_forces"] = rounded(ref_forces[:n][keep])
+            record["series"]["reference_constraint_forces"] = round_significant(ref_forces[:n][keep])
     return record
 
 
