@@ -647,60 +647,91 @@ def read_samples(
     hinge, the interaction force of each particle's body with its parent
     (``cfrc_int`` after ``mj_rnePostConstraint``); connect, the equality rows
     of ``efc_force``. Either is returned as the force on each constraint's
-    first particle.
+    first particle. Which rows and bodies to read, and their signs, are worked
+    out once per run (:class:`_ForceReader`), not at every sample.
     """
     n, n_p, n_c = len(states), len(scene.particles), len(scene.constraints)
     positions, velocities, forces = np.empty((n, n_p, 3)), np.empty((n, n_p, 3)), np.empty((n, n_c, 3))
-    sites = [model.site(f"s{i}").id for i in range(n_p)]
+    sites = np.array([model.site(f"s{i}").id for i in range(n_p)], dtype=int)
     spatial = np.empty(6)
-    tree = constraint_tree(scene) if hinge else None
-    owners = None if hinge else arm_owners(scene)
+    reader = _ForceReader(scene, model, hinge)
+    site = mujoco.mjtObj.mjOBJ_SITE
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     for s, state in enumerate(states):
-        mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        mujoco.mj_setState(model, data, state, full)
         mujoco.mj_forward(model, data)
-        for i, site in enumerate(sites):
-            positions[s, i] = data.site_xpos[site]
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, site, spatial, 0)
+        positions[s] = data.site_xpos[sites]
+        for i, site_id in enumerate(sites.tolist()):
+            mujoco.mj_objectVelocity(model, data, site, site_id, spatial, 0)
             velocities[s, i] = spatial[3:]
         if hinge:
             mujoco.mj_rnePostConstraint(model, data)
-            forces[s] = _hinge_forces(scene, model, data, tree)
-        else:
-            forces[s] = _connect_forces(scene, data, owners)
+        forces[s] = reader.forces(data)
     return positions, velocities, forces
 
 
-def _hinge_forces(scene: Scene, model: mujoco.MjModel, data: mujoco.MjData, tree: Tree) -> np.ndarray:
-    """(C, 3) N. cfrc_int's force part is what the parent exerts on the body's subtree through the joint;
-    the body is a massless arm ending at its particle, so it is the link's force on that particle.
-    A loop closure's force is its connect's efc force (on the arm, body1): the arm carries it to its
-    host (+), the particle it reaches gets the negative."""
-    out = np.empty((len(scene.constraints), 3))
-    if tree.closures:
-        rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-        for e, k in enumerate(tree.closures):
-            f = data.efc_force[rows[data.efc_id[rows] == e]]
-            # A closing Pin's first particle is the one the arm reaches; a closing Rod's (a) hosts the arm.
-            out[k] = -f if isinstance(scene.constraints[k], Pin) else f
-    for i in range(len(scene.particles)):
-        on_child = data.cfrc_int[model.body(f"p{i}").id, 3:]
-        k = tree.constraint_of[i]
-        c = scene.constraints[k]
-        # The record's first particle is the child (Pin, or a Rod whose a is the child) or the parent.
-        out[k] = on_child if isinstance(c, (Pin, Line)) or c.a == i else -on_child
-    return out
+class _ForceReader:
+    """Reads each constraint's force on its first particle (C, 3) N out of an ``mj_forward``-ed MjData.
 
+    hinge: cfrc_int's force part of each particle's body is what the parent
+    exerts on the body's subtree through the joint; the body is a massless arm
+    ending at its particle, so it is the link's force on that particle. The
+    record's first particle is the child (Pin, Line, or a Rod whose a is the
+    child: sign +) or the parent (sign −). A loop closure's force is its
+    connect's efc force (on the arm, body1): the arm carries it to its host (+),
+    the particle it reaches gets the negative.
 
-def _connect_forces(scene: Scene, data: mujoco.MjData, owners: list[int]) -> np.ndarray:
-    """(C, 3) N. A connect's three efc rows are the world-frame force on body1 (qfrc = Jᵀf, J = ∂(p1 − p2)/∂q)."""
-    out = np.zeros((len(scene.constraints), 3))
-    rows = np.flatnonzero(data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-    for k, c in enumerate(scene.constraints):
-        f = data.efc_force[rows[data.efc_id[rows] == k]]
-        # body1 is the arm's owner: Pin.particle, or a Rod's end that owns the arm.
-        first = c.particle if isinstance(c, Pin) else c.a
-        out[k] = f if owners[k] == first else -f
-    return out
+    connect: a connect's three efc rows are the world-frame force on body1
+    (qfrc = Jᵀf, J = ∂(p1 − p2)/∂q); body1 is the arm's owner, so the sign is +
+    when the owner is the constraint's first particle (Pin.particle, Rod.a).
+    The equality rows come first in efc, in equality order, and are always
+    active; their indices are found at the first state and found again only if
+    the number of constraint rows changes.
+    """
+
+    def __init__(self, scene: Scene, model: mujoco.MjModel, hinge: bool) -> None:
+        self.n_c = len(scene.constraints)
+        self.hinge = hinge
+        self.rows: np.ndarray | None = None  # (E, 3) efc row of each equality's three force components
+        self.nefc = -1
+        if hinge:
+            tree = constraint_tree(scene)
+            n_p = len(scene.particles)
+            self.bodies = np.array([model.body(f"p{i}").id for i in range(n_p)], dtype=int)
+            self.slots = np.array([tree.constraint_of[i] for i in range(n_p)], dtype=int)
+            self.body_signs = np.array([
+                1.0 if isinstance(scene.constraints[tree.constraint_of[i]], (Pin, Line))
+                or scene.constraints[tree.constraint_of[i]].a == i else -1.0
+                for i in range(n_p)
+            ])[:, None]
+            # Equality e closes constraint tree.closures[e]: a closing Pin's first particle is the one
+            # the arm reaches (−), a closing Rod's (a) hosts the arm (+).
+            self.eq_slots = np.array(tree.closures, dtype=int)
+            self.eq_signs = np.array([-1.0 if isinstance(scene.constraints[k], Pin) else 1.0
+                                      for k in tree.closures])[:, None]
+        else:
+            owners = arm_owners(scene)
+            self.eq_slots = np.arange(self.n_c)
+            self.eq_signs = np.array([
+                1.0 if owners[k] == (c.particle if isinstance(c, Pin) else c.a) else -1.0
+                for k, c in enumerate(scene.constraints)
+            ])[:, None]
+
+    def _equality_rows(self, data: mujoco.MjData) -> np.ndarray:
+        if data.nefc != self.nefc:
+            self.nefc = data.nefc
+            equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+            self.rows = np.array([np.flatnonzero(equality & (data.efc_id == e)) for e in range(len(self.eq_slots))],
+                                 dtype=int).reshape(len(self.eq_slots), 3)
+        return self.rows
+
+    def forces(self, data: mujoco.MjData) -> np.ndarray:
+        out = np.zeros((self.n_c, 3))
+        if len(self.eq_slots):
+            out[self.eq_slots] = self.eq_signs * data.efc_force[self._equality_rows(data)]
+        if self.hinge:
+            out[self.slots] = self.body_signs * data.cfrc_int[self.bodies, 3:]
+        return out
 
 
 ENGINE = MuJoCoEngine()

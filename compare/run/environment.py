@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import importlib.metadata
 import os
 import platform
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Collection
 
 import numpy as np
 
@@ -47,10 +48,19 @@ def git_commit(root: Path = PROJECT_ROOT) -> str | None:
         return None
 
 
-def engine_versions() -> dict[str, str]:
-    """Engine name -> version string, or ``unavailable: <reason>``."""
+def engine_versions(used: Collection[str] | None = None) -> dict[str, str]:
+    """Engine name -> version string, or ``unavailable: <reason>``.
+
+    used : the engines a run uses (None: all). An optional built-in outside it
+        (Drake, MJX) is not imported: its entry reads ``not used by this run
+        (drake 1.51.1 installed)`` from the installed distribution, or says it
+        is not installed.
+    """
     versions = {}
     for name in registry.engine_names():
+        if used is not None and name not in used and name in registry.DISTRIBUTION:
+            versions[name] = _installed(name)
+            continue
         found = registry.status(name)
         if found.engine is None:
             versions[name] = f"unavailable: {found.reason}"
@@ -62,13 +72,25 @@ def engine_versions() -> dict[str, str]:
     return versions
 
 
-def environment() -> dict[str, Any]:
-    """A JSON-ready description of this machine and software."""
+def _installed(name: str) -> str:
+    """What run.json says of an optional engine the run does not use (read without importing it)."""
+    distribution = registry.DISTRIBUTION[name]
+    try:
+        return f"not used by this run ({distribution} {importlib.metadata.version(distribution)} installed)"
+    except importlib.metadata.PackageNotFoundError:
+        return f"unavailable: {distribution} is not installed; install it with: {registry.INSTALL[name]}"
+
+
+def environment(used: Collection[str] | None = None) -> dict[str, Any]:
+    """A JSON-ready description of this machine and software.
+
+    used : the engine names the run uses (see :func:`engine_versions`); None: every engine.
+    """
     return {
         "python": sys.version.split()[0],
         "python_implementation": platform.python_implementation(),
         "numpy": np.__version__,
-        "engines": engine_versions(),
+        "engines": engine_versions(used),
         "cpu": cpu_name(),
         "cpu_count": os.cpu_count(),
         "platform": platform.platform(),

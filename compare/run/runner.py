@@ -204,7 +204,7 @@ def _run_suite(
             "path": suite.path,
             "fingerprint": suite.fingerprint(),
         },
-        "environment": {**environment(), **(environment_extra or {})},
+        "environment": {**environment(suite.engine_names()), **(environment_extra or {})},
         "xval_version": compare_version(),
     }
     results = ResultsDir.open_for_run(output, suite.source, header, resume)

@@ -164,6 +164,10 @@ class Suite:
     #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
     tolerances: tuple[float, ...] = ()
 
+    def engine_names(self) -> set[str]:
+        """The names of the engines this suite runs (``mujoco``, ``ours``; the reference is always one)."""
+        return {"reference"} | {e.engine.name if e.engine is not None else e.id.split("/")[0] for e in self.engines}
+
     def fingerprint(self) -> str:
         """A hash of everything that decides which cases run and what they compute (not the file's comments)."""
         physics = {
