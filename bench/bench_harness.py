@@ -2,13 +2,22 @@
 against the summed stepping time of its cases (issue 20's target: at most 1.4×).
 
 Runs the suite into a temporary directory in a child process (numba's cache warm:
-a first run fills it) and reports the CPU time of that whole process tree (user +
-system, from the kernel's accounting of waited-for children), the sum over cases of
-the engines' stepping times (``wall_times`` in the records), and their ratio.
+a first run fills it, and the scenes' references come from their cache) and
+reports, per run:
+
+- the CPU time (user + system) of the whole process tree, from the kernel's
+  accounting of waited-for children, split into the ``xval`` process itself
+  (planning, imports, preloading, building and writing records) and its
+  descendants (the pool worker and the case host that runs the engines);
+- the sum over cases of the engines' stepping times (``wall_times`` in the
+  records), and the ratio of the two;
+- per engine, the stepping time and the time the case host spent on the case
+  outside stepping (``elapsed`` minus ``wall_times``: building the model,
+  reading samples and constraint forces, checking the run).
 
 The stepping times are wall clock: on a machine loaded by other jobs they grow
 while CPU time does not, which flatters the ratio. The load average is printed
-with the result; compare runs made at similar load.
+with each run; compare runs made at similar load.
 
     .venv/bin/python bench/bench_harness.py [--runs N]
 """
@@ -21,32 +30,67 @@ import resource
 import subprocess
 import sys
 import tempfile
+from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
+
+#: ``xval`` in a child process that, once the run is over (its workers joined), writes its own CPU
+#: time and its descendants' to the file named by its last argument.
+XVAL = r"""
+import json, resource, sys
+from compare.cli import main
+report = sys.argv.pop()
+try:
+    main(sys.argv[1:])
+except SystemExit as exc:
+    if exc.code not in (0, None):
+        raise
+own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+with open(report, "w") as handle:
+    json.dump({"xval": own.ru_utime + own.ru_stime, "descendants": children.ru_utime + children.ru_stime}, handle)
+"""
 
 
-def one_run() -> tuple[float, float]:
-    """(CPU seconds of the run's process tree, summed stepping seconds of its cases)."""
+def one_run() -> dict:
+    """CPU seconds (whole tree, the xval process, its descendants), summed stepping seconds, and
+    per engine [cases, stepping s, outside-stepping s]."""
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "default"
+        out, report = Path(tmp) / "default", Path(tmp) / "cpu.json"
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([*XVAL, "run", "suites/default.toml", "--jobs", "1", "--output", str(out)], cwd=ROOT,
-                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run([sys.executable, "-c", XVAL, "run", "suites/default.toml", "--jobs", "1", "--output", str(out),
+                        "--quiet", str(report)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-        stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in (out / "cases").glob("*.json"))
-    return cpu, stepping
+        split = json.loads(report.read_text())
+        engines: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
+        for f in (out / "cases").glob("*.json"):
+            record = json.loads(f.read_text())
+            stepping = sum(record["wall_times"])
+            row = engines[record["case"]["engine"].split("/")[0]]
+            row[0] += 1
+            row[1] += stepping
+            row[2] += record["elapsed"] - stepping
+    return {
+        "cpu": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+        "xval": split["xval"],
+        "descendants": split["descendants"],
+        "stepping": sum(row[1] for row in engines.values()),
+        "engines": dict(sorted(engines.items())),
+    }
 
 
 def main(argv: list[str]) -> int:
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
-    one_run()  # fills numba's cache if it is empty; not counted
-    print(f"{'run':>3} {'CPU s':>7} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}")
+    one_run()  # fills numba's and the references' caches if they are empty; not counted
+    print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'workers s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}")
+    last = None
     for k in range(runs):
-        cpu, stepping = one_run()
-        print(f"{k + 1:>3} {cpu:7.2f} {stepping:11.2f} {cpu / stepping:15.2f} {os.getloadavg()[0]:5.1f}")
+        last = one_run()
+        print(f"{k + 1:>3} {last['cpu']:7.2f} {last['xval']:7.2f} {last['descendants']:9.2f} {last['stepping']:11.2f} "
+              f"{last['cpu'] / last['stepping']:15.2f} {os.getloadavg()[0]:5.1f}")
+    print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
+    for name, (cases, stepping, outside) in last["engines"].items():
+        print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
     return 0
 
 
