@@ -643,35 +643,41 @@ def read_samples(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (n, P, 3) m, velocities (n, P, 3) m/s and constraint forces (n, C, 3) N at each state.
 
-    The forces are those MuJoCo applies at that state (``mj_forward`` from it):
-    hinge, the interaction force of each particle's body with its parent
-    (``cfrc_int`` after ``mj_rnePostConstraint``); connect, the equality rows
-    of ``efc_force``. Either is returned as the force on each constraint's
-    first particle. Which rows and bodies to read, and their signs, are worked
-    out once per run (:class:`_ForceReader`), not at every sample.
+    Each state is loaded and ``mj_forward``-ed (and, hinge, ``mj_rnePostConstraint``);
+    what is read from it is copied out as it stands, and turned into the result
+    for all samples at once afterwards, with array arithmetic rather than a
+    Python call per particle and sample (most of what reading a run cost):
+
+    - positions: each particle's site, ``site_xpos``;
+    - velocities: what ``mj_objectVelocity`` gives for the site in world
+      orientation: the body's com-based velocity ``cvel`` (rotation, linear)
+      moved from its tree's centre of mass to the site, v = v_c − (p − c) × ω;
+    - forces: those MuJoCo applies at that state, as the force on each
+      constraint's first particle (:class:`_ForceReader`).
     """
-    n, n_p, n_c = len(states), len(scene.particles), len(scene.constraints)
-    positions, velocities, forces = np.empty((n, n_p, 3)), np.empty((n, n_p, 3)), np.empty((n, n_c, 3))
+    n, n_p = len(states), len(scene.particles)
     sites = np.array([model.site(f"s{i}").id for i in range(n_p)], dtype=int)
-    spatial = np.empty(6)
-    reader = _ForceReader(scene, model, hinge)
-    site = mujoco.mjtObj.mjOBJ_SITE
+    bodies = model.site_bodyid[sites]
+    roots = model.body_rootid[bodies]
+    positions, spatial, centres = np.empty((n, n_p, 3)), np.empty((n, n_p, 6)), np.empty((n, n_p, 3))
+    reader = _ForceReader(scene, model, hinge, n)
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     for s, state in enumerate(states):
         mujoco.mj_setState(model, data, state, full)
         mujoco.mj_forward(model, data)
         positions[s] = data.site_xpos[sites]
-        for i, site_id in enumerate(sites.tolist()):
-            mujoco.mj_objectVelocity(model, data, site, site_id, spatial, 0)
-            velocities[s, i] = spatial[3:]
+        spatial[s] = data.cvel[bodies]
+        centres[s] = data.subtree_com[roots]
         if hinge:
             mujoco.mj_rnePostConstraint(model, data)
-        forces[s] = reader.forces(data)
-    return positions, velocities, forces
+        reader.read(s, data)
+    velocities = spatial[..., 3:] - np.cross(positions - centres, spatial[..., :3])
+    return positions, velocities, reader.forces()
 
 
 class _ForceReader:
-    """Reads each constraint's force on its first particle (C, 3) N out of an ``mj_forward``-ed MjData.
+    """Collects, sample by sample, what each constraint's force on its first particle is made of, and
+    gives them all as one (n, C, 3) N array (:meth:`forces`).
 
     hinge: cfrc_int's force part of each particle's body is what the parent
     exerts on the body's subtree through the joint; the body is a massless arm
@@ -684,15 +690,14 @@ class _ForceReader:
     connect: a connect's three efc rows are the world-frame force on body1
     (qfrc = Jᵀf, J = ∂(p1 − p2)/∂q); body1 is the arm's owner, so the sign is +
     when the owner is the constraint's first particle (Pin.particle, Rod.a).
-    The equality rows come first in efc, in equality order, and are always
-    active; their indices are found at the first state and found again only if
-    the number of constraint rows changes.
+    The equality rows' indices in efc are found at the first state, and again
+    only when the number of constraint rows changes.
     """
 
-    def __init__(self, scene: Scene, model: mujoco.MjModel, hinge: bool) -> None:
+    def __init__(self, scene: Scene, model: mujoco.MjModel, hinge: bool, n: int) -> None:
         self.n_c = len(scene.constraints)
         self.hinge = hinge
-        self.rows: np.ndarray | None = None  # (E, 3) efc row of each equality's three force components
+        self.rows = np.zeros((0, 3), dtype=int)  # (E, 3) efc rows of each equality's force components
         self.nefc = -1
         if hinge:
             tree = constraint_tree(scene)
@@ -704,6 +709,7 @@ class _ForceReader:
                 or scene.constraints[tree.constraint_of[i]].a == i else -1.0
                 for i in range(n_p)
             ])[:, None]
+            self.body_forces = np.empty((n, n_p, 3))
             # Equality e closes constraint tree.closures[e]: a closing Pin's first particle is the one
             # the arm reaches (−), a closing Rod's (a) hosts the arm (+).
             self.eq_slots = np.array(tree.closures, dtype=int)
@@ -716,21 +722,28 @@ class _ForceReader:
                 1.0 if owners[k] == (c.particle if isinstance(c, Pin) else c.a) else -1.0
                 for k, c in enumerate(scene.constraints)
             ])[:, None]
+        self.eq_forces = np.empty((n, len(self.eq_slots), 3))
 
-    def _equality_rows(self, data: mujoco.MjData) -> np.ndarray:
-        if data.nefc != self.nefc:
-            self.nefc = data.nefc
-            equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-            self.rows = np.array([np.flatnonzero(equality & (data.efc_id == e)) for e in range(len(self.eq_slots))],
-                                 dtype=int).reshape(len(self.eq_slots), 3)
-        return self.rows
-
-    def forces(self, data: mujoco.MjData) -> np.ndarray:
-        out = np.zeros((self.n_c, 3))
+    def read(self, s: int, data: mujoco.MjData) -> None:
+        """Keep sample ``s``'s raw forces from ``data`` (after mj_forward, and mj_rnePostConstraint for hinge)."""
         if len(self.eq_slots):
-            out[self.eq_slots] = self.eq_signs * data.efc_force[self._equality_rows(data)]
+            if data.nefc != self.nefc:
+                self.nefc = data.nefc
+                equality = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+                self.rows = np.array([np.flatnonzero(equality & (data.efc_id == e))
+                                      for e in range(len(self.eq_slots))], dtype=int).reshape(-1, 3)
+            self.eq_forces[s] = data.efc_force[self.rows]
         if self.hinge:
-            out[self.slots] = self.body_signs * data.cfrc_int[self.bodies, 3:]
+            self.body_forces[s] = data.cfrc_int[self.bodies, 3:]
+
+    def forces(self) -> np.ndarray:
+        """(n, C, 3) N: each constraint's force on its first particle at every sample read."""
+        n = len(self.eq_forces)
+        out = np.zeros((n, self.n_c, 3))
+        if len(self.eq_slots):
+            out[:, self.eq_slots] = self.eq_signs * self.eq_forces
+        if self.hinge:
+            out[:, self.slots] = self.body_signs * self.body_forces
         return out
 
 

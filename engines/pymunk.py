@@ -141,13 +141,18 @@ class PymunkEngine(Engine):
         step = model.space.step
         wall_time = 0.0
         taken, recorded, message = 0, 1, ""
+        # What each sample's constraint force is computed from, after the loop, for all samples at once:
+        # the velocities before its last step and the joints' impulses in it.
+        v_before = np.empty((n_samples, n_particles, 2))
+        impulses = np.empty((n_samples, n_constraints))
+        finite = n_samples  # samples before this one have finite states
         for k in range(1, n_samples):
             gap = steps[k] - taken
             started = time.perf_counter()
             for _ in range(gap - 1):
                 step(dt)
             wall_time += time.perf_counter() - started
-            v_before = model.velocities_2d()
+            v_before[k] = model.velocities_2d()
             started = time.perf_counter()
             step(dt)
             wall_time += time.perf_counter() - started
@@ -155,14 +160,19 @@ class PymunkEngine(Engine):
             p2, v2 = model.positions_2d(), model.velocities_2d()
             positions[k], velocities[k] = _to_scene(p2), _to_scene(v2)
             recorded = k + 1
-            if not (np.isfinite(p2).all() and np.isfinite(v2).all() and np.isfinite(v_before).all()):
-                forces[k] = np.nan
+            if not (np.isfinite(p2).all() and np.isfinite(v2).all() and np.isfinite(v_before[k]).all()):
+                finite = k
                 break  # adapter._finish truncates here and marks the run unstable
-            forces[k] = _to_scene(model.constraint_forces(p2, v2, v_before, dt))
+            impulses[k] = model.impulses()
             if np.abs(p2).max() > limit:
                 message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
                 recorded = k  # the runaway sample is not kept
                 break
+        good = min(recorded, finite)
+        forces[finite:recorded] = np.nan
+        if good > 1:
+            planar = positions[1:good][:, :, [0, 2]], velocities[1:good][:, :, [0, 2]]
+            forces[1:good] = _to_scene(model.constraint_forces(*planar, v_before[1:good], impulses[1:good], dt))
         forces[0] = forces[1] if recorded > 1 else np.nan
         return RawRun(
             positions[:recorded],
@@ -194,9 +204,9 @@ def _check_settings(settings: Mapping[str, Any]) -> None:
 
 
 def _to_scene(xy: np.ndarray) -> np.ndarray:
-    """(k, 2) pymunk (x, y) -> (k, 3) scene (x, 0, z)."""
-    out = np.zeros((xy.shape[0], 3))
-    out[:, 0], out[:, 2] = xy[:, 0], xy[:, 1]
+    """(..., k, 2) pymunk (x, y) -> (..., k, 3) scene (x, 0, z)."""
+    out = np.zeros((*xy.shape[:-1], 3))
+    out[..., 0], out[..., 2] = xy[..., 0], xy[..., 1]
     return out
 
 
@@ -267,38 +277,47 @@ class _Model:
         """(n_particles, 2) m/s in pymunk's frame."""
         return np.array([tuple(b.velocity) for b in self.bodies])
 
+    def impulses(self) -> np.ndarray:
+        """(n_constraints,) N·s: the magnitude of each joint's impulse in the last step."""
+        return np.array([j.impulse for j in self.joints])
+
     def directions(self, p2: np.ndarray) -> np.ndarray:
-        """(n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b."""
-        out = np.empty((len(self.joints), 2))
+        """(S, n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b, at each
+        of S samples of positions p2 (S, n_particles, 2)."""
+        out = np.empty((len(p2), len(self.joints), 2))
         for k, (a, b) in enumerate(self.ends):
             if self.normals[k] is not None:
-                out[k] = self.normals[k]
+                out[:, k] = self.normals[k]
                 continue
-            start = self.anchors[k] if a is None else p2[a]
-            delta = p2[b] - start
-            out[k] = delta / (np.linalg.norm(delta) or math.inf)
+            start = self.anchors[k] if a is None else p2[:, a]
+            delta = p2[:, b] - start
+            length = np.linalg.norm(delta, axis=-1)
+            out[:, k] = delta / np.where(length == 0.0, math.inf, length)[:, None]
         return out
 
-    def constraint_forces(self, p2: np.ndarray, v2: np.ndarray, v_before: np.ndarray, dt: float) -> np.ndarray:
-        """(n_constraints, 2) N on each constraint's first particle during the last step.
+    def constraint_forces(self, p2: np.ndarray, v2: np.ndarray, v_before: np.ndarray, impulses: np.ndarray,
+                          dt: float) -> np.ndarray:
+        """(S, n_constraints, 2) N on each constraint's first particle during the last step before each of
+        S samples, from the positions p2 and velocities v2 after it and v_before before it (S,
+        n_particles, 2) and the joints' impulses in it (S, n_constraints).
 
         Magnitude: pymunk's ``impulse`` / dt. Direction: the joint's axis at
         the end of the step (where pymunk's pre-step measured it). Sign: from
-        the step's momentum balance (pymunk reports |impulse|).
+        the step's momentum balance (pymunk reports |impulse|), solved in the
+        least-squares sense for all samples at once.
         """
         n = self.directions(p2)
         # Momentum balance, per body and axis: m (v_new − d v_old − g dt) = Σ_k j_k s_{k,body} n_k,
         # with s = +1 on the joint's body b and −1 on its body a (cpPinJoint's apply_impulses).
         change = self.masses[:, None] * (v2 - self.damping**dt * v_before - self.gravity * dt)
-        matrix = np.zeros((2 * len(self.bodies), len(self.joints)))
+        matrix = np.zeros((len(p2), 2 * len(self.bodies), len(self.joints)))
         for k, (a, b) in enumerate(self.ends):
-            matrix[2 * b : 2 * b + 2, k] += n[k]
+            matrix[:, 2 * b : 2 * b + 2, k] += n[:, k]
             if a is not None:
-                matrix[2 * a : 2 * a + 2, k] -= n[k]
-        signed, *_ = np.linalg.lstsq(matrix, change.reshape(-1), rcond=None)
-        magnitude = np.array([j.impulse for j in self.joints]) / dt
-        impulse_on_b = np.copysign(magnitude, signed)
-        return (self.first_sign * impulse_on_b)[:, None] * n
+                matrix[:, 2 * a : 2 * a + 2, k] -= n[:, k]
+        signed = (np.linalg.pinv(matrix) @ change.reshape(len(p2), -1, 1))[..., 0]
+        impulse_on_b = np.copysign(impulses / dt, signed)
+        return (self.first_sign * impulse_on_b)[..., None] * n
 
 
 ENGINE = PymunkEngine()
