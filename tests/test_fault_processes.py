@@ -16,7 +16,6 @@ import sys
 import time
 from pathlib import Path
 
-import pytest
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -205,7 +204,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
                           capture_output=True, text=True, timeout=120, preexec_fn=_small_files)
     assert full.returncode == 1, full.stderr
     [line] = full.stderr.strip().splitlines()[-1:]
-    assert line.startswith(f"xval: error: ") and "File too large: no room to write" in line
+    assert line.startswith("xval: error: ") and "File too large: no room to write" in line
     assert "Traceback" not in full.stderr
     assert [p.name for p in out.rglob("*.tmp")] == []
     assert [r.case.scene_id for r in load_results(out).records] == ["bead"]  # the finished case is kept

@@ -4,9 +4,7 @@ traceback. In-process through ``compare.cli.main``; nothing here starts an engin
 
 from __future__ import annotations
 
-import os
 import re
-from pathlib import Path
 
 import pytest
 

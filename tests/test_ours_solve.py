@@ -1,6 +1,5 @@
 """ours, library level: the closed forms, the banded solve, and bad input. No engines/ import."""
 
-import math
 
 import numpy as np
 import pytest
