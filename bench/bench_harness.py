@@ -19,7 +19,13 @@ The stepping times are wall clock: on a machine loaded by other jobs they grow
 while CPU time does not, which flatters the ratio. The load average is printed
 with each run; compare runs made at similar load.
 
-    .venv/bin/python bench/bench_harness.py [--runs N]
+With ``--in-process`` it also runs the same cases with no case host and no pool
+worker (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
+process, what the process hops cost), and a suite of the same scenes and engine
+variants at one dt of 2 steps (``--fixed``: about what a run costs before its
+cases, its CPU minus nothing the cases could save).
+
+    .venv/bin/python bench/bench_harness.py [--runs N] [--in-process] [--fixed]
 """
 
 from __future__ import annotations
@@ -50,6 +56,59 @@ own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(res
 with open(report, "w") as handle:
     json.dump({"xval": own.ru_utime + own.ru_stime, "descendants": children.ru_utime + children.ru_stime}, handle)
 """
+
+
+#: The default suite's cases in one process: no case host, no pool worker.
+IN_PROCESS = r"""
+import concurrent.futures as cf, json, resource, sys
+from compare.run.runner import plan, run_suite, _preload
+from compare.suite.reader import load_suite
+suite = load_suite("suites/default.toml")
+_preload(suite, plan(suite))
+run_suite(suite, sys.argv[1], jobs=1, executor=cf.ThreadPoolExecutor(1), isolate=False)
+"""
+
+#: The default suite's scenes and engines, at one dt of two steps: what a run costs besides its cases.
+FIXED_SUITE = """
+name = "fixed-cost"
+duration = 0.02
+sample_interval = 0.01
+dt = [1e-2]
+[[scenes]]
+id = "bead"
+scene = "bead"
+parameters = { theta0 = 60 }
+[[scenes]]
+id = "double-pendulum"
+scene = "double-pendulum"
+[[engines]]
+id = "ours/*"
+[[engines]]
+id = "mujoco/*"
+[[engines]]
+id = "pybullet/*"
+[[engines]]
+id = "pymunk/*"
+"""
+
+
+def other_run(kind: str) -> tuple[float, float, int]:
+    """(CPU s of the process tree, summed stepping s, cases) of the ``--in-process`` or ``--fixed`` run."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if kind == "in-process":
+            command = [sys.executable, "-c", IN_PROCESS, str(out)]
+        else:
+            suite = Path(tmp) / "fixed.toml"
+            suite.write_text(FIXED_SUITE)
+            command = [sys.executable, "-c", "from compare.cli import main; main()", "run", str(suite), "--jobs", "1",
+                       "--output", str(out), "--quiet"]
+        subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        files = list((out / "cases").glob("*.json"))
+        stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in files)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(files)
 
 
 def one_run() -> dict:
@@ -91,6 +150,11 @@ def main(argv: list[str]) -> int:
     print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
     for name, (cases, stepping, outside) in last["engines"].items():
         print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
+    for kind in ("in-process", "fixed"):
+        if f"--{kind}" in argv:
+            cpu, stepping, cases = other_run(kind)
+            print(f"\n{kind}: {cases} cases, CPU {cpu:.2f} s, stepping {stepping:.2f} s, "
+                  f"CPU / stepping {cpu / stepping if stepping else float('nan'):.2f}, load {os.getloadavg()[0]:.1f}")
     return 0
 
 
