@@ -237,3 +237,26 @@ def test_cli_errors_are_one_line(tmp_path):
     show = subprocess.run(XVAL + ["show", str(tmp_path)], cwd=ROOT, capture_output=True, text=True)
     assert show.returncode == 2
     assert show.stderr == f"xval: error: {tmp_path}: not a results directory (no run.json); give the --output directory of 'xval run'\n"
+
+
+def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
+    """_preload freezes what is loaded (gc.freeze) so full collections skip it during the run; the run
+    unfreezes it at its end, so a program that runs many suites does not keep their objects for ever."""
+    import gc
+
+    from compare.suite.reader import parse_suite
+
+    suite = parse_suite("""
+name = "gc"
+duration = 0.02
+sample_interval = 0.01
+dt = [1e-2]
+[[scenes]]
+id = "bead"
+scene = "bead"
+[[engines]]
+id = "pymunk/pin"
+""", path="gc.toml")
+    assert gc.get_freeze_count() == 0
+    run_suite(suite, tmp_path / "out", jobs=1)
+    assert gc.get_freeze_count() == 0

@@ -215,6 +215,7 @@ def _run_suite(
     todo = [c for c in cases if c.id not in done]
     progress.start(len(cases), len(cases) - len(todo))
     writer = _Writer(results, suite, progress)
+    frozen_before = gc.get_freeze_count()
     try:
         runnable = []
         reasons: dict[tuple[str, str], str | None] = {}
@@ -231,6 +232,8 @@ def _run_suite(
                         memory_limit).run()
     finally:
         progress.stop()
+        if frozen_before == 0:
+            gc.unfreeze()  # what _preload froze is collectable again (a program running many suites)
     records = writer.records()
     counts = _status_counts(records)
     results.finish(counts)
@@ -467,6 +470,7 @@ def _preload(suite: Suite, cases) -> None:
     # What is loaded now (modules, numba's kernels, engine libraries' objects) lives as long as the
     # run: moved out of the collector's generations, a full collection no longer walks it (eight of
     # them walked it for 0.5 s of the default suite's CPU), here and in the workers forked from here.
+    # _run_suite unfreezes it when the run ends.
     gc.freeze()
 
 
