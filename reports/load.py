@@ -21,13 +21,9 @@ from pathlib import Path
 from typing import Any
 
 from compare.results.store import load_results
-from compare.results.record import CaseRecord
+from compare.results.record import PROBLEMS, CaseRecord, status_counts
 from compare.results.sweep import VariantSweep, sweeps
 
-#: Statuses that mean "something went wrong" and are listed with their messages.
-PROBLEM_STATUSES = ("unstable", "failed", "timeout")
-#: Order in which status counts are shown (others follow alphabetically).
-STATUS_ORDER = ("ok", "unstable", "failed", "timeout", "skipped")
 
 
 @dataclass(frozen=True)
@@ -79,15 +75,6 @@ class ReportData:
     @property
     def n_cases(self) -> int:
         return sum(self.counts.values())
-
-
-def status_counts(records: list[CaseRecord]) -> dict[str, int]:
-    """Cases per status, in ``STATUS_ORDER`` (statuses with no case left out)."""
-    counts: dict[str, int] = {}
-    for record in records:
-        counts[record.status] = counts.get(record.status, 0) + 1
-    ordered = {s: counts.pop(s) for s in STATUS_ORDER if s in counts}
-    return {**ordered, **dict(sorted(counts.items()))}
 
 
 def choose_dt(scene_sweeps: list[VariantSweep], dts: list[float], requested: float | None = None) -> float | None:
@@ -142,7 +129,7 @@ def arrange(path: Path, header: dict[str, Any], records: list[CaseRecord], dt: f
                 chosen_dt=choose_dt(ran, dts, dt),
             )
         )
-    problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r.status in PROBLEM_STATUSES]
+    problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r.status in PROBLEMS]
     return ReportData(path, header, scenes, status_counts(records), problems)
 
 

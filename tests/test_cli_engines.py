@@ -10,7 +10,7 @@ import csv
 import numpy as np
 import pytest
 
-from compare.cli import main
+from cli_support import run_cli
 from engines import catalog, registry
 
 BUILT_IN = ["ours", "mujoco", "pybullet", "pymunk"]
@@ -32,16 +32,6 @@ LEFT_OUT = {
 }
 
 
-def run(capsys, argv):
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
 def refusal(variant: str, scene_name: str) -> str | None:
     for (prefix, scene), words in LEFT_OUT.items():
         if variant.startswith(prefix) and scene == scene_name:
@@ -53,7 +43,7 @@ def refusal(variant: str, scene_name: str) -> str | None:
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_every_variant_simulates_every_scene_it_can_express(variant, scene_name, tmp_path, capsys):
     output = tmp_path / "run.csv"
-    code, out, err = run(capsys, ["simulate", scene_name, "--engine", variant, "--dt", "1e-3",
+    code, out, err = run_cli(capsys, *["simulate", scene_name, "--engine", variant, "--dt", "1e-3",
                                   "--duration", "0.1", "--output", str(output)])
     words = refusal(variant, scene_name)
     if words is not None:
@@ -72,7 +62,7 @@ def test_every_variant_simulates_every_scene_it_can_express(variant, scene_name,
 
 def test_a_blow_up_exits_1_and_keeps_the_samples_up_to_it(tmp_path, capsys):
     output = tmp_path / "blowup.csv"
-    code, out, err = run(capsys, ["simulate", "chain", "--engine", "mujoco/hinge", "--dt", "0.05",
+    code, out, err = run_cli(capsys, *["simulate", "chain", "--engine", "mujoco/hinge", "--dt", "0.05",
                                   "--param", "n=8", "--duration", "5", "--output", str(output)])
     assert code == 1, out + err
     assert ": unstable," in out
@@ -82,7 +72,7 @@ def test_a_blow_up_exits_1_and_keeps_the_samples_up_to_it(tmp_path, capsys):
 
 
 def test_engines_lists_every_engine_with_version_variants_and_capabilities(capsys):
-    code, out, _ = run(capsys, ["engines"])
+    code, out, _ = run_cli(capsys, *["engines"])
     assert code == 0
     for name in BUILT_IN + ["reference"]:
         engine = registry.get_engine(name)

@@ -7,22 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from compare.cli import main
+from cli_support import run_cli
 from compare.stability.dissipation import RATE_FLOOR, extrapolate, hidden, loss_rate, probe
 from engines import catalog
 from engines.scene import Particle, Scene
 
 BEAD = catalog.build("bead", {"duration": 20.0})
-
-
-def run(capsys, argv):
-    try:
-        main(argv)
-        code = 0
-    except SystemExit as stop:
-        code = stop.code or 0
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # -- the pure measurement ------------------------------------------------------------------
@@ -82,7 +72,7 @@ def test_the_default_mujoco_connect_damps_on_its_own():
 
 
 def test_probe_json_is_one_object_with_the_verdict(capsys):
-    code, out, _ = run(capsys, ["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5", "--format", "json"])
+    code, out, _ = run_cli(capsys, *["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5", "--format", "json"])
     assert code == 0
     document = json.loads(out)
     assert document["hidden_dissipation"] is True
@@ -97,7 +87,7 @@ def test_probe_json_is_one_object_with_the_verdict(capsys):
     (["probe", "pymunk/pin", "--scene", "spherical-pendulum"], "2-D"),
 ])
 def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
-    code, out, err = run(capsys, argv)
+    code, out, err = run_cli(capsys, *argv)
     assert code == 2 and out == ""
     assert message in err and len(err.strip().splitlines()) == 1
 
@@ -135,10 +125,10 @@ def _status_in_child(task, queue):
 def test_probe_output_is_what_the_report_lists(capsys, tmp_path):
     from reports.verdict import load_probes
 
-    code, _, _ = run(capsys, ["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5",
+    code, _, _ = run_cli(capsys, *["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5",
                               "--output", str(tmp_path)])
     assert code == 0
     stored = load_probes(tmp_path)
     assert [p["engine"] for p in stored] == ["pymunk/pin"] and stored[0]["hidden_dissipation"] is True
-    code, _, err = run(capsys, ["probe", "pymunk/pin", "--output", str(tmp_path / "nope")])
+    code, _, err = run_cli(capsys, *["probe", "pymunk/pin", "--output", str(tmp_path / "nope")])
     assert code == 2 and "does not exist" in err

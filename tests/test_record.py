@@ -158,3 +158,12 @@ def test_a_metric_declared_once_appears_in_show_report_baseline_and_gate(dummy_m
     code, out, err = xval(capsys, "gate", run, "--baseline", baseline, "--timing", "report")
     assert code == 1
     assert DUMMY in out
+
+
+def test_status_counts_follow_the_status_order_and_leave_out_absent_statuses():
+    from types import SimpleNamespace
+
+    from compare.results.record import status_counts
+
+    records = [SimpleNamespace(status=Status(s)) for s in ("timeout", "ok", "failed", "ok", "skipped")]
+    assert list(status_counts(records).items()) == [("ok", 2), ("failed", 1), ("timeout", 1), ("skipped", 1)]

@@ -56,11 +56,10 @@ from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, case_name
 from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
+from compare.results.record import PROBLEMS
 
 #: Case verdicts, in the order a table lists them (most urgent first).
 VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")
-#: Statuses that count as broken when a case was ``ok`` before.
-BROKEN = ("unstable", "failed", "timeout")
 #: How timing is treated: "gate" (a real slowdown fails) or "report" (shown, never fails).
 TIMING_MODES = ("gate", "report")
 #: Fewest timing repeats on each side for a timing change to be gated (the spread needs two).
@@ -258,7 +257,7 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
         )
     status = Change("status", "", b_status, c_status, None, "unchanged")
     if b_status != c_status:
-        if b_status == "ok" and c_status in BROKEN:
+        if b_status == "ok" and c_status in PROBLEMS:
             status = Change("status", "", b_status, c_status, None, "worse", note=current["message"])
         elif c_status == "ok":
             status = Change("status", "", b_status, c_status, None, "better")

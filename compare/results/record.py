@@ -23,7 +23,7 @@ import enum
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from engines.errors import UserError
 
@@ -49,6 +49,20 @@ class Status(str, enum.Enum):
 
     def __str__(self) -> str:  # f"{status}" gives "ok", as the JSON does
         return self.value
+
+
+#: The statuses of a case that went wrong: listed as problems, counted as not ok while running, and
+#: a regression when the baseline's case was ok.
+PROBLEMS = (Status.UNSTABLE, Status.FAILED, Status.TIMEOUT)
+
+
+def status_counts(records: Iterable["CaseRecord"]) -> dict[str, int]:
+    """Cases per status (its JSON spelling), in Status order (ok, unstable, failed, timeout, skipped);
+    statuses with no case are left out."""
+    counts = {status.value: 0 for status in Status}
+    for record in records:
+        counts[record.status.value] += 1
+    return {status: n for status, n in counts.items() if n}
 
 
 class RecordError(UserError):

@@ -31,7 +31,7 @@ import orjson
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
-from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError
+from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError, status_counts
 
 #: Most points kept per stored time series (evenly spaced, first and last kept).
 MAX_SERIES_POINTS = 100
@@ -325,11 +325,8 @@ class Results:
         return sweeps(self.records, self.verdict_tolerance)
 
     def counts(self) -> dict[str, int]:
-        """How many cases ended in each status."""
-        counts: dict[str, int] = {}
-        for record in self.records:
-            counts[record.status.value] = counts.get(record.status.value, 0) + 1
-        return counts
+        """How many cases ended in each status, in Status order."""
+        return status_counts(self.records)
 
 
 def load_results(path: str | Path) -> Results:

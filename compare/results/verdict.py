@@ -34,7 +34,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from compare.results.record import CaseRecord, Status
+from compare.results.record import PROBLEMS, CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
 #: The target error of "cost to reach", as a fraction of L.
@@ -295,7 +295,8 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
             ok = sweep.ok_records
             found.append(Problem(sweep.scene_id, sweep.engine, "inconsistent", verdict.reason,
                                  case_ids=tuple(r.case.id for r in ok)))
-        for status, kind in ((Status.FAILED, "failed"), (Status.TIMEOUT, "timeout"), (Status.UNSTABLE, "unstable")):
+        for status in PROBLEMS:  # found is sorted by PROBLEM_KINDS below
+            kind = status.value
             hit = sorted((r for r in sweep.records if r.status is status), key=lambda r: -r.case.dt)
             if not hit:
                 continue

@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 from typing import Any, Protocol, TextIO
 
-from compare.results.record import CaseRecord, Status
+from compare.results.record import PROBLEMS, CaseRecord, Status
 
 
 class Progress(Protocol):
@@ -86,7 +86,7 @@ class MilestoneProgress:
 
     def advance(self, record: CaseRecord) -> None:
         self.done += 1
-        if record.status in NOT_OK:
+        if record.status in PROBLEMS:
             self.not_ok += 1
         if self.total and self.done * self.steps >= self.next_step * self.total:
             self.next_step = (self.done * self.steps) // self.total + 1
@@ -96,10 +96,6 @@ class MilestoneProgress:
 
     def stop(self) -> None:
         pass
-
-
-#: Statuses counted as "not ok" while running.
-NOT_OK = (Status.FAILED, Status.TIMEOUT, Status.UNSTABLE)
 
 
 class RichProgress:
@@ -128,7 +124,7 @@ class RichProgress:
         self.task = self.bar.add_task("cases", total=total, completed=already_done, failures="", last="")
 
     def advance(self, record: CaseRecord) -> None:
-        if record.status in NOT_OK:
+        if record.status in PROBLEMS:
             self.failures += 1
         label = f"{self.failures} not ok" if self.failures else ""
         self.bar.update(self.task, advance=1, failures=label, last=describe(record)[:60])

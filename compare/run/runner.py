@@ -47,7 +47,7 @@ from compare.results.files import remove_stale_temporaries
 from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
-from compare.results.record import SCHEMA_VERSION, CaseRecord
+from compare.results.record import SCHEMA_VERSION, CaseRecord, status_counts
 from compare.results.store import (
     ResultsDir, SeriesView, downsample_indices, jsonable, now, read_json, round_significant,
 )
@@ -235,7 +235,7 @@ def _run_suite(
         if frozen_before == 0:
             gc.unfreeze()  # what _preload froze is collectable again (a program running many suites)
     records = writer.records()
-    counts = _status_counts(records)
+    counts = status_counts(records)
     results.finish(counts)
     return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records)
 
@@ -247,13 +247,6 @@ def compare_version() -> str:
         return version("xval")
     except Exception:
         return "unknown"
-
-
-def _status_counts(records: list[CaseRecord]) -> dict[str, int]:
-    counts: dict[str, int] = {}
-    for record in records:
-        counts[record.status.value] = counts.get(record.status.value, 0) + 1
-    return dict(sorted(counts.items()))
 
 
 def _init_worker() -> None:
