@@ -9,21 +9,19 @@ alone (no engines/): the bead and double pendulum are built here.
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 from scipy.special import ellipk
 
 import ours
-from ours import Pin, Rod, System, Wire, simulate
+from ours import simulate
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "figures" / "ours"
-G = 9.81
-THETA0 = math.radians(60.0)
-BEAD = System((1.0,), (0.0, -G), (Wire(0, (0.0, 0.0), 1.0),))
-Q0 = np.array([[math.sin(THETA0), -math.cos(THETA0)]])
-V0 = np.zeros((1, 2))
+# The bead and its release, and the convergence study, are ours_claims.py's (one definition of each).
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ours_claims import BEAD, G, ORDER_DTS, Q0, THETA0, V0, bead_convergence  # noqa: E402
 COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#17becf", "#7f7f7f"]
 
 
@@ -122,22 +120,9 @@ def drift_figure(rows):
 
 
 def order_figure(rows):
-    sol = solve_ivp(lambda t, y: [y[1], -G * math.sin(y[0])], (0, 1.0), [THETA0, 0.0], method="DOP853",
-                    rtol=1e-13, atol=1e-13)
-    exact = np.array([math.sin(sol.y[0, -1]), -math.cos(sol.y[0, -1])])
-    dts = np.array([2e-2, 1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4])
     series = []
-    for method, integrator in [("baumgarte", "euler"), ("baumgarte", "symplectic-euler"), ("baumgarte", "midpoint"),
-                               ("baumgarte", "rk4"), ("rattle", None), ("lagrangian", "rk4")]:
-        errors = []
-        for dt in dts:
-            n = round(1.0 / dt)
-            run = simulate(BEAD, Q0, V0, dt, n, n, method=method, integrator=integrator)
-            errors.append(np.abs(run.q[-1, 0] - exact).max())
-        errors = np.array(errors)
-        fit = errors > 1e-13
-        slope = np.polyfit(np.log(dts[fit][-4:]), np.log(errors[fit][-4:]), 1)[0]
-        series.append((f"{name(method, integrator)} ({slope:.2f})", dts, errors))
+    for method, integrator, _key, errors, slope in bead_convergence():
+        series.append((f"{name(method, integrator)} ({slope:.2f})", ORDER_DTS, errors))
         rows.append((name(method, integrator), f"{slope:.2f}"))
     line_plot(OUT / "orders.svg", "Bead, error at t = 1 s against dt (slope)", series, "dt (s)",
               "position error (m)", logx=True, logy=True)
