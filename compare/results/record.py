@@ -69,6 +69,16 @@ class RecordError(UserError):
     """A case file that is damaged, foreign, or of another schema version; the message names the file."""
 
 
+def check_schema(data: Any, path: str | Path) -> None:
+    """RecordError naming ``path`` unless ``data`` (a case record or run.json) has this xval's schema version."""
+    version = data.get("schema_version") if isinstance(data, dict) else None
+    if version != SCHEMA_VERSION:
+        raise RecordError(
+            f"{path}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
+            f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
+        )
+
+
 @dataclass(frozen=True)
 class CaseKey:
     """What identifies a case.
@@ -205,12 +215,7 @@ class CaseRecord:
         where = str(path)
         if not isinstance(data, dict):
             raise RecordError(f"{where}: not a case record (a JSON object expected, got {type(data).__name__})")
-        version = data.get("schema_version")
-        if version != SCHEMA_VERSION:
-            raise RecordError(
-                f"{where}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
-                f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
-            )
+        check_schema(data, where)
         reader = _FieldReader(where)
         case = reader.mapping(data, "case")
         key = CaseKey(

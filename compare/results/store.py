@@ -31,7 +31,7 @@ import orjson
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
-from compare.results.record import SCHEMA_VERSION, CaseRecord, RecordError, status_counts
+from compare.results.record import SCHEMA_VERSION, CaseRecord, check_schema, status_counts
 
 #: Most points kept per stored time series (evenly spaced, first and last kept).
 MAX_SERIES_POINTS = 100
@@ -265,15 +265,6 @@ def read_json(path: Path) -> dict[str, Any]:
         raise UserError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}); delete it and run with --resume") from None
     except OSError as exc:
         raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
-
-
-def check_schema(data: Any, path: Path) -> None:
-    version = data.get("schema_version") if isinstance(data, dict) else None
-    if version != SCHEMA_VERSION:
-        raise RecordError(
-            f"{path}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
-            f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
-        )
 
 
 def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
