@@ -85,6 +85,15 @@ def add(history: History, results: Results, index: int) -> StoredRun:
     return history.add(results, origin(index))
 
 
+def add_in_process(target: str, base_path: str, index: int, barrier) -> int:
+    """A forked writer's task: load the base run, wait for the others at ``barrier``, then add synthetic
+    run ``index`` to the history at ``target`` (a file or a database URL), creating it if need be."""
+    base = load_results(base_path)
+    barrier.wait()
+    with History.open(target, create=True) as history:
+        return add(history, synthetic(base, index), index).id
+
+
 def write_results(results: Results, target: Path) -> Path:
     """``results`` as a results directory at ``target`` (run.json, suite.toml, one file per case)."""
     shutil.copytree(results.path, target)

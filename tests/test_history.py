@@ -24,9 +24,8 @@ from compare.gate.tolerance import GateSettings
 from compare.history import store as store_module
 from compare.history.store import History, HistoryError, SCHEMA_VERSION
 from compare.history.window import window_baseline
-from compare.results.store import load_results
 
-from history_support import ENGINE, SUITE, add, origin, real_run, synthetic, write_results, xval, xval_process
+from history_support import ENGINE, add_in_process, SUITE, add, origin, real_run, synthetic, write_results, xval, xval_process
 
 
 @pytest.fixture(scope="module")
@@ -178,19 +177,12 @@ def test_an_older_store_is_migrated_and_a_newer_one_refused(base, tmp_path, monk
         History.open(path)
 
 
-def _add_in_process(path: str, base_path: str, index: int, barrier) -> int:
-    base = load_results(base_path)
-    barrier.wait()
-    with History.open(path, create=True) as history:
-        return add(history, synthetic(base, index), index).id
-
-
 def test_writers_at_once_all_land_even_when_creating_the_file(base, tmp_path):
     path = tmp_path / "h.sqlite"
     context = multiprocessing.get_context("fork")
     barrier = context.Manager().Barrier(4)
     with context.Pool(4) as pool:
-        ids = pool.starmap(_add_in_process, [(str(path), str(base.path), i, barrier) for i in range(4)])
+        ids = pool.starmap(add_in_process, [(str(path), str(base.path), i, barrier) for i in range(4)])
     assert sorted(ids) == [1, 2, 3, 4]
     with History.open(path) as history:
         assert len(history.runs()) == 4 and len(history.cases()) == 24

@@ -27,9 +27,8 @@ import pytest
 from compare.gate.baseline import build_baseline
 from compare.history.store import AlreadyRecorded, History, HistoryError
 from compare.history.window import window_baseline
-from compare.results.store import load_results
 
-from history_support import ENGINE, ERRORS, add, real_run, synthetic, xval
+from history_support import ENGINE, add_in_process, ERRORS, add, real_run, synthetic, xval
 
 
 def server_binaries() -> Path | None:
@@ -136,18 +135,11 @@ def test_round_trip_append_only_and_a_run_added_once(base, url):
         assert [r.id for r in history.runs()] == [1, 2] and history.run(1) == first
 
 
-def _add_in_process(url: str, base_path: str, index: int, barrier) -> int:
-    base = load_results(base_path)
-    barrier.wait()
-    with History.open(url, create=True) as history:
-        return add(history, synthetic(base, index), index).id
-
-
 def test_writers_at_once_all_land_even_when_creating_the_tables(base, url):
     context = multiprocessing.get_context("fork")
     barrier = context.Manager().Barrier(3)
     with context.Pool(3) as pool:
-        ids = pool.starmap(_add_in_process, [(url, str(base.path), i, barrier) for i in range(3)])
+        ids = pool.starmap(add_in_process, [(url, str(base.path), i, barrier) for i in range(3)])
     assert sorted(ids) == [1, 2, 3]
     with History.open(url) as history:
         assert len(history.cases()) == 18
