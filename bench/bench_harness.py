@@ -61,10 +61,10 @@ with open(report, "w") as handle:
 #: The default suite's cases in one process: no case host, no pool worker.
 IN_PROCESS = r"""
 import concurrent.futures as cf, json, resource, sys
-from compare.run.runner import plan, run_suite, _preload
+from compare.run.runner import plan, run_suite, preload_engines
 from compare.suite.reader import load_suite
 suite = load_suite("suites/default.toml")
-_preload(suite, plan(suite))
+preload_engines(suite, plan(suite))
 run_suite(suite, sys.argv[1], jobs=1, executor=cf.ThreadPoolExecutor(1), isolate=False)
 """
 

@@ -240,7 +240,7 @@ def test_cli_errors_are_one_line(tmp_path):
 
 
 def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
-    """_preload freezes what is loaded (gc.freeze) so full collections skip it during the run; the run
+    """preload_engines freezes what is loaded (gc.freeze) so full collections skip it during the run; the run
     unfreezes it at its end, so a program that runs many suites does not keep their objects for ever."""
     import gc
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from compare.results.store import SERIES_DIGITS, round_significant, rounded
+from compare.results.store import SERIES_DIGITS, SeriesView, as_json_list, round_significant
 
 
 def formatted(x: float, digits: int = SERIES_DIGITS) -> float:
@@ -46,11 +46,37 @@ def test_values_next_to_powers_of_ten_and_at_the_ends_of_the_range(digits):
 
 def test_zeros_keep_their_sign_and_non_finite_values_become_none():
     assert math.copysign(1.0, round_significant(np.array([-0.0]))[0]) == -1.0
-    assert rounded(np.array([[1.23456789, np.nan], [np.inf, -0.0]])) == [[1.23457, None], [None, -0.0]]
+    listed = as_json_list(round_significant(np.array([[1.23456789, np.nan], [np.inf, -0.0]])))
+    assert listed == [[1.23457, None], [None, -0.0]]
 
 
 def test_shapes_are_kept_as_nested_lists_of_python_floats():
-    out = rounded(np.arange(12.0).reshape(2, 3, 2) / 7)
+    out = as_json_list(round_significant(np.arange(12.0).reshape(2, 3, 2) / 7))
     assert len(out) == 2 and len(out[0]) == 3 and len(out[0][0]) == 2
     assert type(out[1][2][1]) is float and out[1][2][1] == formatted(11 / 7)
-    assert rounded(np.zeros((0, 2, 3))) == []
+    assert as_json_list(round_significant(np.zeros((0, 2, 3)))) == []
+
+
+def test_a_run_keeps_in_memory_the_series_its_files_hold(tmp_path):
+    """The runner keeps the records it wrote, their series as arrays read as lists on demand
+    (store.SeriesView): what a reader of the run's summary sees must be what the file says."""
+    import json
+
+    from compare.run.runner import run_suite
+    from compare.suite.reader import parse_suite
+
+    suite = parse_suite('duration = 0.3\ndt = [1e-2]\n[[scenes]]\nscene = "double-pendulum"\n'
+                        '[[engines]]\nid = "mujoco/connect"\n[[engines]]\nid = "pymunk/pin"\n')
+    summary = run_suite(suite, tmp_path / "out", jobs=1)
+    stored = {d["case"]["id"]: d["series"] for d in
+              (json.loads(p.read_text()) for p in (tmp_path / "out" / "cases").glob("*.json"))}
+    assert len(summary.records) == len(stored) == 2
+    for record in summary.records:
+        assert "constraint_forces" in record.series
+        assert dict(record.series) == stored[record.case.id]
+
+
+def test_a_series_view_reads_non_finite_values_as_none():
+    view = SeriesView({"reference_positions": np.array([[[np.nan, 0.0, 1.5]]]), "t": np.array([0.0, 0.01])})
+    assert list(view) == ["reference_positions", "t"] and len(view) == 2
+    assert view["reference_positions"] == [[[None, 0.0, 1.5]]] and view["t"] == [0.0, 0.01]

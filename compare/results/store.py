@@ -58,14 +58,13 @@ def downsample_indices(n: int, limit: int = MAX_SERIES_POINTS) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
 
 
-def rounded(values: np.ndarray, digits: int = SERIES_DIGITS) -> list:
-    """A nested list of floats rounded to ``digits`` significant digits (None for non-finite)."""
+def as_json_list(values: np.ndarray) -> list:
+    """``values`` as nested lists of Python floats, None where a value is not finite (as JSON has it)."""
     array = np.asarray(values, dtype=float)
     finite = np.isfinite(array)
-    out = round_significant(array, digits)
     if finite.all():
-        return out.tolist()
-    kept = out.astype(object)  # Python floats, so the non-finite entries can become None
+        return array.tolist()
+    kept = array.astype(object)  # Python floats, so the non-finite entries can become None
     kept[~finite] = None
     return kept.tolist()
 
@@ -86,7 +85,7 @@ class SeriesView(Mapping[str, Any]):
 
     def __getitem__(self, name: str) -> list:
         if name not in self._lists:
-            self._lists[name] = rounded(self._arrays[name])  # already rounded: rounding again changes nothing
+            self._lists[name] = as_json_list(self._arrays[name])
         return self._lists[name]
 
     def __iter__(self) -> Iterator[str]:

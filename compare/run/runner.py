@@ -233,7 +233,7 @@ def _run_suite(
     finally:
         progress.stop()
         if frozen_before == 0:
-            gc.unfreeze()  # what _preload froze is collectable again (a program running many suites)
+            gc.unfreeze()  # what preload_engines froze is collectable again (a program running many suites)
     records = writer.records()
     counts = status_counts(records)
     results.finish(counts)
@@ -282,7 +282,7 @@ class _Dispatcher:
     def _new_pool(self) -> cf.Executor:
         # fork: workers inherit the imported engines; the workers are forked
         # before the progress bar starts its thread (all at first submit).
-        _preload(self.suite, self.cases.values())
+        preload_engines(self.suite, self.cases.values())
         # die_with_parent: a kill -9 of xval takes its workers with it (and they their case hosts).
         return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
                                       initializer=_init_worker)
@@ -441,7 +441,7 @@ class _Dispatcher:
 _preloaded: set[int] = set()
 
 
-def _preload(suite: Suite, cases) -> None:
+def preload_engines(suite: Suite, cases) -> None:
     """Let each engine of these cases (and the reference) load what it will need once, here, before
     the pool forks: workers and case hosts inherit it instead of each importing and loading it again
     (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
