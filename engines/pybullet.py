@@ -470,7 +470,7 @@ class PyBulletEngine(Engine):
 @functools.lru_cache(maxsize=1)
 def _pybullet_version() -> str:
     """The installed pybullet's version (read from its metadata once: each read scans the installed
-    distributions, 0.4 ms, and every run records it)."""
+    distributions, and every run records it)."""
     from importlib.metadata import PackageNotFoundError, version
 
     try:
@@ -482,12 +482,12 @@ def _pybullet_version() -> str:
 class _Clients:
     """One PyBullet DIRECT client per thread of a process, emptied (``resetSimulation``) between runs.
 
-    Connecting costs about 7 ms of CPU (a new physics server), more than
-    stepping a short case; ``resetSimulation`` (0.7 ms) deletes the world and
+    Connecting starts a new physics server, which costs far more CPU than
+    stepping a short case; ``resetSimulation`` deletes the world and
     builds a new one with the defaults of a fresh client (gravity 0, 50 solver
     iterations: what connect gives), and every run sets its parameters anew
     (``_Run._world``), so a run's trajectory does not depend on what ran in the
-    client before it (``tests/test_pybullet.py`` checks this bit for bit). The
+    client before it (``tests/test_engine_pybullet.py`` checks this bit for bit). The
     client is owned by the process that connected it: a forked child connects
     its own rather than drive its parent's copy.
     """
@@ -495,20 +495,21 @@ class _Clients:
     def __init__(self) -> None:
         self._idle: dict[tuple[int, int], int] = {}  # (pid, thread id) -> client id
 
+    @staticmethod
+    def _key() -> tuple[int, int]:
+        return os.getpid(), threading.get_ident()
+
     def take(self) -> int:
-        key = (os.getpid(), threading.get_ident())
-        client = self._idle.pop(key, None)
+        """This thread's idle client, emptied; a new one when it has none (or it was disconnected)."""
+        client = self._idle.pop(self._key(), None)
         if client is not None and _pb.isConnected(physicsClientId=client):
             _pb.resetSimulation(physicsClientId=client)
             return client
         return _pb.connect(_pb.DIRECT)
 
     def give_back(self, client: int) -> None:
-        key = (os.getpid(), threading.get_ident())
-        old = self._idle.pop(key, None)
-        if old is not None and old != client:
-            _pb.disconnect(physicsClientId=old)
-        self._idle[key] = client
+        """Keep ``client`` for this thread's next run (take() left its slot empty)."""
+        self._idle[self._key()] = client
 
     def drop(self, client: int) -> None:
         with contextlib.suppress(Exception):

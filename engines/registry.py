@@ -48,7 +48,7 @@ INSTALL: dict[str, str] = {
 }
 
 #: Optional built-ins' distributions, whose installed version can be read without importing them
-#: (pydrake's import costs 0.15 s of CPU; a run that does not use Drake need not pay it).
+#: (pydrake's import is slow; a run that does not use Drake need not pay for it).
 DISTRIBUTION: dict[str, str] = {
     "drake": "drake",
     "mjx": "mujoco-mjx",

@@ -117,9 +117,9 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
         keeps either the old file or the whole new one. Without it a killed
         process still leaves one or the other (the rename is atomic); only a
         crash of the machine itself may leave the new name on an empty file.
-        A run's case records are written without it (each fsync cost more CPU
-        than building the record), since a damaged record is not counted as
-        done and ``--resume`` runs its case again.
+        A run's case records are written without it (one fsync per case was a
+        visible part of the run's own CPU), since a damaged record is not
+        counted as done and ``--resume`` runs its case again.
     """
     binary = isinstance(text, bytes)
     if str(path) == STDOUT:

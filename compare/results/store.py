@@ -106,7 +106,7 @@ def round_significant(values: np.ndarray, digits: int = SERIES_DIGITS) -> np.nda
     """``values`` (any shape) rounded to ``digits`` significant digits, as a float64 array of that shape.
 
     Each value is exactly what ``float(format(x, f".{digits}g"))`` gives, computed
-    with array arithmetic (about forty times faster than formatting each number,
+    with array arithmetic (far faster than formatting each number,
     which was most of the CPU a run spent writing its records): x is scaled by an
     exact power of ten 10**k so that ``digits`` digits lie before the point,
     rounded to an integer m, and m / 10**k is the float nearest that decimal,

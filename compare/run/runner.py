@@ -461,8 +461,9 @@ def preload_engines(suite: Suite, cases) -> None:
         except Exception:  # noqa: BLE001 - a preload is an optimisation, never a failure
             continue
     # What is loaded now (modules, numba's kernels, engine libraries' objects) lives as long as the
-    # run: moved out of the collector's generations, a full collection no longer walks it (eight of
-    # them walked it for 0.5 s of the default suite's CPU), here and in the workers forked from here.
+    # run: moved out of the collector's generations, a full collection no longer walks it (the full
+    # collections of a default-suite run walked it again and again), here and in the workers forked
+    # from here. bench/bench_harness.py measures what the harness costs.
     # _run_suite unfreezes it when the run ends.
     gc.freeze()
 
