@@ -189,9 +189,14 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
         verdict, note = "better", f"{b / c:.2f}× faster"
     else:
         verdict, note = "unchanged", ""
+    return _timing(b, c, factor * b, verdict, note, gated, why_not)
+
+
+def _timing(b: float, c: float, limit: float, verdict: str, note: str, gated: bool, why_not: str) -> Change:
+    """The timing Change (s/s), saying why a change that is not gated is not."""
     if verdict != "unchanged" and not gated:
         note += f"; not gated: {why_not}"
-    return Change(TIMING_METRIC, "s/s", b, c, factor * b, verdict, gated=gated, note=note)
+    return Change(TIMING_METRIC, "s/s", b, c, limit, verdict, gated=gated, note=note)
 
 
 def best_spread(values: list[float]) -> float:
@@ -228,9 +233,7 @@ def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor:
         verdict, note = "better", f"{1 / ratio:.2f}× faster ({how})"
     else:
         verdict, note = "unchanged", ""
-    if verdict != "unchanged" and not gated:
-        note += f"; not gated: {why_not}"
-    return Change(TIMING_METRIC, "s/s", b, c, limit * b, verdict, gated=gated, note=note)
+    return _timing(b, c, limit * b, verdict, note, gated, why_not)
 
 
 # -- one case ------------------------------------------------------------------------
