@@ -262,7 +262,10 @@ def test_a_run_does_not_depend_on_what_ran_in_the_reused_client_before_it():
     for run in runs:
         adapter._clients.drop_all()  # the next run connects a new client
         fresh.append(simulate(*run))
-    # Reversed, so each run follows a different variant, solver, scene or dt than it did above.
+    # Reversed, so each run follows a different variant, solver, scene or dt than it did above,
+    # all in one client (the pool's point: connecting once, not per run).
+    reused = dict(adapter._clients._idle)
+    assert len(reused) == 1
     for run, expected in reversed(list(zip(runs, fresh))):
         got = simulate(*run)
         assert got.info.status == expected.info.status
@@ -272,6 +275,7 @@ def test_a_run_does_not_depend_on_what_ran_in_the_reused_client_before_it():
             assert got.constraint_forces is None
         else:
             np.testing.assert_array_equal(got.constraint_forces, expected.constraint_forces)
+    assert adapter._clients._idle == reused
 
 
 def test_a_run_that_raised_leaves_no_client_behind_to_be_reused(monkeypatch):
