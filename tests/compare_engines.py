@@ -4,10 +4,14 @@ Loaded by suites as ``compare_engines:MISBEHAVING/<variant>``. Every variant
 but the misbehaving ones returns the reference solution itself, so a case
 that behaves has zero position error.
 
-The engine runs in a case host, a child forked from the executor's worker
-(compare.run.isolation), so its parent process is that worker: ``kill-worker``
-SIGKILLs it, as an out-of-memory killer or a lost machine would (a pool
-worker locally, a Dask worker on a cluster).
+The engine runs in a case host (compare.run.isolation). On a cluster the host
+is a child of a Dask worker: ``kill-worker`` SIGKILLs that worker, as an
+out-of-memory killer or a lost machine would. A local run drives its hosts
+from the xval process itself (compare.run.hosts), so there the host's parent
+is xval (or pytest, which called run_suite): ``kill-worker`` then raises
+instead of killing the run or the test session. To break a local pool of
+workers, run with ``isolate=False`` and ``kill``: the engine then runs in the
+pool's worker, and kills it.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -29,7 +34,7 @@ class MisbehavingEngine(Engine):
     """exact: the reference; raise: raises in the stepping loop; nan: NaN from halfway;
     sleep: sleeps for an hour; kill: SIGKILLs its own process; exit: os._exit(3);
     drift: the reference with the bead pushed 0.5 m off its wire (finite, but past the bounds);
-    kill-worker: SIGKILLs the process that forked the case host (the executor's worker)."""
+    kill-worker: SIGKILLs the process that forked the case host when that is an executor's worker."""
 
     name = "misbehaving"
     capabilities = frozenset({"3d", "constraint-forces"})
@@ -52,7 +57,11 @@ class MisbehavingEngine(Engine):
         if mode == "exit":
             os._exit(3)
         if mode == "kill-worker":
-            os.kill(os.getppid(), signal.SIGKILL)
+            parent = os.getppid()
+            if _runs_a_suite(parent):
+                raise RuntimeError(f"kill-worker: the case host's parent (pid {parent}) is no spawned worker "
+                                   "and may be running the suite; it kills only a Dask worker")
+            os.kill(parent, signal.SIGKILL)
             os._exit(9)  # no answer, and no orphaned case host left behind
         positions, velocities, forces = solve(scene).at(schedule.times)
         if mode == "nan":
@@ -60,7 +69,15 @@ class MisbehavingEngine(Engine):
         if mode == "drift":
             # From the first step on: sample 0 must stay the initial state (engines.adapter.check_raw_run).
             positions[1:] = positions[1:] * 1.5
-        return RawRun(positions, velocities, forces, steps=schedule.n_steps, wall_time=1e-3)
+        # host_parent: which process drove the case host (tests of compare.run.hosts).
+        return RawRun(positions, velocities, forces, steps=schedule.n_steps, wall_time=1e-3,
+                      settings={"host_parent": os.getppid()})
+
+
+def _runs_a_suite(pid: int) -> bool:
+    """Whether process ``pid`` may be the one running the suite (pytest, xval): anything but a process
+    that multiprocessing's spawn started, as a Dask nanny starts its workers (Linux /proc)."""
+    return b"multiprocessing.spawn" not in Path(f"/proc/{pid}/cmdline").read_bytes()
 
 
 MISBEHAVING = MisbehavingEngine()

@@ -65,46 +65,48 @@ def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
 
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_case_that_kills_its_pool_worker_is_failed_and_no_other_case_is_blamed(tmp_path, jobs):
-    # The worker's death breaks the ProcessPoolExecutor: the runner rebuilds it and runs each case
-    # lost in the break again alone, so only the one that breaks the pool alone is failed, while
-    # innocent cases running beside it (with 2 jobs) or queued behind it (with 1) still finish ok.
-    engines = ["compare_engines:MISBEHAVING/kill-worker", "compare_engines:MISBEHAVING/exact",
-               "mujoco/hinge", "pymunk/pin"]
-    summary = run_suite(parse_suite(suite_text(engines)), tmp_path / "r", jobs=jobs)
+    # Not isolated, the engines run in the pool's workers: the killer's death breaks the
+    # ProcessPoolExecutor. The runner rebuilds it and runs each case lost in the break again alone,
+    # so only the one that breaks the pool alone is failed, while innocent cases running beside it
+    # (with 2 jobs) or queued behind it (with 1) still finish ok.
+    engines = ["compare_engines:MISBEHAVING/kill", "compare_engines:MISBEHAVING/exact", "mujoco/hinge", "pymunk/pin"]
+    summary = run_suite(parse_suite(suite_text(engines)), tmp_path / "r", jobs=jobs, isolate=False)
     status = {r.case.engine: (r.status, r.message) for r in load_results(tmp_path / "r").records}
-    assert status.pop("compare_engines:MISBEHAVING/kill-worker") == (
-        "failed", "a worker process of the executor died while it ran")
+    assert status.pop("compare_engines:MISBEHAVING/kill") == ("failed", "a worker process of the executor died while it ran")
     assert {engine: s for engine, (s, _) in status.items()} == {
         "compare_engines:MISBEHAVING/exact": "ok", "mujoco/hinge": "ok", "pymunk/pin": "ok"}
     assert summary.counts == {"failed": 1, "ok": 3}
 
 
-def orphans_of_this_process() -> list[int]:
-    """Processes forked from this one (same command line) that lost their parent (ppid 1). Linux /proc."""
+def live_children_like_this_process() -> list[int]:
+    """Live (not zombie) processes whose parent is this one and whose command line is this one's:
+    forks of it, as case hosts are. Linux /proc."""
     mine = Path("/proc/self/cmdline").read_bytes()
     found = []
     for proc in Path("/proc").iterdir():
         try:
             if proc.name.isdigit() and (proc / "cmdline").read_bytes() == mine:
-                ppid = int((proc / "stat").read_text().rsplit(")", 1)[1].split()[1])
-                if ppid == 1:
+                fields = (proc / "stat").read_text().rsplit(")", 1)[1].split()
+                if int(fields[1]) == os.getpid() and fields[0] != "Z":
                     found.append(int(proc.name))
         except (OSError, ValueError):
             continue  # it exited while we looked
     return found
 
 
-def test_a_broken_pool_leaves_no_orphaned_case_host(tmp_path):
-    # When a case kills its pool worker, the executor terminates the other workers too. Their case
-    # hosts must not hold their own request pipe open (an fd inherited at fork): they see EOF and
-    # exit, instead of living on blocked in recv() (which also kept pytest-xdist's pipes open).
-    before = set(orphans_of_this_process())
-    engines = ["compare_engines:MISBEHAVING/kill-worker", "mujoco/hinge", "pymunk/pin", "compare_engines:MISBEHAVING/exact"]
-    run_suite(parse_suite(suite_text(engines, dt="[1e-2, 1e-3]")), tmp_path / "r", jobs=2)
-    deadline = time.monotonic() + 10
-    while set(orphans_of_this_process()) - before and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert not set(orphans_of_this_process()) - before
+def test_a_local_run_drives_its_case_hosts_itself_and_leaves_none_behind(tmp_path):
+    # The case hosts are this process's own children (no pool worker between): a case that kills
+    # its host, one that times out and a reference solved in a host each cost only themselves, and
+    # when the run returns every host it forked has ended (the killed and timed-out ones included).
+    before = set(live_children_like_this_process())
+    engines = ["compare_engines:MISBEHAVING/kill", "compare_engines:MISBEHAVING/sleep", "mujoco/hinge", "pymunk/pin",
+               "compare_engines:MISBEHAVING/exact"]
+    suite = parse_suite(suite_text(engines, dt="[1e-2, 1e-3]"))
+    summary = run_suite(suite, tmp_path / "r", jobs=2, timeout=2)
+    assert summary.counts == {"failed": 2, "ok": 6, "timeout": 2}
+    assert set(live_children_like_this_process()) - before == set()
+    exact = [r for r in load_results(tmp_path / "r").records if r.case.variant == "exact"]
+    assert [r.run_info["settings"]["host_parent"] for r in exact] == [os.getpid()] * 2
 
 
 def test_any_executor_and_skipped_pairs(tmp_path):

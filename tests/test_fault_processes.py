@@ -93,7 +93,7 @@ HANGING = suite_text(["compare_engines:MISBEHAVING/sleep", "guard_engines:HOG/ch
 
 
 def wait_for_hosts(process: subprocess.Popen, n: int) -> set[int]:
-    """The run's processes once ``n`` case hosts' engines are inside their cases (>= 2 workers + hosts + sleeps)."""
+    """The run's processes once there are ``n`` of them under xval (its case hosts, and their engines' children)."""
     return wait_for(lambda: (lambda d: d if len(d) >= n else None)(descendants(process.pid)), 60,
                     f"{n} processes under xval")
 
@@ -105,8 +105,8 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
     first = start_run(suite_file, out, "--jobs", "2")
     seen: set[int] = set()
     try:
-        # 2 workers, 2 case hosts, 2 `sleep` children of the children engine.
-        seen = wait_for_hosts(first, 6)
+        # 2 case hosts, 2 `sleep` children of the children engine.
+        seen = wait_for_hosts(first, 4)
         second = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT,
                                 env=ENV, capture_output=True, text=True, timeout=60)
         assert second.returncode == 2
@@ -137,9 +137,9 @@ def test_sigterm_stops_the_run_leaves_no_process_nor_temporary_and_resume_finish
     run = start_run(suite_file, out, "--jobs", "2")
     seen: set[int] = set()
     try:
-        # The exact case finishes; the sleeper holds its worker and case host.
+        # The exact case finishes; the sleeper holds its case host (the other host waits, idle).
         wait_for(lambda: list((out / "cases").glob("*.json")) if (out / "cases").is_dir() else [], 60, "a case record")
-        seen = wait_for_hosts(run, 3)
+        seen = wait_for_hosts(run, 2)
         run.send_signal(signal.SIGTERM)
         _, stderr = run.communicate(timeout=30)
         assert run.returncode == 143 and stderr.strip().splitlines()[-1] == "xval: terminated"
@@ -217,7 +217,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
 
 def test_kill_9_also_ends_an_outside_program_in_its_own_session(tmp_path):
     # A command engine's program runs in a session of its own (engines/command.py), out of the case
-    # host's group: the host, told by the kernel that its worker died, kills that group too.
+    # host's group: the host, told by the kernel that xval died, kills that group too.
     pidfile = tmp_path / "pids"
     suite_file = tmp_path / "s.toml"
     suite_file.write_text(

@@ -26,7 +26,7 @@ from compare.suite.reader import load_suite
 @click.option("--output", required=True, metavar="DIR", callback=output_path,
               help="Results directory to create (or finish, with --resume).")
 @click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
-              help=f"Worker processes, 1 to {MAX_JOBS} (default: all cores).")
+              help=f"Cases run at once (case host processes), 1 to {MAX_JOBS} (default: all cores).")
 @click.option("--resume", is_flag=True, help="Run only the cases DIR does not hold yet.")
 @click.option("--timeout", type=Seconds(), default=None, metavar="S",
               help="Seconds per case (and per scene's reference solve) before it is killed and recorded as "

@@ -1,7 +1,7 @@
 """Running a suite's cases on a Dask cluster (``xval run --scheduler``).
 
-Only the executor changes. The runner submits the same tasks it gives the
-local process pool (one :func:`~compare.run.runner.solve_reference` per scene, one
+Only the executor changes. The runner submits the same tasks a local run
+gives its case hosts (one :func:`~compare.run.runner.solve_reference` per scene, one
 :func:`~compare.run.isolation.execute` per case); a Dask worker runs each in its
 own case host, a child forked from the worker, so timeouts and a case that
 kills its process behave exactly as locally. Results come back to the client,

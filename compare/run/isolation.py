@@ -1,10 +1,12 @@
 """Running one case so that whatever the engine does (raise, hang, segfault) only that case pays.
 
-:func:`execute` is what the runner submits to its Executor. With
-``isolate`` (the default) the case runs in a *case host*: a child process
-forked from the worker (one per worker thread), which runs cases one after
-another and answers each on a pipe. The worker waits at most ``timeout``
-seconds for the answer:
+Every isolated case runs in a *case host*: a child process forked from the
+process that drives it, which runs cases one after another and answers each
+on a pipe. A local run's hosts are driven straight from the ``xval`` process
+(:class:`compare.run.hosts.HostPool`, ``jobs`` hosts); on an executor given to
+the runner (a cluster's, a ThreadPoolExecutor) :func:`execute` is what runs
+in the executor's worker, and each worker thread forks its own host. Either
+way the driver waits at most ``timeout`` seconds for the answer:
 
 - the engine raised: the host catches it and answers ``failed``;
 - the host died (a segfault, ``os._exit``, SIGKILL): the pipe closes
@@ -20,21 +22,20 @@ would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
 Lifetime: nothing xval starts outlives it. Each host is the leader of its
 own process group (so the engine's own children are killed with it on a
 timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGTERM
-when its worker dies, on which it SIGKILLs its whole group; pool workers get
-the same request for their parent, the ``xval`` process
-(:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before each task so that the
-task may map at most ``memory_limit`` bytes more than the host did at its
-start: a case past it raises MemoryError (or its allocation fails inside
-the engine) and is ``failed`` with the reason.
+when the process that forked it dies, on which it SIGKILLs its whole group;
+the workers of a process pool make the same request for their parent, the
+``xval`` process (:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before
+each task so that the task may map at most ``memory_limit`` bytes more than
+the host did at its start: a case past it raises MemoryError (or its
+allocation fails inside the engine) and is ``failed`` with the reason.
 
-Because the worker itself never runs engine code, a case that kills its
-process never breaks a ``ProcessPoolExecutor``. Reusing the host across
-cases (rather than forking per case) matters for speed: a fork per case
-cost 90–250 ms (copying a process that holds numba, MuJoCo and PyBullet,
-and re-initializing them), more than most cases' stepping. It needs the
-``fork`` start method (Linux, macOS); with ``isolate=False`` the case runs
-in the worker itself (no timeout, and a crash breaks the pool, which the
-runner then rebuilds).
+The driver never runs engine code, so a case that kills its process never
+breaks a pool. Reusing the host across cases (rather than forking per case)
+matters for speed: a fork per case cost 90–250 ms (copying a process that
+holds numba, MuJoCo and PyBullet, and re-initializing them), more than most
+cases' stepping. It needs the ``fork`` start method (Linux, macOS); with
+``isolate=False`` the case runs in the executor's worker itself (no timeout,
+and a crash breaks the pool, which the runner then rebuilds).
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ from engines.trajectory import Trajectory
 class CaseTask:
     """Everything a worker needs to run one case (picklable).
 
-    engine_id : ``name/variant`` or ``module:ATTRIBUTE/variant``, loaded in the worker.
+    engine_id : ``name/variant`` or ``module:ATTRIBUTE/variant``, loaded in the process that runs the case.
     dt, sample_interval, timeout : s. repeats : runs whose stepping times are kept.
     """
 
@@ -158,7 +159,7 @@ def calibration_cpu_time() -> float:
 
 
 def _engine_for(task: CaseTask) -> Engine:
-    from engines.registry import load_engine  # here, not at import: loaded in the worker that runs the case
+    from engines.registry import load_engine  # here, not at import: loaded in the process that runs the case
 
     if task.command is not None:
         from engines.command import adopt
@@ -168,7 +169,7 @@ def _engine_for(task: CaseTask) -> Engine:
 
 
 #: s a command engine's deadline leaves before the case's timeout, to kill its program's process
-#: group and answer ``timeout`` before the worker kills the host (which would orphan the program).
+#: group and answer ``timeout`` before the driver kills the host (which would orphan the program).
 COMMAND_MARGIN = 0.5
 
 
@@ -238,7 +239,7 @@ def die_with_parent(sig: int = signal.SIGKILL) -> None:
     """Ask the kernel to send ``sig`` to this process when its parent dies (Linux; a no-op elsewhere).
 
     Used as the pool workers' initializer and by every case host, so a
-    ``kill -9`` of ``xval`` takes its workers, and they their hosts, with it.
+    ``kill -9`` of ``xval`` takes its hosts and workers (and theirs) with it.
     The check of the parent after the call closes the window in which the
     parent died before the request was made.
     """
@@ -268,7 +269,7 @@ def _kill_own_group(signum: int, frame: Any) -> None:
 
 
 def _become_host() -> None:
-    """Lead a process group of our own; on the worker's death, take the group down."""
+    """Lead a process group of our own; on the death of the process that forked us, take the group down."""
     try:
         os.setpgid(0, 0)
     except OSError:
@@ -361,15 +362,21 @@ def _run_in_host(task: Any) -> Any:
     return simulate(task)
 
 
-def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
-    """The case host: run each task received until the worker closes the pipe (or dies).
+#: The driver's ends of the pipes of every host this process runs. A fork copies them all into the new
+#: host, which closes them first: a host holding the write end of its own request pipe, or a sibling's,
+#: would keep that host from seeing EOF when its driver closes the pipe or is killed (an orphan blocked
+#: in recv() forever, or a run that waits for a host that never ends).
+_DRIVER_ENDS: set[Any] = set()
+#: Held from a host's pipes' creation to its fork, so a host forked by another thread at the same time
+#: never inherits ends it does not know of.
+_FORKING = threading.Lock()
 
-    The fork copied the worker's ends of both pipes into this process; they are
-    closed first, or the host itself would hold the request pipe's write end open
-    and never see EOF when its worker is killed (an orphan blocked forever).
-    """
-    for end in worker_ends:
+
+def _host_loop(requests: Any, replies: Any) -> None:
+    """The case host: run each task received until its driver closes the pipe (or dies)."""
+    for end in list(_DRIVER_ENDS):
         end.close()
+    _DRIVER_ENDS.clear()
     _become_host()
     _START_SIZE[:] = [_address_space()]
     while True:
@@ -387,7 +394,7 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
         finally:
             _limit_memory(None)
         # A process that hit its limit may be in any state: it says so with its answer and exits, so
-        # the worker starts a new host for the next case rather than send it to one on its way out.
+        # the driver starts a new host for the next case rather than send it to one on its way out.
         exiting = out_of_memory or _HIT_LIMIT.is_set()
         try:
             replies.send((outcome, exiting))
@@ -397,18 +404,20 @@ def _host_loop(requests: Any, replies: Any, *worker_ends: Any) -> None:
             return
 
 
-class _Host:
-    """A case host process and the worker's ends of its two pipes."""
+class CaseHost:
+    """A case host process and its driver's ends of its two pipes (the driver: the process that forked it)."""
 
     def __init__(self) -> None:
         self.owner = os.getpid()  # a forked child inherits this object (thread-locals survive fork) but not the host
         context = multiprocessing.get_context("fork")
-        self.requests, child_requests = context.Pipe(duplex=False)[::-1]
-        child_replies, self.replies = context.Pipe(duplex=False)[::-1]
-        # daemon: it is killed when the worker exits, rather than waited for.
-        self.process = context.Process(target=_host_loop, args=(child_requests, child_replies, self.requests, self.replies),
-                                       daemon=True, name="xval-case-host")
-        self.process.start()
+        with _FORKING:
+            self.requests, child_requests = context.Pipe(duplex=False)[::-1]
+            child_replies, self.replies = context.Pipe(duplex=False)[::-1]
+            _DRIVER_ENDS.update((self.requests, self.replies))
+            # daemon: it is killed when its driver exits, rather than waited for.
+            self.process = context.Process(target=_host_loop, args=(child_requests, child_replies),
+                                           daemon=True, name="xval-case-host")
+            self.process.start()
         try:
             os.setpgid(self.process.pid, self.process.pid)  # also done by the host: whichever runs first
         except OSError:
@@ -422,6 +431,7 @@ class _Host:
                 os.killpg(self.process.pid, signal.SIGKILL)
             except OSError:
                 self.process.kill()
+        _DRIVER_ENDS.difference_update((self.requests, self.replies))
         self.requests.close()
         self.replies.close()
         self.process.join(timeout=10)
@@ -452,7 +462,12 @@ def execute_reference(task: ReferenceTask) -> Any:
         from engines.reference import solve_and_bound
 
         return solve_and_bound(task.scene, rtol=task.rtol, atol=task.atol)
-    answer = _ask_host(task)
+    return reference_answer(task, _ask_host(task))
+
+
+def reference_answer(task: ReferenceTask, answer: Any) -> Any:
+    """The host's answer to a reference task: the solution, or ReferenceFailed when the answer is the
+    ``failed`` / ``timeout`` CaseOutcome of a solve that raised, ran past the timeout or died."""
     if isinstance(answer, CaseOutcome):
         reason = answer.message.replace("; raise --timeout if it is only slow", "")
         raise ReferenceFailed(f"the reference of scene {task.scene_id!r} {reason}")
@@ -481,38 +496,56 @@ def _ask_host(task: Any) -> Any:
     it gave none (killed at the timeout, or died).
     """
     start = time.perf_counter()
-    host: _Host | None = getattr(_local, "host", None)
-    if host is None or host.owner != os.getpid() or not host.process.is_alive():
-        host = _local.host = _Host()
-    try:
-        host.requests.send(task)
-    except OSError:  # the host died after its last answer: start another
-        host.close()
-        host = _local.host = _Host()
-        host.requests.send(task)
+    host = _local.host = send(getattr(_local, "host", None), task)
     if not host.replies.poll(task.timeout):
         host.close(kill=True)
         _local.host = None
-        return CaseOutcome(
-            task.case_id,
-            None,
-            status="timeout",
-            message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it is only slow",
-            elapsed=time.perf_counter() - start,
-        )
+        return timed_out(task, start)
     try:
         answer, exiting = host.replies.recv()
     except (EOFError, OSError):
         host.close()
         _local.host = None
-        return CaseOutcome(
-            task.case_id,
-            None,
-            status="failed",
-            message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
-            elapsed=time.perf_counter() - start,
-        )
+        return died(task, host, start)
     if exiting:
         host.close()
         _local.host = None
     return answer
+
+
+def send(host: CaseHost | None, task: Any) -> CaseHost:
+    """Send ``task`` to ``host``, or to a new host when it is None, dead, or another process's (a forked
+    child inherits its parent's objects, not its hosts); returns the host that has the task."""
+    if host is None or host.owner != os.getpid() or not host.process.is_alive():
+        host = CaseHost()
+    try:
+        host.requests.send(task)
+    except OSError:  # the host died after its last answer: start another
+        host.close()
+        host = CaseHost()
+        host.requests.send(task)
+    return host
+
+
+def timed_out(task: Any, start: float) -> CaseOutcome:
+    """The ``timeout`` outcome of a task whose host gave no answer within ``task.timeout`` (and was killed).
+    start : time.perf_counter() when the task was sent."""
+    return CaseOutcome(
+        task.case_id,
+        None,
+        status="timeout",
+        message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it is only slow",
+        elapsed=time.perf_counter() - start,
+    )
+
+
+def died(task: Any, host: CaseHost, start: float) -> CaseOutcome:
+    """The ``failed`` outcome of a task whose host died before answering (``host`` closed, so its exit
+    code is known). start : time.perf_counter() when the task was sent."""
+    return CaseOutcome(
+        task.case_id,
+        None,
+        status="failed",
+        message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
+        elapsed=time.perf_counter() - start,
+    )

@@ -1,11 +1,14 @@
-"""Running a suite: cases through a concurrent.futures.Executor, one record written per finished case.
+"""Running a suite: cases through case hosts or a concurrent.futures.Executor, one record written per
+finished case.
 
 Division of work (why it is split this way):
 
-- **Workers** only simulate. Each case goes to the executor as a
-  :class:`~compare.run.isolation.CaseTask`; the worker runs it in its case host,
-  a forked child (see :mod:`compare.run.isolation`), so a case that raises, hangs
-  or kills its process is recorded and the pool carries on.
+- **Case hosts** only simulate. Each case is a
+  :class:`~compare.run.isolation.CaseTask` run in a case host, a forked child
+  (see :mod:`compare.run.isolation`), so a case that raises, hangs or kills
+  its process is recorded and the run carries on. A local run drives its
+  hosts itself (:mod:`compare.run.hosts`); given an executor (a cluster's),
+  the runner submits the tasks to it and each of its workers drives a host.
 - **The reference** for each scene is solved once, as its own task on the
   same executor (so it overlaps with the engines' cases), and comes back to
   the parent as a pickled dense solution (a few hundred kB).
@@ -40,6 +43,7 @@ from engines.errors import Unsupported
 from engines.scene import Scene
 
 from compare.run.environment import environment
+from compare.run.hosts import HostPool
 from compare.run.lock import RunLock
 from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseOutcome, CaseTask, ReferenceTask, die_with_parent,
                                    execute, execute_reference)
@@ -122,8 +126,8 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
 
 
 def solve_reference(task: ReferenceTask) -> Any:
-    """The reference's (dense solution, ReferenceBound) of ``task.scene``, solved in the worker's case host
-    under the case timeout (runs in a worker; module-level so it pickles). Raises ReferenceFailed saying
+    """The reference's (dense solution, ReferenceBound) of ``task.scene``, solved in a case host
+    under the case timeout (what an executor's worker runs; module-level so it pickles). Raises ReferenceFailed saying
     why not. The bound (engines.reference.solve_and_bound) is the reference's own error bar and horizon."""
     return execute_reference(task)
 
@@ -184,10 +188,10 @@ def _run_suite(
 ) -> RunSummary:
     """Run every case of ``suite`` not yet recorded in ``output`` and write one record per case.
 
-    jobs : worker processes of the default ProcessPoolExecutor (all cores
-        when None); ignored when ``executor`` is given (any Executor works:
-        a ThreadPoolExecutor, a cluster's; cases are still isolated in
-        forked children unless ``isolate`` is False).
+    jobs : case hosts run at once (or, not isolated, worker processes of a
+        ProcessPoolExecutor); all cores when None; ignored when ``executor``
+        is given (any Executor works: a ThreadPoolExecutor, a cluster's; cases
+        are still isolated in forked children unless ``isolate`` is False).
     timeout : s per case; the suite's ``timeout`` when None.
     resume : continue the run already in ``output`` (same suite required).
     environment_extra : more entries for run.json's ``environment`` (a
@@ -213,23 +217,30 @@ def _run_suite(
     cases = plan(suite)
     done = results.done_ids() if resume else set()
     todo = [c for c in cases if c.id not in done]
-    progress.start(len(cases), len(cases) - len(todo))
     writer = _Writer(results, suite, progress)
     frozen_before = gc.get_freeze_count()
+    reasons: dict[tuple[str, str], str | None] = {}
+    for case in todo:
+        key = (case.scene.id, case.engine.label)
+        if key not in reasons:
+            reasons[key] = skip_reason(case.scene.scene, case.engine)
+    runnable = [case for case in todo if reasons[(case.scene.id, case.engine.label)] is None]
     try:
-        runnable = []
-        reasons: dict[tuple[str, str], str | None] = {}
-        for case in todo:
-            key = (case.scene.id, case.engine.label)
-            if key not in reasons:
-                reasons[key] = skip_reason(case.scene.scene, case.engine)
-            if reasons[key] is not None:
-                writer.write(case, None, skipped=reasons[key])
-            else:
-                runnable.append(case)
-        if runnable:
-            _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate,
-                        memory_limit).run()
+        # Built (its case hosts forked) before the progress bar may start a thread.
+        dispatcher = runnable and _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout,
+                                              isolate, memory_limit)
+        try:
+            progress.start(len(cases), len(cases) - len(todo))
+            for case in todo:
+                skipped = reasons[(case.scene.id, case.engine.label)]
+                if skipped is not None:
+                    writer.write(case, None, skipped=skipped)
+        except BaseException:
+            if dispatcher:
+                dispatcher.stop_workers()
+            raise
+        if dispatcher:
+            dispatcher.run()
     finally:
         progress.stop()
         if frozen_before == 0:
@@ -250,8 +261,8 @@ def compare_version() -> str:
 
 
 def _init_worker() -> None:
-    """A pool worker's start: die with the xval process, and import the reference solver once, here,
-    so the case hosts forked from this worker do not spend their first reference's timeout importing it."""
+    """A pool worker's start (cases not isolated: the worker runs the engines itself): die with the
+    xval process, and have the reference solver imported (preload_engines did, before the fork)."""
     die_with_parent()
     import engines.reference  # noqa: F401
 
@@ -267,9 +278,9 @@ class _Dispatcher:
         self.writer = writer
         self.jobs = jobs or default_jobs()
         self.own_executor = executor is None
-        self.executor = executor or self._new_pool()
         self.timeout = timeout
         self.isolate = isolate
+        self.executor = executor or self._new_pool()
         self.references: dict[str, Any] = {}  # scene id -> solution, or the exception that stopped it
         self.waiting: dict[str, list[tuple[Case, CaseOutcome]]] = {}
         # Longest first: cost grows like 1/dt.
@@ -279,13 +290,27 @@ class _Dispatcher:
         self.suspects: deque[str] = deque()
         self.alone: str | None = None
 
-    def _new_pool(self) -> cf.Executor:
-        # fork: workers inherit the imported engines; the workers are forked
-        # before the progress bar starts its thread (all at first submit).
+    def _new_pool(self) -> cf.Executor | HostPool:
+        """Case hosts driven from here when cases are isolated (compare.run.hosts); else a pool of
+        worker processes that run the engines themselves (a crash then breaks it: see recover)."""
+        # fork: hosts and workers inherit the imported engines.
         preload_engines(self.suite, self.cases.values())
-        # die_with_parent: a kill -9 of xval takes its workers with it (and they their case hosts).
+        if self.isolate:
+            return HostPool(self.jobs)
+        # die_with_parent: a kill -9 of xval takes its workers with it.
         return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
                                       initializer=_init_worker)
+
+    def _start(self, function: Any, task: CaseTask | ReferenceTask) -> cf.Future:
+        """``function(task)`` on the executor; a host pool runs the task in a host, as ``function`` would."""
+        if isinstance(self.executor, HostPool):
+            return self.executor.submit(task)
+        return self.executor.submit(function, task)
+
+    def _wait(self, pending: dict[cf.Future, tuple[str, str]]) -> set[cf.Future]:
+        if isinstance(self.executor, HostPool):
+            return self.executor.wait(pending)
+        return cf.wait(pending, return_when=cf.FIRST_COMPLETED)[0]
 
     def task(self, case: Case) -> CaseTask:
         return CaseTask(
@@ -306,7 +331,7 @@ class _Dispatcher:
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
         scenes = {s.id: s.scene for s in self.suite.scenes}
         return {
-            self.executor.submit(solve_reference, ReferenceTask(
+            self._start(solve_reference, ReferenceTask(
                 sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit
             )): ("reference", sid)
             for sid in scene_ids
@@ -342,7 +367,7 @@ class _Dispatcher:
     def _submit(self, pending: dict[cf.Future, tuple[str, str]], source: deque[str], alone: bool = False) -> None:
         cid = source.popleft()
         try:
-            future = self.executor.submit(execute, self.task(self.cases[cid]))
+            future = self._start(execute, self.task(self.cases[cid]))
         except cf.BrokenExecutor:
             source.appendleft(cid)  # not run: it goes first once the pool is rebuilt
             raise
@@ -354,7 +379,7 @@ class _Dispatcher:
         pending = self.fill(self.submit_references(scene_ids))
         try:
             while pending:
-                finished, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                finished = self._wait(pending)
                 broken = False
                 for future in finished:
                     kind, key = pending.pop(future)
@@ -380,13 +405,23 @@ class _Dispatcher:
             # Ctrl-C, SIGTERM or a bug: stop the workers now (their case hosts die with them);
             # finished records are already on disk, and --resume runs the rest.
             self.stop_workers()
-            self.executor.shutdown(wait=False, cancel_futures=True)
             raise
         if self.own_executor:
+            self._shutdown()
+
+    def _shutdown(self) -> None:
+        if isinstance(self.executor, HostPool):
+            self.executor.shutdown()
+        else:
             self.executor.shutdown(wait=True)
 
     def stop_workers(self) -> None:
-        """SIGKILL the worker processes of a pool we own, rather than wait for their cases to end."""
+        """SIGKILL the case hosts or worker processes of a pool we own, rather than wait for their cases
+        to end; a pool we do not own is shut down without waiting."""
+        if isinstance(self.executor, HostPool):
+            self.executor.shutdown(kill=True)
+            return
+        self.executor.shutdown(wait=False, cancel_futures=True)
         if not self.own_executor:
             return
         for process in list((getattr(self.executor, "_processes", None) or {}).values()):
