@@ -46,12 +46,12 @@ import re
 import time
 from typing import Any, Mapping
 
-import mujoco
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.mujoco import ENGINE as MUJOCO
+from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
+from engines.mujoco import mujoco
 from engines.mujoco import constraint_tree, hinge_velocities, read_samples
 from engines.scene import Scene
 

@@ -64,13 +64,25 @@ is cut at the first sample whose clock does not match its step and ends
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-import mujoco
-import numpy as np
-from mujoco import rollout as mj_rollout
+# xval never renders with MuJoCo. With MUJOCO_GL unset, importing mujoco loads an OpenGL backend
+# (GLFW, whose binding starts a Python process to probe its library) in every run; "disable" skips
+# it. Set for the import only, and only when the user has not chosen a backend, so outside programs
+# xval starts see the environment they were given.
+_GL_UNSET = "MUJOCO_GL" not in os.environ
+if _GL_UNSET:
+    os.environ["MUJOCO_GL"] = "disable"
+try:
+    import mujoco
+    from mujoco import rollout as mj_rollout
+finally:
+    if _GL_UNSET:
+        del os.environ["MUJOCO_GL"]
+import numpy as np  # noqa: E402 (after the guarded import above)
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError

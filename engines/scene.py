@@ -13,6 +13,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Mapping
 
 import numpy as np
@@ -362,13 +363,14 @@ class Scene:
         ys.append(self.gravity[1])
         return all(y == 0.0 for y in ys)
 
-    @property
+    # Cached (a Scene does not change after construction): a run's records read these for every case.
+    @cached_property
     def characteristic_length(self) -> float:
         """L (m): the sum of constraint lengths (wire radius for a bead; a Line adds nothing,
         an Ellipse its larger semi-axis)."""
         return float(sum(c.characteristic_length for c in self.constraints)) or 1.0
 
-    @property
+    @cached_property
     def characteristic_energy(self) -> float:
         """E* = total mass · |g| · L (J); falls back to total mass · L when g = 0."""
         g = float(np.linalg.norm(self.gravity)) or 1.0
@@ -466,7 +468,7 @@ class Scene:
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), sort_keys=True)
 
-    @property
+    @cached_property
     def content_hash(self) -> str:
         """A stable 16-hex-digit hash of the physics (not the name or parameters).
 

@@ -10,9 +10,12 @@ interpreter with an empty cache directory: nothing may be written to it.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -75,3 +78,30 @@ def test_a_run_without_drake_records_its_version_without_importing_it(tmp_path):
     assert result["pydrake"] is False
     assert result["drake"].startswith(("not used by this run (drake ", "unavailable: drake is not installed"))
     assert result["pymunk"][0].isdigit()  # a used engine's own version string
+
+
+#: Threads of a process (Linux /proc), the environment variable, and the threads again after importing
+#: numpy and scipy.linalg, once the run command's module is imported.
+THREADS = r"""
+import json, os
+threads = lambda: len(os.listdir("/proc/self/task"))
+import compare.commands.run
+import numpy, scipy.linalg
+print(json.dumps({"threads": threads(), "variable": os.environ.get("OPENBLAS_NUM_THREADS")}))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir() or (os.cpu_count() or 1) < 2, reason="Linux, 2+ cores")
+@pytest.mark.parametrize("preset", [None, "2"])
+def test_a_run_loads_blas_with_one_thread_and_leaves_the_environment_as_it_was(tmp_path, preset):
+    # OpenBLAS (numpy's and scipy's copies) would start a thread per core each as it loads: the run
+    # command loads both with one, and programs it starts still see the environment the user gave.
+    # A number the user chose is kept: 2 threads for each copy (the main thread plus one each).
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    if preset is not None:
+        env["OPENBLAS_NUM_THREADS"] = preset
+    done = subprocess.run([sys.executable, "-c", THREADS], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout)
+    assert seen == {"threads": 1 if preset is None else 3, "variable": preset}

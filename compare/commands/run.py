@@ -6,19 +6,23 @@ import sys
 
 import click
 
-from engines.errors import UserError
-from engines.limits import MAX_JOBS
+from compare.run import blas
 
-from compare.cli import MemorySize, Seconds, output_path
-from compare.run.isolation import DEFAULT_MEMORY_LIMIT
+blas.load_single_threaded()  # first: nothing may have loaded numpy's BLAS yet (compare/run/blas.py)
 
-from compare.results.sweep import sweeps
-from compare.results.table import scene_tables
-from compare.results.verdict import format_verdicts, scene_verdicts
-from compare.history.location import check_option
-from compare.run.progress import progress_for
-from compare.run.runner import run_suite
-from compare.suite.reader import load_suite
+from engines.errors import UserError  # noqa: E402
+from engines.limits import MAX_JOBS  # noqa: E402
+
+from compare.cli import MemorySize, Seconds, output_path  # noqa: E402
+from compare.run.isolation import DEFAULT_MEMORY_LIMIT  # noqa: E402
+
+from compare.results.sweep import sweeps  # noqa: E402
+from compare.results.table import scene_tables  # noqa: E402
+from compare.results.verdict import format_verdicts, scene_verdicts  # noqa: E402
+from compare.history.location import check_option  # noqa: E402
+from compare.run.progress import progress_for  # noqa: E402
+from compare.run.runner import run_suite  # noqa: E402
+from compare.suite.reader import load_suite  # noqa: E402
 
 
 @click.command("run")

@@ -10,15 +10,15 @@ Rules every output of xval follows (issue 21):
 - a path that exists and is not a regular file is never replaced by one: a
   directory is refused, a device or FIFO (``/dev/null``) is written in place;
 - a new file gets the mode the user's umask gives (``0666 & ~umask``), an
-  existing one keeps its mode (``tempfile.mkstemp`` alone would make 0600).
+  existing one keeps its mode.
 """
 
 from __future__ import annotations
 
 import os
 import stat
+import itertools
 import sys
-import tempfile
 from pathlib import Path
 from typing import Iterable
 
@@ -91,18 +91,27 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
     return target
 
 
-def _umask() -> int:
-    """This process's umask (read from /proc where possible: setting it to read it is not thread-safe)."""
-    try:
-        with open("/proc/self/status") as status:
-            for line in status:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+#: Distinguishes the temporaries of one process's writes (with its pid in the name: other processes').
+_TEMPORARY_NUMBERS = itertools.count()
+
+
+def _temporary_beside(target: Path, mode: int | None) -> tuple[int, Path]:
+    """(fd open for writing, path) of a new file ``.NAME.<pid>.<n>.tmp`` beside ``target``.
+
+    mode : the permissions to give it, or None for a new file's: 0666 less the
+    umask (and a default ACL), applied by the kernel as it creates the file,
+    as for any file the user creates.
+    """
+    for _ in range(1000):
+        tmp = target.parent / f".{target.name[:200]}.{os.getpid()}.{next(_TEMPORARY_NUMBERS)}.tmp"
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666 if mode is None else 0o600)
+        except FileExistsError:  # left by a killed process whose pid this one now has
+            continue
+        if mode is not None:
+            os.fchmod(fd, mode)
+        return fd, tmp
+    raise FileExistsError(17, "no free temporary name", str(target.parent))
 
 
 def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bool = True) -> None:
@@ -144,10 +153,8 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
         with open(target, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
             handle.write(text)  # a device or FIFO is written, never replaced
         return
-    mode = stat.S_IMODE(info.st_mode) if info is not None else 0o666 & ~_umask()
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name[:200]}.", suffix=".tmp")
+    fd, tmp = _temporary_beside(target, stat.S_IMODE(info.st_mode) if info is not None else None)
     try:
-        os.fchmod(fd, mode)
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
             handle.write(text)
             handle.flush()

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any, Sequence
 
 import numpy as np
@@ -168,7 +168,8 @@ class CaseMetrics:
     complete: bool
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: _json_number(v) for k, v in asdict(self).items()}
+        # Its fields are numbers, flags and strings: no asdict (a deep copy) needed.
+        return {f.name: _json_number(getattr(self, f.name)) for f in fields(self)}
 
 
 def _json_number(value: Any) -> Any:

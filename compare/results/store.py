@@ -51,11 +51,13 @@ def case_file_name(case_id: str) -> str:
     return f"{readable}-{digest}.json"
 
 
+@functools.lru_cache(maxsize=256)
 def downsample_indices(n: int, limit: int = MAX_SERIES_POINTS) -> np.ndarray:
-    """At most ``limit`` indices into n samples, evenly spaced, always including the first and last."""
-    if n <= limit:
-        return np.arange(n)
-    return np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
+    """At most ``limit`` indices into n samples, evenly spaced, always including the first and last.
+    (Cached, as every case of a dt asks for the same ones: the array is read-only.)"""
+    indices = np.arange(n) if n <= limit else np.unique(np.round(np.linspace(0, n - 1, limit)).astype(int))
+    indices.flags.writeable = False
+    return indices
 
 
 def as_json_list(values: np.ndarray) -> list:
@@ -136,6 +138,20 @@ def round_significant(values: np.ndarray, digits: int = SERIES_DIGITS) -> np.nda
     if rest.any():
         spec = f".{digits}g"
         out[rest] = [float(format(x, spec)) for x in array[rest].tolist()]
+    return out
+
+
+def round_each(arrays: Mapping[str, np.ndarray], digits: int = SERIES_DIGITS) -> dict[str, np.ndarray]:
+    """Each array rounded by :func:`round_significant`, in one call over all their values (a record's
+    series are a few small arrays: one call, not one each), each back in its own shape."""
+    arrays = {name: np.asarray(values, dtype=float) for name, values in arrays.items()}
+    if not arrays:
+        return {}
+    rounded = round_significant(np.concatenate([a.ravel() for a in arrays.values()]), digits)
+    out, start = {}, 0
+    for name, array in arrays.items():
+        out[name] = rounded[start:start + array.size].reshape(array.shape)
+        start += array.size
     return out
 
 

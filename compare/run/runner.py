@@ -53,7 +53,7 @@ from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import SCHEMA_VERSION, CaseRecord, status_counts
 from compare.results.store import (
-    ResultsDir, SeriesView, downsample_indices, jsonable, now, read_json, round_significant,
+    ResultsDir, SeriesView, downsample_indices, jsonable, now, read_json, round_each,
 )
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
@@ -512,9 +512,14 @@ class _Writer:
         self.progress = progress
         #: The records written by this run, by file, so the summary need not read them back.
         self.written: dict[Path, CaseRecord] = {}
+        #: Each scene's part of its records (scene_fields), by scene id: built once, shared read-only.
+        self.scene_fields: dict[str, dict[str, Any]] = {}
 
     def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
-        record = build_record(case, outcome, reference, self.suite, skipped=skipped)
+        if case.scene.id not in self.scene_fields:
+            self.scene_fields[case.scene.id] = scene_fields(case.scene.scene)
+        record = build_record(case, outcome, reference, self.suite, skipped=skipped,
+                              scene_part=self.scene_fields[case.scene.id])
         path = self.results.write_case(record)
         series = record.get("series")
         typed = CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record, "series": None}, path)
@@ -530,16 +535,28 @@ class _Writer:
         return [self.written.get(f) or CaseRecord.from_json(read_json(f), f) for f in files]
 
 
+def scene_fields(scene: Scene) -> dict[str, Any]:
+    """The fields of a record that depend on its scene alone (JSON-ready): the same for every case of it."""
+    return {
+        "scene": jsonable(scene.to_dict()),
+        "scene_hash": scene.content_hash,
+        "characteristic": {"length": scene.characteristic_length, "energy": scene.characteristic_energy},
+    }
+
+
 def build_record(
-    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None
+    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None,
+    scene_part: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The record of one case, JSON-ready except its ``series``: float arrays rounded to
     SERIES_DIGITS significant digits (ResultsDir.write_case writes them as lists).
 
     reference : the scene's SampledReference, or the exception that kept it
     from being solved (position metrics are then null and the message says why).
+    scene_part : ``scene_fields(case.scene.scene)``, when the caller keeps it (shared, not copied).
     """
     scene = case.scene.scene
+    scene_part = scene_part if scene_part is not None else scene_fields(scene)
     record: dict[str, Any] = {
         "case": {
             "id": case.id,
@@ -559,22 +576,22 @@ def build_record(
         "run_info": None,
         "wall_times": [],
         "elapsed": 0.0,
-        "scene": scene.to_dict(),
-        "scene_hash": scene.content_hash,
-        "characteristic": {"length": scene.characteristic_length, "energy": scene.characteristic_energy},
+        "scene": None,  # scene_part's fields, added once the rest is JSON-ready
+        "scene_hash": None,
+        "characteristic": None,
         "series": None,
         "reference": None,
         "finished": now(),
     }
     if outcome is None:
-        return jsonable(record)
+        return {**jsonable(record), **scene_part}
     record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
     record["wall_times"] = outcome.wall_times
     record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares,
     record["calibrations"] = outcome.calibrations  # in units of this kernel's CPU time, timed beside each
     trajectory = outcome.trajectory
     if trajectory is None:
-        return jsonable(record)
+        return {**jsonable(record), **scene_part}
     info = trajectory.info
     record["run_info"] = info.to_dict()
     status, message = info.status, info.message
@@ -634,24 +651,25 @@ def build_record(
                            suite.delta, metrics.to_dict())
         )
     keep = downsample_indices(n)
-    record = jsonable(record)
+    record = {**jsonable(record), **scene_part}
     # Added after jsonable, as rounded float arrays: ResultsDir.write_case writes them as lists, and
     # making ~5,000 Python floats a record here was most of the cost of writing it.
-    record["series"] = {
-        "t": round_significant(series.t[keep]),
-        "position_error": round_significant(series.position_error[keep]),
-        "energy_drift": round_significant(series.energy_drift[keep]),
-        "constraint_error": round_significant(series.constraint_error[keep]),
-        "positions": round_significant(trajectory.positions[keep]),
+    series_arrays = {
+        "t": series.t[keep],
+        "position_error": series.position_error[keep],
+        "energy_drift": series.energy_drift[keep],
+        "constraint_error": series.constraint_error[keep],
+        "positions": trajectory.positions[keep],
         # The reference at the same samples, so a report can overlay paths without re-solving.
-        "reference_positions": round_significant(ref_positions[:n][keep]),
+        "reference_positions": ref_positions[:n][keep],
         # For the report's phase plot (angular velocity) and constraint-force plot.
-        "velocities": round_significant(trajectory.velocities[keep]),
+        "velocities": trajectory.velocities[keep],
     }
     if trajectory.constraint_forces is not None:
-        record["series"]["constraint_forces"] = round_significant(trajectory.constraint_forces[keep])
+        series_arrays["constraint_forces"] = trajectory.constraint_forces[keep]
         if ref_forces is not None and len(ref_forces) >= n:
-            record["series"]["reference_constraint_forces"] = round_significant(ref_forces[:n][keep])
+            series_arrays["reference_constraint_forces"] = ref_forces[:n][keep]
+    record["series"] = round_each(series_arrays)
     return record
 
 
