@@ -671,18 +671,24 @@ def read_samples(
     sites = np.array([model.site(f"s{i}").id for i in range(n_p)], dtype=int)
     bodies = model.site_bodyid[sites]
     roots = model.body_rootid[bodies]
-    positions, spatial, centres = np.empty((n, n_p, 3)), np.empty((n, n_p, 6)), np.empty((n, n_p, 3))
-    reader = _ForceReader(scene, model, hinge, n)
+    # Views of data's buffers, taken once (they stay put as data changes); each sample copies them
+    # whole (a model has a handful of sites and bodies), and the rows wanted are picked out after
+    # the loop: the fewest Python calls per sample.
+    site_xpos, cvel, subtree_com = data.site_xpos, data.cvel, data.subtree_com
+    all_xpos, all_cvel, all_com = (np.empty((n,) + a.shape) for a in (site_xpos, cvel, subtree_com))
+    reader = _ForceReader(scene, model, hinge, n, data)
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    set_state, forward, rne_post_constraint = mujoco.mj_setState, mujoco.mj_forward, mujoco.mj_rnePostConstraint
     for s, state in enumerate(states):
-        mujoco.mj_setState(model, data, state, full)
-        mujoco.mj_forward(model, data)
-        positions[s] = data.site_xpos[sites]
-        spatial[s] = data.cvel[bodies]
-        centres[s] = data.subtree_com[roots]
+        set_state(model, data, state, full)
+        forward(model, data)
+        all_xpos[s] = site_xpos
+        all_cvel[s] = cvel
+        all_com[s] = subtree_com
         if hinge:
-            mujoco.mj_rnePostConstraint(model, data)
+            rne_post_constraint(model, data)
         reader.read(s, data)
+    positions, spatial, centres = all_xpos[:, sites], all_cvel[:, bodies], all_com[:, roots]
     velocities = spatial[..., 3:] - np.cross(positions - centres, spatial[..., :3])
     return positions, velocities, reader.forces()
 
@@ -706,7 +712,7 @@ class _ForceReader:
     only when the number of constraint rows changes.
     """
 
-    def __init__(self, scene: Scene, model: mujoco.MjModel, hinge: bool, n: int) -> None:
+    def __init__(self, scene: Scene, model: mujoco.MjModel, hinge: bool, n: int, data: mujoco.MjData) -> None:
         self.n_c = len(scene.constraints)
         self.hinge = hinge
         self.rows = np.zeros((0, 3), dtype=int)  # (E, 3) efc rows of each equality's force components
@@ -721,7 +727,8 @@ class _ForceReader:
                 or scene.constraints[tree.constraint_of[i]].a == i else -1.0
                 for i in range(n_p)
             ])[:, None]
-            self.body_forces = np.empty((n, n_p, 3))
+            self.cfrc_int = data.cfrc_int  # a view of data's buffer, copied whole at each sample
+            self.all_cfrc_int = np.empty((n,) + self.cfrc_int.shape)
             # Equality e closes constraint tree.closures[e]: a closing Pin's first particle is the one
             # the arm reaches (−), a closing Rod's (a) hosts the arm (+).
             self.eq_slots = np.array(tree.closures, dtype=int)
@@ -746,7 +753,7 @@ class _ForceReader:
                                       for e in range(len(self.eq_slots))], dtype=int).reshape(-1, 3)
             self.eq_forces[s] = data.efc_force[self.rows]
         if self.hinge:
-            self.body_forces[s] = data.cfrc_int[self.bodies, 3:]
+            self.all_cfrc_int[s] = self.cfrc_int
 
     def forces(self) -> np.ndarray:
         """(n, C, 3) N: each constraint's force on its first particle at every sample read."""
@@ -755,7 +762,7 @@ class _ForceReader:
         if len(self.eq_slots):
             out[:, self.eq_slots] = self.eq_signs * self.eq_forces
         if self.hinge:
-            out[:, self.slots] = self.body_signs * self.body_forces
+            out[:, self.slots] = self.body_signs * self.all_cfrc_int[:n, self.bodies, 3:]
         return out
 
 
