@@ -8,7 +8,7 @@ reports, per run:
 - the CPU time (user + system) of the whole process tree, from the kernel's
   accounting of waited-for children, split into the ``xval`` process itself
   (planning, imports, preloading, building and writing records) and its
-  descendants (the pool worker and the case host that runs the engines);
+  descendants (the case host that runs the engines, and any process an engine starts);
 - the sum over cases of the engines' stepping times (``wall_times`` in the
   records), and the ratio of the two;
 - per engine, the stepping time and the time the case host spent on the case
@@ -19,9 +19,9 @@ The stepping times are wall clock: on a machine loaded by other jobs they grow
 while CPU time does not, which flatters the ratio. The load average is printed
 with each run; compare runs made at similar load.
 
-With ``--in-process`` it also runs the same cases with no case host and no pool
-worker (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
-process, what the process hops cost), and a suite of the same scenes and engine
+With ``--in-process`` it also runs the same cases with no case host
+(``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
+process, what the process hop costs), and a suite of the same scenes and engine
 variants at one dt of 2 steps (``--fixed``: about what a run costs before its
 cases, its CPU minus nothing the cases could save).
 
@@ -41,14 +41,15 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-#: ``xval`` in a child process that, once the run is over (its workers joined), writes its own CPU
-#: time and its descendants' to the file named by its last argument.
+#: ``xval`` (compare.cli.console, what the installed program runs) in a child process that, once the
+#: run is over (its case hosts joined), writes its own CPU time and its descendants' to the file named
+#: by its last argument.
 XVAL = r"""
 import json, resource, sys
-from compare.cli import main
+from compare.cli import console
 report = sys.argv.pop()
 try:
-    main(sys.argv[1:])
+    console(sys.argv[1:])
 except SystemExit as exc:
     if exc.code not in (0, None):
         raise
@@ -58,7 +59,7 @@ with open(report, "w") as handle:
 """
 
 
-#: The default suite's cases in one process: no case host, no pool worker.
+#: The default suite's cases in one process: no case host.
 IN_PROCESS = r"""
 import concurrent.futures as cf, json, resource, sys
 from compare.run.runner import plan, run_suite, preload_engines
@@ -141,7 +142,7 @@ def one_run() -> dict:
 def main(argv: list[str]) -> int:
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
     one_run()  # fills numba's and the references' caches if they are empty; not counted
-    print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'workers s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}")
+    print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}")
     last = None
     for k in range(runs):
         last = one_run()

@@ -249,3 +249,46 @@ def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
     assert gc.get_freeze_count() == 0
     run_suite(parse_suite(suite_text(["pymunk/pin"], duration=0.02)), tmp_path / "out", jobs=1)
     assert gc.get_freeze_count() == 0
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_the_run_command_collects_no_garbage_while_loading_and_leaves_the_collector_as_it_was(tmp_path, enabled):
+    """compare/run/startup.py: ``xval run`` turns the collector off while the suite loads its engines
+    and back on once preload_engines has frozen them, so the run's cases are collected as usual; a
+    collector the calling program turned off stays off."""
+    import gc
+
+    from compare.cli import main
+    from compare.run import runner
+
+    suite = tmp_path / "s.toml"
+    suite.write_text(suite_text(["pymunk/pin"], duration=0.02))
+    seen = []
+    preload = runner.preload_engines
+
+    def watching(*args):
+        seen.append(("before preload", gc.isenabled()))
+        preload(*args)
+        seen.append(("after preload", gc.isenabled()))
+
+    was = gc.isenabled()
+    (gc.enable if enabled else gc.disable)()
+    runner.preload_engines = watching
+    try:
+        main(["run", str(suite), "--output", str(tmp_path / "out"), "--jobs", "1", "--quiet"])
+        after = gc.isenabled()
+    finally:
+        runner.preload_engines = preload
+        (gc.enable if was else gc.disable)()
+    assert seen == [("before preload", False), ("after preload", enabled)]
+    assert after is enabled and gc.get_freeze_count() == 0
+
+
+def test_the_xval_program_freezes_what_is_left_as_it_exits():
+    # compare.cli.console (the installed `xval`): the interpreter's last full collection, at exit, then
+    # walks nothing a run loaded. Checked in a child process, whose exit is its own.
+    probe = "import gc; from compare.cli import console\ntry:\n    console(['--help'])\nexcept SystemExit:\n    pass\n" \
+            "print(gc.get_freeze_count() > 0)"
+    done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "True"

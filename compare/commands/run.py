@@ -6,9 +6,9 @@ import sys
 
 import click
 
-from compare.run import blas
+from compare.run import startup
 
-blas.load_single_threaded()  # first: nothing may have loaded numpy's BLAS yet (compare/run/blas.py)
+startup.load_blas_single_threaded()  # first, before anything imports numpy (why: compare/run/startup.py)
 
 from engines.errors import UserError  # noqa: E402
 from engines.limits import MAX_JOBS  # noqa: E402
@@ -62,20 +62,13 @@ def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, 
     if quiet and verbose:
         raise UserError("--quiet and --verbose: choose one (--quiet prints only the verdict, --verbose a line per case)")
     mode = "quiet" if quiet else "verbose" if verbose else "bar"
-    suite = load_suite(suite_path)
-    if scheduler is None:
-        summary = run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout, progress=progress_for(sys.stderr, mode),
-                            memory_limit=memory_limit)
-    else:
-        from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
-
-        try:
-            summary = run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
-                                     memory_limit=memory_limit, progress=progress_for(sys.stderr, mode),
-                                     warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
-        except SchedulerLost as exc:
-            click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
-            sys.exit(1)
+    # No collection while the suite loads its engines, until runner.preload_engines has frozen them
+    # (why: compare/run/startup.py); back on in any case once the run is over.
+    startup.defer_collection()
+    try:
+        suite, summary = _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode)
+    finally:
+        startup.resume_collection()
     if verbose:
         click.echo(scene_tables(summary.records, suite.verdict_tolerance), nl=False)
         click.echo()
@@ -91,3 +84,20 @@ def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, 
         from compare.commands.history import add_directory
 
         click.echo(add_directory(summary.path, history, suite_path=suite_path))
+
+
+def _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode):
+    """The suite and its run's RunSummary, run here or on a Dask cluster."""
+    suite = load_suite(suite_path)
+    if scheduler is None:
+        return suite, run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout,
+                                progress=progress_for(sys.stderr, mode), memory_limit=memory_limit)
+    from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
+
+    try:
+        return suite, run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
+                                     memory_limit=memory_limit, progress=progress_for(sys.stderr, mode),
+                                     warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
+    except SchedulerLost as exc:
+        click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
+        sys.exit(1)

@@ -45,6 +45,7 @@ from engines.scene import Scene
 from compare.run.environment import environment
 from compare.run.hosts import HostPool
 from compare.run.lock import RunLock
+from compare.run import startup
 from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseOutcome, CaseTask, ReferenceTask, die_with_parent,
                                    execute, execute_reference)
 from compare.results.files import remove_stale_temporaries
@@ -501,6 +502,7 @@ def preload_engines(suite: Suite, cases) -> None:
     # from here. bench/bench_harness.py measures what the harness costs.
     # _run_suite unfreezes it when the run ends.
     gc.freeze()
+    startup.resume_collection()  # if the run command turned it off while loading (compare/run/startup.py)
 
 
 class _Writer:

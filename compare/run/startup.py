@@ -1,0 +1,63 @@
+"""What ``xval run`` does before it imports numpy, scipy, numba or an engine.
+
+Both measured with ``bench/bench_harness.py`` (the CPU a run costs around the physics).
+
+**BLAS with one thread.** OpenBLAS (numpy and scipy each bundle a copy)
+starts a thread per core as it loads, and their start-up alone cost
+measurable CPU in every run. A run has no use for them: its matrices are a
+few rows, and its cores belong to the case hosts, whose timings other threads
+would disturb. The limit is set through OpenBLAS's own environment variable
+(read only when it loads) for the duration of the imports, then the
+environment is put back, so the programs a run starts (command engines) get
+the one they were given. A limit the user set is kept.
+
+**No garbage collection while loading.** Importing numba, scipy and the
+engines creates a few hundred thousand long-lived objects, and the
+collector's full passes walked them again and again as they grew. Python's
+advice for a process that forks workers is the one followed here (see
+``gc.freeze``): collection off while loading, everything loaded frozen just
+before the fork (:func:`compare.run.runner.preload_engines`), collection on
+again (:func:`resume_collection`).
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import sys
+
+#: Read by OpenBLAS when it loads (the only builds numpy and scipy ship on PyPI for Linux).
+THREAD_VARIABLE = "OPENBLAS_NUM_THREADS"
+
+#: Whether :func:`defer_collection` turned the collector off (so resume_collection turns it on).
+_deferred = False
+
+
+def load_blas_single_threaded() -> None:
+    """Import numpy and scipy.linalg with OpenBLAS limited to one thread, unless already imported
+    (then nothing changes) or the user chose a number of threads."""
+    if "numpy" in sys.modules or THREAD_VARIABLE in os.environ:
+        return
+    os.environ[THREAD_VARIABLE] = "1"
+    try:
+        import numpy  # noqa: F401
+        import scipy.linalg  # noqa: F401
+    finally:
+        del os.environ[THREAD_VARIABLE]
+
+
+def defer_collection() -> None:
+    """Turn the garbage collector off until :func:`resume_collection` (a collector already off,
+    by the program's own choice, is left as it is)."""
+    global _deferred
+    if gc.isenabled():
+        gc.disable()
+        _deferred = True
+
+
+def resume_collection() -> None:
+    """Turn the collector back on if :func:`defer_collection` turned it off."""
+    global _deferred
+    if _deferred:
+        _deferred = False
+        gc.enable()
