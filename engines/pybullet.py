@@ -95,6 +95,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import math
 import os
 import sys
 import threading
@@ -759,36 +760,30 @@ class _Run:
 
     # -- reading --
 
-    def _state_multibody(self) -> tuple[np.ndarray, np.ndarray]:
+    # The readers write one sample's rows in place: x, u (P, 3) and f (C, 3) are rows of the run's arrays.
+
+    def _state_multibody(self, x: np.ndarray, u: np.ndarray) -> None:
         pb, c = _pb, self.client
-        x = np.empty((self.n_particles, 3))
-        u = np.empty((self.n_particles, 3))
         for i, (body, j) in enumerate(self.handles):
             # [0]: the link's centre of mass (the particle), [6]: its linear velocity, world frame.
             s = pb.getLinkState(body, j, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
             x[i] = s[0]
             u[i] = s[6]
-        return x, u
 
-    def _state_p2p(self) -> tuple[np.ndarray, np.ndarray]:
+    def _state_p2p(self, x: np.ndarray, u: np.ndarray) -> None:
         pb, c = _pb, self.client
-        x = np.empty((self.n_particles, 3))
-        u = np.empty((self.n_particles, 3))
         for i, body in enumerate(self.bodies):
             x[i] = pb.getBasePositionAndOrientation(body, physicsClientId=c)[0]
             u[i] = pb.getBaseVelocity(body, physicsClientId=c)[0]
-        return x, u
 
-    def _forces_p2p(self) -> np.ndarray:
+    def _forces_p2p(self, f: np.ndarray) -> None:
         pb, c = _pb, self.client
-        f = np.empty((self.n_constraints, 3))
         for k, cid in enumerate(self.constraint_ids):
-            rows = np.asarray(pb.getConstraintState(cid, physicsClientId=c))
+            rows = pb.getConstraintState(cid, physicsClientId=c)
             if k in self.slider_axes:
-                f[k] = rows[:2] @ self.slider_axes[k]
+                f[k] = np.asarray(rows[:2]) @ self.slider_axes[k]
             else:
-                f[k] = self.force_sign[k] * rows[:3]
-        return f
+                f[k] = self.force_sign[k] * np.asarray(rows[:3])
 
     # -- stepping --
 
@@ -808,7 +803,7 @@ class _Run:
         velocities = np.empty((n, self.n_particles, 3))
         force_samples = np.full((n, self.n_constraints, 3), np.nan) if forces else None
         limit = RUNAWAY_LENGTHS * self.scene.characteristic_length
-        positions[0], velocities[0] = state()
+        state(positions[0], velocities[0])
         step, recorded, message, wall = 0, 1, "", 0.0
         # Only stepSimulation is timed; reading the samples is not stepping.
         if forces:
@@ -816,20 +811,22 @@ class _Run:
             pb.stepSimulation(physicsClientId=c)
             wall += time.perf_counter() - started
             step = 1
-            force_samples[0] = forces()  # no step precedes t = 0: the first step's force stands in
+            forces(force_samples[0])  # no step precedes t = 0: the first step's force stands in
         for k in range(1, n):
             started = time.perf_counter()
             for _ in range(int(samples[k]) - step):
                 pb.stepSimulation(physicsClientId=c)
             wall += time.perf_counter() - started
             step = int(samples[k])
-            positions[k], velocities[k] = state()
+            state(positions[k], velocities[k])
             if forces:
-                force_samples[k] = forces()
+                forces(force_samples[k])
             recorded = k + 1
-            if not (np.isfinite(positions[k]).all() and np.isfinite(velocities[k]).all()):
+            # The largest |coordinate| is NaN or inf when any coordinate is: one check for both.
+            farthest, fastest = float(np.abs(positions[k]).max()), float(np.abs(velocities[k]).max())
+            if not (math.isfinite(farthest) and math.isfinite(fastest)):
                 break
-            if np.abs(positions[k]).max() > limit:
+            if farthest > limit:
                 message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
                 break
         return RawRun(

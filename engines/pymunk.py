@@ -145,6 +145,8 @@ class PymunkEngine(Engine):
         # the velocities before its last step and the joints' impulses in it.
         v_before = np.empty((n_samples, n_particles, 2))
         impulses = np.empty((n_samples, n_constraints))
+        # Each sample's state in pymunk's frame; turned into the scene's after the loop, all at once.
+        p2s, v2s = np.empty((n_samples, n_particles, 2)), np.empty((n_samples, n_particles, 2))
         finite = n_samples  # samples before this one have finite states
         for k in range(1, n_samples):
             gap = steps[k] - taken
@@ -157,8 +159,7 @@ class PymunkEngine(Engine):
             step(dt)
             wall_time += time.perf_counter() - started
             taken = steps[k]
-            p2, v2 = model.positions_2d(), model.velocities_2d()
-            positions[k], velocities[k] = _to_scene(p2), _to_scene(v2)
+            p2s[k], v2s[k] = p2, v2 = model.positions_2d(), model.velocities_2d()
             recorded = k + 1
             if not (np.isfinite(p2).all() and np.isfinite(v2).all() and np.isfinite(v_before[k]).all()):
                 finite = k
@@ -168,6 +169,7 @@ class PymunkEngine(Engine):
                 message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
                 recorded = k  # the runaway sample is not kept
                 break
+        positions[1:recorded], velocities[1:recorded] = _to_scene(p2s[1:recorded]), _to_scene(v2s[1:recorded])
         good = min(recorded, finite)
         forces[finite:recorded] = np.nan
         if good > 1:
@@ -271,11 +273,11 @@ class _Model:
 
     def positions_2d(self) -> np.ndarray:
         """(n_particles, 2) m in pymunk's frame."""
-        return np.array([tuple(b.position) for b in self.bodies])
+        return np.array([b.position for b in self.bodies])  # Vec2d is a tuple
 
     def velocities_2d(self) -> np.ndarray:
         """(n_particles, 2) m/s in pymunk's frame."""
-        return np.array([tuple(b.velocity) for b in self.bodies])
+        return np.array([b.velocity for b in self.bodies])
 
     def impulses(self) -> np.ndarray:
         """(n_constraints,) N·s: the magnitude of each joint's impulse in the last step."""
