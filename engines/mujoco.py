@@ -64,8 +64,10 @@ is cut at the first sample whose clock does not match its step and ends
 
 from __future__ import annotations
 
+import copy
 import os
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -391,6 +393,36 @@ def equality_softness(settings: Mapping[str, Any], dt: float) -> tuple[tuple[flo
 # -- the adapter -------------------------------------------------------------------------
 
 
+#: Compiled models by their MJCF with the timestep left out, the most recently used last (at most
+#: _MODELS_KEPT): a dt sweep compiles each scene and variant once (see _compiled).
+_MODELS: "OrderedDict[str, mujoco.MjModel]" = OrderedDict()
+_MODELS_KEPT = 64
+
+
+def _compiled(xml: str, dt: float) -> mujoco.MjModel:
+    """``MjModel.from_xml_string(xml)``, whose timestep is ``dt`` s.
+
+    Compiling is most of what building a case costs, and the models of one
+    MJCF at two timesteps differ only in ``opt.timestep``: MuJoCo's compiler
+    derives nothing from it (the dt-dependent softness of the stiff variants
+    is in the MJCF text, so those compile per dt). So a model already compiled
+    at another dt is copied (``mj_copyModel``, a third of a compile) and given
+    this one's timestep; a copy, so that no two runs share a model.
+    """
+    key = xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1)
+    cached = _MODELS.get(key)
+    if cached is None:
+        model = mujoco.MjModel.from_xml_string(xml)
+        _MODELS[key] = copy.copy(model)
+        while len(_MODELS) > _MODELS_KEPT:
+            _MODELS.popitem(last=False)
+        return model
+    _MODELS.move_to_end(key)
+    model = copy.copy(cached)
+    model.opt.timestep = dt
+    return model
+
+
 class MuJoCoEngine(Engine):
     """MuJoCo: reduced coordinates (hinge / ball joints) and maximal coordinates (connect equalities)."""
 
@@ -485,7 +517,7 @@ class MuJoCoEngine(Engine):
         settings = {**settings, "solimp": _full_solimp(settings["solimp"])}
         make = hinge_mjcf if settings["formulation"] == "hinge" else connect_mjcf
         xml = make(scene, dt, settings, inertia)
-        return mujoco.MjModel.from_xml_string(xml), xml, inertia
+        return _compiled(xml, dt), xml, inertia
 
     # -- running -----------------------------------------------------------------------
 

@@ -99,6 +99,8 @@ class SeriesView(Mapping[str, Any]):
 
 #: The largest power of ten a float64 holds exactly (10**22 < 2**53 · 2**22): scaling by it is exact.
 _EXACT_POWER = 22
+#: 10.0**k for k = 0 .. _EXACT_POWER, each exact.
+_POWERS_OF_TEN = np.array([10.0**k for k in range(_EXACT_POWER + 1)])
 #: How close (relative to the scaled value) to a half a scaled value is formatted rather than
 #: rounded: four times the scaling's worst rounding error (2**-53).
 _TIE_MARGIN = 4 * 2.0**-53
@@ -127,7 +129,10 @@ def round_significant(values: np.ndarray, digits: int = SERIES_DIGITS) -> np.nda
         # values give a non-finite shift and are kept as they are below.
         shift = (digits - 1) - np.floor(np.log10(magnitude))
         up = shift >= 0
-        scale = 10.0 ** np.abs(shift)
+        # 10**|shift| from a table of the exact powers (a lookup, not a pow per value); a shift past
+        # the table is not exact anyway, and its value comes from formatting below.
+        powers = np.abs(shift)
+        scale = _POWERS_OF_TEN[np.where(powers <= _EXACT_POWER, powers, 0).astype(np.intp)]
         scaled = np.where(up, array * scale, array / scale)
         mantissa = np.rint(scaled)
         value = np.where(up, mantissa / scale, mantissa * scale)
