@@ -480,17 +480,31 @@ def _pybullet_version() -> str:
         return f"api {_pb.getAPIVersion()}"
 
 
+def _empty(client: int) -> None:
+    """Remove every constraint and body from ``client``'s world (constraints first: they hold bodies).
+
+    What a run leaves in its client is its bodies and constraints, and the
+    parameters its ``_Run._world`` set, which the next run sets anew (every
+    run sets the same ones). Removing them costs a small fraction of
+    ``resetSimulation``, which rebuilds the whole world.
+    """
+    for i in reversed(range(_pb.getNumConstraints(physicsClientId=client))):
+        _pb.removeConstraint(_pb.getConstraintUniqueId(i, physicsClientId=client), physicsClientId=client)
+    for i in reversed(range(_pb.getNumBodies(physicsClientId=client))):
+        _pb.removeBody(_pb.getBodyUniqueId(i, physicsClientId=client), physicsClientId=client)
+
+
 class _Clients:
-    """One PyBullet DIRECT client per thread of a process, emptied (``resetSimulation``) between runs.
+    """One PyBullet DIRECT client per thread of a process, emptied (:func:`_empty`) between runs.
 
     Connecting starts a new physics server, which costs far more CPU than
-    stepping a short case; ``resetSimulation`` deletes the world and
-    builds a new one with the defaults of a fresh client (gravity 0, 50 solver
-    iterations: what connect gives), and every run sets its parameters anew
-    (``_Run._world``), so a run's trajectory does not depend on what ran in the
-    client before it (``tests/test_engine_pybullet.py`` checks this bit for bit). The
-    client is owned by the process that connected it: a forked child connects
-    its own rather than drive its parent's copy.
+    stepping a short case. Emptied of the last run's bodies and constraints,
+    with every run setting its parameters anew (``_Run._world``), a client
+    gives a run the trajectory a fresh one would, bit for bit: a run does not
+    depend on what ran in the client before it (``tests/test_engine_pybullet.py``
+    checks every variant on four scenes, the multibody chains and closed loops
+    included). The client is owned by the process that connected it: a forked
+    child connects its own rather than drive its parent's copy.
     """
 
     def __init__(self) -> None:
@@ -504,7 +518,7 @@ class _Clients:
         """This thread's idle client, emptied; a new one when it has none (or it was disconnected)."""
         client = self._idle.pop(self._key(), None)
         if client is not None and _pb.isConnected(physicsClientId=client):
-            _pb.resetSimulation(physicsClientId=client)
+            _empty(client)
             return client
         return _pb.connect(_pb.DIRECT)
 
