@@ -64,8 +64,8 @@ is cut at the first sample whose clock does not match its step and ends
 
 from __future__ import annotations
 
-import copy
 import os
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -393,34 +393,47 @@ def equality_softness(settings: Mapping[str, Any], dt: float) -> tuple[tuple[flo
 # -- the adapter -------------------------------------------------------------------------
 
 
-#: Compiled models by their MJCF with the timestep left out, the most recently used last (at most
-#: _MODELS_KEPT): a dt sweep compiles each scene and variant once (see _compiled).
-_MODELS: "OrderedDict[str, mujoco.MjModel]" = OrderedDict()
-_MODELS_KEPT = 64
+#: Per thread: compiled models and an MjData for each, by their MJCF with the timestep left out, the
+#: most recently used last (see _model_and_data).
+_CACHE = threading.local()
+#: Models kept per thread: more than the scenes x variants of a suite's dt sweep, which it cycles through.
+_MODELS_KEPT = 32
+#: A model whose MjData maps more than this (bytes of arena) is not kept: its address space would
+#: count against the case host's memory limit.
+_LARGEST_KEPT = 64 * 2**20
 
 
-def _compiled(xml: str, dt: float) -> mujoco.MjModel:
-    """``MjModel.from_xml_string(xml)``, whose timestep is ``dt`` s.
+def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """This thread's model compiled from ``xml``, with timestep ``dt`` s, and an MjData for it, reset.
 
-    Compiling is most of what building a case costs, and the models of one
-    MJCF at two timesteps differ only in ``opt.timestep``: MuJoCo's compiler
-    derives nothing from it (the dt-dependent softness of the stiff variants
-    is in the MJCF text, so those compile per dt). So a model already compiled
-    at another dt is copied (``mj_copyModel``, a third of a compile) and given
-    this one's timestep; a copy, so that no two runs share a model.
+    Compiling the MJCF (0.6 ms on the double pendulum) and making an MjData
+    (0.4 ms) were most of what a case cost besides stepping, and a dt sweep
+    runs each MJCF at every dt. The models of one MJCF at two timesteps differ
+    only in ``opt.timestep``: MuJoCo's compiler derives nothing from it (the
+    stiff variants' dt-dependent softness is in the MJCF text, so those compile
+    per dt). So a thread keeps the model and MjData of each MJCF it ran, sets
+    the timestep, and resets the data (``mj_resetData``: what a new MjData
+    starts from). The model is the run's alone while it runs (one thread runs
+    one case at a time); a run never changes it.
     """
     key = xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1)
-    cached = _MODELS.get(key)
-    if cached is None:
+    kept = getattr(_CACHE, "models", None)
+    if kept is None:
+        kept = _CACHE.models = OrderedDict()
+    entry = kept.get(key)
+    if entry is None:
         model = mujoco.MjModel.from_xml_string(xml)
-        _MODELS[key] = copy.copy(model)
-        while len(_MODELS) > _MODELS_KEPT:
-            _MODELS.popitem(last=False)
-        return model
-    _MODELS.move_to_end(key)
-    model = copy.copy(cached)
+        entry = model, mujoco.MjData(model)
+        if model.narena <= _LARGEST_KEPT:
+            kept[key] = entry
+            while len(kept) > _MODELS_KEPT:
+                kept.popitem(last=False)
+        return entry
+    kept.move_to_end(key)
+    model, data = entry
     model.opt.timestep = dt
-    return model
+    mujoco.mj_resetData(model, data)
+    return model, data
 
 
 class MuJoCoEngine(Engine):
@@ -510,20 +523,24 @@ class MuJoCoEngine(Engine):
     # -- building ----------------------------------------------------------------------
 
     def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
-        """(compiled model, MJCF text, (n,) kg·m² inertia of each particle body)."""
+        """(compiled model, MJCF text, (n,) kg·m² inertia of each particle body); the model is the caller's."""
+        xml, inertia = self.mjcf(scene, dt, settings)
+        return mujoco.MjModel.from_xml_string(xml), xml, inertia
+
+    def mjcf(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[str, np.ndarray]:
+        """The MJCF text of ``scene`` at timestep ``dt`` s and the (n,) kg·m² inertia of each particle body."""
         # MuJoCo's floor is absolute (mjMINVAL kg·m²), the ratio is relative: a small scene (the
         # 1 mm bead: m·L² = 1e-6) gets the least inertia MuJoCo compiles instead of a refusal.
         inertia = np.maximum(settings["inertia_ratio"] * scene.masses * scene.characteristic_length**2, MIN_INERTIA)
         settings = {**settings, "solimp": _full_solimp(settings["solimp"])}
         make = hinge_mjcf if settings["formulation"] == "hinge" else connect_mjcf
-        xml = make(scene, dt, settings, inertia)
-        return _compiled(xml, dt), xml, inertia
+        return make(scene, dt, settings, inertia), inertia
 
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        model, _xml, inertia = self.build(scene, schedule.dt, settings)
-        data = mujoco.MjData(model)
+        xml, inertia = self.mjcf(scene, schedule.dt, settings)
+        model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"
         if hinge:
             data.qvel[:] = hinge_velocities(scene, model)

@@ -286,10 +286,11 @@ def test_bad_solref_names_the_option():
 
 
 @pytest.mark.parametrize("name", ["double-pendulum", "four-bar", "slider-pendulum", "spherical-pendulum"])
-def test_a_model_compiled_at_another_dt_runs_bit_for_bit_as_a_fresh_compile(name):
-    # engines.mujoco._compiled copies a model compiled from the same MJCF at another dt and sets its
-    # timestep, rather than compile again: every variant's run must equal the fresh compile's exactly
-    # (the stiff variants' dt-dependent softness is in the MJCF text, so they compile per dt).
+def test_a_model_and_data_kept_from_another_run_give_bit_for_bit_a_fresh_compiles_run(name):
+    # engines.mujoco._model_and_data keeps each MJCF's compiled model and MjData (per thread) and,
+    # for the next run of it, sets the timestep and resets the data rather than compile again: every
+    # variant's run at a dt must equal a fresh compile's exactly, after a run of the same MJCF at
+    # another dt (the stiff variants' dt-dependent softness is in the MJCF text: they compile per dt).
     import engines.mujoco as adapter
 
     scene = catalog.build(name, {"duration": 0.3})
@@ -298,13 +299,29 @@ def test_a_model_compiled_at_another_dt_runs_bit_for_bit_as_a_fresh_compile(name
             ENGINE.check(scene, variant, {})
         except Unsupported:
             continue
-        adapter._MODELS.clear()
+        adapter._CACHE.models = None
         fresh = ENGINE.simulate(scene, 2e-3, variant=variant)
-        ENGINE.simulate(scene, 5e-3, variant=variant)
-        adapter._MODELS.clear()
-        ENGINE.simulate(scene, 5e-3, variant=variant)  # only the 5e-3 MJCF is cached now
+        adapter._CACHE.models = None
+        ENGINE.simulate(scene, 5e-3, variant=variant)  # only the 5e-3 run's model and data are kept now
         reused = ENGINE.simulate(scene, 2e-3, variant=variant)
         assert reused.info.settings == fresh.info.settings, variant
         for a, b in ((fresh.positions, reused.positions), (fresh.velocities, reused.velocities),
                      (fresh.constraint_forces, reused.constraint_forces)):
             assert np.array_equal(a, b, equal_nan=True), variant
+
+
+def test_a_kept_mjdata_that_blew_up_starts_the_next_run_clean(tmp_path, monkeypatch):
+    # mj_resetData clears the warning counters too: a run after a blow-up (MuJoCo reset its state and
+    # counted mjWARN_BADQACC) of the same MJCF is bit for bit a fresh compile's run, not cut short.
+    import engines.mujoco as adapter
+
+    monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
+    scene = catalog.build("chain", {"n": 8, "duration": 5})
+    adapter._CACHE.models = None
+    fresh = ENGINE.simulate(scene, 0.01, variant="hinge")
+    adapter._CACHE.models = None
+    assert ENGINE.simulate(scene, 0.05, variant="hinge").info.status == "unstable"
+    after = ENGINE.simulate(scene, 0.01, variant="hinge")
+    assert (after.info.status, after.info.message, after.n_samples) == (fresh.info.status, fresh.info.message,
+                                                                        fresh.n_samples)
+    np.testing.assert_array_equal(after.positions, fresh.positions)

@@ -26,7 +26,7 @@ when the process that forked it dies, on which it SIGKILLs its whole group;
 the workers of a process pool make the same request for their parent, the
 ``xval`` process (:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before
 each task so that the task may map at most ``memory_limit`` bytes more than
-the host did at its start: a case past it raises MemoryError (or its
+the host does as the task starts: a case past it raises MemoryError (or its
 allocation fails inside the engine) and is ``failed`` with the reason.
 
 The driver never runs engine code, so a case that kills its process never
@@ -291,25 +291,21 @@ def _address_space() -> int:
     return 0
 
 
-#: The host's address space when it started, bytes: the limit is counted from it.
-_START_SIZE: list[int] = []
-
-
 def _limit_memory(limit: int | None) -> None:
-    """Let this process map at most ``limit`` bytes more than it did at start (soft RLIMIT_AS; None: no limit).
+    """Let this process map at most ``limit`` bytes more than it does now (soft RLIMIT_AS; None: no limit).
 
-    Counted from the host's own start size (~0.7 GB with numba, MuJoCo and
-    PyBullet imported; more on a machine where libraries reserve per-core
-    thread arenas), so one ``--memory-limit`` means the same on every machine.
+    Counted from the host's size as the task starts (~0.7 GB with numba,
+    MuJoCo and PyBullet imported; more on a machine where libraries reserve
+    per-core thread arenas), so one ``--memory-limit`` means the same on every
+    machine, and what the host keeps between cases (an engine's cached models,
+    kernels loaded for an earlier scene) is not counted against a later case.
     """
     try:
         import resource
     except ImportError:  # not POSIX
         return
-    if not _START_SIZE:
-        _START_SIZE.append(_address_space())
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    want = hard if limit is None else _START_SIZE[0] + limit
+    want = hard if limit is None else _address_space() + limit
     if hard != resource.RLIM_INFINITY:
         want = min(want, hard)
     if want != soft:
@@ -378,7 +374,6 @@ def _host_loop(requests: Any, replies: Any) -> None:
         end.close()
     _DRIVER_ENDS.clear()
     _become_host()
-    _START_SIZE[:] = [_address_space()]
     while True:
         try:
             task = requests.recv()
