@@ -2,11 +2,18 @@
 
 A local, isolated run (``xval run``, no cluster) forks ``jobs`` case hosts
 (:mod:`compare.run.isolation`) from the ``xval`` process itself and drives them
-from the thread that runs the suite: it sends a task to an idle host, waits on
+from the thread that runs the suite: it sends tasks to the hosts, waits on
 every busy host's answer pipe at once (``multiprocessing.connection.wait``)
 until the first answer or the nearest deadline, and turns each answer, death
 or timeout into its future's result exactly as
 :func:`~compare.run.isolation.execute` does in an executor's worker thread.
+
+Each host is sent its next task before it has answered the one it runs
+(``depth`` tasks at most), so it starts that case as soon as it answers,
+while this process turns the answer into a record, instead of sleeping until
+it is woken with the next task. A task's timeout counts from when its host
+began it (its predecessor's answer); a task waiting behind one whose host died
+or was killed goes back to the queue, never run, and gets a new host.
 
 Why not a ProcessPoolExecutor whose workers each fork a host: its workers
 never run engine code, so all they did was pass each task and each trajectory
@@ -26,7 +33,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from multiprocessing.connection import wait as wait_for_pipes
 from typing import Any, Iterable
 
@@ -35,15 +42,24 @@ from compare.run.isolation import CaseTask, ReferenceTask, CaseHost, died, refer
 
 @dataclass
 class _Job:
-    """A task, its future, and when it was sent (time.perf_counter(), s); deadline = sent + task.timeout."""
+    """A task, its future, and when its host began it (time.perf_counter(), s; 0 until then)."""
 
     task: CaseTask | ReferenceTask
     future: cf.Future
-    sent: float = 0.0
+    started: float = 0.0
 
     @property
     def deadline(self) -> float:
-        return self.sent + self.task.timeout
+        return self.started + self.task.timeout
+
+
+@dataclass
+class _Slot:
+    """A case host (None before its first task, or once it ended) and the jobs sent to it, oldest first:
+    the first runs, the others wait in its pipe."""
+
+    host: CaseHost | None = None
+    jobs: deque[_Job] = field(default_factory=deque)
 
 
 class HostPool:
@@ -51,15 +67,21 @@ class HostPool:
 
     ``submit`` only queues a task; tasks are sent and answers read while some
     thread is in :meth:`wait` (the runner's loop), so everything here runs in
-    that one thread and no lock is needed.
+    that one thread and no lock is needed. ``depth``: tasks a host is sent at
+    most (the one it runs and those waiting behind it).
     """
 
-    def __init__(self, size: int) -> None:
-        if size < 1:
-            raise ValueError(f"a host pool needs at least one host, not {size}")
-        self.idle: list[CaseHost | None] = [CaseHost() for _ in range(size)]  # None: replace before use
-        self.busy: dict[Any, tuple[CaseHost, _Job]] = {}  # by the host's answer pipe
+    def __init__(self, size: int, depth: int = 2) -> None:
+        if size < 1 or depth < 1:
+            raise ValueError(f"a host pool needs at least one host and a depth of 1, not {size} and {depth}")
+        self.depth = depth
+        self.slots = [_Slot(CaseHost()) for _ in range(size)]
         self.queue: deque[_Job] = deque()
+
+    @property
+    def hosts(self) -> list[CaseHost]:
+        """The hosts alive now (or not yet seen to have died)."""
+        return [slot.host for slot in self.slots if slot.host is not None]
 
     def submit(self, task: CaseTask | ReferenceTask) -> cf.Future:
         """A future of what :func:`~compare.run.isolation.execute` (a case: its CaseOutcome) or
@@ -75,60 +97,79 @@ class HostPool:
         while True:
             done = {f for f in futures if f.done()}
             if done:
+                self._send_queued()  # so the hosts carry on while the caller handles what is done
                 return done
-            if not (self.queue or self.busy):
-                raise RuntimeError("waiting on futures this host pool does not run")
             self._send_queued()
+            busy = {slot.host.replies: slot for slot in self.slots if slot.jobs}
+            if not busy:
+                raise RuntimeError("waiting on futures this host pool does not run")
+            nearest = min(slot.jobs[0].deadline for slot in busy.values())
+            for pipe in wait_for_pipes(list(busy), timeout=max(0.0, nearest - time.perf_counter())):
+                self._answer(busy[pipe])
             now = time.perf_counter()
-            nearest = min(job.deadline for _, job in self.busy.values())
-            for pipe in wait_for_pipes(list(self.busy), timeout=max(0.0, nearest - now)):
-                self._answer(pipe)
-            now = time.perf_counter()
-            for pipe, (_, job) in list(self.busy.items()):
-                if now >= job.deadline and not pipe.poll():
-                    self._kill(pipe)
+            for slot in busy.values():
+                if slot.jobs and slot.host is not None and now >= slot.jobs[0].deadline and not slot.host.replies.poll():
+                    self._kill(slot)
 
     def shutdown(self, kill: bool = False) -> None:
         """Close every host (``kill``: SIGKILL each busy host's process group first, not waiting for its
-        task); queued tasks are cancelled."""
+        task); tasks not finished are cancelled."""
+        for slot in self.slots:
+            if slot.host is not None:
+                slot.host.close(kill=kill and bool(slot.jobs))
+            for job in slot.jobs:
+                job.future.cancel()
         for job in self.queue:
             job.future.cancel()
         self.queue.clear()
-        for host, job in self.busy.values():
-            host.close(kill=kill)
-            job.future.cancel()
-        self.busy.clear()
-        for host in self.idle:
-            if host is not None:
-                host.close()
-        self.idle.clear()
+        self.slots.clear()
 
     def _send_queued(self) -> None:
-        while self.queue and self.idle:
-            job = self.queue.popleft()
-            job.sent = time.perf_counter()
-            host = send(self.idle.pop(), job.task)
-            self.busy[host.replies] = (host, job)
+        # Breadth first: every host gets a task to run before any gets one to wait behind it.
+        for place in range(self.depth):
+            for slot in self.slots:
+                if not self.queue or len(slot.jobs) != place:
+                    continue
+                job = self.queue.popleft()
+                if place == 0:
+                    slot.host = send(slot.host, job.task)  # a new host when it has none, or it died
+                    job.started = time.perf_counter()
+                else:
+                    try:
+                        slot.host.requests.send(job.task)
+                    except OSError:  # the host is gone: the answer it owes says how; this task waits
+                        self.queue.appendleft(job)
+                        continue
+                slot.jobs.append(job)
 
-    def _answer(self, pipe: Any) -> None:
-        host, job = self.busy.pop(pipe)
+    def _ended(self, slot: _Slot) -> None:
+        """The slot's host is gone: the tasks that waited behind its last one go back to the queue, first."""
+        slot.host = None
+        while slot.jobs:
+            self.queue.appendleft(slot.jobs.pop())
+
+    def _answer(self, slot: _Slot) -> None:
+        job = slot.jobs.popleft()
         try:
-            answer, exiting = pipe.recv()
+            answer, exiting = slot.host.replies.recv()
         except (EOFError, OSError):
-            host.close()
-            self._finish(job, died(job.task, host, job.sent))
-            self.idle.append(None)
+            slot.host.close()
+            outcome = died(job.task, slot.host, job.started)
+            self._ended(slot)
+            self._finish(job, outcome)
             return
-        if exiting:  # it ran out of memory: it exits, and the next task gets a new host
-            host.close()
-        self.idle.append(None if exiting else host)
+        if exiting:  # it ran out of memory and exits: what waited behind goes to a new host
+            slot.host.close()
+            self._ended(slot)
+        elif slot.jobs:
+            slot.jobs[0].started = time.perf_counter()  # the host took the next task as it answered
         self._finish(job, answer)
 
-    def _kill(self, pipe: Any) -> None:
-        host, job = self.busy.pop(pipe)
-        host.close(kill=True)
-        self.idle.append(None)
-        self._finish(job, timed_out(job.task, job.sent))
+    def _kill(self, slot: _Slot) -> None:
+        job = slot.jobs.popleft()
+        slot.host.close(kill=True)
+        self._ended(slot)
+        self._finish(job, timed_out(job.task, job.started))
 
     @staticmethod
     def _finish(job: _Job, answer: Any) -> None:
@@ -138,5 +179,8 @@ class HostPool:
             except Exception as exc:  # ReferenceFailed: the runner keeps it as the scene's reference
                 job.future.set_exception(exc)
             return
-        answer.elapsed = time.perf_counter() - job.sent
+        if not answer.elapsed:  # the engine raised before simulate timed the case: time it from here
+            answer.elapsed = time.perf_counter() - job.started
+        # Otherwise the host's own measure: with a task waiting behind, the time between two answers
+        # seen here would also count what this process did between them.
         job.future.set_result(answer)

@@ -361,7 +361,9 @@ class _Dispatcher:
                 self._submit(pending, self.suspects, alone=True)
             return
         in_flight = sum(kind == "case" for kind, _ in pending.values())
-        room = self.jobs - in_flight if self.own_executor else len(self.queue)
+        # A host pool is sent as many as its hosts hold (one running, the rest waiting behind it in each).
+        window = self.jobs * self.executor.depth if isinstance(self.executor, HostPool) else self.jobs
+        room = window - in_flight if self.own_executor else len(self.queue)
         for _ in range(min(room, len(self.queue))):
             self._submit(pending, self.queue)
 
