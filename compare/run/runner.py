@@ -24,6 +24,7 @@ long cases do not end up alone at the tail of the run.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import gc
 import math
 import multiprocessing
@@ -599,14 +600,15 @@ def build_record(
     info = trajectory.info
     record["run_info"] = info.to_dict()
     status, message = info.status, info.message
-    finite = np.isfinite(trajectory.positions).all(axis=(1, 2)) & np.isfinite(trajectory.velocities).all(axis=(1, 2))
-    if not finite.all():
+    if not (np.isfinite(trajectory.positions).all() and np.isfinite(trajectory.velocities).all()):
         # Engine.simulate already cuts a run at its first non-finite state; an engine
         # that bypasses it (a plug-in overriding simulate) must not pass NaN off as ok.
+        finite = (np.isfinite(trajectory.positions).all(axis=(1, 2))
+                  & np.isfinite(trajectory.velocities).all(axis=(1, 2)))
         if status == "ok":
             status, message = "unstable", "non-finite state in the returned trajectory"
         trajectory = _truncate(trajectory, int(np.argmin(finite)))
-    scheduled = Schedule.make(scene.duration, case.dt, suite.sample_interval).times
+    scheduled = scheduled_times(scene.duration, case.dt, suite.sample_interval)
     n = trajectory.n_samples
     reference_note = ""
     if isinstance(reference, Exception) or reference is None:
@@ -675,6 +677,15 @@ def build_record(
             series_arrays["reference_constraint_forces"] = ref_forces[:n][keep]
     record["series"] = round_each(series_arrays)
     return record
+
+
+@functools.lru_cache(maxsize=256)
+def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
+    """(N,) s: the times a case of this duration and dt is sampled at (Schedule.times), read-only; the
+    same for every engine of a scene and dt, so built once."""
+    times = Schedule.make(duration, dt, sample_interval).times
+    times.flags.writeable = False
+    return times
 
 
 def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
