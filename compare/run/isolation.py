@@ -522,23 +522,15 @@ def send(host: CaseHost | None, task: Any) -> CaseHost:
 
 def timed_out(task: Any, start: float) -> CaseOutcome:
     """The ``timeout`` outcome of a task whose host gave no answer within ``task.timeout`` (and was killed).
-    start : time.perf_counter() when the task was sent."""
-    return CaseOutcome(
-        task.case_id,
-        None,
-        status="timeout",
-        message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it is only slow",
-        elapsed=time.perf_counter() - start,
-    )
+    start : time.perf_counter() when its host began it."""
+    return CaseOutcome(task.case_id, None, status="timeout", elapsed=time.perf_counter() - start,
+                       message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it "
+                               f"is only slow")
 
 
 def died(task: Any, host: CaseHost, start: float) -> CaseOutcome:
     """The ``failed`` outcome of a task whose host died before answering (``host`` closed, so its exit
-    code is known). start : time.perf_counter() when the task was sent."""
-    return CaseOutcome(
-        task.case_id,
-        None,
-        status="failed",
-        message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before returning a result",
-        elapsed=time.perf_counter() - start,
-    )
+    code is known). start : time.perf_counter() when its host began it."""
+    return CaseOutcome(task.case_id, None, status="failed", elapsed=time.perf_counter() - start,
+                       message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before "
+                               f"returning a result")
