@@ -25,10 +25,16 @@ particle accelerations: the force link k exerts on the particle below it is
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import math
+import os
+import pickle
+import sys
 import time
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
@@ -384,6 +390,56 @@ def solve_and_bound(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFA
     solution = solve(scene, rtol, atol)
     n = min(BOUND_SAMPLES, max(2, round(scene.duration / 0.01) + 1))
     return solution, bound(scene, rtol, atol, times=np.linspace(0.0, scene.duration, n), solution=solution)
+
+
+#: The reference's own source: part of the key of a kept solution, so an edit to it solves again.
+_SOURCES = ("reference.py", "reference_mechanisms.py", "_reference_kernels.py", "scene.py")
+#: A solution whose pickle is larger is solved again each run rather than kept (bytes).
+_LARGEST_KEPT = 64 * 2**20
+
+
+def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
+                         ) -> tuple[ReferenceSolution, ReferenceBound]:
+    """:func:`solve_and_bound`, kept across runs in the user cache directory (``<cache>/reference``,
+    ``$XVAL_CACHE_DIR`` or ``~/.cache/xval``).
+
+    A run solves each scene's reference twice (at the suite's tolerance and a
+    tighter one, for the bound) before its cases can be judged; the same
+    scene at the same tolerances gives the same solution every time, so the
+    answer is kept, as a pickle, under a key of everything it depends on: the
+    scene's physics (duration included), rtol and atol, the reference's own
+    source text, and the versions of Python, numpy and scipy. A kept file that
+    cannot be read is solved again and replaced.
+    """
+    path = _kept_path(scene, rtol, atol)
+    try:
+        with open(path, "rb") as handle:
+            return pickle.load(handle)
+    except FileNotFoundError:
+        pass
+    except Exception:  # noqa: BLE001 - damaged or from an incompatible build: solve again
+        path.unlink(missing_ok=True)
+    solved = solve_and_bound(scene, rtol, atol)
+    data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
+    if len(data) <= _LARGEST_KEPT:
+        with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
+            path.parent.mkdir(parents=True, exist_ok=True)
+            temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+            temporary.write_bytes(data)
+            os.replace(temporary, path)  # whole or not at all, for a concurrent reader
+    return solved
+
+
+def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
+    from ours.cache import cache_dir  # the one user cache directory of xval
+
+    here = Path(__file__).parent
+    key = hashlib.sha256()
+    for part in (scene.to_json(), repr(float(rtol)), repr(float(atol)), sys.version, np.__version__,
+                 scipy.__version__, *((here / name).read_text(encoding="utf-8") for name in _SOURCES)):
+        key.update(part.encode())
+        key.update(b"\0")
+    return cache_dir() / "reference" / f"{key.hexdigest()[:32]}.pickle"
 
 
 def lyapunov_exponent(

@@ -133,3 +133,35 @@ def test_reference_refuses_what_it_cannot_express():
     )
     with pytest.raises(Unsupported, match="one constraint per particle"):
         reference.ENGINE.check(loop)
+
+
+# -- kept across runs ----------------------------------------------------------------------------
+
+
+def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved_again(tmp_path, monkeypatch):
+    # solve_and_bound_kept keeps each (scene, rtol, atol)'s solution under the user cache directory: the
+    # second ask loads it (no solve), equal at every time to the first; another tolerance is another
+    # solve; a damaged file is solved again and replaced.
+    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
+    scene = catalog.build("double-pendulum", {"duration": 1.0})
+    times = np.linspace(0.0, 1.0, 101)
+    first, first_bound = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
+    [kept] = (tmp_path / "reference").glob("*.pickle")
+
+    solves = []
+    real = reference.solve_and_bound
+    monkeypatch.setattr(reference, "solve_and_bound", lambda *a: solves.append(a) or real(*a))
+    again, again_bound = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
+    assert solves == []
+    for ours_, kept_ in zip(first.at(times), again.at(times)):
+        np.testing.assert_array_equal(ours_, kept_)
+    assert again_bound.reference_error == first_bound.reference_error
+
+    reference.solve_and_bound_kept(scene, 1e-9, 1e-9)
+    assert len(solves) == 1 and len(list((tmp_path / "reference").glob("*.pickle"))) == 2
+
+    kept.write_bytes(b"not a pickle")
+    repaired, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
+    assert len(solves) == 2
+    np.testing.assert_array_equal(repaired.at(times)[0], first.at(times)[0])
+    assert kept.read_bytes() != b"not a pickle"

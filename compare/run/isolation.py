@@ -349,9 +349,9 @@ def _failure(task: Any, exc: BaseException) -> CaseOutcome:
 def _run_in_host(task: Any) -> Any:
     """What the host does with one task: a case's CaseOutcome, or a reference's solution."""
     if isinstance(task, ReferenceTask):
-        from engines.reference import solve_and_bound
+        from engines.reference import solve_and_bound_kept
 
-        return solve_and_bound(task.scene, rtol=task.rtol, atol=task.atol)
+        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol)
     warm_up(task)
     return simulate(task)
 
@@ -452,9 +452,9 @@ def execute_reference(task: ReferenceTask) -> Any:
     of the scene, whose position metrics are then null.
     """
     if not task.isolate:
-        from engines.reference import solve_and_bound
+        from engines.reference import solve_and_bound_kept
 
-        return solve_and_bound(task.scene, rtol=task.rtol, atol=task.atol)
+        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol)
     return reference_answer(task, _ask_host(task))
 
 
