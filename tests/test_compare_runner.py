@@ -292,3 +292,22 @@ def test_the_xval_program_freezes_what_is_left_as_it_exits():
     done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().splitlines()[-1] == "True"
+
+
+def test_collection_resumes_for_a_run_on_an_executor_passed_in(tmp_path):
+    # A run on an executor passed in (a cluster's) preloads nothing, so nothing else would turn the
+    # collector back on that the run command turned off while loading: the runner does, as it starts.
+    import gc
+
+    from compare.run import startup
+
+    was = gc.isenabled()
+    gc.enable()
+    try:
+        startup.defer_collection()
+        assert not gc.isenabled()
+        with cf.ThreadPoolExecutor(1) as executor:
+            run_suite(parse_suite(suite_text(["pymunk/pin"], duration=0.02)), tmp_path / "out", executor=executor)
+        assert gc.isenabled()
+    finally:
+        (gc.enable if was else gc.disable)()

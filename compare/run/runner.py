@@ -231,6 +231,9 @@ def _run_suite(
         # Built (its case hosts forked) before the progress bar may start a thread.
         dispatcher = runnable and _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout,
                                               isolate, memory_limit)
+        # On whether or not a preload froze anything (an executor passed in preloads nothing): the
+        # cases' garbage is collected as usual (compare/run/startup.py).
+        startup.resume_collection()
         try:
             progress.start(len(cases), len(cases) - len(todo))
             for case in todo:

@@ -9,7 +9,8 @@ few rows, and its cores belong to the case hosts, whose timings other threads
 would disturb. The limit is set through OpenBLAS's own environment variable
 (read only when it loads) for the duration of the imports, then the
 environment is put back, so the programs a run starts (command engines) get
-the one they were given. A limit the user set is kept.
+the one they were given. A limit the user set (``OPENBLAS_NUM_THREADS``,
+``GOTO_NUM_THREADS`` or ``OMP_NUM_THREADS``) is kept.
 
 **No garbage collection while loading.** Importing numba, scipy and the
 engines creates a few hundred thousand long-lived objects, and the
@@ -28,6 +29,8 @@ import sys
 
 #: Read by OpenBLAS when it loads (the only builds numpy and scipy ship on PyPI for Linux).
 THREAD_VARIABLE = "OPENBLAS_NUM_THREADS"
+#: Any of these set by the user is their choice of BLAS threads, kept (OpenBLAS reads each).
+USER_VARIABLES = (THREAD_VARIABLE, "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
 
 #: Whether :func:`defer_collection` turned the collector off (so resume_collection turns it on).
 _deferred = False
@@ -36,7 +39,7 @@ _deferred = False
 def load_blas_single_threaded() -> None:
     """Import numpy and scipy.linalg with OpenBLAS limited to one thread, unless already imported
     (then nothing changes) or the user chose a number of threads."""
-    if "numpy" in sys.modules or THREAD_VARIABLE in os.environ:
+    if "numpy" in sys.modules or any(name in os.environ for name in USER_VARIABLES):
         return
     os.environ[THREAD_VARIABLE] = "1"
     try:
