@@ -141,12 +141,14 @@ class PymunkEngine(Engine):
         step = model.space.step
         wall_time = 0.0
         taken, recorded, message = 0, 1, ""
-        # What each sample's constraint force is computed from, after the loop, for all samples at once:
-        # the velocities before its last step and the joints' impulses in it.
-        v_before = np.empty((n_samples, n_particles, 2))
-        impulses = np.empty((n_samples, n_constraints))
-        # Each sample's state in pymunk's frame; turned into the scene's after the loop, all at once.
-        p2s, v2s = np.empty((n_samples, n_particles, 2)), np.empty((n_samples, n_particles, 2))
+        # Read per sample as pymunk gives them (Vec2d are tuples) and made arrays after the loop: each
+        # sample's state in pymunk's frame, and what its constraint force is computed from, for all
+        # samples at once: the velocities before its last step and the joints' impulses in it.
+        bodies, joints, isfinite = model.bodies, model.joints, math.isfinite
+        p_rows: list = []
+        v_rows: list = []
+        before_rows: list = []
+        impulse_rows: list = []
         finite = n_samples  # samples before this one have finite states
         for k in range(1, n_samples):
             gap = steps[k] - taken
@@ -154,27 +156,34 @@ class PymunkEngine(Engine):
             for _ in range(gap - 1):
                 step(dt)
             wall_time += time.perf_counter() - started
-            v_before[k] = model.velocities_2d()
+            before = [b.velocity for b in bodies]
             started = time.perf_counter()
             step(dt)
             wall_time += time.perf_counter() - started
             taken = steps[k]
-            p2s[k], v2s[k] = p2, v2 = model.positions_2d(), model.velocities_2d()
+            p2, v2 = [b.position for b in bodies], [b.velocity for b in bodies]
+            p_rows.append(p2)
+            v_rows.append(v2)
+            before_rows.append(before)
             recorded = k + 1
-            if not (np.isfinite(p2).all() and np.isfinite(v2).all() and np.isfinite(v_before[k]).all()):
+            if not all(isfinite(c) for xy in (*p2, *v2, *before) for c in xy):
                 finite = k
                 break  # adapter._finish truncates here and marks the run unstable
-            impulses[k] = model.impulses()
-            if np.abs(p2).max() > limit:
+            impulse_rows.append([j.impulse for j in joints])
+            if max(abs(c) for xy in p2 for c in xy) > limit:
                 message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
                 recorded = k  # the runaway sample is not kept
                 break
-        positions[1:recorded], velocities[1:recorded] = _to_scene(p2s[1:recorded]), _to_scene(v2s[1:recorded])
+        planar_rows = (n_particles, 2)
+        positions[1:recorded] = _to_scene(np.array(p_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows))
+        velocities[1:recorded] = _to_scene(np.array(v_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows))
         good = min(recorded, finite)
         forces[finite:recorded] = np.nan
         if good > 1:
             planar = positions[1:good][:, :, [0, 2]], velocities[1:good][:, :, [0, 2]]
-            forces[1:good] = _to_scene(model.constraint_forces(*planar, v_before[1:good], impulses[1:good], dt))
+            v_before = np.array(before_rows[:good - 1], dtype=float).reshape(-1, *planar_rows)
+            impulses = np.array(impulse_rows[:good - 1], dtype=float).reshape(-1, n_constraints)
+            forces[1:good] = _to_scene(model.constraint_forces(*planar, v_before, impulses, dt))
         forces[0] = forces[1] if recorded > 1 else np.nan
         return RawRun(
             positions[:recorded],
