@@ -774,21 +774,24 @@ class _Run:
 
     # -- reading --
 
-    # The readers write one sample's rows in place: x, u (P, 3) and f (C, 3) are rows of the run's arrays.
+    # The state readers give the particles' positions (m) and velocities (m/s) now, as PyBullet gives
+    # them: a list of P (x, y, z) tuples each (made arrays after the loop); the force reader writes
+    # one sample's (C, 3) N row in place.
 
-    def _state_multibody(self, x: np.ndarray, u: np.ndarray) -> None:
+    def _state_multibody(self) -> tuple[list, list]:
         pb, c = _pb, self.client
-        for i, (body, j) in enumerate(self.handles):
+        x, u = [], []
+        for body, j in self.handles:
             # [0]: the link's centre of mass (the particle), [6]: its linear velocity, world frame.
             s = pb.getLinkState(body, j, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
-            x[i] = s[0]
-            u[i] = s[6]
+            x.append(s[0])
+            u.append(s[6])
+        return x, u
 
-    def _state_p2p(self, x: np.ndarray, u: np.ndarray) -> None:
+    def _state_p2p(self) -> tuple[list, list]:
         pb, c = _pb, self.client
-        for i, body in enumerate(self.bodies):
-            x[i] = pb.getBasePositionAndOrientation(body, physicsClientId=c)[0]
-            u[i] = pb.getBaseVelocity(body, physicsClientId=c)[0]
+        return ([pb.getBasePositionAndOrientation(body, physicsClientId=c)[0] for body in self.bodies],
+                [pb.getBaseVelocity(body, physicsClientId=c)[0] for body in self.bodies])
 
     def _forces_p2p(self, f: np.ndarray) -> None:
         pb, c = _pb, self.client
@@ -817,8 +820,11 @@ class _Run:
         velocities = np.empty((n, self.n_particles, 3))
         force_samples = np.full((n, self.n_constraints, 3), np.nan) if forces else None
         limit = RUNAWAY_LENGTHS * self.scene.characteristic_length
-        state(positions[0], velocities[0])
+        positions[0], velocities[0] = state()
         step, recorded, message, wall = 0, 1, "", 0.0
+        x_rows: list = []  # samples 1, 2, ...: each a state reader's lists
+        u_rows: list = []
+        isfinite = math.isfinite
         # Only stepSimulation is timed; reading the samples is not stepping.
         if forces:
             started = time.perf_counter()
@@ -832,17 +838,19 @@ class _Run:
                 pb.stepSimulation(physicsClientId=c)
             wall += time.perf_counter() - started
             step = int(samples[k])
-            state(positions[k], velocities[k])
+            x, u = state()
+            x_rows.append(x)
+            u_rows.append(u)
             if forces:
                 forces(force_samples[k])
             recorded = k + 1
-            # The largest |coordinate| is NaN or inf when any coordinate is: one check for both.
-            farthest, fastest = float(np.abs(positions[k]).max()), float(np.abs(velocities[k]).max())
-            if not (math.isfinite(farthest) and math.isfinite(fastest)):
+            if not all(isfinite(v) for xyz in (*x, *u) for v in xyz):
                 break
-            if farthest > limit:
+            if max(abs(v) for xyz in x for v in xyz) > limit:
                 message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
                 break
+        positions[1:recorded] = np.array(x_rows, dtype=float).reshape(-1, self.n_particles, 3)
+        velocities[1:recorded] = np.array(u_rows, dtype=float).reshape(-1, self.n_particles, 3)
         return RawRun(
             positions=positions[:recorded],
             velocities=velocities[:recorded],

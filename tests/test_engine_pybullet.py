@@ -313,3 +313,30 @@ def test_a_run_that_raised_leaves_no_client_behind_to_be_reused(monkeypatch):
     assert not any(c in adapter._clients._idle.values() for c in idle.values())
     assert all(not adapter._pb.isConnected(physicsClientId=c) for c in idle.values())
     assert ENGINE.simulate(scene, 1e-3, variant="p2p").info.status == "ok"
+
+
+@pytest.mark.parametrize("bad, status, message, samples", [
+    (1e7, "unstable", "stepping stopped at t = 0.05 s: a particle ran 2e+06 m away", 6),
+    (float("nan"), "unstable", "non-finite state at t = 0.05", 5),
+])
+def test_a_run_that_runs_away_or_goes_non_finite_stops_there(monkeypatch, bad, status, message, samples):
+    # PyBullet's p2p keeps the double pendulum bounded, so its reader is made to report a particle
+    # 1e7 m away (past RUNAWAY_LENGTHS · L = 2e6 m: the run stops, that sample kept) or NaN (the run
+    # stops, and the adapter keeps the samples before it) at the fifth sample, t = 0.05 s.
+    import engines.pybullet as adapter
+
+    real = adapter._Run._state_p2p
+    calls = []
+
+    def reader(self):
+        x, u = real(self)
+        calls.append(None)
+        if len(calls) == 6:  # sample 0, then samples 1..5
+            x = [(bad, 0.0, 0.0)] + x[1:]
+        return x, u
+
+    monkeypatch.setattr(adapter._Run, "_state_p2p", reader)
+    scene = catalog.build("double-pendulum", {"duration": 0.3})
+    run = ENGINE.simulate(scene, 1e-3, variant="p2p", sample_interval=0.01)
+    assert run.info.status == status and run.info.message.startswith(message)
+    assert run.n_samples == samples
