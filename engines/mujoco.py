@@ -65,6 +65,7 @@ is cut at the first sample whose clock does not match its step and ends
 from __future__ import annotations
 
 import os
+import re
 import threading
 import time
 from collections import OrderedDict
@@ -409,14 +410,15 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     Compiling the MJCF (0.6 ms on the double pendulum) and making an MjData
     (0.4 ms) were most of what a case cost besides stepping, and a dt sweep
     runs each MJCF at every dt. The models of one MJCF at two timesteps differ
-    only in ``opt.timestep``: MuJoCo's compiler derives nothing from it (the
-    stiff variants' dt-dependent softness is in the MJCF text, so those compile
-    per dt). So a thread keeps the model and MjData of each MJCF it ran, sets
-    the timestep, and resets the data (``mj_resetData``: what a new MjData
-    starts from). The model is the run's alone while it runs (one thread runs
-    one case at a time); a run never changes it.
+    only in ``opt.timestep``, and the stiff variants', whose time constant
+    follows dt, also in the equalities' ``solref``: the compiler copies both
+    into the model and derives nothing from them. So a thread keeps the model
+    and MjData of each MJCF it ran (the key leaves both out), sets them for
+    the run, and resets the data (``mj_resetData``: what a new MjData starts
+    from). The model is the run's alone while it runs (one thread runs one
+    case at a time); a run never changes it.
     """
-    key = xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1)
+    key = _SOLREF.sub(' solref=""', xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1))
     kept = getattr(_CACHE, "models", None)
     if kept is None:
         kept = _CACHE.models = OrderedDict()
@@ -432,8 +434,15 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     kept.move_to_end(key)
     model, data = entry
     model.opt.timestep = dt
+    softness = _SOLREF.search(xml)
+    if softness is not None:  # every equality has the same solref (equality_softness)
+        model.eq_solref[:] = [float(x) for x in softness.group(1).split()]
     mujoco.mj_resetData(model, data)
     return model, data
+
+
+#: The equalities' solref attribute in an MJCF (group 1: its numbers).
+_SOLREF = re.compile(r' solref="([^"]*)"')
 
 
 class MuJoCoEngine(Engine):
