@@ -117,7 +117,7 @@ INTEGRATORS = {
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
 
-#: Steps per rollout call: long enough that the per-call overhead (~10 µs) is negligible,
+#: Steps per rollout call: long enough that the per-call overhead is negligible against the steps,
 #: short enough that the state buffer stays a few MB.
 CHUNK_STEPS = 20_000
 
@@ -407,8 +407,9 @@ _LARGEST_KEPT = 64 * 2**20
 def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """This thread's model compiled from ``xml``, with timestep ``dt`` s, and an MjData for it, reset.
 
-    Compiling the MJCF (0.6 ms on the double pendulum) and making an MjData
-    (0.4 ms) were most of what a case cost besides stepping, and a dt sweep
+    Compiling the MJCF and making an MjData (whose binding builds a view of
+    every field) were most of what a case cost besides stepping (cProfile of
+    the case host over the default suite), and a dt sweep
     runs each MJCF at every dt. The models of one MJCF at two timesteps differ
     only in ``opt.timestep``, and the stiff variants', whose time constant
     follows dt, also in the equalities' ``solref``: the compiler copies both
