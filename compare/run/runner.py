@@ -24,6 +24,7 @@ long cases do not end up alone at the tail of the run.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import functools
 import gc
 import math
@@ -33,7 +34,7 @@ import time
 from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -272,6 +273,36 @@ def _init_worker() -> None:
     import engines.reference  # noqa: F401
 
 
+class _ExecutorPool:
+    """A concurrent.futures Executor (a process pool we own, or one given to the runner: a cluster's,
+    threads) as the dispatcher drives a HostPool: submit a task, wait for the first done, shut down."""
+
+    depth = 1  # tasks in flight per worker
+
+    def __init__(self, executor: cf.Executor, owned: bool) -> None:
+        self.executor = executor
+        self.owned = owned
+
+    def submit(self, task: CaseTask | ReferenceTask) -> cf.Future:
+        return self.executor.submit(solve_reference if isinstance(task, ReferenceTask) else execute, task)
+
+    @staticmethod
+    def wait(pending: Iterable[cf.Future]) -> set[cf.Future]:
+        return cf.wait(pending, return_when=cf.FIRST_COMPLETED)[0]
+
+    def shutdown(self, kill: bool = False) -> None:
+        """Wait for the workers to end; ``kill``: cancel what waits and SIGKILL the workers of a process
+        pool we own, rather than wait for their cases."""
+        if not kill:
+            self.executor.shutdown(wait=True)
+            return
+        self.executor.shutdown(wait=False, cancel_futures=True)
+        if self.owned:
+            for process in list((getattr(self.executor, "_processes", None) or {}).values()):
+                with contextlib.suppress(OSError, AttributeError):
+                    process.kill()
+
+
 class _Dispatcher:
     """Submits references and cases, collects them as they finish, rebuilds a broken pool it owns."""
 
@@ -285,7 +316,7 @@ class _Dispatcher:
         self.own_executor = executor is None
         self.timeout = timeout
         self.isolate = isolate
-        self.executor = executor or self._new_pool()
+        self.pool = self._new_pool() if executor is None else _ExecutorPool(executor, owned=False)
         self.references: dict[str, Any] = {}  # scene id -> solution, or the exception that stopped it
         self.waiting: dict[str, list[tuple[Case, CaseOutcome]]] = {}
         # Longest first: cost grows like 1/dt.
@@ -295,7 +326,7 @@ class _Dispatcher:
         self.suspects: deque[str] = deque()
         self.alone: str | None = None
 
-    def _new_pool(self) -> cf.Executor | HostPool:
+    def _new_pool(self) -> HostPool | _ExecutorPool:
         """Case hosts driven from here when cases are isolated (compare.run.hosts); else a pool of
         worker processes that run the engines themselves (a crash then breaks it: see recover)."""
         # fork: hosts and workers inherit the imported engines.
@@ -303,19 +334,8 @@ class _Dispatcher:
         if self.isolate:
             return HostPool(self.jobs)
         # die_with_parent: a kill -9 of xval takes its workers with it.
-        return cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
-                                      initializer=_init_worker)
-
-    def _start(self, function: Any, task: CaseTask | ReferenceTask) -> cf.Future:
-        """``function(task)`` on the executor; a host pool runs the task in a host, as ``function`` would."""
-        if isinstance(self.executor, HostPool):
-            return self.executor.submit(task)
-        return self.executor.submit(function, task)
-
-    def _wait(self, pending: dict[cf.Future, tuple[str, str]]) -> set[cf.Future]:
-        if isinstance(self.executor, HostPool):
-            return self.executor.wait(pending)
-        return cf.wait(pending, return_when=cf.FIRST_COMPLETED)[0]
+        return _ExecutorPool(cf.ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("fork"),
+                                                    initializer=_init_worker), owned=True)
 
     def task(self, case: Case) -> CaseTask:
         return CaseTask(
@@ -336,7 +356,7 @@ class _Dispatcher:
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:
         scenes = {s.id: s.scene for s in self.suite.scenes}
         return {
-            self._start(solve_reference, ReferenceTask(
+            self.pool.submit(ReferenceTask(
                 sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit
             )): ("reference", sid)
             for sid in scene_ids
@@ -365,16 +385,15 @@ class _Dispatcher:
                 self._submit(pending, self.suspects, alone=True)
             return
         in_flight = sum(kind == "case" for kind, _ in pending.values())
-        # A host pool is sent as many as its hosts hold (one running, the rest waiting behind it in each).
-        window = self.jobs * self.executor.depth if isinstance(self.executor, HostPool) else self.jobs
-        room = window - in_flight if self.own_executor else len(self.queue)
+        # As many as the pool holds: a host pool's hosts each run one and hold more waiting behind it.
+        room = self.jobs * self.pool.depth - in_flight if self.own_executor else len(self.queue)
         for _ in range(min(room, len(self.queue))):
             self._submit(pending, self.queue)
 
     def _submit(self, pending: dict[cf.Future, tuple[str, str]], source: deque[str], alone: bool = False) -> None:
         cid = source.popleft()
         try:
-            future = self._start(execute, self.task(self.cases[cid]))
+            future = self.pool.submit(self.task(self.cases[cid]))
         except cf.BrokenExecutor:
             source.appendleft(cid)  # not run: it goes first once the pool is rebuilt
             raise
@@ -386,7 +405,7 @@ class _Dispatcher:
         pending = self.fill(self.submit_references(scene_ids))
         try:
             while pending:
-                finished = self._wait(pending)
+                finished = self.pool.wait(pending)
                 broken = False
                 for future in finished:
                     kind, key = pending.pop(future)
@@ -414,28 +433,12 @@ class _Dispatcher:
             self.stop_workers()
             raise
         if self.own_executor:
-            self._shutdown()
-
-    def _shutdown(self) -> None:
-        if isinstance(self.executor, HostPool):
-            self.executor.shutdown()
-        else:
-            self.executor.shutdown(wait=True)
+            self.pool.shutdown()
 
     def stop_workers(self) -> None:
         """SIGKILL the case hosts or worker processes of a pool we own, rather than wait for their cases
-        to end; a pool we do not own is shut down without waiting."""
-        if isinstance(self.executor, HostPool):
-            self.executor.shutdown(kill=True)
-            return
-        self.executor.shutdown(wait=False, cancel_futures=True)
-        if not self.own_executor:
-            return
-        for process in list((getattr(self.executor, "_processes", None) or {}).values()):
-            try:
-                process.kill()
-            except (OSError, AttributeError):
-                pass
+        to end; an executor we do not own is shut down without waiting."""
+        self.pool.shutdown(kill=True)
 
     def handle(self, kind: str, key: str, value: Any) -> None:
         if kind == "reference":
@@ -459,7 +462,7 @@ class _Dispatcher:
         recorded as failed.
         """
         lost = list(pending.values())
-        self.executor.shutdown(wait=False, cancel_futures=True)
+        self.pool.shutdown(kill=True)
         reference_ids = [key for kind, key in lost if kind == "reference"]
         case_ids = [key for kind, key in lost if kind == "case"]
         if not self.own_executor:
@@ -476,7 +479,7 @@ class _Dispatcher:
             else:
                 self.suspects.append(key)
         self.alone = None
-        self.executor = self._new_pool()
+        self.pool = self._new_pool()
         return self.submit_references(reference_ids)
 
 
