@@ -201,9 +201,9 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                    for r in verdict.reaches]
         if verdict.comparison is not None:
             sentence = verdict.comparison.describe()
-        elif focus is None or not families(scene.sweeps):
+        elif focus is None or not (present := families(scene.sweeps)):
             sentence = "no engine variant competed on this scene"
-        elif focus not in families(scene.sweeps):
+        elif focus not in present:
             sentence = f"no {focus} variant ran on this scene"
         else:
             sentence = f"only one engine family ran on this scene; nothing to compare {focus} with"

@@ -197,7 +197,7 @@ def large_steps() -> str:
     return "\n".join(lines)
 
 
-SLOW = {"chain4", "chain16", "large"}  # key prefixes left out of a quick run (see figures)
+SLOW_CASES = {"chain4", "chain16", "large"}  # key prefixes left out of a quick run (see figures)
 
 
 def figures(quick: bool = False) -> dict[str, float]:
@@ -207,7 +207,7 @@ def figures(quick: bool = False) -> dict[str, float]:
     settings = {SETTINGS[0][0]: "defaults", "error_bias = 0": "bias0", "error_bias = 0, iterations = 3": "bias0_iter3",
                 "error_bias = 0, iterations = 50": "bias0_iter50", "damping = 0.999 (not a default)": "damping0.999"}
     for tag, case in zip(tags, CASES):
-        if quick and tag in SLOW:
+        if quick and tag in SLOW_CASES:
             continue
         for label, _status, c_err, drift, p_err, _cost in measure(case):
             if label in settings:
@@ -292,8 +292,8 @@ QUOTES = [
     Quote(D, "8.9", "large|defaults|drift", "drifts of {} E* (defaults)"),
     Quote(D, "0.94", "large|bias0_iter3|drift", "and {} E* (error_bias = 0"),
 ]
-SLOW = {k for r in ROWS for k in r.keys if k.split("|")[0] in SLOW} | {
-    q.key for q in QUOTES if q.key.split("|")[0] in ("chain4", "chain16", "large")}
+SLOW = {k for r in ROWS for k in r.keys if k.split("|")[0] in SLOW_CASES} | {
+    q.key for q in QUOTES if q.key.split("|")[0] in SLOW_CASES}
 
 
 def main(argv: list[str] | None = None) -> int:

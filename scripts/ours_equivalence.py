@@ -3,7 +3,7 @@
 Runs ``ours.simulate`` for every variant of the ours adapter on the bead, the
 double pendulum, chains of 4 and 8 links and the spherical pendulum (3-D), at
 every time step of the default suite (1e-1 … 1e-4 s, two per decade), for 2 s
-with a sample every 10 ms, and stores positions, velocities, multipliers,
+with a sample every 0.25 s (``OURS_EQ_SAMPLE``), and stores positions, velocities, multipliers,
 steps taken and the status.
 
     .venv/bin/python scripts/ours_equivalence.py save bench/data/ours_trajectories.npz

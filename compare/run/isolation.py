@@ -292,9 +292,9 @@ def _address_space() -> int:
 def _limit_memory(limit: int | None) -> None:
     """Let this process map at most ``limit`` bytes more than it does now (soft RLIMIT_AS; None: no limit).
 
-    Counted from the host's size as the task starts (~0.7 GB with numba,
-    MuJoCo and PyBullet imported; more on a machine where libraries reserve
-    per-core thread arenas), so one ``--memory-limit`` means the same on every
+    Counted from the host's size as the task starts (numba, MuJoCo and
+    PyBullet loaded, and more on a machine where libraries reserve per-core
+    thread arenas), so one ``--memory-limit`` means the same on every
     machine, and what the host keeps between cases (an engine's cached models,
     kernels loaded for an earlier scene) is not counted against a later case.
     """
