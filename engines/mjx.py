@@ -146,14 +146,14 @@ class MJXEngine(Engine):
                 f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
             )
 
-    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str]:
-        """(compiled MuJoCo model, MJCF text): the MuJoCo adapter's hinge model with this integrator and inertia."""
-        model, xml, _inertia = MUJOCO.build(scene, dt, _mujoco_settings(settings))
-        return model, xml
+    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
+        """(compiled MuJoCo model, MJCF text, (n,) kg·m² inertia of each particle body): the MuJoCo adapter's
+        hinge model with this integrator and inertia."""
+        return MUJOCO.build(scene, dt, _mujoco_settings(settings))
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         jax, mjx = _jax()
-        model, xml = self.build(scene, schedule.dt, settings)
+        model, xml, inertia = self.build(scene, schedule.dt, settings)
         data = mujoco.MjData(model)
         data.qvel[:] = hinge_velocities(scene, model)
         mujoco.mj_forward(model, data)
@@ -190,8 +190,7 @@ class MJXEngine(Engine):
         n = len(qpos) if finite.all() else int(np.argmin(finite)) + 1
         states = _full_states(model, qpos[:n], qvel[:n], schedule.times[:n])
         positions, velocities, forces = read_samples(scene, model, mujoco.MjData(model), states, hinge=True)
-        record["point_mass_inertia"] = [float(x) for x in settings["inertia_ratio"] * scene.masses
-                                        * scene.characteristic_length**2]
+        record["point_mass_inertia"] = [float(x) for x in inertia]  # the model's, MuJoCo's floor included
         record["stepping"] = "jit(fori_loop(mjx.step)) per sample interval"
         return RawRun(positions, velocities, forces, steps=int(schedule.sample_steps[-1] if n == len(qpos) else schedule.sample_steps[n]),
                       wall_time=wall, settings=record)

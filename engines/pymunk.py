@@ -280,18 +280,6 @@ class _Model:
         extent = np.abs(scene.initial_positions).max()
         self.scale = scene.characteristic_length + float(extent)
 
-    def positions_2d(self) -> np.ndarray:
-        """(n_particles, 2) m in pymunk's frame."""
-        return np.array([b.position for b in self.bodies])  # Vec2d is a tuple
-
-    def velocities_2d(self) -> np.ndarray:
-        """(n_particles, 2) m/s in pymunk's frame."""
-        return np.array([b.velocity for b in self.bodies])
-
-    def impulses(self) -> np.ndarray:
-        """(n_constraints,) N·s: the magnitude of each joint's impulse in the last step."""
-        return np.array([j.impulse for j in self.joints])
-
     def directions(self, p2: np.ndarray) -> np.ndarray:
         """(S, n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b, at each
         of S samples of positions p2 (S, n_particles, 2)."""

@@ -190,18 +190,6 @@ class FourBar:
     branch: float
     gravity: np.ndarray
 
-    def closure(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Crank tip and rocker tip (..., 2) m closing the loop at crank angles ``phi`` (...,) rad."""
-        phi = np.asarray(phi, dtype=float)
-        p0 = self.crank_pivot + self.a * np.stack([np.sin(phi), -np.cos(phi)], axis=-1)
-        to_pivot = self.rocker_pivot - p0
-        delta = np.linalg.norm(to_pivot, axis=-1)
-        u = to_pivot / delta[..., None]
-        along = (self.b**2 - self.c**2 + delta**2) / (2.0 * delta)
-        across = self.branch * np.sqrt(np.maximum(self.b**2 - along**2, 0.0))
-        perp = np.stack([-u[..., 1], u[..., 0]], axis=-1)
-        return p0, p0 + along[..., None] * u + across[..., None] * perp
-
     def _rates(self, phi: float) -> tuple[np.ndarray, np.ndarray, float, float]:
         """Crank and rocker tips (2,) m, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
         x0, z0, x1, z1, k, h = self._scalar_rates(phi)

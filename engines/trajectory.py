@@ -184,9 +184,14 @@ def linear_momentum_drift(scene: Scene, velocities: np.ndarray) -> float | None:
     if u is None or len(velocities) == 0:
         return None
     along = linear_momentum(scene, velocities) @ u
-    g = float(np.linalg.norm(scene.gravity)) or 1.0
-    scale = float(scene.masses.sum()) * np.sqrt(g * scene.characteristic_length)
+    scale = float(scene.masses.sum()) * characteristic_speed(scene)
     return float(np.abs(along - along[0]).max() / scale)
+
+
+def characteristic_speed(scene: Scene) -> float:
+    """√(|g| L) m/s, the speed the momentum drifts are measured against (√L when g = 0, as E* falls back)."""
+    g = float(np.linalg.norm(scene.gravity)) or 1.0
+    return float(np.sqrt(g * scene.characteristic_length))
 
 
 def tensions(scene: Scene, positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
@@ -237,7 +242,8 @@ def momentum_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) 
 
     L_z is the angular momentum about the vertical line of :func:`vertical_axis`;
     L* = M·L·√(g·L) (total mass, characteristic length, |g|), the momentum of the whole
-    mass moving at the characteristic speed at arm L. 0 for fewer than 2 samples.
+    mass moving at the characteristic speed at arm L (:func:`characteristic_speed`). 0 for fewer
+    than 2 samples.
     """
     axis = vertical_axis(scene)
     if axis is None:
@@ -245,7 +251,5 @@ def momentum_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) 
     if len(positions) < 2:
         return 0.0
     lz = angular_momentum_z(scene, positions, velocities, axis)
-    length = scene.characteristic_length
-    g = float(np.linalg.norm(scene.gravity))
-    scale = float(scene.masses.sum()) * length * np.sqrt(g * length)
+    scale = float(scene.masses.sum()) * scene.characteristic_length * characteristic_speed(scene)
     return float(np.abs(lz - lz[0]).max() / scale)
