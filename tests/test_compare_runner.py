@@ -254,8 +254,8 @@ def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
 @pytest.mark.parametrize("enabled", [True, False])
 def test_the_run_command_collects_no_garbage_while_loading_and_leaves_the_collector_as_it_was(tmp_path, enabled):
     """compare/run/startup.py: ``xval run`` turns the collector off while the suite loads its engines
-    and back on once preload_engines has frozen them, so the run's cases are collected as usual; a
-    collector the calling program turned off stays off."""
+    (preload_engines freezes them) and back on before the cases run, so their garbage is collected as
+    usual; a collector the calling program turned off stays off."""
     import gc
 
     from compare.cli import main
@@ -264,23 +264,26 @@ def test_the_run_command_collects_no_garbage_while_loading_and_leaves_the_collec
     suite = tmp_path / "s.toml"
     suite.write_text(suite_text(["pymunk/pin"], duration=0.02))
     seen = []
-    preload = runner.preload_engines
+    preload, dispatch = runner.preload_engines, runner._Dispatcher.run
 
-    def watching(*args):
-        seen.append(("before preload", gc.isenabled()))
+    def watching_preload(*args):
+        seen.append(("preload", gc.isenabled()))
         preload(*args)
-        seen.append(("after preload", gc.isenabled()))
+
+    def watching_run(self):
+        seen.append(("cases", gc.isenabled()))
+        dispatch(self)
 
     was = gc.isenabled()
     (gc.enable if enabled else gc.disable)()
-    runner.preload_engines = watching
+    runner.preload_engines, runner._Dispatcher.run = watching_preload, watching_run
     try:
         main(["run", str(suite), "--output", str(tmp_path / "out"), "--jobs", "1", "--quiet"])
         after = gc.isenabled()
     finally:
-        runner.preload_engines = preload
+        runner.preload_engines, runner._Dispatcher.run = preload, dispatch
         (gc.enable if was else gc.disable)()
-    assert seen == [("before preload", False), ("after preload", enabled)]
+    assert seen == [("preload", False), ("cases", enabled)]
     assert after is enabled and gc.get_freeze_count() == 0
 
 

@@ -12,18 +12,18 @@ from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
 from engines import catalog
 
-#: Table columns: (heading, row key, unit).
+#: Table columns: (heading, row key).
 COLUMNS = (
-    ("status", "status", ""),
-    ("samples", "n_samples", ""),
-    ("t_end/s", "t_end", ""),
-    ("final/m", "position_error_final", ""),
-    ("l2/m", "position_error_l2", ""),
-    ("linf/m", "position_error_linf", ""),
-    ("diverged/s", "divergence_time", ""),
-    ("drift/E*", "energy_drift", ""),
-    ("c.err/m", "constraint_error", ""),
-    ("force/N", "constraint_force_error", ""),
+    ("status", "status"),
+    ("samples", "n_samples"),
+    ("t_end/s", "t_end"),
+    ("final/m", "position_error_final"),
+    ("l2/m", "position_error_l2"),
+    ("linf/m", "position_error_linf"),
+    ("diverged/s", "divergence_time"),
+    ("drift/E*", "energy_drift"),
+    ("c.err/m", "constraint_error"),
+    ("force/N", "constraint_force_error"),
 )
 
 
@@ -60,8 +60,8 @@ def command(scene_name, files, params, delta, output_format, output) -> None:
 
 def render(rows: list[dict]) -> str:
     """A plain-text table: one line per file, then each file's message."""
-    header = ["file", *(heading for heading, _, _ in COLUMNS)]
-    body = [[row["file"], *(_cell(row[key]) for _, key, _ in COLUMNS)] for row in rows]
+    header = ["file", *(heading for heading, _ in COLUMNS)]
+    body = [[row["file"], *(_cell(row[key]) for _, key in COLUMNS)] for row in rows]
     widths = [max(len(line[k]) for line in [header, *body]) for k in range(len(header))]
     lines = ["  ".join(cell.ljust(width) if k == 0 else cell.rjust(width)
                        for k, (cell, width) in enumerate(zip(line, widths))).rstrip() for line in [header, *body]]

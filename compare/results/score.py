@@ -124,10 +124,10 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
     ref_positions, _, ref_forces = solution.at(state.t)
     metrics, series = case_metrics(scene, trajectory, ref_positions, ref_forces, scheduled_times=state.t,
                                    wall_times=[], delta=delta)
-    values = {**metrics.to_dict(), **declared.computed_extras(
-        declared.MetricInputs(scene, trajectory, ref_positions[:n], series.position_error))}
-    extra = [name for name in values if name in declared.METRICS and name not in SCORE_METRICS
-             and declared.METRICS[name].compute is not None]
+    computed = declared.computed_extras(declared.MetricInputs(scene, trajectory, ref_positions[:n],
+                                                              series.position_error))
+    values = {**metrics.to_dict(), **computed}
+    extra = [name for name in computed if name not in SCORE_METRICS]
     status, message = "ok", ""
     if first_bad is not None:
         status = "unstable"

@@ -34,13 +34,12 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
+from compare.results.declared import TIMING_METRIC
 from compare.results.record import PROBLEMS, CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
 #: The target error of "cost to reach", as a fraction of L.
 TARGET_FRACTION = 1e-6
-#: The metric on the cost axis: stepping wall time per simulated second, s/s.
-COST_METRIC = "cost_per_simulated_second"
 #: Problem kinds, in the order they are listed (worst first).
 PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "hidden dissipation")
 
@@ -93,7 +92,8 @@ def point(record: CaseRecord) -> Point | None:
     """``record`` as a Point, or None when it is not ok or lacks a positive error or cost."""
     if record.status is not Status.OK or not record.has_metrics:
         return None
-    cost, error = record.metric(COST_METRIC), record.metric(ORDER_METRIC)
+    # The cost axis: stepping wall time per simulated second, s/s.
+    cost, error = record.metric(TIMING_METRIC), record.metric(ORDER_METRIC)
     if not (_finite_positive(cost) and _finite_positive(error)):
         return None
     return Point(record.case.engine, record.case.dt, float(cost), float(error), record.case.id, record.case.tolerance)

@@ -191,8 +191,8 @@ def _group_by_software(workers: dict[str, dict[str, Any]]) -> list[dict[str, Any
 def _task_name(fn: Callable[..., Any], args: tuple[Any, ...]) -> str:
     """``execute bead|mujoco/hinge|dt=0.01`` or ``solve_reference bead``: what the dashboard shows."""
     first = args[0] if args else None
-    label = getattr(first, "name", None) if type(first).__name__ == "ReferenceTask" else None
-    label = label or getattr(first, "case_id", None) or getattr(first, "name", None) or ""
+    # A ReferenceTask has a name (its scene's); a CaseTask has none, only its case id.
+    label = getattr(first, "name", None) or getattr(first, "case_id", None) or ""
     return f"{getattr(fn, '__name__', 'task')} {label}".strip()
 
 

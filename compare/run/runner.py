@@ -511,7 +511,6 @@ def preload_engines(suite: Suite, cases) -> None:
     # from here. bench/bench_harness.py measures what the harness costs.
     # _run_suite unfreezes it when the run ends.
     gc.freeze()
-    startup.resume_collection()  # if the run command turned it off while loading (compare/run/startup.py)
 
 
 class _Writer:
