@@ -314,3 +314,27 @@ def test_collection_resumes_for_a_run_on_an_executor_passed_in(tmp_path):
         assert gc.isenabled()
     finally:
         (gc.enable if was else gc.disable)()
+
+
+def test_milestone_progress_prints_at_each_tenth_of_the_run_resumed_or_not():
+    import io
+    from types import SimpleNamespace
+
+    from compare.results.record import Status
+    from compare.run.progress import MilestoneProgress
+
+    def lines(total, already, bad=()):
+        out = io.StringIO()
+        progress = MilestoneProgress(out)
+        progress.start(total, already)
+        for k in range(already, total):
+            progress.advance(SimpleNamespace(status=Status.FAILED if k in bad else Status.OK))
+        return out.getvalue().splitlines()
+
+    fresh = lines(462, 0, bad={3})
+    assert [line.split()[1] for line in fresh] == ["47/462", "93/462", "139/462", "185/462", "231/462", "278/462",
+                                                   "324/462", "370/462", "416/462", "462/462"]
+    assert fresh[0] == "running: 47/462 cases (10 %), 1 not ok"
+    resumed = lines(462, 93)
+    assert resumed[0] == "resuming: 93 of 462 cases already done" and resumed[1].startswith("running: 139/462")
+    assert len(resumed) == 9

@@ -67,35 +67,23 @@ class PlainProgress:
         pass
 
 
-class MilestoneProgress:
+class MilestoneProgress(PlainProgress):
     """``running: 93/462 cases (20 %), 12 not ok`` at every tenth of the run: a log gets ~10 lines, not one per case."""
 
     def __init__(self, stream: TextIO, steps: int = 10) -> None:
-        self.stream = stream
+        super().__init__(stream)
         self.steps = steps
-        self.done = 0
-        self.total = 0
         self.not_ok = 0
-        self.next_step = 1
-
-    def start(self, total: int, already_done: int) -> None:
-        self.total, self.done = total, already_done
-        if already_done:
-            print(f"resuming: {already_done} of {total} cases already done", file=self.stream, flush=True)
-        self.next_step = 1 + (already_done * self.steps) // max(total, 1)
 
     def advance(self, record: CaseRecord) -> None:
+        reached = self.done * self.steps // max(self.total, 1)  # tenths of the run done before this case
         self.done += 1
         if record.status in PROBLEMS:
             self.not_ok += 1
-        if self.total and self.done * self.steps >= self.next_step * self.total:
-            self.next_step = (self.done * self.steps) // self.total + 1
+        if self.total and self.done * self.steps // self.total > reached:
             percent = 100 * self.done // self.total
             bad = f", {self.not_ok} not ok" if self.not_ok else ""
             print(f"running: {self.done}/{self.total} cases ({percent} %){bad}", file=self.stream, flush=True)
-
-    def stop(self) -> None:
-        pass
 
 
 class RichProgress:
