@@ -251,12 +251,12 @@ class ResultsDir:
     def header(self) -> dict[str, Any]:
         return read_json(self.path / "run.json")
 
-    def done_ids(self) -> set[str]:
-        """Ids of the cases that already have a whole, readable record (a damaged one is run again)."""
-        done = set()
+    def done_records(self) -> dict[Path, CaseRecord]:
+        """The whole, readable records already here, by file (a damaged one's case is run again)."""
+        done = {}
         for file in sorted(self.cases.glob("*.json")):
             try:
-                done.add(CaseRecord.from_json(json.loads(file.read_text()), file).case.id)
+                done[file] = CaseRecord.from_json(json.loads(file.read_text()), file)
             except (OSError, ValueError, UserError):
                 continue
         return done

@@ -56,7 +56,7 @@ from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import SCHEMA_VERSION, CaseRecord, status_counts
 from compare.results.store import (
-    ResultsDir, SeriesView, downsample_indices, jsonable, now, read_json, round_each,
+    ResultsDir, SeriesView, downsample_indices, jsonable, now, round_each,
 )
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
@@ -218,9 +218,10 @@ def _run_suite(
     if resume:
         remove_stale_temporaries(results.path)  # of a run killed mid-write; we hold the lock
     cases = plan(suite)
-    done = results.done_ids() if resume else set()
+    earlier = results.done_records() if resume else {}
+    done = {record.case.id for record in earlier.values()}
     todo = [c for c in cases if c.id not in done]
-    writer = _Writer(results, suite, progress)
+    writer = _Writer(results, suite, progress, earlier)
     frozen_before = gc.get_freeze_count()
     reasons: dict[tuple[str, str], str | None] = {}
     for case in todo:
@@ -516,12 +517,14 @@ def preload_engines(suite: Suite, cases) -> None:
 class _Writer:
     """Turns outcomes into records (metrics computed here, in the parent) and writes them."""
 
-    def __init__(self, results: ResultsDir, suite: Suite, progress: Progress) -> None:
+    def __init__(self, results: ResultsDir, suite: Suite, progress: Progress,
+                 earlier: dict[Path, CaseRecord] | None = None) -> None:
         self.results = results
         self.suite = suite
         self.progress = progress
-        #: The records written by this run, by file, so the summary need not read them back.
-        self.written: dict[Path, CaseRecord] = {}
+        #: Every record of the directory, by file: an earlier (resumed) run's, read once as the run
+        #: started, and those written by this run, kept so the summary need not read them back.
+        self.written: dict[Path, CaseRecord] = dict(earlier or {})
         #: Each scene's part of its records (scene_fields), by scene id: built once, shared read-only.
         self.scene_fields: dict[str, dict[str, Any]] = {}
 
@@ -539,10 +542,8 @@ class _Writer:
         self.progress.advance(typed)
 
     def records(self) -> list[CaseRecord]:
-        """Every record in the results directory, in file order: those written now from memory,
-        those of an earlier (resumed) run read from their files."""
-        files = sorted(self.results.cases.glob("*.json")) if self.results.cases.is_dir() else []
-        return [self.written.get(f) or CaseRecord.from_json(read_json(f), f) for f in files]
+        """Every record in the results directory, in file order (an earlier run's and this run's)."""
+        return [self.written[f] for f in sorted(self.written)]
 
 
 def scene_fields(scene: Scene) -> dict[str, Any]:
