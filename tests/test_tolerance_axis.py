@@ -100,7 +100,7 @@ def test_a_tolerance_sweep_runs_and_its_error_falls_with_the_tolerance(tmp_path)
 
     assert sorted(r["tolerance"] for r in case_rows(records) if r["engine"] == "drake/rk3") == [1e-8, 1e-7, 1e-6,
                                                                                                1e-5, 1e-4]
-    assert "tol 1e-08" in scene_tables(records)
+    assert "tol 1e-08" in scene_tables(sweeps(records))
     # The verdict lines name a tolerance point by its tolerance.
     from compare.results.verdict import points
 

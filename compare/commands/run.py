@@ -69,10 +69,11 @@ def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, 
         suite, summary = _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode)
     finally:
         startup.resume_collection()
+    variant_sweeps = sweeps(summary.records, suite.verdict_tolerance)
     if verbose:
-        click.echo(scene_tables(summary.records, suite.verdict_tolerance), nl=False)
+        click.echo(scene_tables(variant_sweeps), nl=False)
         click.echo()
-    verdicts = scene_verdicts(sweeps(summary.records, suite.verdict_tolerance))
+    verdicts = scene_verdicts(variant_sweeps)
     click.echo(format_verdicts(verdicts), nl=False)
     counts = ", ".join(f"{n} {status}" for status, n in summary.counts.items())
     resumed = f", {summary.already_done} already done" if summary.already_done else ""

@@ -30,8 +30,9 @@ def command(directory, output_format, output) -> None:
         header = results.header
         state = "finished " + header["finished"] if header.get("finished") else "unfinished (resume it with --resume)"
         text = f"suite {header['suite']['name']} ({results.path}), {len(results.records)} cases, {state}\n\n"
-        text += scene_tables(results.records, results.verdict_tolerance)
-        text += "\n" + format_verdicts(scene_verdicts(results.sweeps()))
+        variant_sweeps = results.sweeps()
+        text += scene_tables(variant_sweeps)
+        text += "\n" + format_verdicts(scene_verdicts(variant_sweeps))
     if str(target) == STDOUT:
         click.echo(text, nl=False)
     else:

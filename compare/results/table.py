@@ -109,12 +109,15 @@ def _verdict(sweep: VariantSweep) -> str:
     return "yes" if sweep.consistency.consistent else "NO"
 
 
-def scene_tables(records: Iterable[CaseRecord], tolerance: float | None = None) -> str:
-    """A short text table per scene (columns :func:`table_columns`), values at each variant's finest ok dt."""
+def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
+    """A short text table per scene (columns :func:`table_columns`), values at each variant's finest ok dt.
+
+    variant_sweeps : compare.results.sweep.sweeps(records, tolerance), which the caller's verdict uses too.
+    """
     columns = table_columns()
     by_scene: dict[str, list[list[str]]] = {}
     notes: dict[str, list[str]] = {}
-    for sweep in sweeps(records, tolerance):
+    for sweep in variant_sweeps:
         finest = sweep.finest_ok
         values = []
         for metric in declared.shown():
