@@ -69,6 +69,7 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import Tree, constraint_tree
+from engines.plugin import refuse_constraint_kinds
 from engines.scene import Pin, Rod, Scene
 
 import pydrake
@@ -185,12 +186,7 @@ class DrakeEngine(Engine):
                 f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
                 f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
-        for k, c in enumerate(scene.constraints):
-            if not isinstance(c, (Pin, Rod)):
-                raise Unsupported(
-                    f"drake: constraints[{k}] is a {type(c).__name__} constraint; this adapter builds only Pins and "
-                    f"Rods, as revolute (or ball) joints"
-                )
+        refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         try:
             tree = constraint_tree(scene)
         except Unsupported as exc:
