@@ -250,13 +250,17 @@ def _cheapest(reaches: list[Reach]) -> Reach | None:
 
 def focus_comparison(sweeps: Sequence[VariantSweep], focus: str, target: float) -> Comparison:
     """How the best ``focus``-family variant compares with the best variant of any other family."""
-    mine = [cost_to_reach(s, target) for s in competitors(sweeps) if family(s.engine) == focus]
-    theirs = [cost_to_reach(s, target) for s in competitors(sweeps) if family(s.engine) != focus]
-    best_mine, best_theirs = _cheapest(mine), _cheapest(theirs)
+    reaches = [cost_to_reach(s, target) for s in competitors(sweeps)]
+    return _comparison(reaches, best_at_equal_cost(sweeps)[1], focus, target)
+
+
+def _comparison(reaches: Sequence[Reach], bests: Sequence[Best], focus: str, target: float) -> Comparison:
+    """focus_comparison from each competitor's Reach of ``target`` and best_at_equal_cost's rows."""
+    best_mine = _cheapest([r for r in reaches if family(r.engine) == focus])
+    best_theirs = _cheapest([r for r in reaches if family(r.engine) != focus])
     ratio = None
     if best_mine is not None and best_theirs is not None and best_mine.cost and best_theirs.cost:
         ratio = best_theirs.cost / best_mine.cost
-    _, bests = best_at_equal_cost(sweeps)
     mine_error = [b.point.error for b in bests if b.family == focus and b.point is not None]
     their_error = [b.point.error for b in bests if b.family != focus and b.point is not None]
     error_ratio = min(their_error) / mine_error[0] if mine_error and their_error else None
@@ -350,13 +354,12 @@ def scene_verdicts(sweeps: Sequence[VariantSweep], focus: str | None = None,
         length = members[0].records[0].characteristic.length
         target = target_fraction * length
         budget, best = best_at_equal_cost(members)
+        reaches = [cost_to_reach(s, target) for s in competitors(members)]
         present = families(members)
-        comparison = (focus_comparison(members, focus, target)
+        comparison = (_comparison(reaches, best, focus, target)
                       if focus is not None and focus in present and len(present) > 1 else None)
-        verdicts.append(SceneVerdict(
-            scene_id, length, target, pareto_front(members),
-            [cost_to_reach(s, target) for s in competitors(members)], budget, best, comparison, problems(members),
-        ))
+        verdicts.append(SceneVerdict(scene_id, length, target, pareto_front(members), reaches, budget, best,
+                                     comparison, problems(members)))
     return verdicts
 
 
