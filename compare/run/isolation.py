@@ -460,8 +460,7 @@ def reference_answer(task: ReferenceTask, answer: Any) -> Any:
     """The host's answer to a reference task: the solution, or ReferenceFailed when the answer is the
     ``failed`` / ``timeout`` CaseOutcome of a solve that raised, ran past the timeout or died."""
     if isinstance(answer, CaseOutcome):
-        reason = answer.message.replace("; raise --timeout if it is only slow", "")
-        raise ReferenceFailed(f"the reference of scene {task.scene_id!r} {reason}")
+        raise ReferenceFailed(f"the reference of scene {task.scene_id!r} {answer.message}")
     return answer
 
 
@@ -519,11 +518,12 @@ def send(host: CaseHost | None, task: Any) -> CaseHost:
 
 
 def timed_out(task: Any, start: float) -> CaseOutcome:
-    """The ``timeout`` outcome of a task whose host gave no answer within ``task.timeout`` (and was killed).
+    """The ``timeout`` outcome of a task whose host gave no answer within ``task.timeout`` (and was killed);
+    a case's message says how to give it longer; a reference's, quoted in its scene's case records, does not.
     start : time.perf_counter() when its host began it."""
+    hint = "" if isinstance(task, ReferenceTask) else "; raise --timeout if it is only slow"
     return CaseOutcome(task.case_id, None, status="timeout", elapsed=time.perf_counter() - start,
-                       message=f"ran past the timeout of {task.timeout:g} s and was killed; raise --timeout if it "
-                               f"is only slow")
+                       message=f"ran past the timeout of {task.timeout:g} s and was killed{hint}")
 
 
 def died(task: Any, host: CaseHost, start: float) -> CaseOutcome:
