@@ -105,7 +105,8 @@ class MJXEngine(Engine):
         ),
         "inertia_ratio": Option(
             "inertia_ratio", 1e-9,
-            "rotational inertia of each point-mass body, as a fraction of m·L² (as mujoco/hinge)",
+            "rotational inertia of each point-mass body, as a fraction of m·L² (mujoco/hinge's option; its "
+            "default is now 1e-12, HINGE_INERTIA_RATIO, and MJX's figures in docs/findings.md were made at 1e-9)",
         ),
         "max_depth": Option(
             "max_depth", MAX_DEPTH,
