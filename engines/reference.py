@@ -32,10 +32,10 @@ import os
 import pickle
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 import scipy
@@ -265,43 +265,104 @@ def model_for(scene: Scene) -> PlanarChain | SphericalPin | Mechanism:
     return planar_chain(scene) if scene.is_planar else spherical_pin(scene)
 
 
+def _solve_ivp():
+    """scipy's solve_ivp, imported on first use: `xval engines`, and a run whose references are all
+    kept, need not load scipy.integrate."""
+    from scipy.integrate import solve_ivp
+
+    return solve_ivp
+
+
+class DenseOutput:
+    """scipy's dense solution (an ``OdeSolution``), evaluated as ``dense(times)`` -> (n_state, n).
+
+    Once pickled, it stays a pickle until first evaluated: unpickling it
+    imports scipy.integrate (and scipy.linalg, scipy.optimize: a visible part
+    of a run's own CPU, bench/bench_harness.py), which a run that finds every
+    sample it needs already kept (ReferenceSolution.samples) never has to.
+    """
+
+    __slots__ = ("_ode", "_pickled")
+
+    def __init__(self, ode: Any) -> None:
+        self._ode, self._pickled = ode, None
+
+    def __call__(self, times: np.ndarray) -> np.ndarray:
+        if self._ode is None:
+            self._ode = pickle.loads(self._pickled)
+        return self._ode(times)
+
+    def __getstate__(self) -> bytes:
+        if self._pickled is None:
+            self._pickled = pickle.dumps(self._ode, protocol=pickle.HIGHEST_PROTOCOL)
+        return self._pickled
+
+    def __setstate__(self, pickled: bytes) -> None:
+        self._ode, self._pickled = None, pickled
+
+
+#: At most this many sample-time sets are kept with a solution (the oldest goes first): a run keeps
+#: one per dt of the suite, and users' suites with other dts or sample intervals add their own.
+MOST_SAMPLE_SETS = 64
+
+
 @dataclass(frozen=True)
 class ReferenceSolution:
     """A dense solution: evaluate at any times in [0, scene.duration].
 
     wall_time : s spent integrating; n_steps : accepted DOP853 steps; nfev : right-hand-side calls.
+    samples : what :meth:`at` gives for the sets of times :meth:`sample` was asked for, by the
+        times' bytes (kept with the solution, so a run that finds them needs no scipy).
     """
 
     scene: Scene
     model: PlanarChain | SphericalPin | Mechanism
-    ode: Any  # scipy.integrate.OdeSolution
+    ode: DenseOutput
     rtol: float
     atol: float
     n_steps: int
     nfev: int
     wall_time: float
+    samples: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=dict, compare=False, repr=False)
 
     def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """positions (n, P, 3) m, velocities (n, P, 3) m/s, constraint forces (n, C, 3) N at ``times`` (n,) s."""
         times = np.asarray(times, dtype=float)
+        kept = self.samples.get(times.tobytes())
+        if kept is not None:
+            return kept
         states = self.ode(times).T.reshape(len(times), -1)
         return self.model.evaluate(self.scene, states)
+
+    def sample(self, sets: Iterable[np.ndarray]) -> bool:
+        """Evaluate and keep :meth:`at` for each set of times (each (n,) s) not kept yet; whether any was."""
+        added = False
+        for times in sets:
+            times = np.asarray(times, dtype=float)
+            key = times.tobytes()
+            if key in self.samples:
+                continue
+            self.samples[key] = self.at(times)
+            added = True
+            while len(self.samples) > MOST_SAMPLE_SETS:
+                del self.samples[next(iter(self.samples))]
+        return added
 
 
 def solve(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> ReferenceSolution:
     """Integrate ``scene`` over its duration with DOP853; Unsupported when it has no reduced form here."""
     model = model_for(scene)
     y0 = model.initial_state(scene)
+    solve_ivp = _solve_ivp()
     start = time.perf_counter()
-    from scipy.integrate import solve_ivp  # imported here: `xval engines` need not load it
-
     result = solve_ivp(
         model.rhs, (0.0, scene.duration), y0, method="DOP853", rtol=rtol, atol=atol, dense_output=True
     )
     wall_time = time.perf_counter() - start
     if not result.success:
         raise RuntimeError(f"reference integration failed: {result.message}")
-    return ReferenceSolution(scene, model, result.sol, rtol, atol, len(result.t) - 1, result.nfev, wall_time)
+    return ReferenceSolution(scene, model, DenseOutput(result.sol), rtol, atol, len(result.t) - 1, result.nfev, wall_time)
 
 
 # -- the reference's own error bar, horizon and Lyapunov exponent ------------------------------
@@ -398,28 +459,36 @@ _SOURCES = ("reference.py", "reference_mechanisms.py", "_reference_kernels.py", 
 _LARGEST_KEPT = 64 * 2**20
 
 
-def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
-                         ) -> tuple[ReferenceSolution, ReferenceBound]:
+def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
+                         sample_times: Iterable[np.ndarray] = ()) -> tuple[ReferenceSolution, ReferenceBound]:
     """:func:`solve_and_bound`, kept across runs in the user cache directory (``<cache>/reference``,
-    ``$XVAL_CACHE_DIR`` or ``~/.cache/xval``).
+    ``$XVAL_CACHE_DIR`` or ``~/.cache/xval``), with the solution sampled at each set of
+    ``sample_times`` (each (n,) s; ReferenceSolution.sample).
 
     A run solves each scene's reference twice (at the suite's tolerance and a
-    tighter one, for the bound) before its cases can be judged; the same
-    scene at the same tolerances gives the same solution every time, so the
-    answer is kept, as a pickle, under a key of everything it depends on: the
-    scene's physics (duration included), rtol and atol, the reference's own
-    source text, and the versions of Python, numpy and scipy. A kept file that
-    cannot be read is solved again and replaced.
+    tighter one, for the bound) before its cases can be judged, and evaluates
+    it at each dt's sample times; the same scene at the same tolerances gives
+    the same answer every time, so the answer and its samples are kept, as a
+    pickle, under a key of everything they depend on: the scene's physics
+    (duration included), rtol and atol, the reference's own source text, and
+    the versions of Python, numpy and scipy. A kept file that cannot be read is
+    solved again and replaced; one that lacks some of the sample times is
+    sampled and written again.
     """
     path = _kept_path(scene, rtol, atol)
+    solved = None
     try:
         with open(path, "rb") as handle:
-            return pickle.load(handle)
+            solved = pickle.load(handle)
     except FileNotFoundError:
         pass
     except Exception:  # noqa: BLE001 - damaged or from an incompatible build: solve again
         path.unlink(missing_ok=True)
-    solved = solve_and_bound(scene, rtol, atol)
+    if solved is None:
+        solved = solve_and_bound(scene, rtol, atol)
+        solved[0].sample(sample_times)
+    elif not solved[0].sample(sample_times):
+        return solved
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
     if len(data) <= _LARGEST_KEPT:
         with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
@@ -428,6 +497,11 @@ def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float =
             temporary.write_bytes(data)
             os.replace(temporary, path)  # whole or not at all, for a concurrent reader
     return solved
+
+
+def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> bool:
+    """Whether :func:`solve_and_bound_kept` has ``scene``'s reference at these tolerances kept."""
+    return _kept_path(scene, rtol, atol).is_file()
 
 
 def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
@@ -455,8 +529,7 @@ def lyapunov_exponent(
     spherical pendulum) gives a value that falls towards 0 like ln(growth)/time; a chaotic one
     converges to a positive rate (about 1 per second for the default double pendulum).
     """
-    from scipy.integrate import solve_ivp  # imported here, as in solve()
-
+    solve_ivp = _solve_ivp()
     model = model_for(scene)
     duration = scene.duration if duration is None else float(duration)
     if not duration > 0 or not interval > 0:
@@ -510,7 +583,7 @@ class ReferenceEngine(Engine):
     def preload(self, scenes) -> None:
         """Import scipy's integrators and load the compiled right-hand side (numba's cache) in this
         process, so that workers forked from it do not each do it again."""
-        import scipy.integrate  # noqa: F401
+        _solve_ivp()
 
         from engines._reference_kernels import chain_rhs
 

@@ -105,3 +105,42 @@ def test_a_run_loads_blas_with_one_thread_and_leaves_the_environment_as_it_was(t
     assert done.returncode == 0, done.stderr
     seen = json.loads(done.stdout)
     assert seen == {"threads": 1 if preset is None else 3, "variable": preset}
+
+
+#: A small suite run into argv[1], printing whether the run imported scipy.integrate and each case's
+#: position error.
+KEPT_RUN = r"""
+import json, sys
+from compare.run.runner import run_suite
+from compare.suite.reader import parse_suite
+from compare.results.store import iter_records
+suite = parse_suite('''
+name = "kept"
+duration = 0.5
+sample_interval = 0.01
+dt = [1e-2, 1e-3]
+[[scenes]]
+id = "double-pendulum"
+scene = "double-pendulum"
+[[engines]]
+id = "mujoco/hinge"
+''', path="inline.toml")
+run_suite(suite, sys.argv[1], jobs=1)
+errors = {str(r.case): r.metrics["position_error_linf"] for r in iter_records(__import__("pathlib").Path(sys.argv[1]) / "cases")}
+print(json.dumps({"integrate": "scipy.integrate" in sys.modules, "errors": errors}))
+"""
+
+
+def test_a_second_run_takes_its_reference_samples_from_the_cache_without_scipy(tmp_path):
+    # The first run solves the reference in a case host and keeps it with its samples at both dts'
+    # times; the second finds them there: neither its parent nor (so) anything it computes needs
+    # scipy's integrators, and every case's error against the reference is the same.
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "XVAL_CACHE_DIR": str(tmp_path / "cache")}
+    seen = []
+    for out in ("first", "second"):
+        done = subprocess.run([sys.executable, "-c", KEPT_RUN, str(tmp_path / out)], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        seen.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert seen[1]["integrate"] is False
+    assert seen[1]["errors"] == seen[0]["errors"] and len(seen[0]["errors"]) == 2

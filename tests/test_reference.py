@@ -1,6 +1,11 @@
 """The reference against closed forms: elliptic-integral periods, normal modes, energy, rod tensions."""
 
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +15,8 @@ from engines import catalog, reference
 from engines.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported
 from engines.trajectory import constraint_errors, tensions, total_energy
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def roots(f, t_end, n_grid=4000):
@@ -165,3 +172,51 @@ def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved
     assert len(solves) == 2
     np.testing.assert_array_equal(repaired.at(times)[0], first.at(times)[0])
     assert kept.read_bytes() != b"not a pickle"
+
+
+#: In a fresh interpreter: a scene's kept reference, asked for at the sample times it was kept with,
+#: and whether that imported scipy.integrate; then the same at other times (which must).
+KEPT_PROBE = r"""
+import json, sys
+import numpy as np
+from engines import catalog, reference
+scene = catalog.build("double-pendulum", {"duration": 1.0})
+times = np.linspace(0.0, 1.0, 101)
+solution, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10, sample_times=[times])
+positions = solution.at(times)[0]
+before = "scipy.integrate" in sys.modules
+solution.at(times[:50] + 1e-3)
+print(json.dumps({"positions": positions.tolist(), "before": before, "after": "scipy.integrate" in sys.modules}))
+"""
+
+
+def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(tmp_path, monkeypatch):
+    # A run's reference is evaluated where its cases are sampled (one set of times per dt) and those
+    # samples are kept with the solution: the next run finds them without unpickling scipy's dense
+    # solution, so its parent never imports scipy.integrate. The samples are exactly the dense
+    # solution's values; a set not kept yet is added and the file written again.
+    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
+    scene = catalog.build("double-pendulum", {"duration": 1.0})
+    times = np.linspace(0.0, 1.0, 101)
+    solved, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
+    [kept] = (tmp_path / "reference").glob("*.pickle")
+    assert solved.samples == {}
+    written = kept.stat().st_mtime_ns
+    kept_, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10, sample_times=[times])
+    assert set(kept_.samples) == {times.tobytes()} and kept.stat().st_mtime_ns != written
+
+    done = subprocess.run([sys.executable, "-c", KEPT_PROBE], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "XVAL_CACHE_DIR": str(tmp_path)})
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout)
+    assert seen["before"] is False and seen["after"] is True
+    np.testing.assert_array_equal(np.array(seen["positions"]), solved.at(times)[0])
+
+
+def test_a_solution_keeps_at_most_the_latest_sample_sets():
+    scene = catalog.build("bead", {"duration": 0.5})
+    solution = reference.solve(scene, 1e-8, 1e-8)
+    sets = [np.linspace(0.0, 0.5, n) for n in range(2, reference.MOST_SAMPLE_SETS + 4)]
+    assert solution.sample(sets) is True
+    assert list(solution.samples) == [t.tobytes() for t in sets[-reference.MOST_SAMPLE_SETS:]]
+    assert solution.sample(sets[-1:]) is False  # already kept: nothing to write again

@@ -85,6 +85,9 @@ class ReferenceTask:
     """The reference solve of one scene, run in a case host like a case (picklable).
 
     rtol, atol : DOP853's tolerances. timeout : s. memory_limit : bytes of address space, or None.
+    sample_times : the sets of times ((n,) s arrays) the run's cases are sampled at, one per dt:
+        the host evaluates the solution there (and keeps the samples with it), so the parent
+        finds them in ReferenceSolution.samples.
     """
 
     scene_id: str
@@ -94,6 +97,7 @@ class ReferenceTask:
     timeout: float = 120.0
     isolate: bool = True
     memory_limit: int | None = None
+    sample_times: tuple[Any, ...] = field(default=(), compare=False)
 
     @property
     def name(self) -> str:
@@ -351,7 +355,7 @@ def _run_in_host(task: Any) -> Any:
     if isinstance(task, ReferenceTask):
         from engines.reference import solve_and_bound_kept
 
-        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol)
+        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol, sample_times=task.sample_times)
     warm_up(task)
     return simulate(task)
 

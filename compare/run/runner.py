@@ -9,13 +9,16 @@ Division of work (why it is split this way):
   its process is recorded and the run carries on. A local run drives its
   hosts itself (:mod:`compare.run.hosts`); given an executor (a cluster's),
   the runner submits the tasks to it and each of its workers drives a host.
-- **The reference** for each scene is solved once, as its own task on the
-  same executor (so it overlaps with the engines' cases), and comes back to
-  the parent as a pickled dense solution (a few hundred kB).
-- **The parent** evaluates the reference at each case's own sample times
-  (a dt sweep gives different times per dt), computes the metrics (cheap,
-  pure functions), applies the status bounds and writes the record. Cases
-  that finish before their scene's reference wait in memory for it.
+- **The reference** for each scene is solved once (or found kept from an
+  earlier run), as its own task on the same executor (so it overlaps with
+  the engines' cases), evaluated there at the sample times of each dt of the
+  run's cases, and comes back to the parent as a pickled dense solution with
+  those samples.
+- **The parent** takes each case's reference samples from it (evaluating the
+  dense solution itself only for an engine that samples at times of its
+  own), computes the metrics (cheap, pure functions), applies the status
+  bounds and writes the record. Cases that finish before their scene's
+  reference wait in memory for it.
 
 Cases are submitted longest first (smallest dt) so that on a few cores the
 long cases do not end up alone at the tail of the run.
@@ -358,10 +361,17 @@ class _Dispatcher:
         scenes = {s.id: s.scene for s in self.suite.scenes}
         return {
             self.pool.submit(ReferenceTask(
-                sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit
+                sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit,
+                sample_times=self.sample_times(sid, scenes[sid]),
             )): ("reference", sid)
             for sid in scene_ids
         }
+
+    def sample_times(self, scene_id: str, scene: Scene) -> tuple[np.ndarray, ...]:
+        """The times this run's cases of the scene are sampled at, one (N,) s array per dt: where the
+        reference's host evaluates it (build_record then finds the samples there)."""
+        dts = sorted({c.dt for c in self.cases.values() if c.scene.id == scene_id})
+        return tuple(scheduled_times(scene.duration, dt, self.suite.sample_interval) for dt in dts)
 
     def fill(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
         """Submit cases while there is room: ``jobs`` at a time on a pool we own, all at once otherwise.
@@ -488,15 +498,18 @@ _preloaded: set[int] = set()
 
 
 def preload_engines(suite: Suite, cases) -> None:
-    """Let each engine of these cases (and the reference) load what it will need once, here, before
-    the pool forks: workers and case hosts inherit it instead of each importing and loading it again
+    """Let each engine of these cases (and the reference, unless every scene's is kept) load what it
+    will need once, here, before the pool forks: workers and case hosts inherit it instead of each importing and loading it again
     (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
     that fails is ignored (the cases report their own errors)."""
-    from engines.reference import ENGINE as REFERENCE
+    from engines.reference import ENGINE as REFERENCE, is_kept
 
     engines = {id(c.engine.engine): c.engine.engine for c in cases if c.engine.engine is not None}
-    engines.setdefault(id(REFERENCE), REFERENCE)
     scenes = [s.scene for s in suite.scenes]
+    # The reference solves every scene; its solver (scipy.integrate) is loaded only when some scene's
+    # solution is not kept from an earlier run (engines.reference.solve_and_bound_kept).
+    if not all(is_kept(scene, suite.rtol, suite.atol) for scene in scenes):
+        engines.setdefault(id(REFERENCE), REFERENCE)
     for key, engine in engines.items():
         preload = getattr(engine, "preload", None)
         if key in _preloaded or preload is None:

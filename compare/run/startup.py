@@ -44,7 +44,7 @@ def load_blas_single_threaded() -> None:
     os.environ[THREAD_VARIABLE] = "1"
     try:
         import numpy  # noqa: F401
-        import scipy.linalg  # noqa: F401
+        import scipy.linalg  # noqa: F401 - numba loads it (its np.linalg calls scipy's BLAS and LAPACK)
     finally:
         del os.environ[THREAD_VARIABLE]
 
