@@ -95,6 +95,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import itertools
 import math
 import os
 import sys
@@ -774,9 +775,8 @@ class _Run:
 
     # -- reading --
 
-    # The state readers give the particles' positions (m) and velocities (m/s) now, as PyBullet gives
-    # them: a list of P (x, y, z) tuples each (made arrays after the loop); the force reader writes
-    # one sample's (C, 3) N row in place.
+    # The readers give what PyBullet gives, made arrays after the loop: the particles' positions (m)
+    # and velocities (m/s) now, a list of P (x, y, z) tuples each; the constraints' states, one tuple each.
 
     def _state_multibody(self) -> tuple[list, list]:
         pb, c = _pb, self.client
@@ -793,14 +793,22 @@ class _Run:
         return ([pb.getBasePositionAndOrientation(body, physicsClientId=c)[0] for body in self.bodies],
                 [pb.getBaseVelocity(body, physicsClientId=c)[0] for body in self.bodies])
 
-    def _forces_p2p(self, f: np.ndarray) -> None:
+    def _forces_p2p(self) -> list:
+        """Each constraint's getConstraintState now (impulse/dt rows, N), as PyBullet gives them."""
         pb, c = _pb, self.client
-        for k, cid in enumerate(self.constraint_ids):
-            rows = pb.getConstraintState(cid, physicsClientId=c)
+        return [pb.getConstraintState(cid, physicsClientId=c) for cid in self.constraint_ids]
+
+    def _force_array(self, rows: list) -> np.ndarray:
+        """(n, C, 3) N: each constraint's force on its first particle, from n samples of _forces_p2p."""
+        f = np.empty((len(rows), self.n_constraints, 3))
+        for k in range(self.n_constraints):
+            raw = np.array([sample[k] for sample in rows], dtype=float)
             if k in self.slider_axes:
-                f[k] = np.asarray(rows[:2]) @ self.slider_axes[k]
+                for s, row in enumerate(raw):  # one sample at a time, as a rail's force always was
+                    f[s, k] = row[:2] @ self.slider_axes[k]
             else:
-                f[k] = self.force_sign[k] * np.asarray(rows[:3])
+                f[:, k] = self.force_sign[k] * raw[:, :3]
+        return f
 
     # -- stepping --
 
@@ -818,20 +826,20 @@ class _Run:
         n = len(samples)
         positions = np.empty((n, self.n_particles, 3))
         velocities = np.empty((n, self.n_particles, 3))
-        force_samples = np.full((n, self.n_constraints, 3), np.nan) if forces else None
         limit = RUNAWAY_LENGTHS * self.scene.characteristic_length
         positions[0], velocities[0] = state()
         step, recorded, message, wall = 0, 1, "", 0.0
         x_rows: list = []  # samples 1, 2, ...: each a state reader's lists
         u_rows: list = []
-        isfinite = math.isfinite
+        f_rows: list = []  # samples 0, 1, ...: each the force reader's list
+        isfinite, flat = math.isfinite, itertools.chain.from_iterable
         # Only stepSimulation is timed; reading the samples is not stepping.
         if forces:
             started = time.perf_counter()
             pb.stepSimulation(physicsClientId=c)
             wall += time.perf_counter() - started
             step = 1
-            forces(force_samples[0])  # no step precedes t = 0: the first step's force stands in
+            f_rows.append(forces())  # no step precedes t = 0: the first step's force stands in
         for k in range(1, n):
             started = time.perf_counter()
             for _ in range(int(samples[k]) - step):
@@ -842,19 +850,21 @@ class _Run:
             x_rows.append(x)
             u_rows.append(u)
             if forces:
-                forces(force_samples[k])
+                f_rows.append(forces())
             recorded = k + 1
-            if not all(isfinite(v) for xyz in (*x, *u) for v in xyz):
+            # map over the flattened tuples: the checks run in C, not a Python loop per number.
+            if not (all(map(isfinite, flat(x))) and all(map(isfinite, flat(u)))):
                 break
-            if max(abs(v) for xyz in x for v in xyz) > limit:
+            if max(map(abs, flat(x))) > limit:
                 message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
                 break
         positions[1:recorded] = np.array(x_rows, dtype=float).reshape(-1, self.n_particles, 3)
         velocities[1:recorded] = np.array(u_rows, dtype=float).reshape(-1, self.n_particles, 3)
+        force_samples = self._force_array(f_rows) if forces else None
         return RawRun(
             positions=positions[:recorded],
             velocities=velocities[:recorded],
-            forces=None if force_samples is None else force_samples[:recorded],
+            forces=force_samples,
             steps=step,
             wall_time=wall,
             message=message,
