@@ -17,7 +17,13 @@ reports, per run:
 
 The stepping times are wall clock: on a machine loaded by other jobs they grow
 while CPU time does not, which flatters the ratio. The load average is printed
-with each run; compare runs made at similar load.
+with each run; compare runs made at similar load. So is the machine's speed
+just before each run (``calib ms``: the fastest of five
+``compare.run.isolation.calibration_cpu_time`` kernels, numpy and the
+interpreter, the kernel the timing gate divides by): on a shared virtual
+machine the same build's ratio moves with it, because the harness's work
+(the interpreter, the kernel's file and page work) slows more than the
+engines' compiled stepping. Compare runs made at similar speed too.
 
 With ``--in-process`` it also runs the same cases with no case host
 (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
@@ -139,15 +145,24 @@ def one_run() -> dict:
     }
 
 
+def machine_speed() -> float:
+    """s of CPU for the timing gate's calibration kernel, the fastest of five (this machine's speed now)."""
+    from compare.run.isolation import calibration_cpu_time
+
+    return min(calibration_cpu_time() for _ in range(5))
+
+
 def main(argv: list[str]) -> int:
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
     one_run()  # fills numba's and the references' caches if they are empty; not counted
-    print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}")
+    print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}"
+          f" {'calib ms':>9}")
     last = None
     for k in range(runs):
+        speed = machine_speed()
         last = one_run()
         print(f"{k + 1:>3} {last['cpu']:7.2f} {last['xval']:7.2f} {last['descendants']:9.2f} {last['stepping']:11.2f} "
-              f"{last['cpu'] / last['stepping']:15.2f} {os.getloadavg()[0]:5.1f}")
+              f"{last['cpu'] / last['stepping']:15.2f} {os.getloadavg()[0]:5.1f} {1000 * speed:9.2f}")
     print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
     for name, (cases, stepping, outside) in last["engines"].items():
         print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
