@@ -77,7 +77,7 @@ def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
     """Scratch arrays for :func:`run`, allocated here in Python because the compiled code has no allocator."""
     z = np.zeros
     rattle = (z((C, dim)), z((C, dim)), z((C, bandwidth + 1)), z(C), z(C), z((P, dim)))
-    return (z((C, dim)), z((C, dim)), z((C, bandwidth + 1)), z(C), z((stages, P, dim)), z((stages, P, dim)),
+    return (z((C, dim)), z((C, bandwidth + 1)), z(C), z((stages, P, dim)), z((stages, P, dim)),
             z((P, dim)), z((P, dim)), rattle)
 
 
@@ -170,10 +170,10 @@ def add_constraint_term(x, scale, inverse_mass, ends, G, lam):
 
 
 @compiled
-def multipliers(q, v, model, k_s, k_d, G, V, band, lam):
+def multipliers(q, v, model, k_s, k_d, G, band, lam):
     """λ from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular.
 
-    V is unused scratch (kept for the signature). G (C, dim) receives the gradients.
+    G (C, dim) receives the gradients.
     """
     inverse_mass, force, ends = model[0], model[1], model[2]
     dim = _dim(q)
@@ -191,10 +191,10 @@ def multipliers(q, v, model, k_s, k_d, G, V, band, lam):
 
 
 @compiled
-def acceleration(q, v, model, k_s, k_d, G, V, band, lam, acc):
+def acceleration(q, v, model, k_s, k_d, G, band, lam, acc):
     """acc = W (f + Jᵀλ), m/s²; False when J W Jᵀ is singular."""
     inverse_mass, force = model[0], model[1]
-    ok = multipliers(q, v, model, k_s, k_d, G, V, band, lam)
+    ok = multipliers(q, v, model, k_s, k_d, G, band, lam)
     dim = _dim(q)
     for p in range(_particles(q)):
         for a in range(dim):
@@ -315,13 +315,13 @@ def _finite(x):
 
 
 @compiled
-def _record(n, q, v, model, k_s, k_d, G, V, band, out_q, out_v, out_lam):
+def _record(n, q, v, model, k_s, k_d, G, band, out_q, out_v, out_lam):
     dim = _dim(q)
     for p in range(_particles(q)):
         for a in range(dim):
             out_q[n, p, a] = q[p, a]
             out_v[n, p, a] = v[p, a]
-    if not multipliers(q, v, model, k_s, k_d, G, V, band, out_lam[n]):
+    if not multipliers(q, v, model, k_s, k_d, G, band, out_lam[n]):
         for k in range(out_lam.shape[1]):
             out_lam[n, k] = np.nan
 
@@ -336,7 +336,7 @@ def _axpy(y, x, alpha, s):
 
 
 @compiled
-def rk_step(A, b, h, q, v, model, ks, kd, G, V, band, lam, Kq, Kv, qs, vs):
+def rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
     """One explicit Runge–Kutta step with the table (A, b) in place; False when J W Jᵀ was singular.
 
     Stage i: qs = q + h Σ_j A_ij Kq_j, vs = v + h Σ_j A_ij Kv_j (terms added in
@@ -352,7 +352,7 @@ def rk_step(A, b, h, q, v, model, ks, kd, G, V, band, lam, Kq, Kv, qs, vs):
                 _axpy(qs, qs, h * A[i, j], Kq[j])
                 _axpy(vs, vs, h * A[i, j], Kv[j])
         _copy(Kq[i], vs)
-        if not acceleration(qs, vs, model, ks, kd, G, V, band, lam, Kv[i]):
+        if not acceleration(qs, vs, model, ks, kd, G, band, lam, Kv[i]):
             ok = False
     for i in range(b.shape[0]):
         if b[i] != 0.0:
@@ -370,7 +370,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     method, integrator : codes from ours.method / ours.integrator. A (s, s), b (s,) : Butcher table.
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
-    G, V, band, lam, Kq, Kv, qs, vs, rattle_work = work
+    G, band, lam, Kq, Kv, qs, vs, rattle_work = work
     # Only baumgarte feeds C and Ċ back; its λ at a sample includes the feedback it applied.
     ks = k_s if method == _BAUMGARTE else 0.0
     kd = k_d if method == _BAUMGARTE else 0.0
@@ -378,7 +378,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     P = _particles(q)
     dim = _dim(q)
 
-    _record(0, q, v, model, ks, kd, G, V, band, out_q, out_v, out_lam)
+    _record(0, q, v, model, ks, kd, G, band, out_q, out_v, out_lam)
     n = 1
     status = OK
     step = 0
@@ -386,13 +386,13 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
         if integrator == _RATTLE:
             status = rattle_step(q, v, h, model, tolerance, max_iterations, rattle_work)
         elif integrator == _SYMPLECTIC_EULER:
-            if not acceleration(q, v, model, ks, kd, G, V, band, lam, Kv[0]):
+            if not acceleration(q, v, model, ks, kd, G, band, lam, Kv[0]):
                 status = SINGULAR
             for p in range(P):
                 for a in range(dim):
                     v[p, a] = v[p, a] + h * Kv[0, p, a]
                     q[p, a] = q[p, a] + h * v[p, a]
-        elif not rk_step(A, b, h, q, v, model, ks, kd, G, V, band, lam, Kq, Kv, qs, vs):
+        elif not rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
             status = SINGULAR
         if status == OK and method == _PROJECTION:
             status = project_positions(q, model, tolerance, max_iterations, G, band, lam)
@@ -407,7 +407,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
             if not (_finite(q) and _finite(v)):
                 status = NON_FINITE
                 break
-            _record(n, q, v, model, ks, kd, G, V, band, out_q, out_v, out_lam)
+            _record(n, q, v, model, ks, kd, G, band, out_q, out_v, out_lam)
             n += 1
     return n, step, status
 
@@ -422,10 +422,10 @@ def sample_gradients(out_q, model, out_G):
 
 
 @compiled
-def sample_multipliers(out_q, out_v, model, G, V, band, out_lam):
+def sample_multipliers(out_q, out_v, model, G, band, out_lam):
     """out_lam[s] = λ at the sample (out_q[s], out_v[s]) with no Baumgarte feedback (NaN where
     J W Jᵀ is singular): the constraint forces of a motion stepped elsewhere (``ours.lagrangian``)."""
     for s in range(out_q.shape[0]):
-        if not multipliers(out_q[s], out_v[s], model, 0.0, 0.0, G, V, band, out_lam[s]):
+        if not multipliers(out_q[s], out_v[s], model, 0.0, 0.0, G, band, out_lam[s]):
             for k in range(out_lam.shape[1]):
                 out_lam[s, k] = np.nan

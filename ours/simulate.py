@@ -166,7 +166,7 @@ def simulate(
         wall_time = time.perf_counter() - start
         C = system.n_constraints
         _kernel(system).sample_multipliers(
-            out_q[:written], out_v[:written], model, np.zeros((C, system.dim)), np.zeros((C, system.dim)),
+            out_q[:written], out_v[:written], model, np.zeros((C, system.dim)),
             np.zeros((C, p.bandwidth + 1)), out_lam[:written],
         )
     else:
@@ -217,7 +217,7 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     C = system.n_constraints
     lam = np.zeros(C)
     if not _kernel(system).multipliers(q, v, p.model, float(k_s), float(k_d), np.zeros((C, system.dim)),
-                              np.zeros((C, system.dim)), np.zeros((C, p.bandwidth + 1)), lam):
+                                       np.zeros((C, p.bandwidth + 1)), lam):
         raise ModelError("J W Jᵀ is singular at this state: the constraints are dependent or degenerate")
     return lam
 
