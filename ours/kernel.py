@@ -315,15 +315,20 @@ def _finite(x):
 
 
 @compiled
-def _record(n, q, v, model, k_s, k_d, G, band, out_q, out_v, out_lam):
+def _record(q, v, model, k_s, k_d, G, band, sample_q, sample_v, sample_lam):
+    """One sample: q, v into sample_q, sample_v (P, dim) and λ into sample_lam (C,) (NaN when singular).
+
+    Given the sample's rows rather than their index: a call with a constant index (the first
+    sample's 0) made numba compile a copy of this function, multipliers and all, for each constant.
+    """
     dim = _dim(q)
     for p in range(_particles(q)):
         for a in range(dim):
-            out_q[n, p, a] = q[p, a]
-            out_v[n, p, a] = v[p, a]
-    if not multipliers(q, v, model, k_s, k_d, G, band, out_lam[n]):
-        for k in range(out_lam.shape[1]):
-            out_lam[n, k] = np.nan
+            sample_q[p, a] = q[p, a]
+            sample_v[p, a] = v[p, a]
+    if not multipliers(q, v, model, k_s, k_d, G, band, sample_lam):
+        for k in range(sample_lam.shape[0]):
+            sample_lam[k] = np.nan
 
 
 @compiled
@@ -378,7 +383,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     P = _particles(q)
     dim = _dim(q)
 
-    _record(0, q, v, model, ks, kd, G, band, out_q, out_v, out_lam)
+    _record(q, v, model, ks, kd, G, band, out_q[0], out_v[0], out_lam[0])
     n = 1
     status = OK
     step = 0
@@ -407,7 +412,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
             if not (_finite(q) and _finite(v)):
                 status = NON_FINITE
                 break
-            _record(n, q, v, model, ks, kd, G, band, out_q, out_v, out_lam)
+            _record(q, v, model, ks, kd, G, band, out_q[n], out_v[n], out_lam[n])
             n += 1
     return n, step, status
 

@@ -54,11 +54,6 @@ def to_cartesian(theta, omega, lengths, anchor, q, v):
 
 
 @compiled
-def _record(n, theta, omega, lengths, anchor, out_q, out_v):
-    to_cartesian(theta, omega, lengths, anchor, out_q[n], out_v[n])
-
-
-@compiled
 def _finite(x):
     for k in range(x.shape[0]):
         if not math.isfinite(x[k]):
@@ -81,7 +76,8 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
     stages = b.shape[0]
     M, Kt, Kw, ts, ws = work
     h = dt
-    _record(0, theta, omega, lengths, anchor, out_q, out_v)
+    # The sample's rows, not an index: a constant index made numba compile a copy per constant.
+    to_cartesian(theta, omega, lengths, anchor, out_q[0], out_v[0])
     n = 1
     status = OK
     step = 0
@@ -109,7 +105,7 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
         if status != OK:
             break
         if step % stride == 0 or step == n_steps:
-            _record(n, theta, omega, lengths, anchor, out_q, out_v)
+            to_cartesian(theta, omega, lengths, anchor, out_q[n], out_v[n])
             n += 1
     return n, step, status
 
