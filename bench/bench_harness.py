@@ -18,12 +18,11 @@ reports, per run:
 The stepping times are wall clock: on a machine loaded by other jobs they grow
 while CPU time does not, which flatters the ratio. The load average is printed
 with each run; compare runs made at similar load. So is the machine's speed
-just before each run (``calib ms``: the fastest of five
-``compare.run.isolation.calibration_cpu_time`` kernels, numpy and the
-interpreter, the kernel the timing gate divides by): on a shared virtual
-machine the same build's ratio moves with it, because the harness's work
-(the interpreter, the kernel's file and page work) slows more than the
-engines' compiled stepping. Compare runs made at similar speed too.
+just before each run (``calib ms``: the CPU of a fixed piece of pure-Python
+work, the fastest of five): on a shared virtual machine the same build's
+ratio moves with it, because the harness's work (the interpreter, the
+kernel's file and page work) slows more than the engines' compiled stepping.
+Compare runs made at similar speed too.
 
 With ``--in-process`` it also runs the same cases with no case host
 (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
@@ -37,11 +36,13 @@ cases, its CPU minus nothing the cases could save).
 from __future__ import annotations
 
 import json
+import math
 import os
 import resource
 import subprocess
 import sys
 import tempfile
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -145,11 +146,22 @@ def one_run() -> dict:
     }
 
 
-def machine_speed() -> float:
-    """s of CPU for the timing gate's calibration kernel, the fastest of five (this machine's speed now)."""
-    from compare.run.isolation import calibration_cpu_time
+def _interpreter_work() -> float:
+    """A fixed piece of pure-Python work (building and reading a dict of 100,000 small lists)."""
+    table = {str(i): [i, 2.0 * i] for i in range(100_000)}
+    return sum(row[1] for row in table.values())
 
-    return min(calibration_cpu_time() for _ in range(5))
+
+def machine_speed() -> float:
+    """s of CPU for :func:`_interpreter_work`, the fastest of five: how fast this machine runs the
+    interpreter now. (The timing gate's calibration kernel, mostly small matrix products, did not
+    move while the same build's harness CPU, and this, nearly doubled.)"""
+    best = math.inf
+    for _ in range(5):
+        start = time.process_time()
+        _interpreter_work()
+        best = min(best, time.process_time() - start)
+    return best
 
 
 def main(argv: list[str]) -> int:

@@ -243,9 +243,9 @@ def main(argv: list[str]) -> int:
                                      "rows": rows, "skipped": SKIPPED}, indent=1), encoding="utf-8")
     # The compile time is mostly the interpreter's work (numba's typing and lowering), which on a shared
     # virtual machine slows with the machine's state more than compiled stepping does: compare runs made
-    # at a similar calibration time (the timing gate's kernel; bench/bench_harness.py prints it too).
+    # at a similar calibration time (bench_harness.machine_speed: pure-Python work).
     print(f"\nrows written to {json_path}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; "
-          f"calibration kernel {1000 * speed:.2f} ms (the machine's speed now)")
+          f"interpreter calibration {1000 * speed:.1f} ms (the machine's speed now: bench_harness.machine_speed)")
     return 0
 
 
