@@ -61,8 +61,10 @@ joint, which for a massless arm is the rod's force on its particle.
 
 from __future__ import annotations
 
+import importlib.metadata
+import importlib.util
 import time
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
@@ -72,11 +74,14 @@ from engines.mujoco import Tree, constraint_tree
 from engines.plugin import refuse_constraint_kinds
 from engines.scene import Pin, Rod, Scene
 
-import pydrake
-from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
-from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
-from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia
-from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+# pydrake itself is imported where a plant is built (and by preload, before a run forks its hosts):
+# listing the engines (`xval engines`) or planning a run needs only to know it is installed, and
+# importing it was much of what `xval engines` spent.
+if importlib.util.find_spec("pydrake") is None:
+    raise ImportError("No module named 'pydrake'")
+if TYPE_CHECKING:
+    from pydrake.math import RotationMatrix
+    from pydrake.multibody.plant import MultibodyPlant
 
 #: Drake's scheme names (``ResetIntegratorFromFlags``) by this adapter's integrator option value.
 SCHEMES = {
@@ -101,12 +106,8 @@ TOLERANCE_OPTION = "accuracy"
 
 
 def drake_version() -> str:
-    """Drake's version string (pydrake.__version__ in recent wheels, else the wheel's metadata)."""
-    version = getattr(pydrake, "__version__", None)
-    if version:
-        return str(version)
-    import importlib.metadata
-
+    """Drake's version string, from the installed wheel's metadata (what pydrake.__version__ would say in
+    the wheels that set it; this one, 1.51, does not), so that asking needs no import of pydrake."""
     return importlib.metadata.version("drake")
 
 
@@ -171,6 +172,14 @@ class DrakeEngine(Engine):
     def version(self) -> str:
         return drake_version()
 
+    def preload(self, scenes) -> None:
+        """Import pydrake's plant, frames and simulator in this process, so that case hosts forked from it
+        (a run whose suite uses Drake) inherit them instead of each importing them again."""
+        import pydrake.math  # noqa: F401
+        import pydrake.multibody.plant  # noqa: F401
+        import pydrake.multibody.tree  # noqa: F401
+        import pydrake.systems.analysis  # noqa: F401
+
     def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
         """Whether these settings run with error control, so that ``accuracy`` (not dt) sets the error."""
         return settings["plant"] == "continuous" and settings["error_control"]
@@ -213,6 +222,10 @@ class DrakeEngine(Engine):
 
     def build(self, scene: Scene, time_step: float, settings: Mapping[str, Any]) -> "DrakeModel":
         """The finalized plant for ``scene`` (time_step s: 0 continuous, dt discrete) and its joints."""
+        from pydrake.math import RigidTransform
+        from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
+        from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia
+
         tree = constraint_tree(scene)
         q = scene.initial_positions
         inertia = self.inertia(scene, settings)
@@ -248,6 +261,8 @@ class DrakeEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant
@@ -317,6 +332,8 @@ def _frame_with_x_along(direction: np.ndarray) -> RotationMatrix:
     y = np.cross(helper, x)
     y /= np.linalg.norm(y)
     z = np.cross(x, y)
+    from pydrake.math import RotationMatrix
+
     return RotationMatrix(np.column_stack([x, y, z]))
 
 
@@ -376,6 +393,8 @@ class DrakeModel:
                 joint.set_angular_rate(plant_context, float(relative[1]))
             else:
                 # Joint frame M on the child is R_BM; at the start the body is aligned with the world (F).
+                from pydrake.math import RollPitchYaw
+
                 R_FM = _frame_with_x_along(r)
                 joint.set_angles(plant_context, RollPitchYaw(R_FM).vector())
                 joint.set_angular_velocity(plant_context, relative)

@@ -2,8 +2,9 @@
 
 `xval engines` loads every engine adapter (ours, the reference, MuJoCo, …) to
 describe it; neither that nor ``import ours`` / ``import compare`` may import
-numba (whose import alone costs about 0.3 s) or compile a function, and scipy's
-integrators are not loaded until a reference is solved. Checked in a fresh
+numba (whose import alone costs about 0.3 s) or compile a function, scipy's
+integrators are not loaded until a reference is solved, and pydrake not until
+a Drake plant is built. Checked in a fresh
 interpreter with an empty cache directory: nothing may be written to it.
 """
 
@@ -32,7 +33,8 @@ with contextlib.redirect_stdout(out):
     else:
         code = 0
 print(json.dumps({"code": code, "listed": "ours/baumgarte-rk4" in out.getvalue(),
-                  "numba": "numba" in sys.modules, "integrate": "scipy.integrate" in sys.modules}))
+                  "numba": "numba" in sys.modules, "integrate": "scipy.integrate" in sys.modules,
+                  "drake_listed": "drake/" in out.getvalue(), "pydrake": "pydrake" in sys.modules}))
 """
 
 
@@ -42,7 +44,9 @@ def test_xval_engines_imports_no_numba_and_compiles_nothing(tmp_path):
                           timeout=120)
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert result == {"code": 0, "listed": True, "numba": False, "integrate": False}
+    # Drake is listed (with its variants when installed, else with the pip line) without importing pydrake.
+    assert result == {"code": 0, "listed": True, "numba": False, "integrate": False, "drake_listed": True,
+                      "pydrake": False}
     cache = tmp_path / "cache"
     assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*")), list(cache.rglob("*"))
 
