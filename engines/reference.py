@@ -32,7 +32,7 @@ import os
 import pickle
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -469,11 +469,12 @@ def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float =
     tighter one, for the bound) before its cases can be judged, and evaluates
     it at each dt's sample times; the same scene at the same tolerances gives
     the same answer every time, so the answer and its samples are kept, as a
-    pickle, under a key of everything they depend on: the scene's physics
-    (duration included), rtol and atol, the reference's own source text, and
-    the versions of Python, numpy and scipy. A kept file that cannot be read is
+    pickle, under a key of everything they depend on: the scene (duration
+    included), rtol and atol, the reference's own source text, and the
+    versions of Python, numpy and scipy. A kept file that cannot be read is
     solved again and replaced; one that lacks some of the sample times is
-    sampled and written again.
+    sampled and written again. The solution returned holds the samples at
+    ``sample_times`` only.
     """
     path = _kept_path(scene, rtol, atol)
     solved = None
@@ -484,19 +485,29 @@ def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float =
         pass
     except Exception:  # noqa: BLE001 - damaged or from an incompatible build: solve again
         path.unlink(missing_ok=True)
+    sample_times = [np.asarray(times, dtype=float) for times in sample_times]
     if solved is None:
         solved = solve_and_bound(scene, rtol, atol)
         solved[0].sample(sample_times)
-    elif not solved[0].sample(sample_times):
-        return solved
+        _keep(path, solved)
+    elif solved[0].sample(sample_times):
+        _keep(path, solved)
+    # The answer carries only the samples asked for (the file may hold other suites' too).
+    solution, bound = solved
+    wanted = {times.tobytes() for times in sample_times}
+    return replace(solution, samples={k: v for k, v in solution.samples.items() if k in wanted}), bound
+
+
+def _keep(path: Path, solved: tuple[ReferenceSolution, ReferenceBound]) -> None:
+    """Write ``solved`` to ``path`` whole or not at all (a concurrent reader sees the old file or the new)."""
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
-    if len(data) <= _LARGEST_KEPT:
-        with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
-            path.parent.mkdir(parents=True, exist_ok=True)
-            temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            temporary.write_bytes(data)
-            os.replace(temporary, path)  # whole or not at all, for a concurrent reader
-    return solved
+    if len(data) > _LARGEST_KEPT:
+        return
+    with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
+        path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        temporary.write_bytes(data)
+        os.replace(temporary, path)
 
 
 def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> bool:

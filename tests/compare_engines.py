@@ -27,12 +27,15 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.scene import Scene
 
-MODES = ("exact", "raise", "nan", "sleep", "kill", "exit", "drift", "kill-worker")
+MODES = ("exact", "raise", "nan", "sleep", "pause", "kill", "exit", "drift", "kill-worker")
+#: s the ``pause`` mode waits before it answers like ``exact``.
+PAUSE = 1.5
 
 
 class MisbehavingEngine(Engine):
     """exact: the reference; raise: raises in the stepping loop; nan: NaN from halfway;
-    sleep: sleeps for an hour; kill: SIGKILLs its own process; exit: os._exit(3);
+    sleep: sleeps for an hour; pause: sleeps PAUSE s, then answers like exact;
+    kill: SIGKILLs its own process; exit: os._exit(3);
     drift: the reference with the bead pushed 0.5 m off its wire (finite, but past the bounds);
     kill-worker: SIGKILLs the process that forked the case host when that is an executor's worker."""
 
@@ -52,6 +55,8 @@ class MisbehavingEngine(Engine):
             raise RuntimeError("deliberate failure in the stepping loop")
         if mode == "sleep":
             time.sleep(3600)
+        if mode == "pause":
+            time.sleep(PAUSE)
         if mode == "kill":
             os.kill(os.getpid(), signal.SIGKILL)
         if mode == "exit":

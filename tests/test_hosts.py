@@ -10,14 +10,15 @@ the pool ends every host at once.
 
 from __future__ import annotations
 
+import pickle
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 from compare.run.hosts import HostPool
 from compare.run.isolation import CaseTask, ReferenceTask
+from compare.run.runner import scheduled_times
 from engines.catalog import build
 from engines.reference import solve_and_bound
 
@@ -25,6 +26,8 @@ from engines.reference import solve_and_bound
 HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:  # compare_engines, the misbehaving test engine, lives beside this file
     sys.path.insert(0, str(HERE))
+
+from compare_engines import PAUSE  # noqa: E402
 
 
 def case(engine: str, variant: str, scene, dt: float = 1e-2, timeout: float = 60) -> CaseTask:
@@ -49,18 +52,11 @@ def test_each_answer_reaches_its_own_future_and_closing_ends_every_host():
     tasks = [case("mujoco", "hinge", scene), case("pymunk", "pin", scene), case("ours", "baumgarte-rk4", scene),
              case("mujoco", "hinge", scene, dt=1e-3)]
     reference = ReferenceTask("bead", scene, rtol=1e-10, atol=1e-12, timeout=60)
-    futures = [pool.submit(t) for t in tasks] + [pool.submit(reference)]
-    try:
-        while not all(f.done() for f in futures):
-            pool.wait([f for f in futures if not f.done()])
-    finally:
-        pool.shutdown()
-    outcomes = [f.result() for f in futures[:-1]]
+    *outcomes, (solution, _bound) = run_all(pool, tasks + [reference])
     assert [o.case_id for o in outcomes] == [t.case_id for t in tasks]
     assert [o.status for o in outcomes] == ["ok"] * 4
     assert [o.trajectory.n_samples for o in outcomes] == [11] * 4
     assert outcomes[3].trajectory.info.steps == 500 and outcomes[0].trajectory.info.steps == 50
-    solution, _bound = futures[-1].result()
     expected, _ = solve_and_bound(scene, rtol=1e-10, atol=1e-12)
     times = np.linspace(0, 0.5, 11)
     assert np.array_equal(solution.at(times)[0], expected.at(times)[0])
@@ -88,8 +84,33 @@ def test_a_task_waiting_behind_a_timed_out_one_runs_and_its_timeout_counts_from_
     # host's pipe, yet it runs in a new host and is timed from its start there, not from when it was sent.
     scene = build("bead", {"duration": 0.5})
     pool = HostPool(1, depth=2)
-    started = time.perf_counter()
     sleeper, after = run_all(pool, [case("compare_engines:MISBEHAVING", "sleep", scene, timeout=1.5),
                                     case("pymunk", "pin", scene, timeout=1.5)])
     assert sleeper.status == "timeout"
-    assert after.status == "ok" and after.elapsed < 1.0 < time.perf_counter() - started
+    assert after.status == "ok" and after.elapsed < 1.0
+
+
+def test_a_task_waiting_behind_one_that_answers_is_timed_from_when_its_host_takes_it():
+    # The first case takes PAUSE (1.5 s) and answers ok; the one sent behind it has a 1 s timeout,
+    # which would have run out while it waited if its clock started when it was sent.
+    scene = build("bead", {"duration": 0.5})
+    pool = HostPool(1, depth=2)
+    paused, after = run_all(pool, [case("compare_engines:MISBEHAVING", "pause", scene, timeout=30),
+                                   case("pymunk", "pin", scene, timeout=1.0)])
+    assert paused.status == "ok" and paused.elapsed >= PAUSE
+    assert after.status == "ok", after.message
+
+
+def test_a_reference_task_stays_small_and_its_samples_are_the_runs_sample_times(tmp_path, monkeypatch):
+    # A task is written into the pipe of a host that may still be busy with the one before it: a task
+    # bigger than the pipe (64 KiB) would block the driver while that host blocks writing its answer.
+    # So a reference task names the dts, not the 100,001 times of this 100 s scene sampled every
+    # 1 ms, and the host rebuilds exactly the times the runner samples the cases at.
+    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
+    scene = build("bead", {"duration": 100.0})
+    dts = (1e-3, 1e-2)
+    task = ReferenceTask("bead", scene, rtol=1e-6, atol=1e-8, timeout=120, sample_dts=dts, sample_interval=1e-3)
+    assert len(pickle.dumps(task)) < 4096
+    solution, _bound = run_all(HostPool(1), [task])[0]
+    assert set(solution.samples) == {scheduled_times(100.0, dt, 1e-3).tobytes() for dt in dts}
+    assert len(scheduled_times(100.0, 1e-3, 1e-3)) == 100_001

@@ -52,7 +52,7 @@ import traceback
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
-from engines.adapter import Engine
+from engines.adapter import Engine, Schedule
 from engines.scene import Scene
 from engines.trajectory import Trajectory
 
@@ -85,9 +85,11 @@ class ReferenceTask:
     """The reference solve of one scene, run in a case host like a case (picklable).
 
     rtol, atol : DOP853's tolerances. timeout : s. memory_limit : bytes of address space, or None.
-    sample_times : the sets of times ((n,) s arrays) the run's cases are sampled at, one per dt:
-        the host evaluates the solution there (and keeps the samples with it), so the parent
-        finds them in ReferenceSolution.samples.
+    sample_dts, sample_interval : s; the run's cases of this scene are sampled at
+        Schedule.make(duration, dt, sample_interval).times for each of these dts: the host
+        evaluates the solution there (and keeps the samples with it), so the parent finds them
+        in ReferenceSolution.samples. (The dts, not the times: a task must stay small, since a
+        driver writes it into the pipe of a host that may be busy with the task before it.)
     """
 
     scene_id: str
@@ -97,7 +99,8 @@ class ReferenceTask:
     timeout: float = 120.0
     isolate: bool = True
     memory_limit: int | None = None
-    sample_times: tuple[Any, ...] = field(default=(), compare=False)
+    sample_dts: tuple[float, ...] = ()
+    sample_interval: float | None = None
 
     @property
     def name(self) -> str:
@@ -355,7 +358,8 @@ def _run_in_host(task: Any) -> Any:
     if isinstance(task, ReferenceTask):
         from engines.reference import solve_and_bound_kept
 
-        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol, sample_times=task.sample_times)
+        times = [Schedule.make(task.scene.duration, dt, task.sample_interval).times for dt in task.sample_dts]
+        return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol, sample_times=times)
     warm_up(task)
     return simulate(task)
 

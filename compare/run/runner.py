@@ -362,16 +362,11 @@ class _Dispatcher:
         return {
             self.pool.submit(ReferenceTask(
                 sid, scenes[sid], self.suite.rtol, self.suite.atol, self.timeout, self.isolate, self.memory_limit,
-                sample_times=self.sample_times(sid, scenes[sid]),
+                sample_dts=tuple(sorted({c.dt for c in self.cases.values() if c.scene.id == sid})),
+                sample_interval=self.suite.sample_interval,
             )): ("reference", sid)
             for sid in scene_ids
         }
-
-    def sample_times(self, scene_id: str, scene: Scene) -> tuple[np.ndarray, ...]:
-        """The times this run's cases of the scene are sampled at, one (N,) s array per dt: where the
-        reference's host evaluates it (build_record then finds the samples there)."""
-        dts = sorted({c.dt for c in self.cases.values() if c.scene.id == scene_id})
-        return tuple(scheduled_times(scene.duration, dt, self.suite.sample_interval) for dt in dts)
 
     def fill(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
         """Submit cases while there is room: ``jobs`` at a time on a pool we own, all at once otherwise.
