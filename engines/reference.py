@@ -26,6 +26,7 @@ particle accelerations: the force link k exerts on the particle below it is
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import math
 import os
@@ -469,12 +470,12 @@ def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float =
     tighter one, for the bound) before its cases can be judged, and evaluates
     it at each dt's sample times; the same scene at the same tolerances gives
     the same answer every time, so the answer and its samples are kept, as a
-    pickle, under a key of everything they depend on: the scene (duration
-    included), rtol and atol, the reference's own source text, and the
-    versions of Python, numpy and scipy. A kept file that cannot be read is
-    solved again and replaced; one that lacks some of the sample times is
-    sampled and written again. The solution returned holds the samples at
-    ``sample_times`` only.
+    pickle, under a key of everything they depend on: the scene's physics
+    (``Scene.content_hash``, duration included), rtol and atol, the reference's
+    own source text, and the versions of Python, numpy and scipy. A kept file
+    that cannot be read is solved again and replaced; one that lacks some of the
+    sample times is sampled and written again. The solution returned holds the
+    samples at ``sample_times`` only.
     """
     path = _kept_path(scene, rtol, atol)
     solved = None
@@ -483,6 +484,8 @@ def solve_and_bound_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float =
             solved = pickle.load(handle)
     except FileNotFoundError:
         pass
+    except MemoryError:  # the file is fine; this process (a case host under its limit) is not
+        raise
     except Exception:  # noqa: BLE001 - damaged or from an incompatible build: solve again
         path.unlink(missing_ok=True)
     sample_times = [np.asarray(times, dtype=float) for times in sample_times]
@@ -518,13 +521,24 @@ def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
 def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
     from ours.cache import cache_dir  # the one user cache directory of xval
 
-    here = Path(__file__).parent
     key = hashlib.sha256()
-    for part in (scene.to_json(), repr(float(rtol)), repr(float(atol)), sys.version, np.__version__,
-                 scipy.__version__, *((here / name).read_text(encoding="utf-8") for name in _SOURCES)):
+    for part in (scene.content_hash, repr(float(rtol)), repr(float(atol)), _code_digest()):
         key.update(part.encode())
         key.update(b"\0")
     return cache_dir() / "reference" / f"{key.hexdigest()[:32]}.pickle"
+
+
+@functools.cache
+def _code_digest() -> str:
+    """A hash of what a kept solution's code depends on: the reference's source files and the versions
+    of Python, numpy and scipy (read once per process: a run asks for every scene, in parent and host)."""
+    here = Path(__file__).parent
+    key = hashlib.sha256()
+    for part in (sys.version, np.__version__, scipy.__version__,
+                 *((here / name).read_text(encoding="utf-8") for name in _SOURCES)):
+        key.update(part.encode())
+        key.update(b"\0")
+    return key.hexdigest()
 
 
 def lyapunov_exponent(

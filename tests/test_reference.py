@@ -14,6 +14,7 @@ from scipy.optimize import brentq
 from engines import catalog, reference
 from engines.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported
+from engines.scene import Scene
 from engines.trajectory import constraint_errors, tensions, total_energy
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -220,3 +221,24 @@ def test_a_solution_keeps_at_most_the_latest_sample_sets():
     assert solution.sample(sets) is True
     assert list(solution.samples) == [t.tobytes() for t in sets[-reference.MOST_SAMPLE_SETS:]]
     assert solution.sample(sets[-1:]) is False  # already kept: nothing to write again
+
+
+def test_the_kept_key_is_the_scenes_physics_and_running_out_of_memory_keeps_the_file(tmp_path, monkeypatch):
+    # Keyed by Scene.content_hash: another duration is another file; the same physics under another
+    # name is the same file. A MemoryError while reading (a case host at its limit) is raised, and the
+    # file, which is fine, stays.
+    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
+    scene = catalog.build("bead", {"duration": 0.5})
+    reference.solve_and_bound_kept(scene, 1e-8, 1e-8)
+    reference.solve_and_bound_kept(catalog.build("bead", {"duration": 0.25}), 1e-8, 1e-8)
+    assert len(list((tmp_path / "reference").glob("*.pickle"))) == 2
+    renamed = Scene("renamed", scene.particles, scene.constraints, scene.gravity, scene.duration)
+    assert reference.is_kept(renamed, 1e-8, 1e-8)
+
+    def out_of_memory(handle):
+        raise MemoryError
+
+    monkeypatch.setattr(reference.pickle, "load", out_of_memory)
+    with pytest.raises(MemoryError):
+        reference.solve_and_bound_kept(scene, 1e-8, 1e-8)
+    assert len(list((tmp_path / "reference").glob("*.pickle"))) == 2
