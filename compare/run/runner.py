@@ -737,25 +737,17 @@ def within_horizon(scene: Scene, trajectory: Any, ref_positions: np.ndarray, ref
 
 
 class SampledReference:
-    """A scene's reference solution and its samples at each dt's scheduled times, each evaluated once.
-
-    Every engine variant of one dt is sampled at the same times, so they share
-    one evaluation of the dense solution (~35 µs a sample: 0.7 s for each case
-    of the 20,001-sample 1,000 s bead of suites/stiff.toml when done per case).
-    """
+    """A scene's reference: its dense solution, which carries its samples at this run's sample times
+    (evaluated by the reference's host, ``ReferenceTask.sample_dts``), and its bound (or None)."""
 
     def __init__(self, solved: Any) -> None:
         # solve_reference's (solution, bound); a bare solution (no bound) is accepted too.
         self.solution, self.bound = solved if isinstance(solved, tuple) else (solved, None)
-        self._samples: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
     def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """positions (N, P, 3) m and constraint forces (N, C, 3) N at ``times`` (N,) s."""
-        key = times.tobytes()
-        if key not in self._samples:
-            positions, _, forces = self.solution.at(times)
-            self._samples[key] = (positions, forces)
-        return self._samples[key]
+        positions, _, forces = self.solution.at(times)
+        return positions, forces
 
 
 def _truncate(trajectory, n: int):
