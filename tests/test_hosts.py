@@ -10,6 +10,7 @@ the pool ends every host at once.
 
 from __future__ import annotations
 
+import gc
 import pickle
 import sys
 from pathlib import Path
@@ -17,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from compare.run.hosts import HostPool
-from compare.run.isolation import CaseTask, ReferenceTask
+from compare.run.isolation import _DRIVER_ENDS, CaseHost, CaseTask, ReferenceTask, send
 from compare.run.runner import scheduled_times
 from engines.catalog import build
 from engines.reference import solve_and_bound
@@ -114,3 +115,34 @@ def test_a_reference_task_stays_small_and_its_samples_are_the_runs_sample_times(
     solution, _bound = run_all(HostPool(1), [task])[0]
     assert set(solution.samples) == {scheduled_times(100.0, dt, 1e-3).tobytes() for dt in dts}
     assert len(scheduled_times(100.0, 1e-3, 1e-3)) == 100_001
+
+
+def test_a_run_forks_no_more_hosts_than_it_has_tasks():
+    # One case and one reference asked to run on 8 jobs: two hosts, not eight.
+    from compare.run.runner import _Dispatcher, plan
+    from compare.suite.reader import parse_suite
+
+    suite = parse_suite('duration = 0.1\ndt = [1e-2]\n[[scenes]]\nscene = "bead"\n[[engines]]\nid = "pymunk/pin"\n')
+    dispatcher = _Dispatcher(suite, plan(suite), None, 8, None, 20, True)
+    try:
+        assert dispatcher.jobs == 2 and len(dispatcher.pool.hosts) == 2
+    finally:
+        dispatcher.pool.shutdown()
+        gc.unfreeze()  # what preload_engines froze (run_suite unfreezes it as a run ends)
+
+
+def test_a_dead_host_is_closed_before_a_new_one_takes_its_task():
+    # Its pipe ends are this process's (held in _DRIVER_ENDS so forks can close them): they must be
+    # closed and let go of, not leaked with the dead host.
+    host = CaseHost()
+    host.process.kill()
+    host.process.join()
+    task = case("pymunk", "pin", build("bead", {"duration": 0.1}))
+    new = send(host, task)
+    try:
+        assert new is not host and host.requests.closed and host.replies.closed
+        assert not {host.requests, host.replies} & _DRIVER_ENDS
+        outcome, _exiting = new.replies.recv()
+        assert outcome.status == "ok"
+    finally:
+        new.close()

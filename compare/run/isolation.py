@@ -432,9 +432,10 @@ class CaseHost:
                 os.killpg(self.process.pid, signal.SIGKILL)
             except OSError:
                 self.process.kill()
-        _DRIVER_ENDS.difference_update((self.requests, self.replies))
-        self.requests.close()
-        self.replies.close()
+        with _FORKING:  # listed until closed: a host forked meanwhile by another thread closes its copies
+            _DRIVER_ENDS.difference_update((self.requests, self.replies))
+            self.requests.close()
+            self.replies.close()
         self.process.join(timeout=10)
 
 
@@ -514,7 +515,10 @@ def _ask_host(task: Any) -> Any:
 def send(host: CaseHost | None, task: Any) -> CaseHost:
     """Send ``task`` to ``host``, or to a new host when it is None, dead, or another process's (a forked
     child inherits its parent's objects, not its hosts); returns the host that has the task."""
-    if host is None or host.owner != os.getpid() or not host.process.is_alive():
+    if host is not None and host.owner == os.getpid() and not host.process.is_alive():
+        host.close()  # our dead host: its pipe ends are ours to close (_DRIVER_ENDS holds them till then)
+        host = None
+    if host is None or host.owner != os.getpid():
         host = CaseHost()
     try:
         host.requests.send(task)

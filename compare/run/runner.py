@@ -316,7 +316,9 @@ class _Dispatcher:
         self.suite = suite
         self.cases = {c.id: c for c in cases}
         self.writer = writer
-        self.jobs = jobs or default_jobs()
+        # No more hosts or workers than tasks (cases and one reference per scene): a --resume with two
+        # cases left forks two, not one per core.
+        self.jobs = min(jobs or default_jobs(), max(1, len(self.cases) + len(self.suite.scenes)))
         self.own_executor = executor is None
         self.timeout = timeout
         self.isolate = isolate
