@@ -105,8 +105,8 @@ def console(argv: list[str] | None = None) -> None:
     """The ``xval`` program: :func:`main`, then nothing left for the interpreter's last collection to walk.
 
     Python collects garbage once more as it exits, walking every object still
-    alive: after a run, the several hundred thousand that numba, scipy and the
-    engines made, a measurable share of a short run's CPU
+    alive: after a run, the many that numba, scipy and the engines made, a
+    measurable share of a short run's CPU
     (``bench/bench_harness.py``). The process is ending, so they are frozen
     (``gc.freeze``) and that walk skips them. :func:`main` itself, which other
     programs and the tests call, leaves the collector alone.

@@ -59,7 +59,7 @@ def chain_rhs(y, inertia, weight, gx, gz):  # pragma: no cover - compiled
     out = np.empty(2 * n)
     theta_ddot = chain_accelerations(y[:n], y[n:], inertia, weight, gx, gz)
     # Element by element: a slice assignment (out[:n] = y[n:]) made numba compile its general array
-    # copy, which tripled this function's compile time (bench/bench_ours.py's cold compile).
+    # copy, most of this function's compile time (part of bench/bench_ours.py's cold compile).
     for i in range(n):
         out[i] = y[n + i]
         out[n + i] = theta_ddot[i]

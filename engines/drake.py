@@ -106,8 +106,8 @@ TOLERANCE_OPTION = "accuracy"
 
 
 def drake_version() -> str:
-    """Drake's version string, from the installed wheel's metadata (what pydrake.__version__ would say in
-    the wheels that set it; this one, 1.51, does not), so that asking needs no import of pydrake."""
+    """Drake's version string, from the installed wheel's metadata (pydrake has no __version__ in some
+    wheels), so that asking needs no import of pydrake."""
     return importlib.metadata.version("drake")
 
 

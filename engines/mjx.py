@@ -52,7 +52,7 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
 from engines.mujoco import mujoco
-from engines.mujoco import constraint_tree, hinge_velocities, read_samples
+from engines.mujoco import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples
 from engines.scene import Scene
 
 if importlib.util.find_spec("jax") is None:
@@ -106,7 +106,7 @@ class MJXEngine(Engine):
         "inertia_ratio": Option(
             "inertia_ratio", 1e-9,
             "rotational inertia of each point-mass body, as a fraction of m·L² (mujoco/hinge's option; its "
-            "default is now 1e-12, HINGE_INERTIA_RATIO, and MJX's figures in docs/findings.md were made at 1e-9)",
+            f"default is {HINGE_INERTIA_RATIO:g}, and MJX's figures in docs/findings.md were made at 1e-9)",
         ),
         "max_depth": Option(
             "max_depth", MAX_DEPTH,

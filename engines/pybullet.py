@@ -804,7 +804,7 @@ class _Run:
         for k in range(self.n_constraints):
             raw = np.array([sample[k] for sample in rows], dtype=float)
             if k in self.slider_axes:
-                for s, row in enumerate(raw):  # one sample at a time, as a rail's force always was
+                for s, row in enumerate(raw):  # sample by sample: the same product as before, bit for bit
                     f[s, k] = row[:2] @ self.slider_axes[k]
             else:
                 f[:, k] = self.force_sign[k] * raw[:, :3]

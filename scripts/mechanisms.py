@@ -5,8 +5,8 @@ with the stiff loop equality) at one time step and prints Markdown tables:
 
 1. four-bar (a Grashof crank-rocker turning, ``omega0 = 3``) and the
    near-toggle four-bar (coupler 0.01 m short of the change point, ``b = 1.39,
-   theta0 = 0, omega0 = 8``: once a turn crank, coupler and rocker come within
-   σ_min(J) ≈ 0.04 m of one line and the loop's forces peak at ~85× the weight):
+   theta0 = 0, omega0 = 8``: once a turn crank, coupler and rocker come close
+   to one line, where J W Jᵀ is nearly singular and the loop's forces peak):
    status, position error (max over the run, m), constraint error (m), energy
    drift (E*), crank turns (the engine's against the reference's), samples on
    the other assembly branch (%: the rocker tip on the wrong side of the line

@@ -84,8 +84,8 @@ def test_a_run_without_drake_records_its_version_without_importing_it(tmp_path):
     assert result["pymunk"][0].isdigit()  # a used engine's own version string
 
 
-#: Threads of a process (Linux /proc), the environment variable, and the threads again after importing
-#: numpy and scipy.linalg, once the run command's module is imported.
+#: The process's threads (Linux /proc) and the environment variable after importing the run command's
+#: module and then numpy and scipy.linalg.
 THREADS = r"""
 import json, os
 threads = lambda: len(os.listdir("/proc/self/task"))

@@ -290,7 +290,7 @@ def test_a_model_and_data_kept_from_another_run_give_bit_for_bit_a_fresh_compile
     # engines.mujoco._model_and_data keeps each MJCF's compiled model and MjData (per thread) and,
     # for the next run of it, sets the timestep and resets the data rather than compile again: every
     # variant's run at a dt must equal a fresh compile's exactly, after a run of the same MJCF at
-    # another dt (the stiff variants' dt-dependent softness is in the MJCF text: they compile per dt).
+    # another dt (the stiff variants too: their dt-dependent equality softness is set on the kept model).
     import engines.mujoco as adapter
 
     scene = catalog.build(name, {"duration": 0.3})

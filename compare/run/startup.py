@@ -13,7 +13,7 @@ the one they were given. A limit the user set (``OPENBLAS_NUM_THREADS``,
 ``GOTO_NUM_THREADS`` or ``OMP_NUM_THREADS``) is kept.
 
 **No garbage collection while loading.** Importing numba, scipy and the
-engines creates a few hundred thousand long-lived objects, and the
+engines creates many long-lived objects, and the
 collector's full passes walked them again and again as they grew. Python's
 advice for a process that forks workers is the one followed here (see
 ``gc.freeze``): collection off while loading, everything loaded frozen just
