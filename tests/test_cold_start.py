@@ -51,37 +51,40 @@ def test_xval_engines_imports_no_numba_and_compiles_nothing(tmp_path):
     assert not cache.exists() or not any(p.is_file() for p in cache.rglob("*")), list(cache.rglob("*"))
 
 
+#: Runs the suite given as TOML in argv[1] into argv[2] with one job, and prints what the run imported,
+#: the engine versions run.json records and each case's position error.
 RUN_PROBE = r"""
 import json, sys
+from pathlib import Path
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
-suite = parse_suite('''
-name = "no-drake"
-duration = 0.05
-sample_interval = 0.01
-dt = [1e-2]
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "pymunk/pin"
-''', path="inline.toml")
-run_suite(suite, sys.argv[1], jobs=1)
-engines = json.load(open(sys.argv[1] + "/run.json"))["environment"]["engines"]
-print(json.dumps({"pydrake": "pydrake" in sys.modules, "drake": engines["drake"], "pymunk": engines["pymunk"]}))
+from compare.results.store import iter_records
+out = Path(sys.argv[2])
+run_suite(parse_suite(sys.argv[1], path="inline.toml"), out, jobs=1)
+print(json.dumps({
+    "pydrake": "pydrake" in sys.modules, "integrate": "scipy.integrate" in sys.modules,
+    "engines": json.loads((out / "run.json").read_text())["environment"]["engines"],
+    "errors": {r.case.id: r.metrics["position_error_linf"] for r in iter_records(out / "cases")},
+}))
 """
+
+
+def run_probe(suite: str, out: Path, env: dict | None = None) -> dict:
+    done = subprocess.run([sys.executable, "-c", RUN_PROBE, suite, str(out)], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def test_a_run_without_drake_records_its_version_without_importing_it(tmp_path):
     """pydrake's import costs 0.15 s of CPU: a run that does not use Drake reads its installed version
     from the distribution's metadata for run.json instead."""
-    done = subprocess.run([sys.executable, "-c", RUN_PROBE, str(tmp_path / "out")], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    result = json.loads(done.stdout.strip().splitlines()[-1])
+    suite = ('duration = 0.05\nsample_interval = 0.01\ndt = [1e-2]\n[[scenes]]\nscene = "bead"\n'
+             '[[engines]]\nid = "pymunk/pin"\n')
+    result = run_probe(suite, tmp_path / "out")
     assert result["pydrake"] is False
-    assert result["drake"].startswith(("not used by this run (drake ", "unavailable: drake is not installed"))
-    assert result["pymunk"][0].isdigit()  # a used engine's own version string
+    assert result["engines"]["drake"].startswith(("not used by this run (drake ", "unavailable: drake is not installed"))
+    assert result["engines"]["pymunk"][0].isdigit()  # a used engine's own version string
 
 
 #: The process's threads (Linux /proc) and the environment variable after importing the run command's
@@ -111,40 +114,18 @@ def test_a_run_loads_blas_with_one_thread_and_leaves_the_environment_as_it_was(t
     assert seen == {"threads": 1 if preset is None else 3, "variable": preset}
 
 
-#: A small suite run into argv[1], printing whether the run imported scipy.integrate and each case's
-#: position error.
-KEPT_RUN = r"""
-import json, sys
-from compare.run.runner import run_suite
-from compare.suite.reader import parse_suite
-from compare.results.store import iter_records
-suite = parse_suite('''
-name = "kept"
-duration = 0.5
-sample_interval = 0.01
-dt = [1e-2, 1e-3]
-[[scenes]]
-id = "double-pendulum"
-scene = "double-pendulum"
-[[engines]]
-id = "mujoco/hinge"
-''', path="inline.toml")
-run_suite(suite, sys.argv[1], jobs=1)
-errors = {str(r.case): r.metrics["position_error_linf"] for r in iter_records(__import__("pathlib").Path(sys.argv[1]) / "cases")}
-print(json.dumps({"integrate": "scipy.integrate" in sys.modules, "errors": errors}))
-"""
-
-
 def test_a_second_run_takes_its_reference_samples_from_the_cache_without_scipy(tmp_path):
-    # The first run solves the reference in a case host and keeps it with its samples at both dts'
-    # times; the second finds them there: neither its parent nor (so) anything it computes needs
-    # scipy's integrators, and every case's error against the reference is the same.
+    # The first run solves the reference in a case host (its parent loads scipy's integrators to fork
+    # them) and keeps it with its samples at both dts' times; the second finds them there: the kept
+    # file is not written again, neither the parent nor anything it computes needs scipy's
+    # integrators, and every case's error against the reference is the same.
     env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "XVAL_CACHE_DIR": str(tmp_path / "cache")}
-    seen = []
-    for out in ("first", "second"):
-        done = subprocess.run([sys.executable, "-c", KEPT_RUN, str(tmp_path / out)], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=300)
-        assert done.returncode == 0, done.stderr
-        seen.append(json.loads(done.stdout.strip().splitlines()[-1]))
-    assert seen[1]["integrate"] is False
-    assert seen[1]["errors"] == seen[0]["errors"] and len(seen[0]["errors"]) == 2
+    suite = ('duration = 0.5\nsample_interval = 0.01\ndt = [1e-2, 1e-3]\n[[scenes]]\nscene = "double-pendulum"\n'
+             '[[engines]]\nid = "mujoco/hinge"\n')
+    first = run_probe(suite, tmp_path / "first", env)
+    [kept] = (tmp_path / "cache" / "reference").glob("*.pickle")
+    written = kept.stat().st_mtime_ns
+    second = run_probe(suite, tmp_path / "second", env)
+    assert first["integrate"] is True and second["integrate"] is False
+    assert kept.stat().st_mtime_ns == written
+    assert second["errors"] == first["errors"] and len(first["errors"]) == 2

@@ -112,11 +112,13 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
 def test_momentum_drift_without_gravity_is_measured_against_the_fallback_speed():
     # g = 0: the characteristic speed falls back to √L m/s, as E* falls back to M·L (it was 0: an inf drift).
     # A tangential kick δ at the last sample changes L_z by m·r_xy·δ, measured against M·L·√L.
-    scene = catalog.build("spherical-pendulum", {"g": 0.0, "duration": 1.0})
+    # m = 2 kg, L = 2 m, so √L is neither 1 nor L (a fallback to either would be caught).
+    scene = catalog.build("spherical-pendulum", {"g": 0.0, "m": 2.0, "radius": 2.0, "duration": 1.0})
     p = scene.initial_positions[None].repeat(2, 0)
     v = scene.initial_velocities[None].repeat(2, 0)
     x, y = p[1, 0, 0], p[1, 0, 1]
     r_xy = float(np.hypot(x, y))
     v[1, 0] += 0.1 * np.array([-y, x, 0.0]) / r_xy
     mass, length = float(scene.masses.sum()), scene.characteristic_length
+    assert (mass, length) == (2.0, 2.0)
     assert momentum_drift(scene, p, v) == pytest.approx(mass * r_xy * 0.1 / (mass * length * np.sqrt(length)), rel=1e-9)
