@@ -26,9 +26,10 @@ Compare runs made at similar speed too.
 
 With ``--in-process`` it also runs the same cases with no case host
 (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
-process, what the process hop costs), and a suite of the same scenes and engine
-variants at one dt of 2 steps (``--fixed``: about what a run costs before its
-cases, its CPU minus nothing the cases could save).
+process, what the process hop costs, with the run command's start-up), and
+with ``--fixed`` suites/default.toml at one dt of 2 steps (``xval run`` as
+above: about what a run costs before its cases, its CPU minus nothing the
+cases could save).
 
     .venv/bin/python bench/bench_harness.py [--runs N] [--in-process] [--fixed]
 """
@@ -38,6 +39,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -66,66 +68,59 @@ with open(report, "w") as handle:
 """
 
 
-#: The default suite's cases in one process: no case host.
+#: The default suite's cases in one process (no case host), with the run command's start-up (BLAS with
+#: one thread on importing compare.commands.run, no collection while loading; run_suite resumes it) and
+#: console's freeze at exit, as in the ``xval`` runs.
 IN_PROCESS = r"""
-import concurrent.futures as cf, json, resource, sys
+import concurrent.futures as cf, gc, sys
+import compare.commands.run
+from compare.run import startup
 from compare.run.runner import plan, run_suite, preload_engines
 from compare.suite.reader import load_suite
+startup.defer_collection()
 suite = load_suite("suites/default.toml")
 preload_engines(suite, plan(suite))
 run_suite(suite, sys.argv[1], jobs=1, executor=cf.ThreadPoolExecutor(1), isolate=False)
+gc.freeze()
 """
 
-#: The default suite's scenes and engines, at one dt of two steps: what a run costs besides its cases.
-FIXED_SUITE = """
-name = "fixed-cost"
-duration = 0.02
-sample_interval = 0.01
-dt = [1e-2]
-[[scenes]]
-id = "bead"
-scene = "bead"
-parameters = { theta0 = 60 }
-[[scenes]]
-id = "double-pendulum"
-scene = "double-pendulum"
-[[engines]]
-id = "ours/*"
-[[engines]]
-id = "mujoco/*"
-[[engines]]
-id = "pybullet/*"
-[[engines]]
-id = "pymunk/*"
-"""
+DEFAULT_SUITE = ROOT / "suites" / "default.toml"
 
 
-def other_run(kind: str) -> tuple[float, float, int]:
-    """(CPU s of the process tree, summed stepping s, cases) of the ``--in-process`` or ``--fixed`` run."""
+def fixed_suite() -> str:
+    """suites/default.toml at one dt of two steps (its scenes, engines and sample interval as they are):
+    what a run costs besides its cases."""
+    text = DEFAULT_SUITE.read_text(encoding="utf-8")
+    text, durations = re.subn(r"(?m)^duration = .*$", "duration = 0.02", text)
+    text, dts = re.subn(r"(?m)^dt = .*$", "dt = [1e-2]", text)
+    if (durations, dts) != (1, 1):
+        raise SystemExit(f"{DEFAULT_SUITE}: expected one 'duration =' and one 'dt =' line to replace")
+    return text
+
+
+def in_process_run() -> tuple[float, float, int]:
+    """(CPU s of the process, summed stepping s, cases) of the default suite run in one process."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        if kind == "in-process":
-            command = [sys.executable, "-c", IN_PROCESS, str(out)]
-        else:
-            suite = Path(tmp) / "fixed.toml"
-            suite.write_text(FIXED_SUITE)
-            command = [sys.executable, "-c", "from compare.cli import main; main()", "run", str(suite), "--jobs", "1",
-                       "--output", str(out), "--quiet"]
-        subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+        subprocess.run([sys.executable, "-c", IN_PROCESS, str(out)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         files = list((out / "cases").glob("*.json"))
         stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in files)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(files)
 
 
-def one_run() -> dict:
-    """CPU seconds (whole tree, the xval process, its descendants), summed stepping seconds, and
-    per engine [cases, stepping s, outside-stepping s]."""
+def one_run(suite_text: str | None = None) -> dict:
+    """CPU seconds (whole tree, the xval process, its descendants), summed stepping seconds, cases and
+    per engine [cases, stepping s, outside-stepping s] of ``xval run`` on suites/default.toml (or on
+    the suite ``suite_text``)."""
     with tempfile.TemporaryDirectory() as tmp:
-        out, report = Path(tmp) / "default", Path(tmp) / "cpu.json"
+        out, report, suite = Path(tmp) / "default", Path(tmp) / "cpu.json", DEFAULT_SUITE
+        if suite_text is not None:
+            suite = Path(tmp) / "suite.toml"
+            suite.write_text(suite_text, encoding="utf-8")
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([sys.executable, "-c", XVAL, "run", "suites/default.toml", "--jobs", "1", "--output", str(out),
+        subprocess.run([sys.executable, "-c", XVAL, "run", str(suite), "--jobs", "1", "--output", str(out),
                         "--quiet", str(report)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         split = json.loads(report.read_text())
@@ -142,6 +137,7 @@ def one_run() -> dict:
         "xval": split["xval"],
         "descendants": split["descendants"],
         "stepping": sum(row[1] for row in engines.values()),
+        "cases": sum(row[0] for row in engines.values()),
         "engines": dict(sorted(engines.items())),
     }
 
@@ -178,11 +174,16 @@ def main(argv: list[str]) -> int:
     print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
     for name, (cases, stepping, outside) in last["engines"].items():
         print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
-    for kind in ("in-process", "fixed"):
-        if f"--{kind}" in argv:
-            cpu, stepping, cases = other_run(kind)
-            print(f"\n{kind}: {cases} cases, CPU {cpu:.2f} s, stepping {stepping:.2f} s, "
-                  f"CPU / stepping {cpu / stepping if stepping else float('nan'):.2f}, load {os.getloadavg()[0]:.1f}")
+    if "--in-process" in argv:
+        speed = machine_speed()
+        cpu, stepping, cases = in_process_run()
+        print(f"\nin-process: {cases} cases, CPU {cpu:.2f} s, stepping {stepping:.2f} s, CPU / stepping "
+              f"{cpu / stepping:.2f}, load {os.getloadavg()[0]:.1f}, calib {1000 * speed:.2f} ms")
+    if "--fixed" in argv:
+        speed = machine_speed()
+        fixed = one_run(fixed_suite())
+        print(f"\nfixed: {fixed['cases']} cases, CPU {fixed['cpu']:.2f} s (xval {fixed['xval']:.2f} s), stepping "
+              f"{fixed['stepping']:.2f} s, load {os.getloadavg()[0]:.1f}, calib {1000 * speed:.2f} ms")
     return 0
 
 

@@ -205,6 +205,8 @@ def main(argv: list[str]) -> int:
     json_path = Path(argv[argv.index("--json") + 1]) if "--json" in argv else ROOT / "results" / "bench" / "bench_ours.json"
     rows: list[dict] = []
 
+    # The machine's speed beside the compile rows, which depend on it most (the interpreter's work).
+    speed = machine_speed()
     if "--no-cold" not in argv:
         with tempfile.TemporaryDirectory() as cache:
             cold = compile_seconds(cache)
@@ -237,15 +239,16 @@ def main(argv: list[str]) -> int:
     print_table(rows)
     for skip in SKIPPED:
         print(f"skipped: {skip['engine']} on {skip['case']}: {skip['why']}")
-    speed = machine_speed()
     json_path.parent.mkdir(parents=True, exist_ok=True)
     json_path.write_text(json.dumps({"load_average": os.getloadavg(), "cpus": os.cpu_count(), "calibration_s": speed,
                                      "rows": rows, "skipped": SKIPPED}, indent=1), encoding="utf-8")
     # The compile time is mostly the interpreter's work (numba's typing and lowering), which on a shared
     # virtual machine slows with the machine's state more than compiled stepping does: compare runs made
-    # at a similar calibration time (bench_harness.machine_speed: pure-Python work).
+    # at a similar calibration time (bench_harness.machine_speed: pure-Python work, timed before the
+    # compile rows).
     print(f"\nrows written to {json_path}; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; "
-          f"interpreter calibration {1000 * speed:.1f} ms (the machine's speed now: bench_harness.machine_speed)")
+          f"interpreter calibration {1000 * speed:.1f} ms (the machine's speed as the table began: "
+          f"bench_harness.machine_speed)")
     return 0
 
 
