@@ -27,6 +27,7 @@ says what to do when that is not one this xval speaks (docs/plugins.md).
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -201,6 +202,20 @@ class RawRun:
     message: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
     cpu_time: float | None = None
+
+
+def rows_finite(*samples: Any) -> bool:
+    """Whether every number of these samples is finite; each sample is what an engine's Python API
+    gives for one state (a sequence of per-particle coordinate tuples). The loop over the numbers
+    runs in C (``map`` over the flattened tuples), not as a Python loop per number: the adapters
+    call it at every sample."""
+    isfinite = math.isfinite
+    return all(all(map(isfinite, itertools.chain.from_iterable(sample))) for sample in samples)
+
+
+def largest_coordinate(sample: Any) -> float:
+    """The largest |coordinate| of one sample (a sequence of per-particle coordinate tuples), m."""
+    return max(map(abs, itertools.chain.from_iterable(sample)))
 
 
 def loop_cpu_time(raw: RawRun, cpu: float) -> float:

@@ -95,8 +95,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
-import itertools
-import math
 import os
 import sys
 import threading
@@ -106,7 +104,7 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, largest_coordinate, rows_finite
 from engines.errors import Unsupported, UserError
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
@@ -832,7 +830,6 @@ class _Run:
         x_rows: list = []  # samples 1, 2, ...: each a state reader's lists
         u_rows: list = []
         f_rows: list = []  # samples 0, 1, ...: each the force reader's list
-        isfinite, flat = math.isfinite, itertools.chain.from_iterable
         # Only stepSimulation is timed; reading the samples is not stepping.
         if forces:
             started = time.perf_counter()
@@ -852,10 +849,9 @@ class _Run:
             if forces:
                 f_rows.append(forces())
             recorded = k + 1
-            # map over the flattened tuples: the checks run in C, not a Python loop per number.
-            if not (all(map(isfinite, flat(x))) and all(map(isfinite, flat(u)))):
+            if not rows_finite(x, u):
                 break
-            if max(map(abs, flat(x))) > limit:
+            if largest_coordinate(x) > limit:
                 message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
                 break
         positions[1:recorded] = np.array(x_rows, dtype=float).reshape(-1, self.n_particles, 3)

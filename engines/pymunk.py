@@ -44,7 +44,7 @@ from typing import Any, Mapping
 import numpy as np
 import pymunk
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, largest_coordinate, rows_finite
 from engines.errors import Unsupported, UserError
 from engines.plugin import refuse_constraint_kinds
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
@@ -144,7 +144,7 @@ class PymunkEngine(Engine):
         # Read per sample as pymunk gives them (Vec2d are tuples) and made arrays after the loop: each
         # sample's state in pymunk's frame, and what its constraint force is computed from, for all
         # samples at once: the velocities before its last step and the joints' impulses in it.
-        bodies, joints, isfinite = model.bodies, model.joints, math.isfinite
+        bodies, joints = model.bodies, model.joints
         p_rows: list = []
         v_rows: list = []
         before_rows: list = []
@@ -166,11 +166,11 @@ class PymunkEngine(Engine):
             v_rows.append(v2)
             before_rows.append(before)
             recorded = k + 1
-            if not all(isfinite(c) for xy in (*p2, *v2, *before) for c in xy):
+            if not rows_finite(p2, v2, before):
                 finite = k
                 break  # adapter._finish truncates here and marks the run unstable
             impulse_rows.append([j.impulse for j in joints])
-            if max(abs(c) for xy in p2 for c in xy) > limit:
+            if largest_coordinate(p2) > limit:
                 message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
                 recorded = k  # the runaway sample is not kept
                 break

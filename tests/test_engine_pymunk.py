@@ -264,3 +264,16 @@ def test_bad_options_name_the_option(options, message):
     scene = catalog.build("bead", {"duration": 0.1})
     with pytest.raises(UserError, match=message):
         ENGINE.simulate(scene, 1e-3, options=options)
+
+
+def test_the_per_sample_checks_see_every_number_of_every_row():
+    # engines.adapter.rows_finite / largest_coordinate, what the PyBullet and pymunk loops call at each
+    # sample on the rows their APIs give (tuples per particle; pymunk's Vec2d is one).
+    from engines.adapter import largest_coordinate, rows_finite
+
+    x, u = [(0.0, -1.0), (2.0, -0.5)], [(0.1, 0.2), (0.3, 0.4)]
+    assert rows_finite(x, u) and largest_coordinate(x) == 2.0
+    assert largest_coordinate([(0.0, -3.0)]) == 3.0
+    for bad in (float("nan"), float("inf"), -float("inf")):
+        assert not rows_finite(x, [(0.1, 0.2), (0.3, bad)])
+        assert not rows_finite([(bad, 0.0)], u)
