@@ -419,7 +419,7 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     from). The model is the run's alone while it runs (one thread runs one
     case at a time); a run never changes it.
     """
-    key = _SOLREF.sub(' solref=""', xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1))
+    key = _SOLREF.sub(r'\1 solref=""', xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1))
     kept = getattr(_CACHE, "models", None)
     if kept is None:
         kept = _CACHE.models = OrderedDict()
@@ -436,14 +436,16 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     model, data = entry
     model.opt.timestep = dt
     softness = _SOLREF.search(xml)
-    if softness is not None:  # every equality has the same solref (equality_softness)
-        model.eq_solref[:] = [float(x) for x in softness.group(1).split()]
+    if softness is not None:  # every connect equality has the same solref (equality_softness)
+        model.eq_solref[:] = [float(x) for x in softness.group(2).split()]
     mujoco.mj_resetData(model, data)
     return model, data
 
 
-#: The equalities' solref attribute in an MJCF (group 1: its numbers).
-_SOLREF = re.compile(r' solref="([^"]*)"')
+#: A connect equality's solref attribute in an MJCF (group 1: the element up to it; group 2: its
+#: numbers). Only the equalities': a solref anywhere else stays in _model_and_data's key (a model per
+#: value) and never reaches eq_solref.
+_SOLREF = re.compile(r'(<connect [^>]*?) solref="([^"]*)"')
 
 
 class MuJoCoEngine(Engine):
