@@ -71,6 +71,9 @@ class HostPool:
     most (the one it runs and those waiting behind it).
     """
 
+    #: The runner made it (it may kill its hosts, and sizes its window by them).
+    owned = True
+
     def __init__(self, size: int, depth: int = 2) -> None:
         if size < 1 or depth < 1:
             raise ValueError(f"a host pool needs at least one host and a depth of 1, not {size} and {depth}")

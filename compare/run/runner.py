@@ -234,8 +234,8 @@ def _run_suite(
     runnable = [case for case in todo if reasons[(case.scene.id, case.engine.label)] is None]
     try:
         # Built (its case hosts forked) before the progress bar may start a thread.
-        dispatcher = runnable and _Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout,
-                                              isolate, memory_limit)
+        dispatcher = (_Dispatcher(suite, runnable, writer, jobs, executor, timeout or suite.timeout, isolate,
+                                  memory_limit) if runnable else None)
         # On whether or not a preload froze anything (an executor passed in preloads nothing): the
         # cases' garbage is collected as usual (compare/run/startup.py).
         startup.resume_collection()
@@ -319,7 +319,6 @@ class _Dispatcher:
         # No more hosts or workers than tasks (cases and one reference per scene): a --resume with two
         # cases left forks two, not one per core.
         self.jobs = min(jobs or default_jobs(), max(1, len(self.cases) + len(self.suite.scenes)))
-        self.own_executor = executor is None
         self.timeout = timeout
         self.isolate = isolate
         self.pool = self._new_pool() if executor is None else _ExecutorPool(executor, owned=False)
@@ -394,7 +393,7 @@ class _Dispatcher:
             return
         in_flight = sum(kind == "case" for kind, _ in pending.values())
         # As many as the pool holds: a host pool's hosts each run one and hold more waiting behind it.
-        room = self.jobs * self.pool.depth - in_flight if self.own_executor else len(self.queue)
+        room = self.jobs * self.pool.depth - in_flight if self.pool.owned else len(self.queue)
         for _ in range(min(room, len(self.queue))):
             self._submit(pending, self.queue)
 
@@ -440,7 +439,7 @@ class _Dispatcher:
             # finished records are already on disk, and --resume runs the rest.
             self.stop_workers()
             raise
-        if self.own_executor:
+        if self.pool.owned:
             self.pool.shutdown()
 
     def stop_workers(self) -> None:
@@ -473,7 +472,7 @@ class _Dispatcher:
         self.pool.shutdown(kill=True)
         reference_ids = [key for kind, key in lost if kind == "reference"]
         case_ids = [key for kind, key in lost if kind == "case"]
-        if not self.own_executor:
+        if not self.pool.owned:
             # Not ours to rebuild: what was lost, and what had not been submitted yet, is failed.
             for key in case_ids + list(self.queue):
                 self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
@@ -566,18 +565,18 @@ def scene_fields(scene: Scene) -> dict[str, Any]:
 
 
 def build_record(
-    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, skipped: str | None = None,
-    scene_part: dict[str, Any] | None = None,
+    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, scene_part: dict[str, Any],
+    skipped: str | None = None,
 ) -> dict[str, Any]:
     """The record of one case, JSON-ready except its ``series``: float arrays rounded to
     SERIES_DIGITS significant digits (ResultsDir.write_case writes them as lists).
 
     reference : the scene's SampledReference, or the exception that kept it
     from being solved (position metrics are then null and the message says why).
-    scene_part : ``scene_fields(case.scene.scene)``, when the caller keeps it (shared, not copied).
+    scene_part : ``scene_fields(case.scene.scene)``, kept by the caller for every case of the scene
+    (shared, not copied).
     """
     scene = case.scene.scene
-    scene_part = scene_part if scene_part is not None else scene_fields(scene)
     record: dict[str, Any] = {
         "case": {
             "id": case.id,
