@@ -73,10 +73,12 @@ def divergence_time(t: np.ndarray, e: np.ndarray, threshold: float, end_of_data:
 
 def energy_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> float:
     """max |E(t) − E(0)| / E* (dimensionless), E* = total mass · g · L; 0 for fewer than 2 samples."""
-    if len(positions) < 2:
-        return 0.0
-    energy = total_energy(scene, positions, velocities)
-    return float(np.abs(energy - energy[0]).max() / scene.characteristic_energy)
+    return largest_drift(energy_drift_series(scene, positions, velocities))
+
+
+def largest_drift(drift: np.ndarray) -> float:
+    """max |drift| of an :func:`energy_drift_series` (n,); 0 for fewer than 2 samples."""
+    return float(np.abs(drift).max()) if len(drift) >= 2 else 0.0
 
 
 def energy_drift_series(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
@@ -89,9 +91,12 @@ def energy_drift_series(scene: Scene, positions: np.ndarray, velocities: np.ndar
 
 def constraint_error(scene: Scene, positions: np.ndarray) -> float:
     """max over constraints and samples of |‖a − b‖ − l|, in m (0 for no samples or no constraints)."""
-    if len(positions) == 0:
-        return 0.0
-    return float(max_constraint_error(scene, positions).max())
+    return largest_error(max_constraint_error(scene, positions) if len(positions) else np.zeros(0))
+
+
+def largest_error(errors: np.ndarray) -> float:
+    """max of a series of constraint errors (n,) m (:func:`max_constraint_error`); 0 for no samples."""
+    return float(errors.max()) if len(errors) else 0.0
 
 
 def constraint_force_error(forces: np.ndarray, reference_forces: np.ndarray) -> float:
@@ -216,8 +221,7 @@ def case_metrics(
     if trajectory.constraint_forces is not None and reference_forces is not None and n:
         force_error = constraint_force_error(trajectory.constraint_forces, reference_forces)
     cost = stepping_cost(wall_times, trajectory.info.steps * trajectory.info.dt, trajectory.info.steps)
-    # Each series once: the scalar metrics are their maxima (bit for bit what energy_drift and
-    # constraint_error give, as |x|/E* and the maximum commute with rounding).
+    # Each series once; the scalar metrics are their maxima, as energy_drift and constraint_error give them.
     drift = energy_drift_series(scene, trajectory.positions, trajectory.velocities)
     constraint_errors = max_constraint_error(scene, trajectory.positions) if n else np.zeros(0)
     metrics = CaseMetrics(
@@ -225,8 +229,8 @@ def case_metrics(
         position_error_l2=summary.l2,
         position_error_linf=summary.linf,
         divergence_time=divergence_time(trajectory.t, e, threshold, end_of_data),
-        energy_drift=float(np.abs(drift).max()) if n >= 2 else 0.0,
-        constraint_error=float(constraint_errors.max()) if n else 0.0,
+        energy_drift=largest_drift(drift),
+        constraint_error=largest_error(constraint_errors),
         constraint_force_error=force_error,
         constraint_force_error_relative=None if force_error is None else force_error / characteristic_force(scene),
         wall_time=cost.wall_time,
