@@ -371,10 +371,19 @@ class Scene:
         return float(sum(c.characteristic_length for c in self.constraints)) or 1.0
 
     @cached_property
+    def characteristic_gravity(self) -> float:
+        """|g| m/s², or 1 when g = 0: the scale E* and the characteristic speed fall back to."""
+        return float(np.linalg.norm(self.gravity)) or 1.0
+
+    @cached_property
     def characteristic_energy(self) -> float:
         """E* = total mass · |g| · L (J); falls back to total mass · L when g = 0."""
-        g = float(np.linalg.norm(self.gravity)) or 1.0
-        return float(self.masses.sum()) * g * self.characteristic_length
+        return float(self.masses.sum()) * self.characteristic_gravity * self.characteristic_length
+
+    @cached_property
+    def characteristic_speed(self) -> float:
+        """√(|g| L) m/s, the speed momentum drifts are measured against; √L when g = 0, as E* falls back."""
+        return float(np.sqrt(self.characteristic_gravity * self.characteristic_length))
 
     # -- validation ------------------------------------------------------------
 

@@ -184,14 +184,8 @@ def linear_momentum_drift(scene: Scene, velocities: np.ndarray) -> float | None:
     if u is None or len(velocities) == 0:
         return None
     along = linear_momentum(scene, velocities) @ u
-    scale = float(scene.masses.sum()) * characteristic_speed(scene)
+    scale = float(scene.masses.sum()) * scene.characteristic_speed
     return float(np.abs(along - along[0]).max() / scale)
-
-
-def characteristic_speed(scene: Scene) -> float:
-    """√(|g| L) m/s, the speed the momentum drifts are measured against (√L when g = 0, as E* falls back)."""
-    g = float(np.linalg.norm(scene.gravity)) or 1.0
-    return float(np.sqrt(g * scene.characteristic_length))
 
 
 def tensions(scene: Scene, positions: np.ndarray, forces: np.ndarray) -> np.ndarray:
@@ -242,7 +236,7 @@ def momentum_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) 
 
     L_z is the angular momentum about the vertical line of :func:`vertical_axis`;
     L* = M·L·√(g·L) (total mass, characteristic length, |g|), the momentum of the whole
-    mass moving at the characteristic speed at arm L (:func:`characteristic_speed`). 0 for fewer
+    mass moving at the characteristic speed at arm L (``Scene.characteristic_speed``). 0 for fewer
     than 2 samples.
     """
     axis = vertical_axis(scene)
@@ -251,5 +245,5 @@ def momentum_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) 
     if len(positions) < 2:
         return 0.0
     lz = angular_momentum_z(scene, positions, velocities, axis)
-    scale = float(scene.masses.sum()) * scene.characteristic_length * characteristic_speed(scene)
+    scale = float(scene.masses.sum()) * scene.characteristic_length * scene.characteristic_speed
     return float(np.abs(lz - lz[0]).max() / scale)
