@@ -175,15 +175,16 @@ class PymunkEngine(Engine):
                 recorded = k  # the runaway sample is not kept
                 break
         planar_rows = (n_particles, 2)
-        positions[1:recorded] = _to_scene(np.array(p_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows))
-        velocities[1:recorded] = _to_scene(np.array(v_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows))
+        p_planar = np.array(p_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows)
+        v_planar = np.array(v_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows)
+        positions[1:recorded], velocities[1:recorded] = _to_scene(p_planar), _to_scene(v_planar)
         good = min(recorded, finite)
         forces[finite:recorded] = np.nan
         if good > 1:
-            planar = positions[1:good][:, :, [0, 2]], velocities[1:good][:, :, [0, 2]]
             v_before = np.array(before_rows[:good - 1], dtype=float).reshape(-1, *planar_rows)
             impulses = np.array(impulse_rows[:good - 1], dtype=float).reshape(-1, n_constraints)
-            forces[1:good] = _to_scene(model.constraint_forces(*planar, v_before, impulses, dt))
+            forces[1:good] = _to_scene(model.constraint_forces(p_planar[:good - 1], v_planar[:good - 1], v_before,
+                                                               impulses, dt))
         forces[0] = forces[1] if recorded > 1 else np.nan
         return RawRun(
             positions[:recorded],
