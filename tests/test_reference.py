@@ -146,15 +146,23 @@ def test_reference_refuses_what_it_cannot_express():
 # -- kept across runs ----------------------------------------------------------------------------
 
 
-def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved_again(tmp_path, monkeypatch):
+@pytest.fixture
+def kept_double_pendulum(tmp_path, monkeypatch):
+    """(scene, times (101,) s, its (solution, bound) at rtol = atol = 1e-10, the kept file) in a cache
+    directory of its own."""
+    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
+    scene = catalog.build("double-pendulum", {"duration": 1.0})
+    solved = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
+    [kept] = (tmp_path / "reference").glob("*.pickle")
+    return scene, np.linspace(0.0, 1.0, 101), solved, kept
+
+
+def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved_again(kept_double_pendulum,
+                                                                                       monkeypatch):
     # solve_and_bound_kept keeps each (scene, rtol, atol)'s solution under the user cache directory: the
     # second ask loads it (no solve), equal at every time to the first; another tolerance is another
     # solve; a damaged file is solved again and replaced.
-    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
-    scene = catalog.build("double-pendulum", {"duration": 1.0})
-    times = np.linspace(0.0, 1.0, 101)
-    first, first_bound = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
-    [kept] = (tmp_path / "reference").glob("*.pickle")
+    scene, times, (first, first_bound), kept = kept_double_pendulum
 
     solves = []
     real = reference.solve_and_bound
@@ -166,7 +174,7 @@ def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved
     assert again_bound.reference_error == first_bound.reference_error
 
     reference.solve_and_bound_kept(scene, 1e-9, 1e-9)
-    assert len(solves) == 1 and len(list((tmp_path / "reference").glob("*.pickle"))) == 2
+    assert len(solves) == 1 and len(list(kept.parent.glob("*.pickle"))) == 2
 
     kept.write_bytes(b"not a pickle")
     repaired, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
@@ -191,23 +199,19 @@ print(json.dumps({"positions": positions.tolist(), "before": before, "after": "s
 """
 
 
-def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(tmp_path, monkeypatch):
+def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(kept_double_pendulum):
     # A run's reference is evaluated where its cases are sampled (one set of times per dt) and those
     # samples are kept with the solution: the next run finds them without unpickling scipy's dense
     # solution, so its parent never imports scipy.integrate. The samples are exactly the dense
     # solution's values; a set not kept yet is added and the file written again.
-    monkeypatch.setenv("XVAL_CACHE_DIR", str(tmp_path))
-    scene = catalog.build("double-pendulum", {"duration": 1.0})
-    times = np.linspace(0.0, 1.0, 101)
-    solved, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10)
-    [kept] = (tmp_path / "reference").glob("*.pickle")
+    scene, times, (solved, _), kept = kept_double_pendulum
     assert solved.samples == {}
     written = kept.stat().st_mtime_ns
     kept_, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10, sample_times=[times])
     assert set(kept_.samples) == {times.tobytes()} and kept.stat().st_mtime_ns != written
 
     done = subprocess.run([sys.executable, "-c", KEPT_PROBE], cwd=ROOT, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "XVAL_CACHE_DIR": str(tmp_path)})
+                          env={**os.environ, "XVAL_CACHE_DIR": str(kept.parent.parent)})
     assert done.returncode == 0, done.stderr
     seen = json.loads(done.stdout)
     assert seen["before"] is False and seen["after"] is True
