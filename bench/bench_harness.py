@@ -24,6 +24,14 @@ ratio moves with it, because the harness's work (the interpreter, the
 kernel's file and page work) slows more than the engines' compiled stepping.
 Compare runs made at similar speed too.
 
+Every run's results directory is kept until the benchmark ends, then all are
+deleted together. Deleting one run's 462 record files just before the next
+run made that run's record files dearer to create: ext4 without a journal
+(this machine's file system) does not reuse an inode freed in the last one to
+six minutes, and each new file's inode search walks past every such inode,
+in the kernel, on the ``xval`` process's CPU. ``bench/bench_file_create.py``
+measures the effect.
+
 With ``--in-process`` it also runs the same cases with no case host
 (``run_suite(..., executor=ThreadPoolExecutor(1), isolate=False)``: one
 process, what the process hop costs, with the run command's start-up), and
@@ -98,40 +106,40 @@ def fixed_suite() -> str:
     return text
 
 
-def in_process_run() -> tuple[float, float, int]:
-    """(CPU s of the process, summed stepping s, cases) of the default suite run in one process."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out"
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([sys.executable, "-c", IN_PROCESS, str(out)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        files = list((out / "cases").glob("*.json"))
-        stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in files)
+def in_process_run(scratch: Path) -> tuple[float, float, int]:
+    """(CPU s of the process, summed stepping s, cases) of the default suite run in one process,
+    into a new directory under ``scratch``."""
+    out = Path(tempfile.mkdtemp(dir=scratch)) / "out"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", IN_PROCESS, str(out)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    files = list((out / "cases").glob("*.json"))
+    stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in files)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(files)
 
 
-def one_run(suite_text: str | None = None) -> dict:
+def one_run(scratch: Path, suite_text: str | None = None) -> dict:
     """CPU seconds (whole tree, the xval process, its descendants), summed stepping seconds, cases and
     per engine [cases, stepping s, outside-stepping s] of ``xval run`` on suites/default.toml (or on
-    the suite ``suite_text``)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out, report, suite = Path(tmp) / "default", Path(tmp) / "cpu.json", DEFAULT_SUITE
-        if suite_text is not None:
-            suite = Path(tmp) / "suite.toml"
-            suite.write_text(suite_text, encoding="utf-8")
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run([sys.executable, "-c", XVAL, "run", str(suite), "--jobs", "1", "--output", str(out),
-                        "--quiet", str(report)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        split = json.loads(report.read_text())
-        engines: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
-        for f in (out / "cases").glob("*.json"):
-            record = json.loads(f.read_text())
-            stepping = sum(record["wall_times"])
-            row = engines[record["case"]["engine"].split("/")[0]]
-            row[0] += 1
-            row[1] += stepping
-            row[2] += record["elapsed"] - stepping
+    the suite ``suite_text``), into a new directory under ``scratch``."""
+    tmp = tempfile.mkdtemp(dir=scratch)
+    out, report, suite = Path(tmp) / "default", Path(tmp) / "cpu.json", DEFAULT_SUITE
+    if suite_text is not None:
+        suite = Path(tmp) / "suite.toml"
+        suite.write_text(suite_text, encoding="utf-8")
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", XVAL, "run", str(suite), "--jobs", "1", "--output", str(out),
+                    "--quiet", str(report)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    split = json.loads(report.read_text())
+    engines: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
+    for f in (out / "cases").glob("*.json"):
+        record = json.loads(f.read_text())
+        stepping = sum(record["wall_times"])
+        row = engines[record["case"]["engine"].split("/")[0]]
+        row[0] += 1
+        row[1] += stepping
+        row[2] += record["elapsed"] - stepping
     return {
         "cpu": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
         "xval": split["xval"],
@@ -161,14 +169,21 @@ def machine_speed() -> float:
 
 
 def main(argv: list[str]) -> int:
+    # Every run's output is kept until the benchmark ends (see the module docstring: a run must not
+    # pay for the files the run before it deleted).
+    with tempfile.TemporaryDirectory(prefix="bench_harness-") as scratch:
+        return _benchmark(argv, Path(scratch))
+
+
+def _benchmark(argv: list[str], scratch: Path) -> int:
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
-    one_run()  # fills numba's and the references' caches if they are empty; not counted
+    one_run(scratch)  # fills numba's and the references' caches if they are empty; not counted
     print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}"
           f" {'calib ms':>9}")
     last = None
     for k in range(runs):
         speed = machine_speed()
-        last = one_run()
+        last = one_run(scratch)
         print(f"{k + 1:>3} {last['cpu']:7.2f} {last['xval']:7.2f} {last['descendants']:9.2f} {last['stepping']:11.2f} "
               f"{last['cpu'] / last['stepping']:15.2f} {os.getloadavg()[0]:5.1f} {1000 * speed:9.2f}")
     print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
@@ -176,12 +191,12 @@ def main(argv: list[str]) -> int:
         print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
     if "--in-process" in argv:
         speed = machine_speed()
-        cpu, stepping, cases = in_process_run()
+        cpu, stepping, cases = in_process_run(scratch)
         print(f"\nin-process: {cases} cases, CPU {cpu:.2f} s, stepping {stepping:.2f} s, CPU / stepping "
               f"{cpu / stepping:.2f}, load {os.getloadavg()[0]:.1f}, calib {1000 * speed:.2f} ms")
     if "--fixed" in argv:
         speed = machine_speed()
-        fixed = one_run(fixed_suite())
+        fixed = one_run(scratch, fixed_suite())
         print(f"\nfixed: {fixed['cases']} cases, CPU {fixed['cpu']:.2f} s (xval {fixed['xval']:.2f} s), stepping "
               f"{fixed['stepping']:.2f} s, load {os.getloadavg()[0]:.1f}, calib {1000 * speed:.2f} ms")
     return 0
