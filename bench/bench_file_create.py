@@ -27,8 +27,6 @@ such a directory do not exist). Every output is kept until the end.
 
 from __future__ import annotations
 
-import os
-import resource
 import shutil
 import subprocess
 import sys
