@@ -254,17 +254,19 @@ def test_a_run_leaves_the_garbage_collector_as_it_found_it(tmp_path):
 @pytest.mark.parametrize("enabled", [True, False])
 def test_the_run_command_collects_no_garbage_while_loading_and_leaves_the_collector_as_it_was(tmp_path, enabled):
     """compare/run/startup.py: ``xval run`` turns the collector off while the suite loads its engines
-    (preload_engines freezes them) and back on before the cases run, so their garbage is collected as
-    usual; a collector the calling program turned off stays off."""
+    (preload_engines freezes them) and back on before the case hosts fork and the cases run, so their
+    garbage is collected as usual, in the hosts too; a collector the calling program turned off stays
+    off."""
     import gc
 
     from compare.cli import main
-    from compare.run import runner
+    from compare.run import isolation, runner
 
     suite = tmp_path / "s.toml"
     suite.write_text(suite_text(["pymunk/pin"], duration=0.02))
     seen = []
-    preload, dispatch = runner.preload_engines, runner._Dispatcher.run
+    in_host = tmp_path / "collector-in-host"
+    preload, dispatch, warm_up = runner.preload_engines, runner._Dispatcher.run, isolation.warm_up
 
     def watching_preload(*args):
         seen.append(("preload", gc.isenabled()))
@@ -274,16 +276,22 @@ def test_the_run_command_collects_no_garbage_while_loading_and_leaves_the_collec
         seen.append(("cases", gc.isenabled()))
         dispatch(self)
 
+    def watching_warm_up(task):  # runs in the case host (forked with this module as patched here)
+        in_host.write_text(str(gc.isenabled()))
+        warm_up(task)
+
     was = gc.isenabled()
     (gc.enable if enabled else gc.disable)()
     runner.preload_engines, runner._Dispatcher.run = watching_preload, watching_run
+    isolation.warm_up = watching_warm_up
     try:
         main(["run", str(suite), "--output", str(tmp_path / "out"), "--jobs", "1", "--quiet"])
         after = gc.isenabled()
     finally:
-        runner.preload_engines, runner._Dispatcher.run = preload, dispatch
+        runner.preload_engines, runner._Dispatcher.run, isolation.warm_up = preload, dispatch, warm_up
         (gc.enable if was else gc.disable)()
     assert seen == [("preload", False), ("cases", enabled)]
+    assert in_host.read_text() == str(enabled)
     assert after is enabled and gc.get_freeze_count() == 0
 
 

@@ -521,6 +521,9 @@ def preload_engines(suite: Suite, cases) -> None:
     # from here. bench/bench_harness.py measures what the harness costs.
     # _run_suite unfreezes it when the run ends.
     gc.freeze()
+    # The loading is over: collection back on (if the run command turned it off) before the hosts
+    # and workers fork, so they collect their cases' garbage too (compare/run/startup.py).
+    startup.resume_collection()
 
 
 class _Writer:
