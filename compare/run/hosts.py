@@ -11,7 +11,11 @@ or timeout into its future's result exactly as
 Each host is sent its next task before it has answered the one it runs
 (``depth`` tasks at most), so it starts that case as soon as it answers,
 while this process turns the answer into a record, instead of sleeping until
-it is woken with the next task. A task's timeout counts from when its host
+it is woken with the next task. Only a task that fits in a pipe however small
+(:data:`PIPELINED_BYTES`) is sent to a busy host: a bigger one could fill the
+pipe and block this thread's write until the host reads it, while the host,
+still on its task, blocks writing an answer this thread is not there to read.
+A task's timeout counts from when its host
 began it (its predecessor's answer); a task waiting behind one whose host died
 or was killed goes back to the queue, never run, and gets a new host.
 
@@ -35,9 +39,16 @@ import time
 from collections import deque
 from dataclasses import dataclass, field
 from multiprocessing.connection import wait as wait_for_pipes
+from multiprocessing.reduction import ForkingPickler
 from typing import Any, Iterable
 
 from compare.run.isolation import CaseTask, ReferenceTask, CaseHost, died, reference_answer, send, timed_out
+
+
+#: Bytes of a pickled task sent to a host still busy with another: the least a Linux pipe holds (one
+#: page; pipes past the user's pipe-user-pages-soft get one), so the write never waits for the host.
+#: A default-suite case is about 1 KB; a bigger task (a long chain's scene) waits until its host is idle.
+PIPELINED_BYTES = 4096
 
 
 @dataclass
@@ -47,6 +58,14 @@ class _Job:
     task: CaseTask | ReferenceTask
     future: cf.Future
     started: float = 0.0
+    _pickled: bytes | None = None
+
+    @property
+    def pickled(self) -> bytes:
+        """The task as it travels through a pipe (pickled once)."""
+        if self._pickled is None:
+            self._pickled = ForkingPickler.dumps(self.task)
+        return self._pickled
 
     @property
     def deadline(self) -> float:
@@ -133,13 +152,15 @@ class HostPool:
             for slot in self.slots:
                 if not self.queue or len(slot.jobs) != place:
                     continue
+                if place > 0 and len(self.queue[0].pickled) > PIPELINED_BYTES:
+                    return  # it waits for an idle host (module docstring), and the tasks behind it too
                 job = self.queue.popleft()
                 if place == 0:
                     slot.host = send(slot.host, job.task)  # a new host when it has none, or it died
                     job.started = time.perf_counter()
                 else:
                     try:
-                        slot.host.requests.send(job.task)
+                        slot.host.requests.send_bytes(job.pickled)
                     except OSError:  # the host is gone: the answer it owes says how; this task waits
                         self.queue.appendleft(job)
                         continue

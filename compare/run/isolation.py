@@ -88,8 +88,8 @@ class ReferenceTask:
     sample_dts, sample_interval : s; the run's cases of this scene are sampled at
         Schedule.make(duration, dt, sample_interval).times for each of these dts: the host
         evaluates the solution there (and keeps the samples with it), so the parent finds them
-        in ReferenceSolution.samples. (The dts, not the times: a task must stay small, since a
-        driver writes it into the pipe of a host that may be busy with the task before it.)
+        in ReferenceSolution.samples. (The dts, not the times: a task of a few KB can be sent to
+        a host still busy with the one before it, compare.run.hosts.PIPELINED_BYTES.)
     """
 
     scene_id: str
