@@ -136,17 +136,22 @@ def test_a_reference_task_stays_small_and_its_samples_are_the_runs_sample_times(
 
 
 def test_a_run_forks_no_more_hosts_than_it_has_tasks():
-    # One case and one reference asked to run on 8 jobs: two hosts, not eight.
+    # Four cases of two scenes asked to run on 16 jobs: six hosts (a case each and a reference per
+    # scene), not sixteen; one case left of one scene (a --resume): two.
     from compare.run.runner import _Dispatcher, plan
     from compare.suite.reader import parse_suite
 
-    suite = parse_suite('duration = 0.1\ndt = [1e-2]\n[[scenes]]\nscene = "bead"\n[[engines]]\nid = "pymunk/pin"\n')
-    dispatcher = _Dispatcher(suite, plan(suite), None, 8, None, 20, True)
-    try:
-        assert dispatcher.jobs == 2 and len(dispatcher.pool.hosts) == 2
-    finally:
-        dispatcher.pool.shutdown()
-        gc.unfreeze()  # what preload_engines froze (run_suite unfreezes it as a run ends)
+    suite = parse_suite('duration = 0.1\ndt = [1e-2, 5e-3]\n[[scenes]]\nscene = "bead"\n'
+                        '[[scenes]]\nscene = "double-pendulum"\n[[engines]]\nid = "pymunk/pin"\n')
+    cases = plan(suite)
+    assert len(cases) == 4
+    for todo, hosts in ((cases, 6), (cases[:1], 2)):
+        dispatcher = _Dispatcher(suite, todo, writer=None, jobs=16, executor=None, timeout=20, isolate=True)
+        try:
+            assert dispatcher.jobs == hosts and len(dispatcher.pool.hosts) == hosts
+        finally:
+            dispatcher.pool.shutdown()
+            gc.unfreeze()  # what preload_engines froze (run_suite unfreezes it as a run ends)
 
 
 def test_a_dead_host_is_closed_before_a_new_one_takes_its_task():

@@ -134,14 +134,15 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
 def solve_reference(task: ReferenceTask) -> Any:
     """The reference's (dense solution, ReferenceBound) of ``task.scene``, solved in a case host
     under the case timeout (what an executor's worker runs; module-level so it pickles). Raises ReferenceFailed saying
-    why not. The bound (engines.reference.solve_and_bound) is the reference's own error bar and horizon."""
+    why not. The bound (engines.reference.solve_and_bound_kept) is the reference's own error bar and horizon."""
     return execute_reference(task)
 
 
 @dataclass(frozen=True)
 class RunSummary:
     """What a run did: where results are, status counts, cases run now / resumed, wall time (s),
-    and every case record in ``path`` (read once at the end, for the counts and the tables)."""
+    and every case record in ``path`` (an earlier run's, read as the run started, and this run's, kept
+    as they were written), for the counts and the tables."""
 
     path: Path
     counts: dict[str, int]
@@ -316,9 +317,9 @@ class _Dispatcher:
         self.suite = suite
         self.cases = {c.id: c for c in cases}
         self.writer = writer
-        # No more hosts or workers than tasks (cases and one reference per scene): a --resume with two
-        # cases left forks two, not one per core.
-        self.jobs = min(jobs or default_jobs(), max(1, len(self.cases) + len(self.suite.scenes)))
+        # No more hosts or workers than tasks (the cases and one reference per scene of theirs): a
+        # --resume with two cases of one scene left forks three at most, not one per core.
+        self.jobs = min(jobs or default_jobs(), max(1, len(self.cases) + len({c.scene.id for c in cases})))
         self.timeout = timeout
         self.isolate = isolate
         self.pool = self._new_pool() if executor is None else _ExecutorPool(executor, owned=False)
@@ -370,7 +371,8 @@ class _Dispatcher:
         }
 
     def fill(self, pending: dict[cf.Future, tuple[str, str]]) -> dict[cf.Future, tuple[str, str]]:
-        """Submit cases while there is room: ``jobs`` at a time on a pool we own, all at once otherwise.
+        """Submit cases while there is room: ``jobs`` × the pool's depth at a time on a pool we own (a
+        host runs one and holds the others waiting behind it), all at once otherwise.
 
         A window on our own pool means a worker's death loses only the cases
         running then, not the whole queue (an executor passed in, e.g. the
@@ -501,8 +503,8 @@ def preload_engines(suite: Suite, cases) -> None:
     from engines.reference import ENGINE as REFERENCE, is_kept
 
     engines = {id(c.engine.engine): c.engine.engine for c in cases if c.engine.engine is not None}
-    scenes = [s.scene for s in suite.scenes]
-    # The reference solves every scene; its solver (scipy.integrate) is loaded only when some scene's
+    scenes = list({c.scene.id: c.scene.scene for c in cases}.values())  # those with cases to run
+    # The reference solves each of them; its solver (scipy.integrate) is loaded only when some scene's
     # solution is not kept from an earlier run (engines.reference.solve_and_bound_kept).
     if not all(is_kept(scene, suite.rtol, suite.atol) for scene in scenes):
         engines.setdefault(id(REFERENCE), REFERENCE)
