@@ -29,7 +29,6 @@ import contextlib
 import functools
 import hashlib
 import math
-import os
 import pickle
 import sys
 import time
@@ -506,11 +505,10 @@ def _keep(path: Path, solved: tuple[ReferenceSolution, ReferenceBound]) -> None:
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
     if len(data) > _LARGEST_KEPT:
         return
+    from ours.cache import write_whole
+
     with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
-        path.parent.mkdir(parents=True, exist_ok=True)
-        temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        temporary.write_bytes(data)
-        os.replace(temporary, path)
+        write_whole(path, data)
 
 
 def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> bool:

@@ -46,3 +46,18 @@ def configure_numba() -> None:
     config = sys.modules.get("numba.core.config")
     if config is not None and not getattr(config, "CACHE_DIR", ""):
         config.CACHE_DIR = folder
+
+
+def write_whole(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` whole or not at all: a temporary file beside it (this process's own
+    name), renamed into place, so a concurrent reader sees the old file or the new one; the temporary
+    is removed if the write fails. Raises OSError (the caller decides whether a cache that cannot be
+    written matters)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        temporary.write_bytes(data)
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise

@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import os
 import sys
 from pathlib import Path
 from types import ModuleType
 
-from ours.cache import cache_dir
+from ours.cache import cache_dir, write_whole
 
 _SIZES_START = "# ---- SIZES (ours.specialize replaces this block with constants) ----"
 _SIZES_END = "# ---- END SIZES ----"
@@ -92,11 +91,7 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
     folder = cache_dir() / "ours"
     path = folder / f"{name}.py"
     if not path.exists() or path.read_text(encoding="utf-8") != source:
-        folder.mkdir(parents=True, exist_ok=True)
-        # Write then rename, so a concurrent process never imports half a file.
-        temporary = folder / f".{name}.{os.getpid()}.tmp"
-        temporary.write_text(source, encoding="utf-8")
-        os.replace(temporary, path)
+        write_whole(path, source.encode("utf-8"))  # a concurrent process never imports half a file
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     # Registered before it runs: numba's cache finds a function's module by this name.

@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -216,6 +217,27 @@ def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(kept_dou
     seen = json.loads(done.stdout)
     assert seen["before"] is False and seen["after"] is True
     np.testing.assert_array_equal(np.array(seen["positions"]), solved.at(times)[0])
+
+    # Another run's set is added to the file, and the answer carries only the set asked for.
+    other = np.linspace(0.0, 1.0, 51)
+    asked, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10, sample_times=[other])
+    assert set(asked.samples) == {other.tobytes()}
+    with kept.open("rb") as handle:
+        on_file, _ = pickle.load(handle)
+    assert set(on_file.samples) == {times.tobytes(), other.tobytes()}
+
+
+def test_a_cache_file_is_written_whole_or_not_at_all(tmp_path):
+    # ours.cache.write_whole (the kept references, ours' generated kernels): a write that fails leaves
+    # the old file and no temporary beside it.
+    from ours.cache import write_whole
+
+    target = tmp_path / "kept.pickle"
+    write_whole(target, b"first")
+    (tmp_path / "blocked").mkdir()
+    with pytest.raises(OSError):
+        write_whole(tmp_path / "blocked", b"second")  # the rename onto a directory fails
+    assert target.read_bytes() == b"first" and sorted(p.name for p in tmp_path.iterdir()) == ["blocked", "kept.pickle"]
 
 
 def test_a_solution_keeps_at_most_the_latest_sample_sets():
