@@ -42,7 +42,6 @@ import importlib.metadata
 import importlib.util
 import io
 import os
-import re
 import time
 from typing import Any, Mapping
 
@@ -52,7 +51,7 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
 from engines.mujoco import mujoco
-from engines.mujoco import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples
+from engines.mujoco import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
 from engines.scene import Scene
 
 if importlib.util.find_spec("jax") is None:
@@ -161,7 +160,7 @@ class MJXEngine(Engine):
         x64 = settings["precision"] == "float64"
         strides = np.diff(schedule.sample_steps).astype(np.int32)
         # The compiled loop depends on the model's structure, not on dt (an array in MJX's model).
-        key = (re.sub(r'timestep="[^"]*"', "", xml), x64)
+        key = (without_timestep(xml), x64)
         record: dict[str, Any] = {}
         with jax.enable_x64(x64):
             mx = mjx.put_model(model, impl="jax")

@@ -419,7 +419,13 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     from). The model is the run's alone while it runs (one thread runs one
     case at a time); a run never changes it.
     """
-    key = _SOLREF.sub(r'\1 solref=""', xml.replace(f'timestep="{dt!r}"', 'timestep=""', 1))
+    solrefs: list[str] = []  # the connect equalities' solref numbers, taken out of the key
+
+    def take_solref(match: re.Match) -> str:
+        solrefs.append(match.group(2))
+        return f'{match.group(1)} solref=""'
+
+    key = _SOLREF.sub(take_solref, without_timestep(xml))
     kept = getattr(_CACHE, "models", None)
     if kept is None:
         kept = _CACHE.models = OrderedDict()
@@ -435,12 +441,18 @@ def _model_and_data(xml: str, dt: float) -> tuple[mujoco.MjModel, mujoco.MjData]
     kept.move_to_end(key)
     model, data = entry
     model.opt.timestep = dt
-    softness = _SOLREF.search(xml)
-    if softness is not None:  # every connect equality has the same solref (equality_softness)
-        model.eq_solref[:] = [float(x) for x in softness.group(2).split()]
+    if solrefs:  # every connect equality has the same solref (equality_softness)
+        model.eq_solref[:] = [float(x) for x in solrefs[0].split()]
     mujoco.mj_resetData(model, data)
     return model, data
 
+
+def without_timestep(xml: str) -> str:
+    """The MJCF ``xml`` with its option's timestep left out: a key for what does not depend on dt."""
+    return _TIMESTEP.sub('timestep=""', xml, count=1)
+
+
+_TIMESTEP = re.compile(r'timestep="[^"]*"')
 
 #: A connect equality's solref attribute in an MJCF (group 1: the element up to it; group 2: its
 #: numbers). Only the equalities': a solref anywhere else stays in _model_and_data's key (a model per

@@ -303,11 +303,34 @@ def test_a_model_and_data_kept_from_another_run_give_bit_for_bit_a_fresh_compile
         fresh = ENGINE.simulate(scene, 2e-3, variant=variant)
         adapter._CACHE.models = None
         ENGINE.simulate(scene, 5e-3, variant=variant)  # only the 5e-3 run's model and data are kept now
+        [kept] = adapter._CACHE.models.values()
         reused = ENGINE.simulate(scene, 2e-3, variant=variant)
+        [(model, _data)] = adapter._CACHE.models.values()
+        assert model is kept[0], f"{variant}: the 2e-3 run compiled its own model"
         assert reused.info.settings == fresh.info.settings, variant
         for a, b in ((fresh.positions, reused.positions), (fresh.velocities, reused.velocities),
                      (fresh.constraint_forces, reused.constraint_forces)):
             assert np.array_equal(a, b, equal_nan=True), variant
+
+
+def test_only_the_connect_equalities_solref_and_the_timestep_are_left_out_of_the_kept_models_key():
+    # A solref anywhere else (here a geom's) is part of the model the compiler builds: each value its
+    # own kept model. A connect's is set on the kept model, as is the timestep.
+    import engines.mujoco as adapter
+
+    def mjcf(dt, geom_solref, connect_solref):
+        return (f'<mujoco><option timestep="{dt!r}"/><worldbody><body name="a"><freejoint/>'
+                f'<geom size="0.1" mass="1"/></body><body name="b" pos="1 0 0"><freejoint/>'
+                f'<geom size="0.1" mass="1" solref="{geom_solref}"/></body></worldbody><equality>'
+                f'<connect body1="a" body2="b" anchor="0 0 0" solref="{connect_solref}"/></equality></mujoco>')
+
+    adapter._CACHE.models = None
+    first, _ = adapter._model_and_data(mjcf(1e-3, "0.02 1", "0.02 1"), 1e-3)
+    again, _ = adapter._model_and_data(mjcf(2e-3, "0.02 1", "0.05 1"), 2e-3)
+    assert again is first and again.opt.timestep == 2e-3 and list(again.eq_solref[0]) == [0.05, 1.0]
+    other, _ = adapter._model_and_data(mjcf(2e-3, "0.03 1", "0.05 1"), 2e-3)
+    assert other is not first and len(adapter._CACHE.models) == 2
+    adapter._CACHE.models = None
 
 
 def test_a_kept_mjdata_that_blew_up_starts_the_next_run_clean(tmp_path, monkeypatch):
