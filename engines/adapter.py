@@ -27,6 +27,7 @@ says what to do when that is not one this xval speaks (docs/plugins.md).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import time
@@ -165,6 +166,16 @@ class Schedule:
     def times(self) -> np.ndarray:
         """(n_samples,) s."""
         return self.sample_steps * self.dt
+
+
+@functools.lru_cache(maxsize=256)
+def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
+    """(N,) s: ``Schedule.make(duration, dt, sample_interval).times``, read-only and built once: every
+    engine of a scene and dt is sampled there, and the reference's kept samples are keyed by these
+    times' bytes (the case host that keeps them and the runner that looks them up must agree)."""
+    times = Schedule.make(duration, dt, sample_interval).times
+    times.flags.writeable = False
+    return times
 
 
 def check_time_step(dt: Any, duration: float) -> None:

@@ -19,7 +19,7 @@ import numpy as np
 
 from compare.run.hosts import PIPELINED_BYTES, HostPool
 from compare.run.isolation import _DRIVER_ENDS, CaseHost, CaseTask, ReferenceTask, send
-from compare.run.runner import scheduled_times
+from engines.adapter import scheduled_times
 from engines.catalog import build
 from engines.reference import solve_and_bound
 

@@ -52,7 +52,7 @@ import traceback
 from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
-from engines.adapter import Engine, Schedule
+from engines.adapter import Engine, scheduled_times
 from engines.scene import Scene
 from engines.trajectory import Trajectory
 
@@ -86,7 +86,7 @@ class ReferenceTask:
 
     rtol, atol : DOP853's tolerances. timeout : s. memory_limit : bytes of address space, or None.
     sample_dts, sample_interval : s; the run's cases of this scene are sampled at
-        Schedule.make(duration, dt, sample_interval).times for each of these dts: the host
+        engines.adapter.scheduled_times(duration, dt, sample_interval) for each of these dts: the host
         evaluates the solution there (and keeps the samples with it), so the parent finds them
         in ReferenceSolution.samples. (The dts, not the times: a task of a few KB can be sent to
         a host still busy with the one before it, compare.run.hosts.PIPELINED_BYTES.)
@@ -358,7 +358,7 @@ def _run_in_host(task: Any) -> Any:
     if isinstance(task, ReferenceTask):
         from engines.reference import solve_and_bound_kept
 
-        times = [Schedule.make(task.scene.duration, dt, task.sample_interval).times for dt in task.sample_dts]
+        times = [scheduled_times(task.scene.duration, dt, task.sample_interval) for dt in task.sample_dts]
         return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol, sample_times=times)
     warm_up(task)
     return simulate(task)

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
-import functools
 import gc
 import math
 import multiprocessing
@@ -41,7 +40,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from engines.adapter import Schedule
+from engines.adapter import scheduled_times
 from engines.limits import check_case_size
 from engines.command import spec_of
 from engines.errors import Unsupported
@@ -697,15 +696,6 @@ def build_record(
             series_arrays["reference_constraint_forces"] = ref_forces[:n][keep]
     record["series"] = round_each(series_arrays)
     return record
-
-
-@functools.lru_cache(maxsize=256)
-def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
-    """(N,) s: the times a case of this duration and dt is sampled at (Schedule.times), read-only; the
-    same for every engine of a scene and dt, so built once."""
-    times = Schedule.make(duration, dt, sample_interval).times
-    times.flags.writeable = False
-    return times
 
 
 def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
