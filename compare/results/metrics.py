@@ -73,12 +73,13 @@ def divergence_time(t: np.ndarray, e: np.ndarray, threshold: float, end_of_data:
 
 def energy_drift(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> float:
     """max |E(t) − E(0)| / E* (dimensionless), E* = total mass · g · L; 0 for fewer than 2 samples."""
-    return largest_drift(energy_drift_series(scene, positions, velocities))
+    return largest(energy_drift_series(scene, positions, velocities))
 
 
-def largest_drift(drift: np.ndarray) -> float:
-    """max |drift| of an :func:`energy_drift_series` (n,); 0 for fewer than 2 samples."""
-    return float(np.abs(drift).max()) if len(drift) >= 2 else 0.0
+def largest(series: np.ndarray) -> float:
+    """max |x| of a series (n,) (an :func:`energy_drift_series`, a :func:`max_constraint_error`): the
+    scalar metric of it; 0 for no samples (a drift of one sample is 0 too)."""
+    return float(np.abs(series).max()) if len(series) else 0.0
 
 
 def energy_drift_series(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
@@ -91,12 +92,7 @@ def energy_drift_series(scene: Scene, positions: np.ndarray, velocities: np.ndar
 
 def constraint_error(scene: Scene, positions: np.ndarray) -> float:
     """max over constraints and samples of |‖a − b‖ − l|, in m (0 for no samples or no constraints)."""
-    return largest_error(max_constraint_error(scene, positions) if len(positions) else np.zeros(0))
-
-
-def largest_error(errors: np.ndarray) -> float:
-    """max of a series of constraint errors (n,) m (:func:`max_constraint_error`); 0 for no samples."""
-    return float(errors.max()) if len(errors) else 0.0
+    return largest(max_constraint_error(scene, positions))
 
 
 def constraint_force_error(forces: np.ndarray, reference_forces: np.ndarray) -> float:
@@ -223,14 +219,14 @@ def case_metrics(
     cost = stepping_cost(wall_times, trajectory.info.steps * trajectory.info.dt, trajectory.info.steps)
     # Each series once; the scalar metrics are their maxima, as energy_drift and constraint_error give them.
     drift = energy_drift_series(scene, trajectory.positions, trajectory.velocities)
-    constraint_errors = max_constraint_error(scene, trajectory.positions) if n else np.zeros(0)
+    constraint_errors = max_constraint_error(scene, trajectory.positions)
     metrics = CaseMetrics(
         position_error_final=summary.final if complete else math.nan,
         position_error_l2=summary.l2,
         position_error_linf=summary.linf,
         divergence_time=divergence_time(trajectory.t, e, threshold, end_of_data),
-        energy_drift=largest_drift(drift),
-        constraint_error=largest_error(constraint_errors),
+        energy_drift=largest(drift),
+        constraint_error=largest(constraint_errors),
         constraint_force_error=force_error,
         constraint_force_error_relative=None if force_error is None else force_error / characteristic_force(scene),
         wall_time=cost.wall_time,

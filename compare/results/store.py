@@ -21,7 +21,6 @@ import hashlib
 import json
 import math
 import re
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Iterator, Mapping
@@ -41,16 +40,8 @@ SERIES_DIGITS = 6
 
 
 def now() -> str:
-    """The current time to the second, ISO 8601 with the local UTC offset."""
-    second = int(time.time())
-    if _LAST_NOW[0] != second:  # a run writes many records a second: format each second once
-        _LAST_NOW[:] = [second, _dt.datetime.fromtimestamp(second, _dt.timezone.utc).astimezone().isoformat(
-            timespec="seconds")]
-    return _LAST_NOW[1]
-
-
-#: (the second, its ISO 8601 text) last asked of now().
-_LAST_NOW: list = [None, ""]
+    """The current time, ISO 8601 with the UTC offset."""
+    return _dt.datetime.now(_dt.timezone.utc).astimezone().isoformat(timespec="seconds")
 
 
 def case_file_name(case_id: str) -> str:
