@@ -15,12 +15,14 @@ inode search skips every inode freed in the last one to six minutes and
 reads each one's deletion time from the inode table (``recently_deleted``
 in the kernel's fs/ext4/ialloc.c), so the second number grows with N.
 
-With ``--layout K`` it also runs ``xval run suites/default.toml --jobs 1``
-K times each way, alternating, and prints the ``xval`` process's own CPU
-(user + system): as it writes records (a file per case), and with its
-``ResultsDir.write_case`` replaced, in that child process only, by an append
-of the same bytes to one file (a prototype, for the measurement: readers of
-such a directory do not exist). Every output is kept until the end.
+With ``--layout K`` it first runs ``xval run suites/default.toml --jobs 1``
+(``bench_harness.one_run``) K times each way, alternating which goes first,
+and prints the ``xval`` process's own CPU and its system part: as it writes
+records (a file per case), and with each record's bytes appended to one file
+instead (``compare.results.store``'s write patched in that child process only:
+a prototype, for the measurement; no reader of such a directory exists).
+These runs come before the deletions below, and every output is kept until
+the end.
 
     .venv/bin/python bench/bench_file_create.py [--writes N] [--deleted N] [--layout K]
 """
@@ -28,7 +30,6 @@ such a directory do not exist). Every output is kept until the end.
 from __future__ import annotations
 
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,37 +37,24 @@ from pathlib import Path
 
 import numpy as np
 
+from bench_harness import one_run
 from compare.results.files import atomic_write_text
 
-ROOT = Path(__file__).resolve().parent.parent
 #: Bytes of a default-suite record (about what the double pendulum's hold).
 RECORD_BYTES = 20_000
 
-#: ``xval run ... --jobs 1 --quiet`` in a child process that prints its own CPU (user, system) last;
-#: argv[1] is "files" (as xval writes) or "one-file" (write_case appends to DIR/cases.jsonl).
-XVAL = r"""
-import os, resource, sys
-layout, out = sys.argv[1], sys.argv[2]
-if layout == "one-file":
-    import orjson
-    import compare.results.store as store
-    handles = {}
-    def write_case(self, record):
-        document = orjson.dumps({"schema_version": store.SCHEMA_VERSION, **record},
-                                option=orjson.OPT_APPEND_NEWLINE | orjson.OPT_SERIALIZE_NUMPY)
-        if self.path not in handles:
-            handles[self.path] = os.open(self.path / "cases.jsonl", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)
-        os.write(handles[self.path], document)
-        return self.cases / store.case_file_name(record["case"]["id"])
-    store.ResultsDir.write_case = write_case
-from compare.cli import console
-try:
-    console(["run", "suites/default.toml", "--jobs", "1", "--quiet", "--output", out])
-except SystemExit as exc:
-    if exc.code not in (0, None):
-        raise
-own = resource.getrusage(resource.RUSAGE_SELF)
-print(own.ru_utime, own.ru_stime)
+#: Run before xval in the child: record files (DIR/cases/*.json) are appended to DIR/cases.jsonl instead.
+ONE_FILE = r"""
+import os
+import compare.results.store as store
+_write, _handles = store.atomic_write_text, {}
+def _append(path, text, *, durable=True):
+    if path.parent.name != "cases":
+        return _write(path, text, durable=durable)
+    if path.parent not in _handles:
+        _handles[path.parent] = os.open(path.parent.parent / "cases.jsonl", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o666)
+    os.write(_handles[path.parent], text)
+store.atomic_write_text = _append
 """
 
 
@@ -92,14 +80,13 @@ def delete_many(scratch: Path, n: int) -> None:
 
 
 def layout_runs(scratch: Path, repeats: int) -> None:
-    print(f"\n{'run':>3} {'layout':>9} {'xval user s':>12} {'xval sys s':>11} {'xval CPU s':>11}")
+    print(f"{'run':>3} {'layout':>9} {'xval CPU s':>11} {'xval sys s':>11} {'CPU / stepping':>15}")
     for k in range(repeats):
-        for layout in ("files", "one-file"):
-            out = Path(tempfile.mkdtemp(dir=scratch)) / "out"
-            done = subprocess.run([sys.executable, "-c", XVAL, layout, str(out)], cwd=ROOT, check=True,
-                                  capture_output=True, text=True)
-            user, system = (float(x) for x in done.stdout.split()[-2:])
-            print(f"{k + 1:>3} {layout:>9} {user:12.2f} {system:11.2f} {user + system:11.2f}", flush=True)
+        order = (("files", ""), ("one-file", ONE_FILE))
+        for layout, prelude in order if k % 2 == 0 else order[::-1]:
+            run = one_run(scratch, prelude=prelude)
+            print(f"{k + 1:>3} {layout:>9} {run['xval']:11.2f} {run['xval_system']:11.2f} "
+                  f"{run['cpu'] / run['stepping']:15.2f}", flush=True)
 
 
 def main(argv: list[str]) -> int:
@@ -108,14 +95,14 @@ def main(argv: list[str]) -> int:
     churn = np.random.default_rng(0).random(4_000_000)
     with tempfile.TemporaryDirectory(prefix="bench_file_create-", dir=tempfile.gettempdir()) as tmp:
         scratch = Path(tmp)
+        if "--layout" in argv:
+            layout_runs(scratch, int(argv[argv.index("--layout") + 1]))
         fresh = timed_writes(Path(tempfile.mkdtemp(dir=scratch)), writes, churn)
         delete_many(scratch, deleted)
         after = timed_writes(Path(tempfile.mkdtemp(dir=scratch)), writes, churn)
         print(f"CPU per record write ({writes} writes of {RECORD_BYTES} bytes, file system of {scratch}):")
         print(f"  fresh directory:          {fresh:8.0f} µs")
         print(f"  after deleting {deleted:>6} files: {after:8.0f} µs")
-        if "--layout" in argv:
-            layout_runs(scratch, int(argv[argv.index("--layout") + 1]))
     return 0
 
 

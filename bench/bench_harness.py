@@ -59,8 +59,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 #: ``xval`` (compare.cli.console, what the installed program runs) in a child process that, once the
-#: run is over (its case hosts joined), writes its own CPU time and its descendants' to the file named
-#: by its last argument.
+#: run is over (its case hosts joined), writes its own CPU time (and the system part of it) and its
+#: descendants' to the file named by its last argument.
 XVAL = r"""
 import json, resource, sys
 from compare.cli import console
@@ -72,7 +72,8 @@ except SystemExit as exc:
         raise
 own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
 with open(report, "w") as handle:
-    json.dump({"xval": own.ru_utime + own.ru_stime, "descendants": children.ru_utime + children.ru_stime}, handle)
+    json.dump({"xval": own.ru_utime + own.ru_stime, "xval_system": own.ru_stime,
+               "descendants": children.ru_utime + children.ru_stime}, handle)
 """
 
 
@@ -118,23 +119,32 @@ def in_process_run(scratch: Path) -> tuple[float, float, int]:
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(files)
 
 
-def one_run(scratch: Path, suite_text: str | None = None) -> dict:
-    """CPU seconds (whole tree, the xval process, its descendants), summed stepping seconds, cases and
-    per engine [cases, stepping s, outside-stepping s] of ``xval run`` on suites/default.toml (or on
-    the suite ``suite_text``), into a new directory under ``scratch``."""
+def _records(out: Path) -> list[dict]:
+    """The records of the run in ``out``: a file each (or, with bench_file_create.py's one-file
+    prototype, a line each of cases.jsonl)."""
+    one_file = out / "cases.jsonl"
+    if one_file.exists():
+        return [json.loads(line) for line in one_file.read_text().splitlines()]
+    return [json.loads(f.read_text()) for f in (out / "cases").glob("*.json")]
+
+
+def one_run(scratch: Path, suite_text: str | None = None, prelude: str = "") -> dict:
+    """CPU seconds (whole tree, the xval process and its system part, its descendants), summed stepping
+    seconds, cases and per engine [cases, stepping s, outside-stepping s] of ``xval run`` on
+    suites/default.toml (or on the suite ``suite_text``), into a new directory under ``scratch``.
+    prelude : Python run in the child before xval (bench_file_create.py patches the record writes)."""
     tmp = tempfile.mkdtemp(dir=scratch)
     out, report, suite = Path(tmp) / "default", Path(tmp) / "cpu.json", DEFAULT_SUITE
     if suite_text is not None:
         suite = Path(tmp) / "suite.toml"
         suite.write_text(suite_text, encoding="utf-8")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([sys.executable, "-c", XVAL, "run", str(suite), "--jobs", "1", "--output", str(out),
+    subprocess.run([sys.executable, "-c", prelude + XVAL, "run", str(suite), "--jobs", "1", "--output", str(out),
                     "--quiet", str(report)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     split = json.loads(report.read_text())
     engines: dict[str, list[float]] = defaultdict(lambda: [0, 0.0, 0.0])
-    for f in (out / "cases").glob("*.json"):
-        record = json.loads(f.read_text())
+    for record in _records(out):
         stepping = sum(record["wall_times"])
         row = engines[record["case"]["engine"].split("/")[0]]
         row[0] += 1
@@ -143,6 +153,7 @@ def one_run(scratch: Path, suite_text: str | None = None) -> dict:
     return {
         "cpu": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
         "xval": split["xval"],
+        "xval_system": split["xval_system"],
         "descendants": split["descendants"],
         "stepping": sum(row[1] for row in engines.values()),
         "cases": sum(row[0] for row in engines.values()),
@@ -177,7 +188,11 @@ def main(argv: list[str]) -> int:
 
 def _benchmark(argv: list[str], scratch: Path) -> int:
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
-    one_run(scratch)  # fills numba's and the references' caches if they are empty; not counted
+    # Not counted: fill numba's and the references' caches if they are empty (the fixed suite's
+    # scenes are shorter: their references are other files).
+    one_run(scratch)
+    if "--fixed" in argv:
+        one_run(scratch, fixed_suite())
     print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}"
           f" {'calib ms':>9}")
     last = None
