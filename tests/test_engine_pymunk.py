@@ -271,9 +271,15 @@ def test_the_per_sample_checks_see_every_number_of_every_row():
     # sample on the rows their APIs give (tuples per particle; pymunk's Vec2d is one).
     from engines.adapter import largest_coordinate, rows_finite
 
+    def with_value(sample, row, k, value):
+        return [tuple(value if (i, j) == (row, k) else c for j, c in enumerate(r)) for i, r in enumerate(sample)]
+
     x, u = [(0.0, -1.0), (2.0, -0.5)], [(0.1, 0.2), (0.3, 0.4)]
-    assert rows_finite(x, u) and largest_coordinate(x) == 2.0
-    assert largest_coordinate([(0.0, -3.0)]) == 3.0
-    for bad in (float("nan"), float("inf"), -float("inf")):
-        assert not rows_finite(x, [(0.1, 0.2), (0.3, bad)])
-        assert not rows_finite([(bad, 0.0)], u)
+    assert rows_finite(x, u)
+    for row in range(2):
+        for k in range(2):
+            for big in (5.0, -5.0):  # the largest magnitude wherever it sits, of either sign
+                assert largest_coordinate(with_value(x, row, k, big)) == 5.0, (row, k, big)
+            for bad in (float("nan"), float("inf"), -float("inf")):
+                assert not rows_finite(with_value(x, row, k, bad), u), (row, k, bad)
+                assert not rows_finite(x, with_value(u, row, k, bad)), (row, k, bad)
