@@ -22,7 +22,10 @@ just before each run (``calib ms``: the CPU of a fixed piece of pure-Python
 work, the fastest of five): on a shared virtual machine the same build's
 ratio moves with it, because the harness's work (the interpreter, the
 kernel's file and page work) slows more than the engines' compiled stepping.
-Compare runs made at similar speed too.
+Compare runs made at similar speed too. With more than one run it ends with
+the median ratio, its range, and how many runs were at or below issue 20's
+1.4: single runs of one build scatter by several hundredths within an hour,
+so judge the target by the median of many.
 
 Every run's results directory is kept until the benchmark ends, then all are
 deleted together. Deleting one run's 462 record files just before the next
@@ -49,6 +52,7 @@ import math
 import os
 import re
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -195,12 +199,16 @@ def _benchmark(argv: list[str], scratch: Path) -> int:
         one_run(scratch, fixed_suite())
     print(f"{'run':>3} {'CPU s':>7} {'xval s':>7} {'hosts s':>9} {'stepping s':>11} {'CPU / stepping':>15} {'load':>5}"
           f" {'calib ms':>9}")
-    last = None
+    last, ratios = None, []
     for k in range(runs):
         speed = machine_speed()
         last = one_run(scratch)
+        ratios.append(last["cpu"] / last["stepping"])
         print(f"{k + 1:>3} {last['cpu']:7.2f} {last['xval']:7.2f} {last['descendants']:9.2f} {last['stepping']:11.2f} "
-              f"{last['cpu'] / last['stepping']:15.2f} {os.getloadavg()[0]:5.1f} {1000 * speed:9.2f}")
+              f"{ratios[-1]:15.2f} {os.getloadavg()[0]:5.1f} {1000 * speed:9.2f}")
+    if runs > 1:
+        print(f"\nCPU / stepping over {runs} runs: median {statistics.median(ratios):.3f}, "
+              f"range {min(ratios):.3f}-{max(ratios):.3f}, {sum(r <= 1.4 for r in ratios)} of {runs} at or below 1.4")
     print(f"\nlast run, by engine: {'cases':>5} {'stepping s':>11} {'outside stepping s':>19} {'ms per case':>12}")
     for name, (cases, stepping, outside) in last["engines"].items():
         print(f"{name:>20} {cases:5d} {stepping:11.2f} {outside:19.2f} {1000 * outside / cases:12.1f}")
