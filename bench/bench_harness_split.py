@@ -28,8 +28,9 @@ case host (one with ``--jobs 1``; its answers' own measures):
   after the fork, its loop).
 
 The stepping is wall time and the rest CPU time, as in bench_harness.py's ratio:
-a host descheduled while it steps shows it as stepping, so the host's "rest"
-can come out below zero on a loaded machine.
+time a host spends descheduled while it steps counts as stepping, so on a
+loaded machine "in cases, outside stepping" (the case's CPU less its
+stepping's wall time) comes out too small, even below zero.
 
     .venv/bin/python bench/bench_harness_split.py [--runs N]
 """
