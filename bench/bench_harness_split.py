@@ -119,7 +119,6 @@ def split_run(scratch: Path) -> dict:
     xval = json.loads((where / "xval.json").read_text())
     hosts = [json.loads(f.read_text()) for f in where.glob("host-*.json")]
     loop = xval["loop_end"] - xval["loop_start"]
-    outside = sum(row[2] for row in run["engines"].values())  # wall: elapsed less stepping, per case
     host_cpu = sum(h["cpu"] for h in hosts)
     simulate = sum(h["simulate"] for h in hosts)
     run["split"] = {
@@ -134,8 +133,6 @@ def split_run(scratch: Path) -> dict:
         "host pipes": sum(h["pipes"] for h in hosts),
         "host rest": host_cpu - simulate - sum(h["warm_up"] + h["pipes"] for h in hosts),
     }
-    run["hosts"] = len(hosts)
-    run["outside_wall"] = outside
     return run
 
 
