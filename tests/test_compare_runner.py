@@ -63,6 +63,18 @@ def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
     assert summary.counts == {"failed": 3, "ok": 2, "timeout": 1, "unstable": 2}
 
 
+def test_a_trajectory_sampled_at_its_own_times_is_compared_with_the_reference_at_those_times(tmp_path):
+    # compare_engines.OWN_TIMES returns the reference itself, each sample a third of an interval
+    # before its scheduled time: compared at the schedule's times it would be off by the bead's motion.
+    suite = parse_suite(suite_text(["compare_engines:OWN_TIMES/exact"]))
+    run_suite(suite, tmp_path / "r", jobs=1)
+    record = next(iter(by_engine(tmp_path / "r").values()))
+    assert record.status.value == "ok"
+    t = json.loads(next((tmp_path / "r" / "cases").glob("*.json")).read_text())["series"]["t"]
+    assert t[1] == pytest.approx(0.01 * 2 / 3)
+    assert record.metrics["position_error_linf"] == 0.0
+
+
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_case_that_kills_its_pool_worker_is_failed_and_no_other_case_is_blamed(tmp_path, jobs):
     # Not isolated, the engines run in the pool's workers: the killer's death breaks the

@@ -637,11 +637,11 @@ def build_record(
         reference_note = f"no reference solution ({why}), so no position metrics"
         message = "; ".join(m for m in (message, reference_note) if m)
     else:
-        # At the scheduled times (shared by every engine of this dt), of which the trajectory holds the first n.
-        ref_positions, ref_forces = reference.at(scheduled)
-        if not np.array_equal(trajectory.t, scheduled[:n]):  # an engine that samples at times of its own
-            ref_positions, _, ref_forces = reference.solution.at(trajectory.t)
         solution = reference.solution
+        # At the scheduled times (shared by every engine of this dt, their samples kept with the
+        # solution), of which the trajectory holds the first n; else at an engine's own sample times.
+        ref_times = scheduled if np.array_equal(trajectory.t, scheduled[:n]) else trajectory.t
+        ref_positions, _, ref_forces = solution.at(ref_times)
         record["reference"] = {
             "rtol": solution.rtol,
             "atol": solution.atol,
@@ -739,11 +739,6 @@ class SampledReference:
     def __init__(self, solved: Any) -> None:
         # solve_reference's (solution, bound); a bare solution (no bound) is accepted too.
         self.solution, self.bound = solved if isinstance(solved, tuple) else (solved, None)
-
-    def at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """positions (N, P, 3) m and constraint forces (N, C, 3) N at ``times`` (N,) s."""
-        positions, _, forces = self.solution.at(times)
-        return positions, forces
 
 
 def _truncate(trajectory, n: int):
