@@ -327,13 +327,13 @@ def _fixed_frame(name: str, parent_frame, X):
 
 def _frame_with_x_along(direction: np.ndarray) -> RotationMatrix:
     """A rotation whose first column is ``direction`` (normalized); the others complete a right-handed frame."""
+    from pydrake.math import RotationMatrix
+
     x = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
     helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     y = np.cross(helper, x)
     y /= np.linalg.norm(y)
     z = np.cross(x, y)
-    from pydrake.math import RotationMatrix
-
     return RotationMatrix(np.column_stack([x, y, z]))
 
 
@@ -377,6 +377,8 @@ class DrakeModel:
         ω = r × Δv / |r|² (r the arm, Δv the particle's velocity relative to its
         pivot); a revolute joint's rate is (ω − ω_parent)·ŷ.
         """
+        from pydrake.math import RollPitchYaw
+
         scene, tree = self.scene, self.tree
         plant_context = context
         v = scene.initial_velocities
@@ -393,8 +395,6 @@ class DrakeModel:
                 joint.set_angular_rate(plant_context, float(relative[1]))
             else:
                 # Joint frame M on the child is R_BM; at the start the body is aligned with the world (F).
-                from pydrake.math import RollPitchYaw
-
                 R_FM = _frame_with_x_along(r)
                 joint.set_angles(plant_context, RollPitchYaw(R_FM).vector())
                 joint.set_angular_velocity(plant_context, relative)
