@@ -11,6 +11,7 @@ the pool ends every host at once.
 from __future__ import annotations
 
 import gc
+from dataclasses import replace
 import pickle
 import sys
 from pathlib import Path
@@ -169,3 +170,15 @@ def test_a_dead_host_is_closed_before_a_new_one_takes_its_task():
         assert outcome.status == "ok"
     finally:
         new.close()
+
+
+def test_a_case_run_without_a_host_is_warmed_up_first_as_in_a_host():
+    # isolate=False (a pool's worker or this thread runs the engine): the variant's two-step warm-up
+    # runs before its first case, as _run_in_host does, so its one-off costs are not timed as stepping.
+    from compare.run import isolation
+
+    task = replace(case("pymunk", "pin", build("bead", {"duration": 0.1})), isolate=False)
+    isolation._WARM.discard(task.engine_id)
+    outcome = isolation.execute(task)
+    assert outcome.status == "ok" and outcome.trajectory.info.status == "ok"
+    assert task.engine_id in isolation._WARM

@@ -478,6 +478,7 @@ def execute(task: CaseTask) -> CaseOutcome:
     start = time.perf_counter()
     if not task.isolate:
         try:
+            warm_up(task)  # as a case host does: the variant's one-off costs stay out of its first case's stepping
             return simulate(task)
         except Exception as exc:
             outcome = _failure(task, exc)
