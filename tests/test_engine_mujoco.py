@@ -325,12 +325,14 @@ def test_only_the_connect_equalities_solref_and_the_timestep_are_left_out_of_the
                 f'<connect body1="a" body2="b" anchor="0 0 0" solref="{connect_solref}"/></equality></mujoco>')
 
     adapter._CACHE.models = None
-    first, _ = adapter._model_and_data(mjcf(1e-3, "0.02 1", "0.02 1"), 1e-3)
-    again, _ = adapter._model_and_data(mjcf(2e-3, "0.02 1", "0.05 1"), 2e-3)
-    assert again is first and again.opt.timestep == 2e-3 and list(again.eq_solref[0]) == [0.05, 1.0]
-    other, _ = adapter._model_and_data(mjcf(2e-3, "0.03 1", "0.05 1"), 2e-3)
-    assert other is not first and len(adapter._CACHE.models) == 2
-    adapter._CACHE.models = None
+    try:
+        first, _ = adapter._model_and_data(mjcf(1e-3, "0.02 1", "0.02 1"), 1e-3)
+        again, _ = adapter._model_and_data(mjcf(2e-3, "0.02 1", "0.05 1"), 2e-3)
+        assert again is first and again.opt.timestep == 2e-3 and list(again.eq_solref[0]) == [0.05, 1.0]
+        other, _ = adapter._model_and_data(mjcf(2e-3, "0.03 1", "0.05 1"), 2e-3)
+        assert other is not first and len(adapter._CACHE.models) == 2
+    finally:
+        adapter._CACHE.models = None  # later tests start with no kept model
 
 
 def test_a_kept_mjdata_that_blew_up_starts_the_next_run_clean(tmp_path, monkeypatch):

@@ -48,7 +48,7 @@ def run_all(pool: HostPool, tasks, waiting_behind: int | None = None) -> list:
         while not all(f.done() for f in futures):
             pool.wait([f for f in futures if not f.done()])
     finally:
-        pool.shutdown()
+        pool.shutdown(kill=True)  # a host still busy (an assertion failed) is killed, by its process group
     return [f.result() for f in futures]
 
 

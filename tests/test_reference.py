@@ -227,17 +227,22 @@ def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(kept_dou
     assert set(on_file.samples) == {times.tobytes(), other.tobytes()}
 
 
-def test_a_cache_file_is_written_whole_or_not_at_all(tmp_path):
-    # ours.cache.write_whole (the kept references, ours' generated kernels): a write that fails leaves
-    # the old file and no temporary beside it.
+def test_a_cache_file_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
+    # ours.cache.write_whole (the kept references, ours' generated kernels): a write of the same file
+    # that fails (here its rename) leaves the old file as it was and no temporary beside it.
+    import ours.cache
     from ours.cache import write_whole
 
     target = tmp_path / "kept.pickle"
     write_whole(target, b"first")
-    (tmp_path / "blocked").mkdir()
+
+    def failing_replace(source, destination):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(ours.cache.os, "replace", failing_replace)
     with pytest.raises(OSError):
-        write_whole(tmp_path / "blocked", b"second")  # the rename onto a directory fails
-    assert target.read_bytes() == b"first" and sorted(p.name for p in tmp_path.iterdir()) == ["blocked", "kept.pickle"]
+        write_whole(target, b"second")
+    assert target.read_bytes() == b"first" and [p.name for p in tmp_path.iterdir()] == ["kept.pickle"]
 
 
 def test_a_solution_keeps_at_most_the_latest_sample_sets():
