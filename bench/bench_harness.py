@@ -8,7 +8,8 @@ reports, per run:
 - the CPU time (user + system) of the whole process tree, from the kernel's
   accounting of waited-for children, split into the ``xval`` process itself
   (planning, imports, preloading, building and writing records) and its
-  descendants (the case host that runs the engines, and any process an engine starts);
+  descendants (the case host that runs the engines, any process an engine starts, and the
+  ``git`` commands that record the run's commit);
 - the sum over cases of the engines' stepping times (``wall_times`` in the
   records), and the ratio of the two;
 - per engine, the stepping time and the time the case host spent on the case
@@ -118,9 +119,9 @@ def in_process_run(scratch: Path) -> tuple[float, float, int]:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, "-c", IN_PROCESS, str(out)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    files = list((out / "cases").glob("*.json"))
-    stepping = sum(sum(json.loads(f.read_text())["wall_times"]) for f in files)
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(files)
+    records = _records(out)
+    stepping = sum(sum(record["wall_times"]) for record in records)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), stepping, len(records)
 
 
 def _records(out: Path) -> list[dict]:
@@ -190,8 +191,20 @@ def main(argv: list[str]) -> int:
         return _benchmark(argv, Path(scratch))
 
 
+def runs_argument(argv: list[str], default: int = 2) -> int:
+    """The number after ``--runs`` (default ``default``); exits with a one-line error unless it is 1 or more."""
+    if "--runs" not in argv:
+        return default
+    given = argv[argv.index("--runs") + 1] if argv.index("--runs") + 1 < len(argv) else ""
+    if not given.isdigit() or int(given) < 1:
+        print(f"{Path(sys.argv[0]).name}: --runs: expected a whole number of runs, 1 or more, got {given!r}",
+              file=sys.stderr)
+        raise SystemExit(2)
+    return int(given)
+
+
 def _benchmark(argv: list[str], scratch: Path) -> int:
-    runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
+    runs = runs_argument(argv)
     # Not counted: fill numba's and the references' caches if they are empty (the fixed suite's
     # scenes are shorter: their references are other files).
     one_run(scratch)

@@ -7,11 +7,15 @@ and time.thread_time, so waiting is not counted), the phases of the ``xval``
 process and of its case host, and prints them beside the summed stepping time:
 
 ``xval`` process:
-- start-up: from the interpreter's start to the engines' preload
-  (``compare.run.runner.preload_engines``), i.e. the imports (click, numpy and
-  scipy.linalg, the runner);
-- preload: numba and the engines imported, ours' kernels loaded from numba's
-  cache (numba setting up its compiler's tables the first time);
+- start-up: from the interpreter's start to the preload
+  (``compare.run.runner.preload_engines``): the imports (click, numpy and
+  scipy.linalg, the runner; MuJoCo, PyBullet and pymunk, which loading the
+  suite imports with their adapters), planning, and the run's header
+  (``compare.run.environment``: engine versions, the git commit);
+- preload: numba imported and ours' kernels loaded from its cache (numba
+  setting up its compiler's tables the first time), and the reference's
+  solver when some scene's solution is not kept;
+- forking the host: from the preload to the cases loop (the case host forked);
 - records: turning each answer into a record and writing it
   (``compare.run.runner._Writer.write``: metrics, rounding, JSON, the file);
 - dispatch: the rest of the cases loop (sending tasks, waiting on the hosts'
@@ -23,9 +27,14 @@ case host (one with ``--jobs 1``; its answers' own measures):
 - in cases, outside stepping: the rest of each case's ``simulate`` (building
   the model, reading the samples, checking the run), CPU;
 - warm-ups: each engine variant's first, two-step run;
+- references: the scenes' reference tasks (their kept solutions read and sampled);
 - pipes: receiving tasks and sending answers (pickling included);
 - the rest: the host's other CPU (its memory limit set per task, page faults
-  after the fork, its loop).
+  after the fork, its loop). The prelude's own bookkeeping in the host (a
+  file written after each task, as a host is not waited for) is left out.
+
+other processes: the rest of the xval process's descendants (the ``git``
+commands that record the run's commit).
 
 The stepping is wall time and the rest CPU time, as in bench_harness.py's ratio:
 time a host spends descheduled while it steps counts as stepping, so on a
@@ -42,13 +51,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-from bench_harness import one_run
+from bench_harness import one_run, runs_argument
 
 #: Run in the xval child before xval itself: time its phases and its case host's, and write both to
-#: files in the directory named by XVAL_SPLIT_DIR (the host's after each task, as it is not waited for).
+#: files in the directory SPLIT_DIR (the host's after each task, as it is not waited for).
 PRELUDE = r"""
 import os as _os, time as _time, json as _json, atexit as _atexit, resource as _resource
-_SPLIT = _os.environ["XVAL_SPLIT_DIR"]
 from compare.run import startup as _startup
 _startup.load_blas_single_threaded()  # what `xval run` does first (before anything imports numpy)
 import multiprocessing.connection as _mc
@@ -56,7 +64,7 @@ import compare.run.isolation as _iso
 import compare.run.runner as _runner
 _MAIN = _os.getpid()
 _xval = {"records": 0.0}
-_host = {"simulate": 0.0, "warm_up": 0.0, "pipes": 0.0, "tasks": 0}
+_host = {"simulate": 0.0, "warm_up": 0.0, "references": 0.0, "pipes": 0.0, "probe": 0.0}
 def _timed(table, key, clock):
     def wrap(function):
         def timed(*args, **kwargs):
@@ -82,11 +90,15 @@ _iso.simulate = _timed(_host, "simulate", _time.process_time)(_iso.simulate)
 _iso.warm_up = _timed(_host, "warm_up", _time.process_time)(_iso.warm_up)
 _run_in_host = _iso._run_in_host
 def _host_task(task):
+    start = _time.process_time()
     answer = _run_in_host(task)
-    _host["tasks"] += 1
+    if isinstance(task, _iso.ReferenceTask):
+        _host["references"] += _time.process_time() - start
+    start = _time.process_time()
     usage = _resource.getrusage(_resource.RUSAGE_SELF)
-    with open(_os.path.join(_SPLIT, f"host-{_os.getpid()}.json"), "w") as handle:
+    with open(_os.path.join(SPLIT_DIR, f"host-{_os.getpid()}.json"), "w") as handle:
         _json.dump({**_host, "cpu": usage.ru_utime + usage.ru_stime}, handle)
+    _host["probe"] += _time.process_time() - start  # written with the next task's figures
     return answer
 _iso._run_in_host = _host_task
 _runner._Writer.write = _timed(_xval, "records", _time.thread_time)(_runner._Writer.write)
@@ -105,7 +117,7 @@ def _loop_timed(self):
         _xval["loop_end"] = _time.process_time()
 _runner.preload_engines, _runner._Dispatcher.run = _preload_timed, _loop_timed
 def _write_xval():
-    with open(_os.path.join(_SPLIT, "xval.json"), "w") as handle:
+    with open(_os.path.join(SPLIT_DIR, "xval.json"), "w") as handle:
         _json.dump({**_xval, "exit": _time.process_time()}, handle)
 _atexit.register(_write_xval)
 """
@@ -114,40 +126,51 @@ _atexit.register(_write_xval)
 def split_run(scratch: Path) -> dict:
     """bench_harness.one_run's figures, with the phases of the run's processes (s of CPU) under "split"."""
     where = Path(tempfile.mkdtemp(dir=scratch))
-    prelude = f"import os\nos.environ['XVAL_SPLIT_DIR'] = {str(where)!r}\n" + PRELUDE
-    run = one_run(scratch, prelude=prelude)
+    run = one_run(scratch, prelude=PRELUDE.replace("SPLIT_DIR", repr(str(where))))
     xval = json.loads((where / "xval.json").read_text())
     hosts = [json.loads(f.read_text()) for f in where.glob("host-*.json")]
     loop = xval["loop_end"] - xval["loop_start"]
-    host_cpu = sum(h["cpu"] for h in hosts)
-    simulate = sum(h["simulate"] for h in hosts)
+    host = {key: sum(h[key] for h in hosts) for key in ("cpu", "simulate", "warm_up", "references", "pipes", "probe")}
     run["split"] = {
         "xval start-up": xval["preload_start"],
         "xval preload": xval["preload_end"] - xval["preload_start"],
+        "xval forking the host": xval["loop_start"] - xval["preload_end"],
         "xval records": xval["records"],
         "xval dispatch": loop - xval["records"],
         "xval end": xval["exit"] - xval["loop_end"],
         "host stepping (wall)": run["stepping"],
-        "host in cases, outside stepping": simulate - run["stepping"],
-        "host warm-ups": sum(h["warm_up"] for h in hosts),
-        "host pipes": sum(h["pipes"] for h in hosts),
-        "host rest": host_cpu - simulate - sum(h["warm_up"] + h["pipes"] for h in hosts),
+        "host in cases, outside stepping": host["simulate"] - run["stepping"],
+        "host warm-ups": host["warm_up"],
+        "host references": host["references"],
+        "host pipes": host["pipes"],
+        "host rest": host["cpu"] - host["probe"] - sum(host[k] for k in ("simulate", "warm_up", "references", "pipes")),
+        "other processes": run["descendants"] - host["cpu"],
+    }
+    run["per_case_ms"] = {
+        "xval records": 1000 * xval["records"] / run["cases"],
+        "host in cases, outside stepping": 1000 * (host["simulate"] - run["stepping"]) / run["cases"],
     }
     return run
 
 
 def main(argv: list[str]) -> int:
-    runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 2
+    runs = runs_argument(argv)
     with tempfile.TemporaryDirectory(prefix="bench_harness_split-") as scratch:
         one_run(Path(scratch))  # not counted: numba's and the references' caches filled if empty
         results = [split_run(Path(scratch)) for _ in range(runs)]
-    names = list(results[0]["split"])
+
+    def row(name: str, values: list, form: str = "9.2f") -> None:
+        print(f"{name:<34}" + "".join(f"{v:{form}}" for v in values))
+
     print(f"{'CPU s (stepping: wall s)':<34}" + "".join(f"{f'run {k + 1}':>9}" for k in range(runs)))
-    for name in names:
-        print(f"{name:<34}" + "".join(f"{r['split'][name]:9.2f}" for r in results))
-    print(f"{'whole tree (getrusage)':<34}" + "".join(f"{r['cpu']:9.2f}" for r in results))
-    print(f"{'CPU / stepping':<34}" + "".join(f"{r['cpu'] / r['stepping']:9.2f}" for r in results))
-    print(f"{'cases':<34}" + "".join(f"{r['cases']:9d}" for r in results))
+    for name in results[0]["split"]:
+        row(name, [r["split"][name] for r in results])
+    row("whole tree (getrusage)", [r["cpu"] for r in results])
+    row("CPU / stepping", [r["cpu"] / r["stepping"] for r in results])
+    row("cases", [r["cases"] for r in results], "9d")
+    print("\nms a case")
+    for name in results[0]["per_case_ms"]:
+        row(name, [r["per_case_ms"][name] for r in results])
     return 0
 
 
