@@ -241,3 +241,13 @@ def test_bad_models_are_refused_naming_the_field():
         Mechanism((body,), twice)
     with pytest.raises(ModelError, match=r"q\.elbo: no revolute or prismatic joint of that name"):
         initial_state(compound_double_pendulum(), {"elbo": 0.1})
+
+
+def test_a_free_spin_about_a_hinge_reads_back_unwrapped():
+    """No gravity: the hinge turns at its initial rate, so θ(t) = θ₀ + ω t past several turns."""
+    body = Body("wheel", 2.0, [0.0, 0.0, -0.1], np.diag([0.03, 0.05, 0.02]))
+    mech = Mechanism((body,), (Joint("hinge", "revolute", -1, 0, axis=[0.0, 1.0, 0.0]),), np.zeros(3))
+    run = simulate(mech, initial_state(mech, {"hinge": 0.5}, {"hinge": 10.0}), 1e-3, 2000, 10, method="projection")
+    q, v = joint_coordinates(mech, run.y)
+    np.testing.assert_allclose(q[:, 0], 0.5 + 10.0 * run.t, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(v[:, 0], 10.0, rtol=0, atol=1e-9)

@@ -199,7 +199,9 @@ def angular_momentum(mech: Mechanism, y: np.ndarray) -> np.ndarray:
 
 def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(q, v) (..., moving joints) at states y: angle (rad) and rate for revolute joints, displacement
-    (m) and rate for prismatic, in ``mech.moving_joints`` order."""
+    (m) and rate for prismatic, in ``mech.moving_joints`` order. Angles are in (−π, π] at a single
+    state; along a series y (S, 13 nb) they are unwrapped from the first sample on (so a joint that
+    turns twice reads 4π), which needs less than half a turn between samples."""
     y = np.asarray(y, dtype=float)
     s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
     origin, R = frames(mech, y)
@@ -230,8 +232,13 @@ def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.nd
             v_joint = vp + np.cross(wp, pj - xp)
             qs.append(np.sum(d * axis, axis=-1))
             vs.append(np.sum((v_child - v_joint) * axis + d * np.cross(wp, axis), axis=-1))
-    stack = (lambda a: np.stack(a, axis=-1)) if qs else (lambda a: np.zeros(y.shape[:-1] + (0,)))
-    return stack(qs), stack(vs)
+    if not qs:
+        return np.zeros(y.shape[:-1] + (0,)), np.zeros(y.shape[:-1] + (0,))
+    q, v = np.stack(qs, axis=-1), np.stack(vs, axis=-1)
+    if q.ndim == 2:
+        revolute = [mech.joints[k].kind == "revolute" for k in mech.moving_joints]
+        q[:, revolute] = np.unwrap(q[:, revolute], axis=0)
+    return q, v
 
 
 @dataclass(frozen=True, eq=False)
@@ -295,3 +302,26 @@ def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1
     t = np.minimum(np.arange(n_samples) * stride, n_steps)[:written] * dt
     return RigidResult(t=t, y=out[:written], steps=int(steps), wall_time=wall_time,
                        status=STATUS_TEXT[int(status)], settings=settings)
+
+
+def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(distance (S,) m, angle (S,) rad): at each state of y (S, 13 nb), the largest violation of a
+    joint's position rows (anchor gap, slide off its axis) and of its orientation rows (|p·w|, the
+    sine of the misalignment)."""
+    kernel = _kernel()
+    states = np.atleast_2d(np.asarray(y, dtype=float))
+    model, work = pack(mech), workspace(mech, 1)
+    kind, rows = model[4], model[11]
+    # which rows hold lengths: the anchor rows 0–2 (not prismatic), the slide rows 3–4 (prismatic)
+    length = np.zeros((len(mech.joints), 6), dtype=bool)
+    length[kind != KIND_CODES["prismatic"], :3] = True
+    length[kind == KIND_CODES["prismatic"], 3:5] = True
+    used = np.arange(6)[None, :] < rows[:, None]
+    distance, angle = np.zeros(len(states)), np.zeros(len(states))
+    for s, state in enumerate(states):
+        kernel.rotations(state, len(mech.bodies), work[0])
+        kernel.joint_rows(state, model, work[0], work[1], work[2], work[3], work[4])
+        C = np.abs(work[1])
+        distance[s] = C[used & length].max(initial=0.0)
+        angle[s] = C[used & ~length].max(initial=0.0)
+    return distance, angle
