@@ -25,7 +25,8 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import Tree, constraint_tree
-from engines.plugin import Recorder, refuse_constraint_kinds
+from engines.plugin import refuse_constraint_kinds
+from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 # dartpy itself (0.6 s to import) is imported where a skeleton is built, and by preload before a run forks.
@@ -194,19 +195,13 @@ class DartEngine(Engine):
         }
         recorder = Recorder(scene, schedule)
         recorder.record(0, *model.particles())
-        done, message = 0, ""
-        with recorder.stepping():
-            for target in schedule.sample_steps[1:].tolist():
-                for _ in range(target - done):
-                    step()
-                done = target
-                with recorder.paused():
-                    positions, velocities = model.particles()
-                    recorder.record(done, positions, velocities)
-                    if not (np.isfinite(positions).all() and np.isfinite(velocities).all()):
-                        message = f"the state became non-finite by t = {done * dt:.6g} s"
-                        break
-        return recorder.raw_run(message=message, settings=record)
+
+        def advance(steps: int) -> None:
+            for _ in range(steps):
+                step()
+
+        recorder.run(advance, model.particles)
+        return recorder.raw_run(settings=record)
 
 
 @dataclass
