@@ -1,4 +1,4 @@
-"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser`` (MJCF) into a Skeleton.
+"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF) into a Skeleton.
 
 Import options: ``DartLoader.Options`` with mDefaultRootJointType = FIXED
 (DART gives a URDF a floating root otherwise) and its default
@@ -34,8 +34,13 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
     import dartpy
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
-    if source.format != "urdf":
-        raise Refused("xval loads MJCF into DART only through a URDF; give DART a URDF file")
+    if source.format == "mjcf":
+        with quiet_output():
+            world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(f"file://{source.path}"))
+        if world is None or world.getNumSkeletons() != 1:
+            raise Refused("MjcfParser.readWorld did not give one skeleton (DART printed the reason)")
+        stated = {"loader": "MjcfParser.readWorld"}
+        return DartModel(world.getSkeleton(0), description, stated, notes)
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
     options.mDefaultRootJointType = dartpy.utils.DartLoader.RootJointType.FIXED

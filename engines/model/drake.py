@@ -7,7 +7,8 @@ before ``Finalize()``, gravity (0, 0, −9.81), every joint's default damping
 set to 0. M is ``CalcMassMatrix``, the bias ``CalcBiasTerm −
 CalcGravityGeneralizedForces``, the forward dynamics ``EvalTimeDerivatives``
 with the torques on the applied-generalized-force port. The parser's
-warnings (ignored tags) go to Python's ``drake`` logger, silenced here.
+warnings go to Python's ``drake`` logger: they are kept in the notes
+(an inertia Drake finds physically invalid is replaced, and it says so).
 """
 
 from __future__ import annotations
@@ -35,9 +36,11 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     plant = MultibodyPlant(0.0)
-    logger = logging.getLogger("drake")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
+    logger, warnings = logging.getLogger("drake"), _Collect()
+    level, propagate = logger.level, logger.propagate
+    logger.setLevel(logging.WARNING)
+    logger.propagate = False
+    logger.addHandler(warnings)
     try:
         Parser(plant).AddModelsFromString(text, "urdf" if source.format == "urdf" else "xml")
         root = plant.GetFrameByName(description.root)
@@ -52,10 +55,26 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
     except RuntimeError as exc:
         raise Refused(" ".join(str(exc).split())) from None
     finally:
+        logger.removeHandler(warnings)
         logger.setLevel(level)
+        logger.propagate = propagate
+    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines))
     options = {"parser": "Parser.AddModelsFromString", "time_step": "0 (continuous plant)",
                "root": f"{description.root} welded to the world"}
     return DrakeModel(plant, description, options, notes)
+
+
+class _Collect(logging.Handler):
+    """Keeps the parser's warnings (one line each, the file name dropped) for the notes."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = " ".join(record.getMessage().split())
+        if "safety_controller" not in text:  # ROS tags Drake ignores: no bearing on dynamics
+            self.lines.append(text.split(": warning: ", 1)[-1][:300])
 
 
 class DrakeModel(LoadedModel):
