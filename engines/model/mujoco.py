@@ -32,14 +32,16 @@ def version() -> str:
     return mujoco.__version__
 
 
-def compiler_options(balance_inertia: bool = False) -> dict[str, str]:
-    return {"fusestatic": "true", "inertiafromgeom": "auto",
+def compiler_options(balance_inertia: bool = False, fusestatic: bool = True) -> dict[str, str]:
+    return {"fusestatic": "true" if fusestatic else "false", "inertiafromgeom": "auto",
             "balanceinertia": "true" if balance_inertia else "false", "discardvisual": "true"}
 
 
-def load(source: ModelSource, description: ModelDescription, balance_inertia: bool = False) -> "MujocoModel":
+def load(source: ModelSource, description: ModelDescription, balance_inertia: bool = False,
+         fusestatic: bool = True) -> "MujocoModel":
+    """``fusestatic=False`` keeps welded links as bodies of their own (not MuJoCo's URDF default)."""
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
-    options = compiler_options(balance_inertia) if source.format == "urdf" else {"mjcf": "compiled as written"}
+    options = compiler_options(balance_inertia, fusestatic) if source.format == "urdf" else {"mjcf": "compiled as written"}
     if source.format == "urdf":
         text = _with_compiler(text, options)
     try:
