@@ -193,6 +193,7 @@ def test_an_inertia_against_the_triangle_inequality_mujoco_refuses_unless_asked(
     mujoco = report.engines[0]
     assert (mujoco.engine, mujoco.loaded, mujoco.agrees) == ("mujoco", False, False)
     assert mujoco.message == "Error: inertia must satisfy A + B >= C; use 'balanceinertia' to fix Element name 'plate', id 2"
+    assert mujoco.options["balanceinertia"] == "false"  # what it was given, stated though it refused
     # PyBullet drops such an inertia (keeps the mass): M = m r^2 instead of izz + m r^2.
     assert loaded(path, "pybullet").mass_matrix(np.zeros(1))[0, 0] == pytest.approx(1.0 * 0.2**2, rel=1e-12)
     assert loaded(path, "pinocchio").mass_matrix(np.zeros(1))[0, 0] == pytest.approx(0.05 + 0.2**2, rel=1e-12)
@@ -275,3 +276,18 @@ def test_a_missing_file_is_one_line_and_exit_2(capsys, tmp_path):
     code, out, err = run_cli(capsys, "model", "check", tmp_path / "nowhere.urdf")
     assert (code, out) == (2, "")
     assert err.startswith(f"xval: error: model {tmp_path / 'nowhere.urdf'}: no such file") and err.count("\n") == 1
+
+
+def test_the_mjcf_double_pendulum_is_the_urdf_one_and_which_engines_hold_its_inertials():
+    """The MJCF description (MuJoCo's compiled model) equals the hand-written M; PyBullet's loadMJCF drops
+    the inertias and DART's MjcfParser gives every body 1 kg and 1 kg·m² (measured; docs/models.md)."""
+    path = MODELS / "double_pendulum.xml"
+    for engine in ("mujoco", "drake", "pinocchio"):
+        model = loaded(path, engine)
+        for q in ([0.0, 0.0], [0.7, -1.2]):
+            np.testing.assert_allclose(model.mass_matrix(np.array(q)), pendulum_m(q[1]), rtol=1e-12, err_msg=engine)
+    report = check(str(path), states=10)
+    assert {e.engine: e.agrees for e in report.engines} == {"mujoco": True, "pybullet": False, "drake": True, "dart": False}
+    assert report.notes == ("the description of an MJCF file is MuJoCo's compiled model",)
+    dart = {name: link.mass for name, link in loaded(path, "dart").link_inertias().items()}
+    assert dart == {"rod1": 1.0, "rod2": 1.0}

@@ -114,3 +114,20 @@ def test_mujoco_refuses_an_inertia_against_the_triangle_inequality_unless_asked_
     with pytest.raises(Refused, match=r"inertia must satisfy A \+ B >= C; use 'balanceinertia' to fix"):
         importer("mujoco").load(src, model)
     assert importer("mujoco").load(src, model, balance_inertia=True).options["balanceinertia"] == "true"
+
+
+def test_joints_are_ordered_depth_first_children_in_file_order(tmp_path):
+    links = "".join(LINK.format(n=n, m=1, i=0.1) for n in ("root", "a", "b", "a1", "b1"))
+    joint = '<joint name="{n}" type="continuous"><parent link="{p}"/><child link="{c}"/><axis xyz="0 0 2"/></joint>'
+    # Declared out of order: the description walks the tree from the root.
+    joints = "".join(joint.format(n=f"to_{c}", p=p, c=c) for p, c in (("b", "b1"), ("root", "a"), ("a", "a1"), ("root", "b")))
+    model = description_of(tmp_path, robot(links, joints))
+    assert [j.name for j in model.moving_joints] == ["to_a", "to_a1", "to_b", "to_b1"]
+    assert model.joint("to_a").axis == (0.0, 0.0, 1.0)  # normalised
+    assert model.joint("to_a").limits.lower is None  # continuous: unbounded
+
+
+def test_the_mujoco_compiler_options_are_stated():
+    src = source.resolve(KUKA)
+    assert importer("mujoco").load(src, urdf.read(src)).options == {
+        "fusestatic": "true", "inertiafromgeom": "auto", "balanceinertia": "false", "discardvisual": "true"}

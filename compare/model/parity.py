@@ -73,12 +73,11 @@ class ParityReport:
         return 0 if all(e.agrees for e in self.engines) else 1
 
     def to_dict(self) -> dict:
-        entry = lambda e: {k: v for k, v in asdict(e).items()}  # noqa: E731
         return {"model": self.model, "name": self.name, "moving_joints": list(self.moving_joints),
                 "reference": {"name": self.reference.engine, "version": self.reference.version,
                               "options": self.reference.options, "diagnosis": list(self.reference.diagnosis)},
                 "states": self.states, "seed": self.seed, "tolerance": TOLERANCE,
-                "engines": [entry(e) for e in self.engines], "notes": list(self.notes),
+                "engines": [asdict(e) for e in self.engines], "notes": list(self.notes),
                 "diagnosis": list(self.diagnosis)}
 
 
@@ -149,7 +148,7 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     for name in engines:
         results.append(_one(name, source, model, sample, expected, findings, balance_inertia))
     reference_findings = diagnose(model, reference.link_inertias())
-    notes = source.engine_text(drop_mimic=model.mimic_independent)[1]
+    notes = (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
     ref_entry = EngineParity(REFERENCE, importer(REFERENCE).version(), True, True, 0.0, 0.0, 0.0,
                              options=reference.options, notes=reference.notes,
                              diagnosis=tuple(sentences({REFERENCE: reference_findings})))
@@ -164,7 +163,10 @@ def _one(name, source, model, sample, expected, findings, balance_inertia) -> En
         options = {"balance_inertia": balance_inertia} if name == "mujoco" else {}
         loaded = module.load(source, model, **options)
     except Refused as exc:
-        return EngineParity(name, _version_of(name), False, False, message=str(exc))
+        return EngineParity(name, _version_of(name), False, False, message=str(exc),
+                            options=_stated_options(name, balance_inertia))
+    except Exception as exc:  # an importer that crashes fails alone; the others are still compared
+        return EngineParity(name, _version_of(name), False, False, message=f"failed: {type(exc).__name__}: {exc}")
     try:
         got = evaluate(loaded, sample)
         differences = {q: relative_difference(got[q], expected[q]) for q in QUANTITIES}
@@ -175,6 +177,13 @@ def _one(name, source, model, sample, expected, findings, balance_inertia) -> En
     agrees = all(d <= TOLERANCE for d in differences.values())
     return EngineParity(name, version, True, agrees, **differences, options=loaded.options, notes=loaded.notes,
                         diagnosis=tuple(sentences({name: findings[name]})))
+
+
+def _stated_options(name: str, balance_inertia: bool) -> dict[str, str]:
+    """The import options an engine that refused the file was given (MuJoCo's compiler settings)."""
+    if name == "mujoco":
+        return importer(name).compiler_options(balance_inertia)
+    return {}
 
 
 def _version_of(name: str) -> str:

@@ -35,8 +35,11 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "mjcf":
-        with quiet_output():
-            world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(f"file://{source.path}"))
+        try:
+            with quiet_output():
+                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(source.path.resolve().as_uri()))
+        except RuntimeError as exc:
+            raise Refused(" ".join(str(exc).split())) from None
         if world is None or world.getNumSkeletons() != 1:
             raise Refused("MjcfParser.readWorld did not give one skeleton (DART printed the reason)")
         stated = {"loader": "MjcfParser.readWorld"}
@@ -46,7 +49,7 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
     options.mDefaultRootJointType = dartpy.utils.DartLoader.RootJointType.FIXED
     loader.setOptions(options)
     with quiet_output():  # DART prints a warning per massless link to stdout
-        skeleton = loader.parseSkeletonString(text, f"file://{source.path}")
+        skeleton = loader.parseSkeletonString(text, source.path.resolve().as_uri())
     if skeleton is None:
         raise Refused("DartLoader.parseSkeletonString returned no skeleton (DART printed the reason)")
     stated = {"loader": "DartLoader.parseSkeletonString", "mDefaultRootJointType": "FIXED",
