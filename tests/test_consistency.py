@@ -63,7 +63,7 @@ def test_a_solver_with_gravity_9_8_converges_to_something_else_and_is_inconsiste
     wrong, right = found["command/g-9.8"], found["command/g-9.81"]
     # Every case ran and is ok: `ok` cannot see the bug.
     assert {r.status.value for r in wrong.records} == {"ok"}
-    errors = [r.metric("position_error_linf") for r in wrong.ok_records]  # largest dt first
+    errors = [r.metric("position_error_linf") for r in sorted(wrong.ok_records, key=lambda r: -r.case.dt)]
     # Fourth order at first, then flat: the g error (0.1 %) dominates; the plateau is millimetres.
     assert 1e-3 < errors[-1] < 2e-2 and errors[-1] / errors[-2] > 0.9
     verdict = wrong.consistency
@@ -83,7 +83,7 @@ def test_ours_and_mujoco_hinge_rk4_stop_at_the_references_floor_and_are_consiste
     found = run(tmp_path, text)
     for label in ("ours/lagrangian-rk4", "mujoco/hinge-rk4"):
         sweep = found[label]
-        bar = sweep.ok_records[-1].reference["reference_error"]  # m, the reference's own error bar
+        bar = sweep.finest_ok.reference["reference_error"]  # m, the reference's own error bar
         assert 1e-13 < bar < 1e-10
         assert sweep.consistency.consistent is True, sweep.consistency.reason
         # Both stop falling at the reference's floor (MuJoCo's a little above: its 1e-12 point-mass inertia).
@@ -95,10 +95,10 @@ def test_mjx_float32_stops_at_its_declared_and_measured_floor_and_is_consistent(
     pytest.importorskip("mujoco.mjx")  # an extra of xval; CI installs it
     text = pendulum_suite(1.0, "mjx/hinge-rk4-f32")
     sweep = run(tmp_path, text)["mjx/hinge-rk4-f32"]
-    finest = sweep.ok_records[-1]
+    finest = sweep.finest_ok
     floor = finest.run_info["settings"]["precision_floor"]
     assert floor == pytest.approx(precision_floor("float32", 10_000, 2.0))  # eps32 · √steps · L
-    errors = [r.metric("position_error_linf") for r in sweep.ok_records]
+    errors = [r.metric("position_error_linf") for r in sorted(sweep.ok_records, key=lambda r: -r.case.dt)]
     # Measured: round-off, not truncation, sets the finest errors (they no longer fall with dt) ...
     assert errors[-1] / errors[-2] > 0.5
     # ... and they lie under the declared floor, yet within 30× of it: the floor says what float32 costs.

@@ -102,3 +102,16 @@ def test_overlapping_intervals_are_a_tie_that_names_both():
     assert found["bead"].comparison.tie
     assert found["bead"].comparison.describe().startswith("tie: best ours (ours/lagrangian-rk4) and the best other "
                                                           "engine (other/twin) reach 1e-06 m at the same cost")
+
+
+def test_docs_report_quotes_what_scripts_verdict_example_prints():
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    printed = subprocess.run([sys.executable, str(root / "scripts" / "verdict_example.py")], capture_output=True,
+                             text=True, check=True, cwd=root).stdout
+    docs = (root / "docs" / "report.md").read_text()
+    quoted = [line.strip() for line in printed.splitlines() if line.strip()]
+    missing = [line for line in quoted if line not in docs]
+    assert missing == [], "docs/report.md does not quote these lines of scripts/verdict_example.py"
