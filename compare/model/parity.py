@@ -99,6 +99,16 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
     return States(q, v, tau)
 
 
+def _require_invertible(model: ModelDescription, reference: LoadedModel, label: str) -> None:
+    """ModelError naming the joints that move nothing with mass or inertia (M singular: no forward dynamics)."""
+    m = reference.mass_matrix(np.zeros(model.nq))
+    scale = max(float(np.abs(m).max()), 1e-300)
+    idle = [j.name for j, d in zip(model.moving_joints, np.diag(m)) if d <= 1e-12 * scale]
+    if idle:
+        raise ModelError(f"model {label}: joint {', '.join(idle)} moves no mass or inertia (M is singular); "
+                         f"give the links it moves an <inertial>")
+
+
 def evaluate(loaded: LoadedModel, states: States) -> dict[str, list[np.ndarray]]:
     """Each quantity at every state."""
     return {
@@ -141,6 +151,7 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
         reference = importer(REFERENCE).load(source, model)
     except Refused as exc:
         raise ModelError(f"model {label}: the reference (pinocchio) cannot load it: {exc}") from None
+    _require_invertible(model, reference, label)
     sample = sample_states(model, reference, states, seed)
     expected = evaluate(reference, sample)
     findings: dict[str, list[Finding]] = {}
