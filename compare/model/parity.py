@@ -119,9 +119,10 @@ def evaluate(loaded: LoadedModel, states: States) -> dict[str, list[np.ndarray]]
 
 
 def relative_difference(values: list[np.ndarray], reference: list[np.ndarray]) -> float:
-    scale = max(float(np.abs(r).max(initial=0.0)) for r in reference)
-    worst = max(float(np.abs(np.asarray(v) - r).max(initial=0.0)) for v, r in zip(values, reference))
-    if not math.isfinite(worst):
+    """Largest |value − reference| over entries and states over the largest |reference|; inf for a non-finite value."""
+    scale = float(np.max([np.abs(r).max(initial=0.0) for r in reference]))
+    worst = float(np.max([np.abs(np.asarray(v) - r).max(initial=0.0) for v, r in zip(values, reference)]))
+    if not math.isfinite(worst):  # np.max propagates NaN, where Python's max would skip it
         return math.inf
     return worst / scale if scale > 0 else worst
 
