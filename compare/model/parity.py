@@ -155,10 +155,10 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     _require_invertible(model, reference, label)
     sample = sample_states(model, reference, states, seed)
     expected = evaluate(reference, sample)
-    findings: dict[str, list[Finding]] = {}
-    results = []
+    results, findings = [], {}
     for name in engines:
-        results.append(_one(name, source, model, sample, expected, findings, balance_inertia))
+        result, findings[name] = _one(name, source, model, sample, expected, balance_inertia)
+        results.append(result)
     reference_findings = diagnose(model, reference.link_inertias())
     notes = (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
     ref_entry = EngineParity(REFERENCE, importer(REFERENCE).version(), True, True, 0.0, 0.0, 0.0,
@@ -168,7 +168,8 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
                         tuple(results), notes, tuple(sentences(findings)))
 
 
-def _one(name, source, model, sample, expected, findings, balance_inertia) -> EngineParity:
+def _one(name, source, model, sample, expected, balance_inertia) -> tuple[EngineParity, list[Finding]]:
+    """One engine's verdict and its per-link findings (none when it did not load or failed)."""
     try:
         module = importer(name)
         version = module.version()
@@ -176,19 +177,19 @@ def _one(name, source, model, sample, expected, findings, balance_inertia) -> En
         loaded = module.load(source, model, **options)
     except Refused as exc:
         return EngineParity(name, _version_of(name), False, False, message=str(exc),
-                            options=_stated_options(name, balance_inertia))
+                            options=_stated_options(name, balance_inertia)), []
     except Exception as exc:  # an importer that crashes fails alone; the others are still compared
-        return EngineParity(name, _version_of(name), False, False, message=f"failed: {type(exc).__name__}: {exc}")
+        return EngineParity(name, _version_of(name), False, False, message=f"failed: {type(exc).__name__}: {exc}"), []
     try:
         got = evaluate(loaded, sample)
         differences = {q: relative_difference(got[q], expected[q]) for q in QUANTITIES}
-        findings[name] = diagnose(model, loaded.link_inertias())
+        findings = diagnose(model, loaded.link_inertias())
     except Exception as exc:  # an engine that raises on a state fails alone; the others are still compared
         return EngineParity(name, version, True, False, message=f"failed: {type(exc).__name__}: {exc}",
-                            options=loaded.options, notes=loaded.notes)
+                            options=loaded.options, notes=loaded.notes), []
     agrees = all(d <= TOLERANCE for d in differences.values())
     return EngineParity(name, version, True, agrees, **differences, options=loaded.options, notes=loaded.notes,
-                        diagnosis=tuple(sentences({name: findings[name]})))
+                        diagnosis=tuple(sentences({name: findings}))), findings
 
 
 def _stated_options(name: str, balance_inertia: bool) -> dict[str, str]:
