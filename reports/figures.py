@@ -29,8 +29,10 @@ from typing import Any, Callable, Iterable, Sequence
 
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
+from compare.results.verdict import points
 
 from reports.decimate import MAX_POINTS, decimate
+from reports.emphasis import emphasise, named_variants
 from reports.load import SceneResults
 from reports.palette import REFERENCE_COLOUR, Palette, family_of
 
@@ -96,13 +98,14 @@ def _axis_type(values: Iterable[Any]) -> str:
     return "log" if positive and max(positive) > 10 * min(positive) else "linear"
 
 
-#: Pixels per legend entry: a plot grows with its legend, so a suite of 30 variants needs no legend scrolling.
-LEGEND_ROW = 19
+#: Pixels per legend entry (a variant, or a family's title; the gaps between families included): a plot grows
+#: with its legend, so a suite of 30 variants needs no legend scrolling (tests/test_report_browser.py).
+LEGEND_ROW = 21
 
 
 def _layout(n_legend: int, height: int = 460, **extra: Any) -> dict[str, Any]:
     base = {
-        "height": max(height, 80 + LEGEND_ROW * n_legend),
+        "height": max(height, 100 + LEGEND_ROW * n_legend),
         "margin": {"l": 70, "r": 20, "t": 30, "b": 50},
         "hovermode": "closest",
         "legend": {"font": {"size": 11}, "groupclick": "toggleitem"},
@@ -113,7 +116,9 @@ def _layout(n_legend: int, height: int = 460, **extra: Any) -> dict[str, Any]:
 
 
 def _axis(title: str, kind: str = "log", **extra: Any) -> dict[str, Any]:
-    return {"title": {"text": title}, "type": kind, "exponentformat": "power", "gridcolor": "#e4e4e4", **extra}
+    # automargin and a standoff keep the title clear of the tick labels, however wide they are.
+    return {"title": {"text": title, "standoff": 10}, "type": kind, "exponentformat": "power", "gridcolor": "#e4e4e4",
+            "automargin": True, **extra}
 
 
 def _by_family(items: Sequence[Any], engine: Callable[[Any], str]) -> list[Any]:
@@ -138,7 +143,11 @@ def _group(trace: dict[str, Any], engine: str, titled: set[str]) -> dict[str, An
 
 
 def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[float], list[list[Any]]]:
-    """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt])."""
+    """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt]); x is dt, or for
+    "cost" the variant's modelled cost per simulated second (compare.results.cost: monotone in dt)."""
+    if x_key == "cost":
+        found = points(sweep)
+        return [p.cost for p in found], [p.error for p in found], [[plot_text(sweep.engine), p.dt] for p in found]
     xs, ys, custom = [], [], []
     for record in sweep.records:
         dt = record.case.dt
@@ -164,9 +173,11 @@ def _sweep_traces(scene: SceneResults, palette: Palette, x_key: str, name: Calla
         if not xs:
             missing.append(sweep.engine)
             continue
+        style = palette.style(sweep.engine)
         traces.append(_group({
-            "type": "scatter", "mode": "lines+markers", "name": plot_text(name(sweep)),
-            "x": xs, "y": ys, "customdata": custom, "line": palette.style(sweep.engine), "hovertemplate": hovertemplate,
+            "type": "scatter", "mode": "lines+markers", "name": plot_text(name(sweep)), "meta": plot_text(sweep.engine),
+            "x": xs, "y": ys, "customdata": custom, "line": style, "hovertemplate": hovertemplate,
+            "marker": {"symbol": palette.symbol(sweep.engine), "color": style["color"], "size": 7},
         }, sweep.engine, titled))
     needs = "a positive error and cost" if x_key != "dt" else "a positive error"
     note = f" Not drawn (no ok case with {needs}): " + ", ".join(missing) + "." if missing else ""
@@ -176,7 +187,7 @@ def _sweep_traces(scene: SceneResults, palette: Palette, x_key: str, name: Calla
 def work_precision(scene: SceneResults, palette: Palette) -> Plot | None:
     """Max position error (m) against stepping cost per simulated second (s/s), log-log, one line per variant."""
     traces, not_drawn = _sweep_traces(
-        scene, palette, "cost_per_simulated_second", lambda sweep: sweep.engine,
+        scene, palette, "cost", lambda sweep: sweep.engine,
         "%{customdata[0]}<br>dt = %{customdata[1]:.3g} s<br>error = %{y:.3g} m<br>cost = %{x:.3g} s/s<extra></extra>",
     )
     if not traces:
@@ -185,12 +196,14 @@ def work_precision(scene: SceneResults, palette: Palette) -> Plot | None:
         "data": traces,
         "layout": _layout(
             len(traces) + len({t["legendgroup"] for t in traces}),
-            xaxis=_axis("stepping cost per simulated second / (s/s)"),
+            xaxis=_axis("stepping cost per simulated second / (s/s of CPU)"),
             yaxis=_axis("max position error / m"),
         ),
     }
     caption = ("Lower left is better: less error for less run time. Each line is one engine variant through its "
-               "dt sweep (ok cases only); hover a point for its dt." + not_drawn)
+               "dt sweep (ok cases only), its cost the variant's fitted per-step CPU cost × steps per simulated "
+               "second; hover a point for its dt. In colour: the variants the verdict names (the front, each "
+               "family's best); the button above shows all." + not_drawn)
     return Plot("wp", "Work–precision: error against run time", caption, figure)
 
 
@@ -288,9 +301,10 @@ def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engin
     }
 
 
-def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None) -> Plot | None:
+def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None,
+                named: set[str] | None = None) -> Plot | None:
     """Position error, |energy drift| and constraint error against t at ``dt`` (s; default the chosen dt):
-    three stacked panels."""
+    three stacked panels; ``named`` (default: reports.emphasis.named_variants) in colour, the rest grey."""
     dt = scene.chosen_dt if dt is None else dt
     chosen = _by_family(_chosen_cases(scene, dt), lambda c: c[1].engine)
     if not chosen:
@@ -311,7 +325,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
             axis = ("x", "y" if panel == 0 else f"y{panel + 1}")
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": panel == 0,
+                "meta": plot_text(sweep.engine), "legendgroup": f"v{index}", "showlegend": panel == 0,
                 "x": _rounded(t), "y": _rounded(values), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>%{y:.3g}<extra></extra>",
@@ -331,6 +345,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
         name = "yaxis" if panel == 0 else f"yaxis{panel + 1}"
         axes[name] = _axis(title, _axis_type(panel_values[panel]), domain=domains[panel])
     layout = _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes)
+    layout["legend"]["tracegroupgap"] = 0  # a group per variant (its three panels): no gap between them
     horizon = next((r.reference_horizon for _, _, r in chosen if r.reference_horizon is not None), None)
     duration = float(scene.scene.get("duration") or 0.0)
     if horizon is not None and horizon < duration:
@@ -338,7 +353,8 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
         layout["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": horizon, "x1": duration,
                              "y0": 0, "y1": 1, "fillcolor": "#888888", "opacity": 0.15, "line": {"width": 0},
                              "layer": "below"}]
-    figure = {"data": traces + markers, "layout": layout}
+    figure = emphasise({"data": traces + markers, "layout": layout}, [t.get("meta") for t in traces + markers],
+                       named_variants(scene) if named is None else named)
     caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
                "with the table). A panel is logarithmic when its values span more "
                "than a decade; zeros (the start, an exact constraint) are not drawn on a log axis. A value past "
@@ -593,6 +609,15 @@ def scene_plots(scene: SceneResults, number: int, palette: Palette | None = None
     """
     palette = palette or Palette(s.engine for s in scene.sweeps)
     ceilings = ceilings or Ceilings.for_scene(scene.length, 1.0, 0.1)
-    built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings),
+    named = named_variants(scene)
+    built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings, named=named),
              constraint_forces(scene, palette, ceilings), phase_plot(scene, palette), paths(scene, palette))
+    for plot in built:
+        if plot is not None and plot.id in EMPHASISED:
+            emphasise(plot.figure, [trace.get("meta") for trace in plot.figure["data"]], named)
     return [replace(plot, id=f"s{number}-{plot.id}") for plot in built if plot is not None]
+
+
+#: Plots that overlay every variant across the sweep: the verdict's variants in colour, the rest grey
+#: (reports.emphasis; time_series does the same itself, at every dt).
+EMPHASISED = ("wp", "dt")

@@ -6,7 +6,7 @@ to be drawn in, so ``mujoco`` is the same colour in every report of every
 suite. Two families whose hashes collide in one report are told apart by
 moving the later one (in name order) to the next free hue; only then can a
 family's colour depend on which others are present. A variant's shade
-(lightness) and dash come from a hash of its whole label the same way. The
+(lightness), dash and marker symbol come from a hash of its whole label the same way. The
 reference is always translucent black.
 """
 
@@ -24,6 +24,9 @@ SHADES = (0.30, 0.40, 0.50, 0.60, 0.35, 0.45, 0.55, 0.65)
 #: Dashes a variant may get, so two variants of one family differ even when their shades are close.
 DASHES = ("solid", "dash", "dot", "dashdot", "longdash")
 REFERENCE_COLOUR = "rgba(0,0,0,0.45)"
+#: Marker symbols a variant may get (plotly names), so variants of one family differ in shape as well.
+SYMBOLS = ("circle", "square", "diamond", "triangle-up", "triangle-down", "cross", "x", "star", "pentagon",
+           "hexagon")
 
 
 #: Prefix of every hashed name. Any fixed prefix gives stable colours; this one (found by trying prefixes in
@@ -78,6 +81,10 @@ class Palette:
 
     def family_colour(self, family: str) -> str:
         return self.families.get(family) or FAMILY_COLOURS[_digest(family) % len(FAMILY_COLOURS)]
+
+    def symbol(self, engine: str) -> str:
+        """The marker symbol of a variant (from a hash of its label, independent of its shade and dash)."""
+        return SYMBOLS[(_digest(engine) >> 32) % len(SYMBOLS)]
 
     def style(self, engine: str) -> dict[str, str]:
         if family_of(engine) == "reference":

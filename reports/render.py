@@ -39,6 +39,7 @@ from compare.suite.reader import RunSettings, load_run_settings
 
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
+from reports.emphasis import named_variants
 from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
 from reports.load import ReportData, load_report_data
 from reports.palette import Palette
@@ -133,9 +134,10 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         results = scene["results"]
         if any(p.id == f"s{scene['number']}-ts" for p in scene["plots"]):
             # The time series at the scene's other dts: the dt selector switches the plot with the table.
+            named = named_variants(results)
             for j, dt in enumerate(results.dts):
                 if dt != results.chosen_dt:
-                    other = time_series(results, palette, scene["ceilings"], dt)
+                    other = time_series(results, palette, scene["ceilings"], dt, named)
                     if other is not None:
                         items[f"s{scene['number']}-ts@{j}"] = other.figure
         if scene["animation"] is not None:

@@ -121,8 +121,13 @@ def _rank_value(column: Column, value: Any) -> float | None:
     return float(value) if column.better == "high" else -float(value)
 
 
-def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list[bool]:
-    """Which of ``values`` are the column's best among the ``eligible`` ones (ties to the shown precision)."""
+def _best_flags(column: Column, values: list[Any], eligible: list[bool],
+                uncertainty: list[float] | None = None) -> list[bool]:
+    """Which of ``values`` are the column's best among the ``eligible`` ones (ties to the shown precision).
+
+    uncertainty : per value, its error bar (same unit; the reference's for errors). The best is marked only
+    when it beats every other eligible value by more than both their bars: a difference inside them is noise.
+    """
     ranks = [_rank_value(column, v) if ok else None for v, ok in zip(values, eligible)]
     candidates = [r for r in ranks if r is not None]
     if column.better is None or not candidates:
@@ -131,9 +136,21 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool]) -> list
     if len(candidates) > 1 and min(candidates) == top:
         # Everyone ties (e.g. no variant diverges): a star on every row would say nothing.
         return [False] * len(values)
+    bars = uncertainty or [0.0] * len(values)
+    best = next(k for k, r in enumerate(ranks) if r == top)
+    if any(r is not None and r != top and math.isfinite(r) and math.isfinite(top) and top - r <= bars[best] + bars[k]
+           for k, r in enumerate(ranks)):
+        return [False] * len(values)  # the runner-up is within the error bars: no one value is best
     shown = lambda v: column.missing if v is None else column.fmt(v)  # noqa: E731
     top_text = next(shown(v) for v, r in zip(values, ranks) if r == top)
     return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
+
+
+#: Metrics whose error bar is the reference's own (``reference_error``, m).
+REFERENCE_BARRED = ("position_error_final", "position_error_l2", "position_error_linf")
+#: A constraint error under this many ε·L is the round-off of a constraint the formulation holds exactly.
+ROUND_OFF = 64 * 2.220446049250313e-16
+BY_CONSTRUCTION = "0 (by construction)"
 
 
 def _sort_key(column: Column, value: Any) -> str:
@@ -164,15 +181,22 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
         values = [m.get(col.key) for m in metrics]
         infinite = getattr(declared.METRICS.get(col.key), "none_means", "") == "infinite"
         unknown = [infinite and nr for nr in no_reference]
-        flags = _best_flags(col, values, [o and not u for o, u in zip(ok, unknown)])
+        zero = [col.key == "constraint_error" and isinstance(v, (int, float)) and abs(v) <= ROUND_OFF * scene.length
+                for v in values]
+        bars = [float((case.reference or {}).get("reference_error") or 0.0) if case is not None
+                and col.key in REFERENCE_BARRED else 0.0 for case in cases]
+        flags = _best_flags(col, values, [o and not u and not z for o, u, z in zip(ok, unknown, zero)], bars)
         cells = []
-        for value, best, case, unknown_here in zip(values, flags, cases, unknown):
+        for value, best, case, unknown_here, zero_here in zip(values, flags, cases, unknown, zero):
             if case is None or not case.metrics or not case.metrics.get("n_samples"):
                 # A run with no samples (it raised at once) has drift and constraint error 0 by
                 # definition; printing those zeros would read as a perfect result.
                 cells.append(Cell("–", title="no samples at this dt"))
             elif unknown_here:
                 cells.append(Cell("–", title="no position error (no reference solution)"))
+            elif zero_here:
+                cells.append(Cell(BY_CONSTRUCTION, title=f"{value:.2g} m: round-off (under 64 ε·L); not ranked",
+                                  sort="0"))
             else:
                 cells.append(Cell(col.missing if value is None else col.fmt(value), best, sort=_sort_key(col, value)))
         columns_cells.append(cells)

@@ -386,3 +386,13 @@ def test_a_stored_probe_result_lists_hidden_dissipation(small_results, tmp_path)
     items = re.findall(r'<li data-engine="([^"]+)" data-status="hidden dissipation">(.*?)</li>', html, re.S)
     assert [engine for engine, _ in items] == ["pymunk/pin"]  # bead only: pymunk does not run the 3-D scene
     assert "(0.012 E*/s)" in items[0][1]
+
+
+def test_best_flags_mark_no_star_inside_the_error_bars():
+    low = Column("x", "x", "m", "low")
+    # 4.22e-12 against 6.23e-12 with the reference's bar 4.2e-12 on each: a difference inside the bars, no star.
+    assert _best_flags(low, [4.22e-12, 6.23e-12, 1e-3], [True, True, True], [4.2e-12, 4.2e-12, 4.2e-12]) == \
+        [False, False, False]
+    # Beyond both bars the best keeps its star.
+    assert _best_flags(low, [4.22e-12, 6.23e-8, 1e-3], [True, True, True], [4.2e-12, 4.2e-12, 4.2e-12]) == \
+        [True, False, False]

@@ -166,3 +166,78 @@ def test_hostile_strings_show_as_text_and_run_nothing(tmp_path_factory, tmp_path
     # plotly.js shows the legend entry as the literal string from the results file.
     assert HOSTILE in legends, legends
     assert plot_text(HOSTILE) not in legends
+
+
+#: A suite of 30+ variants (every ours, mujoco, pymunk and pybullet variant) on one scene, kept short.
+MANY = """
+name = "many-variants"
+duration = 0.2
+sample_interval = 0.01
+dt = [1e-2, 3e-3, 1e-3]
+[[scenes]]
+id = "bead"
+scene = "bead"
+[[engines]]
+id = "ours/*"
+[[engines]]
+id = "mujoco/*"
+[[engines]]
+id = "pymunk/*"
+[[engines]]
+id = "pybullet/*"
+"""
+
+#: Per trace of a plot: its stroke colour as drawn.
+TRACE_COLOURS = """(function (id) {
+  return Array.from(document.querySelectorAll("#" + id + " .scatterlayer .trace path.js-line"))
+      .map(function (p) { return p.style.stroke; });
+})"""
+
+#: Per y axis of a plot: the right edge of its title and the left edge of its tick labels (px).
+TITLE_CLEARANCE = """(function (id) {
+  var div = document.getElementById(id), out = [];
+  div.querySelectorAll("g.g-ytitle, g[class^='g-y'][class$='title']").forEach(function (t) {
+    var name = t.getAttribute("class").replace("g-", "").replace("title", "");
+    var ticks = div.querySelectorAll("g." + name + "tick text");
+    if (!ticks.length) return;
+    var left = Math.min.apply(null, Array.from(ticks).map(function (e) { return e.getBoundingClientRect().left; }));
+    out.push({axis: name, title_right: t.getBoundingClientRect().right, ticks_left: left});
+  });
+  return out;
+})"""
+
+
+def test_thirty_variants_show_the_verdicts_in_colour_the_rest_grey_and_all_in_one_click(tmp_path_factory):
+    from report_support import SUITE
+
+    results = run_suite_once(tmp_path_factory.getbasetemp(), SUITE, edit=lambda _: MANY)
+    report = write_report(results, tmp_path_factory.mktemp("many") / "many.html").path
+    with Page(report, tmp_path_factory.mktemp("profile-many")) as page:
+        page.await_promise("window.xvalDrawAll()")
+        plots = {p["id"]: p for p in page.evaluate(PLOTS_DRAWN)}
+        assert plots["s0-wp"]["drawn"] >= 30
+        grey = "rgb(196, 196, 196)"
+        for plot in ("s0-wp", "s0-dt", "s0-ts"):
+            colours = page.evaluate(f"{TRACE_COLOURS}({plot!r})")
+            named = [c for c in colours if c != grey]
+            # The verdict's variants (front, each family's best) in colour, and of those at least one per family.
+            assert 3 <= len(named) < len(colours) / 2, (plot, colours)
+            page.evaluate(f'Array.from(document.querySelectorAll("#{plot} .updatemenu-button"))'
+                          f'.find(function (b) {{ return b.textContent.indexOf("all variants") >= 0; }})'
+                          f'.dispatchEvent(new MouseEvent("click", {{bubbles: true}}))')
+            page.wait(f"{TRACE_COLOURS}({plot!r}).every(function (c) {{ return c !== {grey!r}; }})", 20)
+            # Within a family, variants differ in more than shade: markers and dashes vary too.
+        symbols = page.evaluate('Array.from(new Set(Array.from(document.querySelectorAll('
+                                '"#s0-wp .scatterlayer .trace path.point")).map(function (p) {'
+                                ' return p.getAttribute("d").slice(0, 12); })))')
+        assert len(symbols) >= 4
+        # Axis titles clear of their tick labels; the legend fits its plot (no scrolling).
+        for plot in ("s0-wp", "s0-dt", "s0-ts"):
+            for axis in page.evaluate(f"{TITLE_CLEARANCE}({plot!r})"):
+                assert axis["title_right"] <= axis["ticks_left"], (plot, axis)
+            legend = page.evaluate(f'(function () {{ var g = document.querySelector("#{plot} .legend");'
+                                   f' return [g.querySelector(".scrollbox").getBBox().height,'
+                                   f' Number(g.querySelector("rect.bg").getAttribute("height"))]; }})()')
+            assert legend[0] <= legend[1] + 1, (plot, legend)  # every entry inside the legend's box: no scrolling
+        page.screenshot(ARTIFACTS / "report-many.png")
+        assert_offline_and_clean(page)
