@@ -199,7 +199,9 @@ class DrakeEngine(Engine):
             if settings["plant"] == "discrete":
                 raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
                                   "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
-            return
+            from engines.model.stepping import refuse_kept_dynamics
+
+            return refuse_kept_dynamics(scene, "drake")
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         try:
             tree = constraint_tree(scene)

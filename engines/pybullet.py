@@ -445,7 +445,9 @@ class PyBulletEngine(Engine):
             if settings["formulation"] != "multibody":
                 raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                                   "build particle scenes from separate bodies, use pybullet/multibody")
-            return
+            from engines.model.stepping import refuse_kept_dynamics
+
+            return refuse_kept_dynamics(scene, "pybullet")
         links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)

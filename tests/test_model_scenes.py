@@ -181,3 +181,45 @@ id = "dart/world"
     assert spec.id == "dp" and spec.scene.initial_q[0] == pytest.approx(math.radians(30))
     with pytest.raises(UserError, match=r"scenes\[0\]\.model.*q0 names joint 'hip'"):
         parse_suite(text.replace("shoulder = 30", "hip = 1"), str(ROOT / "suites" / "inline.toml"))
+
+
+# -- the file's joint damping --------------------------------------------------------------------------------
+
+
+def damped_copy(tmp_path: Path, dynamics: str) -> str:
+    """The double pendulum fixture with ``dynamics`` (a <dynamics …/> element) on both joints."""
+    text = Path(DOUBLE).read_text().replace('<axis xyz="0 1 0"/>', f'<axis xyz="0 1 0"/>{dynamics}')
+    path = tmp_path / "damped.urdf"
+    path.write_text(text)
+    return str(path)
+
+
+def test_file_damping_is_set_to_0_unless_kept(tmp_path):
+    # Damping 0.3 N·m·s/rad on both joints. neutral: the reference keeps its energy and the engines
+    # record what they zeroed. keep: the reference loses 2.3 % of E* in 2 s, RK4 in MuJoCo and DART
+    # follows it (measured 9.6e-12 m), and DART's World.step equals MuJoCo's Euler (both implicit in damping).
+    model = damped_copy(tmp_path, '<dynamics damping="0.3"/>')
+    neutral = model_scene("dd", model, q0={"shoulder": 30, "elbow": -20})
+    energy = trajectory_energy(neutral, REFERENCE.simulate(neutral, 1e-2))
+    assert abs(energy[-1] - energy[0]) < 1e-10 * neutral.characteristic_energy
+    engine, variant = resolve("mujoco/hinge-rk4")
+    settings = engine.simulate(neutral, 1e-3, variant=variant).info.settings
+    assert settings["file_damping_friction"] == {"shoulder": {"damping": 0.3, "friction": 0.0},
+                                                 "elbow": {"damping": 0.3, "friction": 0.0}}
+    kept = model_scene("dd", model, q0={"shoulder": 30, "elbow": -20}, file_dynamics="keep")
+    reference = REFERENCE.simulate(kept, 1e-3)
+    energy = trajectory_energy(kept, reference)
+    assert energy[-1] - energy[0] < -1e-2 * kept.characteristic_energy
+    runs = {}
+    for engine_id in ("mujoco/hinge-rk4", "dart/rk4", "mujoco/hinge", "dart/world"):
+        engine, variant = resolve(engine_id)
+        runs[engine_id] = engine.simulate(kept, 1e-3, variant=variant)
+    for engine_id in ("mujoco/hinge-rk4", "dart/rk4"):
+        assert np.linalg.norm(runs[engine_id].positions - reference.positions, axis=2).max() < 1e-10
+    assert np.abs(runs["mujoco/hinge"].positions - runs["dart/world"].positions).max() < 1e-12
+    for engine_id in ("drake/rk2", "pybullet/multibody"):
+        engine, variant = resolve(engine_id)
+        with pytest.raises(Unsupported, match='file_dynamics = "keep" is not supported here'):
+            engine.check(kept, variant)
+    with pytest.raises(UserError, match='"keep" with joint friction \\(shoulder, elbow\\): the reference has no'):
+        model_scene("df", damped_copy(tmp_path, '<dynamics damping="0.3" friction="0.1"/>'), file_dynamics="keep")

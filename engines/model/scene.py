@@ -65,6 +65,9 @@ class ModelScene:
     duration: float = DEFAULT_DURATION
     file_dynamics: str = "neutral"
     parameters: Mapping[str, Any] = field(default_factory=dict)
+    #: sha256 of the file's text when the scene was made: the key of what is read from it (a file edited
+    #: since is a different model).
+    digest: str = ""
 
     #: What tells a model scene from a catalog one (engines refuse it without the "model" capability).
     is_model = True
@@ -76,11 +79,11 @@ class ModelScene:
 
     @property
     def source(self) -> ModelSource:
-        return _source(self.model, self.path)
+        return _source(self.model, self.path, self.digest)
 
     @property
     def description(self) -> ModelDescription:
-        return _description(self.model, self.path)
+        return _description(self.model, self.path, self.digest)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -149,26 +152,41 @@ class ModelScene:
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at joint states q, v (n, nq)."""
-        return _kinematics(self.model, self.path).frames(q, v)
+        return _kinematics(self.model, self.path, self.digest).frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path).energy(q, v)
+        return _kinematics(self.model, self.path, self.digest).energy(q, v)
 
     # -- identity ----------------------------------------------------------------------------------
 
     @property
     def content_hash(self) -> str:
         """The file's text, the initial state, the duration and file_dynamics: everything the physics depends on."""
-        key = hashlib.sha256(self.source.text.encode())
+        key = hashlib.sha256(self.digest.encode())
         key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]).encode())
         return key.hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "model", "name": self.name, "model": self.model, "path": self.path,
                 "q0": dict(self.q0), "v0": dict(self.v0), "duration": self.duration,
-                "file_dynamics": self.file_dynamics}
+                "file_dynamics": self.file_dynamics, "digest": self.digest,
+                "particles": [{"link": name, "mass": float(m)} for name, m in zip(self.frames, self.masses)],
+                "frame_parents": self.frame_parents()}
+
+    def frame_parents(self) -> list[int | None]:
+        """For each compared link frame, the index of the nearest compared ancestor frame (None: the root,
+        fixed at the world's origin): the segments a report draws between joint frames."""
+        description, index = self.description, {name: k for k, name in enumerate(self.frames)}
+        parent_link = {j.child: j.parent for j in description.joints}
+        out: list[int | None] = []
+        for name in self.frames:
+            up = parent_link.get(name)
+            while up is not None and up not in index:
+                up = parent_link.get(up)
+            out.append(None if up is None else index[up])
+        return out
 
     def with_duration(self, duration: float) -> "ModelScene":
         return replace(self, duration=float(duration))
@@ -186,7 +204,8 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     """A ModelScene from user units: q0 in degrees (revolute, continuous) or metres (prismatic), v0 in
     rad/s or m/s, by joint name; every moving joint not named starts at 0. ModelError naming the field."""
     source = resolve(model, base)
-    description = _description(model, str(source.path))
+    digest = _digest(source.text)
+    description = _description(model, str(source.path), digest)
     if description.nq == 0:
         raise ModelError(f"model {model}: it has no moving joints (revolute, continuous or prismatic); "
                          f"there is nothing to simulate")
@@ -196,6 +215,10 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ModelError(f"model {model}: duration must be a positive number of seconds, got {duration!r}")
     joints = description.moving_joints
+    rubbing = [j.name for j in joints if j.friction]
+    if file_dynamics == "keep" and rubbing:
+        raise ModelError(f"model {model}: file_dynamics = \"keep\" with joint friction ({', '.join(rubbing)}): the "
+                         f"reference has no Coulomb friction; use \"neutral\" (friction and damping set to 0)")
     angular = {j.name: j.type != "prismatic" for j in joints}
     given_q = _by_joint(model, "q0", q0 or {}, angular)
     given_v = _by_joint(model, "v0", v0 or {}, angular)
@@ -203,7 +226,7 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
               if j.name in given_q else (j.name, 0.0) for j in joints)
     v = tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
     parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics}
-    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters)
+    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest)
 
 
 def _by_joint(model: str, what: str, values: Mapping[str, Any], angular: Mapping[str, bool]) -> dict[str, float]:
@@ -224,14 +247,22 @@ def _by_joint(model: str, what: str, values: Mapping[str, Any], angular: Mapping
     return out
 
 
-@functools.lru_cache(maxsize=16)
-def _source(model: str, path: str) -> ModelSource:
-    return replace(resolve(path), label=model)
+def _digest(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 @functools.lru_cache(maxsize=16)
-def _description(model: str, path: str) -> ModelDescription:
-    return describe(_source(model, path))
+def _source(model: str, path: str, digest: str) -> ModelSource:
+    """The file as the scene was made from it; ModelError when it has been edited since."""
+    source = replace(resolve(path), label=model)
+    if digest and _digest(source.text) != digest:
+        raise ModelError(f"model {model}: {path} changed after the scene was made from it; run again")
+    return source
+
+
+@functools.lru_cache(maxsize=16)
+def _description(model: str, path: str, digest: str) -> ModelDescription:
+    return describe(_source(model, path, digest))
 
 
 def _reach(description: ModelDescription) -> float:
@@ -246,8 +277,8 @@ def _reach(description: ModelDescription) -> float:
 
 
 @functools.lru_cache(maxsize=16)
-def _kinematics(model: str, path: str) -> "FrameKinematics":
-    return FrameKinematics(_source(model, path), _description(model, path))
+def _kinematics(model: str, path: str, digest: str) -> "FrameKinematics":
+    return FrameKinematics(_source(model, path, digest), _description(model, path, digest))
 
 
 class FrameKinematics:

@@ -20,15 +20,22 @@ from engines.model.stepping import file_values
 
 def _common(scene: ModelScene, loaded: Any) -> dict[str, Any]:
     """Settings every model run records: the import's options and notes, and what the file's joint
-    damping and friction were (set to 0 in every engine: contacts and joint limits are off too)."""
+    damping and friction were (set to 0, or the damping kept; contacts and joint limits are off)."""
     return {
         "model": scene.model,
         "import_options": dict(loaded.options),
         "import_notes": list(loaded.notes),
         "file_damping_friction": file_values(scene),
-        "file_dynamics": "neutral: joint damping, friction and armature set to 0",
+        "file_dynamics": ("keep: the file's joint damping kept (no friction in the file)" if scene.file_dynamics == "keep"
+                          else "neutral: joint damping, friction and armature set to 0"),
         "contacts": "off", "joint_limits": "off",
     }
+
+
+def _kept_damping(scene: ModelScene) -> np.ndarray:
+    """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
+    keep = scene.file_dynamics == "keep"
+    return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])
 
 
 class MujocoStepper:
@@ -45,6 +52,7 @@ class MujocoStepper:
         self.model.opt.timestep = dt
         self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
         self.qpos, self.dof = loaded.qpos, loaded.dof
+        self.model.dof_damping[self.dof] = _kept_damping(scene)
         self.data.qpos[:] = 0.0
         self.data.qvel[:] = 0.0
         self.data.qpos[self.qpos] = scene.initial_q
@@ -73,6 +81,8 @@ class DartStepper:
         for k in range(skeleton.getNumJoints()):
             skeleton.getJoint(k).setLimitEnforcement(False)
         self.dof = loaded.dof
+        for dof, damping in zip(self.dof, _kept_damping(scene)):
+            skeleton.getDof(int(dof)).setDampingCoefficient(float(damping))
         positions, velocities = np.zeros(skeleton.getNumDofs()), np.zeros(skeleton.getNumDofs())
         positions[self.dof], velocities[self.dof] = scene.initial_q, scene.initial_v
         skeleton.setPositions(positions)
@@ -85,6 +95,9 @@ class DartStepper:
             self.world.setTimeStep(dt)
             self.step = self.world.step
         else:
+            # DART's forward dynamics treats joint damping implicitly over the skeleton's time step
+            # (a dt·d term in the articulated inertia); RK4 needs the acceleration itself: step 0.
+            skeleton.setTimeStep(0.0)
             self.step = rk4_step(skeleton, dt)
         self.settings = {**_common(scene, loaded), "integrator": integrator, "position_limits": "not enforced"}
 

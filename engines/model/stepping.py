@@ -59,3 +59,12 @@ def file_values(scene: ModelScene) -> dict[str, dict[str, float]]:
     """The file's joint damping and friction by joint (what ``keep`` leaves in place), for the record."""
     return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
             if j.damping or j.friction}
+
+
+def refuse_kept_dynamics(scene: ModelScene, engine: str) -> None:
+    """Unsupported when ``scene`` keeps the file's joint damping and ``engine``'s stepper cannot."""
+    if scene.file_dynamics == "keep":
+        from engines.errors import Unsupported
+
+        raise Unsupported(f"{engine}: file_dynamics = \"keep\" is not supported here (its import sets joint "
+                          f"damping to 0 before the model is finalised); use \"neutral\"")
