@@ -223,3 +223,27 @@ def test_file_damping_is_set_to_0_unless_kept(tmp_path):
             engine.check(kept, variant)
     with pytest.raises(UserError, match='"keep" with joint friction \\(shoulder, elbow\\): the reference has no'):
         model_scene("df", damped_copy(tmp_path, '<dynamics damping="0.3" friction="0.1"/>'), file_dynamics="keep")
+
+
+def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
+    # A run of the no-<inertial> pitfall and its `xval model check` JSON in DIR/model_check/: the report's
+    # parity table colours PyBullet's and DART's differences (1 kg given to the link) "far", MuJoCo's "agree".
+    model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.2\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
+                     f'q0 = {{ shoulder = 20 }}\n[[engines]]\nid = "mujoco/hinge"\n')
+    out = tmp_path / "run"
+    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
+    assert code == 0, err
+    code, check, err = run_cli(capsys, "model", "check", model, "--format", "json", "--states", "5")
+    assert code == 1, err  # PyBullet and DART disagree
+    (out / "model_check").mkdir()
+    (out / "model_check" / "bare.json").write_text(check)
+    code, _, err = run_cli(capsys, "report", out)
+    assert code == 0, err
+    page = (out / "report.html").read_text()
+    assert "model file " + model in page and "Dynamics parity of the import (model_check/bare.json)" in page
+    rows = {engine: page.split(f"<tr><td>{engine} ")[1].split("</tr>")[0] for engine in ("mujoco", "pybullet", "dart")}
+    assert rows["mujoco"].count("parity-agree") == 3
+    assert rows["pybullet"].count("parity-far") == 3 and "pybullet gives it 1 kg" in rows["pybullet"]
+    assert rows["dart"].count("parity-far") == 3
