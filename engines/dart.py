@@ -182,11 +182,8 @@ class DartEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):
-            from engines.model.stepping import run_model
-            from engines.model.steppers import DartStepper
-
-            return run_model(scene, schedule, DartStepper(scene, schedule.dt, settings["integrator"], rk4_stepper))
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         model = self.build(scene, settings)
         dt = schedule.dt
         if settings["integrator"] == "world":

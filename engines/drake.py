@@ -199,9 +199,7 @@ class DrakeEngine(Engine):
             if settings["plant"] == "discrete":
                 raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
                                   "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
-            from engines.model.stepping import refuse_kept_dynamics
-
-            return refuse_kept_dynamics(scene, "drake")
+            return scene.refuse_kept_dynamics(self.name)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         try:
             tree = constraint_tree(scene)
@@ -270,13 +268,8 @@ class DrakeEngine(Engine):
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
-        if getattr(scene, "is_model", False):
-            from engines.model.stepping import run_model
-            from engines.model.steppers import DrakeStepper
-
-            return run_model(scene, schedule, DrakeStepper(
-                scene, schedule.dt, SCHEMES[settings["integrator"]], not settings["error_control"],
-                settings[TOLERANCE_OPTION]))
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant

@@ -568,11 +568,8 @@ class MuJoCoEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):
-            from engines.model.stepping import run_model
-            from engines.model.steppers import MujocoStepper
-
-            return run_model(scene, schedule, MujocoStepper(scene, schedule.dt, settings["integrator"]))
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         xml, inertia = self.mjcf(scene, schedule.dt, settings)
         model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"

@@ -445,9 +445,7 @@ class PyBulletEngine(Engine):
             if settings["formulation"] != "multibody":
                 raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                                   "build particle scenes from separate bodies, use pybullet/multibody")
-            from engines.model.stepping import refuse_kept_dynamics
-
-            return refuse_kept_dynamics(scene, "pybullet")
+            return scene.refuse_kept_dynamics(self.name)
         links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)
@@ -459,11 +457,8 @@ class PyBulletEngine(Engine):
                 )
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):
-            from engines.model.stepping import run_model
-            from engines.model.steppers import PyBulletStepper
-
-            return run_model(scene, schedule, PyBulletStepper(scene, schedule.dt))
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         with quiet_output():
             client = _clients.take()
             try:

@@ -14,11 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from engines.model.scene import ModelScene
 from engines.model.stepping import file_values
 
 
-def _common(scene: ModelScene, loaded: Any) -> dict[str, Any]:
+def _common(scene: Any, loaded: Any) -> dict[str, Any]:
     """Settings every model run records: the import's options and notes, and what the file's joint
     damping and friction were (set to 0, or the damping kept; contacts and joint limits are off)."""
     return {
@@ -32,7 +31,7 @@ def _common(scene: ModelScene, loaded: Any) -> dict[str, Any]:
     }
 
 
-def _kept_damping(scene: ModelScene) -> np.ndarray:
+def _kept_damping(scene: Any) -> np.ndarray:
     """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
     keep = scene.file_dynamics == "keep"
     return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])
@@ -41,7 +40,7 @@ def _kept_damping(scene: ModelScene) -> np.ndarray:
 class MujocoStepper:
     """MuJoCo: the compiled file (engines.model.mujoco), ``mj_step`` with the variant's integrator."""
 
-    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
+    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
         import mujoco
 
         from engines.model import mujoco as importer
@@ -71,9 +70,10 @@ class MujocoStepper:
 class DartStepper:
     """DART: the file's Skeleton (engines.model.dart) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
 
-    def __init__(self, scene: ModelScene, dt: float, integrator: str, rk4_step) -> None:
+    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
         import dartpy as dart
 
+        from engines.dart import rk4_stepper as rk4_step
         from engines.model import dart as importer
 
         loaded = importer.load(scene.source, scene.description)
@@ -114,7 +114,7 @@ class DrakeStepper:
     """Drake: the file's continuous MultibodyPlant (engines.model.drake) under a Simulator with the variant's
     integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
 
-    def __init__(self, scene: ModelScene, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
+    def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
         from engines.model import drake as importer
@@ -150,7 +150,7 @@ class DrakeStepper:
 class PyBulletStepper:
     """PyBullet: the file's multibody (engines.model.pybullet), ``stepSimulation`` at fixedTimeStep dt."""
 
-    def __init__(self, scene: ModelScene, dt: float) -> None:
+    def __init__(self, scene: Any, dt: float) -> None:
         from engines.model import pybullet as importer
         from engines.pybullet import _pb as pb, quiet_output
 
@@ -189,3 +189,17 @@ def _without_limits(source):
         limit.set("lower", "1")
         limit.set("upper", "-1")
     return replace(source, text=ET.tostring(root, encoding="unicode"))
+
+
+def stepper(engine: str, scene: Any, dt: float, settings: dict[str, Any]) -> Any:
+    """The stepper of ``engine`` (an adapter's name) for ``scene`` at step ``dt`` (s), from the adapter's
+    resolved ``settings`` (the variant's integrator)."""
+    if engine == "mujoco":
+        return MujocoStepper(scene, dt, settings["integrator"])
+    if engine == "dart":
+        return DartStepper(scene, dt, settings["integrator"])
+    if engine == "drake":
+        return DrakeStepper(scene, dt, settings["scheme"], not settings["error_control"], settings["accuracy"])
+    if engine == "pybullet":
+        return PyBulletStepper(scene, dt)
+    raise ValueError(f"no model stepper for engine {engine!r}")

@@ -18,7 +18,6 @@ from typing import Any, Protocol
 import numpy as np
 
 from engines.adapter import RawRun, Schedule
-from engines.model.scene import ModelScene
 from engines.recorder import Recorder
 
 
@@ -37,8 +36,9 @@ class Stepper(Protocol):
         """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
 
 
-def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun:
-    """Step to every sample of ``schedule`` through the one Recorder loop (it stops at a non-finite state).
+def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
+    """Step ``scene`` (an engines.model.scene.ModelScene) to every sample of ``schedule`` through the one
+    Recorder loop (it stops at a non-finite state).
     Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v."""
     recorder = Recorder(scene, schedule)
     recorder.record(0, *stepper.state())
@@ -55,16 +55,8 @@ def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun
     return replace(raw, joint_states=states)
 
 
-def file_values(scene: ModelScene) -> dict[str, dict[str, float]]:
+def file_values(scene: Any) -> dict[str, dict[str, float]]:
     """The file's joint damping and friction by joint (what ``keep`` leaves in place), for the record."""
     return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
             if j.damping or j.friction}
 
-
-def refuse_kept_dynamics(scene: ModelScene, engine: str) -> None:
-    """Unsupported when ``scene`` keeps the file's joint damping and ``engine``'s stepper cannot."""
-    if scene.file_dynamics == "keep":
-        from engines.errors import Unsupported
-
-        raise Unsupported(f"{engine}: file_dynamics = \"keep\" is not supported here (its import sets joint "
-                          f"damping to 0 before the model is finalised); use \"neutral\"")
