@@ -65,8 +65,8 @@ def workspace(mech: Mechanism, stages: int) -> tuple:
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
     return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
-            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
+            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
+            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb), np.zeros((6, 6)))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
