@@ -48,12 +48,11 @@ def pack(mech: Mechanism) -> tuple:
     for k, j in enumerate(mech.joints):
         up[j.child] = nb + k
         up[nb + k] = j.parent  # -1 for the world: the joint is a root of the elimination
-    depth = np.zeros(nb + nj, dtype=np.int64)
-    for i in range(nb + nj):
-        node = i
-        while up[node] >= 0:
-            node = up[node]
-            depth[i] += 1
+    depth = np.zeros(nb + nj, dtype=np.int64)  # edges from the node to its root
+    for k in mech.topological_joints():
+        j = mech.joints[k]
+        depth[nb + k] = depth[j.parent] + 1 if j.parent >= 0 else 0
+        depth[j.child] = depth[nb + k] + 1
     order = np.argsort(-depth, kind="stable").astype(np.int64)  # leaves first, each node before its parent
     dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
     return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
