@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python scripts/model_findings.py`` (about half a minute). Prints:
 
-1. ``xval model check`` (100 states, seed 0) of pybullet_data's KUKA iiwa and Franka Panda and of
+1. ``xval model check`` (100 states, seed 0) of pybullet_data's KUKA iiwa, Franka Panda and xArm6, and of
    models/pitfalls/no_inertial.urdf: per engine the largest relative difference of M, bias and
    forward dynamics against Pinocchio's, and the diagnosis;
 2. on the Panda: each diagonal entry of MuJoCo's M minus Pinocchio's over the states (kg·m²), the
@@ -26,6 +26,7 @@ DOC = "docs/models.md"
 MODELS = {
     "kuka": "pybullet_data:kuka_iiwa/model.urdf",
     "panda": "pybullet_data:franka_panda/panda.urdf",
+    "xarm": "pybullet_data:xarm/xarm6_robot.urdf",
     "no_inertial": str(Path(__file__).resolve().parent.parent / "models/pitfalls/no_inertial.urdf"),
 }
 SLOW: set[str] = set()
@@ -37,9 +38,10 @@ def parity(figures: dict[str, float]) -> None:
         print(f"\n### {model}\n\n| engine | M | bias | forward | agrees |\n|---|---|---|---|---|")
         for e in report_.engines:
             cells = " | ".join("-" if getattr(e, q) is None else f"{getattr(e, q):.2g}" for q in QUANTITIES)
-            print(f"| {e.engine} | {cells} | {'yes' if e.agrees else 'no'} |")
+            print(f"| {e.engine} | {cells} | {'yes' if e.agrees else 'no'} |" + (f" {e.message}" if e.message else ""))
             for q in QUANTITIES:
-                figures[f"{key}.{e.engine}.{q}"] = getattr(e, q)
+                if getattr(e, q) is not None:  # None: the engine refused the file
+                    figures[f"{key}.{e.engine}.{q}"] = getattr(e, q)
         for line in report_.diagnosis:
             print(f"\n{line}")
 
@@ -81,6 +83,8 @@ QUOTES = [
     Quote(DOC, "−0.200000", "panda.mujoco.diagonal", context="exactly {} kg·m²"),
     Quote(DOC, "2.8261", "panda.pinocchio.gravity_joint2", context="{} N·m"),
     Quote(DOC, "4.5526", "panda.drake.gravity_joint2", context="{} N·m"),
+    Quote(DOC, "0.022", "xarm.pybullet.mass_matrix", context="M {}"),
+    Quote(DOC, "0.69", "xarm.pybullet.forward", context="forward {}"),
     Quote(DOC, "0.91", "no_inertial.pybullet.mass_matrix", context="M {}"),
     Quote(DOC, "0.28", "no_inertial.pybullet.bias", context="bias {}"),
 ]

@@ -13,19 +13,15 @@ disabled (no joint limits or contacts), so forward dynamics are the tree's.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from engines.model.description import ModelDescription
-from engines.model.inertia import LinkInertia, world_inertia
+from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
+from engines.mujoco import mujoco  # imported with no OpenGL backend (engines/mujoco.py says why)
 
 NAME = "mujoco"
-
-os.environ.setdefault("MUJOCO_GL", "disable")  # never renders; no OpenGL backend loaded
-import mujoco  # noqa: E402
 
 
 def version() -> str:
