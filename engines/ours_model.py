@@ -18,7 +18,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import combine, world_inertia
 from engines.model.kinematics import rpy_matrix
 from ours import OursError
-from ours.rigid import Body, Joint, Mechanism, frames, initial_state, joint_coordinates, simulate
+from ours.rigid import Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, simulate
 
 GRAVITY = (0.0, 0.0, -9.81)
 
@@ -90,3 +90,38 @@ def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_ev
     if len(q):
         q[:, revolute] += 2 * np.pi * turns[revolute]
     return result, q, v
+
+
+class OursStepper:
+    """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
+    start from the scene's joint state, step with the variant's method and integrator. Revolute angles
+    are read continuously from sample to sample (ours' rows fix them only modulo 2π)."""
+
+    def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
+        self.model = translate(scene.description)
+        names = self.model.joint_names
+        q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
+        v0 = dict(zip(names, np.asarray(scene.initial_v, dtype=float)))
+        mech = self.model.mechanism
+        self.run = Stepping(mech, initial_state(mech, q0, v0), dt, method=method, integrator=integrator, **options)
+        self._last = np.array([q0[n] for n in names])
+        self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
+        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.ours_model",
+                         "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
+                                                                     self.model.carriers.items() if b >= 0 and
+                                                                     mech.bodies[b].name != n},
+                         "contacts": "off", "joint_limits": "off", "file_dynamics": "neutral: joint damping, "
+                         "friction and armature left out", **self.run.settings}
+
+    def advance(self, steps: int) -> None:
+        self.run.advance(steps)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.run.status != "ok":
+            nan = np.full(len(self._last), np.nan)
+            return nan, nan.copy()
+        q, v = joint_coordinates(self.model.mechanism, self.run.y)
+        turns = np.round((self._last - q) / (2 * np.pi))
+        q[self._revolute] += 2 * np.pi * turns[self._revolute]
+        self._last = q.copy()
+        return q, v

@@ -324,3 +324,33 @@ def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
         distance[s] = C[used & length].max(initial=0.0)
         angle[s] = C[used & ~length].max(initial=0.0)
     return distance, angle
+
+
+class Stepping:
+    """A run that advances on request (for a caller that samples as it goes): the same compiled step
+    as :func:`simulate`. ``y`` (13 nb,) is the current state; ``status`` "ok" or why it stopped (then
+    ``y`` is left as it was when the step failed and :meth:`advance` does nothing more)."""
+
+    def __init__(self, mech: Mechanism, y0, dt: float, *, method: str = "baumgarte", integrator: str | None = None,
+                 k_s: float | None = None, k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
+                 max_iterations: int = DEFAULT_MAX_ITERATIONS) -> None:
+        first = simulate(mech, y0, dt, 1, 1, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
+                         tolerance=tolerance, max_iterations=max_iterations)  # validates, compiles, warms
+        self.settings = first.settings
+        code, scheme = resolve(method, integrator)
+        self._args = (code, scheme.code, scheme.A, scheme.b)
+        self._gains = (first.settings.get("k_s", 0.0), first.settings.get("k_d", 0.0))
+        self._dt, self._tolerance, self._max_iterations = float(dt), float(tolerance), int(max_iterations)
+        self._model, self._work = pack(mech), workspace(mech, scheme.stages)
+        self.y = np.array(y0, dtype=float).ravel()
+        self._out = np.zeros((2, self.y.size))
+        self.status, self.steps = "ok", 0
+
+    def advance(self, steps: int) -> str:
+        """Take ``steps`` steps of dt in place; returns the status."""
+        if self.status == "ok" and steps > 0:
+            _, taken, status = _kernel().run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
+                                             int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
+            self.steps += int(taken)
+            self.status = STATUS_TEXT[int(status)]
+        return self.status
