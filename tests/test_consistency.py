@@ -53,7 +53,8 @@ def run(tmp_path: Path, text: str) -> dict[str, object]:
 
 def pendulum_suite(duration: float, *engines: str) -> str:
     """The double pendulum over ``duration`` s at dt 1e-3, 3.16e-4 and 1e-4 s, for the built-in ``engines``."""
-    return (f'name = "floor"\nduration = {duration}\nsample_interval = 0.01\n'
+    # A generous case timeout: MJX compiles its step (minutes of CPU on a loaded 2-core machine) before stepping.
+    return (f'name = "floor"\nduration = {duration}\nsample_interval = 0.01\ntimeout = 900\n'
             'dt = [1e-3, 3.16227766017e-4, 1e-4]\n[[scenes]]\nid = "double-pendulum"\nscene = "double-pendulum"\n'
             + "".join(f'[[engines]]\nid = "{engine}"\n' for engine in engines))
 
@@ -72,6 +73,8 @@ def test_a_solver_with_gravity_9_8_converges_to_something_else_and_is_inconsiste
     assert verdict.reason.startswith(f"converges to something {errors[-1]:.2g} m from the reference: error stops "
                                      f"falling at {errors[-1]:.2g} m from dt ")
     assert "above the tolerance 2e-06 m, the reference's error bar" in verdict.reason
+    # Its cost is the program's own CPU time (not the host's thread's): a Python RK4 step costs microseconds.
+    assert wrong.cost is not None and wrong.cost.per_step > 2e-6
     # The control: with the scene's own g the same program keeps converging (or reaches the reference's floor).
     assert right.consistency.consistent is True
     assert right.consistency.reason.startswith("error still falls (local order ")
