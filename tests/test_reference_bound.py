@@ -109,10 +109,10 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
     assert "position_error_linf_whole_run" not in bead
 
 
-def test_momentum_drift_without_gravity_is_measured_against_the_fallback_speed():
-    # g = 0: the characteristic speed falls back to √L m/s, as E* falls back to M·L (it was 0: an inf drift).
-    # A tangential kick δ at the last sample changes L_z by m·r_xy·δ, measured against M·L·√L.
-    # m = 2 kg, L = 2 m, so √L is neither 1 nor L (a fallback to either would be caught).
+def test_momentum_drift_without_gravity_is_measured_against_the_initial_speed():
+    # g = 0: the characteristic speed is √(2 T₀ / M), T₀ the initial kinetic energy: for one particle, its
+    # initial speed (m/s, not the √L of a units-less fallback). A tangential kick δ at the last sample
+    # changes L_z by m·r_xy·δ, measured against M·L·|v₀|. m = 2 kg, L = 2 m, |v₀| ≠ 1, L, √L.
     scene = catalog.build("spherical-pendulum", {"g": 0.0, "m": 2.0, "radius": 2.0, "duration": 1.0})
     p = scene.initial_positions[None].repeat(2, 0)
     v = scene.initial_velocities[None].repeat(2, 0)
@@ -120,5 +120,16 @@ def test_momentum_drift_without_gravity_is_measured_against_the_fallback_speed()
     r_xy = float(np.hypot(x, y))
     v[1, 0] += 0.1 * np.array([-y, x, 0.0]) / r_xy
     mass, length = float(scene.masses.sum()), scene.characteristic_length
-    assert (mass, length) == (2.0, 2.0)
-    assert momentum_drift(scene, p, v) == pytest.approx(mass * r_xy * 0.1 / (mass * length * np.sqrt(length)), rel=1e-9)
+    speed = float(np.linalg.norm(scene.initial_velocities[0]))
+    assert (mass, length) == (2.0, 2.0) and speed not in (0.0, 1.0, length, np.sqrt(length))
+    assert scene.characteristic_speed == pytest.approx(speed, rel=1e-12)
+    assert scene.characteristic_energy == pytest.approx(0.5 * mass * speed**2, rel=1e-12)  # J: T₀
+    assert momentum_drift(scene, p, v) == pytest.approx(mass * r_xy * 0.1 / (mass * length * speed), rel=1e-9)
+
+
+def test_a_scene_at_rest_without_gravity_falls_back_to_unit_acceleration():
+    # g = 0 and nothing moving: no energy to measure against; E* = M·L·1 m/s², v* = √(L·1 m/s²).
+    scene = catalog.build("bead", {"g": 0.0, "m": 3.0, "radius": 2.0, "theta0": 60.0})
+    assert not scene.initial_velocities.any()
+    assert scene.characteristic_energy == pytest.approx(3.0 * 2.0)
+    assert scene.characteristic_speed == pytest.approx(np.sqrt(2.0))

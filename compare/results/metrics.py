@@ -1,4 +1,4 @@
-"""Metrics: pure functions of trajectories and reference samples, as defined in DESIGN.md.
+"""Metrics: pure functions of trajectories and reference samples, as defined in docs/metrics.md.
 
 Every function takes arrays (or a Scene for its masses, lengths and
 gravity) and returns plain numbers; nothing here runs an engine or touches
@@ -142,7 +142,7 @@ def stepping_cost(wall_times: Sequence[float], simulated_time: float, steps: int
 
 @dataclass(frozen=True)
 class CaseMetrics:
-    """Every metric of one case (see DESIGN.md for definitions).
+    """Every metric of one case (docs/metrics.md defines each).
 
     position_error_final / _l2 / _linf : m (final is NaN for an incomplete run).
     divergence_time : s, or None when e(t) stays ≤ δ·L.
