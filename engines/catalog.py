@@ -336,6 +336,25 @@ def builder(name: str) -> SceneBuilder:
         raise SceneError(f"unknown scene {name!r}; choose one of: {', '.join(CATALOG)}") from None
 
 
+def unit_warnings(name: str, overrides: Mapping[str, Any] | None = None) -> list[str]:
+    """One line per angle of ``overrides`` whose magnitude is under 2π and not 0: angles here are in degrees,
+    and such a value is more likely radians typed by habit (theta1 = 1.5708 is 1.57°, not 90°)."""
+    known = {p.name: p for p in builder(name).parameters}
+    lines = []
+    for key, raw in (overrides or {}).items():
+        parameter = known.get(key)
+        if parameter is None or parameter.unit != "deg":
+            continue
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            continue  # build() refuses it with the reason
+        if 0 < abs(value) < 2 * math.pi:
+            lines.append(f"{name}: {key} = {raw} is in degrees ({value:g}°); if you meant radians, give "
+                         f"{math.degrees(value):.6g} (degrees)")
+    return lines
+
+
 def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
     """Build catalog scene ``name`` with ``overrides`` (strings or numbers) on top of the defaults.
 

@@ -301,10 +301,14 @@ class DrakeEngine(Engine):
                 t0 = time.perf_counter()
                 simulator.AdvanceTo(targets[k])
                 wall += time.perf_counter() - t0
-                states[k] = plant.GetPositionsAndVelocities(context)
-                recorded += 1
-                if not np.isfinite(states[k]).all():
+                state = plant.GetPositionsAndVelocities(context)
+                if not np.isfinite(state).all():
+                    # Blown up: keep the finite samples (model.read would trip Drake's AllFinite(q_v) check,
+                    # which pydrake raises as SystemExit); the run ends unstable with this message.
+                    message = f"non-finite state at t = {targets[k]:.6g} s"
                     break
+                states[k] = state
+                recorded += 1
         except RuntimeError as exc:  # e.g. the error-controlled step fell below its minimum
             message = f"Drake stopped at t = {context.get_time():.6g} s: {str(exc).splitlines()[0]}"
         if discrete:

@@ -107,6 +107,33 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
     assert dp["position_error_linf"] <= dp["position_error_linf_whole_run"]
     assert dp["position_error_linf_whole_run"] > 10 * dp["position_error_linf"]  # RK4 at 0.01 s: the chaos grows it
     assert "position_error_linf_whole_run" not in bead
+    # The cheap Lyapunov estimate from the same two solves: Benettin's is 0.99 /s over 10 s (the test above);
+    # the regular bead has none. Both go to show and to every export.
+    assert 0.6 < records["dp"].reference["lyapunov_exponent"] < 1.3
+    assert records["bead"].reference["lyapunov_exponent"] is None
+    from compare.results.table import case_rows, scene_tables
+    from compare.results.sweep import sweeps
+
+    rows = {row["scene"]: row for row in case_rows(load_results(tmp_path / "run").records)}
+    assert rows["dp"]["reference_horizon"] == records["dp"].reference_horizon
+    assert rows["dp"]["reference_error"] == records["dp"].reference["reference_error"]
+    assert rows["dp"]["lyapunov_exponent"] == records["dp"].reference["lyapunov_exponent"]
+    assert rows["bead"]["reference_horizon"] is None and rows["bead"]["lyapunov_exponent"] is None
+    text = scene_tables(sweeps(load_results(tmp_path / "run").records))
+    assert "scene dp (reference error" in text and "Lyapunov exponent 0." in text
+    assert "horizon none, Lyapunov exponent -)" in text
+
+
+def test_growth_rate_tells_exponential_from_linear_separation():
+    t = np.linspace(0.0, 10.0, 1001)
+    # Exponential growth from round-off: the slope of ln d (1/s), in the band from 1e-13 L to 1e-3 L.
+    assert reference.growth_rate(t, 2.0 * 1e-15 * np.exp(1.5 * t), 2.0) == pytest.approx(1.5, rel=1e-9)
+    # Saturated past 1e-3 L: the samples above it are left out.
+    d = np.minimum(1e-14 * np.exp(3.0 * t), 0.5)
+    assert reference.growth_rate(t, d, 1.0) == pytest.approx(3.0, rel=1e-9)
+    # A regular scene's phase drift grows linearly (50× over the run): no exponent.
+    assert reference.growth_rate(t, 1e-13 * (1 + 5 * t), 1.0) is None
+    assert reference.growth_rate(t, np.full_like(t, 1e-16), 1.0) is None
 
 
 def test_momentum_drift_without_gravity_is_measured_against_the_initial_speed():

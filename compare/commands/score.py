@@ -6,11 +6,10 @@ import json
 
 import click
 
-from compare.cli import output_path, parse_assignments
+from compare.cli import output_path, parse_assignments, scene_from_params
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
-from engines import catalog
 
 #: Table columns: (heading, row key).
 COLUMNS = (
@@ -49,7 +48,7 @@ def command(scene_name, files, params, delta, output_format, output) -> None:
     scene, a first row that is not the scene's initial state).
     """
     target = check_writable(output, inputs=files)
-    scene = catalog.build(scene_name, parse_assignments(params, "--param"))
+    scene = scene_from_params(scene_name, parse_assignments(params, "--param"))
     rows = score(files, scene, delta=delta)
     text = (json.dumps(rows, indent=1) if output_format == "json" else render(rows)) + "\n"
     if str(target) == STDOUT:

@@ -211,7 +211,8 @@ def case_metrics(
     complete = n == len(scheduled_times)
     e = position_error(trajectory.positions, reference_positions)
     summary = summarize_error(e)
-    end_of_data = None if complete else float(scheduled_times[n])
+    # Without a reference (NaN positions) e is NaN: no divergence time at all, not "diverged at the end of data".
+    end_of_data = None if complete or not np.isfinite(e).any() else float(scheduled_times[n])
     threshold = delta * scene.characteristic_length
     force_error = None
     if trajectory.constraint_forces is not None and reference_forces is not None and n:
