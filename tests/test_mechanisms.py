@@ -96,7 +96,7 @@ def test_ellipse_distance_is_exact_against_a_refined_search():
     for a, b in ((1.3, 0.6), (0.6, 1.3)):
         expected = []
         for x, z in points:
-            gap = lambda w: math.hypot(a * math.cos(w) - x, b * math.sin(w) - z)  # noqa: E731
+            gap = lambda w: math.hypot(a * math.cos(w) - x, b * math.sin(w) - z)  # noqa: E731, B023 (used at once)
             best = u[np.argmin(np.hypot(a * np.cos(u) - x, b * np.sin(u) - z))]
             step = u[1] - u[0]
             expected.append(minimize_scalar(gap, bounds=(best - step, best + step), method="bounded",

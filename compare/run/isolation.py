@@ -305,9 +305,9 @@ class _ReportedGroups(set):
         super().add(group)
         os.write(self.fd, b"+%d\n" % group)
 
-    def discard(self, group: int) -> None:
+    def discard(self, group: object) -> None:
         super().discard(group)
-        os.write(self.fd, b"-%d\n" % group)
+        os.write(self.fd, b"-%d\n" % int(group))  # type: ignore[call-overload]  # a group id: an int
 
 
 def _start_reaper() -> None:
