@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported, UserError
+from engines.errors import Unsupported
 from engines.mujoco import Tree, constraint_tree
 from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
