@@ -125,10 +125,8 @@ def test_a_killed_worker_fails_only_its_case(cluster, tmp_path):
                "compare_engines:MISBEHAVING/kill", "compare_engines:MISBEHAVING/sleep",
                "compare_engines:MISBEHAVING/raise", "mujoco/hinge"]
     start = time.perf_counter()
-    # timeout 10 s: the exact case needs well under 1 s idle, and ran past 3 s on a loaded machine. The sleeper
-    # sleeps an hour: 240 s shows it was cut at its timeout, whatever the load.
-    summary = run_on_cluster(parse_suite(suite_text(engines, timeout=10)), tmp_path / "r", cluster.scheduler_address)
-    assert time.perf_counter() - start < 240
+    summary = run_on_cluster(parse_suite(suite_text(engines, timeout=3)), tmp_path / "r", cluster.scheduler_address)
+    assert time.perf_counter() - start < 60
     status = {r.case.engine.split("/")[-1]: (r.status, r.message) for r in load_results(tmp_path / "r").records}
     # The worker killer took down a worker on each of its two attempts (allowed-failures = 1, as the local pool retries once).
     assert status.pop("kill-worker")[0] == "failed"
@@ -175,7 +173,7 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
         os.killpg(started[0].pid, signal.SIGKILL)
         killed = time.monotonic()
         stdout, stderr = run.communicate(timeout=60)
-        assert time.monotonic() - killed < 50  # the sleeper would hold the run for an hour; 50 s absorbs load
+        assert time.monotonic() - killed < 20
         assert run.returncode == 1, stderr
         assert stderr.splitlines()[-1] == (f"xval: error: lost the connection to the Dask scheduler at {address}; "
                                            f"the finished cases are in {out}: run again with --resume")

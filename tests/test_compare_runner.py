@@ -6,6 +6,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -232,7 +233,8 @@ def test_run_and_show_commands(tmp_path):
     assert run.stderr.splitlines() == ["running: 1/2 cases (50 %)", "running: 2/2 cases (100 %), 1 not ok"]
     show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=env)
     table = show.stdout.splitlines()
-    assert table[2] == "scene bead"
+    # The scene line carries the reference's own error, horizon and Lyapunov estimate (docs/metrics.md).
+    assert re.fullmatch(r"scene bead \(reference error \S+ m, horizon none, Lyapunov exponent -\)", table[2])
     assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order", "consistent"]
     assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
     assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
