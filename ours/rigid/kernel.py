@@ -374,45 +374,52 @@ def _constraint_norm(model, work):
 
 @compiled
 def _correction(y, model, work, velocity):
-    """work[7] ← the bodies' corrections −W Jᵀ (J W Jᵀ)⁻¹ e with e = C (positions) or J u (velocity):
-    the tree system with no force and −e on the joints. Rows must be current; False if singular."""
+    """work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body with e = C (positions) or J u (velocity), through the
+    factor in work (the tree system with no force and −e on the joints); returns max |e|."""
     nb, rows, C, JA, JB, sol = model[0].shape[0], model[11], work[1], work[2], work[3], work[7]
-    if not tree_factor(y, model, work):
-        return False
     for b in range(nb):
         for r in range(6):
             sol[b, 0, r] = 0.0
+    worst = 0.0
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
-            sol[nb + k, 0, r] = -(_row_rate(y, model, JA, JB, k, r) if velocity else C[k, r])
+            e = _row_rate(y, model, JA, JB, k, r) if velocity else C[k, r]
+            worst = max(worst, abs(e))
+            sol[nb + k, 0, r] = -e
     tree_solve(model, work, sol)
-    return True
+    return worst
 
 
 @compiled
 def project(y, model, work, tolerance, max_iterations):
-    """Newton on C(q) = 0 in the mass metric (Δ = −W Jᵀ (J W Jᵀ)⁻¹ C, rotations by the exponential map,
-    quaternions renormalised), then u ← u − W Jᵀ (J W Jᵀ)⁻¹ J u. Returns a status code."""
+    """Positions onto C(q) = 0, then velocities onto J u = 0, both in the mass metric: Δ = −W Jᵀ (J W Jᵀ)⁻¹ e
+    (e = C, rotations by the exponential map and quaternions renormalised; then e = J u), repeated until
+    max |e| ≤ tolerance. J W Jᵀ is factored once, at the state the step arrived at (a chord method, as SHAKE
+    does): the iterations cost a right-hand side and a solve each. Returns a status code."""
     nb, R, sol = model[0].shape[0], work[0], work[7]
-    for it in range(max_iterations + 1):
-        rotations(y, nb, R)
-        joint_rows(y, model, R, work[1], work[2], work[3], work[4])
-        if _constraint_norm(model, work) <= tolerance:
-            break
-        if it == max_iterations:
-            return NOT_CONVERGED
-        if not _correction(y, model, work, False):
-            return SINGULAR
-        for b in range(nb):
-            o = 13 * b
-            for r in range(3):
-                y[o + r] += sol[b, 0, r]
-            _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
-    if not _correction(y, model, work, True):
+    rotations(y, nb, R)
+    joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+    if not tree_factor(y, model, work):
         return SINGULAR
-    for b in range(nb):
-        for r in range(6):
-            y[13 * b + 7 + r] += sol[b, 0, r]
+    for velocity in (False, True):
+        for it in range(max_iterations + 1):
+            if it > 0 and not velocity:
+                rotations(y, nb, R)
+                joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+            worst = _correction(y, model, work, velocity)
+            if worst <= tolerance:
+                break
+            if it == max_iterations:
+                return NOT_CONVERGED
+            for b in range(nb):
+                o = 13 * b
+                if velocity:
+                    for r in range(6):
+                        y[o + 7 + r] += sol[b, 0, r]
+                else:
+                    for r in range(3):
+                        y[o + r] += sol[b, 0, r]
+                    _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
     return OK
 
 
