@@ -208,6 +208,30 @@ def _coupling(i, p, nb, JA, JB, r, c):
     return JA[i - nb, r, c]
 
 
+@inlined
+def _eliminate(D, X, H, JA, JB, nb, i, p, di, dp):
+    """Factor node i's reduced block (negated first for a joint) and, below a parent p (dp > 0), fold
+    it into the parent's: X[i] = (D_i⁻¹ H_{i,p})ᵀ, D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}. False if not definite."""
+    sign = 1.0 if i < nb else -1.0
+    if sign < 0.0:
+        for r in range(di):
+            for c in range(di):
+                D[i, r, c] = -D[i, r, c]
+    if not _cholesky(D, i, di):
+        return False
+    for c in range(dp):  # row c of X[i] = D_i⁻¹ (column c of H_{i,p})
+        for r in range(di):
+            X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
+        _chol_solve(D, i, di, X, i, c, sign)
+    for r in range(dp):  # lower triangle only (the Cholesky reads no more)
+        for c in range(r + 1):
+            s = 0.0
+            for m in range(di):
+                s += H[r, m] * X[i, c, m]
+            D[p, r, c] -= s
+    return True
+
+
 @compiled
 def tree_factor(y, model, work):
     """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
@@ -231,28 +255,18 @@ def tree_factor(y, model, work):
                 D[b, 3 + r, 3 + c] = s
     for idx in range(nn):
         i = order[idx]
-        di = 6 if i < nb else rows[i - nb]
-        sign = 1.0 if i < nb else -1.0
-        if sign < 0.0:
-            for r in range(di):
-                for c in range(di):
-                    D[i, r, c] = -D[i, r, c]
-        if not _cholesky(D, i, di):
-            return False
         p = up[i]
-        if p < 0:
-            continue
-        dp = 6 if p < nb else rows[p - nb]
-        for c in range(dp):  # X[i] = (D_i⁻¹ H_{i,p})ᵀ, row c = D_i⁻¹ (column c of H_{i,p})
-            for r in range(di):
-                X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
-            _chol_solve(D, i, di, X, i, c, sign)
-        for r in range(dp):  # D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}, lower triangle only (Cholesky reads no more)
-            for c in range(r + 1):
-                s = 0.0
-                for m in range(di):
-                    s += H[r, m] * X[i, c, m]
-                D[p, r, c] -= s
+        di = 6 if i < nb else rows[i - nb]
+        dp = 0 if p < 0 else (6 if p < nb else rows[p - nb])
+        # the common pairs with their sizes as constants, so that the compiler unrolls the small loops
+        if di == 6 and dp == 5:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 6, 5)
+        elif di == 5 and dp == 6:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 5, 6)
+        else:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, di, dp)
+        if not ok:
+            return False
     return True
 
 
@@ -271,7 +285,13 @@ def tree_solve(model, work, x):
                 s += X[i, r, m] * x[i, 0, m]
             x[p, 0, r] -= s
     for i in range(nn):
-        _chol_solve(D, i, dims[i], x, i, 0, 1.0 if i < nb else -1.0)
+        sign = 1.0 if i < nb else -1.0
+        if dims[i] == 6:  # constant sizes: unrolled
+            _chol_solve(D, i, 6, x, i, 0, sign)
+        elif dims[i] == 5:
+            _chol_solve(D, i, 5, x, i, 0, sign)
+        else:
+            _chol_solve(D, i, dims[i], x, i, 0, sign)
     for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
         i = order[idx]
         p = up[i]
