@@ -77,7 +77,7 @@ def _ensure_compiled() -> float:
 
 class OursEngine(Engine):
     name = "ours"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "model"})
     options = {
         "method": Option("method", "baumgarte", "drift cure: plain, baumgarte, projection, rattle or lagrangian",
                          kind="str", choices=tuple(ours.METHODS)),
@@ -111,6 +111,8 @@ class OursEngine(Engine):
         """
         _ensure_compiled()
         for scene in scenes:
+            if getattr(scene, "is_model", False):  # rigid bodies: compiled when their run is set up
+                continue
             try:
                 system, q0, v0, _ = _to_system(scene)
                 ours.simulate(system, q0, v0, 1e-3, 1, method="baumgarte")
@@ -120,6 +122,15 @@ class OursEngine(Engine):
                 continue
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/ours_model.py)
+            from ours.rigid.method import resolve as rigid_pair
+
+            try:
+                rigid_pair(settings["method"], settings["integrator"])
+            except ours.OursError as exc:
+                raise Unsupported(f"ours: {exc}") from None
+            scene.refuse_kept_dynamics(self.name)
+            return
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])
         except ours.InvalidPair as exc:
@@ -167,6 +178,8 @@ class OursEngine(Engine):
         return None if gains is None else largest_stable_dt(*gains)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if getattr(scene, "is_model", False):  # a model file: its own loop (engines/model/stepping.py)
+            return scene.run_in(self.name, schedule, settings)
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(
