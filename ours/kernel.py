@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
-from ours.constraint import DISTANCE
+from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 # ---- SIZES (ours.specialize replaces this block with constants) ----
@@ -88,8 +88,12 @@ def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
 _PLAIN, _BAUMGARTE, _PROJECTION, _RATTLE_METHOD = 0, 1, 2, 3
 _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 
-# Constraint kinds (set by ``encode`` in ``ours.constraint``):
+# Constraint kinds (set by ``encode`` in ``ours.constraint``); a curve kind holds one particle
+# (j = −1) on a curve about its anchor, d = xᵢ − anchor:
 # DISTANCE: C = ½(‖d‖² − l²), param = (l²,), g = d, J̇q̇ = ‖ḋ‖², scale l².
+# LINE: C = n·d (m), param = n (the unit normal), g = n, J̇q̇ = 0, scale 1.
+# ELLIPSE: C = ½(Σₐ dₐ² / sₐ² − 1), param = (1/sₐ²) (the inverse squared semi-axes),
+#     gₐ = dₐ / sₐ², J̇q̇ = Σₐ vₐ² / sₐ², scale 1.
 
 
 @compiled
@@ -107,6 +111,19 @@ def constraint_value(k, q, ends, anchor, kind, param, G):
             G[k, a] = d
             s += d * d
         return 0.5 * (s - param[k, 0])
+    if kind[k] == LINE:
+        s = 0.0
+        for a in range(dim):
+            G[k, a] = param[k, a]
+            s += param[k, a] * (q[i, a] - anchor[k, a])
+        return s
+    if kind[k] == ELLIPSE:
+        s = 0.0
+        for a in range(dim):
+            d = q[i, a] - anchor[k, a]
+            G[k, a] = d * param[k, a]
+            s += d * d * param[k, a]
+        return 0.5 * (s - 1.0)
     return np.nan
 
 
@@ -125,6 +142,13 @@ def constraint_rate(k, v, ends, kind, param, G):
             dd = v[i, a] - (v[j, a] if j >= 0 else 0.0)
             jdot += dd * dd
             rate += G[k, a] * dd
+    elif kind[k] == LINE:  # a straight line does not turn: J̇q̇ = 0
+        for a in range(dim):
+            rate += G[k, a] * v[i, a]
+    elif kind[k] == ELLIPSE:
+        for a in range(dim):
+            jdot += param[k, a] * v[i, a] * v[i, a]
+            rate += G[k, a] * v[i, a]
     return jdot, rate
 
 
