@@ -1,6 +1,6 @@
 """A suite run twice on one fresh cache directory: what a kept cache saves (the figures docs/engines.md quotes).
 
-    .venv/bin/python scripts/peers_cache_timing.py [suites/peers.toml] [--jobs 2] [--cache DIR]
+    .venv/bin/python scripts/peers_cache_timing.py [suites/peers.toml] [--jobs 2] [--cache DIR] [--reduced]
 
 Runs ``xval run SUITE --jobs N`` twice with ``XVAL_CACHE_DIR`` set to one new,
 empty directory (or ``--cache``, emptied first): the first run compiles and
@@ -10,6 +10,12 @@ time, the CPU time of the process tree, and the MJX cases' summed
 ``jit_compile_time`` (seconds spent compiling or loading a compiled loop from
 the cache) and how many MJX cases compiled more than 0.5 s, with the load
 average before and after.
+
+``--reduced`` runs a smaller copy of the suite instead (written to the
+cache's parent folder and printed): without its ``chain-32`` scene, and with
+time steps from 1e-2 to 1e-3 s (two per decade) and tolerances from 1e-4 to
+1e-8: every MJX model structure, precision and integrator of the full suite
+is still compiled, in a fraction of its stepping.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import shutil
 import subprocess
@@ -55,6 +62,18 @@ def _find(value, key):
     return None
 
 
+def _reduced(suite: Path, target: Path) -> Path:
+    """``suite`` without its chain-32 scene, dt 1e-2..1e-3 and tolerances 1e-4..1e-8, written to ``target``."""
+    text = suite.read_text(encoding="utf-8")
+    chain = text.index('[[scenes]]\nid = "chain-32"')
+    text = text[:chain] + text[text.index("[[engines]]", chain):]
+    text = re.sub(r"^dt = .*$", "dt = { from = 1e-2, to = 1e-3, per_decade = 2 }", text, count=1, flags=re.M)
+    text = re.sub(r"^tolerance = .*$", "tolerance = { from = 1e-4, to = 1e-8, per_decade = 1 }", text, count=1,
+                  flags=re.M)
+    target.write_text(text, encoding="utf-8")
+    return target
+
+
 def _load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -64,10 +83,13 @@ def main() -> None:
     parser.add_argument("suite", nargs="?", default=str(ROOT / "suites" / "peers.toml"))
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--cache", type=Path, default=None, help="cache directory (emptied first)")
+    parser.add_argument("--reduced", action="store_true", help="a smaller copy of the suite (see above)")
     args = parser.parse_args()
-    cache = args.cache or Path(tempfile.mkdtemp(prefix="xval-cache-timing-"))
+    cache = args.cache or Path(tempfile.mkdtemp(prefix="xval-cache-timing-")) / "cache"
     shutil.rmtree(cache, ignore_errors=True)
     cache.mkdir(parents=True)
+    if args.reduced:
+        args.suite = str(_reduced(Path(args.suite), cache.parent / "reduced.toml"))
     env = {**os.environ, "XVAL_CACHE_DIR": str(cache)}
     env.pop("NUMBA_CACHE_DIR", None)
     env.pop("JAX_COMPILATION_CACHE_DIR", None)
