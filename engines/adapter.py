@@ -28,7 +28,6 @@ says what to do when that is not one this xval speaks (docs/plugins.md).
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -215,25 +214,11 @@ class RawRun:
     cpu_time: float | None = None
 
 
-def rows_finite(*samples: Any) -> bool:
-    """Whether every number of these samples is finite; each sample is what an engine's Python API
-    gives for one state (a sequence of per-particle coordinate tuples). The loop over the numbers
-    runs in C (``map`` over the flattened tuples), not as a Python loop per number: the adapters
-    call it at every sample."""
-    isfinite = math.isfinite
-    return all(all(map(isfinite, itertools.chain.from_iterable(sample))) for sample in samples)
-
-
-def largest_coordinate(sample: Any) -> float:
-    """The largest |coordinate| of one sample (a sequence of per-particle coordinate tuples), m."""
-    return max(map(abs, itertools.chain.from_iterable(sample)))
-
-
 def loop_cpu_time(raw: RawRun, cpu: float) -> float:
-    """s of CPU time of the run: the adapter's own measure of its stepping loop, else ``cpu``.
+    """s of CPU time of the run: the adapter's own measure of its stepping loop (engines.recorder), else ``cpu``.
 
     cpu : s of this thread's CPU time of the whole ``_run`` call (model building
-    included: a build that became slower is a slower engine too). Time the
+    included), for an adapter that does not measure its loop. Time the
     thread spent waiting for a core (another process loading the machine) is
     not in it, which is why the timing gate compares it rather than wall time
     (compare/gate/gate.py). Splitting it by the loop's share of wall time was

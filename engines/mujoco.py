@@ -67,7 +67,6 @@ from __future__ import annotations
 import os
 import re
 import threading
-import time
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -89,6 +88,7 @@ import numpy as np  # noqa: E402 (after the guarded import above)
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
+from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Scene
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
@@ -579,7 +579,8 @@ class MuJoCoEngine(Engine):
         sample_steps = schedule.sample_steps
         states = np.empty((len(sample_steps), nstate))
         states[0] = initial[0]
-        recorded, wall, steps_done, message = 1, 0.0, 0, ""
+        rec = Recorder(scene, schedule)
+        recorded, steps_done, message = 1, 0, ""
 
         heard: list[str] = []
         previous_handler = mujoco.get_mju_user_warning()
@@ -595,13 +596,12 @@ class MuJoCoEngine(Engine):
                 nstep = min(buffer.shape[1], schedule.n_steps - steps_done)
                 out = buffer[:, :nstep]  # a leading axis of 1 keeps the slice C-contiguous
                 warmstart[0] = data.qacc_warmstart
-                t0 = time.perf_counter()
-                # skip_checks: the shapes are right by construction, and the checks cost more than short chunks.
-                runner.rollout(
-                    models, datas, initial, None, skip_checks=True, nstep=nstep,
-                    initial_warmstart=warmstart, state=out,
-                )
-                wall += time.perf_counter() - t0
+                with rec.stepping():
+                    # skip_checks: the shapes are right by construction, and the checks cost more than short chunks.
+                    runner.rollout(
+                        models, datas, initial, None, skip_checks=True, nstep=nstep,
+                        initial_warmstart=warmstart, state=out,
+                    )
                 warned = [w for w in _WARNINGS if data.warning[w].number > 0]
                 good = nstep
                 if warned:
@@ -626,14 +626,15 @@ class MuJoCoEngine(Engine):
             mujoco.set_mju_user_warning(previous_handler)
 
         positions, velocities, forces = read_samples(scene, model, data, states[:recorded], hinge)
-        return RawRun(
-            positions,
-            velocities,
-            forces,
-            steps=steps_done,
-            wall_time=wall,
-            message=message,
-            settings=self._record(model, settings, inertia, schedule.dt),
+        # The rollout ran in C to the end (or to MuJoCo's reset); the samples pass the recorder's stop rule now.
+        for step, q, v, f in zip(rec.steps, positions, velocities, forces):
+            if not rec.record(step, q, v, f):
+                break
+        n = len(rec.q_rows)
+        return rec.raw_run(
+            positions=positions[:n], velocities=velocities[:n], forces=forces[:n],
+            steps=rec.last_step if rec.stopped else steps_done,
+            message=message, settings=self._record(model, settings, inertia, schedule.dt),
         )
 
     def _record(self, model: mujoco.MjModel, settings: Mapping[str, Any], inertia: np.ndarray, dt: float) -> dict:

@@ -8,8 +8,9 @@ A plugin imports from here only (docs/plugins.md walks through one)::
   more are left out of its runs with the reason (never faked).
 - :func:`scene_arrays` reads a Scene's particles and constraints as arrays,
   one row per constraint whatever its kind.
-- :class:`Recorder` stores the state at the scheduled sample steps and
-  builds the :class:`RawRun` that ``_run`` returns.
+- :class:`Recorder` (engines.recorder, the loop every built-in adapter uses)
+  stores the state at the scheduled sample steps, stops a run that runs away,
+  times the stepping and builds the :class:`RawRun` that ``_run`` returns.
 - :func:`refuse_constraint_kinds` refuses scenes with constraints the solver
   does not model, naming the constraint.
 - :func:`planar_chain` converts between pendulum angles and particle
@@ -25,19 +26,19 @@ wall time in seconds, non-finite states (-> ``unstable``), exceptions
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
-from typing import Any, Iterable, Mapping
+from typing import Iterable
 
 import numpy as np
 
 from engines.adapter import API_VERSION, Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.pendulum import PlanarChain, force_array, planar_chain
+from engines.recorder import RUNAWAY_LENGTHS, Recorder
 from engines.scene import Pin, Rod, Scene
 
 __all__ = [
-    "API_VERSION", "CONSTRAINT_FORCES", "THREE_D", "Engine", "Option", "PlanarChain", "RawRun", "Recorder",
+    "API_VERSION", "CONSTRAINT_FORCES", "RUNAWAY_LENGTHS", "THREE_D", "Engine", "Option", "PlanarChain", "RawRun", "Recorder",
     "Schedule", "SceneArrays", "Unsupported", "UserError", "capabilities", "force_array", "planar_chain",
     "refuse_constraint_kinds", "scene_arrays",
 ]
@@ -110,83 +111,3 @@ def refuse_constraint_kinds(scene: Scene, kinds: Iterable[type], engine: str) ->
         if not isinstance(c, kinds):
             names = ", ".join(getattr(t, "kind", t.__name__) for t in kinds)
             raise Unsupported(f"{engine} models only {names} constraints; constraints[{k}] is a {c.kind!r}")
-
-
-class Recorder:
-    """Stores the state at the scheduled sample steps and times the stepping loop.
-
-    Use it as::
-
-        rec = Recorder(scene, schedule, forces=True)
-        rec.record(0, q, v, f)                  # the initial state (f: your t = 0 forces, or None)
-        with rec.stepping():                    # only this is timed
-            for step in range(1, schedule.n_steps + 1):
-                q, v, f = my_step(q, v)
-                if rec.wants(step):
-                    with rec.paused():          # recording is not stepping
-                        rec.record(step, q, v, f)
-        return rec.raw_run()
-
-    q, v : (P, 3) m, m/s; f : (C, 3) N on each constraint's first particle,
-    or ``{k: (3,)}`` for the constraints reported; a constraint not reported
-    (f None, absent from the dict, or NaN) stays NaN, "not reported", never
-    zero. A loop that stops early (the state ran away) returns fewer
-    samples; xval marks such a run ``unstable`` and keeps the samples recorded.
-    """
-
-    def __init__(self, scene: Scene, schedule: Schedule, *, forces: bool = False) -> None:
-        self.schedule = schedule
-        self._steps = schedule.sample_steps.tolist()
-        self._index = {step: k for k, step in enumerate(self._steps)}
-        n, p, c = len(self._steps), len(scene.particles), len(scene.constraints)
-        self.positions = np.full((n, p, 3), np.nan)
-        self.velocities = np.full((n, p, 3), np.nan)
-        self.forces = np.full((n, c, 3), np.nan) if forces else None
-        self._recorded = 0
-        self._last_step = 0
-        self.wall_time = 0.0  # s
-
-    def wants(self, step: int) -> bool:
-        """True when ``step`` is a sample step."""
-        return step in self._index
-
-    def record(self, step: int, q: np.ndarray, v: np.ndarray,
-               f: np.ndarray | Mapping[int, np.ndarray] | None = None) -> None:
-        """Store the state after ``step`` steps (a sample step; others are ignored).
-
-        f : (C, 3) N, or {constraint index: (3,) N}; None or missing = not reported (NaN).
-        """
-        k = self._index.get(step)
-        if k is None:
-            return
-        self.positions[k], self.velocities[k] = q, v
-        if self.forces is not None and f is not None:
-            self.forces[k] = force_array(self.forces.shape[1], f) if isinstance(f, Mapping) else f
-        self._recorded = max(self._recorded, k + 1)
-        self._last_step = max(self._last_step, step)
-
-    def stepping(self) -> "_Clock":
-        """A context that adds its wall time (s) to ``wall_time``."""
-        return _Clock(self, sign=+1)
-
-    def paused(self) -> "_Clock":
-        """A context, inside ``stepping()``, whose wall time is not counted."""
-        return _Clock(self, sign=-1)
-
-    def raw_run(self, *, message: str = "", settings: dict[str, Any] | None = None) -> RawRun:
-        """The RawRun of the samples recorded so far (steps taken = the last recorded step)."""
-        n = self._recorded
-        forces = None if self.forces is None else self.forces[:n]
-        return RawRun(self.positions[:n], self.velocities[:n], forces, steps=self._last_step,
-                      wall_time=self.wall_time, message=message, settings=dict(settings or {}))
-
-
-class _Clock:
-    def __init__(self, recorder: Recorder, sign: int) -> None:
-        self.recorder, self.sign = recorder, sign
-
-    def __enter__(self) -> None:
-        self.started = time.perf_counter()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.recorder.wall_time += self.sign * (time.perf_counter() - self.started)

@@ -98,14 +98,14 @@ import functools
 import os
 import sys
 import threading
-import time
 from dataclasses import dataclass
 from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, largest_coordinate, rows_finite
+from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
+from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
@@ -197,10 +197,6 @@ P2P_INERTIA_RATIO = 1e-4
 #: (The particles' own inertia_ratio matters more: 1e-4 leaves a floor of ~3e-3 m there, and
 #: 1e-9 broke the solve, 0.75 m.)
 ARM_MASS_RATIO = 1e-6
-
-#: A coordinate this many characteristic lengths from the origin has run away.
-RUNAWAY_LENGTHS = 1e6
-
 
 # -- the scene as a forest: which constraint ties each particle to its parent -------------
 
@@ -820,50 +816,30 @@ class _Run:
         else:
             self._build_p2p()
             state, forces = self._state_p2p, self._forces_p2p
-        samples = self.schedule.sample_steps
-        n = len(samples)
-        positions = np.empty((n, self.n_particles, 3))
-        velocities = np.empty((n, self.n_particles, 3))
-        limit = RUNAWAY_LENGTHS * self.scene.characteristic_length
-        positions[0], velocities[0] = state()
-        step, recorded, message, wall = 0, 1, "", 0.0
-        x_rows: list = []  # samples 1, 2, ...: each a state reader's lists
-        u_rows: list = []
-        f_rows: list = []  # samples 0, 1, ...: each the force reader's list
-        # Only stepSimulation is timed; reading the samples is not stepping.
-        if forces:
-            started = time.perf_counter()
-            pb.stepSimulation(physicsClientId=c)
-            wall += time.perf_counter() - started
-            step = 1
-            f_rows.append(forces())  # no step precedes t = 0: the first step's force stands in
-        for k in range(1, n):
-            started = time.perf_counter()
-            for _ in range(int(samples[k]) - step):
+        rec = Recorder(self.scene, self.schedule)
+        x0, u0 = state()
+        taken = 0
+        f_rows: list = []  # samples 0, 1, ...: each the force reader's list, made an array after the loop
+
+        def advance(n: int) -> None:
+            for _ in range(n):
                 pb.stepSimulation(physicsClientId=c)
-            wall += time.perf_counter() - started
-            step = int(samples[k])
+
+        def read() -> tuple[list, list]:
             x, u = state()
-            x_rows.append(x)
-            u_rows.append(u)
             if forces:
                 f_rows.append(forces())
-            recorded = k + 1
-            if not rows_finite(x, u):
-                break
-            if largest_coordinate(x) > limit:
-                message = f"stepping stopped at t = {step * self.schedule.dt:.6g} s: a particle ran {limit:g} m away"
-                break
-        positions[1:recorded] = np.array(x_rows, dtype=float).reshape(-1, self.n_particles, 3)
-        velocities[1:recorded] = np.array(u_rows, dtype=float).reshape(-1, self.n_particles, 3)
-        force_samples = self._force_array(f_rows) if forces else None
-        return RawRun(
-            positions=positions[:recorded],
-            velocities=velocities[:recorded],
-            forces=force_samples,
-            steps=step,
-            wall_time=wall,
-            message=message,
+            return x, u
+
+        if forces:  # no step precedes t = 0: the first step's force stands in
+            with rec.stepping():
+                advance(1)
+            taken = 1
+            f_rows.append(forces())
+        rec.record(0, x0, u0)
+        rec.run(advance, read, taken=taken)
+        return rec.raw_run(
+            forces=self._force_array(f_rows) if forces else None,
             settings={
                 "point_mass_inertia": f"{self.inertia:.6g}·m kg·m² about each axis (inertia_ratio · L²)",
                 "joint": ("revolute about y" if self.scene.is_planar else "spherical")

@@ -38,15 +38,15 @@ squares for the signed impulses. Only the sign is taken from that balance.
 from __future__ import annotations
 
 import math
-import time
 from typing import Any, Mapping
 
 import numpy as np
 import pymunk
 
-from engines.adapter import Engine, Option, RawRun, Schedule, largest_coordinate, rows_finite
+from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.plugin import refuse_constraint_kinds
+from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
@@ -56,8 +56,6 @@ PYMUNK_ITERATIONS = _PROBE_SPACE.iterations
 PYMUNK_DAMPING = _PROBE_SPACE.damping
 del _PROBE_SPACE
 
-#: A state coordinate this many characteristic lengths from the origin has run away.
-RUNAWAY_LENGTHS = 1e6
 #: A Line's GrooveJoint runs this many characteristic lengths either side of the line's point.
 GROOVE_LENGTHS = 1e3
 
@@ -128,71 +126,43 @@ class PymunkEngine(Engine):
         """
         model = _Model(scene, settings)
         dt = schedule.dt
-        steps = schedule.sample_steps.tolist()
-        n_samples = len(steps)
-        n_particles, n_constraints = len(scene.particles), len(scene.constraints)
-        positions = np.empty((n_samples, n_particles, 3))
-        velocities = np.empty((n_samples, n_particles, 3))
-        forces = np.empty((n_samples, n_constraints, 3))
-        positions[0], velocities[0] = scene.initial_positions, scene.initial_velocities
+        step = model.space.step
+        bodies, joints = model.bodies, model.joints
+        rec = Recorder(scene, schedule)
+        # Read per sample as pymunk gives them (Vec2d are tuples), in pymunk's frame, and made arrays after
+        # the loop, with what each sample's constraint force is computed from: the velocities before its
+        # last step (before_rows) and the joints' impulses in it (the recorder's force rows).
+        before_rows: list = []
+
+        def advance(n: int) -> None:
+            for _ in range(n - 1):
+                step(dt)
+            with rec.paused():
+                before_rows.append([b.velocity for b in bodies])
+            step(dt)
+
+        def read() -> tuple[list, list, list]:
+            return [b.position for b in bodies], [b.velocity for b in bodies], [j.impulse for j in joints]
+
         # No step has been taken, so no constraint impulse exists yet: the
         # force at t = 0 is the one of the first step (filled below).
-        limit = RUNAWAY_LENGTHS * model.scale
-        step = model.space.step
-        wall_time = 0.0
-        taken, recorded, message = 0, 1, ""
-        # Read per sample as pymunk gives them (Vec2d are tuples) and made arrays after the loop: each
-        # sample's state in pymunk's frame, and what its constraint force is computed from, for all
-        # samples at once: the velocities before its last step and the joints' impulses in it.
-        bodies, joints = model.bodies, model.joints
-        p_rows: list = []
-        v_rows: list = []
-        before_rows: list = []
-        impulse_rows: list = []
-        finite = n_samples  # samples before this one have finite states
-        for k in range(1, n_samples):
-            gap = steps[k] - taken
-            started = time.perf_counter()
-            for _ in range(gap - 1):
-                step(dt)
-            wall_time += time.perf_counter() - started
-            before = [b.velocity for b in bodies]
-            started = time.perf_counter()
-            step(dt)
-            wall_time += time.perf_counter() - started
-            taken = steps[k]
-            p2, v2 = [b.position for b in bodies], [b.velocity for b in bodies]
-            p_rows.append(p2)
-            v_rows.append(v2)
-            before_rows.append(before)
-            recorded = k + 1
-            if not rows_finite(p2, v2, before):
-                finite = k
-                break  # adapter._finish truncates here and marks the run unstable
-            impulse_rows.append([j.impulse for j in joints])
-            if largest_coordinate(p2) > limit:
-                message = f"state ran away (a coordinate beyond {limit:.3g} m) at t = {taken * dt:.6g} s"
-                recorded = k  # the runaway sample is not kept
-                break
-        planar_rows = (n_particles, 2)
-        p_planar = np.array(p_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows)
-        v_planar = np.array(v_rows[:recorded - 1], dtype=float).reshape(-1, *planar_rows)
-        positions[1:recorded], velocities[1:recorded] = _to_scene(p_planar), _to_scene(v_planar)
-        good = min(recorded, finite)
-        forces[finite:recorded] = np.nan
+        rec.record(0, [b.position for b in bodies], [b.velocity for b in bodies])
+        rec.run(advance, read)
+        p_planar, v_planar = rec.samples()
+        recorded = len(p_planar)
+        forces = np.full((recorded, len(scene.constraints), 3), np.nan)
+        finite = np.isfinite(p_planar).all(axis=(1, 2)) & np.isfinite(v_planar).all(axis=(1, 2))
+        good = recorded if finite.all() else int(np.argmin(finite))  # samples before the first non-finite one
         if good > 1:
-            v_before = np.array(before_rows[:good - 1], dtype=float).reshape(-1, *planar_rows)
-            impulses = np.array(impulse_rows[:good - 1], dtype=float).reshape(-1, n_constraints)
-            forces[1:good] = _to_scene(model.constraint_forces(p_planar[:good - 1], v_planar[:good - 1], v_before,
+            v_before = np.array(before_rows[:good - 1], dtype=float).reshape(good - 1, *p_planar.shape[1:])
+            impulses = np.array(rec.f_rows[1:good], dtype=float).reshape(good - 1, len(joints))
+            forces[1:good] = _to_scene(model.constraint_forces(p_planar[1:good], v_planar[1:good], v_before,
                                                                impulses, dt))
         forces[0] = forces[1] if recorded > 1 else np.nan
-        return RawRun(
-            positions[:recorded],
-            velocities[:recorded],
-            forces[:recorded],
-            steps=taken,
-            wall_time=wall_time,
-            message=message,
+        return rec.raw_run(
+            positions=_to_scene(p_planar),
+            velocities=_to_scene(v_planar),
+            forces=forces,
             settings={
                 "moment_of_inertia": "inf",
                 "gravity_pymunk": tuple(model.space.gravity),
@@ -278,8 +248,6 @@ class _Model:
         self.anchors = np.array(
             [(c.anchor[0], c.anchor[2]) if isinstance(c, Pin) else (np.nan, np.nan) for c in scene.constraints]
         ).reshape(-1, 2)
-        extent = np.abs(scene.initial_positions).max()
-        self.scale = scene.characteristic_length + float(extent)
 
     def directions(self, p2: np.ndarray) -> np.ndarray:
         """(S, n_constraints, 2): unit vector from each joint's body a (or anchor) to its body b, at each

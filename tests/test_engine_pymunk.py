@@ -264,22 +264,3 @@ def test_bad_options_name_the_option(options, message):
     scene = catalog.build("bead", {"duration": 0.1})
     with pytest.raises(UserError, match=message):
         ENGINE.simulate(scene, 1e-3, options=options)
-
-
-def test_the_per_sample_checks_see_every_number_of_every_row():
-    # engines.adapter.rows_finite / largest_coordinate, what the PyBullet and pymunk loops call at each
-    # sample on the rows their APIs give (tuples per particle; pymunk's Vec2d is one).
-    from engines.adapter import largest_coordinate, rows_finite
-
-    def with_value(sample, row, k, value):
-        return [tuple(value if (i, j) == (row, k) else c for j, c in enumerate(r)) for i, r in enumerate(sample)]
-
-    x, u = [(0.0, -1.0), (2.0, -0.5)], [(0.1, 0.2), (0.3, 0.4)]
-    assert rows_finite(x, u)
-    for row in range(2):
-        for k in range(2):
-            for big in (5.0, -5.0):  # the largest magnitude wherever it sits, of either sign
-                assert largest_coordinate(with_value(x, row, k, big)) == 5.0, (row, k, big)
-            for bad in (float("nan"), float("inf"), -float("inf")):
-                assert not rows_finite(with_value(x, row, k, bad), u), (row, k, bad)
-                assert not rows_finite(x, with_value(u, row, k, bad)), (row, k, bad)
