@@ -1,9 +1,9 @@
 """Size of the history's trend page and how soon it is interactive in headless chromium.
 
-    .venv/bin/python bench/bench_history_page.py RESULTS_DIR [--runs 20] [--repeats 3] [--output PAGE.html]
+    .venv/bin/python bench/bench_history_page.py [RESULTS_DIR] [--runs 20] [--repeats 3] [--output PAGE.html]
 
 RESULTS_DIR is one finished run (e.g. ``xval run suites/default.toml --output
-results/default``). The script makes a history of ``--runs`` runs from it (each
+results/default``); without it the script runs suites/default.toml first. The script makes a history of ``--runs`` runs from it (each
 started an hour after the last, under a made-up commit, every case's timings
 moved by a seeded ±10 % as a machine's noise would), writes its trend page
 (``xval history report``'s code) and prints the page's size, the time to write
@@ -21,6 +21,7 @@ import dataclasses
 import datetime as _dt
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -63,12 +64,16 @@ def history_of(results_dir: Path, runs: int, target: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("results", type=Path)
+    parser.add_argument("results", type=Path, nargs="?", default=None)
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--output", type=Path, default=None)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as scratch:
+        if args.results is None:
+            args.results = Path(scratch) / "default"
+            subprocess.run([str(Path(sys.executable).with_name("xval")), "run", str(ROOT / "suites" / "default.toml"),
+                            "--output", str(args.results), "--jobs", "2", "--quiet"], check=True)
         history = Path(scratch) / "history.sqlite"
         history_of(args.results, args.runs, history)
         page = args.output or Path(scratch) / "trend.html"
