@@ -219,6 +219,12 @@ def test_the_kuka_arm_agrees_everywhere(capsys):
     assert [(e["engine"], e["loaded"], e["agrees"]) for e in report["engines"]] == [(e, True, True) for e in ENGINES]
     assert max(e[q] for e in report["engines"] for q in ("mass_matrix", "bias", "forward")) < 1e-11
     assert report["reference"]["name"] == "pinocchio" and report["states"] == 20
+    assert report["diagnosis"] == [] and report["reference"]["diagnosis"] == []
+
+
+def test_a_model_whose_bias_is_round_off_agrees():
+    """r2d2's joints all turn about vertical axes: |b| is 1e-18, measured against the sample's torques."""
+    assert verdicts("pybullet_data:r2d2.urdf") == dict.fromkeys(ENGINES, True)
 
 
 def test_the_panda_flags_mujoco_and_drake_and_names_the_two_links(capsys):
