@@ -10,7 +10,6 @@ run, in exactly those series, and nothing in the noisy timings.
 from __future__ import annotations
 
 import json
-import os
 import re
 
 import numpy as np
