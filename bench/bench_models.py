@@ -70,7 +70,7 @@ def main() -> None:
             continue
         seconds[name] = steps_seconds(loaded, np.asarray(q0, float), np.asarray(v0, float), args.steps, args.repeats)
     peer = seconds.get("mujoco")
-    print(f"| engine | µs per step | / mujoco |\n|---|---|---|")
+    print("| engine | µs per step | / mujoco |\n|---|---|---|")
     for name, s in seconds.items():
         ratio = f"{s / peer:.2f}" if peer else "–"
         print(f"| {name}{' (reference)' if name == REFERENCE else ''} | {s / args.steps * 1e6:.1f} | {ratio} |")
