@@ -72,6 +72,7 @@ from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
+from compare.results.consistency import DEFAULT_TOLERANCE
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
@@ -100,7 +101,9 @@ TOP_LEVEL_KEYS = {
     "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics")
+#: Keys of a model scene ([[scenes]] model = "…"), beside id.
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
@@ -160,7 +163,7 @@ class Suite:
     gate: GateSettings = field(default_factory=GateSettings)
     stability: StabilityPlan | None = None
     gainmap: GainMapPlan | None = None
-    verdict_tolerance: float = DEFAULT_DELTA
+    verdict_tolerance: float = DEFAULT_TOLERANCE
     #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
     tolerances: tuple[float, ...] = ()
 
@@ -236,7 +239,7 @@ class RunSettings:
     delta: float = DEFAULT_DELTA
     bounds: Bounds = field(default_factory=Bounds)
     gate: GateSettings = field(default_factory=GateSettings)
-    verdict_tolerance: float = DEFAULT_DELTA
+    verdict_tolerance: float = DEFAULT_TOLERANCE
 
 
 def load_run_settings(path: str | Path) -> RunSettings:
@@ -262,7 +265,7 @@ def load_run_settings(path: str | Path) -> RunSettings:
         reader.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
     )
     gate = gate_settings(data.get("gate"), data.get("tolerances"), reader.error)
-    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict"), delta))
+    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict")))
 
 
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
@@ -400,7 +403,7 @@ class _Reader:
         engines = self.engines(data["engines"])
         stability = read_stability(self, data.get("stability"), scenes, engines, dts)
         gainmap = read_gainmap(self, data.get("gainmap"), scenes, self.expand)
-        verdict_tolerance = read_verdict(self, data.get("verdict"), delta)
+        verdict_tolerance = read_verdict(self, data.get("verdict"))
         return Suite(
             name=name,
             description=description,
@@ -473,6 +476,16 @@ class _Reader:
         for k, item in enumerate(value):
             key = f"scenes[{k}]"
             entry = self.table(key, item, SCENE_KEYS)
+            if "model" in entry:
+                spec = self.model_scene(key, entry, duration)
+                if any(s.id == spec.id for s in specs):
+                    raise self.error(f"{key}.id", f"{spec.id!r} is used twice; give each scene a distinct id")
+                specs.append(spec)
+                continue
+            stray = [k for k in MODEL_KEYS if k in entry]
+            if stray:
+                raise self.error(f"{key}.{stray[0]}", "belongs to a model scene; add model = \"path/to/file.urdf\" "
+                                 "(or pybullet_data:<path>) or remove it")
             if "scene" not in entry:
                 raise self.error(key, f"missing scene; add scene = one of {', '.join(catalog.scene_names())}")
             name = self.string(f"{key}.scene", entry["scene"])
@@ -495,6 +508,30 @@ class _Reader:
                 raise self.error(f"{key}.parameters", f"{exc}") from None
             specs.append(SceneSpec(scene_id, name, dict(parameters), scene))
         return tuple(specs)
+
+    def model_scene(self, key: str, entry: dict[str, Any], duration: float | None) -> SceneSpec:
+        """A [[scenes]] entry with ``model = "…"`` (a path relative to the suite file, or pybullet_data:<path>),
+        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name."""
+        from engines.model.scene import DEFAULT_DURATION, model_scene
+
+        if "scene" in entry or "parameters" in entry:
+            raise self.error(f"{key}.model", "a scene is either a catalog scene (scene, parameters) or a model "
+                             "(model, q0, v0, file_dynamics), not both; remove one")
+        model = self.string(f"{key}.model", entry["model"])
+        scene_id = self.string(f"{key}.id", entry.get("id", Path(model.partition(":")[2] or model).stem))
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
+            raise self.error(f"{key}.id", f"{scene_id!r} is not a readable id; use letters, digits, '.', '_' and '-'")
+        q0 = self.table(f"{key}.q0", entry.get("q0", {}), tuple(entry.get("q0", {})))
+        v0 = self.table(f"{key}.v0", entry.get("v0", {}), tuple(entry.get("v0", {})))
+        file_dynamics = self.string(f"{key}.file_dynamics", entry.get("file_dynamics", "neutral"))
+        try:
+            scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
+                                duration=DEFAULT_DURATION if duration is None else duration,
+                                file_dynamics=file_dynamics)
+        except UserError as exc:
+            raise self.error(f"{key}.model", str(exc)) from None
+        return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
+                                             "file_dynamics": file_dynamics}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:
