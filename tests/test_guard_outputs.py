@@ -121,10 +121,6 @@ def test_labels_with_ansi_escapes_print_inert(tmp_path, capsys):
 
 
 def test_gate_md_escapes_html_in_labels():
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parent))
     from gate_support import GOLDEN
 
     from compare.gate.baseline import load_baseline
