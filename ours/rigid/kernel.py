@@ -1,0 +1,477 @@
+"""Compiled rigid-body dynamics in maximal coordinates (Baraff 1996): rows, tree solve, steps.
+
+State y, flat (13 per body): COM position x (3, m), unit quaternion Q = (w, x, y, z) of the body
+frame, COM velocity v (3, m/s), angular velocity ω (3, rad/s, world frame). Newton–Euler:
+M u̇ = f + Jᵀλ with f = (m g, −ω × I_w ω); the joints' rows satisfy J u̇ = −J̇u − k_s C − k_d J u.
+The pair is solved as one symmetric system [[M, Jᵀ], [J, 0]] whose graph (bodies and joints as
+nodes) is the mechanism's tree, factored leaves first without fill: O(n) (Baraff's elimination).
+``model`` and ``work`` are the tuples ``ours.rigid.pack`` builds; nothing here allocates.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ours.banded import compiled, inlined
+from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
+
+BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
+EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
+PLAIN, BAUMGARTE, PROJECTION = 0, 1, 2
+
+
+@inlined
+def _cross(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@inlined
+def _rot(R, b, v0, v1, v2):
+    """R[b] @ v."""
+    return (R[b, 0, 0] * v0 + R[b, 0, 1] * v1 + R[b, 0, 2] * v2,
+            R[b, 1, 0] * v0 + R[b, 1, 1] * v1 + R[b, 1, 2] * v2,
+            R[b, 2, 0] * v0 + R[b, 2, 1] * v1 + R[b, 2, 2] * v2)
+
+
+@compiled
+def rotations(y, nb, R):
+    """R[b] (3, 3) from each body's quaternion, normalised on the fly (its norm does not matter)."""
+    for b in range(nb):
+        o = 13 * b + 3
+        w, x, yy, z = y[o], y[o + 1], y[o + 2], y[o + 3]
+        s = 2.0 / (w * w + x * x + yy * yy + z * z)
+        R[b, 0, 0] = 1.0 - s * (yy * yy + z * z)
+        R[b, 0, 1] = s * (x * yy - w * z)
+        R[b, 0, 2] = s * (x * z + w * yy)
+        R[b, 1, 0] = s * (x * yy + w * z)
+        R[b, 1, 1] = 1.0 - s * (x * x + z * z)
+        R[b, 1, 2] = s * (yy * z - w * x)
+        R[b, 2, 0] = s * (x * z - w * yy)
+        R[b, 2, 1] = s * (yy * z + w * x)
+        R[b, 2, 2] = 1.0 - s * (x * x + yy * yy)
+
+
+@inlined
+def _body(y, R, b, l0, l1, l2):
+    """World data of body b (b < 0: the world): x, r = R l, v, ω, each as 3 floats."""
+    if b < 0:
+        return (0.0, 0.0, 0.0), (l0, l1, l2), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    o = 13 * b
+    return ((y[o], y[o + 1], y[o + 2]), _rot(R, b, l0, l1, l2),
+            (y[o + 7], y[o + 8], y[o + 9]), (y[o + 10], y[o + 11], y[o + 12]))
+
+
+@inlined
+def _axis(R, b, F, k, col):
+    """Column ``col`` of joint k's frame F[k] (in body b's frame) in the world frame."""
+    if b < 0:
+        return F[k, 0, col], F[k, 1, col], F[k, 2, col]
+    return _rot(R, b, F[k, 0, col], F[k, 1, col], F[k, 2, col])
+
+
+@inlined
+def _set_row(JA, JB, k, r, a, b):
+    """Row r of joint k: JA (parent) = a (6 floats), JB (child) = b."""
+    for c in range(6):
+        JA[k, r, c] = a[c]
+        JB[k, r, c] = b[c]
+
+
+@compiled
+def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
+    """Three rows C = (x_A + r_A) − (x_B + r_B): the anchors coincide (m)."""
+    tA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
+    tB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
+    cA = _cross(wA[0], wA[1], wA[2], tA[0], tA[1], tA[2])
+    cB = _cross(wB[0], wB[1], wB[2], tB[0], tB[1], tB[2])
+    for i in range(3):
+        e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
+        ra = _cross(rA[0], rA[1], rA[2], e0, e1, e2)
+        rb = _cross(rB[0], rB[1], rB[2], e0, e1, e2)
+        _set_row(JA, JB, k, r0 + i, (e0, e1, e2, ra[0], ra[1], ra[2]), (-e0, -e1, -e2, -rb[0], -rb[1], -rb[2]))
+        C[k, r0 + i] = xA[i] + rA[i] - xB[i] - rB[i]
+        gam[k, r0 + i] = cA[i] - cB[i]
+
+
+@compiled
+def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
+    """One row C = p · w, p fixed in the parent, w in the child (both world, unit): they stay perpendicular."""
+    n = _cross(p[0], p[1], p[2], w[0], w[1], w[2])
+    _set_row(JA, JB, k, r, (0.0, 0.0, 0.0, n[0], n[1], n[2]), (0.0, 0.0, 0.0, -n[0], -n[1], -n[2]))
+    C[k, r] = p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
+    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
+    wd = _cross(wB[0], wB[1], wB[2], w[0], w[1], w[2])
+    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
+    wdd = _cross(wB[0], wB[1], wB[2], wd[0], wd[1], wd[2])
+    g = 0.0
+    for i in range(3):
+        g += pdd[i] * w[i] + 2.0 * pd[i] * wd[i] + p[i] * wdd[i]
+    gam[k, r] = g
+
+
+@compiled
+def _slide_row(k, r, p, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
+    """One row C = p · d, d = (x_B + r_B) − (x_A + r_A), p fixed in the parent: no slip across p (m)."""
+    d = (xB[0] + rB[0] - xA[0] - rA[0], xB[1] + rB[1] - xA[1] - rA[1], xB[2] + rB[2] - xA[2] - rA[2])
+    a = _cross(p[0], p[1], p[2], d[0] + rA[0], d[1] + rA[1], d[2] + rA[2])
+    b = _cross(rB[0], rB[1], rB[2], p[0], p[1], p[2])
+    _set_row(JA, JB, k, r, (-p[0], -p[1], -p[2], a[0], a[1], a[2]), (p[0], p[1], p[2], b[0], b[1], b[2]))
+    C[k, r] = p[0] * d[0] + p[1] * d[1] + p[2] * d[2]
+    wrA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
+    wrB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
+    dd = (vB[0] + wrB[0] - vA[0] - wrA[0], vB[1] + wrB[1] - vA[1] - wrA[1], vB[2] + wrB[2] - vA[2] - wrA[2])
+    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
+    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
+    cA = _cross(wA[0], wA[1], wA[2], wrA[0], wrA[1], wrA[2])
+    cB = _cross(wB[0], wB[1], wB[2], wrB[0], wrB[1], wrB[2])
+    g = 0.0
+    for i in range(3):
+        g += pdd[i] * d[i] + 2.0 * pd[i] * dd[i] + p[i] * (cB[i] - cA[i])
+    gam[k, r] = g
+
+
+@compiled
+def joint_rows(y, model, R, C, JA, JB, gam):
+    """Every joint's rows at state y (R from :func:`rotations`): C (nj, 6), JA / JB (nj, 6, 6) the
+    Jacobians on the parent's and the child's u = (v, ω), gam (nj, 6) = J̇u (the velocity product)."""
+    kind, parent, child, la, lb, FA, FB = model[4], model[5], model[6], model[7], model[8], model[9], model[10]
+    for k in range(kind.shape[0]):
+        A, B = parent[k], child[k]
+        xA, rA, vA, wA = _body(y, R, A, la[k, 0], la[k, 1], la[k, 2])
+        xB, rB, vB, wB = _body(y, R, B, lb[k, 0], lb[k, 1], lb[k, 2])
+        t = kind[k]
+        if t == PRISMATIC:
+            p1, p2, p3 = _axis(R, A, FA, k, 0), _axis(R, A, FA, k, 1), _axis(R, A, FA, k, 2)
+            w1, w2, w3 = _axis(R, B, FB, k, 0), _axis(R, B, FB, k, 1), _axis(R, B, FB, k, 2)
+            _dot_row(k, 0, p2, w3, wA, wB, C, JA, JB, gam)
+            _dot_row(k, 1, p3, w1, wA, wB, C, JA, JB, gam)
+            _dot_row(k, 2, p1, w2, wA, wB, C, JA, JB, gam)
+            _slide_row(k, 3, p1, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam)
+            _slide_row(k, 4, p2, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam)
+            continue
+        _point_rows(k, 0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam)
+        if t == REVOLUTE:
+            w3 = _axis(R, B, FB, k, 2)
+            _dot_row(k, 3, _axis(R, A, FA, k, 0), w3, wA, wB, C, JA, JB, gam)
+            _dot_row(k, 4, _axis(R, A, FA, k, 1), w3, wA, wB, C, JA, JB, gam)
+        elif t == FIXED:
+            p1, p2, p3 = _axis(R, A, FA, k, 0), _axis(R, A, FA, k, 1), _axis(R, A, FA, k, 2)
+            w1, w2, w3 = _axis(R, B, FB, k, 0), _axis(R, B, FB, k, 1), _axis(R, B, FB, k, 2)
+            _dot_row(k, 3, p2, w3, wA, wB, C, JA, JB, gam)
+            _dot_row(k, 4, p3, w1, wA, wB, C, JA, JB, gam)
+            _dot_row(k, 5, p1, w2, wA, wB, C, JA, JB, gam)
+
+
+# --- the tree solve -------------------------------------------------------------------------
+
+@inlined
+def _cholesky(D, i, n):
+    """D[i] (n × n, lower part) = L Lᵀ in place; False when not positive definite."""
+    for r in range(n):
+        for c in range(r + 1):
+            s = D[i, r, c]
+            for m in range(c):
+                s -= D[i, r, m] * D[i, c, m]
+            if r == c:
+                if not s > 0.0:
+                    return False
+                D[i, r, r] = math.sqrt(s)
+            else:
+                D[i, r, c] = s / D[i, c, c]
+    return True
+
+
+@inlined
+def _chol_solve(D, i, n, x, scale):
+    """x[:n] ← scale · (L Lᵀ)⁻¹ x[:n] in place, with L in D[i] (x: a row of the right sides)."""
+    for r in range(n):
+        s = x[r]
+        for m in range(r):
+            s -= D[i, r, m] * x[m]
+        x[r] = s / D[i, r, r]
+    for r in range(n - 1, -1, -1):
+        s = x[r]
+        for m in range(r + 1, n):
+            s -= D[i, m, r] * x[m]
+        x[r] = s / D[i, r, r]
+    if scale != 1.0:
+        for r in range(n):
+            x[r] *= scale
+
+
+@inlined
+def _coupling(i, p, nb, JA, JB, r, c):
+    """H[i, p][r, c]: a body i below its inbound joint p (Jᵀ on the child), or a joint i below its parent body p."""
+    if i < nb:
+        return JB[p - nb, c, r]
+    return JA[i - nb, r, c]
+
+
+@compiled
+def tree_factor(y, model, work):
+    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
+    mass, inertia, nb = model[0], model[1], model[0].shape[0]
+    rows, order, up = model[11], model[12], model[13]
+    R, JA, JB, D, X = work[0], work[2], work[3], work[5], work[6]
+    nn = order.shape[0]
+    for i in range(nn):
+        for r in range(6):
+            for c in range(6):
+                D[i, r, c] = 0.0
+    for b in range(nb):
+        for r in range(3):
+            D[b, r, r] = mass[b]
+        for r in range(3):  # I_w = R I_b Rᵀ
+            for c in range(3):
+                s = 0.0
+                for m in range(3):
+                    for n in range(3):
+                        s += R[b, r, m] * inertia[b, m, n] * R[b, c, n]
+                D[b, 3 + r, 3 + c] = s
+    for idx in range(nn):
+        i = order[idx]
+        di = 6 if i < nb else rows[i - nb]
+        sign = 1.0 if i < nb else -1.0
+        if sign < 0.0:
+            for r in range(di):
+                for c in range(di):
+                    D[i, r, c] = -D[i, r, c]
+        if not _cholesky(D, i, di):
+            return False
+        p = up[i]
+        if p < 0:
+            continue
+        dp = 6 if p < nb else rows[p - nb]
+        for c in range(dp):  # X[i] = (D_i⁻¹ H_{i,p})ᵀ, row c = D_i⁻¹ (column c of H_{i,p})
+            for r in range(di):
+                X[i, c, r] = _coupling(i, p, nb, JA, JB, r, c)
+            _chol_solve(D, i, di, X[i, c], sign)
+        for r in range(dp):  # D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}
+            for c in range(dp):
+                s = 0.0
+                for m in range(di):
+                    s += _coupling(i, p, nb, JA, JB, m, r) * X[i, c, m]
+                D[p, r, c] -= s
+    return True
+
+
+@compiled
+def tree_solve(model, work, x):
+    """Solve the factored system in place: x (nodes, 6) holds the right side on entry."""
+    dims, order, up = model[3], model[12], model[13]
+    D, X = work[5], work[6]
+    nn = order.shape[0]
+    for idx in range(nn):  # forward: y_p −= L_{p,i} y_i, children first
+        i, p = order[idx], up[order[idx]]
+        for r in range(dims[p] if p >= 0 else 0):
+            x[p, r] -= _dot_n(X[i, r], x[i], dims[i])
+    for i in range(nn):
+        _chol_solve(D, i, dims[i], x[i], 1.0 if i < model[0].shape[0] else -1.0)
+    for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
+        i, p = order[idx], up[order[idx]]
+        for r in range(dims[i] if p >= 0 else 0):
+            x[i, r] -= _dot_n(X[i, :, r], x[p], dims[p])
+
+
+@inlined
+def _dot_n(a, b, n):
+    s = 0.0
+    for m in range(n):
+        s += a[m] * b[m]
+    return s
+
+
+# --- dynamics --------------------------------------------------------------------------------
+
+@inlined
+def _row_rate(y, model, JA, JB, k, r):
+    """Ċ of row r of joint k: J u."""
+    A, B = model[5][k], model[6][k]
+    cdot = 0.0
+    for c in range(6):
+        if A >= 0:
+            cdot += JA[k, r, c] * y[13 * A + 7 + c]
+        cdot += JB[k, r, c] * y[13 * B + 7 + c]
+    return cdot
+
+
+@compiled
+def derivative(y, model, work, ks, kd, ydot):
+    """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
+    mass, inertia, gravity, nb = model[0], model[1], model[2], model[0].shape[0]
+    rows = model[11]
+    R, C, JA, JB, gam, sol, lam = work[0], work[1], work[2], work[3], work[4], work[7], work[8]
+    rotations(y, nb, R)
+    joint_rows(y, model, R, C, JA, JB, gam)
+    if not tree_factor(y, model, work):
+        return SINGULAR
+    for b in range(nb):
+        o = 13 * b
+        w0, w1, w2 = y[o + 10], y[o + 11], y[o + 12]
+        # angular momentum I_w ω = R I_b Rᵀ ω (D holds the factor by now, not I_w)
+        l0 = R[b, 0, 0] * w0 + R[b, 1, 0] * w1 + R[b, 2, 0] * w2
+        l1 = R[b, 0, 1] * w0 + R[b, 1, 1] * w1 + R[b, 2, 1] * w2
+        l2 = R[b, 0, 2] * w0 + R[b, 1, 2] * w1 + R[b, 2, 2] * w2
+        m0 = inertia[b, 0, 0] * l0 + inertia[b, 0, 1] * l1 + inertia[b, 0, 2] * l2
+        m1 = inertia[b, 1, 0] * l0 + inertia[b, 1, 1] * l1 + inertia[b, 1, 2] * l2
+        m2 = inertia[b, 2, 0] * l0 + inertia[b, 2, 1] * l1 + inertia[b, 2, 2] * l2
+        L0, L1, L2 = _rot(R, b, m0, m1, m2)
+        g0, g1, g2 = _cross(w0, w1, w2, L0, L1, L2)
+        for r in range(3):
+            sol[b, r] = mass[b] * gravity[r]
+        sol[b, 3], sol[b, 4], sol[b, 5] = -g0, -g1, -g2
+    for k in range(rows.shape[0]):
+        for r in range(rows[k]):
+            sol[nb + k, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
+    tree_solve(model, work, sol)
+    for b in range(nb):
+        o = 13 * b
+        ydot[o], ydot[o + 1], ydot[o + 2] = y[o + 7], y[o + 8], y[o + 9]
+        qw, qx, qy, qz = y[o + 3], y[o + 4], y[o + 5], y[o + 6]
+        w0, w1, w2 = y[o + 10], y[o + 11], y[o + 12]
+        ydot[o + 3] = -0.5 * (w0 * qx + w1 * qy + w2 * qz)
+        c0, c1, c2 = _cross(w0, w1, w2, qx, qy, qz)
+        ydot[o + 4] = 0.5 * (qw * w0 + c0)
+        ydot[o + 5] = 0.5 * (qw * w1 + c1)
+        ydot[o + 6] = 0.5 * (qw * w2 + c2)
+        for r in range(6):
+            ydot[o + 7 + r] = sol[b, r]
+    for k in range(rows.shape[0]):
+        for r in range(rows[k]):
+            lam[k, r] = -sol[nb + k, r]
+    return OK
+
+
+@inlined
+def _rotate_quaternion(y, o, t0, t1, t2):
+    """Q ← exp(θ/2) ⊗ Q for the world rotation vector θ = (t0, t1, t2), then Q normalised."""
+    angle = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    if angle > 0.0:
+        s = math.sin(0.5 * angle) / angle
+        a0, a1, a2, a3 = math.cos(0.5 * angle), s * t0, s * t1, s * t2
+        b0, b1, b2, b3 = y[o], y[o + 1], y[o + 2], y[o + 3]
+        c1, c2, c3 = _cross(a1, a2, a3, b1, b2, b3)
+        y[o] = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
+        y[o + 1] = a0 * b1 + b0 * a1 + c1
+        y[o + 2] = a0 * b2 + b0 * a2 + c2
+        y[o + 3] = a0 * b3 + b0 * a3 + c3
+    n = math.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
+    for i in range(4):
+        y[o + i] /= n
+
+
+@compiled
+def _constraint_norm(model, work):
+    """max |C| over every row (m for anchors and slides, cosines for the orientation rows)."""
+    rows, C = model[11], work[1]
+    worst = 0.0
+    for k in range(rows.shape[0]):
+        for r in range(rows[k]):
+            worst = max(worst, abs(C[k, r]))
+    return worst
+
+
+@compiled
+def _correction(y, model, work, velocity):
+    """work[7] ← the bodies' corrections −W Jᵀ (J W Jᵀ)⁻¹ e with e = C (positions) or J u (velocity):
+    the tree system with no force and −e on the joints. Rows must be current; False if singular."""
+    nb, rows, C, JA, JB, sol = model[0].shape[0], model[11], work[1], work[2], work[3], work[7]
+    if not tree_factor(y, model, work):
+        return False
+    for b in range(nb):
+        for r in range(6):
+            sol[b, r] = 0.0
+    for k in range(rows.shape[0]):
+        for r in range(rows[k]):
+            sol[nb + k, r] = -(_row_rate(y, model, JA, JB, k, r) if velocity else C[k, r])
+    tree_solve(model, work, sol)
+    return True
+
+
+@compiled
+def project(y, model, work, tolerance, max_iterations):
+    """Newton on C(q) = 0 in the mass metric (Δ = −W Jᵀ (J W Jᵀ)⁻¹ C, rotations by the exponential map,
+    quaternions renormalised), then u ← u − W Jᵀ (J W Jᵀ)⁻¹ J u. Returns a status code."""
+    nb, R, sol = model[0].shape[0], work[0], work[7]
+    for it in range(max_iterations + 1):
+        rotations(y, nb, R)
+        joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+        if _constraint_norm(model, work) <= tolerance:
+            break
+        if it == max_iterations:
+            return NOT_CONVERGED
+        if not _correction(y, model, work, False):
+            return SINGULAR
+        for b in range(nb):
+            o = 13 * b
+            for r in range(3):
+                y[o + r] += sol[b, r]
+            _rotate_quaternion(y, o + 3, sol[b, 3], sol[b, 4], sol[b, 5])
+    if not _correction(y, model, work, True):
+        return SINGULAR
+    for b in range(nb):
+        for r in range(6):
+            y[13 * b + 7 + r] += sol[b, r]
+    return OK
+
+
+@compiled
+def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iterations):
+    """One step of h seconds in place; returns a status code. work[9] (stages, n), work[10] (n,) scratch."""
+    nb = model[0].shape[0]
+    K, ys = work[9], work[10]
+    n = y.shape[0]
+    if code == SYMPLECTIC_EULER:
+        status = derivative(y, model, work, ks, kd, K[0])
+        if status != OK:
+            return status
+        for b in range(nb):
+            o = 13 * b
+            for r in range(6):
+                y[o + 7 + r] += h * K[0, o + 7 + r]
+            for r in range(3):
+                y[o + r] += h * y[o + 7 + r]
+            _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
+    else:
+        s = bw.shape[0]
+        for i in range(s):
+            for e in range(n):
+                acc = y[e]
+                for j in range(i):
+                    acc += h * A[i, j] * K[j, e]
+                ys[e] = acc
+            status = derivative(ys, model, work, ks, kd, K[i])
+            if status != OK:
+                return status
+        for e in range(n):
+            acc = 0.0
+            for i in range(s):
+                acc += bw[i] * K[i, e]
+            y[e] += h * acc
+    if method == PROJECTION:
+        status = project(y, model, work, tolerance, max_iterations)
+        if status != OK:
+            return status
+    for e in range(n):
+        if not math.isfinite(y[e]):
+            return NON_FINITE
+    return OK
+
+
+@compiled
+def run(method, code, A, bw, y, model, work, ks, kd, h, n_steps, stride, tolerance, max_iterations, out):
+    """Step n_steps times; out (samples, n) gets y at step 0, every stride steps and the last.
+    Returns (samples written, steps taken, status)."""
+    n = y.shape[0]
+    for e in range(n):
+        out[0, e] = y[e]
+    written = 1
+    for s in range(1, n_steps + 1):
+        status = step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iterations)
+        if status != OK:
+            return written, s - 1, status
+        if s % stride == 0 or s == n_steps:
+            for e in range(n):
+                out[written, e] = y[e]
+            written += 1
+    return written, n_steps, OK

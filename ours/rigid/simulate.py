@@ -1,0 +1,327 @@
+"""Pack a Mechanism for the compiled kernel, run a trajectory, and read states back.
+
+State y (13 per body, ``ours.rigid.kernel``): COM x, quaternion Q (w, x, y, z) of the body frame,
+COM velocity v, world angular velocity ω. :func:`initial_state` builds y from joint coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ours.errors import ModelError, OursError
+from ours.method import DEFAULT_K_S, DEFAULT_MAX_ITERATIONS, critical_damping
+from ours.simulate import _count, _positive
+from ours.rigid.method import BAUMGARTE, resolve
+from ours.rigid.model import DOFS, ROWS, Mechanism
+from ours.status import STATUS_TEXT
+
+KIND_CODES = {"ball": 0, "revolute": 1, "prismatic": 2, "fixed": 3}
+#: Projection stops at max |C| ≤ tolerance (m for anchors, cosine for the orientation rows).
+DEFAULT_TOLERANCE = 1e-12
+
+
+def pack(mech: Mechanism) -> tuple:
+    """The model tuple of the kernel (see ``ours.rigid.kernel``): arrays only."""
+    nb, nj = len(mech.bodies), len(mech.joints)
+    mass = np.array([b.mass for b in mech.bodies])
+    inertia = np.array([b.inertia for b in mech.bodies]).reshape(nb, 3, 3)
+    com = np.array([b.com for b in mech.bodies]).reshape(nb, 3)
+    kind = np.array([KIND_CODES[j.kind] for j in mech.joints], dtype=np.int64)
+    parent = np.array([j.parent for j in mech.joints], dtype=np.int64)
+    child = np.array([j.child for j in mech.joints], dtype=np.int64)
+    la = np.zeros((nj, 3))
+    lb = np.zeros((nj, 3))
+    FA = np.zeros((nj, 3, 3))
+    FB = np.zeros((nj, 3, 3))
+    for k, j in enumerate(mech.joints):
+        la[k] = j.origin_xyz - (com[j.parent] if j.parent >= 0 else 0.0)
+        lb[k] = -com[j.child]
+        FA[k] = j.origin_rotation @ j.frame
+        FB[k] = j.frame
+    rows = np.array([ROWS[j.kind] for j in mech.joints], dtype=np.int64)
+    up = np.full(nb + nj, -1, dtype=np.int64)
+    for k, j in enumerate(mech.joints):
+        up[j.child] = nb + k
+        up[nb + k] = j.parent  # -1 for the world: the joint is a root of the elimination
+    depth = np.zeros(nb + nj, dtype=np.int64)
+    for i in range(nb + nj):
+        node = i
+        while up[node] >= 0:
+            node = up[node]
+            depth[i] += 1
+    order = np.argsort(-depth, kind="stable").astype(np.int64)  # leaves first, each node before its parent
+    dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
+    return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
+            rows, order, up)
+
+
+def workspace(mech: Mechanism, stages: int) -> tuple:
+    """Scratch arrays of the kernel (nothing in it allocates)."""
+    nb, nj = len(mech.bodies), len(mech.joints)
+    nn = nb + nj
+    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
+            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 6)), np.zeros((nj, 6)),
+            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
+
+
+def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` rad about the unit ``axis`` (Rodrigues)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+def quaternion(R: np.ndarray) -> np.ndarray:
+    """(4,) unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
+    t = np.trace(R)
+    cases = [t, R[0, 0], R[1, 1], R[2, 2]]
+    i = int(np.argmax(cases))
+    if i == 0:
+        w = math.sqrt(1.0 + t) / 2.0
+        q = [w, (R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w)]
+    else:
+        a, b, c = (i - 1), i % 3, (i + 1) % 3
+        s = math.sqrt(1.0 + R[a, a] - R[b, b] - R[c, c]) * 2.0
+        q = [0.0] * 4
+        q[0] = (R[c, b] - R[b, c]) / s
+        q[1 + a] = s / 4.0
+        q[1 + b] = (R[b, a] + R[a, b]) / s
+        q[1 + c] = (R[c, a] + R[a, c]) / s
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+def rotation_of(Q: np.ndarray) -> np.ndarray:
+    """(3, 3) the rotation of a quaternion (w, x, y, z), normalised first."""
+    w, x, y, z = np.asarray(Q, dtype=float) / np.linalg.norm(Q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _coordinate(values, joint, default=0.0) -> float:
+    value = (values or {}).get(joint.name, default)
+    number = float(value)
+    if not math.isfinite(number):
+        raise ModelError(f"joint {joint.name}: its coordinate must be finite, got {value!r}")
+    return number
+
+
+def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None) -> np.ndarray:
+    """y (13 nb,) from joint coordinates q and rates v (by joint name: rad and rad/s for revolute,
+    m and m/s for prismatic; missing = 0). Fixed and ball joints start aligned and at rest;
+    a body with no inbound joint starts at the origin, at rest."""
+    known = {j.name for j in mech.joints if DOFS[j.kind] == 1}
+    for values, what in ((q, "q"), (v, "v")):
+        for name in values or {}:
+            if name not in known:
+                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name; choose from {sorted(known)}")
+    nb = len(mech.bodies)
+    R = [np.eye(3) for _ in range(nb)]
+    p = [np.zeros(3) for _ in range(nb)]  # body frame origins
+    vel = [np.zeros(3) for _ in range(nb)]  # velocities of the frame origins
+    w = [np.zeros(3) for _ in range(nb)]
+    for k in mech.topological_joints():
+        j = mech.joints[k]
+        Rp, pp, vp, wp = (R[j.parent], p[j.parent], vel[j.parent], w[j.parent]) if j.parent >= 0 else (
+            np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3))
+        Rj = Rp @ j.origin_rotation
+        pj = pp + Rp @ j.origin_xyz
+        axis = Rj @ j.axis
+        angle = rate = 0.0
+        if DOFS[j.kind] == 1:
+            angle, rate = _coordinate(q, j), _coordinate(v, j)
+        c = j.child
+        R[c], p[c], w[c] = Rj, pj, wp.copy()
+        vel[c] = vp + np.cross(wp, pj - pp)
+        if j.kind == "revolute":
+            R[c] = Rj @ rotation(j.axis, angle)
+            w[c] = wp + rate * axis
+        elif j.kind == "prismatic":
+            p[c] = pj + angle * axis
+            vel[c] = vp + np.cross(wp, p[c] - pp) + rate * axis
+    y = np.zeros(13 * nb)
+    for b, body in enumerate(mech.bodies):
+        o = 13 * b
+        com = p[b] + R[b] @ body.com
+        y[o:o + 3] = com
+        y[o + 3:o + 7] = quaternion(R[b])
+        y[o + 7:o + 10] = vel[b] + np.cross(w[b], com - p[b])
+        y[o + 10:o + 13] = w[b]
+    return y
+
+
+def frames(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(origins (..., nb, 3) m, rotations (..., nb, 3, 3)) of the body frames at states y (..., 13 nb)."""
+    y = np.asarray(y, dtype=float)
+    s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
+    Q = s[..., 3:7] / np.linalg.norm(s[..., 3:7], axis=-1, keepdims=True)
+    w, x, yy, z = (Q[..., i] for i in range(4))
+    R = np.stack([
+        np.stack([1 - 2 * (yy * yy + z * z), 2 * (x * yy - w * z), 2 * (x * z + w * yy)], -1),
+        np.stack([2 * (x * yy + w * z), 1 - 2 * (x * x + z * z), 2 * (yy * z - w * x)], -1),
+        np.stack([2 * (x * z - w * yy), 2 * (yy * z + w * x), 1 - 2 * (x * x + yy * yy)], -1),
+    ], -2)
+    com = np.array([b.com for b in mech.bodies])
+    return s[..., 0:3] - np.einsum("...ij,...j->...i", R, com), R
+
+
+def energy(mech: Mechanism, y: np.ndarray) -> np.ndarray:
+    """(...,) J: ½ m v² + ½ ωᵀ I_w ω − m g·x at states y (..., 13 nb)."""
+    s = np.asarray(y, dtype=float).reshape(np.shape(y)[:-1] + (len(mech.bodies), 13))
+    _, R = frames(mech, y)
+    mass = np.array([b.mass for b in mech.bodies])
+    inertia = np.array([b.inertia for b in mech.bodies])
+    wb = np.einsum("...ji,...j->...i", R, s[..., 10:13])  # ω in the body frame
+    rot = 0.5 * np.einsum("...bi,bij,...bj->...b", wb, inertia, wb)
+    lin = 0.5 * mass * np.sum(s[..., 7:10] ** 2, axis=-1)
+    pot = -mass * (s[..., 0:3] @ mech.gravity)
+    return np.sum(lin + rot + pot, axis=-1)
+
+
+def angular_momentum(mech: Mechanism, y: np.ndarray) -> np.ndarray:
+    """(..., 3) kg·m²/s about the world origin: Σ m x × v + I_w ω."""
+    s = np.asarray(y, dtype=float).reshape(np.shape(y)[:-1] + (len(mech.bodies), 13))
+    _, R = frames(mech, y)
+    inertia = np.array([b.inertia for b in mech.bodies])
+    mass = np.array([b.mass for b in mech.bodies])
+    wb = np.einsum("...ji,...j->...i", R, s[..., 10:13])
+    spin = np.einsum("...bij,bjk,...bk->...bi", R, inertia, wb)
+    orbit = mass[:, None] * np.cross(s[..., 0:3], s[..., 7:10])
+    return np.sum(spin + orbit, axis=-2)
+
+
+def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(q, v) (..., moving joints) at states y: angle (rad) and rate for revolute joints, displacement
+    (m) and rate for prismatic, in ``mech.moving_joints`` order. Angles are in (−π, π] at a single
+    state; along a series y (S, 13 nb) they are unwrapped from the first sample on (so a joint that
+    turns twice reads 4π), which needs less than half a turn between samples."""
+    y = np.asarray(y, dtype=float)
+    s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
+    origin, R = frames(mech, y)
+    model = pack(mech)
+    FA = model[9]
+    qs, vs = [], []
+    for k in mech.moving_joints:
+        j = mech.joints[k]
+        c = j.child
+        if j.parent >= 0:
+            Rp, pp, wp, xp, vp = R[..., j.parent, :, :], origin[..., j.parent, :], s[..., j.parent, 10:13], \
+                s[..., j.parent, 0:3], s[..., j.parent, 7:10]
+        else:
+            shape = y.shape[:-1]
+            Rp = np.broadcast_to(np.eye(3), shape + (3, 3))
+            pp = wp = xp = vp = np.zeros(shape + (3,))
+        joint_frame = Rp @ FA[k]  # world, third column = axis
+        axis = joint_frame[..., :, 2]
+        wc = s[..., c, 10:13]
+        if j.kind == "revolute":
+            rel = np.swapaxes(joint_frame, -1, -2) @ R[..., c, :, :] @ j.frame
+            qs.append(np.arctan2(rel[..., 1, 0], rel[..., 0, 0]))
+            vs.append(np.sum((wc - wp) * axis, axis=-1))
+        else:
+            pj = pp + np.einsum("...ij,j->...i", Rp, j.origin_xyz)
+            d = origin[..., c, :] - pj
+            v_child = s[..., c, 7:10] + np.cross(wc, origin[..., c, :] - s[..., c, 0:3])
+            v_joint = vp + np.cross(wp, pj - xp)
+            qs.append(np.sum(d * axis, axis=-1))
+            vs.append(np.sum((v_child - v_joint) * axis + d * np.cross(wp, axis), axis=-1))
+    if not qs:
+        return np.zeros(y.shape[:-1] + (0,)), np.zeros(y.shape[:-1] + (0,))
+    q, v = np.stack(qs, axis=-1), np.stack(vs, axis=-1)
+    if q.ndim == 2:
+        revolute = [mech.joints[k].kind == "revolute" for k in mech.moving_joints]
+        q[:, revolute] = np.unwrap(q[:, revolute], axis=0)
+    return q, v
+
+
+@dataclass(frozen=True, eq=False)
+class RigidResult:
+    """Samples of one run. t (S,) s; y (S, 13 nb) states (see the module docstring); steps taken;
+    wall_time (s, the compiled loop alone); status "ok" or why it stopped; settings used."""
+
+    t: np.ndarray
+    y: np.ndarray
+    steps: int
+    wall_time: float
+    status: str
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+def _kernel():
+    from ours.rigid import kernel  # imports numba: only when a run needs it
+
+    return kernel
+
+
+_warmed: set[tuple] = set()
+
+
+def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
+             integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
+             tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidResult:
+    """Simulate ``mech`` from y0 (13 nb,) for n_steps steps of dt s; samples at step 0, every
+    sample_every steps and the last. method: plain, baumgarte, projection; integrator: euler,
+    symplectic-euler, midpoint, rk4 (default). k_s (1/s²), k_d (1/s): Baumgarte gains (default 100, 2√k_s)."""
+    code, scheme = resolve(method, integrator)
+    y = np.array(y0, dtype=float).ravel()
+    if y.shape != (13 * len(mech.bodies),) or not np.isfinite(y).all():
+        raise ModelError(f"y0: expected {13 * len(mech.bodies)} finite numbers (13 per body), got shape {np.shape(y0)}")
+    dt = _positive(dt, "dt", "pass a time step in seconds such as 1e-3")
+    n_steps, stride = _count(n_steps, "n_steps"), _count(sample_every, "sample_every")
+    ks = DEFAULT_K_S if k_s is None else float(k_s)
+    kd = critical_damping(ks) if k_d is None else float(k_d)
+    if not (math.isfinite(ks) and ks >= 0.0 and math.isfinite(kd) and kd >= 0.0):
+        raise OursError(f"k_s, k_d: must be ≥ 0, got {k_s!r}, {k_d!r}")
+    if code != BAUMGARTE:
+        ks = kd = 0.0
+    tolerance = _positive(tolerance, "tolerance", "1e-12 is near round-off for joints of order 1 m")
+    max_iterations = _count(max_iterations, "max_iterations")
+    kernel = _kernel()
+    model = pack(mech)
+    work = workspace(mech, scheme.stages)
+    n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
+    out = np.full((n_samples, y.size), np.nan)
+    args = (code, scheme.code, scheme.A, scheme.b)
+    if args[:2] not in _warmed:  # compile (or load from numba's cache) before the clock starts
+        kernel.run(*args, y.copy(), model, work, ks, kd, dt, 1, 1, tolerance, max_iterations, out[:2].copy())
+        _warmed.add(args[:2])
+    start = time.perf_counter()
+    written, steps, status = kernel.run(*args, y, model, work, ks, kd, dt, n_steps, stride, tolerance,
+                                        max_iterations, out)
+    wall_time = time.perf_counter() - start
+    settings = {"method": method, "integrator": scheme.name, "tolerance": tolerance, "max_iterations": max_iterations}
+    if code == BAUMGARTE:
+        settings.update(k_s=ks, k_d=kd)
+    t = np.minimum(np.arange(n_samples) * stride, n_steps)[:written] * dt
+    return RigidResult(t=t, y=out[:written], steps=int(steps), wall_time=wall_time,
+                       status=STATUS_TEXT[int(status)], settings=settings)
+
+
+def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(distance (S,) m, angle (S,) rad): at each state of y (S, 13 nb), the largest violation of a
+    joint's position rows (anchor gap, slide off its axis) and of its orientation rows (|p·w|, the
+    sine of the misalignment)."""
+    kernel = _kernel()
+    states = np.atleast_2d(np.asarray(y, dtype=float))
+    model, work = pack(mech), workspace(mech, 1)
+    kind, rows = model[4], model[11]
+    # which rows hold lengths: the anchor rows 0–2 (not prismatic), the slide rows 3–4 (prismatic)
+    length = np.zeros((len(mech.joints), 6), dtype=bool)
+    length[kind != KIND_CODES["prismatic"], :3] = True
+    length[kind == KIND_CODES["prismatic"], 3:5] = True
+    used = np.arange(6)[None, :] < rows[:, None]
+    distance, angle = np.zeros(len(states)), np.zeros(len(states))
+    for s, state in enumerate(states):
+        kernel.rotations(state, len(mech.bodies), work[0])
+        kernel.joint_rows(state, model, work[0], work[1], work[2], work[3], work[4])
+        C = np.abs(work[1])
+        distance[s] = C[used & length].max(initial=0.0)
+        angle[s] = C[used & ~length].max(initial=0.0)
+    return distance, angle

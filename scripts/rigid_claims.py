@@ -1,0 +1,142 @@
+"""Figures and numbers of docs/ours.md's rigid-body chapter (``ours.rigid``), measured here.
+
+Run:  .venv/bin/python scripts/rigid_claims.py
+Writes docs/figures/ours/rigid_*.svg and prints every quoted figure against the doc
+(tests/test_docs_figures.py checks the quotes). The compound double pendulum and its
+reduced-coordinate solution are tests/rigid_support.py's (one definition of each).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+
+from ours.rigid import (  # noqa: E402
+    Body, Mechanism, angular_momentum, energy, frames, initial_state, joint_errors, simulate,
+)
+from quoted import Quote, Row, report  # noqa: E402
+from rigid_support import compound_double_pendulum, reduced_double_pendulum  # noqa: E402
+
+OUT = HERE.parent / "docs" / "figures" / "ours"
+SLOW: set[str] = set()
+THETA, OMEGA = [0.9, -0.6], [0.3, 1.1]
+PAIRS = [("plain", "rk4"), ("plain", "symplectic-euler"), ("baumgarte", "rk4"), ("baumgarte", "symplectic-euler"),
+         ("projection", "rk4"), ("projection", "symplectic-euler")]
+ORDER_DTS = [4e-3, 2e-3, 1e-3]
+
+
+def _double_start():
+    mech = compound_double_pendulum()
+    names = ("shoulder", "elbow")
+    return mech, initial_state(mech, dict(zip(names, THETA)), dict(zip(names, OMEGA)))
+
+
+def drift(f: dict, series: dict, duration: float = 20.0, dt: float = 1e-3) -> None:
+    """Joint violation and energy error of each pair on the double pendulum over ``duration`` s."""
+    mech, y0 = _double_start()
+    e0 = energy(mech, y0)
+    n = int(round(duration / dt))
+    for method, integrator in PAIRS:
+        run = simulate(mech, y0, dt, n, 20, method=method, integrator=integrator)
+        distance, angle = joint_errors(mech, run.y)
+        key = f"{method}_{integrator}".replace("-", "_")
+        f[f"off_{key}_20s"] = float(distance.max())
+        f[f"angle_{key}_20s"] = float(angle.max())
+        f[f"energy_{key}_20s"] = float(np.abs(energy(mech, run.y) - e0).max())
+        series[f"{method}-{integrator}"] = (run.t, distance)
+        if (method, integrator) == ("plain", "rk4"):
+            norms = np.linalg.norm(run.y.reshape(len(run.y), -1, 13)[..., 3:7], axis=-1)
+            f["quaternion_norm_plain_rk4_20s"] = float(np.abs(norms - 1.0).max())
+
+
+def orders(f: dict, series: dict) -> None:
+    """Largest link-frame distance from the reduced solution over 2 s, and its observed order."""
+    mech, y0 = _double_start()
+    times = np.linspace(0.0, 2.0, 51)
+    reference = reduced_double_pendulum(THETA, OMEGA, 2.0, times)
+    for method, integrator in [("baumgarte", "euler"), ("baumgarte", "symplectic-euler"), ("baumgarte", "midpoint"),
+                               ("baumgarte", "rk4"), ("projection", "rk4")]:
+        errors = []
+        for dt in ORDER_DTS:
+            n = int(round(2.0 / dt))
+            run = simulate(mech, y0, dt, n, n // 50, method=method, integrator=integrator)
+            errors.append(np.linalg.norm(frames(mech, run.y)[0] - reference, axis=-1).max())
+        key = f"{method}_{integrator}".replace("-", "_")
+        f[f"order_{key}"] = float(np.polyfit(np.log(ORDER_DTS), np.log(errors), 1)[0])
+        f[f"error_{key}_dt1e-3"] = float(errors[-1])
+        series[f"{method}-{integrator}"] = (ORDER_DTS, errors)
+
+
+def spinner(f: dict) -> None:
+    """The torque-free body spun about its intermediate axis: energy and momentum errors over 20 s at 1 ms."""
+    mech = Mechanism((Body("box", 1.0, np.zeros(3), np.diag([1.0, 2.0, 3.0])),), (), np.zeros(3))
+    y0 = np.zeros(13)
+    y0[3], y0[10:13] = 1.0, [0.01, 1.0, 0.0]
+    for integrator in ("euler", "symplectic-euler", "midpoint", "rk4"):
+        run = simulate(mech, y0, 1e-3, 20_000, 100, method="plain", integrator=integrator)
+        key = integrator.replace("-", "_")
+        f[f"spinner_energy_{key}"] = float(np.abs(energy(mech, run.y) - energy(mech, y0)).max())
+        f[f"spinner_momentum_{key}"] = float(np.linalg.norm(angular_momentum(mech, run.y) - angular_momentum(mech, y0),
+                                                             axis=-1).max())
+
+
+def figures(quick: bool = False, series: dict | None = None) -> dict[str, float]:
+    f: dict[str, float] = {}
+    series = {} if series is None else series
+    series.setdefault("drift", {})
+    series.setdefault("orders", {})
+    drift(f, series["drift"])
+    orders(f, series["orders"])
+    spinner(f)
+    return f
+
+
+D = "docs/ours.md"
+DRIFT = "### Drift on SO(3)"
+QUOTES = [
+    Quote(D, "1.3e-11", "quaternion_norm_plain_rk4_20s", "at most {} over 20 s"),
+    Quote(D, "2.1e-2", "error_baumgarte_euler_dt1e-3", "baumgarte-euler {} m"),
+    Quote(D, "1.23", "order_baumgarte_euler", "(order {})"),
+    Quote(D, "3.4e-3", "error_baumgarte_symplectic_euler_dt1e-3", "\n{} m (1.03)"),
+    Quote(D, "1.03", "order_baumgarte_symplectic_euler", "m ({}), baumgarte-midpoint"),
+    Quote(D, "1.8e-5", "error_baumgarte_midpoint_dt1e-3", "baumgarte-midpoint {} m"),
+    Quote(D, "1.99", "order_baumgarte_midpoint", "m ({}), baumgarte-rk4"),
+    Quote(D, "3.4e-10", "error_baumgarte_rk4_dt1e-3", "\n{} m (3.93)"),
+    Quote(D, "3.93", "order_baumgarte_rk4", "m ({}), projection-rk4"),
+    Quote(D, "2.3e-10", "error_projection_rk4_dt1e-3", "projection-rk4 {} m"),
+    Quote(D, "3.95", "order_projection_rk4", "m ({}). A torque-free"),
+    Quote(D, "1.6e-14", "spinner_energy_rk4", "energy to {} J"),
+    Quote(D, "2.3e-14", "spinner_momentum_rk4", "momentum to {} kg"),
+    Quote(D, "3.1e-10", "spinner_energy_midpoint", "(midpoint {} J"),
+    Quote(D, "4.3e-7", "spinner_momentum_midpoint", "J and {};"),
+    Quote(D, "1.2e-3", "spinner_energy_euler", "symplectic Euler {} J)"),
+    Quote(D, "1.2e-3", "spinner_energy_symplectic_euler", "symplectic Euler {} J)"),
+]
+ROWS = [Row(D, f"{m}-{i}", (f"off_{m}_{i}_20s".replace("-", "_"), f"energy_{m}_{i}_20s".replace("-", "_")), DRIFT)
+        for m, i in PAIRS]
+
+
+def main() -> None:
+    from ours_figures import line_plot
+
+    series: dict = {}
+    f = figures(series=series)
+    OUT.mkdir(parents=True, exist_ok=True)
+    line_plot(OUT / "rigid_drift.svg", "compound double pendulum, dt = 1 ms: largest joint gap",
+              [(k, t, d) for k, (t, d) in series["drift"].items()], "t (s)", "joint gap (m)", logy=True, floor=1e-17)
+    line_plot(OUT / "rigid_orders.svg", "distance from the reduced solution over 2 s",
+              [(k, x, y) for k, (x, y) in series["orders"].items()], "dt (s)", "largest frame distance (m)",
+              logx=True, logy=True)
+    for key in sorted(f):
+        print(f"{key:<48} {f[key]:.3g}")
+    report(f, QUOTES, ROWS)
+
+
+if __name__ == "__main__":
+    main()
