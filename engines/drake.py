@@ -3,7 +3,7 @@
 The scene is built in reduced coordinates, as a Drake user would build it
 (like :mod:`engines.mujoco`'s hinge formulation): one rigid body per
 particle, nested along the constraint tree hung from the Pins
-(:func:`engines.mujoco.constraint_tree`). Each body's frame sits at its pivot
+(:func:`engines.tree.read_tree`). Each body's frame sits at its pivot
 with the world's orientation in the scene's *initial* configuration, and its
 point mass sits at the end of the arm (the body's centre of mass). A planar
 scene gets a :class:`RevoluteJoint` about +y per body; a 3-D one (one
@@ -70,9 +70,9 @@ import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.mujoco import Tree, constraint_tree
 from engines.plugin import refuse_constraint_kinds
 from engines.scene import Pin, Rod, Scene
+from engines.tree import Tree, read_tree
 
 # pydrake itself is imported where a plant is built (and by preload, before a run forks its hosts):
 # listing the engines (`xval engines`) or planning a run needs only to know it is installed, and
@@ -196,10 +196,12 @@ class DrakeEngine(Engine):
                 f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
-        try:
-            tree = constraint_tree(scene)
-        except Unsupported as exc:
-            raise Unsupported(f"drake: {str(exc).partition(': ')[2]}") from None
+        tree = read_tree(scene)
+        if tree.loose:
+            raise Unsupported(
+                f"drake: particles {tree.loose} are not hung from a Pin; the adapter builds chains of joints "
+                "from fixed anchors (no free-floating bodies)"
+            )
         if tree.closures:
             raise Unsupported(
                 f"drake: constraint {tree.closures[0]} closes a loop; the adapter builds a tree of joints, and a "
@@ -226,7 +228,7 @@ class DrakeEngine(Engine):
         from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
         from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia
 
-        tree = constraint_tree(scene)
+        tree = read_tree(scene)
         q = scene.initial_positions
         inertia = self.inertia(scene, settings)
         plant = MultibodyPlant(time_step)

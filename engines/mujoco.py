@@ -90,6 +90,7 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Scene
+from engines.tree import Tree, read_tree
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
 _ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
@@ -133,76 +134,25 @@ _WARNINGS = {
 # -- structure of a scene ----------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Tree:
-    """The constraints of a scene read as a forest hung from Pins (for the hinge formulation).
-
-    parent : (n,) parent particle index, or −1 for a particle hung from a Pin or held on a Line.
-    pivot : (n, 3) m, the pivot of each particle's link (the Pin's anchor, or the parent's initial
-        position; a particle on a Line is its own pivot).
-    constraint_of : (n,) index of the constraint joining the particle to its parent.
-    order : particles, parents before children.
-    closures : constraints that close a loop (not joints of the tree): each becomes an arm body and a
-        ``connect`` equality (see :func:`closure_arm`).
-    """
-
-    parent: tuple[int, ...]
-    pivot: np.ndarray
-    constraint_of: tuple[int, ...]
-    order: tuple[int, ...]
-    closures: tuple[int, ...] = ()
-
-
 def constraint_tree(scene: Scene) -> Tree:
-    """Orient the constraints away from the Pins and Lines; a constraint met twice closes a loop.
-
-    Unsupported for an Ellipse, or unless every particle hangs from a Pin or Line.
-    """
-    n = len(scene.particles)
-    q = scene.initial_positions
-    parent, constraint_of = [-2] * n, [-1] * n
-    pivot = np.zeros((n, 3))
-    neighbours: list[list[tuple[int, int]]] = [[] for _ in range(n)]
-    queue: list[int] = []
-    closures: list[int] = []
+    """The scene's tree of joints (:func:`engines.tree.read_tree`), or Unsupported for what the hinge
+    formulation cannot build: an Ellipse, a particle not hung from a Pin or Line, a loop through a Line."""
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(_NO_ELLIPSE.format(k=k))
-        if isinstance(c, (Pin, Line)):
-            if parent[c.particle] != -2:
-                closures.append(k)  # a second Pin or Line on one particle closes a loop through the ground
-                continue
-            parent[c.particle], constraint_of[c.particle] = -1, k
-            pivot[c.particle] = c.anchor if isinstance(c, Pin) else q[c.particle]
-            queue.append(c.particle)
-        else:
-            neighbours[c.a].append((c.b, k))
-            neighbours[c.b].append((c.a, k))
-    order: list[int] = []
-    while queue:
-        i = queue.pop(0)
-        order.append(i)
-        for j, k in neighbours[i]:
-            if k == constraint_of[i] or k in closures:
-                continue
-            if parent[j] != -2:
-                closures.append(k)
-                continue
-            parent[j], constraint_of[j], pivot[j] = i, k, q[i]
-            queue.append(j)
-    loose = [i for i in range(n) if parent[i] == -2]
-    if loose:
+    tree = read_tree(scene)
+    if tree.loose:
         raise Unsupported(
-            f"mujoco/hinge: particles {loose} are not hung from a Pin; the hinge formulation builds "
+            f"mujoco/hinge: particles {tree.loose} are not hung from a Pin; the hinge formulation builds "
             "chains from a fixed anchor (use mujoco/connect for free-floating bodies)"
         )
-    for k in closures:
+    for k in tree.closures:
         if isinstance(scene.constraints[k], Line):
             raise Unsupported(
                 f"mujoco/hinge: constraint {k} holds an already-jointed particle on a line, a loop MuJoCo "
                 "cannot close (it has no point-on-line equality)"
             )
-    return Tree(tuple(parent), pivot, tuple(constraint_of), tuple(order), tuple(sorted(closures)))
+    return tree
 
 
 _NO_ELLIPSE = (

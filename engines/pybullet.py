@@ -106,7 +106,8 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Scene
+from engines.tree import ROOT, read_tree
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
 
@@ -259,61 +260,49 @@ def grow(scene: Scene) -> tuple[list[Link], list[tuple[int, str]]]:
     Raises Unsupported for an Ellipse, for a Line that would close a loop, and
     for particles not tied to any Pin or Line.
     """
-    n = len(scene.particles)
-    q = scene.initial_positions
-    links: dict[int, Link] = {}
-    order: list[int] = []
-    closures: list[tuple[int, str]] = []
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(
                 "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute joints move "
                 f"a point on a circle, prismatic ones on a line); constraints[{k}] is an 'ellipse'"
             )
-        if isinstance(c, (Pin, Line)):
-            if c.particle in links:
-                if isinstance(c, Line):
-                    raise Unsupported(
-                        f"pybullet: constraints[{k}] holds particle {c.particle} on a line as well as "
-                        f"constraints[{links[c.particle].constraint}]: a loop through a rail, which this adapter "
-                        "cannot close"
-                    )
-                closures.append((k, (
-                    f"pybullet: particle {c.particle} is fixed twice (constraints {links[c.particle].constraint} "
-                    f"and {k}): a closed loop, which a multibody (a tree of joints) cannot express; "
-                    "pybullet/p2p closes it with a light arm body"
-                )))
-                continue
-            if isinstance(c, Pin):
-                links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
-            else:
-                links[c.particle] = Link(c.particle, k, None, q[c.particle].copy(), True, c.unit)
-            order.append(c.particle)
-    head = 0
-    used = {link.constraint for link in links.values()} | {k for k, _ in closures}
-    while head < len(order):
-        parent = order[head]
-        head += 1
-        for k, c in enumerate(scene.constraints):
-            if k in used or not isinstance(c, Rod) or parent not in (c.a, c.b):
-                continue
-            child = c.b if c.a == parent else c.a
-            used.add(k)
-            if child in links:
-                closures.append((k, (
-                    f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
-                    "of joints and cannot express it; pybullet/p2p closes it with a light arm body"
-                )))
-                continue
-            links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
-            order.append(child)
-    loose = [i for i in range(n) if i not in links]
-    if loose:
+    tree = read_tree(scene)
+    closures: list[tuple[int, str]] = []
+    for k in tree.found:
+        c = scene.constraints[k]
+        if isinstance(c, Line):
+            raise Unsupported(
+                f"pybullet: constraints[{k}] holds particle {c.particle} on a line as well as "
+                f"constraints[{tree.constraint_of[c.particle]}]: a loop through a rail, which this adapter "
+                "cannot close"
+            )
+        if isinstance(c, Pin):
+            closures.append((k, (
+                f"pybullet: particle {c.particle} is fixed twice (constraints {tree.constraint_of[c.particle]} "
+                f"and {k}): a closed loop, which a multibody (a tree of joints) cannot express; "
+                "pybullet/p2p closes it with a light arm body"
+            )))
+        else:  # met from the end the walk reached first: the loop closes through the other
+            child = max((c.a, c.b), key=tree.order.index)
+            closures.append((k, (
+                f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
+                "of joints and cannot express it; pybullet/p2p closes it with a light arm body"
+            )))
+    if tree.loose:
         raise Unsupported(
-            f"pybullet: particles {loose} are not tied to any Pin; this adapter builds only scenes "
+            f"pybullet: particles {tree.loose} are not tied to any Pin; this adapter builds only scenes "
             "hung from fixed anchors (no floating bodies)"
         )
-    return [links[i] for i in order], closures
+    links = []
+    for i in tree.order:
+        c = scene.constraints[tree.constraint_of[i]]
+        parent = tree.parent[i]
+        if parent == ROOT:
+            links.append(Link(i, tree.constraint_of[i], None, tree.pivot[i].copy(), True,
+                              c.unit if isinstance(c, Line) else None))
+        else:
+            links.append(Link(i, tree.constraint_of[i], parent, tree.pivot[i].copy(), c.a == i))
+    return links, closures
 
 
 def _kept(settings: Mapping[str, Any]) -> list[str]:
