@@ -126,7 +126,7 @@ def test_gate_md_escapes_html_in_labels():
     from compare.gate.baseline import load_baseline
     from compare.gate.gate import gate_results
     from compare.gate.report import to_markdown
-    from compare.gate.tolerance import GateSettings
+    from compare.suite.tolerance import GateSettings
 
     baseline, current = load_baseline(GOLDEN / "baseline.json"), load_baseline(GOLDEN / "current.json")
     for document in (baseline, current):

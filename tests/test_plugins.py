@@ -20,7 +20,7 @@ from compare.gate.gate import gate_results
 from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
-from compare.gate.tolerance import GateSettings
+from compare.suite.tolerance import GateSettings
 from engines import catalog, registry
 from engines.adapter import API_VERSION, api_version_problem
 from engines.errors import UserError

@@ -17,7 +17,7 @@ from compare.history.location import check_option
 from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
 from compare.results.store import load_results
-from compare.gate.tolerance import GateSettings
+from compare.suite.tolerance import GateSettings
 from compare.suite.reader import load_run_settings
 
 

@@ -25,7 +25,7 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     [tolerances]                   # per-metric tolerances, for the gate
     position_error_linf = 0.1
 
-    [gate]                         # `xval gate` overrides (compare/gate/tolerance.py)
+    [gate]                         # `xval gate` overrides (compare/suite/tolerance.py)
     timing_factor = 1.5
     energy_drift = { rtol = 0.2, atol = 1e-9 }
 
@@ -75,7 +75,7 @@ from engines.scene import Scene
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
