@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from compare.cli import parse_assignments
+from compare.cli import engine_option_option, param_option, parse_assignments
 from compare.results.files import atomic_write_text, check_writable
 from compare.stability.dissipation import DEFAULT_DTS, DEFAULT_DURATION, Dissipation, probe
 from engines import catalog, registry
@@ -33,10 +33,9 @@ def table(result: Dissipation) -> str:
 
 @click.command("probe")
 @click.argument("engine_id", metavar="ENGINE/VARIANT")
-@click.option("--option", "options", multiple=True, metavar="NAME=VALUE",
-              help="Engine option (see 'xval engines'); repeatable.")
+@engine_option_option()
 @click.option("--scene", "scene_name", default="bead", show_default=True, help="Catalog scene (see 'xval scenes').")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="Scene parameter; repeatable.")
+@param_option()
 @click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DURATION,
               show_default=True, help="Seconds simulated at each dt.")
 @click.option("--dt", "dts", multiple=True, type=click.FloatRange(min=0, min_open=True),

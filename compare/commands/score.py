@@ -6,7 +6,7 @@ import json
 
 import click
 
-from compare.cli import output_path, parse_assignments
+from compare.cli import output_path, param_option, parse_assignments
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
@@ -30,8 +30,7 @@ COLUMNS = (
 @click.command("score")
 @click.argument("scene_name", metavar="SCENE")
 @click.argument("files", metavar="FILE.csv...", nargs=-1, required=True)
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
-              help="Scene parameter the files were made with (see 'xval scenes'); repeatable.")
+@param_option(help="Scene parameter the files were made with (see 'xval scenes'); repeatable.")
 @click.option("--delta", default=DEFAULT_DELTA, show_default=True, type=float,
               help="Divergence threshold: the first t with position error > delta * L.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
