@@ -39,12 +39,14 @@ BUILTIN: dict[str, str] = {
     "pymunk": "engines.pymunk",
     "drake": "engines.drake",
     "mjx": "engines.mjx",
+    "dart": "engines.dart",
 }
 
 #: Built-ins whose library is an optional extra: the pip line that installs it, shown when it is missing.
 INSTALL: dict[str, str] = {
     "drake": "pip install 'xval[drake]'",
     "mjx": "pip install 'xval[mjx]'",
+    "dart": "pip install 'xval[dart]'",
 }
 
 #: Optional built-ins' distributions, whose installed version can be read without importing them
@@ -52,6 +54,7 @@ INSTALL: dict[str, str] = {
 DISTRIBUTION: dict[str, str] = {
     "drake": "drake",
     "mjx": "mujoco-mjx",
+    "dart": "dartpy",
 }
 
 #: The entry-point group installed packages register engines under.

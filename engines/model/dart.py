@@ -1,0 +1,112 @@
+"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF) into a Skeleton.
+
+Import options: ``DartLoader.Options`` with mDefaultRootJointType = FIXED
+(DART gives a URDF a floating root otherwise) and its default
+mDefaultInertia (1 kg, identity inertia: what a link without ``<inertial>``
+gets); the text is parsed with ``parseSkeletonString`` (so unresolvable
+``package://`` meshes, already stripped, cannot stop it). Gravity (0, 0,
+−9.81); every degree of freedom's damping, Coulomb friction and spring
+stiffness set to 0. M is ``getMassMatrix``, the bias
+``getCoriolisAndGravityForces``, the forward dynamics
+``computeForwardDynamics`` (no constraint solver: limits are not enforced).
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+
+import numpy as np
+
+from engines.model.description import ModelDescription
+from engines.model.inertia import world_inertia
+from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.source import ModelSource
+from engines.pybullet import quiet_output
+
+NAME = "dart"
+
+
+def version() -> str:
+    return importlib.metadata.version("dartpy")
+
+
+def load(source: ModelSource, description: ModelDescription) -> "DartModel":
+    import dartpy
+
+    text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    if source.format == "mjcf":
+        try:
+            with quiet_output():
+                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(source.path.resolve().as_uri()))
+        except RuntimeError as exc:
+            raise Refused(" ".join(str(exc).split())) from None
+        if world is None or world.getNumSkeletons() != 1:
+            raise Refused("MjcfParser.readWorld did not give one skeleton (DART printed the reason)")
+        stated = {"loader": "MjcfParser.readWorld"}
+        return DartModel(world.getSkeleton(0), description, stated, notes)
+    loader = dartpy.utils.DartLoader()
+    options = dartpy.utils.DartLoader.Options()
+    options.mDefaultRootJointType = dartpy.utils.DartLoader.RootJointType.FIXED
+    loader.setOptions(options)
+    with quiet_output():  # DART prints a warning per massless link to stdout
+        skeleton = loader.parseSkeletonString(text, source.path.resolve().as_uri())
+    if skeleton is None:
+        raise Refused("DartLoader.parseSkeletonString returned no skeleton (DART printed the reason)")
+    stated = {"loader": "DartLoader.parseSkeletonString", "mDefaultRootJointType": "FIXED",
+              "mDefaultInertia": "1 kg, identity (DART's default)"}
+    return DartModel(skeleton, description, stated, notes)
+
+
+class DartModel(LoadedModel):
+    engine = NAME
+
+    def __init__(self, skeleton, description: ModelDescription, options, notes=()):
+        super().__init__(description, options, (*notes, "damping, Coulomb friction and spring stiffness set to 0"))
+        self.skeleton = skeleton
+        skeleton.setGravity([0.0, 0.0, -GRAVITY])
+        names, dofs = [], []
+        for k in range(skeleton.getNumJoints()):
+            joint = skeleton.getJoint(k)
+            if joint.getNumDofs() == 0:
+                continue
+            if joint.getNumDofs() != 1:
+                raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
+            joint.setDampingCoefficient(0, 0.0)
+            joint.setCoulombFriction(0, 0.0)
+            joint.setSpringStiffness(0, 0.0)
+            names.append(joint.getName())
+            dofs.append(joint.getIndexInSkeleton(0))
+        self.dof = np.array(dofs, dtype=int)[index_map(description, names)]
+        self.n = skeleton.getNumDofs()
+
+    def _set(self, q, v=None, tau=None) -> None:
+        for values, setter in ((q, self.skeleton.setPositions), (v, self.skeleton.setVelocities),
+                               (tau, self.skeleton.setForces)):
+            full = np.zeros(self.n)
+            if values is not None:
+                full[self.dof] = values
+            setter(full)
+
+    def mass_matrix(self, q):
+        self._set(q)
+        return np.array(self.skeleton.getMassMatrix())[np.ix_(self.dof, self.dof)]
+
+    def bias(self, q, v):
+        self._set(q, v)
+        return np.array(self.skeleton.getCoriolisAndGravityForces())[self.dof]
+
+    def forward(self, q, v, tau):
+        self._set(q, v, tau)
+        self.skeleton.computeForwardDynamics()
+        return np.array(self.skeleton.getAccelerations())[self.dof]
+
+    def link_inertias(self):
+        self._set(np.zeros(len(self.dof)))
+        found = {}
+        for k in range(self.skeleton.getNumBodyNodes()):
+            node = self.skeleton.getBodyNode(k)
+            inertia = node.getInertia()  # moment about the COM, in the body frame
+            pose = node.getWorldTransform()
+            found[node.getName()] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(),
+                                                  pose.rotation(), pose.translation())
+        return found

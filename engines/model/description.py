@@ -1,0 +1,245 @@
+"""The engine-neutral model description: what a URDF or MJCF file says, validated on construction.
+
+A :class:`ModelDescription` is a tree of :class:`Body` records joined by
+:class:`Joint` records, the root welded to the world (fixed base), gravity
+along −z. Bodies and joints are kept in depth-first order from the root,
+children in file order (Pinocchio's and MuJoCo's order); the moving joints
+in that order are the model's coordinates q (a continuous joint is one
+angle, never Pinocchio's (cos, sin)). SI units: kg, m, kg·m², rad.
+
+Refused with a :class:`ModelError` naming the link or joint and the fix:
+negative or non-finite mass, an inertia that is not symmetric positive
+semidefinite, a joint type other than revolute / continuous / prismatic /
+fixed, a floating base, loops and several roots, mimic joints (unless the
+reader was told to treat them as independent joints).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from engines.errors import UserError
+
+Vector = tuple[float, float, float]
+Matrix = tuple[Vector, Vector, Vector]
+
+#: Joint types a description holds; every other type is refused.
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+#: Joint types that add a coordinate.
+MOVING = ("revolute", "continuous", "prismatic")
+#: Smallest principal moment accepted, relative to the largest (round-off in a file's decimals).
+PSD_TOLERANCE = 1e-9
+
+
+class ModelError(UserError):
+    """A model file the description cannot hold; the message names the link or joint and the fix."""
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """A link's mass properties as the file states them.
+
+    mass : kg (≥ 0). com : (3,) m, the centre of mass in the link frame.
+    inertia : (3, 3) kg·m², about the centre of mass, axes of the link frame
+    (the file's inertial rotation already applied). declared : False when
+    the file gives the link no ``<inertial>`` (then mass 0, inertia 0, as
+    the URDF specification and urdfdom read it). rotated : the inertial
+    frame's rpy was not zero (kept for the diagnosis).
+    """
+
+    mass: float = 0.0
+    com: Vector = (0.0, 0.0, 0.0)
+    inertia: Matrix = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    declared: bool = True
+    rotated: bool = False
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        """(3, 3) kg·m² about the COM, link axes."""
+        return np.array(self.inertia, dtype=float)
+
+    def check(self, link: str) -> None:
+        """ModelError naming ``link`` unless the mass is finite ≥ 0 and the inertia symmetric PSD."""
+        if not math.isfinite(self.mass) or self.mass < 0:
+            raise ModelError(f"link {link}: mass {self.mass:g} kg is negative or not finite; "
+                             f"give <inertial><mass value=…> a value ≥ 0")
+        if not all(math.isfinite(c) for c in self.com):
+            raise ModelError(f"link {link}: the <inertial><origin xyz> is not finite; give three finite numbers")
+        matrix = self.inertia_matrix
+        if not np.all(np.isfinite(matrix)) or not np.allclose(matrix, matrix.T, rtol=0, atol=1e-12 * (1 + np.abs(matrix).max())):
+            raise ModelError(f"link {link}: the inertia is not a finite symmetric matrix; "
+                             f"check <inertia ixx… izz>")
+        moments = np.linalg.eigvalsh(matrix)
+        if moments[0] < -PSD_TOLERANCE * max(abs(moments[-1]), 1e-300):
+            raise ModelError(f"link {link}: the inertia is not positive semidefinite (principal moments "
+                             f"{', '.join(f'{m:.4g}' for m in moments)} kg·m²); give <inertia> whose principal "
+                             f"moments are ≥ 0 (e.g. ixx, iyy, izz ≥ 0 with small products)")
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid link. parent_joint : the joint whose child it is (None for the root)."""
+
+    name: str
+    parent_joint: str | None
+    inertial: Inertial = field(default_factory=Inertial)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """A joint's range: lower, upper (rad or m; None when unbounded), effort (N·m or N), velocity."""
+
+    lower: float | None = None
+    upper: float | None = None
+    effort: float | None = None
+    velocity: float | None = None
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint: the child's frame is at ``xyz``/``rpy`` in the parent's frame at q = 0.
+
+    type : one of JOINT_TYPES. axis : (3,) unit vector in the child (= joint) frame.
+    rpy : rad, fixed-axis roll, pitch, yaw (R = Rz(y) Ry(p) Rx(r)). damping, friction :
+    what the file says (N·m·s/rad, N·m); the dynamics compared here leave them out.
+    mimic : the joint this one mimics, when the file says so.
+    """
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    axis: Vector = (1.0, 0.0, 0.0)
+    xyz: Vector = (0.0, 0.0, 0.0)
+    rpy: Vector = (0.0, 0.0, 0.0)
+    limits: Limits = field(default_factory=Limits)
+    damping: float = 0.0
+    friction: float = 0.0
+    mimic: str | None = None
+
+    @property
+    def moving(self) -> bool:
+        return self.type in MOVING
+
+    def check(self) -> None:
+        if self.type not in JOINT_TYPES:
+            fix = ("the base is welded to the world; remove the floating joint" if self.type == "floating"
+                   else f"use one of {', '.join(JOINT_TYPES)}")
+            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; {fix}")
+        if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
+            raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
+        if self.moving:
+            norm = math.sqrt(sum(c * c for c in self.axis))
+            if not math.isfinite(norm) or abs(norm - 1.0) > 1e-9:
+                raise ModelError(f"joint {self.name}: the axis must be a unit vector, got {self.axis}; "
+                                 f"give <axis xyz> a nonzero direction")
+        lo, hi = self.limits.lower, self.limits.upper
+        if lo is not None and hi is not None and lo > hi:
+            raise ModelError(f"joint {self.name}: lower limit {lo:g} is above upper {hi:g}; swap them")
+
+
+@dataclass(frozen=True)
+class ModelDescription:
+    """A fixed-base kinematic tree. bodies, joints : depth-first from ``root``."""
+
+    name: str
+    source: str
+    format: str
+    root: str
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    notes: tuple[str, ...] = ()
+    mimic_independent: bool = False
+
+    def __post_init__(self) -> None:
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise ModelError(f"link {_first_repeat(names)} is declared twice; give every link a unique name")
+        joint_names = [j.name for j in self.joints]
+        if len(set(joint_names)) != len(joint_names):
+            raise ModelError(f"joint {_first_repeat(joint_names)} is declared twice; give every joint a unique name")
+        for joint in self.joints:
+            joint.check()
+            if joint.mimic is not None and not self.mimic_independent:
+                raise ModelError(f"joint {joint.name}: mimic joints are not supported (it mimics {joint.mimic}); "
+                                 f"remove its <mimic> element")
+            for end in (joint.parent, joint.child):
+                if end not in names:
+                    raise ModelError(f"joint {joint.name}: link {end} is not declared; add a <link name=\"{end}\">")
+        for body in self.bodies:
+            body.inertial.check(body.name)
+        _check_tree(self)
+
+    @cached_property
+    def moving_joints(self) -> tuple[Joint, ...]:
+        """The joints that carry a coordinate, in q's order."""
+        return tuple(j for j in self.joints if j.moving)
+
+    @property
+    def nq(self) -> int:
+        return len(self.moving_joints)
+
+    def body(self, name: str) -> Body:
+        return self._bodies[name]
+
+    def joint(self, name: str) -> Joint:
+        return self._joints[name]
+
+    @cached_property
+    def _bodies(self) -> dict[str, Body]:
+        return {b.name: b for b in self.bodies}
+
+    @cached_property
+    def _joints(self) -> dict[str, Joint]:
+        return {j.name: j for j in self.joints}
+
+    @cached_property
+    def moving_links(self) -> tuple[str, ...]:
+        """Links with a moving joint between them and the world (the others cannot change the dynamics)."""
+        moving: set[str] = set()
+        for joint in self.joints:  # depth-first: a parent is settled before its children
+            if joint.moving or joint.parent in moving:
+                moving.add(joint.child)
+        return tuple(b.name for b in self.bodies if b.name in moving)
+
+
+def _first_repeat(names: list[str]) -> str:
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            return name
+        seen.add(name)
+    return ""
+
+
+def _check_tree(model: ModelDescription) -> None:
+    """One root, every other link the child of exactly one joint, every link reachable from the root."""
+    parents: dict[str, str] = {}
+    for joint in model.joints:
+        if joint.child in parents:
+            raise ModelError(f"link {joint.child} is the child of joints {parents[joint.child]} and {joint.name}: "
+                             f"closed loops are not supported; keep one joint and drop the other")
+        parents[joint.child] = joint.name
+    roots = [b.name for b in model.bodies if b.name not in parents]
+    if len(roots) != 1:
+        listed = ", ".join(roots) if roots else "none (every link has a parent: a loop)"
+        raise ModelError(f"the model must have exactly one root link, found {listed}; "
+                         f"connect the links into one tree")
+    if roots[0] != model.root:
+        raise ModelError(f"root link {model.root} is the child of a joint; the root is {roots[0]}")
+    children: dict[str, list[str]] = {}
+    for joint in model.joints:
+        children.setdefault(joint.parent, []).append(joint.child)
+    seen, stack = set(), [model.root]
+    while stack:
+        link = stack.pop()
+        seen.add(link)
+        stack.extend(children.get(link, []))
+    unreachable = [b.name for b in model.bodies if b.name not in seen]
+    if unreachable:
+        raise ModelError(f"links {', '.join(unreachable)} form a loop cut off from root {model.root}; "
+                         f"connect them into one tree")

@@ -1,0 +1,45 @@
+"""Link frames of a :class:`ModelDescription` at a configuration, computed from what the file says.
+
+Poses are (R, p): R (3, 3) the link frame's axes in the world, p (3,) m its
+origin. q : (nq,) in the description's moving-joint order (rad or m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engines.model.description import ModelDescription
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """URDF's fixed-axis roll, pitch, yaw (rad) as a rotation matrix Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def axis_rotation(axis, angle: float) -> np.ndarray:
+    """Rotation by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
+
+
+def link_poses(model: ModelDescription, q=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Link name -> (R, p) in the world at ``q`` (zeros when None); the root at the world's origin."""
+    values = dict(zip((j.name for j in model.moving_joints), np.zeros(model.nq) if q is None else q))
+    poses = {model.root: (np.eye(3), np.zeros(3))}
+    for joint in model.joints:  # depth-first: the parent's pose is known
+        r_parent, p_parent = poses[joint.parent]
+        r = r_parent @ rpy_matrix(joint.rpy)
+        p = p_parent + r_parent @ np.asarray(joint.xyz, dtype=float)
+        if joint.type in ("revolute", "continuous"):
+            r = r @ axis_rotation(joint.axis, values[joint.name])
+        elif joint.type == "prismatic":
+            p = p + r @ (np.asarray(joint.axis, dtype=float) * values[joint.name])
+        poses[joint.child] = (r, p)
+    return poses

@@ -1,0 +1,131 @@
+"""PyBullet's import of a model file: ``loadURDF`` (or ``loadMJCF``) in a DIRECT client of its own.
+
+Import options: useFixedBase = True, flags = URDF_USE_INERTIA_FROM_FILE
+(otherwise PyBullet recomputes inertia from collision shapes), gravity
+(0, 0, −9.81). Linear, angular and joint damping set to 0 and every joint
+motor disabled. M is ``calculateMassMatrix``, the bias
+``calculateInverseDynamics`` at zero acceleration. PyBullet has no
+forward-dynamics call: the acceleration is measured from one step of
+dt = 1e-3 (its multibody step is semi-implicit Euler, v₁ = v₀ + dt·a(q₀, v₀)).
+Its prints (C-level stdout, stderr) are kept out of the caller's output.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from engines.model.description import ModelDescription
+from engines.model.inertia import world_inertia
+from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.source import ModelSource
+from engines.pybullet import _pb as pb, _pybullet_version, quiet_output
+
+NAME = "pybullet"
+#: The step that measures an acceleration (s).
+STEP = 1e-3
+
+
+def version() -> str:
+    return _pybullet_version()
+
+
+def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
+    text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    with quiet_output():
+        client = pb.connect(pb.DIRECT)
+    try:
+        # loadURDF reads a file: the stripped text goes next to the original so relative paths still resolve.
+        suffix = ".urdf" if source.format == "urdf" else ".xml"
+        handle, name = tempfile.mkstemp(suffix=suffix, prefix=".xval-", dir=_writable(source.path.parent))
+        with os.fdopen(handle, "w") as stream:
+            stream.write(text)
+        try:
+            with quiet_output():
+                if source.format == "urdf":
+                    body = pb.loadURDF(name, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
+                                       physicsClientId=client)
+                else:
+                    bodies = pb.loadMJCF(name, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+                    body = bodies[0] if len(bodies) == 1 else -1
+        finally:
+            os.unlink(name)
+        if body < 0:
+            raise Refused("pybullet could not load the file (loadURDF/loadMJCF gave no single multibody)")
+    except pb.error as exc:
+        pb.disconnect(client)
+        raise Refused(str(exc)) from None
+    options = {"useFixedBase": "True", "flags": "URDF_USE_INERTIA_FROM_FILE"}
+    return PyBulletModel(client, body, description, options, notes)
+
+
+def _writable(folder: Path) -> str:
+    return str(folder) if os.access(folder, os.W_OK) else tempfile.gettempdir()
+
+
+class PyBulletModel(LoadedModel):
+    engine = NAME
+
+    def __init__(self, client: int, body: int, description: ModelDescription, options, notes=()):
+        super().__init__(description, options, (*notes, "linear, angular and joint damping set to 0; joint "
+                                                "motors off; acceleration measured from one 1e-3 s step"))
+        self.client, self.body = client, body
+        kw = {"physicsClientId": client}
+        pb.setGravity(0, 0, -GRAVITY, **kw)
+        pb.setPhysicsEngineParameter(fixedTimeStep=STEP, numSubSteps=0, **kw)
+        self.n_joints = pb.getNumJoints(body, **kw)
+        infos = [pb.getJointInfo(body, k, **kw) for k in range(self.n_joints)]
+        self.link_names = [info[12].decode() for info in infos]
+        self.movable = [k for k, info in enumerate(infos) if info[2] != pb.JOINT_FIXED]
+        names = [infos[k][1].decode() for k in self.movable]
+        self.index = index_map(description, names)  # description order -> position among movable joints
+        self.joints = [self.movable[k] for k in self.index]
+        for link in range(-1, self.n_joints):
+            pb.changeDynamics(body, link, linearDamping=0, angularDamping=0, jointDamping=0, **kw)
+        pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
+
+    def _full(self, values) -> list[float]:
+        full = np.zeros(len(self.movable))
+        full[self.index] = values
+        return full.tolist()
+
+    def mass_matrix(self, q):
+        full = np.array(pb.calculateMassMatrix(self.body, self._full(q), physicsClientId=self.client))
+        return full[np.ix_(self.index, self.index)]
+
+    def bias(self, q, v):
+        zeros = [0.0] * len(self.movable)
+        tau = pb.calculateInverseDynamics(self.body, self._full(q), self._full(v), zeros, physicsClientId=self.client)
+        return np.array(tau)[self.index]
+
+    def forward(self, q, v, tau):
+        kw = {"physicsClientId": self.client}
+        for joint, position, velocity in zip(self.joints, q, v):
+            pb.resetJointState(self.body, joint, position, velocity, **kw)
+        pb.setJointMotorControlArray(self.body, self.joints, pb.TORQUE_CONTROL, forces=list(tau), **kw)
+        with quiet_output():
+            pb.stepSimulation(**kw)
+        after = np.array([state[1] for state in pb.getJointStates(self.body, self.joints, **kw)])
+        return (after - np.asarray(v)) / STEP
+
+    def link_inertias(self):
+        kw = {"physicsClientId": self.client}
+        for joint in self.joints:
+            pb.resetJointState(self.body, joint, 0.0, 0.0, **kw)
+        found = {}
+        for link, name in enumerate(self.link_names):
+            info = pb.getDynamicsInfo(self.body, link, **kw)
+            state = pb.getLinkState(self.body, link, computeForwardKinematics=True, **kw)
+            # state[0], state[1]: the inertial frame's world position and orientation; info[2]: its diagonal.
+            rotation = np.array(pb.getMatrixFromQuaternion(state[1])).reshape(3, 3)
+            found[name] = world_inertia(info[0], np.zeros(3), np.diag(info[2]), rotation, state[0])
+        return found
+
+    def __del__(self):
+        try:
+            pb.disconnect(self.client)
+        except Exception:  # the interpreter is ending, or the client is gone
+            pass

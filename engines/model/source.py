@@ -1,0 +1,99 @@
+"""Where a model file comes from and the text handed to each engine.
+
+MODEL is a path or ``pybullet_data:<path>`` (a file PyBullet ships,
+under ``pybullet_data.getDataPath()``). The format follows the root
+element: ``<robot>`` is URDF, ``<mujoco>`` MJCF. Dynamics need no meshes:
+:meth:`ModelSource.engine_text` drops every ``<visual>`` and ``<collision>``
+of a URDF (and, when asked, every ``<mimic>``) before an engine sees it, so
+missing mesh files cannot stop an import; the notes say what was dropped.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+from engines.model.description import ModelError
+
+PREFIX = "pybullet_data:"
+FORMATS = {"robot": "urdf", "mujoco": "mjcf"}
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """label : MODEL as given. path : the file. format : 'urdf' or 'mjcf'. text : the file's text."""
+
+    label: str
+    path: Path
+    format: str
+    text: str
+
+    @property
+    def root(self) -> ET.Element:
+        return ET.fromstring(self.text)
+
+    def engine_text(self, drop_mimic: bool = False) -> tuple[str, tuple[str, ...]]:
+        """The text engines load (URDF without <visual>/<collision>, MJCF as it is) and notes saying what went."""
+        if self.format != "urdf":
+            return self.text, ()
+        root = self.root
+        dropped = {"visual": 0, "collision": 0, "mimic": 0}
+        missing: set[str] = set()
+        for parent in root.iter():
+            for child in list(parent):
+                if child.tag in ("visual", "collision") or (drop_mimic and child.tag == "mimic"):
+                    dropped[child.tag] += 1
+                    missing.update(self._missing_meshes(child))
+                    parent.remove(child)
+        notes = []
+        if dropped["visual"] or dropped["collision"]:
+            note = (f"dynamics need no geometry: {dropped['visual']} <visual> and {dropped['collision']} "
+                    f"<collision> elements removed before import")
+            if missing:
+                note += f" ({len(missing)} mesh files they name are not there: {', '.join(sorted(missing)[:3])}"
+                note += ", …)" if len(missing) > 3 else ")"
+            notes.append(note)
+        if dropped["mimic"]:
+            notes.append(f"{dropped['mimic']} <mimic> elements removed: each mimic joint is an independent "
+                         f"coordinate here (the tree's M, bias and accelerations, no coupling constraint)")
+        return ET.tostring(root, encoding="unicode"), tuple(notes)
+
+    def _missing_meshes(self, element: ET.Element) -> set[str]:
+        names = set()
+        for mesh in element.iter("mesh"):
+            name = mesh.get("filename", "")
+            local = name.removeprefix("file://")
+            if local.startswith("package://"):  # no ROS workspace: try the package's path under the file's folder
+                rest = local[len("package://"):]
+                tries = [rest, rest.partition("/")[2]]
+            else:
+                tries = [local]
+            if local and not any(t and (self.path.parent / t).is_file() for t in tries):
+                names.add(name)
+        return names
+
+
+def resolve(model: str, base: Path | None = None) -> ModelSource:
+    """Read MODEL (a path, relative to ``base`` when given, or ``pybullet_data:<path>``); ModelError if unusable."""
+    if model.startswith(PREFIX):
+        import pybullet_data
+
+        path = Path(pybullet_data.getDataPath()) / model[len(PREFIX):]
+    else:
+        path = Path(model) if base is None or Path(model).is_absolute() else base / model
+    if not path.is_file():
+        raise ModelError(f"model {model}: no such file ({path}); give a path to a .urdf or MJCF .xml file, "
+                         f"or pybullet_data:<path> such as pybullet_data:kuka_iiwa/model.urdf")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"model {model}: cannot read {path} ({exc}); give a readable UTF-8 text file") from None
+    try:
+        tag = ET.fromstring(text).tag
+    except ET.ParseError as exc:
+        raise ModelError(f"model {model}: not well-formed XML ({exc}); fix the file") from None
+    if tag not in FORMATS:
+        raise ModelError(f"model {model}: root element <{tag}> is neither URDF's <robot> nor MJCF's <mujoco>; "
+                         f"give a URDF or MJCF file")
+    return ModelSource(model, path, FORMATS[tag], text)

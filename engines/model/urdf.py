@@ -1,0 +1,131 @@
+"""Our own reader of a URDF file into a :class:`ModelDescription` (xml.etree; what the file says).
+
+Readings of the URDF specification stated once: a link without
+``<inertial>`` has mass 0 and inertia 0; a missing ``<origin>`` is the
+identity; a missing ``<axis>`` is (1, 0, 0), and an axis is normalised; a
+continuous joint has no position limits whatever ``<limit>`` says; the
+inertia is given about the centre of mass in the inertial frame, which
+``<inertial><origin rpy>`` rotates (the description stores it in link axes).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from engines.model.description import Body, Inertial, Joint, Limits, ModelDescription, ModelError
+from engines.model.kinematics import rpy_matrix
+from engines.model.source import ModelSource
+
+
+def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescription:
+    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold."""
+    robot = source.root
+    links = robot.findall("link")
+    joints = [_joint(element) for element in robot.findall("joint")]
+    bodies = {}
+    for element in links:
+        name = _name(element, "link")
+        bodies[name] = (name, _inertial(element, name))
+    if not bodies:
+        raise ModelError(f"model {source.label}: no <link> elements; a URDF needs at least one link")
+    parent_of = {j.child: j for j in joints}
+    children: dict[str, list[Joint]] = {}
+    for joint in joints:
+        children.setdefault(joint.parent, []).append(joint)
+    roots = [name for name in bodies if name not in parent_of]
+    root = roots[0] if len(roots) == 1 else next(iter(bodies))
+    # Depth-first from the root, children in file order; ModelDescription refuses what is not one tree.
+    ordered_joints: list[Joint] = []
+    ordered_links = [root] if len(roots) == 1 else []
+    stack = list(reversed(children.get(root, []))) if len(roots) == 1 else []
+    while stack:
+        joint = stack.pop()
+        if joint.child in ordered_links:
+            break  # a loop: the description names it
+        ordered_joints.append(joint)
+        ordered_links.append(joint.child)
+        stack.extend(reversed(children.get(joint.child, [])))
+    ordered_links += [n for n in bodies if n not in ordered_links]
+    ordered_joints += [j for j in joints if j not in ordered_joints]
+    body_records = tuple(Body(n, parent_of[n].name if n in parent_of else None, bodies[n][1]) for n in ordered_links)
+    return ModelDescription(name=robot.get("name", source.path.stem), source=source.label, format="urdf",
+                            root=root, bodies=body_records, joints=tuple(ordered_joints),
+                            mimic_independent=mimic_independent)
+
+
+def _name(element: ET.Element, kind: str) -> str:
+    name = element.get("name")
+    if not name:
+        raise ModelError(f"a <{kind}> has no name attribute; give every {kind} a unique name")
+    return name
+
+
+def _numbers(element: ET.Element | None, attribute: str, default: tuple[float, ...], where: str) -> tuple[float, ...]:
+    if element is None or element.get(attribute) is None:
+        return default
+    text = element.get(attribute, "")
+    try:
+        values = tuple(float(v) for v in text.split())
+    except ValueError:
+        values = ()
+    if len(values) != len(default) or not all(math.isfinite(v) for v in values):
+        raise ModelError(f"{where}: {element.tag} {attribute}={text!r} is not {len(default)} finite numbers; fix it")
+    return values
+
+
+def _number(element: ET.Element | None, attribute: str, default: float | None, where: str) -> float | None:
+    if element is None or element.get(attribute) is None:
+        return default
+    return _numbers(element, attribute, (0.0,), where)[0]
+
+
+def _inertial(link: ET.Element, name: str) -> Inertial:
+    element = link.find("inertial")
+    if element is None:
+        return Inertial(declared=False)
+    where = f"link {name}"
+    origin = element.find("origin")
+    xyz = _numbers(origin, "xyz", (0.0, 0.0, 0.0), where)
+    rpy = _numbers(origin, "rpy", (0.0, 0.0, 0.0), where)
+    mass = _number(element.find("mass"), "value", 0.0, where)
+    tensor = element.find("inertia")
+    ixx, ixy, ixz, iyy, iyz, izz = (_number(tensor, k, 0.0, where) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+    local = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    rotation = rpy_matrix(rpy)
+    in_link = rotation @ local @ rotation.T
+    return Inertial(mass=mass, com=xyz, inertia=tuple(tuple(float(v) for v in row) for row in in_link),
+                    declared=True, rotated=any(abs(a) > 0 for a in rpy))
+
+
+def _joint(element: ET.Element) -> Joint:
+    name = _name(element, "joint")
+    where = f"joint {name}"
+    kind = element.get("type", "")
+    parent, child = element.find("parent"), element.find("child")
+    if parent is None or child is None or not parent.get("link") or not child.get("link"):
+        raise ModelError(f"{where}: needs <parent link=…> and <child link=…>; add them")
+    origin = element.find("origin")
+    axis = np.array(_numbers(element.find("axis"), "xyz", (1.0, 0.0, 0.0), where))
+    norm = float(np.linalg.norm(axis))
+    if kind in ("revolute", "continuous", "prismatic"):
+        if norm == 0:
+            raise ModelError(f"{where}: <axis xyz=\"0 0 0\"> has no direction; give the joint's axis")
+        axis = axis / norm
+    limit, dynamics, mimic = element.find("limit"), element.find("dynamics"), element.find("mimic")
+    bounded = kind in ("revolute", "prismatic")
+    limits = Limits(
+        lower=_number(limit, "lower", 0.0 if limit is not None else None, where) if bounded else None,
+        upper=_number(limit, "upper", 0.0 if limit is not None else None, where) if bounded else None,
+        effort=_number(limit, "effort", None, where),
+        velocity=_number(limit, "velocity", None, where),
+    )
+    return Joint(
+        name=name, type=kind, parent=parent.get("link"), child=child.get("link"),
+        axis=tuple(float(a) for a in axis), xyz=_numbers(origin, "xyz", (0.0, 0.0, 0.0), where),
+        rpy=_numbers(origin, "rpy", (0.0, 0.0, 0.0), where), limits=limits,
+        damping=_number(dynamics, "damping", 0.0, where), friction=_number(dynamics, "friction", 0.0, where),
+        mimic=None if mimic is None else mimic.get("joint", "?"),
+    )
