@@ -1,26 +1,7 @@
 """The ground truth: reduced-coordinate equations integrated at tight tolerances.
 
-Independent of ``ours/``. Two formulations cover the catalog:
-
-- **Planar chain** (bead, double pendulum, chain): a Pin to a fixed anchor
-  followed by Rods along a path, in the x–z plane. Generalized coordinates
-  are the absolute link angles θ_i from the downward vertical, so every
-  constraint holds by construction. Lagrange's equations give
-  ``M(θ) θ̈ = −S(θ) θ̇² + G(θ)`` with
-  ``M_ij = μ_ij l_i l_j cos(θ_i − θ_j)``, ``S_ij = μ_ij l_i l_j sin(θ_i − θ_j)``,
-  ``G_i = μ_ii l_i (g_x cos θ_i + g_z sin θ_i)`` and
-  ``μ_ij = Σ_{k ≥ max(i, j)} m_k``.
-- **Spherical pendulum** (one particle pinned in 3-D): spherical angles
-  (θ polar from −z, φ azimuth). The poles θ = 0, π are the only
-  singularities; with a nonzero vertical angular momentum L_z the path never
-  reaches them, and with L_z = 0 the motion is planar and the chain
-  formulation applies (so such a scene is refused here with that reason).
-
-Both are integrated with ``scipy.integrate.solve_ivp(method="DOP853")`` at
-rtol = atol = 1e-12 by default, with dense output, so a solution can be
-evaluated at any engine's sample times. Constraint forces come from the
-particle accelerations: the force link k exerts on the particle below it is
-``f_k = m_k (a_k − g) + f_{k+1}`` (Newton's law, from the free end up).
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/reference.py``.
 """
 
 from __future__ import annotations

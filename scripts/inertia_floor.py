@@ -35,6 +35,9 @@ def _error(engine, scene, reference, variant, dt, ratio=None):
     return float(position_error(run.positions, reference.at(run.t)[0]).max()), run
 
 
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
+
+
 def figures(quick: bool = False) -> dict[str, float]:
     f: dict[str, float] = {}
     # MuJoCo hinge-rk4 at dt = 1e-4 over 2 s: its error is the inertia's (RK4's own is ~1e-14).
@@ -62,10 +65,6 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["mild_hinge_error"] = _error(MUJOCO, scene, reference, "hinge", 1e-3)[0]
     return f
 
-
-D = "docs/engines.md"
-QUOTES = load_quotes(__file__)
-ROWS: list = []
 
 
 def main() -> None:

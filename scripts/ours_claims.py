@@ -188,6 +188,9 @@ def stability(f: dict) -> None:
                 f[f"edge_{integrator}_{tag}_{int(theta_deg)}deg"] = float(min(failing)) if failing else 1.0
 
 
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
+
+
 def figures(quick: bool = False) -> dict[str, float]:
     ours.compile_all()
     f: dict[str, float] = {}
@@ -200,10 +203,6 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["rho_1.0005_500_steps"] = 1.0005**500
     return f
 
-
-D = "docs/ours.md"
-QUOTES = load_quotes(__file__)
-ROWS: list = []
 
 
 def main() -> None:

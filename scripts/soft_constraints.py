@@ -30,6 +30,9 @@ def _run(engine, scene, variant, dt, options=None):
     return run, float((e[-1] - e[0]) / scene.characteristic_energy)
 
 
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
+
+
 def figures(quick: bool = False) -> dict[str, float]:
     f: dict[str, float] = {}
     bead = catalog.build("bead", {"duration": 10.0})
@@ -58,10 +61,6 @@ def figures(quick: bool = False) -> dict[str, float]:
         position_error(run.positions, reference.at(run.t)[0])[-1]) / length
     return f
 
-
-D = "docs/engines.md"
-QUOTES = load_quotes(__file__)
-ROWS: list = []
 
 
 def main() -> None:
