@@ -284,6 +284,19 @@ options = { method = "rk4", order = 4 }
     assert made.version == "1.2" and made.capabilities == {"constraint-forces"}
 
 
+def test_reading_a_suite_registers_nothing(tmp_path):
+    # A suite read is pure: its command engine travels with the suite to the run, and the
+    # process-wide table of command labels (what `command/<label>` ids resolve against) is untouched.
+    from compare.suite.reader import load_suite
+
+    (tmp_path / "suite.toml").write_text(SUITE_HEAD + '[[engines]]\ncommand = ["prog"]\nlabel = "unread"\n')
+    before = command.registered_labels()
+    (spec,) = load_suite(tmp_path / "suite.toml").engines
+    assert spec.engine.spec.label == "unread" and command.registered_labels() == before
+    with pytest.raises(UserError, match="no command engine labelled 'unread' here"):
+        registry.load_engine("command/unread")
+
+
 @pytest.mark.parametrize("entry, message", [
     ('command = ["prog"]', "suite.toml:7: engines[0]: missing label; a command needs one"),
     ('command = ["prog"]\nlabel = "a"\nid = "ours"', "engines[0].id: unknown key; id and command are alternatives"),
