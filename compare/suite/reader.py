@@ -383,9 +383,9 @@ class _Reader:
             self.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
             self.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
         )
-        # [tolerances] ends up in ``gate``; checked here first for its own messages (positive numbers, line numbers).
-        for key, value in self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC)).items():
-            self.number(f"tolerances.{key}", value)
+        # [tolerances] ends up in ``gate``: its keys checked here (with line numbers), its values by gate_settings,
+        # by the same rule as [gate]'s (a number >= 0; 0 asks for no change at all).
+        self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC))
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)
