@@ -68,7 +68,7 @@ def command(engine_id, options, scene_name, params, duration, dts, fmt, output) 
     result = probe(engine_id if "/" in engine_id else f"{engine_id}/{variant}", scene, engine_options, steps)
     document = json.dumps(result.to_dict(), indent=2)
     if target is not None:
-        atomic_write_text(target, document + "\n")
+        atomic_write_text(target, json.dumps(result.to_file(), indent=2) + "\n")
     click.echo(document if fmt == "json" else table(result))
     if result.hidden_dissipation is None:
         raise click.exceptions.Exit(1)
