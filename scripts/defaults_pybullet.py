@@ -30,7 +30,7 @@ from typing import Any, Mapping
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Row, load_quotes, report  # noqa: E402
+from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines import catalog
@@ -40,16 +40,6 @@ from engines.trajectory import tensions
 
 #: Horizon (s) of the position- and tension-error columns.
 ERROR_HORIZON = 1.0
-
-
-@dataclass(frozen=True)
-class Case:
-    """A scene and a time step to measure settings on."""
-
-    label: str
-    scene: str
-    parameters: Mapping[str, Any]
-    dt: float
 
 
 @dataclass(frozen=True)

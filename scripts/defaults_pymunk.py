@@ -27,13 +27,11 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from dataclasses import dataclass
-from typing import Any, Mapping
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Row, load_quotes, report  # noqa: E402
+from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error  # noqa: E402
 from engines import catalog
@@ -44,16 +42,6 @@ from engines.trajectory import tensions
 
 #: Horizon (s) of the position-error column.
 ERROR_HORIZON = 1.0
-
-
-@dataclass(frozen=True)
-class Case:
-    """A scene and a time step to measure the settings on."""
-
-    label: str
-    scene: str
-    parameters: Mapping[str, Any]
-    dt: float
 
 
 CASES = (

@@ -21,7 +21,7 @@ import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Any, Iterable, Mapping
 
 ROOT = Path(__file__).resolve().parent.parent
 #: A quoted number may differ from the measured one by this fraction (round-off of the quote,
@@ -40,6 +40,16 @@ class Quote:
     key: str
     context: str = ""  # words around it in the doc ("{}" marks the number), when the bare number is ambiguous
     unit: float = 1.0  # the figure is the quoted number times this (0.01 for a figure in m quoted in cm)
+
+
+@dataclass(frozen=True)
+class Case:
+    """A scene of the catalog (``scene`` with ``parameters``) and a time step ``dt`` (s) a script measures on."""
+
+    label: str
+    scene: str
+    parameters: Mapping[str, Any]
+    dt: float
 
 
 @dataclass(frozen=True)
