@@ -128,7 +128,7 @@ def _main(argv: list[str] | None) -> None:
     except UserError as exc:
         fail(str(exc))
     except click.UsageError as exc:
-        hint = f" (see 'xval {exc.ctx.info_name} --help')" if exc.ctx and exc.ctx.info_name != "xval" else ""
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx and exc.ctx.info_name != "xval" else ""
         fail(f"{exc.format_message()}{hint}")
     except click.ClickException as exc:
         fail(exc.format_message())

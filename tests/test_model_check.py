@@ -219,6 +219,7 @@ def test_the_kuka_arm_agrees_everywhere(capsys):
     assert [(e["engine"], e["loaded"], e["agrees"]) for e in report["engines"]] == [(e, True, True) for e in ENGINES]
     assert max(e[q] for e in report["engines"] for q in ("mass_matrix", "bias", "forward")) < 1e-11
     assert report["reference"]["name"] == "pinocchio" and report["states"] == 20
+    assert report["diagnosis"] == [] and report["reference"]["diagnosis"] == []
 
 
 def test_the_panda_flags_mujoco_and_drake_and_names_the_two_links(capsys):
@@ -291,3 +292,10 @@ def test_the_mjcf_double_pendulum_is_the_urdf_one_and_which_engines_hold_its_ine
     assert report.notes == ("the description of an MJCF file is MuJoCo's compiled model",)
     dart = {name: link.mass for name, link in loaded(path, "dart").link_inertias().items()}
     assert dart == {"rod1": 1.0, "rod2": 1.0}
+
+
+def test_an_unknown_engine_is_a_usage_error_pointing_at_the_subcommand(capsys):
+    code, out, err = run_cli(capsys, "model", "check", "pybullet_data:kuka_iiwa/model.urdf", "--engine", "ode")
+    assert (code, out) == (2, "")
+    assert err == ("xval: error: Invalid value for '--engine': 'ode' is not one of 'mujoco', 'pybullet', 'drake', "
+                   "'dart'. (see 'xval model check --help')\n")

@@ -131,3 +131,30 @@ def test_the_mujoco_compiler_options_are_stated():
     src = source.resolve(KUKA)
     assert importer("mujoco").load(src, urdf.read(src)).options == {
         "fusestatic": "true", "inertiafromgeom": "auto", "balanceinertia": "false", "discardvisual": "true"}
+
+
+MJCF = '<mujoco><worldbody><body name="b">{joints}<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>'
+
+
+@pytest.mark.parametrize("joints, message", [
+    ('<freejoint name="float"/>', r"^joint float: type 'free' is not supported; the base is welded to the world; remove the freejoint$"),
+    ('<joint name="ball" type="ball"/>', r"^joint ball: type 'ball' is not supported; use hinge or slide joints$"),
+    ('<joint name="a" axis="1 0 0"/><joint name="b" axis="0 1 0"/>',
+     r"^body b: 2 joints in one body are not supported; give each joint a body of its own$"),
+])
+def test_the_mjcf_reader_refuses_what_the_description_cannot_hold(tmp_path, joints, message):
+    from engines.model import mjcf
+
+    (tmp_path / "m.xml").write_text(MJCF.format(joints=joints))
+    with pytest.raises(ModelError, match=message):
+        mjcf.read(source.resolve(str(tmp_path / "m.xml")))
+
+
+def test_a_joint_that_moves_nothing_is_refused_before_any_engine_runs(tmp_path):
+    from compare.model.parity import check
+
+    text = robot(LINK.format(n="base", m=1, i=0.1) + '<link name="empty"/>',
+                 '<joint name="idle" type="continuous"><parent link="base"/><child link="empty"/></joint>')
+    (tmp_path / "m.urdf").write_text(text)
+    with pytest.raises(ModelError, match=r"joint idle moves no mass or inertia \(M is singular\); give the links it moves an <inertial>$"):
+        check(str(tmp_path / "m.urdf"), states=2)

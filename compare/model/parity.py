@@ -99,6 +99,16 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
     return States(q, v, tau)
 
 
+def _require_invertible(model: ModelDescription, reference: LoadedModel, label: str) -> None:
+    """ModelError naming the joints that move nothing with mass or inertia (M singular: no forward dynamics)."""
+    m = reference.mass_matrix(np.zeros(model.nq))
+    scale = max(float(np.abs(m).max()), 1e-300)
+    idle = [j.name for j, d in zip(model.moving_joints, np.diag(m)) if d <= 1e-12 * scale]
+    if idle:
+        raise ModelError(f"model {label}: joint {', '.join(idle)} moves no mass or inertia (M is singular); "
+                         f"give the links it moves an <inertial>")
+
+
 def evaluate(loaded: LoadedModel, states: States) -> dict[str, list[np.ndarray]]:
     """Each quantity at every state."""
     return {
@@ -109,9 +119,10 @@ def evaluate(loaded: LoadedModel, states: States) -> dict[str, list[np.ndarray]]
 
 
 def relative_difference(values: list[np.ndarray], reference: list[np.ndarray]) -> float:
-    scale = max(float(np.abs(r).max(initial=0.0)) for r in reference)
-    worst = max(float(np.abs(np.asarray(v) - r).max(initial=0.0)) for v, r in zip(values, reference))
-    if not math.isfinite(worst):
+    """Largest |value − reference| over entries and states over the largest |reference|; inf for a non-finite value."""
+    scale = float(np.max([np.abs(r).max(initial=0.0) for r in reference]))
+    worst = float(np.max([np.abs(np.asarray(v) - r).max(initial=0.0) for v, r in zip(values, reference)]))
+    if not math.isfinite(worst):  # np.max propagates NaN, where Python's max would skip it
         return math.inf
     return worst / scale if scale > 0 else worst
 
@@ -141,12 +152,13 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
         reference = importer(REFERENCE).load(source, model)
     except Refused as exc:
         raise ModelError(f"model {label}: the reference (pinocchio) cannot load it: {exc}") from None
+    _require_invertible(model, reference, label)
     sample = sample_states(model, reference, states, seed)
     expected = evaluate(reference, sample)
-    findings: dict[str, list[Finding]] = {}
-    results = []
+    results, findings = [], {}
     for name in engines:
-        results.append(_one(name, source, model, sample, expected, findings, balance_inertia))
+        result, findings[name] = _one(name, source, model, sample, expected, balance_inertia)
+        results.append(result)
     reference_findings = diagnose(model, reference.link_inertias())
     notes = (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
     ref_entry = EngineParity(REFERENCE, importer(REFERENCE).version(), True, True, 0.0, 0.0, 0.0,
@@ -156,7 +168,8 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
                         tuple(results), notes, tuple(sentences(findings)))
 
 
-def _one(name, source, model, sample, expected, findings, balance_inertia) -> EngineParity:
+def _one(name, source, model, sample, expected, balance_inertia) -> tuple[EngineParity, list[Finding]]:
+    """One engine's verdict and its per-link findings (none when it did not load or failed)."""
     try:
         module = importer(name)
         version = module.version()
@@ -164,19 +177,19 @@ def _one(name, source, model, sample, expected, findings, balance_inertia) -> En
         loaded = module.load(source, model, **options)
     except Refused as exc:
         return EngineParity(name, _version_of(name), False, False, message=str(exc),
-                            options=_stated_options(name, balance_inertia))
+                            options=_stated_options(name, balance_inertia)), []
     except Exception as exc:  # an importer that crashes fails alone; the others are still compared
-        return EngineParity(name, _version_of(name), False, False, message=f"failed: {type(exc).__name__}: {exc}")
+        return EngineParity(name, _version_of(name), False, False, message=f"failed: {type(exc).__name__}: {exc}"), []
     try:
         got = evaluate(loaded, sample)
         differences = {q: relative_difference(got[q], expected[q]) for q in QUANTITIES}
-        findings[name] = diagnose(model, loaded.link_inertias())
+        findings = diagnose(model, loaded.link_inertias())
     except Exception as exc:  # an engine that raises on a state fails alone; the others are still compared
         return EngineParity(name, version, True, False, message=f"failed: {type(exc).__name__}: {exc}",
-                            options=loaded.options, notes=loaded.notes)
+                            options=loaded.options, notes=loaded.notes), []
     agrees = all(d <= TOLERANCE for d in differences.values())
     return EngineParity(name, version, True, agrees, **differences, options=loaded.options, notes=loaded.notes,
-                        diagnosis=tuple(sentences({name: findings[name]})))
+                        diagnosis=tuple(sentences({name: findings}))), findings
 
 
 def _stated_options(name: str, balance_inertia: bool) -> dict[str, str]:

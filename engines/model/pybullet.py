@@ -12,9 +12,10 @@ Its prints (C-level stdout, stderr) are kept out of the caller's output.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
-from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -38,32 +39,33 @@ def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
     with quiet_output():
         client = pb.connect(pb.DIRECT)
     try:
-        # loadURDF reads a file: the stripped text goes next to the original so relative paths still resolve.
-        suffix = ".urdf" if source.format == "urdf" else ".xml"
-        handle, name = tempfile.mkstemp(suffix=suffix, prefix=".xval-", dir=_writable(source.path.parent))
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-        try:
-            with quiet_output():
-                if source.format == "urdf":
-                    body = pb.loadURDF(name, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
+        with quiet_output():
+            if source.format == "urdf":
+                with _as_file(text) as path:
+                    body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
                                        physicsClientId=client)
-                else:
-                    bodies = pb.loadMJCF(name, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
-                    body = bodies[0] if len(bodies) == 1 else -1
-        finally:
-            os.unlink(name)
+            else:  # an MJCF file is loaded as it is (its includes resolve from its own folder)
+                bodies = pb.loadMJCF(str(source.path), flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+                body = bodies[0] if len(bodies) == 1 else -1
         if body < 0:
-            raise Refused("pybullet could not load the file (loadURDF/loadMJCF gave no single multibody)")
-    except pb.error as exc:
+            raise Refused("pybullet could not load the file (loadMJCF gave no single multibody)")
+    except (pb.error, Refused) as exc:
         pb.disconnect(client)
         raise Refused(str(exc)) from None
     options = {"useFixedBase": "True", "flags": "URDF_USE_INERTIA_FROM_FILE"}
     return PyBulletModel(client, body, description, options, notes)
 
 
-def _writable(folder: Path) -> str:
-    return str(folder) if os.access(folder, os.W_OK) else tempfile.gettempdir()
+@contextlib.contextmanager
+def _as_file(text: str) -> Iterator[str]:
+    """loadURDF reads a file: the stripped text (no meshes left to resolve) in a temporary one, removed after."""
+    handle, name = tempfile.mkstemp(suffix=".urdf", prefix="xval-model-")
+    try:
+        with os.fdopen(handle, "w") as stream:
+            stream.write(text)
+        yield name
+    finally:
+        os.unlink(name)
 
 
 class PyBulletModel(LoadedModel):
