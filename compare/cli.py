@@ -26,8 +26,8 @@ from engines.errors import UserError
 #: Built-in verbs: name -> the module defining a click command ``command`` of that name.
 COMMAND_MODULES = {
     name: f"compare.commands.{name}"
-    for name in ("scenes", "engines", "simulate", "score", "run", "show", "baseline", "gate", "stability", "history", "probe",
-                 "model")
+    for name in ("scenes", "engines", "simulate", "score", "run", "show", "verdict", "baseline", "gate", "stability",
+                 "history", "probe", "model")
 }
 
 

@@ -15,7 +15,8 @@ from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
 from compare.results.sweep import sweeps
 from compare.results.table import scene_tables
-from compare.results.verdict import format_verdicts, scene_verdicts
+from compare.results.verdict import scene_verdicts
+from compare.results.verdict_format import format_verdicts
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "default.toml"

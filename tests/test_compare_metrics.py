@@ -175,3 +175,10 @@ def test_observed_order_needs_three_points():
     fit = observed_order([1e-1, 1e-2], [1e-2, 1e-4])
     assert fit.order is None
     assert fit.reason == "only 2 consecutive dt with error in [1e-08, 0.1] m; need 3"
+
+
+def test_a_value_just_past_its_bound_is_printed_with_the_digits_that_show_the_excess():
+    status, message = apply_bounds("ok", "", _metrics(1.0000004, 0.1000021), Bounds(1.0, 0.1), BEAD)
+    assert status == "unstable"
+    assert message == ("energy drift 1.0000004 E* exceeds the bound 1 E*; "
+                       "constraint error 0.100002 m exceeds the bound 0.1 L = 0.1 m")

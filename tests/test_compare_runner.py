@@ -224,7 +224,8 @@ def test_run_and_show_commands(tmp_path):
     show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=XVAL_ENV)
     table = show.stdout.splitlines()
     assert table[2] == "scene bead"
-    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order", "consistent"]
+    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order", "s/step",
+                                "[95", "%]", "consistent"]
     assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
     assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
     assert table[6] == "  compare_engines:MISBEHAVING/raise: RuntimeError: deliberate failure in the stepping loop"

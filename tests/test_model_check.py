@@ -222,6 +222,11 @@ def test_the_kuka_arm_agrees_everywhere(capsys):
     assert report["diagnosis"] == [] and report["reference"]["diagnosis"] == []
 
 
+def test_a_model_whose_bias_is_round_off_agrees():
+    """r2d2's joints all turn about vertical axes: |b| is 1e-18, measured against the sample's torques."""
+    assert verdicts("pybullet_data:r2d2.urdf") == dict.fromkeys(ENGINES, True)
+
+
 def test_the_panda_flags_mujoco_and_drake_and_names_the_two_links(capsys):
     code, out, err = run_cli(capsys, "model", "check", "pybullet_data:franka_panda/panda.urdf", "--states", "20")
     assert (code, err) == (1, "")

@@ -7,6 +7,7 @@ directory holds them; the numbers (errors, costs) are chosen so that every expec
 
 from __future__ import annotations
 
+import json
 import math
 import re
 
@@ -16,9 +17,9 @@ from compare.results.record import CaseRecord
 from compare.results.store import load_results
 from compare.results.sweep import sweeps
 from compare.results.verdict import (
-    best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, format_verdicts, pareto_front,
-    problems, scene_verdicts,
+    best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, pareto_front, problems, scene_verdicts,
 )
+from compare.results.verdict_format import clip, format_verdicts
 from report_support import run_suite_once
 from cli_support import run_cli
 
@@ -85,8 +86,8 @@ def test_focus_comparison_is_the_ratio_of_the_costs_to_reach_the_target():
     comparison = focus_comparison(runs, "a", 1e-6)
     # b reaches 1e-6 half way between its two runs in log terms: 10^-1.5 s/s; a needs 10^-2.5.
     assert comparison.ratio == pytest.approx(10.0, rel=1e-12)
-    assert comparison.describe() == "best a (a/x) reaches 1e-06 m 10× cheaper than the best other engine (b/y)"
-    assert focus_comparison(runs, "b", 1e-6).describe().startswith("best b (b/y) reaches 1e-06 m 10× dearer")
+    assert comparison.describe() == "best a (a/x) reaches 1e-06 m 10× [10, 10] cheaper than the best other engine (b/y)"
+    assert focus_comparison(runs, "b", 1e-6).describe().startswith("best b (b/y) reaches 1e-06 m 10× [10, 10] dearer")
 
 
 def test_a_solver_that_converges_to_the_wrong_answer_is_an_inconsistent_problem():
@@ -95,7 +96,7 @@ def test_a_solver_that_converges_to_the_wrong_answer_is_an_inconsistent_problem(
                    record("a/wrong", 0.001, 5e-2, 1e-1)], tolerance=1e-2)
     found = problems(runs)
     assert [(p.kind, p.engine) for p in found] == [("inconsistent", "a/wrong")]
-    assert "converges to something else" in found[0].text
+    assert found[0].text.startswith("converges to something 0.05 m from the reference: error stops falling at 0.05 m")
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +127,7 @@ def test_the_verdict_ranks_the_real_engines(small_verdicts):
     assert reaches["pymunk/pin"].how == "not reached"
     assert reaches["broken/raise"].how == "no ok run"
     text = format_verdicts(small_verdicts)
-    assert "bead:\n  most accurate at equal cost" in text
+    assert "bead:\n  cheapest to reach 1e-06 m, per family" in text and "\n  most accurate at equal cost" in text
     assert re.search(r"\n    failed       broken/raise: failed at dt 0\.01, 0\.003, 0\.001 s: RuntimeError", text)
 
 
@@ -167,7 +168,7 @@ def test_run_ends_with_the_verdict_and_shows_progress_as_asked(tiny_suite, tmp_p
     argv = ["run", str(tiny_suite), "--output", str(tmp_path / "out"), "--jobs", "1"]
     code, out, err = run_cli(capsys, *argv, *([] if mode == "default" else [mode]))
     assert code == 0, err
-    assert "bead:\n  most accurate at equal cost" in out
+    assert "bead:\n  cheapest to reach 1e-06 m" in out and "\n  most accurate at equal cost" in out
     assert re.search(r"\n    failed       broken/raise: failed at dt 0\.01, 0\.005 s", out), out
     assert "6 cases run in" in out
     per_case = [line for line in err.splitlines() if re.match(r"\[\s*\d+/6\] bead · ", line)]
@@ -213,3 +214,58 @@ def test_a_side_that_never_reaches_the_target_is_represented_by_its_closest_vari
     comparison = focus_comparison(runs, "a", 1e-6)
     assert comparison.ratio is None and comparison.focus.engine == "a/close"
     assert comparison.describe().startswith("to reach 1e-06 m: a/close not reached (best 1e-05 m); b/y not reached (best 0.001 m)")
+
+
+def test_a_plateaued_variant_is_never_called_more_accurate_than_one_that_keeps_converging():
+    # a/stuck: semi-implicit Euler stuck at 1.6e-3 m; b/rk4 converges past it to 1e-7 m. In the shared cost
+    # range (up to 1e-1 s/s) a's runs are the more accurate, but saying "N× more accurate" would mislead.
+    runs = sweeps([
+        record("a/stuck", 0.1, 2e-3, 1e-3, index=0), record("a/stuck", 0.01, 1.6e-3, 1e-2, index=0),
+        record("a/stuck", 0.001, 1.6e-3, 1e-1, index=0),
+        record("b/rk4", 0.1, 1e-1, 5e-3, index=1), record("b/rk4", 0.05, 5e-3, 1e-2, index=1),
+        record("b/rk4", 0.01, 1e-7, 2e-1, index=1),
+    ])
+    text = focus_comparison(runs, "a", 1e-8).describe()
+    assert "more accurate" not in text
+    assert text.endswith("; a/stuck stops at 0.0016 m, b/rk4 keeps converging (to 1e-07 m)")
+
+
+def test_families_whose_cost_ranges_do_not_overlap_get_no_equal_cost_statement():
+    runs = sweeps([
+        record("a/x", 0.1, 1e-2, 1e-5, index=0), record("a/x", 0.01, 1e-4, 1e-4, index=0),
+        record("b/y", 0.1, 1e-3, 1e-2, index=1), record("b/y", 0.01, 1e-5, 1e-1, index=1),
+    ])
+    assert focus_comparison(runs, "a", 1e-8).describe().endswith("; no cost range both sides ran in")
+
+
+def test_messages_are_cut_between_words_never_inside_a_number():
+    text = "unstable at dt 0.1 s: energy drift 3.57e+05 E* exceeds the bound 1 E*; constraint error 109.25 m"
+    for width in range(20, len(text)):
+        cut = clip(text, width)
+        assert len(cut) <= width and cut.endswith(" …")
+        assert text.startswith(cut[:-2]) and text[len(cut) - 2] == " "  # the cut falls on a space
+    assert clip(text, len(text)) == text
+
+
+def test_xval_verdict_gives_the_verdict_as_text_and_as_one_json_document(tiny_suite, tmp_path, capsys):
+    code, _, err = run_cli(capsys, "run", str(tiny_suite), "--output", str(tmp_path / "out"), "--jobs", "1", "-q")
+    assert code == 0, err
+    code, text, err = run_cli(capsys, "verdict", str(tmp_path / "out"))
+    assert code == 0, err
+    assert text.startswith("bead:\n  cheapest to reach 1e-06 m, per family")
+    code, out, err = run_cli(capsys, "verdict", str(tmp_path / "out"), "--format", "json")
+    assert code == 0, err
+    document = json.loads(out)
+    assert document["schema"] == "xval-verdict/1" and document["focus"] == "mujoco"
+    (bead,) = document["scenes"]
+    assert [w["family"] for w in bead["winners"]] == ["mujoco", "pymunk", "broken"]
+    models = {m["engine"]: m for m in bead["cost_models"]}
+    hinge = models["mujoco/hinge"]  # two timed cases: per-step ratios, not a fit
+    assert hinge["how"] == "ratio" and hinge["per_step_interval"][0] <= hinge["per_step"] <= hinge["per_step_interval"][1]
+    assert {c["engine"] for c in bead["consistency"]} == {"mujoco/hinge", "pymunk/pin", "broken/raise"}
+    assert [p["kind"] for p in bead["problems"]] == ["failed"]
+    assert bead["comparison"]["text"] == text.splitlines()[-3].strip()
+    code, out, err = run_cli(capsys, "verdict", str(tmp_path / "out"), "--focus", "nosuch")
+    assert code == 2 and out == ""
+    assert err == f"xval: error: --focus nosuch: no such engine family in {tmp_path / 'out'}; " \
+                  "choose one of mujoco, pymunk, broken\n"

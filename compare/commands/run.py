@@ -17,7 +17,8 @@ from compare.run.isolation import DEFAULT_MEMORY_LIMIT  # noqa: E402
 
 from compare.results.sweep import sweeps  # noqa: E402
 from compare.results.table import scene_tables  # noqa: E402
-from compare.results.verdict import format_verdicts, scene_verdicts  # noqa: E402
+from compare.results.verdict import scene_verdicts  # noqa: E402
+from compare.results.verdict_format import format_verdicts  # noqa: E402
 from compare.run.progress import progress_for  # noqa: E402
 from compare.run.runner import run_suite  # noqa: E402
 from compare.suite.reader import load_suite  # noqa: E402

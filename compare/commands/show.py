@@ -9,7 +9,8 @@ from compare.results.files import STDOUT, atomic_write_text, check_writable, res
 
 from compare.results.store import load_results
 from compare.results.table import scene_tables, to_csv, to_json
-from compare.results.verdict import format_verdicts, scene_verdicts
+from compare.results.verdict import scene_verdicts
+from compare.results.verdict_format import format_verdicts
 
 
 @click.command("show")

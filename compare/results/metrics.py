@@ -270,16 +270,25 @@ def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds
         return status, message
     reasons = []
     if not metrics.energy_drift <= bounds.energy_drift:
-        reasons.append(f"energy drift {metrics.energy_drift:.3g} E* exceeds the bound {bounds.energy_drift:g} E*")
+        drift, bound = distinct(metrics.energy_drift, bounds.energy_drift)
+        reasons.append(f"energy drift {drift} E* exceeds the bound {bound} E*")
     limit = bounds.constraint_error * scene.characteristic_length
     if not metrics.constraint_error <= limit:
-        reasons.append(
-            f"constraint error {metrics.constraint_error:.3g} m exceeds the bound "
-            f"{bounds.constraint_error:g} L = {limit:.3g} m"
-        )
+        error, shown_limit = distinct(metrics.constraint_error, limit)
+        reasons.append(f"constraint error {error} m exceeds the bound {bounds.constraint_error:g} L = {shown_limit} m")
     if reasons:
         return "unstable", "; ".join(reasons)
     return status, message
+
+
+def distinct(value: float, bound: float) -> tuple[str, str]:
+    """``value`` and ``bound`` printed with 3 significant digits, or more until they differ (up to 17), so a
+    value just past its bound never reads "1 exceeds the bound 1"."""
+    for digits in range(3, 18):
+        shown = f"{value:.{digits}g}", f"{bound:.{digits}g}"
+        if shown[0] != shown[1]:
+            return shown
+    return shown
 
 
 # -- across a dt sweep ---------------------------------------------------------------

@@ -10,11 +10,13 @@ numbers from a results directory.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Iterable
 
-from compare.results.consistency import Consistency, judge
-from compare.results.metrics import DEFAULT_DELTA, OrderFit, observed_order
+from compare.results.consistency import DEFAULT_TOLERANCE, Consistency, judge
+from compare.results.cost import CostModel, fit
+from compare.results.metrics import OrderFit, observed_order
 from compare.results.record import CaseRecord, Status
 
 #: The error an order is fitted to and work-precision points plot: max position error, m.
@@ -28,6 +30,7 @@ class VariantSweep:
     records : that variant's case records, largest dt first.
     order : the observed order fitted to ``ORDER_METRIC`` over ``ok`` cases.
     consistency : whether the error falls towards the reference (compare.results.consistency).
+    cost : the variant's stepping-cost model over its sweep (compare.results.cost), None when untimed.
     """
 
     scene_id: str
@@ -35,6 +38,7 @@ class VariantSweep:
     records: list[CaseRecord] = field(default_factory=list)
     order: OrderFit | None = None
     consistency: Consistency | None = None
+    cost: CostModel | None = None
 
     @property
     def statuses(self) -> dict[str, int]:
@@ -71,7 +75,7 @@ def _step(record: CaseRecord) -> float:
 def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> list[VariantSweep]:
     """Group records by (scene, engine variant) in the suite's order; fit each variant's order and judge it.
 
-    tolerance : the verdict's tolerance as a fraction of L (None: the default δ).
+    tolerance : the verdict's tolerance as a fraction of L (None: DEFAULT_TOLERANCE).
     """
     groups: dict[tuple[str, str], list[CaseRecord]] = {}
     for record in sorted(records, key=lambda r: r.case.position):
@@ -88,9 +92,18 @@ def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> lis
         )
         verdict = judge(
             [_step(r) for r in ok], [r.metric(ORDER_METRIC) for r in ok],
-            tolerance=(DEFAULT_DELTA if tolerance is None else tolerance) * length,
+            tolerance=(DEFAULT_TOLERANCE if tolerance is None else tolerance) * length,
+            reference_error=_largest(r.reference.get("reference_error") for r in ok if r.reference),
+            floor=_largest((r.run_info.get("settings") or {}).get("precision_floor") for r in ok if r.run_info),
             horizon_limited=any(r.reference_horizon is not None for r in ok),
             axis="tolerance" if on_tolerance_axis else "dt",
         )
-        result.append(VariantSweep(scene_id, engine, members, order, verdict))
+        result.append(VariantSweep(scene_id, engine, members, order, verdict, fit(engine, members)))
     return result
+
+
+def _largest(values: Iterable[object]) -> float | None:
+    """The largest positive finite number among ``values`` (None when there is none)."""
+    found = [float(v) for v in values
+             if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0]
+    return max(found) if found else None

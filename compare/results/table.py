@@ -2,7 +2,8 @@
 
 The table has one row per engine variant: its statuses across the dt
 sweep, and at its finest ``ok`` dt the max position error, energy drift,
-constraint error and cost, then the observed order. CSV and JSON have one
+constraint error and cost, then the observed order and the variant's per-step
+CPU cost with its interval (compare.results.cost). CSV and JSON have one
 row per case with every metric (for pandas: ``pd.read_csv`` /
 ``pd.read_json(orient="records")``).
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import textwrap
 from typing import Any, Iterable
 
 from compare.results import declared
@@ -95,12 +97,13 @@ def _statuses(sweep: VariantSweep) -> str:
 def _reason(sweep: VariantSweep) -> str:
     """The message shared by a variant's non-ok cases, shortened (e.g. why it was skipped)."""
     messages = [r.message for r in sweep.records if r.status is not Status.OK and r.message]
-    return messages[0][:70] if messages else ""
+    return textwrap.shorten(messages[0], 70, placeholder=" …") if messages else ""  # cut between words
 
 
 def table_columns() -> tuple[str, ...]:
-    """Headings of the short table: engine, statuses, finest ok dt, the shown metrics, the verdict."""
-    return ("engine", "status", "dt", *(m.heading for m in declared.shown()), "consistent")
+    """Headings of the short table: engine, statuses, finest ok dt, the shown metrics, the per-step CPU cost
+    with its 95 % interval (compare.results.cost), the verdict."""
+    return ("engine", "status", "dt", *(m.heading for m in declared.shown()), "s/step [95 %]", "consistent")
 
 
 def _verdict(sweep: VariantSweep) -> str:
@@ -127,7 +130,8 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
             else:
                 values.append(_number(finest.metrics.get(metric.name) if finest else None))
         by_scene.setdefault(sweep.scene_id, []).append(
-            [sweep.engine, _statuses(sweep), _step(finest), *values, _verdict(sweep)]
+            [sweep.engine, _statuses(sweep), _step(finest), *values,
+             sweep.cost.describe().replace(" s/step", "") if sweep.cost else "-", _verdict(sweep)]
         )
         reason = _reason(sweep)
         if reason:

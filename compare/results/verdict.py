@@ -34,7 +34,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from compare.results.declared import TIMING_METRIC
+from compare.results.cost import CostModel, modelled
 from compare.results.record import PROBLEMS, CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
@@ -68,7 +68,11 @@ def _finite_positive(value: object) -> bool:
 
 @dataclass(frozen=True)
 class Point:
-    """One ok case on the error–cost plane: variant label, dt (s), cost (s/s), max position error (m), case id."""
+    """One ok case on the error–cost plane: variant label, dt (s), cost (s/s), max position error (m), case id.
+
+    cost is the variant's cost model at this dt (compare.results.cost), in [cost_low, cost_high] s/s;
+    error_bar : m, the reference's own error bar (0 when unknown).
+    """
 
     engine: str
     dt: float
@@ -77,6 +81,9 @@ class Point:
     case_id: str
     #: On the tolerance axis (compare/suite/tolerance_axis.py): the case's tolerance; dt is then its largest step.
     tolerance: float | None = None
+    cost_low: float | None = None
+    cost_high: float | None = None
+    error_bar: float = 0.0
 
     @property
     def family(self) -> str:
@@ -87,21 +94,29 @@ class Point:
         """``dt 0.001`` or ``tol 1e-08``: what this point's variant sweeps, padded for a column."""
         return f"dt {self.dt:<9.3g}" if self.tolerance is None else f"tol {self.tolerance:<8.3g}"
 
+    @property
+    def interval(self) -> tuple[float, float]:
+        """(low, high) s/s of the cost."""
+        return (self.cost if self.cost_low is None else self.cost_low,
+                self.cost if self.cost_high is None else self.cost_high)
 
-def point(record: CaseRecord) -> Point | None:
-    """``record`` as a Point, or None when it is not ok or lacks a positive error or cost."""
+
+def point(record: CaseRecord, model: CostModel | None = None) -> Point | None:
+    """``record`` as a Point (its cost from its variant's ``model``), or None when it is not ok or lacks a
+    positive error or cost."""
     if record.status is not Status.OK or not record.has_metrics:
         return None
-    # The cost axis: stepping wall time per simulated second, s/s.
-    cost, error = record.metric(TIMING_METRIC), record.metric(ORDER_METRIC)
-    if not (_finite_positive(cost) and _finite_positive(error)):
+    error, cost = record.metric(ORDER_METRIC), modelled(model, record)
+    if cost is None or not (_finite_positive(cost[0]) and _finite_positive(error)):
         return None
-    return Point(record.case.engine, record.case.dt, float(cost), float(error), record.case.id, record.case.tolerance)
+    bar = (record.reference or {}).get("reference_error")
+    return Point(record.case.engine, record.case.dt, float(cost[0]), float(error), record.case.id, record.case.tolerance,
+                 float(cost[1]), float(cost[2]), float(bar) if _finite_positive(bar) else 0.0)
 
 
 def points(sweep: VariantSweep) -> list[Point]:
     """The Points of one variant, largest dt (loosest tolerance, on the tolerance axis) first."""
-    found = (point(r) for r in sorted(
+    found = (point(r, sweep.cost) for r in sorted(
         sweep.records, key=lambda r: -(r.case.dt if r.case.tolerance is None else r.case.tolerance)))
     return [p for p in found if p is not None]
 
@@ -124,9 +139,11 @@ def pareto_front(sweeps: Iterable[VariantSweep]) -> list[Point]:
 class Reach:
     """What one variant costs to bring its error down to ``target`` (m).
 
-    cost : s/s, or None when not reached. how : "interpolated" (between ``dts``, the
-    bracketing time steps, s), "at most" (its cheapest ok run, at ``dts[0]``, is already
-    below), "not reached" or "no ok run". best_error : m, its lowest error over its ok runs.
+    cost : s/s, or None when not reached, in [low, high] (the cost model's interval and the error
+    interpolation's). how : "interpolated" (between ``dts``, the bracketing time steps, s), "at most"
+    (its cheapest ok run, at ``dts[0]``, is already below), "not reached" or "no ok run".
+    best_error : m, its lowest error over its ok runs; plateau : m, where its error stopped falling
+    (compare.results.consistency), None while it still falls.
     """
 
     engine: str
@@ -135,43 +152,96 @@ class Reach:
     how: str
     dts: tuple[float, ...] = ()
     best_error: float | None = None  # m, the lowest error of any of its ok runs
+    low: float | None = None
+    high: float | None = None
+    plateau: float | None = None
 
     @property
     def reached(self) -> bool:
         return self.cost is not None
 
+    @property
+    def interval(self) -> tuple[float, float] | None:
+        """(low, high) s/s, or None when not reached."""
+        if self.cost is None:
+            return None
+        return (self.cost if self.low is None else self.low, self.cost if self.high is None else self.high)
+
     def describe(self) -> str:
         if self.cost is None:
             return self.how if self.best_error is None else f"{self.how} (best {self.best_error:.2g} m)"
+        low, high = self.interval  # type: ignore[misc]
         if self.how == "at most":
-            return f"≤ {self.cost:.2g} s/s (already at dt {self.dts[0]:g} s)"
-        return f"{self.cost:.2g} s/s (between dt {self.dts[0]:g} and {self.dts[1]:g} s)"
+            return f"≤ {self.cost:.2g} s/s [{low:.2g}, {high:.2g}] (already at dt {self.dts[0]:.3g} s)"
+        return f"{self.cost:.2g} s/s [{low:.2g}, {high:.2g}] (between dt {self.dts[0]:.3g} and {self.dts[1]:.3g} s)"
+
+
+def _log_crossing(coarse: Point, fine: Point, target: float, slope: float | None = None) -> float:
+    """log cost at which the line through ``coarse`` (with ``slope`` d log cost / d log error, default the
+    segment's own) reaches ``target``, kept between the two points (the error falls monotonically there)."""
+    if slope is None:
+        slope = (math.log(fine.cost) - math.log(coarse.cost)) / (math.log(fine.error) - math.log(coarse.error))
+    value = math.log(coarse.cost) + slope * (math.log(target) - math.log(coarse.error))
+    return min(max(value, math.log(coarse.cost)), math.log(fine.cost))
+
+
+def _slope(a: Point, b: Point) -> float | None:
+    """d log cost / d log error between two points, None when undefined or not falling."""
+    if a.error <= 0 or b.error <= 0 or a.error == b.error:
+        return None
+    slope = (math.log(b.cost) - math.log(a.cost)) / (math.log(b.error) - math.log(a.error))
+    return slope if slope < 0 else None
 
 
 def cost_to_reach(sweep: VariantSweep, target: float) -> Reach:
-    """The cost (s/s) at which ``sweep``'s curve first reaches ``target`` (m); see the module docstring."""
+    """The cost (s/s) at which ``sweep``'s curve first reaches ``target`` (m), with its interval.
+
+    Interpolated linearly in log cost against log error between the bracketing points; the interval
+    takes in the cost model's (compare.results.cost) and the crossing read with the neighbouring
+    segments' slopes instead (how much the interpolation itself may be off).
+    """
     curve = points(sweep)
+    plateau = sweep.consistency.plateau if sweep.consistency is not None else None
     if not curve:
         return Reach(sweep.engine, target, None, "no ok run")
     best = min(p.error for p in curve)
     cheapest = min(curve, key=lambda p: p.cost)
     if cheapest.error <= target:
-        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,), best)
-    for coarse, fine in zip(curve, curve[1:]):  # dt order: coarse first
+        low, high = cheapest.interval
+        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,), best, low, high, plateau)
+    for k, (coarse, fine) in enumerate(zip(curve, curve[1:])):  # dt order: coarse first
         if coarse.error > target >= fine.error:
-            fraction = math.log(coarse.error / target) / math.log(coarse.error / fine.error)
-            cost = math.exp(math.log(coarse.cost) + fraction * (math.log(fine.cost) - math.log(coarse.cost)))
-            return Reach(sweep.engine, target, cost, "interpolated", (coarse.dt, fine.dt), best)
-    return Reach(sweep.engine, target, None, "not reached", best_error=best)
+            middle = _log_crossing(coarse, fine, target)
+            guesses = [middle]
+            neighbours = ([(curve[k - 1], coarse)] if k > 0 else []) + ([(fine, curve[k + 2])] if k + 2 < len(curve) else [])
+            for a, b in neighbours:
+                slope = _slope(a, b)
+                if slope is not None:
+                    guesses.append(_log_crossing(coarse, fine, target, slope))
+            cost = math.exp(middle)
+            ratio_low, ratio_high = coarse.interval[0] / coarse.cost, coarse.interval[1] / coarse.cost
+            return Reach(sweep.engine, target, cost, "interpolated", (coarse.dt, fine.dt), best,
+                         math.exp(min(guesses)) * ratio_low, math.exp(max(guesses)) * ratio_high, plateau)
+    return Reach(sweep.engine, target, None, "not reached", best_error=best, plateau=plateau)
 
 
 @dataclass(frozen=True)
 class Best:
-    """A family's most accurate run within the common budget (``point`` None: none of its runs fits)."""
+    """A family's most accurate run within the common budget (``point`` None: none of its runs fits).
+
+    ties : the family's other variants whose best run within the budget is as accurate within the
+    reference's error bars (so no one of them is called the most accurate).
+    """
 
     family: str
     point: Point | None
     cheapest: float | None = None  # s/s, the family's cheapest run when none fits
+    ties: tuple[str, ...] = ()
+
+
+def _same_error(a: Point, b: Point) -> bool:
+    """Whether two errors differ by no more than their reference error bars together."""
+    return abs(a.error - b.error) <= a.error_bar + b.error_bar
 
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
@@ -192,19 +262,52 @@ def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, li
     for name, ps in by_family.items():
         within = [p for p in ps if p.cost <= budget]
         if within:
-            result.append(Best(name, min(within, key=lambda p: (p.error, p.cost))))
+            winner = min(within, key=lambda p: (p.error, p.cost))
+            ties = sorted({p.engine for p in within if p.engine != winner.engine and _same_error(p, winner)})
+            result.append(Best(name, winner, ties=tuple(ties)))
         else:
             result.append(Best(name, None, min((p.cost for p in ps), default=None)))
     return budget, result
 
 
 @dataclass(frozen=True)
+class EqualCost:
+    """Two families compared over the cost range where both have runs ([low, high] s/s; None: no overlap).
+
+    focus / other : each side's most accurate run costing ≤ high. ratio : other error / focus error
+    (> 1: the focus is more accurate); tie : the errors agree within the reference's error bars.
+    """
+
+    low: float | None
+    high: float | None
+    focus: Point | None
+    other: Point | None
+    ratio: float | None
+    tie: bool
+
+
+def equal_cost(focus_points: Sequence[Point], other_points: Sequence[Point]) -> EqualCost:
+    """The focus family's and the other families' most accurate runs within their shared cost range."""
+    if not focus_points or not other_points:
+        return EqualCost(None, None, None, None, None, False)
+    low = max(min(p.cost for p in focus_points), min(p.cost for p in other_points))
+    high = min(max(p.cost for p in focus_points), max(p.cost for p in other_points))
+    if low > high:
+        return EqualCost(None, None, None, None, None, False)
+    mine = min((p for p in focus_points if p.cost <= high), key=lambda p: (p.error, p.cost))
+    theirs = min((p for p in other_points if p.cost <= high), key=lambda p: (p.error, p.cost))
+    return EqualCost(low, high, mine, theirs, theirs.error / mine.error, _same_error(mine, theirs))
+
+
+@dataclass(frozen=True)
 class Comparison:
     """The focus family's best variant against the best of every other family, on cost to reach ``target`` (m).
 
-    focus / other : the cheapest Reach of each side (None: that side has no variant that ran).
-    ratio : other cost / focus cost (> 1: the focus is cheaper), None unless both reached the target.
-    error_ratio : at equal cost, other family's best error / the focus's (> 1: the focus is more accurate).
+    focus / other : the cheapest Reach of each side (None: that side has no variant that ran);
+    focus_ties / other_ties : that side's variants whose cost interval overlaps the cheapest's.
+    ratio : other cost / focus cost (> 1: the focus is cheaper) in [ratio_low, ratio_high], None unless
+    both reached the target; tie : that interval holds 1. at_equal_cost : the two sides over their
+    shared cost range. plateaus : m, per variant label the error it stops at (compare.results.consistency).
     """
 
     focus_family: str
@@ -212,59 +315,104 @@ class Comparison:
     focus: Reach | None
     other: Reach | None
     ratio: float | None
-    error_ratio: float | None
+    ratio_low: float | None = None
+    ratio_high: float | None = None
+    focus_ties: tuple[str, ...] = ()
+    other_ties: tuple[str, ...] = ()
+    at_equal_cost: EqualCost | None = None
+
+    @property
+    def tie(self) -> bool:
+        return self.ratio is not None and self.ratio_low is not None and self.ratio_high is not None \
+            and self.ratio_low <= 1 <= self.ratio_high
+
+    @property
+    def error_ratio(self) -> float | None:
+        """At equal cost, the other side's best error / the focus's (> 1: the focus is more accurate)."""
+        return self.at_equal_cost.ratio if self.at_equal_cost is not None else None
 
     def describe(self) -> str:
-        """One sentence."""
+        """One sentence (two clauses at most)."""
         goal = f"{self.target:.2g} m"
         if self.focus is None:
             return f"no {self.focus_family} variant ran on this scene"
         if self.other is None:
             return f"no engine other than {self.focus_family} ran on this scene"
+        mine = _names(self.focus.engine, self.focus_ties)
+        theirs = _names(self.other.engine, self.other_ties)
+        if self.ratio is not None and self.tie:
+            return (f"tie: best {self.focus_family} ({mine}) and the best other engine ({theirs}) reach {goal} at the "
+                    f"same cost within the intervals (ratio {self.ratio:.3g} [{self.ratio_low:.3g}, {self.ratio_high:.3g}])")
         if self.ratio is not None:
-            faster = "cheaper" if self.ratio >= 1 else "dearer"
-            factor = self.ratio if self.ratio >= 1 else 1 / self.ratio
-            return (f"best {self.focus_family} ({self.focus.engine}) reaches {goal} {factor:.3g}× {faster} than the "
-                    f"best other engine ({self.other.engine})")
-        side = []
+            factor, low, high = (self.ratio, self.ratio_low, self.ratio_high) if self.ratio >= 1 else (
+                1 / self.ratio, 1 / self.ratio_high, 1 / self.ratio_low)  # type: ignore[operator]
+            return (f"best {self.focus_family} ({mine}) reaches {goal} {factor:.3g}× [{low:.3g}, {high:.3g}] "
+                    f"{'cheaper' if self.ratio >= 1 else 'dearer'} than the best other engine ({theirs})")
+        text = f"to reach {goal}: " + "; ".join(f"{r.engine} {r.describe()}" for r in (self.focus, self.other))
+        return text + self._equal_cost_clause()
+
+    def _equal_cost_clause(self) -> str:
+        """What is true at equal cost: a ratio only where both sides keep converging over the shared range."""
+        same = self.at_equal_cost
+        if same is None or same.focus is None or same.other is None or same.ratio is None:
+            return "; no cost range both sides ran in"
+        better, worse = (same.focus, same.other) if same.ratio >= 1 else (same.other, same.focus)
+        if same.tie:
+            return f"; at equal cost (≤ {same.high:.2g} s/s) {same.focus.engine} and {same.other.engine} tie"
+        stuck = self.plateau_of(better.engine)
+        reach = self.focus if worse.engine == self.focus.engine else self.other  # type: ignore[union-attr]
+        if stuck is not None and reach is not None and reach.best_error is not None and reach.best_error < stuck:
+            where = f" at {reach.describe()}" if reach.cost is not None else ""
+            return (f"; {better.engine} stops at {stuck:.2g} m, {worse.engine} keeps converging "
+                    f"(to {reach.best_error:.2g} m){where}")
+        factor = same.ratio if same.ratio >= 1 else 1 / same.ratio
+        return f"; at equal cost (≤ {same.high:.2g} s/s) {better.engine} is {factor:.3g}× more accurate"
+
+    def plateau_of(self, engine: str) -> float | None:
         for reach in (self.focus, self.other):
-            side.append(f"{reach.engine} {reach.describe()}")
-        text = f"to reach {goal}: " + "; ".join(side)
-        if self.error_ratio is not None and self.error_ratio >= 1:
-            text += f"; at equal cost the best {self.focus_family} variant is {self.error_ratio:.3g}× more accurate"
-        elif self.error_ratio is not None:
-            text += f"; at equal cost the best other engine is {1 / self.error_ratio:.3g}× more accurate"
-        return text
-
-
-def _cheapest(reaches: list[Reach]) -> Reach | None:
-    """The cheapest Reach that reached; if none did, the one that came closest (lowest error); None for []."""
-    if not reaches:
+            if reach is not None and reach.engine == engine:
+                return reach.plateau
         return None
+
+
+def _names(first: str, ties: Sequence[str]) -> str:
+    """``a/x`` or ``a/x tied with a/y, a/z``."""
+    return first if not ties else f"{first}, tied with {', '.join(ties)}"
+
+
+def _cheapest(reaches: list[Reach]) -> tuple[Reach | None, tuple[str, ...]]:
+    """The cheapest Reach that reached and those whose interval overlaps its own (ties); if none reached,
+    the one that came closest (lowest error); (None, ()) for []."""
+    if not reaches:
+        return None, ()
     reached = [r for r in reaches if r.cost is not None]
     if reached:
-        return min(reached, key=lambda r: r.cost)  # type: ignore[arg-type,return-value]
+        best = min(reached, key=lambda r: r.cost)  # type: ignore[arg-type,return-value]
+        top = best.interval[1]  # type: ignore[index]
+        ties = tuple(r.engine for r in reached if r is not best and r.interval[0] <= top)  # type: ignore[index]
+        return best, ties
     tried = [r for r in reaches if r.best_error is not None]
-    return min(tried, key=lambda r: r.best_error) if tried else reaches[0]  # type: ignore[arg-type,return-value]
+    return (min(tried, key=lambda r: r.best_error) if tried else reaches[0]), ()  # type: ignore[arg-type,return-value]
 
 
 def focus_comparison(sweeps: Sequence[VariantSweep], focus: str, target: float) -> Comparison:
     """How the best ``focus``-family variant compares with the best variant of any other family."""
-    reaches = [cost_to_reach(s, target) for s in competitors(sweeps)]
-    return _comparison(reaches, best_at_equal_cost(sweeps)[1], focus, target)
+    return _comparison(sweeps, [cost_to_reach(s, target) for s in competitors(sweeps)], focus, target)
 
 
-def _comparison(reaches: Sequence[Reach], bests: Sequence[Best], focus: str, target: float) -> Comparison:
-    """focus_comparison from each competitor's Reach of ``target`` and best_at_equal_cost's rows."""
-    best_mine = _cheapest([r for r in reaches if family(r.engine) == focus])
-    best_theirs = _cheapest([r for r in reaches if family(r.engine) != focus])
-    ratio = None
+def _comparison(sweeps: Sequence[VariantSweep], reaches: Sequence[Reach], focus: str, target: float) -> Comparison:
+    """focus_comparison from each competitor's Reach of ``target``."""
+    best_mine, mine_ties = _cheapest([r for r in reaches if family(r.engine) == focus])
+    best_theirs, their_ties = _cheapest([r for r in reaches if family(r.engine) != focus])
+    ratio = low = high = None
     if best_mine is not None and best_theirs is not None and best_mine.cost and best_theirs.cost:
         ratio = best_theirs.cost / best_mine.cost
-    mine_error = [b.point.error for b in bests if b.family == focus and b.point is not None]
-    their_error = [b.point.error for b in bests if b.family != focus and b.point is not None]
-    error_ratio = min(their_error) / mine_error[0] if mine_error and their_error else None
-    return Comparison(focus, target, best_mine, best_theirs, ratio, error_ratio)
+        (mine_low, mine_high), (their_low, their_high) = best_mine.interval, best_theirs.interval  # type: ignore[misc]
+        low, high = their_low / mine_high, their_high / max(mine_low, 1e-300)
+    competing = competitors(sweeps)
+    same = equal_cost([p for s in competing if family(s.engine) == focus for p in points(s)],
+                      [p for s in competing if family(s.engine) != focus for p in points(s)])
+    return Comparison(focus, target, best_mine, best_theirs, ratio, low, high, mine_ties, their_ties, same)
 
 
 @dataclass(frozen=True)
@@ -334,6 +482,30 @@ class SceneVerdict:
     best: list[Best]
     comparison: Comparison | None
     problems: list[Problem] = field(default_factory=list)
+    winners: list[Winner] = field(default_factory=list)
+    variants: list[VariantSweep] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Winner:
+    """A family's cheapest variant to reach the target (or, if none does, the closest), and its ties."""
+
+    family: str
+    reach: Reach
+    ties: tuple[str, ...] = ()
+
+
+def family_winners(reaches: Sequence[Reach]) -> list[Winner]:
+    """Per family (in the order of ``reaches``) its Winner."""
+    names: dict[str, None] = {}
+    for reach in reaches:
+        names.setdefault(family(reach.engine), None)
+    found = []
+    for name in names:
+        best, ties = _cheapest([r for r in reaches if family(r.engine) == name])
+        if best is not None:
+            found.append(Winner(name, best, ties))
+    return found
 
 
 def default_focus(sweeps: Iterable[VariantSweep]) -> str | None:
@@ -356,42 +528,8 @@ def scene_verdicts(sweeps: Sequence[VariantSweep], focus: str | None = None,
         budget, best = best_at_equal_cost(members)
         reaches = [cost_to_reach(s, target) for s in competitors(members)]
         present = families(members)
-        comparison = (_comparison(reaches, best, focus, target)
+        comparison = (_comparison(members, reaches, focus, target)
                       if focus is not None and focus in present and len(present) > 1 else None)
         verdicts.append(SceneVerdict(scene_id, length, target, pareto_front(members), reaches, budget, best,
-                                     comparison, problems(members)))
+                                     comparison, problems(members), family_winners(reaches), competitors(members)))
     return verdicts
-
-
-#: Longest problem text printed in the terminal (the report and the case files have the whole message).
-LINE = 140
-
-
-def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = False) -> str:
-    """The closing summary of ``xval run`` as text, one block per scene (``problems_only``: skip the rankings)."""
-    lines: list[str] = []
-    for verdict in verdicts:
-        lines.append(f"{verdict.scene_id}:")
-        if not problems_only:
-            if verdict.budget is not None:
-                lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s):")
-                width = max((len(b.point.engine) for b in verdict.best if b.point is not None), default=0)
-                for best in verdict.best:
-                    if best.point is None:
-                        cheapest = "no ok run" if best.cheapest is None else f"cheapest run {best.cheapest:.2g} s/s"
-                        lines.append(f"    {best.family}: none within the budget ({cheapest})")
-                    else:
-                        p = best.point
-                        lines.append(f"    {p.engine:<{width}}  {p.step} error {p.error:.2e} m  cost {p.cost:.2e} s/s")
-            else:
-                lines.append("  no ok run with an error and a cost")
-            if verdict.comparison is not None:
-                lines.append(f"  {verdict.comparison.describe()}")
-        if verdict.problems:
-            lines.append(f"  problems ({len(verdict.problems)}):")
-            for problem in verdict.problems:
-                text = problem.text if len(problem.text) <= LINE else problem.text[:LINE - 1] + "…"
-                lines.append(f"    {problem.kind:<12} {problem.engine}: {text}")
-        elif not problems_only:
-            lines.append("  problems: none")
-    return "\n".join(lines) + ("\n" if lines else "")

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from compare.results.consistency import DEFAULT_TOLERANCE
 from engines.errors import UserError
 
 # The reader (compare.suite.reader) imports this module and hands itself in as ``reader``; scenes and
@@ -171,10 +172,10 @@ def read_gainmap(reader: Any, table: Any, scenes, expand) -> GainMapPlan | None:
     return GainMapPlan(scene, tuple(engines), x, y, x_values, y_values, dt, points, interval)
 
 
-def read_verdict(reader: Any, table: Any, delta: float) -> float:
-    """``[verdict] tolerance``: the error (a fraction of L) under which a variant counts as right
-    (compare.results.consistency); default the suite's δ."""
+def read_verdict(reader: Any, table: Any) -> float:
+    """``[verdict] tolerance``: the error plateau (a fraction of L) under which a variant counts as right
+    (compare.results.consistency); default DEFAULT_TOLERANCE, 1e-6."""
     if table is None:
-        return delta
+        return DEFAULT_TOLERANCE
     table = reader.table("verdict", table, VERDICT_KEYS)
-    return reader.number("verdict.tolerance", table.get("tolerance", delta))
+    return reader.number("verdict.tolerance", table.get("tolerance", DEFAULT_TOLERANCE))

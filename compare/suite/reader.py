@@ -72,6 +72,7 @@ from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import Scene
 
+from compare.results.consistency import DEFAULT_TOLERANCE
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
@@ -160,7 +161,7 @@ class Suite:
     gate: GateSettings = field(default_factory=GateSettings)
     stability: StabilityPlan | None = None
     gainmap: GainMapPlan | None = None
-    verdict_tolerance: float = DEFAULT_DELTA
+    verdict_tolerance: float = DEFAULT_TOLERANCE
     #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
     tolerances: tuple[float, ...] = ()
 
@@ -236,7 +237,7 @@ class RunSettings:
     delta: float = DEFAULT_DELTA
     bounds: Bounds = field(default_factory=Bounds)
     gate: GateSettings = field(default_factory=GateSettings)
-    verdict_tolerance: float = DEFAULT_DELTA
+    verdict_tolerance: float = DEFAULT_TOLERANCE
 
 
 def load_run_settings(path: str | Path) -> RunSettings:
@@ -262,7 +263,7 @@ def load_run_settings(path: str | Path) -> RunSettings:
         reader.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
     )
     gate = gate_settings(data.get("gate"), data.get("tolerances"), reader.error)
-    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict"), delta))
+    return RunSettings(delta, bounds, gate, read_verdict(reader, data.get("verdict")))
 
 
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
@@ -400,7 +401,7 @@ class _Reader:
         engines = self.engines(data["engines"])
         stability = read_stability(self, data.get("stability"), scenes, engines, dts)
         gainmap = read_gainmap(self, data.get("gainmap"), scenes, self.expand)
-        verdict_tolerance = read_verdict(self, data.get("verdict"), delta)
+        verdict_tolerance = read_verdict(self, data.get("verdict"))
         return Suite(
             name=name,
             description=description,

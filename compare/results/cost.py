@@ -1,0 +1,125 @@
+"""Stepping cost you can reproduce: per case its CPU times (min, spread), per variant a model fitted over its sweep.
+
+Per case i: T_i = the least CPU time (s) over its repeats of the engine's run, n_i its steps. Per variant
+the model T_i = a + c·n_i is fitted by Theil–Sen (scipy.stats.theilslopes: the median of the pairwise
+slopes, with its 95 % interval), so one disturbed case cannot move it: a (s) is what a run costs whatever
+its length (building the model), c (s/step) the per-step cost. A case's cost per simulated second is then
+steps × per-step cost / simulated time = c/dt for a fixed step: monotone in dt by construction, with the
+interval [c_lo, c_hi] carried along. With fewer than MIN_FIT cases timed, c is the median of T_i/n_i (an
+upper bound: it carries a) and its interval spans every repeat's T/n.
+
+Records without CPU times (results of an older xval, hand-made records) fall back on their
+``cost_per_simulated_second`` metric: then each case is its own model, c = that cost · dt.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from compare.results.record import CaseRecord, Status
+
+#: Fewest timed cases for the Theil–Sen fit (below it, per-case ratios).
+MIN_FIT = 3
+#: Confidence of the per-step cost's interval.
+CONFIDENCE = 0.95
+
+
+def _positive(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
+
+
+def cpu_times(record: CaseRecord) -> list[float]:
+    """s, the CPU time of each repeat of ``record``'s run (empty when not recorded)."""
+    values = getattr(record, "cpu_times", None) or record.extra.get("cpu_times") or []
+    return [float(v) for v in values if _positive(v)]
+
+
+def steps(record: CaseRecord) -> int | None:
+    """Steps the engine took (RunInfo.steps), or None."""
+    value = (record.run_info or {}).get("steps")
+    return int(value) if _positive(value) else None
+
+
+@dataclass(frozen=True)
+class CaseCost:
+    """One case's timing: least CPU time over repeats (s), spread = max/min − 1, repeats, steps."""
+
+    case_id: str
+    cpu_min: float
+    spread: float
+    repeats: int
+    steps: int
+
+
+def case_cost(record: CaseRecord) -> CaseCost | None:
+    """``record``'s CaseCost, or None when it is not ok or was not timed in CPU time."""
+    times, n = cpu_times(record), steps(record)
+    if record.status is not Status.OK or not times or n is None:
+        return None
+    return CaseCost(record.case.id, min(times), max(times) / min(times) - 1, len(times), n)
+
+
+@dataclass(frozen=True)
+class CostModel:
+    """A variant's stepping cost: per_step c (s/step) in [low, high], overhead a (s per run), how it was found.
+
+    how : "fit" (Theil–Sen over ``cases`` timed cases), "ratio" (too few for a fit) or
+    "metric" (no CPU times recorded: each case's own cost_per_simulated_second).
+    """
+
+    engine: str
+    per_step: float
+    low: float
+    high: float
+    overhead: float
+    cases: int
+    how: str
+
+    def per_simulated_second(self, dt: float, n_steps: int | None = None,
+                             duration: float | None = None) -> tuple[float, float, float]:
+        """(cost, low, high) in s/s at time step ``dt`` (s): per-step cost × steps per simulated second
+        (``n_steps`` / ``duration`` when given: an error-controlled run's own steps)."""
+        rate = n_steps / duration if n_steps and duration else 1.0 / dt
+        return self.per_step * rate, self.low * rate, self.high * rate
+
+    def describe(self) -> str:
+        """``3.1e-06 s/step [2.9e-06, 3.3e-06]`` (the interval at CONFIDENCE)."""
+        return f"{self.per_step:.2g} s/step [{self.low:.2g}, {self.high:.2g}]"
+
+
+def fit(engine: str, records: Sequence[CaseRecord]) -> CostModel | None:
+    """The CostModel of one variant from its case records (any order); None when no case was timed."""
+    timed = [(r, c) for r in records if (c := case_cost(r)) is not None]
+    if len(timed) >= MIN_FIT and len({c.steps for _, c in timed}) >= 2:
+        from scipy.stats import theilslopes
+
+        slope, intercept, low, high = theilslopes([c.cpu_min for _, c in timed], [c.steps for _, c in timed],
+                                                  alpha=CONFIDENCE)
+        if slope > 0:
+            return CostModel(engine, float(slope), float(max(low, 0.0)), float(high), float(max(intercept, 0.0)),
+                             len(timed), "fit")
+    if timed:
+        ratios = [c.cpu_min / c.steps for _, c in timed]
+        every = [t / c.steps for r, c in timed for t in cpu_times(r)]
+        return CostModel(engine, float(statistics.median(ratios)), min(every), max(every), 0.0, len(timed), "ratio")
+    return None
+
+
+def metric_cost(record: CaseRecord) -> float | None:
+    """s/s, the case's own ``cost_per_simulated_second`` metric (records without CPU times), or None."""
+    value = record.metrics.get("cost_per_simulated_second") if record.metrics else None
+    return float(value) if _positive(value) else None
+
+
+def modelled(model: CostModel | None, record: CaseRecord) -> tuple[float, float, float] | None:
+    """(cost, low, high) s/s of ``record`` under its variant's ``model``; the record's own metric when
+    the variant has no model (then low = high = cost); None without either."""
+    if model is None:
+        value = metric_cost(record)
+        return None if value is None else (value, value, value)
+    duration = (record.scene or {}).get("duration")
+    n = steps(record) if record.case.tolerance is not None else None
+    return model.per_simulated_second(record.case.dt, n, duration if _positive(duration) else None)

@@ -1,0 +1,117 @@
+"""The verdict holds against timing noise: fed CPU-time samples recorded from real runs of the default suite on
+a shared 2-core machine (tests/fixtures/cost_samples.json, written by scripts/cost_samples.py), it names the
+same winners whichever run, whichever single repeat, and with one case slowed 52× (a neighbour loading the
+machine, as seen on CI); ratios' intervals overlap. And where intervals overlap it says *tie*, naming both.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, Callable
+
+import pytest
+
+from compare.results.record import CaseRecord
+from compare.results.sweep import sweeps
+from compare.results.verdict import SceneVerdict, scene_verdicts
+
+FIXTURE = Path(__file__).parent / "fixtures" / "cost_samples.json"
+RUNS: list[list[dict[str, Any]]] = json.loads(FIXTURE.read_text())["runs"]
+
+
+def record(row: dict[str, Any], times: list[float]) -> CaseRecord:
+    """A case document as a results directory holds it, with the recorded error, steps and CPU times."""
+    return CaseRecord.from_json({
+        "schema_version": 1,
+        "case": {"id": f"{row['scene']}|{row['engine']}|dt={row['dt']}", "scene_id": row["scene"],
+                 "scene_name": row["scene"], "engine": row["engine"], "engine_id": row["engine"],
+                 "variant": row["engine"].split("/")[1], "options": {}, "dt": row["dt"],
+                 "position": [0 if row["scene"] == "bead" else 1, 0, round(-math.log10(row["dt"]) * 10)]},
+        "status": "ok", "message": "", "metrics": {"position_error_linf": row["error"]},
+        "run_info": {"steps": row["steps"]}, "wall_times": [], "elapsed": 0.0, "scene": {"duration": 2.0},
+        "scene_hash": "h", "characteristic": {"length": row["length"], "energy": 1.0}, "series": None,
+        "reference": {"reference_error": row["reference_error"]}, "finished": "", "cpu_times": times,
+    })
+
+
+def verdicts(rows: list[dict[str, Any]], times: Callable[[dict[str, Any]], list[float]] = lambda r: r["cpu_times"],
+             ) -> dict[str, SceneVerdict]:
+    found = scene_verdicts(sweeps([record(row, times(row)) for row in rows]), focus="ours")
+    return {v.scene_id: v for v in found}
+
+
+def winners(verdict: SceneVerdict) -> set[str]:
+    """The focus family's winner and those tied with it."""
+    comparison = verdict.comparison
+    assert comparison is not None and comparison.focus is not None
+    return {comparison.focus.engine, *comparison.focus_ties}
+
+
+def overlap(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    return a[0] <= b[1] and b[0] <= a[1]
+
+
+def variants() -> list[tuple[str, Callable[[dict[str, Any]], list[float]]]]:
+    """Each recorded run as it was, each run's single repeats alone (as if repeats = 1), and one case slowed."""
+    found: list[tuple[str, Any]] = []
+    for k in range(len(RUNS)):
+        found.append((f"run {k + 1}", (k, lambda r: r["cpu_times"])))
+        for j in range(3):
+            found.append((f"run {k + 1}, repeat {j + 1} alone", (k, lambda r, j=j: r["cpu_times"][j:j + 1])))
+    found.append(("run 1, ours' dt 1e-3 case 52x slower", (0, lambda r: [t * 52 for t in r["cpu_times"]]
+                                                        if r["engine"] == "ours/lagrangian-rk4" and r["dt"] == 1e-3
+                                                        else r["cpu_times"])))
+    return found
+
+
+def test_the_fixture_is_real_noise():
+    assert len(RUNS) == 3
+    spreads = [max(r["cpu_times"]) / min(r["cpu_times"]) for run in RUNS for r in run if r["steps"] >= 2000]
+    # Repeats of one case differ by tens of per cent at times: the noise the verdict must not follow.
+    assert max(spreads) > 1.2
+
+
+@pytest.mark.parametrize("scene", ["bead", "double-pendulum"])
+def test_the_winner_and_the_ratio_hold_across_runs_repeats_and_a_slowed_case(scene):
+    base = verdicts(RUNS[0])[scene]
+    base_winners = winners(base)
+    base_ratio = (base.comparison.ratio_low, base.comparison.ratio_high)
+    assert base.comparison.ratio is not None and base_ratio[0] <= base.comparison.ratio <= base_ratio[1]
+    for label, (k, times) in variants():
+        other = verdicts(RUNS[k], times)[scene]
+        # The winner stays among the base's winner and ties (a tie may take in one more or one fewer) ...
+        assert winners(other) & base_winners, label
+        assert other.comparison.other.engine == base.comparison.other.engine, label
+        # ... and the cost ratio's interval overlaps the base's.
+        assert overlap((other.comparison.ratio_low, other.comparison.ratio_high), base_ratio), label
+
+
+def test_overlapping_intervals_are_a_tie_that_names_both():
+    rows = [row for row in RUNS[0] if row["scene"] == "bead"]
+    # Two copies of one variant, the second's CPU times 5 % higher: their intervals overlap, so no winner by noise.
+    twin = [{**row, "engine": "ours/twin"} for row in rows if row["engine"] == "ours/lagrangian-rk4"]
+    found = verdicts(rows + twin, lambda r: [t * (1.05 if r["engine"] == "ours/twin" else 1) for t in r["cpu_times"]])
+    comparison = found["bead"].comparison
+    assert {"ours/lagrangian-rk4", "ours/twin"} <= winners(found["bead"])
+    assert "tied with" in comparison.describe() and "ours/twin" in comparison.describe()
+    # And a family against itself, shifted within its own interval: the ratio's interval holds 1, a tie.
+    other = [{**row, "engine": "other/twin"} for row in rows if row["engine"] == "ours/lagrangian-rk4"]
+    found = verdicts([r for r in rows if r["engine"] == "ours/lagrangian-rk4"] + other)
+    assert found["bead"].comparison.tie
+    assert found["bead"].comparison.describe().startswith("tie: best ours (ours/lagrangian-rk4) and the best other "
+                                                          "engine (other/twin) reach 1e-06 m at the same cost")
+
+
+def test_docs_report_quotes_what_scripts_verdict_example_prints():
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    printed = subprocess.run([sys.executable, str(root / "scripts" / "verdict_example.py")], capture_output=True,
+                             text=True, check=True, cwd=root).stdout
+    docs = (root / "docs" / "report.md").read_text()
+    quoted = [line.strip() for line in printed.splitlines() if line.strip()]
+    missing = [line for line in quoted if line not in docs]
+    assert missing == [], "docs/report.md does not quote these lines of scripts/verdict_example.py"
