@@ -34,9 +34,11 @@ stiff: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -q
 
-# ours against its yardsticks and peers: one table, and results/bench/bench_ours.json.
+# ours against its yardsticks and peers: one table, and results/bench/bench_ours.json; then ours' rigid
+# bodies: N-scaling on chains and the KUKA against MuJoCo (results/bench/bench_rigid.json).
 bench: $(STAMP)
 	$(PY) bench/bench_ours.py
+	$(PY) bench/bench_rigid.py
 
 bench-all: $(STAMP)
 	@# bench_file_create last: the files it deletes would make the next script's record files dearer (bench/README.md)

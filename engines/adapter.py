@@ -212,6 +212,8 @@ class RawRun:
     message: str = ""
     settings: dict[str, Any] = field(default_factory=dict)
     cpu_time: float | None = None
+    #: (n_recorded, 2·nq) q then v of a model scene's joints (engines.model.stepping), else None.
+    joint_states: np.ndarray | None = None
 
 
 def loop_cpu_time(raw: RawRun, cpu: float) -> float:
@@ -295,6 +297,9 @@ class Engine:
     def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
         """Raise Unsupported with the reason when this engine (variant) cannot express ``scene``."""
         missing = scene.requires - self.capabilities
+        if "model" in missing:
+            raise Unsupported(f"{self.name} does not load model files (URDF, MJCF): it runs the catalog's scenes "
+                              f"only, and {scene.name!r} is a model")
         if "3d" in missing:
             raise Unsupported(f"{self.name} is 2-D and cannot express the 3-D scene {scene.name!r}")
         if missing:
@@ -410,6 +415,12 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
             raise RawRunError(f"{name}: RawRun.forces has {len(forces)} samples but positions {len(positions)}; "
                               f"record both at the same samples, or return forces=None")
     _check_initial_state(name, scene, positions[0], velocities[0])
+    joint_states = raw.joint_states
+    if joint_states is not None:
+        joint_states = np.asarray(joint_states, dtype=np.float64)
+        if joint_states.ndim != 2 or len(joint_states) != len(positions):
+            raise RawRunError(f"{name}: RawRun.joint_states has shape {joint_states.shape}, expected "
+                              f"({len(positions)}, 2·nq): q then v at each recorded sample")
     # No upper bound: an adaptive solver (the reference's DOP853) takes its own number of steps.
     if isinstance(raw.steps, bool) or not isinstance(raw.steps, (int, np.integer)) or raw.steps < 0:
         raise RawRunError(f"{name}: RawRun.steps = {raw.steps!r}, expected the integer number of steps taken (>= 0)")
@@ -423,7 +434,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
             f"loop's wall time in seconds (time.perf_counter() differences), not ms or ns"
         )
     return replace(raw, positions=positions, velocities=velocities, forces=forces, steps=int(raw.steps),
-                   wall_time=float(wall))
+                   wall_time=float(wall), joint_states=joint_states)
 
 
 def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray) -> None:
@@ -472,7 +483,8 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
         message=message,
         settings={**info.settings, **raw.settings},
     )
-    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces)
+    joint_states = None if raw.joint_states is None else raw.joint_states[:n]
+    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces, joint_states)
 
 
 def parse_engine_id(engine_id: str) -> tuple[str, str | None]:

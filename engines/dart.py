@@ -69,7 +69,7 @@ class DartEngine(Engine):
     """DART: a Skeleton in joint coordinates; World.step (semi-implicit Euler) or RK4 over its forward dynamics."""
 
     name = "dart"
-    capabilities = frozenset({"3d"})
+    capabilities = frozenset({"3d", "model"})
     options = {
         "integrator": Option(
             "integrator", "world",
@@ -104,6 +104,8 @@ class DartEngine(Engine):
         import dartpy  # noqa: F401
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if getattr(scene, "is_model", False):
+            return  # a model's joints are 1-degree-of-freedom (engines.model): both variants step them
         for k, c in enumerate(scene.constraints):
             if isinstance(c, Ellipse):
                 raise Unsupported(
@@ -182,13 +184,15 @@ class DartEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         model = self.build(scene, settings)
         dt = schedule.dt
         if settings["integrator"] == "world":
             model.world.setTimeStep(dt)
             step = model.world.step
         else:
-            step = model.rk4_stepper(dt)
+            step = rk4_stepper(model.skeleton, dt)
         record = {
             "point_mass_inertia": [float(x) for x in model.inertia],
             "joints": model.joint_types(),
@@ -259,37 +263,37 @@ class DartModel:
     def joint_types(self) -> list[str]:
         return [body.getParentJoint().getType() for body in self.bodies]
 
-    def rk4_stepper(self, dt: float) -> Callable[[], None]:
-        """A function that advances the skeleton one classic RK4 step of ``dt`` s (4th order, not symplectic).
 
-        f(q, v) = (v, a(q, v)), a from DART's forward dynamics; valid for joints whose
-        position rate is their velocity (revolute, prismatic), which ``_check`` ensures.
-        """
-        skeleton = self.skeleton
-        set_q, set_v, forward, get_a = (skeleton.setPositions, skeleton.setVelocities,
-                                        skeleton.computeForwardDynamics, skeleton.getAccelerations)
-        get_q, get_v = skeleton.getPositions, skeleton.getVelocities
-        half, sixth = 0.5 * dt, dt / 6.0
+def rk4_stepper(skeleton: Any, dt: float) -> Callable[[], None]:
+    """A function that advances ``skeleton`` one classic RK4 step of ``dt`` s (4th order, not symplectic).
 
-        def acceleration(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-            set_q(q)
-            set_v(v)
-            forward()
-            return get_a()
+    f(q, v) = (v, a(q, v)), a from DART's forward dynamics (its forces as set: none here); valid for
+    joints whose position rate is their velocity (revolute, prismatic), which ``_check`` ensures.
+    """
+    set_q, set_v, forward, get_a = (skeleton.setPositions, skeleton.setVelocities,
+                                    skeleton.computeForwardDynamics, skeleton.getAccelerations)
+    get_q, get_v = skeleton.getPositions, skeleton.getVelocities
+    half, sixth = 0.5 * dt, dt / 6.0
 
-        def step() -> None:
-            q, v = get_q(), get_v()
-            a1 = acceleration(q, v)
-            v2 = v + half * a1
-            a2 = acceleration(q + half * v, v2)
-            v3 = v + half * a2
-            a3 = acceleration(q + half * v2, v3)
-            v4 = v + dt * a3
-            a4 = acceleration(q + dt * v3, v4)
-            set_q(q + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4))
-            set_v(v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+    def acceleration(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        set_q(q)
+        set_v(v)
+        forward()
+        return get_a()
 
-        return step
+    def step() -> None:
+        q, v = get_q(), get_v()
+        a1 = acceleration(q, v)
+        v2 = v + half * a1
+        a2 = acceleration(q + half * v, v2)
+        v3 = v + half * a2
+        a3 = acceleration(q + half * v2, v3)
+        v4 = v + dt * a3
+        a4 = acceleration(q + dt * v3, v4)
+        set_q(q + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4))
+        set_v(v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+
+    return step
 
 
 ENGINE = DartEngine()

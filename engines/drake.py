@@ -60,7 +60,7 @@ class DrakeEngine(Engine):
     """Drake: MultibodyPlant in joint coordinates; continuous with Drake's integrators, or discrete (SAP)."""
 
     name = "drake"
-    capabilities = frozenset({"3d", "constraint-forces", "tolerance"})
+    capabilities = frozenset({"3d", "constraint-forces", "tolerance", "model"})
     #: Option that a tolerance case sets to its tolerance, for variants with error control.
     tolerance_options = (TOLERANCE_OPTION,)
     options = {
@@ -140,6 +140,11 @@ class DrakeEngine(Engine):
                 f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
                 f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
+        if getattr(scene, "is_model", False):
+            if settings["plant"] == "discrete":
+                raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
+                                  "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
+            return scene.refuse_kept_dynamics(self.name)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         tree = read_tree(scene)
         if tree.loose:
@@ -210,6 +215,8 @@ class DrakeEngine(Engine):
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant

@@ -356,7 +356,7 @@ class MuJoCoEngine(Engine):
     """MuJoCo: reduced coordinates (hinge / ball joints) and maximal coordinates (connect equalities)."""
 
     name = "mujoco"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "model"})
     options = {
         "formulation": Option(
             "formulation", "hinge", "hinge: nested bodies with joints; connect: free bodies and connect equalities",
@@ -417,6 +417,11 @@ class MuJoCoEngine(Engine):
         return mujoco.mj_versionString()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if getattr(scene, "is_model", False):
+            if settings["formulation"] != "hinge":
+                raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
+                                  "build particle scenes from free bodies, use mujoco/hinge*")
+            return
         if len(settings["solref"]) != 2 or not all(x > 0 for x in settings["solref"]):
             raise UserError(
                 f"mujoco: option solref must be two positive numbers (timeconst s, dampratio), "
@@ -455,6 +460,8 @@ class MuJoCoEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         xml, inertia = self.mjcf(scene, schedule.dt, settings)
         model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"

@@ -252,7 +252,7 @@ class PyBulletEngine(Engine):
     """PyBullet, as a multibody (reduced coordinates) or as separate bodies with point-to-point constraints."""
 
     name = "pybullet"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "model"})
     options = {
         "formulation": Option(
             "formulation",
@@ -344,6 +344,11 @@ class PyBulletEngine(Engine):
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
+        if getattr(scene, "is_model", False):
+            if settings["formulation"] != "multibody":
+                raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
+                                  "build particle scenes from separate bodies, use pybullet/multibody")
+            return scene.refuse_kept_dynamics(self.name)
         links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)
@@ -355,6 +360,8 @@ class PyBulletEngine(Engine):
                 )
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
+            return scene.run_in(self.name, schedule, settings)
         with quiet_output():
             client = _clients.take()
             try:

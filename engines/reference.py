@@ -233,6 +233,10 @@ def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
     :mod:`engines.reference_mechanisms`; everything else is a chain or a spherical pin.
     """
+    if getattr(scene, "is_model", False):  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
+        from engines.model.dynamics import ModelDynamics
+
+        return ModelDynamics(scene)
     mechanism = mechanism_model(scene)
     if mechanism is not None:
         return mechanism
@@ -428,7 +432,8 @@ def solve_and_bound(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFA
 
 
 #: The reference's own source: part of the key of a kept solution, so an edit to it solves again.
-_SOURCES = ("reference.py", "reference_mechanisms.py", "_reference_kernels.py", "scene.py")
+_SOURCES = ("reference.py", "reference_mechanisms.py", "_reference_kernels.py", "scene.py", "model/dynamics.py",
+            "model/scene.py")
 #: A solution whose pickle is larger is solved again each run rather than kept (bytes).
 _LARGEST_KEPT = 64 * 2**20
 
@@ -559,7 +564,7 @@ class ReferenceEngine(Engine):
     """The reference as an engine, so it can be simulated, listed and compared like any other."""
 
     name = "reference"
-    capabilities = frozenset({"3d", "constraint-forces", "tolerance"})
+    capabilities = frozenset({"3d", "constraint-forces", "tolerance", "model"})
     #: A suite's tolerance axis (compare/suite/tolerance_axis.py) sets both DOP853 tolerances.
     tolerance_options = ("rtol", "atol")
     options = {
@@ -593,13 +598,15 @@ class ReferenceEngine(Engine):
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         solution = solve(scene, settings["rtol"], settings["atol"])
         positions, velocities, forces = solution.at(schedule.times)
+        model = getattr(scene, "is_model", False)
         return RawRun(
             positions,
             velocities,
-            forces,
+            None if model else forces,
             steps=solution.n_steps,
             wall_time=solution.wall_time,
             settings={"method": "DOP853", "nfev": solution.nfev, "formulation": type(solution.model).__name__},
+            joint_states=solution.ode(np.asarray(schedule.times, dtype=float)).T if model else None,
         )
 
 

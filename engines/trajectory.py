@@ -69,6 +69,8 @@ class Trajectory:
         constraint exerts on its first particle (``Pin.particle``, ``Rod.a``),
         or None when the engine does not expose constraint forces.
     info : RunInfo.
+    joint_states : (n_samples, 2·nq), q then v (rad or m, rad/s or m/s) of a model scene's moving
+        joints (engines.model.scene), whose "particles" are its link frames; None for catalog scenes.
     """
 
     t: np.ndarray
@@ -76,6 +78,7 @@ class Trajectory:
     velocities: np.ndarray
     info: RunInfo
     constraint_forces: np.ndarray | None = None
+    joint_states: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -88,6 +91,11 @@ class Trajectory:
                 raise ValueError(f"Trajectory.{name}: expected shape ({n}, k, 3), got {array.shape}")
             object.__setattr__(self, name, array)
         object.__setattr__(self, "t", np.asarray(self.t, dtype=np.float64))
+        if self.joint_states is not None:
+            states = np.asarray(self.joint_states, dtype=np.float64)
+            if states.ndim != 2 or states.shape[0] != n:
+                raise ValueError(f"Trajectory.joint_states: expected shape ({n}, 2·nq), got {states.shape}")
+            object.__setattr__(self, "joint_states", states)
         if self.positions.shape != self.velocities.shape:
             raise ValueError("Trajectory: positions and velocities must have the same shape")
 
@@ -108,6 +116,18 @@ def potential_energy(scene: Scene, positions: np.ndarray) -> np.ndarray:
 def total_energy(scene: Scene, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
     """(n_samples,) J, kinetic plus gravitational potential."""
     return kinetic_energy(scene, velocities) + potential_energy(scene, positions)
+
+
+def trajectory_energy(scene: Any, trajectory: Trajectory) -> np.ndarray:
+    """(n_samples,) J: a catalog scene's point-mass energy (:func:`total_energy`), or a model scene's from its
+    joint states (``scene.energy``: rotational kinetic energy included; NaN without joint states)."""
+    if not getattr(scene, "is_model", False):
+        return total_energy(scene, trajectory.positions, trajectory.velocities)
+    states = trajectory.joint_states
+    if states is None:
+        return np.full(trajectory.n_samples, np.nan)
+    nq = states.shape[1] // 2
+    return scene.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
 
 
 def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:

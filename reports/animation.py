@@ -77,6 +77,10 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
         runs.append({"name": _label(sweep, record), "colour": palette.colour(sweep.engine), "reference": False,
                      "positions": [_frame(positions[k], box) if k < len(positions) else None for k in keep]})
     anchors, links = [], []
+    if scene.scene.get("kind") == "model":  # links drawn between joint frames; the root is fixed at the origin
+        anchors.append([0.0, 0.0])
+        links += [[parent, k, 0 if parent is None else None]
+                  for k, parent in enumerate(scene.scene.get("frame_parents", []))]
     for constraint in scene.scene.get("constraints", []):
         if constraint.get("kind") == "pin":
             anchors.append([constraint["anchor"][0], constraint["anchor"][2]])

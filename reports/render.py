@@ -37,6 +37,7 @@ from compare.results.files import atomic_write_text, check_writable, results_inp
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings, load_run_settings
 
+from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
 from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
@@ -123,6 +124,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "plots": scene_plots(scene, number, palette, ceilings),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
+            "parity": parity_view(data.path, scene.scene_id) if scene.scene.get("kind") == "model" else None,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
     packs: dict[str, Markup] = {}

@@ -11,6 +11,7 @@ from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
 from engines import catalog
+from engines.errors import UserError
 
 #: Table columns: (heading, row key).
 COLUMNS = (
@@ -28,8 +29,11 @@ COLUMNS = (
 
 
 @click.command("score")
-@click.argument("scene_name", metavar="SCENE")
-@click.argument("files", metavar="FILE.csv...", nargs=-1, required=True)
+@click.argument("scene_name", metavar="SCENE", required=False)
+@click.argument("files", metavar="FILE.csv...", nargs=-1)
+@click.option("--model", "model", default=None, metavar="MODEL",
+              help="Grade runs of a model file (a URDF or MJCF path, or pybullet_data:<path>) instead of a catalog "
+                   "SCENE: the files have t, q_<joint>, v_<joint> columns; --param q0.JOINT=DEG, v0.JOINT=RAD/S.")
 @param_option(help="Scene parameter the files were made with (see 'xval scenes'); repeatable.")
 @click.option("--delta", default=DEFAULT_DELTA, show_default=True, type=float,
               help="Divergence threshold: the first t with position error > delta * L.")
@@ -37,7 +41,7 @@ COLUMNS = (
               show_default=True, help="table: one line per file; json: a list of objects, one per file.")
 @click.option("--output", default=STDOUT, show_default=True, callback=output_path, metavar="FILE",
               help="Where to write: - for standard output, or a file (never one of the FILE.csv graded).")
-def command(scene_name, files, params, delta, output_format, output) -> None:
+def command(scene_name, files, model, params, delta, output_format, output) -> None:
     """Grade CSV files from any program against the reference solution of SCENE.
 
     Each FILE has the columns t, p{i}_x..z, v{i}_x..z (optionally f{k}_x..z),
@@ -47,8 +51,17 @@ def command(scene_name, files, params, delta, output_format, output) -> None:
     every file was graded, 2 for bad input (a column that does not fit the
     scene, a first row that is not the scene's initial state).
     """
+    if model is not None:  # no SCENE: every argument is a file
+        files = tuple(f for f in (scene_name, *files) if f is not None)
+    if not files or scene_name is None:
+        raise UserError("give SCENE (or --model MODEL) and at least one FILE.csv to grade")
     target = check_writable(output, inputs=files)
-    scene = catalog.build(scene_name, parse_assignments(params, "--param"))
+    if model is not None:
+        from compare.commands.simulate import _model_scene
+
+        scene = _model_scene(model, parse_assignments(params, "--param"), None)
+    else:
+        scene = catalog.build(scene_name, parse_assignments(params, "--param"))
     rows = score(files, scene, delta=delta)
     text = (json.dumps(rows, indent=1) if output_format == "json" else render(rows)) + "\n"
     if str(target) == STDOUT:

@@ -13,12 +13,13 @@ import numpy as np
 from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments
 from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
-from compare.results.metrics import Bounds, apply_bounds, constraint_error, energy_drift
+from compare.results.metrics import Bounds, apply_bounds, constraint_error, largest, relative_drift
 from engines import catalog, registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.command import command_engine
 from engines.errors import UserError
 from engines.limits import check_case_size
+from engines.trajectory import trajectory_energy
 
 
 def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
@@ -38,7 +39,11 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
 
 
 @click.command("simulate")
-@click.argument("scene_name", metavar="SCENE")
+@click.argument("scene_name", metavar="SCENE", required=False)
+@click.option("--model", "model", default=None, metavar="MODEL",
+              help="Simulate a model file instead of a catalog SCENE: a URDF or MJCF path, or pybullet_data:<path>; "
+                   "its initial state by --param q0.JOINT=DEG (metres for prismatic) and v0.JOINT=RAD/S "
+                   "(docs/models.md).")
 @click.option("--engine", "engine_id", default="reference", show_default=True,
               help="ENGINE or ENGINE/VARIANT, e.g. mujoco/hinge-rk4 (see 'xval engines').")
 @click.option("--dt", required=True, help="Time step in seconds, e.g. 1e-3.")
@@ -57,7 +62,7 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
                    f"{Bounds.constraint_error:g}); repeatable.")
 @click.option("--output", required=True, callback=output_path,
               help="CSV file to write, or - for standard output (the summary then goes to standard error).")
-def command(scene_name, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
+def command(scene_name, model, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
             output) -> None:
     """Simulate SCENE with one engine and write one CSV row per sample.
 
@@ -67,9 +72,14 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     its last stderr line), 2 for bad input.
     """
     overrides = parse_assignments(params, "--param")
-    if duration is not None:
-        overrides["duration"] = duration
-    scene = catalog.build(scene_name, overrides)
+    if (scene_name is None) == (model is None):
+        raise UserError("give a catalog SCENE (see 'xval scenes') or --model MODEL, one of them")
+    if model is not None:
+        scene = _model_scene(model, overrides, duration)
+    else:
+        if duration is not None:
+            overrides["duration"] = duration
+        scene = catalog.build(scene_name, overrides)
     check_time_step(dt, scene.duration)
     check_case_size(len(scene.particles), scene.duration, float(dt),
                     DEFAULT_SAMPLE_INTERVAL if sample_interval is None else sample_interval)
@@ -97,7 +107,7 @@ def command(scene_name, engine_id, dt, duration, params, options, sample_interva
     details = ""
     if trajectory.n_samples:
         with np.errstate(all="ignore"):  # a run that blew up overflows here; its numbers say so
-            drift = energy_drift(scene, trajectory.positions, trajectory.velocities)
+            drift = largest(relative_drift(scene, trajectory_energy(scene, trajectory)))
             error = constraint_error(scene, trajectory.positions)
         status, message = apply_bounds(status, message, types.SimpleNamespace(energy_drift=drift, constraint_error=error),
                                        limits, scene)
@@ -133,3 +143,23 @@ def _split(program: str) -> list[str]:
     if not argv:
         raise UserError('--command: give the program and its arguments, e.g. --command "./build/bead --fast"')
     return argv
+
+
+def _model_scene(model: str, overrides: dict[str, str], duration: str | None):
+    """The model scene of ``--model`` with ``--param q0.JOINT=VALUE`` / ``v0.JOINT=VALUE`` (degrees or metres,
+    rad/s or m/s); UserError naming a parameter that is neither."""
+    from engines.model.scene import DEFAULT_DURATION, model_scene
+
+    state: dict[str, dict[str, str]] = {"q0": {}, "v0": {}}
+    for name, value in overrides.items():
+        kind, _, joint = name.partition(".")
+        if kind not in state or not joint:
+            raise UserError(f"--param {name}: a model takes q0.JOINT=VALUE (degrees, metres for prismatic joints) "
+                            f"and v0.JOINT=VALUE (rad/s, m/s)")
+        state[kind][joint] = value
+    try:
+        seconds = DEFAULT_DURATION if duration is None else float(duration)
+    except ValueError:
+        raise UserError(f"--duration must be a number of seconds, got {duration!r}") from None
+    return model_scene(Path(model.partition(":")[2] or model).stem, model, q0=state["q0"], v0=state["v0"],
+                       duration=seconds)

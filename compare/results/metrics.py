@@ -22,7 +22,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from engines.scene import Scene
-from engines.trajectory import Trajectory, max_constraint_error, total_energy
+from engines.trajectory import Trajectory, max_constraint_error, total_energy, trajectory_energy
 
 #: Default divergence threshold δ: e(t) > δ·L counts as diverged.
 DEFAULT_DELTA = 1e-2
@@ -86,8 +86,12 @@ def energy_drift_series(scene: Scene, positions: np.ndarray, velocities: np.ndar
     """(n,) (E(t) − E(0)) / E*, signed, for plots."""
     if len(positions) == 0:
         return np.zeros(0)
-    energy = total_energy(scene, positions, velocities)
-    return (energy - energy[0]) / scene.characteristic_energy
+    return relative_drift(scene, total_energy(scene, positions, velocities))
+
+
+def relative_drift(scene: Scene, energy: np.ndarray) -> np.ndarray:
+    """(n,) (E(t) − E(0)) / E* of an energy series (n,) J."""
+    return (energy - energy[0]) / scene.characteristic_energy if len(energy) else np.zeros(0)
 
 
 def constraint_error(scene: Scene, positions: np.ndarray) -> float:
@@ -218,7 +222,7 @@ def case_metrics(
         force_error = constraint_force_error(trajectory.constraint_forces, reference_forces)
     cost = stepping_cost(wall_times, trajectory.info.steps * trajectory.info.dt, trajectory.info.steps)
     # Each series once; the scalar metrics are their maxima, as energy_drift and constraint_error give them.
-    drift = energy_drift_series(scene, trajectory.positions, trajectory.velocities)
+    drift = relative_drift(scene, trajectory_energy(scene, trajectory))
     constraint_errors = max_constraint_error(scene, trajectory.positions)
     metrics = CaseMetrics(
         position_error_final=summary.final if complete else math.nan,

@@ -43,6 +43,7 @@ class Loaded:
     state: protocol.StateColumns
     lines: np.ndarray
     comments: dict[str, str]
+    joint_states: np.ndarray | None = None  # (n, 2·nq) of a model scene's file
 
 
 def load(path: str | Path, scene: Scene) -> Loaded:
@@ -56,12 +57,37 @@ def load(path: str | Path, scene: Scene) -> Loaded:
         raise UserError(f"{where}: cannot read it ({exc.strerror})") from None
     try:
         table = protocol.read_csv(text, where)
+        if getattr(scene, "is_model", False):
+            return _load_model_run(where, table, scene)
         state = protocol.match_columns(table, scene, where)
     except protocol.ProtocolError as exc:
         raise UserError(str(exc)) from None
     loaded = Loaded(where, state, table.data_lines, dict(table.comments))
     _check_times(loaded)
     _check_start(loaded, scene)
+    return loaded
+
+
+def _load_model_run(where: str, table: protocol.Table, scene: Any) -> Loaded:
+    """A model run's file: its joint columns, and the link frames computed from them (rows up to the
+    first non-finite one); UserError when row 0 is not the scene's (q0, v0)."""
+    from compare.results.model_csv import joint_states
+
+    states = joint_states(table, scene, where)
+    nq = states.shape[1] // 2
+    n = len(states)
+    positions = np.full((n, len(scene.frames), 3), np.nan)
+    velocities = positions.copy()
+    finite = np.flatnonzero(np.isfinite(states).all(axis=1))
+    if len(finite):
+        positions[finite], velocities[finite] = scene.frame_states(states[finite, :nq], states[finite, nq:])
+    state = protocol.StateColumns(table.column("t").copy(), positions, velocities, None)
+    loaded = Loaded(where, state, table.data_lines, dict(table.comments), states)
+    _check_times(loaded)
+    start = np.concatenate([scene.initial_q, scene.initial_v])
+    if not np.allclose(states[0], start, rtol=0, atol=INITIAL_STATE_TOLERANCE):
+        raise UserError(f"{where}: line {int(table.data_lines[0])} (sample 0): q and v are not the scene's initial "
+                        f"state; pass the --param q0.JOINT / v0.JOINT values the file was made with")
     return loaded
 
 
@@ -120,7 +146,8 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
     forces = None if state.forces is None else state.forces[:n]
     info = RunInfo(engine="file", variant=f"file/{Path(item.path).name}", engine_version=item.comments.get("version", ""),
                    dt=math.nan)
-    trajectory = Trajectory(state.t[:n], state.positions[:n], state.velocities[:n], info, forces)
+    joints = None if item.joint_states is None else item.joint_states[:n]
+    trajectory = Trajectory(state.t[:n], state.positions[:n], state.velocities[:n], info, forces, joints)
     ref_positions, _, ref_forces = solution.at(state.t)
     metrics, series = case_metrics(scene, trajectory, ref_positions, ref_forces, scheduled_times=state.t,
                                    wall_times=[], delta=delta)

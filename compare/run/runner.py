@@ -744,10 +744,12 @@ class SampledReference:
 def _truncate(trajectory, n: int):
     """The first n samples of ``trajectory``."""
     forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
+    joints = None if trajectory.joint_states is None else trajectory.joint_states[:n]
     return replace(
         trajectory,
         t=trajectory.t[:n],
         positions=trajectory.positions[:n],
         velocities=trajectory.velocities[:n],
         constraint_forces=forces,
+        joint_states=joints,
     )

@@ -101,7 +101,9 @@ TOP_LEVEL_KEYS = {
     "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics")
+#: Keys of a model scene ([[scenes]] model = "…"), beside id.
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
@@ -474,6 +476,16 @@ class _Reader:
         for k, item in enumerate(value):
             key = f"scenes[{k}]"
             entry = self.table(key, item, SCENE_KEYS)
+            if "model" in entry:
+                spec = self.model_scene(key, entry, duration)
+                if any(s.id == spec.id for s in specs):
+                    raise self.error(f"{key}.id", f"{spec.id!r} is used twice; give each scene a distinct id")
+                specs.append(spec)
+                continue
+            stray = [k for k in MODEL_KEYS if k in entry]
+            if stray:
+                raise self.error(f"{key}.{stray[0]}", "belongs to a model scene; add model = \"path/to/file.urdf\" "
+                                 "(or pybullet_data:<path>) or remove it")
             if "scene" not in entry:
                 raise self.error(key, f"missing scene; add scene = one of {', '.join(catalog.scene_names())}")
             name = self.string(f"{key}.scene", entry["scene"])
@@ -496,6 +508,30 @@ class _Reader:
                 raise self.error(f"{key}.parameters", f"{exc}") from None
             specs.append(SceneSpec(scene_id, name, dict(parameters), scene))
         return tuple(specs)
+
+    def model_scene(self, key: str, entry: dict[str, Any], duration: float | None) -> SceneSpec:
+        """A [[scenes]] entry with ``model = "…"`` (a path relative to the suite file, or pybullet_data:<path>),
+        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name."""
+        from engines.model.scene import DEFAULT_DURATION, model_scene
+
+        if "scene" in entry or "parameters" in entry:
+            raise self.error(f"{key}.model", "a scene is either a catalog scene (scene, parameters) or a model "
+                             "(model, q0, v0, file_dynamics), not both; remove one")
+        model = self.string(f"{key}.model", entry["model"])
+        scene_id = self.string(f"{key}.id", entry.get("id", Path(model.partition(":")[2] or model).stem))
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
+            raise self.error(f"{key}.id", f"{scene_id!r} is not a readable id; use letters, digits, '.', '_' and '-'")
+        q0 = self.table(f"{key}.q0", entry.get("q0", {}), tuple(entry.get("q0", {})))
+        v0 = self.table(f"{key}.v0", entry.get("v0", {}), tuple(entry.get("v0", {})))
+        file_dynamics = self.string(f"{key}.file_dynamics", entry.get("file_dynamics", "neutral"))
+        try:
+            scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
+                                duration=DEFAULT_DURATION if duration is None else duration,
+                                file_dynamics=file_dynamics)
+        except UserError as exc:
+            raise self.error(f"{key}.model", str(exc)) from None
+        return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
+                                             "file_dynamics": file_dynamics}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

@@ -11,11 +11,11 @@ from ours.rigid.method import INTEGRATORS, METHODS, valid_pairs
 from ours.rigid.model import DOFS, ROWS, Body, Joint, Mechanism
 from ours.rigid.simulate import (
     RigidResult, angular_momentum, energy, frames, initial_state, joint_coordinates, joint_errors, pack, quaternion,
-    rotation, rotation_of, simulate, workspace,
+    rotation, rotation_of, simulate, Stepping, workspace,
 )
 
 __all__ = [
     "DOFS", "INTEGRATORS", "METHODS", "ROWS", "Body", "Joint", "Mechanism", "RigidResult", "angular_momentum",
     "energy", "frames", "initial_state", "joint_coordinates", "joint_errors", "pack", "quaternion", "rotation",
-    "rotation_of", "simulate", "valid_pairs", "workspace",
+    "rotation_of", "simulate", "Stepping", "valid_pairs", "workspace",
 ]

@@ -166,7 +166,8 @@ def joint_rows(y, model, R, C, JA, JB, gam):
 
 @inlined
 def _cholesky(D, i, n):
-    """D[i] (n × n, lower part) = L Lᵀ in place; False when not positive definite."""
+    """D[i] (n × n, lower part) = L Lᵀ in place, with 1/L_rr on the diagonal (the solves multiply
+    instead of dividing); False when not positive definite."""
     for r in range(n):
         for c in range(r + 1):
             s = D[i, r, c]
@@ -175,28 +176,28 @@ def _cholesky(D, i, n):
             if r == c:
                 if not s > 0.0:
                     return False
-                D[i, r, r] = math.sqrt(s)
+                D[i, r, r] = 1.0 / math.sqrt(s)
             else:
-                D[i, r, c] = s / D[i, c, c]
+                D[i, r, c] = s * D[i, c, c]
     return True
 
 
 @inlined
-def _chol_solve(D, i, n, x, scale):
-    """x[:n] ← scale · (L Lᵀ)⁻¹ x[:n] in place, with L in D[i] (x: a row of the right sides)."""
+def _chol_solve(D, i, n, x, j, c, scale):
+    """x[j, c, :n] ← scale · (L Lᵀ)⁻¹ x[j, c, :n] in place, with L in D[i]."""
     for r in range(n):
-        s = x[r]
+        s = x[j, c, r]
         for m in range(r):
-            s -= D[i, r, m] * x[m]
-        x[r] = s / D[i, r, r]
+            s -= D[i, r, m] * x[j, c, m]
+        x[j, c, r] = s * D[i, r, r]
     for r in range(n - 1, -1, -1):
-        s = x[r]
+        s = x[j, c, r]
         for m in range(r + 1, n):
-            s -= D[i, m, r] * x[m]
-        x[r] = s / D[i, r, r]
+            s -= D[i, m, r] * x[j, c, m]
+        x[j, c, r] = s * D[i, r, r]
     if scale != 1.0:
         for r in range(n):
-            x[r] *= scale
+            x[j, c, r] *= scale
 
 
 @inlined
@@ -212,7 +213,7 @@ def tree_factor(y, model, work):
     """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
     mass, inertia, nb = model[0], model[1], model[0].shape[0]
     rows, order, up = model[11], model[12], model[13]
-    R, JA, JB, D, X = work[0], work[2], work[3], work[5], work[6]
+    R, JA, JB, D, X, H = work[0], work[2], work[3], work[5], work[6], work[11]
     nn = order.shape[0]
     for i in range(nn):
         for r in range(6):
@@ -244,41 +245,41 @@ def tree_factor(y, model, work):
         dp = 6 if p < nb else rows[p - nb]
         for c in range(dp):  # X[i] = (D_i⁻¹ H_{i,p})ᵀ, row c = D_i⁻¹ (column c of H_{i,p})
             for r in range(di):
-                X[i, c, r] = _coupling(i, p, nb, JA, JB, r, c)
-            _chol_solve(D, i, di, X[i, c], sign)
-        for r in range(dp):  # D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}
-            for c in range(dp):
+                X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
+            _chol_solve(D, i, di, X, i, c, sign)
+        for r in range(dp):  # D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}, lower triangle only (Cholesky reads no more)
+            for c in range(r + 1):
                 s = 0.0
                 for m in range(di):
-                    s += _coupling(i, p, nb, JA, JB, m, r) * X[i, c, m]
+                    s += H[r, m] * X[i, c, m]
                 D[p, r, c] -= s
     return True
 
 
 @compiled
 def tree_solve(model, work, x):
-    """Solve the factored system in place: x (nodes, 6) holds the right side on entry."""
-    dims, order, up = model[3], model[12], model[13]
+    """Solve the factored system in place: x (nodes, 1, 6) holds the right side on entry."""
+    nb, dims, order, up = model[0].shape[0], model[3], model[12], model[13]
     D, X = work[5], work[6]
     nn = order.shape[0]
     for idx in range(nn):  # forward: y_p −= L_{p,i} y_i, children first
-        i, p = order[idx], up[order[idx]]
+        i = order[idx]
+        p = up[i]
         for r in range(dims[p] if p >= 0 else 0):
-            x[p, r] -= _dot_n(X[i, r], x[i], dims[i])
+            s = 0.0
+            for m in range(dims[i]):
+                s += X[i, r, m] * x[i, 0, m]
+            x[p, 0, r] -= s
     for i in range(nn):
-        _chol_solve(D, i, dims[i], x[i], 1.0 if i < model[0].shape[0] else -1.0)
+        _chol_solve(D, i, dims[i], x, i, 0, 1.0 if i < nb else -1.0)
     for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
-        i, p = order[idx], up[order[idx]]
+        i = order[idx]
+        p = up[i]
         for r in range(dims[i] if p >= 0 else 0):
-            x[i, r] -= _dot_n(X[i, :, r], x[p], dims[p])
-
-
-@inlined
-def _dot_n(a, b, n):
-    s = 0.0
-    for m in range(n):
-        s += a[m] * b[m]
-    return s
+            s = 0.0
+            for m in range(dims[p]):
+                s += X[i, m, r] * x[p, 0, m]
+            x[i, 0, r] -= s
 
 
 # --- dynamics --------------------------------------------------------------------------------
@@ -318,11 +319,11 @@ def derivative(y, model, work, ks, kd, ydot):
         L0, L1, L2 = _rot(R, b, m0, m1, m2)
         g0, g1, g2 = _cross(w0, w1, w2, L0, L1, L2)
         for r in range(3):
-            sol[b, r] = mass[b] * gravity[r]
-        sol[b, 3], sol[b, 4], sol[b, 5] = -g0, -g1, -g2
+            sol[b, 0, r] = mass[b] * gravity[r]
+        sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5] = -g0, -g1, -g2
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
-            sol[nb + k, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
+            sol[nb + k, 0, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
     tree_solve(model, work, sol)
     for b in range(nb):
         o = 13 * b
@@ -335,10 +336,10 @@ def derivative(y, model, work, ks, kd, ydot):
         ydot[o + 5] = 0.5 * (qw * w1 + c1)
         ydot[o + 6] = 0.5 * (qw * w2 + c2)
         for r in range(6):
-            ydot[o + 7 + r] = sol[b, r]
+            ydot[o + 7 + r] = sol[b, 0, r]
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
-            lam[k, r] = -sol[nb + k, r]
+            lam[k, r] = -sol[nb + k, 0, r]
     return OK
 
 
@@ -380,10 +381,10 @@ def _correction(y, model, work, velocity):
         return False
     for b in range(nb):
         for r in range(6):
-            sol[b, r] = 0.0
+            sol[b, 0, r] = 0.0
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
-            sol[nb + k, r] = -(_row_rate(y, model, JA, JB, k, r) if velocity else C[k, r])
+            sol[nb + k, 0, r] = -(_row_rate(y, model, JA, JB, k, r) if velocity else C[k, r])
     tree_solve(model, work, sol)
     return True
 
@@ -405,13 +406,13 @@ def project(y, model, work, tolerance, max_iterations):
         for b in range(nb):
             o = 13 * b
             for r in range(3):
-                y[o + r] += sol[b, r]
-            _rotate_quaternion(y, o + 3, sol[b, 3], sol[b, 4], sol[b, 5])
+                y[o + r] += sol[b, 0, r]
+            _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
     if not _correction(y, model, work, True):
         return SINGULAR
     for b in range(nb):
         for r in range(6):
-            y[13 * b + 7 + r] += sol[b, r]
+            y[13 * b + 7 + r] += sol[b, 0, r]
     return OK
 
 

@@ -48,12 +48,11 @@ def pack(mech: Mechanism) -> tuple:
     for k, j in enumerate(mech.joints):
         up[j.child] = nb + k
         up[nb + k] = j.parent  # -1 for the world: the joint is a root of the elimination
-    depth = np.zeros(nb + nj, dtype=np.int64)
-    for i in range(nb + nj):
-        node = i
-        while up[node] >= 0:
-            node = up[node]
-            depth[i] += 1
+    depth = np.zeros(nb + nj, dtype=np.int64)  # edges from the node to its root
+    for k in mech.topological_joints():
+        j = mech.joints[k]
+        depth[nb + k] = depth[j.parent] + 1 if j.parent >= 0 else 0
+        depth[j.child] = depth[nb + k] + 1
     order = np.argsort(-depth, kind="stable").astype(np.int64)  # leaves first, each node before its parent
     dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
     return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
@@ -65,8 +64,8 @@ def workspace(mech: Mechanism, stages: int) -> tuple:
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
     return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
-            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
+            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
+            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb), np.zeros((6, 6)))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -325,3 +324,33 @@ def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
         distance[s] = C[used & length].max(initial=0.0)
         angle[s] = C[used & ~length].max(initial=0.0)
     return distance, angle
+
+
+class Stepping:
+    """A run that advances on request (for a caller that samples as it goes): the same compiled step
+    as :func:`simulate`. ``y`` (13 nb,) is the current state; ``status`` "ok" or why it stopped (then
+    ``y`` is left as it was when the step failed and :meth:`advance` does nothing more)."""
+
+    def __init__(self, mech: Mechanism, y0, dt: float, *, method: str = "baumgarte", integrator: str | None = None,
+                 k_s: float | None = None, k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
+                 max_iterations: int = DEFAULT_MAX_ITERATIONS) -> None:
+        first = simulate(mech, y0, dt, 1, 1, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
+                         tolerance=tolerance, max_iterations=max_iterations)  # validates, compiles, warms
+        self.settings = first.settings
+        code, scheme = resolve(method, integrator)
+        self._args = (code, scheme.code, scheme.A, scheme.b)
+        self._gains = (first.settings.get("k_s", 0.0), first.settings.get("k_d", 0.0))
+        self._dt, self._tolerance, self._max_iterations = float(dt), float(tolerance), int(max_iterations)
+        self._model, self._work = pack(mech), workspace(mech, scheme.stages)
+        self.y = np.array(y0, dtype=float).ravel()
+        self._out = np.zeros((2, self.y.size))
+        self.status, self.steps = "ok", 0
+
+    def advance(self, steps: int) -> str:
+        """Take ``steps`` steps of dt in place; returns the status."""
+        if self.status == "ok" and steps > 0:
+            _, taken, status = _kernel().run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
+                                             int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
+            self.steps += int(taken)
+            self.status = STATUS_TEXT[int(status)]
+        return self.status

@@ -1,0 +1,131 @@
+"""Speed of ours' rigid bodies (``ours.rigid``), measured against a peer in the same run.
+
+1. N-scaling — chains of 4 … 256 revolute links (dt 1e-3 s): thread CPU time per step of
+   baumgarte-rk4, baumgarte-symplectic-euler and projection-symplectic-euler, and the exponent p
+   of cost ∝ Nᵖ fitted over the chains (least squares in log–log). Target p ≤ 1.1: the tree
+   elimination makes a step O(N).
+2. KUKA iiwa (7 bodies) — one step of ours against MuJoCo on the same model (pybullet_data's
+   kuka_iiwa/model.urdf), MuJoCo stepping in C through ``mujoco.rollout``: ours' symplectic Euler
+   against MuJoCo's Euler, ours' RK4 against MuJoCo's RK4. Target ≤ 5×.
+
+Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
+compare ratios within a run, not across machines.
+
+    .venv/bin/python bench/bench_rigid.py [--quick] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import numpy as np  # noqa: E402
+
+from bench_ours import fastest  # noqa: E402
+from ours.rigid import initial_state, simulate  # noqa: E402
+from rigid_support import chain  # noqa: E402
+
+SCALING_TARGET = 1.1
+KUKA_TARGET = 5.0
+VARIANTS = (("baumgarte", "rk4"), ("baumgarte", "symplectic-euler"), ("projection", "symplectic-euler"))
+
+
+def ours_step_seconds(mech, y0, method: str, integrator: str, steps: int, repeats: int) -> float:
+    simulate(mech, y0, 1e-3, 1, method=method, integrator=integrator)  # compiled before timing
+    seconds = fastest(lambda: simulate(mech, y0, 1e-3, steps, steps, method=method, integrator=integrator), repeats)
+    return seconds / steps
+
+
+def scaling_rows(sizes, repeats: int) -> list[dict]:
+    rows = []
+    for method, integrator in VARIANTS:
+        costs = []
+        for n in sizes:
+            mech = chain(n)
+            y0 = initial_state(mech, {f"j{i}": 0.1 for i in range(n)})
+            costs.append(ours_step_seconds(mech, y0, method, integrator, max(400, 100_000 // n), repeats))
+        exponent = float(np.polyfit(np.log(sizes), np.log(costs), 1)[0])
+        rows.append({"section": "scaling", "variant": f"{method}-{integrator}", "sizes": list(sizes),
+                     "us_per_step": [c * 1e6 for c in costs], "exponent": exponent,
+                     "target": SCALING_TARGET, "met": exponent <= SCALING_TARGET})
+    return rows
+
+
+def kuka_rows(repeats: int, steps: int = 2000) -> list[dict]:
+    """The KUKA from one description (engines/model): MuJoCo's import (damping, armature, limits off)
+    and ours' translation of it, both from q = 0.3 rad at every joint, at rest."""
+    import mujoco
+    from mujoco import rollout
+
+    from engines.model import mujoco as mujoco_model
+    from engines.model.source import resolve
+    from engines.model.urdf import read
+    from engines.ours_model import translate
+
+    source = resolve("pybullet_data:kuka_iiwa/model.urdf")
+    description = read(source)
+    peer = mujoco_model.load(source, description)
+    model, data = peer.model, peer.data
+    model.opt.timestep = 1e-3
+    ours = translate(description)
+    q0 = {j.name: 0.3 for j in description.moving_joints}
+    y0 = initial_state(ours.mechanism, q0)
+    rows = []
+    for (method, integrator), (name, code) in (
+        (("baumgarte", "symplectic-euler"), ("mujoco Euler", mujoco.mjtIntegrator.mjINT_EULER)),
+        (("projection", "symplectic-euler"), ("mujoco Euler", mujoco.mjtIntegrator.mjINT_EULER)),
+        (("baumgarte", "rk4"), ("mujoco RK4", mujoco.mjtIntegrator.mjINT_RK4)),
+        (("projection", "rk4"), ("mujoco RK4", mujoco.mjtIntegrator.mjINT_RK4)),
+    ):
+        model.opt.integrator = code
+        data.qpos[:] = 0.0
+        data.qpos[peer.qpos] = [q0[j.name] for j in description.moving_joints]
+        data.qvel[:] = 0.0
+        mujoco.mj_forward(model, data)
+        kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.zeros(mujoco.mj_stateSize(model, kind))
+        mujoco.mj_getState(model, data, state, kind)
+        out = np.zeros((1, steps, state.size))
+        rollout.rollout(model, data, state[None], nstep=steps, state=out)  # warm
+        theirs = fastest(lambda: rollout.rollout(model, data, state[None], nstep=steps, state=out), repeats) / steps
+        mine = ours_step_seconds(ours.mechanism, y0, method, integrator, steps, repeats)
+        rows.append({"section": "kuka", "variant": f"{method}-{integrator}", "peer": name,
+                     "us_per_step": mine * 1e6, "peer_us_per_step": theirs * 1e6, "ratio": mine / theirs,
+                     "target": KUKA_TARGET, "met": mine / theirs <= KUKA_TARGET})
+    return rows
+
+
+def main(argv: list[str]) -> int:
+    quick = "--quick" in argv
+    path = Path(argv[argv.index("--json") + 1]) if "--json" in argv else ROOT / "results" / "bench" / "bench_rigid.json"
+    repeats = 3 if quick else 7
+    sizes = (4, 16, 64) if quick else (4, 8, 16, 32, 64, 128, 256)
+    rows = scaling_rows(sizes, repeats)
+    print(f"ours.rigid: chains of revolute links, µs per step (thread CPU, least of {repeats})")
+    print(f"{'variant':<30}" + "".join(f"{n:>9}" for n in sizes) + f"{'exponent':>10}  target ≤ {SCALING_TARGET}")
+    for row in rows:
+        print(f"{row['variant']:<30}" + "".join(f"{c:9.1f}" for c in row["us_per_step"])
+              + f"{row['exponent']:10.3f}  {'met' if row['met'] else 'MISSED'}")
+    kuka = kuka_rows(repeats)
+    print(f"\nKUKA iiwa (7 bodies, dt 1e-3 s): µs per step, ours against MuJoCo (rollout, in C) in this run")
+    print(f"{'variant':<34}{'ours':>8}  {'peer':<14}{'peer µs':>8}{'ratio':>8}  target ≤ {KUKA_TARGET:g}×")
+    for row in kuka:
+        print(f"{row['variant']:<34}{row['us_per_step']:8.2f}  {row['peer']:<14}{row['peer_us_per_step']:8.2f}"
+              f"{row['ratio']:7.2f}×  {'met' if row['met'] else 'MISSED'}")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"\nload average {load:.1f} on {os.cpu_count()} CPUs")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"rows": rows + kuka, "load_average": load}, indent=1))
+    return 0 if all(r["met"] for r in rows + kuka) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,62 @@
+"""Stepping a model scene in an engine: one loop for every engine, each engine's own step.
+
+An engine adapter that runs model scenes builds a :class:`Stepper` from the
+engine's import of the file (``engines.model.<engine>.load``), with its
+integrator and time step, and hands it to :func:`run_model`. The loop
+advances to each sample step (only that is timed), reads the joint state
+(q, v) in the model's joint order, and afterwards turns every sample into
+link frames (``ModelScene.frame_states``). ``neutral`` and ``keep`` (the
+file's joint damping, friction and armature) are applied by the stepper;
+every override goes into the run's settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Protocol
+
+import numpy as np
+
+from engines.adapter import RawRun, Schedule
+from engines.recorder import Recorder
+
+
+class Stepper(Protocol):
+    """An engine's model, ready to step at the schedule's dt from the scene's initial state.
+
+    settings : what the run must record (import options, overrides, integrator).
+    """
+
+    settings: dict[str, Any]
+
+    def advance(self, steps: int) -> None:
+        """Take ``steps`` steps of dt."""
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
+
+
+def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
+    """Step ``scene`` (an engines.model.scene.ModelScene) to every sample of ``schedule`` through the one
+    Recorder loop (it stops at a non-finite state).
+    Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v."""
+    recorder = Recorder(scene, schedule)
+    recorder.record(0, *stepper.state())
+    recorder.run(stepper.advance, stepper.state)
+    q, v = recorder.samples()
+    states = np.concatenate([q, v], axis=1)
+    positions = np.full((len(states), len(scene.frames), 3), np.nan)
+    velocities = positions.copy()
+    finite = np.isfinite(states).all(axis=1)
+    if finite.any():
+        good = np.flatnonzero(finite)
+        positions[good], velocities[good] = scene.frame_states(q[good], v[good])
+    raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings)
+    return replace(raw, joint_states=states)
+
+
+def file_values(scene: Any) -> dict[str, dict[str, float]]:
+    """The file's joint damping and friction by joint (what ``keep`` leaves in place), for the record."""
+    return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
+            if j.damping or j.friction}
+

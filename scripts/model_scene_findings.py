@@ -1,0 +1,73 @@
+"""Model scenes stepped by every engine that loads models, against the Pinocchio reference (docs/models.md,
+"Models as scenes").
+
+Run:  .venv/bin/python scripts/model_scene_findings.py      (about half a minute)
+
+For the compound double pendulum fixture (models/double_pendulum.urdf, q0 = 30°, −20°) and KUKA iiwa
+(pybullet_data, q0 joint 2 = 30°, joint 4 = −45°), 2 s at dt = 1e-3: each engine variant's largest
+link-frame position error (m) against the reference and its energy drift max |E − E0| / E* (rotational
+kinetic energy included). KUKA is left out of the quick run the docs test makes.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from quoted import Quote, Row, report  # noqa: E402
+
+from engines.model.scene import model_scene  # noqa: E402
+from engines.reference import ENGINE as REFERENCE  # noqa: E402
+from engines.registry import resolve  # noqa: E402
+from engines.trajectory import trajectory_energy  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = {
+    "double": (str(ROOT / "models" / "double_pendulum.urdf"), {"shoulder": 30, "elbow": -20}),
+    "kuka": ("pybullet_data:kuka_iiwa/model.urdf", {"lbr_iiwa_joint_2": 30, "lbr_iiwa_joint_4": -45}),
+}
+ENGINES = ("mujoco/hinge", "mujoco/hinge-rk4", "pybullet/multibody", "drake/semi-explicit-euler", "drake/rk2",
+           "dart/world", "dart/rk4")
+DT = 1e-3
+QUICK_SKIP = ("kuka",)
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    f: dict[str, float] = {}
+    for key, (model, q0) in SCENES.items():
+        if quick and key in QUICK_SKIP:
+            continue
+        scene = model_scene(key, model, q0=q0, duration=2.0)
+        reference = REFERENCE.simulate(scene, DT)
+        for engine_id in ENGINES:
+            engine, variant = resolve(engine_id)
+            run = engine.simulate(scene, DT, variant=variant)
+            energy = trajectory_energy(scene, run)
+            f[f"{key}|{engine_id}|error"] = float(np.linalg.norm(run.positions - reference.positions, axis=2).max())
+            f[f"{key}|{engine_id}|drift"] = float(np.abs(energy - energy[0]).max() / scene.characteristic_energy)
+    return f
+
+
+D = "docs/models.md"
+HEADING = "## Models as scenes"
+ROWS = [Row(D, f"`{e}`", tuple(f"{s}|{e}|{m}" for s in SCENES for m in ("error", "drift")), HEADING)
+        for e in ENGINES]
+QUOTES: list[Quote] = []
+SLOW = {f"kuka|{e}|{m}" for e in ENGINES for m in ("error", "drift")}
+
+
+def main() -> None:
+    f = figures()
+    print("| engine | double pendulum error (m) | drift (E*) | KUKA iiwa error (m) | drift (E*) |")
+    print("|---|---|---|---|---|")
+    for e in ENGINES:
+        cells = " | ".join(f"{f[f'{s}|{e}|{m}']:.2g}" for s in SCENES for m in ("error", "drift"))
+        print(f"| `{e}` | {cells} |")
+    report(f, QUOTES, ROWS)
+
+
+if __name__ == "__main__":
+    main()
