@@ -5,19 +5,42 @@ PY := $(VENV)/bin/python
 XVAL := $(VENV)/bin/xval
 STAMP := $(VENV)/.installed-stamp
 JOBS ?= 2
-# Optional engine extras installed with xval (pyproject.toml): `make EXTRAS= test` leaves Drake and MJX out.
-EXTRAS ?= all
+# Exact versions of every dependency (extras test, all and lint), generated from pyproject.toml by `make lock`.
+LOCK := requirements.lock
+LOCK_EXTRAS := --extra test --extra all --extra lint
 
-comma := ,
+.PHONY: demo stiff test lint lock upgrade bench bench-all baseline clean examples history-demo
 
-.PHONY: demo stiff test bench bench-all baseline clean examples history-demo
-
-$(STAMP): pyproject.toml examples/my-solver/pyproject.toml
+# The venv from the lock file (no resolution: a fresh clone gets the versions the baselines and the docs'
+# figures were made with), then xval and the example plug-in on top without touching those versions.
+$(STAMP): $(LOCK) pyproject.toml examples/my-solver/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test$(if $(EXTRAS),$(comma)$(EXTRAS))]'
-	$(PY) -m pip install --quiet -e examples/my-solver
+	$(PY) -m pip install --quiet -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps -e . -e examples/my-solver
 	touch $(STAMP)
+
+# Regenerate the lock from pyproject.toml (run it after adding or changing a dependency, and commit both).
+# uv resolves for Python 3.11 on this platform (CI's: Linux x86_64); versions already locked are kept where they fit.
+UV := $(VENV)/bin/uv
+UV_COMPILE := $(UV) pip compile pyproject.toml $(LOCK_EXTRAS) --python-version 3.11 --quiet
+$(UV):
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet uv
+
+lock: | $(UV)
+	$(UV_COMPILE) --output-file $(LOCK)
+
+# Newest versions of everything, and the self-gate's baseline remade with them, in one step: review both diffs.
+upgrade: | $(UV)
+	$(UV_COMPILE) --upgrade --output-file $(LOCK)
+	$(MAKE) $(STAMP)
+	$(MAKE) baseline
+
+# ruff (pyflakes, bugbear and syntax rules) and mypy, configured in pyproject.toml; .ci/run runs it before the tests.
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 demo: $(STAMP)
 	$(PY) -m compare.demo
@@ -31,8 +54,9 @@ stiff: $(STAMP)
 	$(XVAL) stability suites/stiff.toml --output results/stiff --jobs $(JOBS)
 	$(XVAL) report results/stiff
 
+# -rs: every skip and its reason are printed (XVAL_CI=1, as .ci/run sets, makes a skip a failure).
 test: $(STAMP)
-	$(PY) -m pytest -n $(JOBS) -q
+	$(PY) -m pytest -n $(JOBS) -q -rs
 
 # ours against its yardsticks and peers: one table, and results/bench/bench_ours.json; then ours' rigid
 # bodies: N-scaling on chains and the KUKA against MuJoCo (results/bench/bench_rigid.json).

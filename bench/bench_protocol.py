@@ -62,11 +62,11 @@ def overhead(build: Path) -> None:
         payload = json.dumps(protocol.document(scene, dt, schedule.n_steps, schedule.sample_steps, {})).encode()
 
         def bare():
-            done = subprocess.run([str(build / program)], input=payload, capture_output=True, check=True)
+            done = subprocess.run([str(build / program)], input=payload, capture_output=True, check=True)  # noqa: B023
             assert done.stdout
 
         def through_engine():
-            trajectory = engine.simulate(scene, dt, sample_interval=interval)
+            trajectory = engine.simulate(scene, dt, sample_interval=interval)  # noqa: B023 (timed in the loop)
             assert trajectory.info.status == "ok", trajectory.info.message
 
         through_engine(), bare()  # page the program in

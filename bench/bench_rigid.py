@@ -19,7 +19,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -95,7 +94,7 @@ def kuka_rows(repeats: int, steps: int = 2000) -> list[dict]:
         mujoco.mj_getState(model, data, state, kind)
         out = np.zeros((1, steps, state.size))
         rollout.rollout(model, data, state[None], nstep=steps, state=out)  # warm
-        theirs = fastest(lambda: rollout.rollout(model, data, state[None], nstep=steps, state=out), repeats) / steps
+        theirs = fastest(lambda: rollout.rollout(model, data, state[None], nstep=steps, state=out), repeats) / steps  # noqa: B023 (timed here)
         mine = ours_step_seconds(ours.mechanism, y0, method, integrator, steps, repeats)
         rows.append({"section": "kuka", "variant": f"{method}-{integrator}", "peer": name,
                      "us_per_step": mine * 1e6, "peer_us_per_step": theirs * 1e6, "ratio": mine / theirs,
@@ -115,7 +114,7 @@ def main(argv: list[str]) -> int:
         print(f"{row['variant']:<30}" + "".join(f"{c:9.1f}" for c in row["us_per_step"])
               + f"{row['exponent']:10.3f}  {'met' if row['met'] else 'MISSED'}")
     kuka = kuka_rows(repeats)
-    print(f"\nKUKA iiwa (7 bodies, dt 1e-3 s): µs per step, ours against MuJoCo (rollout, in C) in this run")
+    print("\nKUKA iiwa (7 bodies, dt 1e-3 s): µs per step, ours against MuJoCo (rollout, in C) in this run")
     print(f"{'variant':<34}{'ours':>8}  {'peer':<14}{'peer µs':>8}{'ratio':>8}  target ≤ {KUKA_TARGET:g}×")
     for row in kuka:
         print(f"{row['variant']:<34}{row['us_per_step']:8.2f}  {row['peer']:<14}{row['peer_us_per_step']:8.2f}"

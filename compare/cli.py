@@ -201,6 +201,15 @@ def output_path(ctx: click.Context | None, param: click.Parameter | None, value:
     return value
 
 
+def scene_from_params(name: str, overrides: dict[str, str]):
+    """engines.catalog.build, after printing a warning (stderr) for each angle that looks like radians."""
+    from engines import catalog
+
+    for line in catalog.unit_warnings(name, overrides):
+        click.echo(f"xval: warning: {line}", err=True)
+    return catalog.build(name, overrides)
+
+
 def parse_assignments(pairs: tuple[str, ...], flag: str) -> dict[str, str]:
     """``("theta0=30", "m=2")`` -> ``{"theta0": "30", "m": "2"}``; UserError naming the flag for a malformed pair."""
     parsed: dict[str, str] = {}

@@ -29,7 +29,9 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping
 
@@ -334,17 +336,68 @@ class Engine:
             settings={**settings, **{f"override.{k}": v for k, v in self.overrides.items()}},
         )
         n_particles, n_constraints = len(scene.particles), len(scene.constraints)
-        try:
-            started, cpu_started = time.perf_counter(), time.thread_time()
-            raw = self._run(scene, schedule, settings)
-            elapsed, cpu = time.perf_counter() - started, time.thread_time() - cpu_started
-            raw = check_raw_run(self.name, raw, scene, schedule, elapsed)
-            info = replace(info, cpu_time=loop_cpu_time(raw, cpu))
-        except Exception as exc:  # an engine that raises, or returns nonsense, is a result, not a crash
-            empty = np.empty((0, n_particles, 3))
-            message = f"{type(exc).__name__}: {exc}".splitlines()[0]
-            return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status="failed", message=message))
-        return _finish(schedule, raw, info, n_constraints)
+        # Warnings of numerical libraries (numpy's overflow, scipy's, an engine's) become the case's message,
+        # not lines on the terminal that no record keeps.
+        with warnings.catch_warnings(record=True) as heard:
+            warnings.simplefilter("always")
+            try:
+                started, cpu_started = time.perf_counter(), time.thread_time()
+                raw = self._run(scene, schedule, settings)
+                elapsed, cpu = time.perf_counter() - started, time.thread_time() - cpu_started
+                raw = check_raw_run(self.name, raw, scene, schedule, elapsed)
+                info = replace(info, cpu_time=loop_cpu_time(raw, cpu))
+            # An engine that raises, or returns nonsense, is a result, not a crash; so is one that calls
+            # sys.exit (pydrake raises a failed C++ assertion as SystemExit).
+            except (Exception, SystemExit) as exc:
+                empty = np.empty((0, n_particles, 3))
+                cause = blow_up_cause(exc)
+                status, message = ("unstable", cause) if cause else ("failed", first_line(exc))
+                message = join_messages(message, warning_note(heard))
+                return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status=status, message=message))
+        trajectory = _finish(schedule, raw, info, n_constraints)
+        note = warning_note(heard)
+        if note:
+            trajectory = replace(trajectory, info=replace(trajectory.info,
+                                                          message=join_messages(trajectory.info.message, note)))
+        return trajectory
+
+
+#: What an engine says when its own finiteness check trips (Drake's DRAKE_THROW_UNLESS(AllFinite(q_v)),
+#: a NaN/inf named in a message, numpy's FloatingPointError): the state blew up, the engine did not fail.
+_BLOW_UP = re.compile(r"AllFinite|isfinite|non-?finite|not finite|\b(?:NaN|nan|inf|Inf|infinity)\b")
+
+
+def blow_up_cause(exc: BaseException) -> str | None:
+    """One line naming the cause when ``exc`` is an engine's reaction to a non-finite state, else None."""
+    if isinstance(exc, (FloatingPointError, OverflowError)) or _BLOW_UP.search(str(exc)):
+        line = first_line(exc)
+        found = re.search(r"condition '([^']*)' failed", line)  # Drake's assertion: the condition is the cause
+        if found:
+            line = f"{type(exc).__name__}: condition '{found.group(1)}' failed"
+        return f"non-finite state (the engine's own check: {line[:200]})"
+    return None
+
+
+def first_line(exc: BaseException) -> str:
+    """``Type: first line of the message`` of an exception."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0]
+
+
+def warning_note(heard: list[warnings.WarningMessage]) -> str:
+    """``warnings: overflow encountered in multiply (RuntimeWarning, 3×)``: each distinct warning once, in order."""
+    counts: dict[tuple[str, str], int] = {}
+    for w in heard:
+        key = (str(w.message).splitlines()[0] if str(w.message) else "", w.category.__name__)
+        counts[key] = counts.get(key, 0) + 1
+    if not counts:
+        return ""
+    parts = [f"{text} ({category}{f', {n}×' if n > 1 else ''})" for (text, category), n in counts.items()]
+    return "warnings: " + "; ".join(parts)
+
+
+def join_messages(*parts: str) -> str:
+    """The non-empty parts joined with ``; ``."""
+    return "; ".join(p for p in parts if p)
 
 
 class RawRunError(ValueError):

@@ -150,10 +150,10 @@ def slider_pendulum(M, m, l, theta0, omega0, g, duration, parameters=None) -> Sc
     )
 
 
-#: The rule four_bar enforces, quoted in its refusal.
+#: The rule four_bar enforces, quoted in its refusal: the loop closes at theta0 (Grashof or not).
 FOUR_BAR_RULE = (
-    "the crank a must be the shortest link and a + max(b, c, d) < the sum of the other two "
-    "(Grashof), so the loop closes at every crank angle"
+    "the coupler b and the rocker c close the loop only when the crank tip's distance from the rocker "
+    "pivot lies strictly between |b - c| and b + c"
 )
 
 
@@ -175,15 +175,15 @@ def four_bar_joint(p0, pivot, b: float, c: float, branch: int) -> tuple[tuple[fl
 
 def four_bar(a, b, c, d, m0, m1, theta0, omega0, branch, g, duration, parameters=None) -> Scene:
     """Crank a pinned at the origin, rocker c pinned at (d, 0, 0), coupler b between their tips."""
-    lengths = {"a": a, "b": b, "c": c, "d": d}
-    others = sorted((b, c, d))
-    if not (a < others[0] and a + others[2] < others[0] + others[1]):
-        shown = ", ".join(f"{k}={v:g}" for k, v in lengths.items())
-        raise SceneError(f"four-bar: lengths {shown} are refused: {FOUR_BAR_RULE}")
     if branch not in (1, -1):
         raise SceneError(f"four-bar: parameter branch must be +1 or -1 (which assembly), got {branch!r}")
     e, t = _direction(theta0), _tangent(theta0)
     p0 = (a * e[0], a * e[2])
+    reach = math.hypot(d - p0[0], p0[1])
+    if not abs(b - c) < reach < b + c:
+        shown = ", ".join(f"{k}={v:g}" for k, v in {"a": a, "b": b, "c": c, "d": d}.items())
+        raise SceneError(f"four-bar: lengths {shown} cannot close at theta0 = {theta0:g} deg (crank tip "
+                         f"{reach:.4g} m from the rocker pivot): {FOUR_BAR_RULE}")
     v0 = (a * omega0 * t[0], a * omega0 * t[2])
     p1, _ = four_bar_joint(p0, (d, 0.0), b, c, branch)
     # The joint moves on the rocker circle, tangent r ⊥ (p1 − pivot); its rate follows from
@@ -334,6 +334,25 @@ def builder(name: str) -> SceneBuilder:
         return CATALOG[name]
     except KeyError:
         raise SceneError(f"unknown scene {name!r}; choose one of: {', '.join(CATALOG)}") from None
+
+
+def unit_warnings(name: str, overrides: Mapping[str, Any] | None = None) -> list[str]:
+    """One line per angle of ``overrides`` whose magnitude is under 2π and not 0: angles here are in degrees,
+    and such a value is more likely radians typed by habit (theta1 = 1.5708 is 1.57°, not 90°)."""
+    known = {p.name: p for p in builder(name).parameters}
+    lines = []
+    for key, raw in (overrides or {}).items():
+        parameter = known.get(key)
+        if parameter is None or parameter.unit != "deg":
+            continue
+        try:
+            value = float(raw)
+        except (TypeError, ValueError):
+            continue  # build() refuses it with the reason
+        if 0 < abs(value) < 2 * math.pi:
+            lines.append(f"{name}: {key} = {raw} is in degrees ({value:g}°); if you meant radians, give "
+                         f"{math.degrees(value):.6g} (degrees)")
+    return lines
 
 
 def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:

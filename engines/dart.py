@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported, UserError
+from engines.errors import Unsupported
 from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
@@ -185,7 +185,7 @@ class DartEngine(Engine):
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)
+            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         model = self.build(scene, settings)
         dt = schedule.dt
         if settings["integrator"] == "world":

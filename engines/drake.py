@@ -144,7 +144,7 @@ class DrakeEngine(Engine):
             if settings["plant"] == "discrete":
                 raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
                                   "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
-            return scene.refuse_kept_dynamics(self.name)
+            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         tree = read_tree(scene)
         if tree.loose:
@@ -216,7 +216,7 @@ class DrakeEngine(Engine):
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
         if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
+            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})  # type: ignore[attr-defined]  # a ModelScene (is_model)
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant
@@ -255,10 +255,14 @@ class DrakeEngine(Engine):
                 t0 = time.perf_counter()
                 simulator.AdvanceTo(targets[k])
                 wall += time.perf_counter() - t0
-                states[k] = plant.GetPositionsAndVelocities(context)
-                recorded += 1
-                if not np.isfinite(states[k]).all():
+                state = plant.GetPositionsAndVelocities(context)
+                if not np.isfinite(state).all():
+                    # Blown up: keep the finite samples (model.read would trip Drake's AllFinite(q_v) check,
+                    # which pydrake raises as SystemExit); the run ends unstable with this message.
+                    message = f"non-finite state at t = {targets[k]:.6g} s"
                     break
+                states[k] = state
+                recorded += 1
         except RuntimeError as exc:  # e.g. the error-controlled step fell below its minimum
             message = f"Drake stopped at t = {context.get_time():.6g} s: {str(exc).splitlines()[0]}"
         if discrete:

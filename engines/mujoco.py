@@ -461,7 +461,7 @@ class MuJoCoEngine(Engine):
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)
+            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         xml, inertia = self.mjcf(scene, schedule.dt, settings)
         model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"

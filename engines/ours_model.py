@@ -51,7 +51,7 @@ def translate(description: ModelDescription, gravity=GRAVITY) -> OursModel:
         groups.append([j.child])
         joints.append((j, body, Rj, pj))
     bodies = []
-    for index, links in enumerate(groups):
+    for links in groups:
         parts = [world_inertia(description.body(n).inertial.mass, description.body(n).inertial.com,
                                description.body(n).inertial.inertia_matrix, carriers[n][1], carriers[n][2])
                  for n in links]

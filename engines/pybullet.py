@@ -348,7 +348,7 @@ class PyBulletEngine(Engine):
             if settings["formulation"] != "multibody":
                 raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                                   "build particle scenes from separate bodies, use pybullet/multibody")
-            return scene.refuse_kept_dynamics(self.name)
+            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)
@@ -361,7 +361,7 @@ class PyBulletEngine(Engine):
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)
+            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         with quiet_output():
             client = _clients.take()
             try:

@@ -387,6 +387,38 @@ def reference_horizon(t: np.ndarray, difference: np.ndarray, threshold: float) -
     return float(t[above[0]]) if len(above) else None
 
 
+#: The cheap Lyapunov estimate (growth_rate) fits ln d(t) between these fractions of L: above the
+#: round-off of two solves at rtol ~1e-12 and below where the difference saturates ...
+GROWTH_BAND = (1e-13, 1e-3)
+#: ... and only when d grows by at least this factor over the fit: a regular scene's two solves drift apart
+#: in phase, linearly in t (by a factor 25-50 over the catalog's 10 s runs), a chaotic one's exponentially.
+GROWTH_FACTOR = 1e3
+#: Fewest samples in the band for a fit.
+GROWTH_MIN_SAMPLES = 10
+
+
+def growth_rate(t: np.ndarray, difference: np.ndarray, length: float) -> float | None:
+    """A cheap estimate of the largest Lyapunov exponent (1/s) from the reference's two solves, or None.
+
+    t : (n,) s; difference : (n,) m, the two solves' position difference (ReferenceBound.difference);
+    length : L, m. The least-squares slope of ln d against t over the samples from the first one
+    with d above GROWTH_BAND[0]·L up to the last below GROWTH_BAND[1]·L; None (regular over this
+    run) when fewer than GROWTH_MIN_SAMPLES lie there, d grows by less than GROWTH_FACTOR across
+    them, or the slope is not positive.
+    """
+    t, d = np.asarray(t, dtype=float), np.asarray(difference, dtype=float) / length
+    lo, hi = GROWTH_BAND
+    above = np.nonzero(d > lo)[0]
+    if not len(above):
+        return None
+    window = np.arange(above[0], len(d))
+    window = window[(d[window] > lo) & (d[window] < hi)]
+    if len(window) < GROWTH_MIN_SAMPLES or d[window].max() < GROWTH_FACTOR * d[window].min():
+        return None
+    slope = float(np.polyfit(t[window], np.log(d[window]), 1)[0])
+    return slope if slope > 0 else None
+
+
 def bound(
     scene: Scene,
     rtol: float = DEFAULT_RTOL,

@@ -245,11 +245,78 @@ class FourBar:
         return positions, velocities, forces
 
 
-def four_bar(scene: Scene) -> FourBar | None:
+@dataclass(frozen=True)
+class LoopFourBar:
+    """The four-bar in maximal coordinates, for any linkage that closes, Grashof or not: state
+    [p0, p1, v0, v1] (x, z) m and m/s of the tips ``first`` and ``second`` (masses m0, m1), pinned at a
+    from ``first_pivot`` and c from ``second_pivot``, a coupler b between them.
+
+    Accelerations from Newton's law with the three distance constraints' forces (Lagrange multipliers):
+    J M⁻¹ Jᵀ λ = −J̇v − J M⁻¹ f − 2ω Ċ − ω² C, with C the constraints in the form ½(‖·‖² − l²). The last
+    two terms vanish on the constraint manifold, where the exact motion lies, so they change no exact
+    solution; they make the manifold attract, so the integrator's drift off it stays at its tolerance.
+    J has full rank except where all three links are collinear (a change point), so the rockers' dead
+    points, where the crank angle is singular, are ordinary points here.
+    """
+
+    first: int
+    second: int
+    pins: tuple[int, int]
+    rod_index: int
+    rod_first_is_first: bool
+    first_pivot: np.ndarray
+    second_pivot: np.ndarray
+    a: float
+    b: float
+    c: float
+    m0: float
+    m1: float
+    gravity: np.ndarray
+    omega: float
+
+    def initial_state(self, scene: Scene) -> np.ndarray:
+        q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
+        return np.concatenate([q[self.first], q[self.second], v[self.first], v[self.second]])
+
+    def _forces(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(accelerations (4,) m/s², λ (3,), the constraint gradients r0 = p0 − A, w = p1 − p0, r1 = p1 − B)."""
+        p0, p1, v0, v1 = y[0:2], y[2:4], y[4:6], y[6:8]
+        r0, w, r1 = p0 - self.first_pivot, p1 - p0, p1 - self.second_pivot
+        jac = np.zeros((3, 4))
+        jac[0, 0:2], jac[1, 0:2], jac[1, 2:4], jac[2, 2:4] = r0, -w, w, r1
+        inverse_mass = np.array([1 / self.m0, 1 / self.m0, 1 / self.m1, 1 / self.m1])
+        g = np.concatenate([self.gravity, self.gravity])  # f / m
+        dw = v1 - v0
+        constraint = 0.5 * np.array([r0 @ r0 - self.a**2, w @ w - self.b**2, r1 @ r1 - self.c**2])
+        rate = jac @ y[4:8]
+        target = -np.array([v0 @ v0, dw @ dw, v1 @ v1]) - jac @ g - 2 * self.omega * rate - self.omega**2 * constraint
+        lam = np.linalg.solve((jac * inverse_mass) @ jac.T, target)
+        return g + inverse_mass * (jac.T @ lam), lam, r0, w, r1
+
+    def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([y[4:8], self._forces(y)[0]])
+
+    def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n_samples = len(states)
+        positions = np.zeros((n_samples, len(scene.particles), 3))
+        velocities = np.zeros_like(positions)
+        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        for i, y in enumerate(states):
+            _, lam, r0, w, r1 = self._forces(np.asarray(y, dtype=float))
+            positions[i, self.first], positions[i, self.second] = _embed(y[0:2]), _embed(y[2:4])
+            velocities[i, self.first], velocities[i, self.second] = _embed(y[4:6]), _embed(y[6:8])
+            # Each constraint's force on its (first) particle: λ times its gradient there.
+            forces[i, self.pins[0]] = _embed(lam[0] * r0)
+            forces[i, self.pins[1]] = _embed(lam[2] * r1)
+            forces[i, self.rod_index] = _embed(-lam[1] * w if self.rod_first_is_first else lam[1] * w)
+        return positions, velocities, forces
+
+
+def four_bar(scene: Scene) -> FourBar | LoopFourBar | None:
     """The four-bar reading of ``scene`` (two Pins on different particles and a Rod between them), or None.
 
-    Raises Unsupported for a four-bar neither of whose pinned links is a
-    Grashof crank (the crank coordinate would reach a dead point).
+    A Grashof crank's linkage is integrated in its crank angle (FourBar, one coordinate); any other
+    (a triple-rocker, a double-rocker) in maximal coordinates (LoopFourBar).
     """
     if len(scene.particles) != 2 or len(scene.constraints) != 3:
         return None
@@ -286,10 +353,26 @@ def four_bar(scene: Scene) -> FourBar | None:
             branch=1.0 if side >= 0.0 else -1.0,
             gravity=_xz(scene.gravity),
         )
-    raise Unsupported(
-        f"the reference's four-bar form integrates a crank angle, which needs a Grashof crank; "
-        f"neither pinned link of {scene.name!r} is one (the crank must be the shortest link and "
-        f"crank + longest < the sum of the other two)"
+    # No Grashof crank: the crank angle meets a dead point, so the loop is integrated in maximal coordinates.
+    first, second = scene.constraints[pins[0]], scene.constraints[pins[1]]
+    length = first.length + rod.length + second.length
+    g = float(np.linalg.norm(scene.gravity))
+    return LoopFourBar(
+        first=first.particle,
+        second=second.particle,
+        pins=(pins[0], pins[1]),
+        rod_index=rods[0],
+        rod_first_is_first=rod.a == first.particle,
+        first_pivot=_xz(first.anchor),
+        second_pivot=_xz(second.anchor),
+        a=first.length,
+        b=rod.length,
+        c=second.length,
+        m0=scene.particles[first.particle].mass,
+        m1=scene.particles[second.particle].mass,
+        gravity=_xz(scene.gravity),
+        # The stabilization's rate: the pendulum frequency √(g/L) of the linkage (1/s without gravity).
+        omega=math.sqrt(g / length) if g > 0 else 1.0,
     )
 
 
@@ -353,7 +436,7 @@ def ellipse_bead(scene: Scene) -> EllipseBead | None:
 # -- dispatch ---------------------------------------------------------------------------------
 
 
-Mechanism = SliderPendulum | FourBar | EllipseBead
+Mechanism = SliderPendulum | FourBar | LoopFourBar | EllipseBead
 
 
 def mechanism_model(scene: Scene) -> Mechanism | None:

@@ -372,17 +372,28 @@ class Scene:
 
     @cached_property
     def characteristic_gravity(self) -> float:
-        """|g| m/s², or 1 when g = 0: the scale E* and the characteristic speed fall back to."""
+        """|g| m/s², or 1 m/s² when g = 0 (the fallback of a scene at rest; see characteristic_energy)."""
         return float(np.linalg.norm(self.gravity)) or 1.0
 
     @cached_property
+    def initial_kinetic_energy(self) -> float:
+        """T₀ = ½ Σ mᵢ ‖vᵢ(0)‖² (J)."""
+        return 0.5 * float((self.masses * (self.initial_velocities**2).sum(axis=1)).sum())
+
+    @cached_property
     def characteristic_energy(self) -> float:
-        """E* = total mass · |g| · L (J); falls back to total mass · L when g = 0."""
+        """E* (J) = total mass · |g| · L; when g = 0, the initial kinetic energy T₀ (no potential to
+        measure against); when g = 0 and T₀ = 0 (a scene at rest), total mass · L · 1 m/s²."""
+        if not np.any(self.gravity) and self.initial_kinetic_energy > 0:
+            return self.initial_kinetic_energy
         return float(self.masses.sum()) * self.characteristic_gravity * self.characteristic_length
 
     @cached_property
     def characteristic_speed(self) -> float:
-        """√(|g| L) m/s, the speed momentum drifts are measured against; √L when g = 0, as E* falls back."""
+        """v* (m/s) = √(|g| L); when g = 0, √(2 T₀ / total mass), the speed at which the whole mass
+        carries T₀; √(L · 1 m/s²) for a scene at rest."""
+        if not np.any(self.gravity) and self.initial_kinetic_energy > 0:
+            return float(np.sqrt(2.0 * self.initial_kinetic_energy / float(self.masses.sum())))
         return float(np.sqrt(self.characteristic_gravity * self.characteristic_length))
 
     # -- validation ------------------------------------------------------------

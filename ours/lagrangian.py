@@ -121,7 +121,7 @@ def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarra
     theta = np.empty(system.n_particles)
     omega = np.empty(system.n_particles)
     anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
-    for k, c in enumerate(system.constraints):
+    for k in range(len(system.constraints)):
         base_q = anchor if k == 0 else q0[k - 1]
         base_v = np.zeros(2) if k == 0 else v0[k - 1]
         d, dd = q0[k] - base_q, v0[k] - base_v

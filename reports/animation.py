@@ -67,7 +67,7 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
     step = max(1, math.ceil(len(longest) / frames))
     keep = list(range(0, len(longest), step))
     box = CLIP_FACTOR * scene.length
-    runs = []
+    runs: list[dict[str, Any]] = []
     reference, _ = _reference_positions(scene)
     if reference:
         runs.append({"name": "reference", "colour": REFERENCE_COLOUR, "reference": True,

@@ -484,7 +484,7 @@ def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
         traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
                        "x": _rounded(theta), "y": _rounded(omega), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
     titled: set[str] = set()
-    for index, sweep, record in chosen:
+    for _index, sweep, record in chosen:
         series = record.series
         theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor, planar))
         traces.append(_group({

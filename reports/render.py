@@ -113,7 +113,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     settings = suite_settings(data.path)
     palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
     verdicts = verdict_views(data, palette, focus)
-    scenes = []
+    scenes: list[dict[str, Any]] = []
     for number, scene in enumerate(data.scenes):
         ceilings = Ceilings.for_scene(scene.length, settings["energy_bound"], settings["constraint_bound"],
                                       CLIP_FACTOR * _weight(scene.scene))

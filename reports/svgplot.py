@@ -93,7 +93,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
         parts.append(f'<g class="series" data-series="{index}" fill="{_escape(s.colour)}" fill-opacity="0.8">{dots}</g>')
     if front:
         path = [f"M{px(front[0][0]):.1f},{py(front[0][1]):.1f}"]
-        for (xa, ya), (xb, yb) in zip(front, front[1:]):
+        for (xb, yb) in front[1:]:
             path.append(f"H{px(xb):.1f}V{py(yb):.1f}")
         parts.append(f'<path class="front" d="{"".join(path)}" fill="none" stroke="#222" stroke-width="2"/>')
     parts.append("</svg>")

@@ -173,7 +173,7 @@ def stability(f: dict) -> None:
 
     settings = SearchSettings(dt_max=0.05, dt_min=1e-4)
     for integrator in ("euler", "symplectic-euler", "midpoint", "rk4"):
-        _, largest, _, _ = search(lambda dt: Probe(dt, "ok" if _stable(integrator, dt, 1e6, THETA0) else "unstable"),
+        _, largest, _, _ = search(lambda dt: Probe(dt, "ok" if _stable(integrator, dt, 1e6, THETA0) else "unstable"),  # noqa: B023
                                   settings)
         f[f"search_{integrator.replace('-', '_')}_ks1e6_ms"] = largest * 1e3
         f[f"theory_{integrator.replace('-', '_')}_ks1e6_ms"] = LIMITS[integrator] / 1e3 * 1e3

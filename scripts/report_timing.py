@@ -29,7 +29,7 @@ from browser_support import CHROMIUM, Page  # noqa: E402
 
 def measure(report: Path, repeats: int) -> dict[str, float]:
     ready, plots = [], []
-    for k in range(repeats):
+    for _ in range(repeats):
         with tempfile.TemporaryDirectory() as profile, Page(report, Path(profile) / "p") as page:
             if page.evaluate('document.getElementById("xval-render-status").getAttribute("data-state")') != "ready":
                 raise SystemExit(f"{report}: the page did not become ready: {page.errors()}")

@@ -14,13 +14,14 @@ import fcntl
 import json
 import os
 import select
-import shutil
 import subprocess
 import time
 from pathlib import Path
 from typing import Any
 
-CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.access("/usr/bin/chromium", os.X_OK) else None)
+from ci_mode import chromium
+
+CHROMIUM = chromium()  # $XVAL_CHROMIUM, else on PATH or /usr/bin/chromium (tests/ci_mode.py)
 
 #: Flags from the issue, plus the DevTools pipe and everything that keeps the browser off the network.
 FLAGS = [

@@ -4,7 +4,9 @@ Loaded by suites as ``guard_engines:HOG/<variant>``. ``memory`` allocates
 ``gib`` GiB at once (a case past ``--memory-limit``); ``children`` starts two
 ``sleep`` processes and then sleeps itself (a timed-out case whose engine
 leaves children); ``slow`` is the reference itself, after ``seconds`` of
-sleep. Every run that returns returns the reference solution.
+sleep; ``spin`` spends minutes in one compiled numba loop (no Python runs,
+so no Python signal handler either). Every run that returns returns the
+reference solution.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.scene import Scene
 
-MODES = ("memory", "children", "slow")
+MODES = ("memory", "children", "slow", "spin")
 
 
 class HogEngine(Engine):
@@ -47,8 +49,24 @@ class HogEngine(Engine):
             time.sleep(3600)
         if mode == "slow" and schedule.n_steps > 2:
             time.sleep(settings["seconds"])
+        if mode == "spin" and schedule.n_steps > 2:
+            _spin(10**12)  # ~10 min and more of one core
         positions, velocities, forces = solve(scene).at(schedule.times)
         return RawRun(positions, velocities, forces, steps=schedule.n_steps, wall_time=1e-3)
+
+
+def _spin(n: int) -> float:
+    """n iterations of a compiled loop that holds the GIL throughout (numba, compiled on first call)."""
+    import numba
+
+    @numba.njit(cache=False)
+    def loop(n):
+        x = 0.0
+        for k in range(n):
+            x = x * 0.5 + k
+        return x
+
+    return loop(n)
 
 
 HOG = HogEngine()

@@ -37,7 +37,7 @@ def reduced_double_pendulum(theta, omega, t_end, times, p=DOUBLE):
 
     s0 = [theta[0], theta[0] + theta[1], omega[0], omega[0] + omega[1]]
     sol = solve_ivp(rhs, (0.0, t_end), s0, method="DOP853", rtol=1e-13, atol=1e-14, t_eval=times)
-    f1, f2 = sol.y[0], sol.y[1]
+    f1 = sol.y[0]
     out = np.zeros((len(times), 2, 3))
     out[:, 1, 0], out[:, 1, 2] = -l1 * np.sin(f1), -l1 * np.cos(f1)
     return out

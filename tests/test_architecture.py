@@ -1,4 +1,4 @@
-"""The package layering of DESIGN.md, checked on the source: ours ← engines ← compare ← reports, no circles.
+"""The package layering of docs/architecture.md, checked on the source: ours ← engines ← compare ← reports, no circles.
 
 Walks every module's imports with ast (module level and inside functions alike: a lazy import is still a
 dependency) and fails on an import that points back up the stack, on a module of compare/ or reports/

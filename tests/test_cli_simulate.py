@@ -102,3 +102,22 @@ def test_console_script_errors_without_traceback(tmp_path):
     assert result.returncode == 2
     assert result.stderr == "xval: error: dt must be a number of seconds, got 'abc'\n"
     assert "Traceback" not in result.stderr
+
+
+def test_simulate_without_engine_says_it_ran_the_reference(tmp_path, capsys):
+    out, err = run_ok(capsys, "simulate", "bead", "--dt", "1e-2", "--param", "duration=0.1",
+                      "--output", str(tmp_path / "o.csv"))
+    assert out.startswith("no --engine given: ran the reference (reference/dop853). reference/dop853 on bead: ok")
+
+
+def test_an_angle_under_two_pi_warns_that_angles_are_degrees(tmp_path, capsys):
+    out, err = run_ok(capsys, "simulate", "double-pendulum", "--engine", "mujoco/hinge", "--dt", "1e-2",
+                      "--param", "theta1=1.5708", "--param", "duration=0.1", "--output", str(tmp_path / "o.csv"))
+    assert err.splitlines() == ["xval: warning: double-pendulum: theta1 = 1.5708 is in degrees (1.5708°); "
+                                "if you meant radians, give 90.0002 (degrees)"]
+    assert out.startswith("mujoco/hinge on double-pendulum: ok")
+    # 0 and angles of 2π or more say nothing.
+    out, err = run_ok(capsys, "simulate", "double-pendulum", "--engine", "mujoco/hinge", "--dt", "1e-2",
+                      "--param", "theta1=90", "--param", "theta2=0", "--param", "duration=0.1",
+                      "--output", str(tmp_path / "p.csv"))
+    assert err == ""

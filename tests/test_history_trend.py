@@ -10,15 +10,14 @@ run, in exactly those series, and nothing in the noisy timings.
 from __future__ import annotations
 
 import json
-import os
 import re
-import shutil
 import subprocess
 
 import numpy as np
 import plotly.graph_objects as go
 import pytest
 
+from ci_mode import chromium
 from compare.history.store import History
 from compare.history.trend import build_series, steps
 from compare.results.declared import METRICS
@@ -149,7 +148,7 @@ def test_machines_are_kept_apart(base, tmp_path):
     assert all(len(s["plots"]) == 2 for s in context["sections"])
 
 
-CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.access("/usr/bin/chromium", os.X_OK) else None)
+CHROMIUM = chromium()  # $XVAL_CHROMIUM, else on PATH or /usr/bin/chromium (tests/ci_mode.py)
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium here; install it with 'apt-get install -y chromium' (.ci/run does)")

@@ -81,23 +81,25 @@ def test_a_task_waiting_behind_one_whose_host_dies_runs_in_a_new_host():
 
 
 def test_a_task_waiting_behind_a_timed_out_one_runs_and_its_timeout_counts_from_its_own_start():
-    # The sleeper is killed at its 1.5 s timeout; the case behind it had waited that long in the dead
-    # host's pipe, yet it runs in a new host and is timed from its start there, not from when it was sent.
+    # The sleeper is killed at its 6 s timeout; the case behind it had waited that long in the dead
+    # host's pipe, yet it runs in a new host and is timed from its start there, not from when it was sent
+    # (its 4 s would have run out). 4 s is ~10x what the pymunk case needs: load alone does not time it out.
     scene = build("bead", {"duration": 0.5})
     pool = HostPool(1, depth=2)
-    sleeper, after = run_all(pool, [case("compare_engines:MISBEHAVING", "sleep", scene, timeout=1.5),
-                                    case("pymunk", "pin", scene, timeout=1.5)], waiting_behind=2)
+    sleeper, after = run_all(pool, [case("compare_engines:MISBEHAVING", "sleep", scene, timeout=6.0),
+                                    case("pymunk", "pin", scene, timeout=4.0)], waiting_behind=2)
     assert sleeper.status == "timeout"
     assert after.status == "ok", after.message
 
 
 def test_a_task_waiting_behind_one_that_answers_is_timed_from_when_its_host_takes_it():
-    # The first case takes PAUSE (1.5 s) and answers ok; the one sent behind it has a 1 s timeout,
-    # which would have run out while it waited if its clock started when it was sent.
+    # The first case takes PAUSE (6 s) and answers ok; the one sent behind it has a 4 s timeout, which
+    # would have run out while it waited if its clock started when it was sent. 4 s is ~10x what the
+    # 0.5 s pymunk case needs on an idle machine: a loaded one does not make it time out on its own.
     scene = build("bead", {"duration": 0.5})
     pool = HostPool(1, depth=2)
     paused, after = run_all(pool, [case("compare_engines:MISBEHAVING", "pause", scene, timeout=30),
-                                   case("pymunk", "pin", scene, timeout=1.0)], waiting_behind=2)
+                                   case("pymunk", "pin", scene, timeout=4.0)], waiting_behind=2)
     assert paused.status == "ok" and paused.elapsed >= PAUSE
     assert after.status == "ok", after.message
 

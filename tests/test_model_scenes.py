@@ -114,6 +114,23 @@ def test_higher_order_engines_agree_with_the_reference(engine_id, options, bound
     assert np.linalg.norm(run.positions - reference.positions, axis=2).max() < bound
 
 
+@pytest.mark.parametrize("engine_id, steps, order", [
+    ("mujoco/hinge", (4e-3, 2e-3, 1e-3), 1),  # measured slope 1.000
+    ("pybullet/multibody", (4e-3, 2e-3, 1e-3), 1),  # 1.000
+    ("drake/rk2", (4e-3, 2e-3, 1e-3), 2),  # 1.99
+    ("mujoco/hinge-rk4", (2e-2, 1e-2, 5e-3), 4),  # 3.94
+    ("dart/rk4", (2e-2, 1e-2, 5e-3), 4),  # 3.94
+])
+def test_observed_order_on_the_model(engine_id, steps, order):
+    scene = model_scene("dp", DOUBLE, q0={"shoulder": 30, "elbow": -20}, duration=1.0)
+    engine, variant = resolve(engine_id)
+    errors = []
+    for dt in steps:
+        run = engine.simulate(scene, dt, variant=variant)
+        errors.append(np.linalg.norm(run.positions - REFERENCE.simulate(scene, dt).positions, axis=2).max())
+    assert abs(np.polyfit(np.log(steps), np.log(errors), 1)[0] - order) < 0.15
+
+
 def test_pybullet_joint_limits_are_off():
     # KUKA iiwa released at 30° and −45° swings past its joint limits within 0.5 s; PyBullet enforces the
     # URDF's limits whatever changeDynamics says unless the file's ranges are emptied. With them off it

@@ -222,7 +222,9 @@ def test_a_timed_out_program_and_its_children_are_killed(tmp_path):
     with command.deadline(1.0):
         trajectory = hang.simulate(BEAD, 1e-2)
     elapsed = time.monotonic() - started
-    assert trajectory.info.status == "timeout" and 1.0 <= elapsed < 5.0
+    # The program sleeps 600 s: ending within 60 s shows the 1 s deadline killed it (60: a loaded machine's
+    # start-up and scheduling, not the deadline, is what a tighter bound would measure).
+    assert trajectory.info.status == "timeout" and 1.0 <= elapsed < 60.0
     assert trajectory.info.message.endswith("hang ran past the timeout of 1 s and its process group was killed; "
                                             "raise the timeout if it is only slow")
     pid, pgid, child = read_pids(pidfile)

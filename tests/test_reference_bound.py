@@ -107,12 +107,39 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
     assert dp["position_error_linf"] <= dp["position_error_linf_whole_run"]
     assert dp["position_error_linf_whole_run"] > 10 * dp["position_error_linf"]  # RK4 at 0.01 s: the chaos grows it
     assert "position_error_linf_whole_run" not in bead
+    # The cheap Lyapunov estimate from the same two solves: Benettin's is 0.99 /s over 10 s (the test above);
+    # the regular bead has none. Both go to show and to every export.
+    assert 0.6 < records["dp"].reference["lyapunov_exponent"] < 1.3
+    assert records["bead"].reference["lyapunov_exponent"] is None
+    from compare.results.table import case_rows, scene_tables
+    from compare.results.sweep import sweeps
+
+    rows = {row["scene"]: row for row in case_rows(load_results(tmp_path / "run").records)}
+    assert rows["dp"]["reference_horizon"] == records["dp"].reference_horizon
+    assert rows["dp"]["reference_error"] == records["dp"].reference["reference_error"]
+    assert rows["dp"]["lyapunov_exponent"] == records["dp"].reference["lyapunov_exponent"]
+    assert rows["bead"]["reference_horizon"] is None and rows["bead"]["lyapunov_exponent"] is None
+    text = scene_tables(sweeps(load_results(tmp_path / "run").records))
+    assert "scene dp (reference error" in text and "Lyapunov exponent 0." in text
+    assert "horizon none, Lyapunov exponent -)" in text
 
 
-def test_momentum_drift_without_gravity_is_measured_against_the_fallback_speed():
-    # g = 0: the characteristic speed falls back to √L m/s, as E* falls back to M·L (it was 0: an inf drift).
-    # A tangential kick δ at the last sample changes L_z by m·r_xy·δ, measured against M·L·√L.
-    # m = 2 kg, L = 2 m, so √L is neither 1 nor L (a fallback to either would be caught).
+def test_growth_rate_tells_exponential_from_linear_separation():
+    t = np.linspace(0.0, 10.0, 1001)
+    # Exponential growth from round-off: the slope of ln d (1/s), in the band from 1e-13 L to 1e-3 L.
+    assert reference.growth_rate(t, 2.0 * 1e-15 * np.exp(1.5 * t), 2.0) == pytest.approx(1.5, rel=1e-9)
+    # Saturated past 1e-3 L: the samples above it are left out.
+    d = np.minimum(1e-14 * np.exp(3.0 * t), 0.5)
+    assert reference.growth_rate(t, d, 1.0) == pytest.approx(3.0, rel=1e-9)
+    # A regular scene's phase drift grows linearly (50× over the run): no exponent.
+    assert reference.growth_rate(t, 1e-13 * (1 + 5 * t), 1.0) is None
+    assert reference.growth_rate(t, np.full_like(t, 1e-16), 1.0) is None
+
+
+def test_momentum_drift_without_gravity_is_measured_against_the_initial_speed():
+    # g = 0: the characteristic speed is √(2 T₀ / M), T₀ the initial kinetic energy: for one particle, its
+    # initial speed (m/s, not the √L of a units-less fallback). A tangential kick δ at the last sample
+    # changes L_z by m·r_xy·δ, measured against M·L·|v₀|. m = 2 kg, L = 2 m, |v₀| ≠ 1, L, √L.
     scene = catalog.build("spherical-pendulum", {"g": 0.0, "m": 2.0, "radius": 2.0, "duration": 1.0})
     p = scene.initial_positions[None].repeat(2, 0)
     v = scene.initial_velocities[None].repeat(2, 0)
@@ -120,5 +147,16 @@ def test_momentum_drift_without_gravity_is_measured_against_the_fallback_speed()
     r_xy = float(np.hypot(x, y))
     v[1, 0] += 0.1 * np.array([-y, x, 0.0]) / r_xy
     mass, length = float(scene.masses.sum()), scene.characteristic_length
-    assert (mass, length) == (2.0, 2.0)
-    assert momentum_drift(scene, p, v) == pytest.approx(mass * r_xy * 0.1 / (mass * length * np.sqrt(length)), rel=1e-9)
+    speed = float(np.linalg.norm(scene.initial_velocities[0]))
+    assert (mass, length) == (2.0, 2.0) and speed not in (0.0, 1.0, length, np.sqrt(length))
+    assert scene.characteristic_speed == pytest.approx(speed, rel=1e-12)
+    assert scene.characteristic_energy == pytest.approx(0.5 * mass * speed**2, rel=1e-12)  # J: T₀
+    assert momentum_drift(scene, p, v) == pytest.approx(mass * r_xy * 0.1 / (mass * length * speed), rel=1e-9)
+
+
+def test_a_scene_at_rest_without_gravity_falls_back_to_unit_acceleration():
+    # g = 0 and nothing moving: no energy to measure against; E* = M·L·1 m/s², v* = √(L·1 m/s²).
+    scene = catalog.build("bead", {"g": 0.0, "m": 3.0, "radius": 2.0, "theta0": 60.0})
+    assert not scene.initial_velocities.any()
+    assert scene.characteristic_energy == pytest.approx(3.0 * 2.0)
+    assert scene.characteristic_speed == pytest.approx(np.sqrt(2.0))

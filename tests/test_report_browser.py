@@ -137,8 +137,11 @@ def test_every_plot_draws_when_opened_the_animation_plays_and_resizing_relays_ou
     small_page.wait('Number(document.querySelector("#anim-0 canvas").getAttribute("data-frame")) >= 3', 20)
     small_page.evaluate('document.querySelector("#anim-0 button.play").click()')
     frame = small_page.evaluate('document.querySelector("#anim-0 canvas").getAttribute("data-frame")')
-    time.sleep(0.3)
-    assert small_page.evaluate('document.querySelector("#anim-0 canvas").getAttribute("data-frame")') == frame
+    # Paused: read the frame 10 times over ~1 s, many of the animation's frame intervals; a playing
+    # animation would have moved on in that time (it advanced 3 frames above), a paused one stays.
+    for _ in range(10):
+        time.sleep(0.1)
+        assert small_page.evaluate('document.querySelector("#anim-0 canvas").getAttribute("data-frame")') == frame
     # Scrubbing sets the frame.
     small_page.evaluate('var r = document.querySelector("#anim-0 input[type=range]"); r.value = "7"; r.dispatchEvent(new Event("input"))')
     assert small_page.evaluate('document.querySelector("#anim-0 canvas").getAttribute("data-frame")') == "7"

@@ -45,3 +45,26 @@ def test_the_smoke_suite_is_no_worse_than_its_committed_baseline(tmp_path):
     uncompared = [c for c in report.cases if c.engine.startswith("ours/") and c.verdict == "not comparable"]
     assert not uncompared, f"ours cases were not compared; {REGENERATE}:\n{gated.stdout}"
     assert sum(c.engine.startswith("ours/") for c in report.cases) == 30  # 5 variants × 2 scenes × 3 dt
+
+
+def test_the_baseline_carries_every_gated_field_and_an_order_for_every_ours_sweep():
+    # A baseline made before a gated metric existed passes that metric vacuously; so does an ours sweep
+    # whose errors left the order band (no observed order to compare).
+    import json
+
+    from compare.results import declared
+
+    cases = json.loads(BASELINE.read_text())["cases"].values()
+    ok = [c for c in cases if c["status"] == "ok" and not c["engine"].startswith("reference")]
+    assert ok
+    for metric in declared.gated():
+        if metric.name == "momentum_drift":
+            continue  # null by definition on planar scenes, which the smoke suite's two are
+        present = [c for c in ok if metric.name in c["metrics"]]
+        assert len(present) == len(ok), f"{len(ok) - len(present)} ok cases lack {metric.name}; {REGENERATE}"
+    for case in ok:
+        assert "consistent" in case, f"{case['engine']} at dt {case['dt']} lacks consistent; {REGENERATE}"
+        assert case["timing"].get("cpu"), f"{case['engine']} at dt {case['dt']} lacks CPU timing; {REGENERATE}"
+        if case["engine"].startswith("ours/"):
+            assert case["metrics"]["observed_order"] is not None, (
+                f"{case['engine']} on {case['scene_id']}: no observed order, so the gate checks none; {REGENERATE}")

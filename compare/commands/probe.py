@@ -7,10 +7,10 @@ from pathlib import Path
 
 import click
 
-from compare.cli import engine_option_option, param_option, parse_assignments
+from compare.cli import engine_option_option, param_option, parse_assignments, scene_from_params
 from compare.results.files import atomic_write_text, check_writable
 from compare.stability.dissipation import DEFAULT_DTS, DEFAULT_DURATION, Dissipation, probe
-from engines import catalog, registry
+from engines import registry
 from engines.errors import UserError
 
 
@@ -54,7 +54,7 @@ def command(engine_id, options, scene_name, params, duration, dts, fmt, output) 
     """
     overrides = parse_assignments(params, "--param")
     overrides["duration"] = duration
-    scene = catalog.build(scene_name, overrides)
+    scene = scene_from_params(scene_name, overrides)
     engine, variant = registry.resolve(engine_id)
     engine_options = parse_assignments(options, "--option")
     engine.check(scene, variant, engine_options)

@@ -6,11 +6,10 @@ import json
 
 import click
 
-from compare.cli import output_path, param_option, parse_assignments
+from compare.cli import output_path, param_option, parse_assignments, scene_from_params
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
-from engines import catalog
 from engines.errors import UserError
 
 #: Table columns: (heading, row key).
@@ -61,7 +60,7 @@ def command(scene_name, files, model, params, delta, output_format, output) -> N
 
         scene = _model_scene(model, parse_assignments(params, "--param"), None)
     else:
-        scene = catalog.build(scene_name, parse_assignments(params, "--param"))
+        scene = scene_from_params(scene_name, parse_assignments(params, "--param"))
     rows = score(files, scene, delta=delta)
     text = (json.dumps(rows, indent=1) if output_format == "json" else render(rows)) + "\n"
     if str(target) == STDOUT:

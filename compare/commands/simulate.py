@@ -10,11 +10,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments
+from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, constraint_error, largest, relative_drift
-from engines import catalog, registry
+from engines import registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.command import command_engine
 from engines.errors import UserError
@@ -44,8 +44,9 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
               help="Simulate a model file instead of a catalog SCENE: a URDF or MJCF path, or pybullet_data:<path>; "
                    "its initial state by --param q0.JOINT=DEG (metres for prismatic) and v0.JOINT=RAD/S "
                    "(docs/models.md).")
-@click.option("--engine", "engine_id", default="reference", show_default=True,
-              help="ENGINE or ENGINE/VARIANT, e.g. mujoco/hinge-rk4 (see 'xval engines').")
+@click.option("--engine", "engine_id", default=None,
+              help="ENGINE or ENGINE/VARIANT, e.g. mujoco/hinge-rk4 (see 'xval engines'); without it (and without "
+                   "--command), the reference, which says so.")
 @click.option("--dt", required=True, help="Time step in seconds, e.g. 1e-3.")
 @click.option("--duration", default=None, help="Simulated time in seconds (default: the scene's).")
 @param_option()
@@ -79,15 +80,16 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
     else:
         if duration is not None:
             overrides["duration"] = duration
-        scene = catalog.build(scene_name, overrides)
+        scene = scene_from_params(scene_name, overrides)
     check_time_step(dt, scene.duration)
     check_case_size(len(scene.particles), scene.duration, float(dt),
                     DEFAULT_SAMPLE_INTERVAL if sample_interval is None else sample_interval)
     limits = parse_bounds(bounds)
+    unnamed = engine_id is None and program is None
     if program is not None:
         engine, variant = _command_engine(program, engine_id)
     else:
-        engine, variant = registry.resolve(engine_id)
+        engine, variant = registry.resolve(engine_id or "reference")
     engine_options = parse_assignments(options, "--option")
     engine.check(scene, variant, engine_options)
     path = check_writable(output)
@@ -116,6 +118,8 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
             f" constraint error {error:.2e} m"
         )
     summary = f"{info.variant} on {scene.name}: {status}, {trajectory.n_samples} samples to {where}{details}"
+    if unnamed:
+        summary = f"no --engine given: ran the reference ({info.variant}). " + summary
     if message:
         summary += f" ({message})"
     click.echo(summary, err=str(path) == STDOUT)
@@ -123,9 +127,9 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
         raise click.exceptions.Exit(1)
 
 
-def _command_engine(program: str, engine_id: str):
+def _command_engine(program: str, engine_id: str | None):
     """The command engine for ``--command "prog args"`` (label: the program's file name), and its variant."""
-    if engine_id != "reference":
+    if engine_id is not None:
         raise UserError("--command and --engine are alternatives; give one of them")
     argv = _split(program)
     # Label it by the program's file: the first argument that is a file here (solvers/bead.py after python3).

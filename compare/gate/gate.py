@@ -272,8 +272,12 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
         changes.append(verdict_change)
     if b_status == "ok" and c_status == "ok":
         b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
+        # A side without a position error had no reference: its null divergence time is "not measured".
+        unmeasured = b_metrics.get("position_error_linf") is None or c_metrics.get("position_error_linf") is None
         for rule in RULES.values():
             b_value, c_value = b_metrics.get(rule.name), c_metrics.get(rule.name)
+            if unmeasured and rule.none_means == "infinite" and None in (b_value, c_value):
+                continue
             change = accuracy_change(rule, b_value, c_value, settings)
             if change is None and b_value is not None and c_value is None:
                 change = Change(rule.name, rule.unit, b_value, None, None, "worse",

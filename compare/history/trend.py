@@ -198,7 +198,7 @@ def build_series(history: Any, suite: str | None = None, metrics: Sequence[Metri
     for run in history.runs(suite=suite):
         groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
     out: list[Series] = []
-    for (machine, suite_name), runs in groups.items():
+    for (_machine, suite_name), runs in groups.items():
         runs = runs[-last:] if last else runs
         order = {run.id: i for i, run in enumerate(runs)}
         by_run = {run.id: run for run in runs}

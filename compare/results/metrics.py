@@ -1,4 +1,4 @@
-"""Metrics: pure functions of trajectories and reference samples, as defined in DESIGN.md.
+"""Metrics: pure functions of trajectories and reference samples, as defined in docs/metrics.md.
 
 Every function takes arrays (or a Scene for its masses, lengths and
 gravity) and returns plain numbers; nothing here runs an engine or touches
@@ -146,7 +146,7 @@ def stepping_cost(wall_times: Sequence[float], simulated_time: float, steps: int
 
 @dataclass(frozen=True)
 class CaseMetrics:
-    """Every metric of one case (see DESIGN.md for definitions).
+    """Every metric of one case (docs/metrics.md defines each).
 
     position_error_final / _l2 / _linf : m (final is NaN for an incomplete run).
     divergence_time : s, or None when e(t) stays ≤ δ·L.
@@ -215,7 +215,8 @@ def case_metrics(
     complete = n == len(scheduled_times)
     e = position_error(trajectory.positions, reference_positions)
     summary = summarize_error(e)
-    end_of_data = None if complete else float(scheduled_times[n])
+    # Without a reference (NaN positions) e is NaN: no divergence time at all, not "diverged at the end of data".
+    end_of_data = None if complete or not np.isfinite(e).any() else float(scheduled_times[n])
     threshold = delta * scene.characteristic_length
     force_error = None
     if trajectory.constraint_forces is not None and reference_forces is not None and n:

@@ -38,7 +38,20 @@ def row_fields() -> tuple[str, ...]:
         "engine_version",
         "scene_hash",
         "tolerance",
+        *REFERENCE_FIELDS,
     )
+
+
+#: The reference's own error bar (m), horizon (s) and the scene's Lyapunov estimate (1/s), per case
+#: row (docs/metrics.md, "The reference's own error"); null when not measured.
+REFERENCE_FIELDS = ("reference_error", "reference_horizon", "lyapunov_exponent")
+
+
+def reference_values(record: CaseRecord) -> dict[str, Any]:
+    """:data:`REFERENCE_FIELDS` of one case (None where the record has no reference)."""
+    reference = record.reference or {}
+    return {"reference_error": reference.get("reference_error"), "reference_horizon": record.reference_horizon,
+            "lyapunov_exponent": reference.get("lyapunov_exponent")}
 
 
 def case_rows(records: Iterable[CaseRecord], tolerance: float | None = None) -> list[dict[str, Any]]:
@@ -64,6 +77,7 @@ def case_rows(records: Iterable[CaseRecord], tolerance: float | None = None) -> 
                 "engine_version": record.engine_version,
                 "scene_hash": record.scene_hash,
                 "tolerance": record.case.tolerance,  # the tolerance axis's (compare/suite/tolerance_axis.py)
+                **reference_values(record),
             }
             rows.append({k: row.get(k) for k in fields_now})
     return rows
@@ -120,8 +134,11 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     columns = table_columns()
     by_scene: dict[str, list[list[str]]] = {}
     notes: dict[str, list[str]] = {}
+    references: dict[str, str] = {}
     for sweep in variant_sweeps:
         finest = sweep.finest_ok
+        if sweep.scene_id not in references:
+            references[sweep.scene_id] = _reference_line(sweep.records)
         values = []
         for metric in declared.shown():
             if metric.per == "variant":
@@ -141,13 +158,26 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     blocks = []
     for scene_id, rows in by_scene.items():
         widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(columns)]
-        lines = [f"scene {scene_id}"]
+        lines = [f"scene {scene_id}" + references.get(scene_id, "")]
         lines.append("  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(columns, widths))))
         for row in rows:
             lines.append("  ".join(v.ljust(w) if i < 2 else v.rjust(w) for i, (v, w) in enumerate(zip(row, widths))))
         lines.extend(notes.get(scene_id, []))
         blocks.append("\n".join(line.rstrip() for line in lines))
     return "\n\n".join(blocks) + "\n"
+
+
+def _reference_line(records: Iterable[CaseRecord]) -> str:
+    """`` (reference error 3e-12 m, horizon none, Lyapunov -)`` from the first record that has a reference."""
+    for record in records:
+        values = reference_values(record)
+        if values["reference_error"] is None:
+            continue
+        horizon, rate = values["reference_horizon"], values["lyapunov_exponent"]
+        return (f" (reference error {values['reference_error']:.2g} m, horizon "
+                f"{'none' if horizon is None else f'{horizon:.3g} s'}, Lyapunov exponent "
+                f"{'-' if rate is None else f'{rate:.2g} /s'})")
+    return ""
 
 
 def _step(finest: CaseRecord | None) -> str:

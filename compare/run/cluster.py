@@ -125,7 +125,7 @@ def _prepare_worker() -> None:
         # is. The flag only makes multiprocessing kill daemonic children at
         # exit; the case hosts are daemonic themselves and also end when this
         # worker's pipe closes, so clearing it loses nothing.
-        multiprocessing.current_process()._config["daemon"] = False
+        multiprocessing.current_process()._config["daemon"] = False  # type: ignore[attr-defined]
         # Import every engine now, so that case hosts forked from this worker
         # inherit them rather than each importing numba, MuJoCo and PyBullet.
         from compare.run import environment

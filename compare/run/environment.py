@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import importlib.metadata
 import os
 import platform
@@ -45,6 +46,19 @@ def git_commit(root: Path = PROJECT_ROOT) -> str | None:
         )
         return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
+        return None
+
+
+#: The lock file ``make`` installs from (exact versions of every dependency; ``make lock`` writes it).
+LOCK_FILE = Path(__file__).resolve().parents[2] / "requirements.lock"
+
+
+def lock_hash(path: Path = LOCK_FILE) -> str | None:
+    """``sha256:<hex>`` of the lock file the environment was installed from, None when there is none
+    (xval installed from a wheel): two runs with the same hash ran on the same versions of everything."""
+    try:
+        return "sha256:" + hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
         return None
 
 
@@ -96,4 +110,5 @@ def environment(used: Collection[str] | None = None) -> dict[str, Any]:
         "platform": platform.platform(),
         "machine": platform.machine(),
         "git_commit": git_commit(),
+        "lock": lock_hash(),
     }

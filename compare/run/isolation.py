@@ -21,9 +21,10 @@ would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
 
 Lifetime: nothing xval starts outlives it. Each host is the leader of its
 own process group (so the engine's own children are killed with it on a
-timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGTERM
-when the process that forked it dies, on which it SIGKILLs its whole group;
-the workers of a process pool make the same request for their parent, the
+timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGKILL
+when the process that forked it dies, even inside compiled code; its reaper
+then kills the group and any outside program's (:func:`_start_reaper`). The
+workers of a process pool make the same request for their parent, the
 ``xval`` process (:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before
 each task so that the task may map at most ``memory_limit`` bytes more than
 the host does as the task starts: a case past it raises MemoryError (or its
@@ -276,14 +277,68 @@ def _kill_own_group(signum: int, frame: Any) -> None:
 
 
 def _become_host() -> None:
-    """Lead a process group of our own; on the death of the process that forked us, take the group down."""
+    """Lead a process group of our own; die with the process that forked us, and take the group down.
+
+    The kernel SIGKILLs the host when its driver dies (SIGKILL, not SIGTERM: a host deep in a compiled
+    loop — a numba kernel, a C++ engine — runs no Python signal handler until the loop returns, which
+    left hosts running for minutes after a ``kill -9`` of xval). A SIGKILLed host cannot clean up, so a
+    reaper does it (:func:`_start_reaper`). SIGTERM (a user's ``kill``) still takes the group down at once.
+    """
     try:
         os.setpgid(0, 0)
     except OSError:
         pass
     signal.signal(signal.SIGTERM, _kill_own_group)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the xval process's to handle
-    die_with_parent(signal.SIGTERM)
+    _start_reaper()
+    die_with_parent(signal.SIGKILL)
+
+
+class _ReportedGroups(set):
+    """engines.command.LIVE_GROUPS in a host: each outside program's process group, also told to the reaper."""
+
+    def __init__(self, fd: int, groups: Any = ()) -> None:
+        super().__init__(groups)
+        self.fd = fd
+
+    def add(self, group: int) -> None:
+        super().add(group)
+        os.write(self.fd, b"+%d\n" % group)
+
+    def discard(self, group: object) -> None:
+        super().discard(group)
+        os.write(self.fd, b"-%d\n" % int(group))  # type: ignore[call-overload]  # a group id: an int
+
+
+def _start_reaper() -> None:
+    """Fork the host's reaper: a small process, in the host's group, that waits on a pipe only the host
+    holds. When the host dies (EOF), however it died, the reaper SIGKILLs the process groups of the
+    outside programs the host had running (each in a session of its own, engines.command; the host
+    reports them on the pipe), then the host's group — the engine's own children, and itself."""
+    from engines import command  # small, no engine library: the reaper needs its LIVE_GROUPS to report to
+
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the reaper: touches no Python object of the host beyond these lines
+        try:
+            os.close(write_end)
+            os.closerange(3, read_end)  # the driver's pipes above all: their EOF tells the driver a host died
+            os.closerange(read_end + 1, 1 << 16)
+            groups: set[int] = set()
+            pending = b""
+            while chunk := os.read(read_end, 4096):
+                pending += chunk
+                *lines, pending = pending.split(b"\n")
+                for line in lines:
+                    (groups.add if line[:1] == b"+" else groups.discard)(int(line[1:]))
+            for group in groups:
+                with contextlib.suppress(OSError):
+                    os.killpg(group, signal.SIGKILL)
+            os.killpg(os.getpgrp(), signal.SIGKILL)
+        finally:
+            os._exit(0)
+    os.close(read_end)
+    command.LIVE_GROUPS = _ReportedGroups(write_end, command.LIVE_GROUPS)
 
 
 def _address_space() -> int:

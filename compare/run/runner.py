@@ -33,6 +33,7 @@ import math
 import multiprocessing
 import os
 import time
+import warnings
 from collections import deque
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -40,7 +41,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from engines.adapter import scheduled_times
+from engines.adapter import join_messages, scheduled_times, warning_note
 from engines.limits import check_case_size
 from engines.command import spec_of
 from engines.errors import Unsupported
@@ -634,7 +635,8 @@ def build_record(
         why = reference if reference is not None else "no reference"
         ref_positions = np.full((n, len(scene.particles), 3), math.nan)
         ref_forces = None
-        reference_note = f"no reference solution ({why}), so no position metrics"
+        # Every reference-based metric is null, and null here means "not measured", never "never diverged".
+        reference_note = f"reference failed ({why}): no reference-based metric"
         message = "; ".join(m for m in (message, reference_note) if m)
     else:
         solution = reference.solution
@@ -649,24 +651,33 @@ def build_record(
             "wall_time": solution.wall_time,
         }
         if reference.bound is not None:
+            from engines.reference import growth_rate  # loaded already: it made ``reference``
+
             # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
             record["reference"].update(reference_error=reference.bound.reference_error,
                                        tight_rtol=reference.bound.tight_rtol,
-                                       horizon_threshold=reference.bound.threshold)
+                                       horizon_threshold=reference.bound.threshold,
+                                       lyapunov_exponent=growth_rate(reference.bound.t, reference.bound.difference,
+                                                                     scene.characteristic_length))
             record["reference_horizon"] = reference.bound.reference_horizon
-    metrics, series = case_metrics(
-        scene,
-        trajectory,
-        ref_positions,
-        ref_forces,
-        scheduled_times=scheduled,
-        wall_times=outcome.wall_times,
-        delta=suite.delta,
-    )
+    # A state that ran away (finite, but 1e200 m/s) overflows numpy in the energy: a warning in the case's
+    # message, not a line on the terminal.
+    with warnings.catch_warnings(record=True) as heard:
+        warnings.simplefilter("always")
+        metrics, series = case_metrics(
+            scene,
+            trajectory,
+            ref_positions,
+            ref_forces,
+            scheduled_times=scheduled,
+            wall_times=outcome.wall_times,
+            delta=suite.delta,
+        )
+        n_ref = min(n, len(ref_positions))
+        extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     status, message = _with_note(apply_bounds(status, message, metrics, suite.bounds, scene), reference_note)
+    message = join_messages(message, warning_note(heard))
     record["status"], record["message"] = status, message
-    n_ref = min(n, len(ref_positions))
-    extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     record["metrics"] = {**metrics.to_dict(), **extras}
     horizon = record.get("reference_horizon")
     if horizon is not None and n:

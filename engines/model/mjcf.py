@@ -26,7 +26,7 @@ def read(source: ModelSource) -> ModelDescription:
     try:
         m = mujoco.MjModel.from_xml_path(str(source.path))
     except ValueError as exc:
-        raise ModelError(f"model {source.label}: MuJoCo cannot compile it ({' '.join(str(exc).split())}); fix the file")
+        raise ModelError(f"model {source.label}: MuJoCo cannot compile it ({' '.join(str(exc).split())}); fix the file") from None
     names = [m.body(k).name or f"body{k}" for k in range(m.nbody)]
     anchor = np.zeros((m.nbody, 3))  # each link frame's offset from its body frame (the joint's pos)
     bodies, joints = [Body(names[0], None)], []

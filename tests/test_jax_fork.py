@@ -1,0 +1,43 @@
+"""JAX is never imported in a process that forks afterwards: MJX runs in case hosts, which import it themselves.
+
+JAX starts threads on import, and a fork of a process with them may deadlock (JAX warns "os.fork() was
+called ... JAX is multithreaded"). So the xval process, which forks every case host, must never import
+it: the MJX adapter imports JAX on first use (engines.mjx._jax), inside the host running the case, and
+the host has forked its one child (the reaper) before any case runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+pytest.importorskip("mujoco.mjx", reason="MJX is not installed: pip install 'xval[mjx]'")
+
+PROBE = """
+import json, sys, warnings
+warnings.simplefilter("always")
+from compare.run.runner import run_suite
+from compare.results.store import load_results
+from compare.suite.reader import parse_suite
+suite = parse_suite('name = "jax"\\nduration = 0.05\\ndt = [1e-2]\\n[[scenes]]\\nscene = "bead"\\n'
+                    '[[engines]]\\nid = "mjx/hinge"\\n[[engines]]\\nid = "mujoco/hinge"\\n')
+run_suite(suite, sys.argv[1], jobs=2)
+print(json.dumps({"jax_here": "jax" in sys.modules,
+                  "statuses": sorted(r.status.value for r in load_results(sys.argv[1]).records)}))
+"""
+
+
+def test_an_mjx_run_never_imports_jax_where_hosts_are_forked(tmp_path):
+    done = subprocess.run([sys.executable, "-c", PROBE, str(tmp_path / "r")], cwd=ROOT, capture_output=True,
+                          text=True, timeout=600, env={**os.environ, "PYTHONWARNINGS": "always"})
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout.splitlines()[-1])
+    assert seen == {"jax_here": False, "statuses": ["ok", "ok"]}  # MJX ran, in its host
+    assert "os.fork()" not in done.stderr  # JAX's warning from any process that forked with it loaded
