@@ -131,6 +131,18 @@ def test_observed_order_on_the_model(engine_id, steps, order):
     assert abs(np.polyfit(np.log(steps), np.log(errors), 1)[0] - order) < 0.15
 
 
+def test_drake_error_control_follows_its_accuracy_on_the_model():
+    # RK3 with error control: the 2 s error falls tenfold per decade of accuracy (measured 1.9e-7, 2.0e-9 m
+    # at 1e-6, 1e-8), and the steps recorded are the integrator's own (1432, 6222), not the 200 samples.
+    scene = model_scene("dp", DOUBLE, q0={"shoulder": 30, "elbow": -20})
+    reference = REFERENCE.simulate(scene, 1e-2)
+    engine, variant = resolve("drake/rk3")
+    runs = [engine.simulate(scene, 1e-2, variant=variant, options={"accuracy": a}) for a in (1e-6, 1e-8)]
+    errors = [np.linalg.norm(r.positions - reference.positions, axis=2).max() for r in runs]
+    assert errors[0] < 1e-6 and errors[0] / errors[1] > 30
+    assert 200 < runs[0].info.steps < runs[1].info.steps
+
+
 def test_pybullet_joint_limits_are_off():
     # KUKA iiwa released at 30° and −45° swings past its joint limits within 0.5 s; PyBullet enforces the
     # URDF's limits whatever changeDynamics says unless the file's ranges are emptied. With them off it

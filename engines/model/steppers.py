@@ -142,6 +142,9 @@ class DrakeStepper:
             self.time += self.dt
         self.simulator.AdvanceTo(self.time)
 
+    def steps_taken(self) -> int:
+        return int(self.integrator.get_num_steps_taken())
+
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         x = self.plant.GetPositionsAndVelocities(self.context)
         return x[self.qpos].copy(), x[self.nq:][self.dof].copy()
