@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ours.cache import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
@@ -41,6 +42,7 @@ MAX_DEPTH = 8
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
 _compiled: dict[tuple, Any] = {}
 _last_trace_x64: list[bool] = []
+_cache_configured: list[bool] = []
 
 
 def _jax():
@@ -48,9 +50,27 @@ def _jax():
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     import jax
 
+    _persistent_cache(jax)
+
     with contextlib.redirect_stdout(io.StringIO()):  # "Failed to import warp: ..." without warp-lang
         from mujoco import mjx
     return jax, mjx
+
+
+def _persistent_cache(jax) -> None:
+    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.cache``),
+    so a later process loads a stepping loop instead of compiling it again (3.7-11.9 s of CPU each).
+
+    Every compile is kept, however quick (JAX's default keeps only those over 1 s). An explicit
+    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Set once per process, before the first compile.
+    """
+    if _cache_configured:
+        return
+    _cache_configured.append(True)
+    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        jax.config.update("jax_compilation_cache_dir", str(cache_dir() / "jax"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def mjx_version() -> str:

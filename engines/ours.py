@@ -11,8 +11,8 @@ forces are the force each constraint exerts on its first particle
 form exists only for planar chains hung from a fixed point (Pin on particle 0,
 then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
 A Line or Ellipse (planar scenes only) maps to ours' curve constraints, which
-ours steps by its general (dense) λ formula; a four-bar's closed loop of Pins
-and a Rod runs in the compiled distance loop like any other scene.
+run in the same compiled loop as the distance constraints; so does a four-bar's
+closed loop of Pins and a Rod.
 The time recorded is the compiled stepping loop alone (compilation is done,
 or loaded from numba's cache, before the clock starts).
 """

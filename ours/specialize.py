@@ -7,7 +7,10 @@ the numbers of particles, constraints, band columns and band entries. LLVM
 then unrolls those loops and keeps their values in registers (the double
 pendulum's RK4 step: about 670 ns generic, 420 ns per-dim, 340 ns fully
 specialised; ``bench/bench_ours.py``). The arithmetic and its order are
-unchanged, so the results are the generic kernel's bit for bit.
+unchanged, so the results are the generic kernel's bit for bit, with one
+exception: a copy for at most 3 constraints solves J W Jᵀ λ = r by Cramer's
+rule instead of Cholesky (``ours.kernel.solve_closed``), which moves the last
+bits (``scripts/ours_equivalence.py``: at most 3.2e-13 relative over 539 runs).
 
 The copy is written once per kernel source to
 ``<cache>/ours/ours_kernel_d<dim>[_p…c…b…n…]_<hash>.py`` (``<cache>`` from
@@ -41,7 +44,10 @@ _loaded: dict[tuple, ModuleType] = {}
 #: seconds, once: the machine code is cached), so larger systems share the
 #: per-dimension copy, whose loops run over sizes read at run time.
 SMALL_PARTICLES = 3
-SMALL_CONSTRAINTS = 2
+SMALL_CONSTRAINTS = 3
+#: Specialised copies for at most this many constraints solve J W Jᵀ λ = r by Cramer's rule
+#: (``ours.kernel.solve_closed``) instead of Cholesky: no square roots and one division.
+CLOSED_FORM_CONSTRAINTS = 3
 
 
 def sizes_of(n_particles: int, n_constraints: int, bandwidth: int, n_pairs: int) -> tuple[int, int, int, int] | None:
@@ -62,11 +68,15 @@ def _source(dim: int, sizes: tuple[int, int, int, int] | None = None) -> str:
         P, C, bandwidth, pairs = sizes
         functions.update(_particles=P, _constraints=C, _band_columns=bandwidth + 1, _pairs=pairs)
         label += f", P = {P}, C = {C}, bandwidth = {bandwidth}, {pairs} band entries"
+    if sizes is not None and sizes[1] <= CLOSED_FORM_CONSTRAINTS:
+        functions["_closed_form"] = True
+        label += ", J W Jᵀ solved in closed form"
     generic = {"_particles": "x.shape[0]", "_constraints": "x.shape[0]", "_band_columns": "band.shape[1]",
-               "_pairs": "pair_k.shape[0]"}
-    arguments = {"_dim": "x", "_particles": "x", "_constraints": "x", "_band_columns": "band", "_pairs": "pair_k"}
+               "_pairs": "pair_k.shape[0]", "_closed_form": False}
+    arguments = {"_dim": "x", "_particles": "x", "_constraints": "x", "_band_columns": "band", "_pairs": "pair_k",
+                 "_closed_form": "band"}
     blocks = []
-    for name in ("_dim", "_particles", "_constraints", "_band_columns", "_pairs"):
+    for name in ("_dim", "_particles", "_constraints", "_band_columns", "_pairs", "_closed_form"):
         value = functions.get(name, generic.get(name))
         blocks.append(f"@compiled\ndef {name}({arguments[name]}):\n    return {value}\n")
     sizes_text = f"{_SIZES_START}\n# Specialised by ours.specialize for {label}.\n\n\n" + "\n\n".join(blocks) + f"\n\n{_SIZES_END}"

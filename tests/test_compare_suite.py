@@ -34,7 +34,7 @@ def bad(text: str, message: str) -> None:
 def test_shipped_suites_load():
     default = load_suite(ROOT / "suites/default.toml")
     assert default.dts[0] == 0.1 and default.dts[-1] == 1e-4 and len(default.dts) == 7
-    assert {s.id for s in default.scenes} == {"bead", "double-pendulum"}
+    assert {s.id for s in default.scenes} == {"bead", "double-pendulum", "slider-pendulum", "four-bar", "bead-ellipse"}
     labels = {e.label for e in default.engines}
     assert {"mujoco/hinge", "pymunk/pin", "pybullet/multibody"} <= labels
     smoke = load_suite(ROOT / "suites/smoke.toml")
