@@ -1,38 +1,7 @@
 """MuJoCo MJX adapter: the MuJoCo adapter's hinge model, stepped by MJX (MuJoCo in JAX) on the CPU.
 
-MJX is the JAX port of MuJoCo that most new MuJoCo users run, batched and
-in float32 by default. This adapter builds exactly the model of
-``mujoco/hinge`` (the MuJoCo adapter's own ``build``: nested bodies, a hinge
-about +y per particle, or a ball joint for a 3-D scene, a slide joint on a
-Line, a connect equality closing a loop, point masses with inertia
-``inertia_ratio``·m·L², contacts disabled), refuses what it refuses,
-compiles it with the MuJoCo C library, and hands it to MJX with ``mjx.put_model(impl="jax")``.
-
-- **Precision.** ``mjx/hinge`` runs with JAX's 64-bit mode on (float64
-  throughout, so it should agree with ``mujoco/hinge`` to round-off);
-  ``mjx/hinge-f32`` with it off, JAX's default: every array and every
-  operation in float32. The mode is set for this adapter's calls only
-  (``jax.enable_x64`` as a context), so both run in one process.
-- **Package.** MJX is the ``mujoco-mjx`` package (3.17.0 on the package
-  index), which installs as ``mujoco.mjx`` inside the MuJoCo that xval uses
-  (4.0.0) and runs beside it: the JAX implementation is used (MJX's Warp
-  implementation, which would need ``warp-lang``, is not). Its import prints
-  "Failed to import warp" to stdout when warp is absent; that is swallowed.
-- **Stepping and timing.** ``mjx.step`` is wrapped in a ``jax.lax.fori_loop``
-  over the steps between two samples and jit-compiled once per model
-  structure, precision and integrator in a process (dt is an array in MJX's
-  model, so a dt sweep reuses the compiled code). Compilation
-  (``jit(...).lower(...).compile()``) is timed apart and recorded in RunInfo
-  as ``jit_compile_time`` (0 when an earlier run in the process compiled it,
-  ``jit_cache_hit`` true); the stepping wall time is that of the compiled
-  calls alone, waiting for the last result.
-- **Read-back.** Positions, velocities and constraint forces are computed
-  from MJX's joint states (cast to float64) by the MuJoCo C library exactly as
-  for ``mujoco/hinge`` (:func:`engines.mujoco.read_samples`): the forces are
-  those the model applies at MJX's state, evaluated in float64.
-- **Instability.** MuJoCo C resets a state it finds bad (mjWARN_BADQACC);
-  MJX does not check. A state that runs away to non-finite values ends the run
-  ``unstable`` at the first such sample.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/mjx.py``.
 """
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ class OursEngine(Engine):
             try:
                 system, q0, v0, _ = _to_system(scene)
                 ours.simulate(system, q0, v0, 1e-3, 1, method="baumgarte")
-                if system.dim == 2 and system.chain_order() is None:
+                if system.dim == 2 and system.why_not_a_chain() is None:
                     ours.simulate(system, q0, v0, 1e-3, 1, method="lagrangian")
             except (Unsupported, ours.OursError):
                 continue
@@ -145,7 +145,7 @@ class OursEngine(Engine):
                 raise Unsupported(
                     f"ours/lagrangian uses the link angles of a planar chain; {scene.name!r} moves in 3-D"
                 )
-            why = _to_system(scene)[0].chain_order()
+            why = _to_system(scene)[0].why_not_a_chain()
             if why is not None:
                 raise Unsupported(
                     f"ours/lagrangian needs a chain hung from a fixed point (Pin on particle 0, then "

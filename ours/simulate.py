@@ -141,7 +141,7 @@ def simulate(
     if chosen.code == LAGRANGIAN:
         from ours import lagrangian  # imports numba: only when a run needs it
 
-        why = system.chain_order()
+        why = system.why_not_a_chain()
         if system.dim != 2 or why is not None:
             raise ModelError(
                 "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; "

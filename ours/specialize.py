@@ -14,7 +14,7 @@ bits (``scripts/ours_equivalence.py``: at most 3.2e-13 relative over 539 runs).
 
 The copy is written once per kernel source to
 ``<cache>/ours/ours_kernel_d<dim>[_p…c…b…n…]_<hash>.py`` (``<cache>`` from
-:func:`ours.cache.cache_dir`) and imported from there; numba caches its
+:func:`ours.files.cache_dir`) and imported from there; numba caches its
 machine code next to it like any other module, so a later process compiles
 nothing. The name carries a hash of the kernel's text and of the files it
 calls (``banded.py``, ``constraint.py``, ``status.py``), so an edit to any of
@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-from ours.cache import cache_dir, write_whole
+from ours.files import atomic_write, cache_dir
 
 _SIZES_START = "# ---- SIZES (ours.specialize replaces this block with constants) ----"
 _SIZES_END = "# ---- END SIZES ----"
@@ -101,7 +101,8 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
     folder = cache_dir() / "ours"
     path = folder / f"{name}.py"
     if not path.exists() or path.read_text(encoding="utf-8") != source:
-        write_whole(path, source.encode("utf-8"))  # a concurrent process never imports half a file
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, source.encode("utf-8"), durable=False)  # a concurrent process never imports half a file
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     # Registered before it runs: numba's cache finds a function's module by this name.

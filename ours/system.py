@@ -136,7 +136,7 @@ class System:
 
     # -- structure -------------------------------------------------------------
 
-    def chain_order(self) -> str | None:
+    def why_not_a_chain(self) -> str | None:
         """None when this is a serial chain hung from a fixed point, else why not.
 
         A chain: constraint 0 fixes particle 0 to a point (Pin or Wire), and

@@ -29,7 +29,7 @@ import click
 import jinja2
 from markupsafe import Markup
 
-from compare.history.location import check_option
+from compare.cli import history_option
 from compare.history.store import History, StoredRun
 from compare.history.trend import Series, build_series, trend_metrics
 from compare.results.files import atomic_write_text, check_writable
@@ -218,8 +218,7 @@ def write_history_report(location: str | None, output: str | Path, suite: str | 
 
 
 @click.command("report")
-@click.option("--history", "location", default=None, metavar="FILE|URL", callback=check_option,
-              help="The history (default: $XVAL_HISTORY, else results/history.sqlite).")
+@history_option(help="The history (default: $XVAL_HISTORY, else results/history.sqlite).")
 @click.option("--output", "-o", required=True, metavar="FILE.html", help="Where to write the page.")
 @click.option("--suite", default=None, metavar="NAME", help="Only runs of this suite.")
 @click.option("--last", type=click.IntRange(min=1), default=None, metavar="N", help="Only the last N runs of each machine × suite.")

@@ -109,6 +109,16 @@ def test_unknown_tolerance_metric():
         "observed_order, momentum_drift, cost_per_simulated_second")
 
 
+def test_tolerances_and_gate_validate_a_tolerance_alike():
+    # [tolerances] and [gate] both set relative tolerances: the same rule (a number >= 0) for both,
+    # each message naming the key (and, for the suite file, the line).
+    for table in ("tolerances", "gate"):
+        suite = parse_suite(GOOD + f"\n[{table}]\nenergy_drift = 0\n")
+        assert suite.gate.tolerance("energy_drift").rtol == 0.0
+        bad(GOOD + f"\n[{table}]\nenergy_drift = -0.1\n",
+            f"s.toml:13: {table}.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1")
+
+
 def test_incomplete_sweep():
     bad(GOOD.replace("dt = [1e-2, 1e-3]", "dt = { from = 1e-1, to = 1e-3 }"),
         "s.toml:3: dt: the sweep needs per_decade; write dt = { from = 1e-1, to = 1e-4, per_decade = 2 }")
