@@ -65,7 +65,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_rigid.py
 
 bench-all: $(STAMP)
-	@# bench_file_create last: the files it deletes would make the next script's record files dearer (docs/architecture.md)
+	@# bench_file_create last: the files it deletes would make the next script's record files dearer (bench/README.md)
 	@for script in $$(ls bench/bench_*.py | grep -v bench_file_create) bench/bench_file_create.py; do \
 		echo "== $$script"; $(PY) $$script || exit 1; done
 

@@ -8,9 +8,15 @@ Sections (each row gives µs per step and its ratio to the row's peer):
    right-hand side. Seconds of wall time and of CPU time (the machine is shared).
 2. yardstick — the double pendulum (dt 1e-4 s, 2 s) stepped by ours and by the
    hand-fused kernels of the same arithmetic (``bench/fused.py`` in numba,
-   ``bench/fused.c`` with gcc -O3 when a compiler is present). The fused
-   kernels' final states are checked against ours' first. Targets: ours'
-   Baumgarte-RK4 ≤ 4× and RATTLE ≤ 3× the numba kernel.
+   ``bench/fused.c`` with gcc -O3 when a compiler is present), and by the C
+   kernel with the 2×2 solve in closed form. The fused kernels' final states
+   are checked against ours' first. Targets: ours' Baumgarte-RK4 ≤ 4× the
+   numba kernel and ≤ 4× the closed-form C kernel (both ratios printed, and
+   ours against the Cholesky C kernel), RATTLE ≤ 3× the numba kernel.
+2b. per kind — ours/baumgarte-rk4's step rate (dt 1e-4 s) on each constraint
+   kind: the bead (Wire), the double pendulum (Pin + Rod), slider-pendulum
+   (Line), bead-ellipse (Ellipse), four-bar (a closed loop); target ≥ 0.5 M
+   steps/s, ratio to the double pendulum's rate in the same run.
 3. like with like — the double pendulum (dt 1e-3 s, 10 s) through each
    engine's adapter (its recorded stepping time): ours' RK4 against MuJoCo's
    RK4, ours' Euler variants against MuJoCo's Euler and PyBullet.
@@ -53,6 +59,9 @@ from engines.ours import _to_system  # noqa: E402
 from engines.registry import resolve  # noqa: E402
 
 RK4_TARGET = 4.0
+CLOSED_TARGET = 4.0  # ours' double-pendulum RK4 against the closed-form C kernel
+CLOSED_C = "closed-form C (gcc -O3)"
+KIND_TARGET = 0.5e6  # steps/s on every constraint kind
 SKIPPED: list[dict] = []
 RATTLE_TARGET = 3.0
 
@@ -105,6 +114,7 @@ def c_kernels():
     p = ctypes.POINTER(ctypes.c_double)
     lib.double_pendulum_rk4.argtypes = [p, p, p, p, p, p, ctypes.c_double, ctypes.c_double, ctypes.c_double,
                                         ctypes.c_long]
+    lib.double_pendulum_rk4_closed.argtypes = lib.double_pendulum_rk4.argtypes
     lib.double_pendulum_rattle.argtypes = [p, p, p, p, p, p, ctypes.c_double, ctypes.c_long, ctypes.c_double,
                                            ctypes.c_long]
     lib.double_pendulum_rattle.restype = ctypes.c_long
@@ -134,14 +144,16 @@ def yardstick_rows(repeats: int) -> list[dict]:
             else:
                 fused.double_pendulum_rattle(q, v, masses, gravity, anchor, lengths, 1e-12, 50, dt, n)
 
-        def run_c(q, v, method=method):
+        def run_c(q, v, method=method, closed=False):
             args = (_ptr(q), _ptr(v), _ptr(masses), _ptr(gravity), _ptr(anchor), _ptr(lengths))
             if method == "baumgarte":
-                lib.double_pendulum_rk4(*args, ks, kd, dt, n)
+                (lib.double_pendulum_rk4_closed if closed else lib.double_pendulum_rk4)(*args, ks, kd, dt, n)
             else:
                 lib.double_pendulum_rattle(*args, 1e-12, 50, dt, n)
 
         kernels = [("hand-fused numba", run_numba)] + ([("hand-fused C (gcc -O3)", run_c)] if lib else [])
+        if lib and method == "baumgarte":
+            kernels.append((CLOSED_C, lambda q, v: run_c(q, v, closed=True)))
         seconds = {"ours": fastest(lambda: ours.simulate(system, q0, v0, dt, n, 100, method=method), repeats)}  # noqa: B023 (timed here, in the loop)
         agreement = {}
         for name, run in kernels:
@@ -159,7 +171,38 @@ def yardstick_rows(repeats: int) -> list[dict]:
             rows.append({"section": "yardstick", "case": case, "engine": name, "us_per_step": seconds[name] / n * 1e6,
                          "peer": "hand-fused numba", "ratio": seconds[name] / peer,
                          "note": f"final state within {agreement[name]:.1e} of ours"})
+        # ours against each C kernel: the Cholesky one (same arithmetic as ours' generic solve) and the
+        # closed-form one (the machine's best for this system); the issue's target is on the latter.
+        for name, _ in kernels:
+            if name == "hand-fused numba":
+                continue
+            target = CLOSED_TARGET if name == CLOSED_C else None
+            rows.append({"section": "yardstick", "case": case, "engine": f"ours/{'baumgarte-rk4' if method == 'baumgarte' else 'rattle'}",
+                         "us_per_step": seconds["ours"] / n * 1e6, "peer": name,
+                         "peer_us_per_step": seconds[name] / n * 1e6, "ratio": seconds["ours"] / seconds[name],
+                         **({"target": f"≤ {target:g}×", "met": seconds["ours"] / seconds[name] <= target} if target else {})})
     return rows
+
+
+#: The mechanisms and the two catalog pendulums: ours' RK4 step rate on each constraint kind.
+KIND_SCENES = (("bead", "Wire"), ("double-pendulum", "Pin + Rod"), ("slider-pendulum", "Line + Rod"),
+               ("bead-ellipse", "Ellipse"), ("four-bar", "Pins + Rod, a closed loop"))
+
+
+def kind_rows(repeats: int) -> list[dict]:
+    """ours/baumgarte-rk4's steps per second (thread CPU, dt 1e-4 s, 2 s, a sample every 100 steps) on each
+    constraint kind, against its rate on the double pendulum in the same run; target ≥ 0.5 M steps/s."""
+    rates = {}
+    for name, kinds in KIND_SCENES:
+        system, q0, v0, _ = _to_system(catalog.build(name, {"duration": 2.0}))
+        ours.simulate(system, q0, v0, 1e-4, 10, 10, method="baumgarte")  # compiled or loaded before timing
+        seconds = fastest(lambda s=system, q=q0, v=v0: ours.simulate(s, q, v, 1e-4, 20000, 100, method="baumgarte"), repeats)
+        rates[name] = (kinds, 20000 / seconds)
+    peer = rates["double-pendulum"][1]
+    return [{"section": "per kind", "case": f"{name} ({kinds}), RK4, dt 1e-4", "engine": "ours/baumgarte-rk4",
+             "us_per_step": 1e6 / rate, "peer": "ours on double-pendulum", "peer_us_per_step": 1e6 / peer,
+             "ratio": peer / rate, "steps_per_s": rate, "target": f"≥ {KIND_TARGET / 1e6:g} M steps/s",
+             "met": rate >= KIND_TARGET} for name, (kinds, rate) in rates.items()]
 
 
 def adapter_seconds(engine_id: str, scene, dt: float, repeats: int) -> tuple[float, int] | None:
@@ -218,6 +261,7 @@ def main(argv: list[str]) -> int:
 
     ours.compile_all()
     rows += yardstick_rows(repeats)
+    rows += kind_rows(repeats)
 
     dp = catalog.build("double-pendulum")
     rows += compare_rows("like with like", "double pendulum, dt 1e-3, 10 s", dp, 1e-3, [
@@ -266,8 +310,9 @@ def print_table(rows: list[dict]) -> None:
         target = r.get("target", "")
         if target:
             target += "  met" if r.get("met") else "  MISSED"
+        rate = f"  {r['steps_per_s'] / 1e6:.2f} M steps/s" if "steps_per_s" in r else ""
         print(f"{r['section']:<15} {r['case']:<42} {r['engine']:<33} {r['us_per_step']:9.3f} {r['peer']:<24} "
-              f"{'' if peer_us is None else f'{peer_us:9.3f}':>9} {r['ratio']:6.2f}×  {target or r.get('note', '')}")
+              f"{'' if peer_us is None else f'{peer_us:9.3f}':>9} {r['ratio']:6.2f}×  {target or r.get('note', '')}{rate}")
 
 
 if __name__ == "__main__":

@@ -1,5 +1,6 @@
 /* Hand-fused yardsticks in C: the same arithmetic, in the same order, as bench/fused.py
- * (and so as ours' compiled loop) for the double pendulum. Built by bench/bench_ours.py with
+ * (and so as ours' compiled loop) for the double pendulum; the RK4 step twice, with the 2×2
+ * solve by Cholesky and in closed form. Built by bench/bench_ours.py with
  * gcc -O3 -ffp-contract=off (no fused multiply-adds, so the results match ours to round-off).
  * q, v: the 2×2 positions and velocities (row-major), stepped n_steps times in place. */
 #include <math.h>
@@ -16,7 +17,10 @@ static void setup(System *s, const double *masses, const double *gravity, const 
     s->b00w = 0.0 + s->w0; s->b10w = 0.0 + s->w0; s->b11w = (0.0 + s->w0) + s->w1;
 }
 
-static inline void accel(const System *s, const double *x, const double *u, double ks, double kd, double *a) {
+/* closed: 0 solves J W Jᵀ λ = r by Cholesky (ours' banded solve), 1 in closed form (Cramer's rule, as
+ * ours' kernels specialised for at most 3 constraints do). */
+static inline void accel(const System *s, const double *x, const double *u, double ks, double kd, double *a,
+                         int closed) {
     double d0x = x[0] - s->ax, d0y = x[1] - s->ay, d1x = x[0] - x[2], d1y = x[1] - x[3];
     double v0x = u[0], v0y = u[1], v1x = u[0] - u[2], v1y = u[1] - u[3];
     double jwf0 = d0x * (s->w0 * s->fx0) + d0y * (s->w0 * s->fy0);
@@ -29,36 +33,57 @@ static inline void accel(const System *s, const double *x, const double *u, doub
     double a00 = s->b00w * (d0x * d0x + d0y * d0y);
     double a10 = s->b10w * (d1x * d0x + d1y * d0y);
     double a11 = s->b11w * (d1x * d1x + d1y * d1y);
-    double l00 = sqrt(a00), l10 = a10 / l00, l11 = sqrt(a11 - l10 * l10);
-    double z0 = r0 / l00, z1 = (r1 - l10 * z0) / l11;
-    double lam1 = z1 / l11, lam0 = (z0 - l10 * lam1) / l00;
+    double lam0, lam1;
+    if (closed) {
+        double det = a00 * a11 - a10 * a10;
+        lam0 = (a11 * r0 - a10 * r1) / det;
+        lam1 = (a00 * r1 - a10 * r0) / det;
+    } else {
+        double l00 = sqrt(a00), l10 = a10 / l00, l11 = sqrt(a11 - l10 * l10);
+        double z0 = r0 / l00, z1 = (r1 - l10 * z0) / l11;
+        lam1 = z1 / l11;
+        lam0 = (z0 - l10 * lam1) / l00;
+    }
     a[0] = s->w0 * s->fx0 + s->w0 * lam0 * d0x + s->w0 * lam1 * d1x;
     a[1] = s->w0 * s->fy0 + s->w0 * lam0 * d0y + s->w0 * lam1 * d1y;
     a[2] = s->w1 * s->fx1 - s->w1 * lam1 * d1x;
     a[3] = s->w1 * s->fy1 - s->w1 * lam1 * d1y;
 }
 
-void double_pendulum_rk4(double *q, double *v, const double *masses, const double *gravity, const double *anchor,
-                         const double *lengths, double ks, double kd, double h, long n_steps) {
+static inline void rk4(double *q, double *v, const double *masses, const double *gravity, const double *anchor,
+                       const double *lengths, double ks, double kd, double h, long n_steps, int closed) {
     System s;
     setup(&s, masses, gravity, anchor, lengths);
     double x[4] = {q[0], q[1], q[2], q[3]}, u[4] = {v[0], v[1], v[2], v[3]};
     double hh = 0.5 * h, b1 = h * (1.0 / 6.0), b2 = h * (1.0 / 3.0);
     for (long n = 0; n < n_steps; n++) {
         double k1[4], k2[4], k3[4], k4[4], q2[4], v2[4], q3[4], v3[4], q4[4], v4[4];
-        accel(&s, x, u, ks, kd, k1);
+        accel(&s, x, u, ks, kd, k1, closed);
         for (int i = 0; i < 4; i++) { q2[i] = x[i] + hh * u[i]; v2[i] = u[i] + hh * k1[i]; }
-        accel(&s, q2, v2, ks, kd, k2);
+        accel(&s, q2, v2, ks, kd, k2, closed);
         for (int i = 0; i < 4; i++) { q3[i] = x[i] + hh * v2[i]; v3[i] = u[i] + hh * k2[i]; }
-        accel(&s, q3, v3, ks, kd, k3);
+        accel(&s, q3, v3, ks, kd, k3, closed);
         for (int i = 0; i < 4; i++) { q4[i] = x[i] + h * v3[i]; v4[i] = u[i] + h * k3[i]; }
-        accel(&s, q4, v4, ks, kd, k4);
+        accel(&s, q4, v4, ks, kd, k4, closed);
         for (int i = 0; i < 4; i++) {
             x[i] = x[i] + b1 * u[i] + b2 * v2[i] + b2 * v3[i] + b1 * v4[i];
             u[i] = u[i] + b1 * k1[i] + b2 * k2[i] + b2 * k3[i] + b1 * k4[i];
         }
     }
     for (int i = 0; i < 4; i++) { q[i] = x[i]; v[i] = u[i]; }
+}
+
+/* Baumgarte + RK4, λ by Cholesky: ours' arithmetic for any system, written out for this one. */
+void double_pendulum_rk4(double *q, double *v, const double *masses, const double *gravity, const double *anchor,
+                         const double *lengths, double ks, double kd, double h, long n_steps) {
+    rk4(q, v, masses, gravity, anchor, lengths, ks, kd, h, n_steps, 0);
+}
+
+/* Baumgarte + RK4, λ in closed form: what the machine can do for this system. */
+void double_pendulum_rk4_closed(double *q, double *v, const double *masses, const double *gravity,
+                                const double *anchor, const double *lengths, double ks, double kd, double h,
+                                long n_steps) {
+    rk4(q, v, masses, gravity, anchor, lengths, ks, kd, h, n_steps, 1);
 }
 
 long double_pendulum_rattle(double *q, double *v, const double *masses, const double *gravity, const double *anchor,

@@ -219,3 +219,36 @@ def parse_assignments(pairs: tuple[str, ...], flag: str) -> dict[str, str]:
             raise UserError(f"{flag}: expected NAME=VALUE, got {pair!r}")
         parsed[name.strip()] = value.strip()
     return parsed
+
+
+# -- options several commands share, each defined once ----------------------------------------
+
+
+def history_option(help: str, name: str = "location"):
+    """``--history FILE|URL``: a history (a SQLite file or a postgresql:// URL), checked as it is parsed."""
+    from compare.history.location import check_option
+
+    return click.option("--history", name, default=None, metavar="FILE|URL", callback=check_option, help=help)
+
+
+def jobs_option(what: str):
+    """``--jobs N``, 1 to MAX_JOBS; ``what`` says what runs at once (default: all cores)."""
+    from engines.limits import MAX_JOBS
+
+    return click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
+                        help=f"{what}, 1 to {MAX_JOBS} (default: all cores).")
+
+
+def timeout_option(help: str):
+    """``--timeout S``: seconds (at most 1e6), default None (the suite's)."""
+    return click.option("--timeout", type=Seconds(), default=None, metavar="S", help=help)
+
+
+def param_option(help: str = "Scene parameter (see 'xval scenes'); repeatable."):
+    """``--param NAME=VALUE`` (repeatable) into ``params``; read with ``parse_assignments(params, "--param")``."""
+    return click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help=help)
+
+
+def engine_option_option(help: str = "Engine option (see 'xval engines'); repeatable."):
+    """``--option NAME=VALUE`` (repeatable) into ``options``; read with ``parse_assignments(options, "--option")``."""
+    return click.option("--option", "options", multiple=True, metavar="NAME=VALUE", help=help)

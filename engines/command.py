@@ -1,34 +1,7 @@
 """``command/<label>``: an engine that is an outside program speaking the process protocol (docs/protocol.md).
 
-xval starts the program (an argv list, no shell) in its own process group
-(``start_new_session``), with the working directory ``cwd`` (a suite's
-folder), writes the protocol document to its stdin and closes it, and reads
-CSV from its stdout (:mod:`engines.protocol`). What can go wrong, and what
-it becomes:
-
-- the program cannot start (no such file, not executable): ``failed``,
-  naming the command;
-- it exits with :data:`UNSUPPORTED_EXIT_CODE` (77): ``skipped``, its last
-  stderr line being the reason (a scene it cannot express);
-- it exits non-zero otherwise, or is killed by a signal: ``failed`` with the
-  exit code (or signal) and its last stderr line;
-- its output breaks the protocol (a missing or extra column, a non-number,
-  a wrong row count, a time that is not its sample step's, a first row that
-  is not the scene's initial state): ``failed``, naming the line, sample
-  and column;
-- a row with NaN or inf in the state: ``unstable`` from that sample on
-  (the program may stop writing after it);
-- it runs past its deadline: the whole process group is killed
-  (SIGKILL) and the run is ``timeout``. The deadline is the case's timeout
-  (:func:`deadline`, which the suite runner sets), or none.
-
-Whatever happens, the process group is killed before the call returns, so
-no process the program started (in its group) survives it.
-
-A command engine is made by :func:`command_engine` (a suite's
-``[[engines]] command = [...]`` entry, ``xval simulate --command``); it is
-registered by its label so that ``engines.registry.load_engine("command/<label>")``
-finds it in this process and in processes forked from it.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/command.py``.
 """
 
 from __future__ import annotations

@@ -24,10 +24,10 @@ import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
-from engines.mujoco import Tree, constraint_tree
 from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.tree import Tree, read_tree
 
 # dartpy itself (0.6 s to import) is imported where a skeleton is built, and by preload before a run forks.
 if importlib.util.find_spec("dartpy") is None:
@@ -113,10 +113,12 @@ class DartEngine(Engine):
                     f"prismatic joint on a line); constraints[{k}] is an 'ellipse'"
                 )
         refuse_constraint_kinds(scene, (Pin, Rod, Line), "dart")
-        try:
-            tree = constraint_tree(scene)
-        except Unsupported as exc:
-            raise Unsupported(f"dart: {str(exc).partition(': ')[2]}") from None
+        tree = read_tree(scene)
+        if tree.loose:
+            raise Unsupported(
+                f"dart: particles {tree.loose} are not hung from a Pin or Line; the adapter builds chains of "
+                "joints from fixed anchors (no free-floating bodies)"
+            )
         if tree.closures:
             raise Unsupported(
                 f"dart: constraint {tree.closures[0]} closes a loop; the adapter builds a tree of joints and "
@@ -142,7 +144,7 @@ class DartEngine(Engine):
         """The skeleton of ``scene`` in a World with the scene's gravity, at its initial state."""
         import dartpy as dart
 
-        tree = constraint_tree(scene)
+        tree = read_tree(scene)
         q = scene.initial_positions
         inertia = self.inertia(scene, settings)
         skeleton = dart.dynamics.Skeleton(scene.name)

@@ -1,62 +1,7 @@
 """Drake adapter: a MultibodyPlant per scene, stepped by Drake's own integrators or its discrete plant.
 
-The scene is built in reduced coordinates, as a Drake user would build it
-(like :mod:`engines.mujoco`'s hinge formulation): one rigid body per
-particle, nested along the constraint tree hung from the Pins
-(:func:`engines.mujoco.constraint_tree`). Each body's frame sits at its pivot
-with the world's orientation in the scene's *initial* configuration, and its
-point mass sits at the end of the arm (the body's centre of mass). A planar
-scene gets a :class:`RevoluteJoint` about +y per body; a 3-D one (one
-particle, the spherical pendulum) a :class:`BallRpyJoint` (below). Every
-constraint holds by construction.
-
-- **Point masses.** Drake accepts a body with zero rotational inertia about
-  its centre of mass, so by default (``inertia_ratio = 0``) a particle is an
-  exact point mass and the error floor other rigid-body engines get from a
-  tiny inertia is absent. A ball joint is the exception: with no inertia the
-  spin about the arm has no mass and the mass matrix is singular, so a 3-D
-  scene uses ``inertia_ratio = 1e-9`` when 0 is asked for (recorded in
-  ``point_mass_inertia``), the same as the MuJoCo adapter.
-- **Ball joint.** Drake 1.51's Python bindings offer the ball joint with
-  roll-pitch-yaw coordinates only, singular where the pitch is ±90°. Its
-  frame on the child is turned so that its x axis runs along the arm and its
-  frame on the world keeps z up: the singular configurations are then those
-  with the arm vertical, the pole the reference's spherical coordinates
-  avoid as well (a 3-D pin with angular momentum about the vertical never
-  reaches it).
-- **Defaults overridden.** Gravity is set from the scene (Drake's default is
-  already −9.81 z); joints get zero damping and no limits (Drake's defaults
-  too); no geometry is registered, so there is nothing to collide. A plant
-  made from :class:`MultibodyPlantConfig` defaults to a *discrete* plant at
-  ``time_step = 0.001``: this adapter builds ``MultibodyPlant(time_step)``
-  itself, 0 (continuous) for the integrator variants and dt for
-  ``drake/discrete``. The :class:`Simulator`'s default integrator (RK3,
-  accuracy 1e-4, maximum step 0.1 s) is always replaced, see ``overrides``.
-
-Variants:
-
-- error-controlled ``rk3``, ``rk5``, ``bs3`` (explicit) and ``radau3``
-  (implicit, 3rd order): the step is chosen by Drake to meet ``accuracy``
-  (Drake's ``set_target_accuracy``, a weighted norm of the local error);
-  ``dt`` is only the largest step allowed (``set_maximum_step_size``).
-  Drake's accuracy is not monotone: a tighter setting can give a larger
-  error (docs/engines.md). These variants declare the ``tolerance``
-  capability: their tolerance option is ``accuracy``.
-- fixed-step ``rk2`` and ``semi-explicit-euler`` (symplectic Euler):
-  ``set_fixed_step_mode(True)``, step dt.
-- ``discrete``: the discrete plant (``time_step = dt``, SAP contact
-  approximation, nothing to contact): with no contact this is symplectic
-  Euler in the joint coordinates, MuJoCo hinge's scheme.
-
-Sampling: ``Simulator.AdvanceTo`` once per sample (only those calls are
-timed). For fixed steps each target is the running sum ``t += dt`` Drake
-itself keeps, not ``k·dt``: a target a rounding error past Drake's clock
-would make it take an extra step of ~1e-17 s. For error control,
-``AdvanceTo`` caps a step at the sample interval (0.01 s by default).
-Positions, velocities and constraint forces are read afterwards from the
-recorded joint states. Constraint forces are Drake's joint reaction forces
-(``get_reaction_forces_output_port``): the force on each child body at its
-joint, which for a massless arm is the rod's force on its particle.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/drake.py``.
 """
 
 from __future__ import annotations
@@ -70,9 +15,9 @@ import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.mujoco import Tree, constraint_tree
 from engines.plugin import refuse_constraint_kinds
 from engines.scene import Pin, Rod, Scene
+from engines.tree import Tree, read_tree
 
 # pydrake itself is imported where a plant is built (and by preload, before a run forks its hosts):
 # listing the engines (`xval engines`) or planning a run needs only to know it is installed, and
@@ -201,10 +146,12 @@ class DrakeEngine(Engine):
                                   "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
             return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
-        try:
-            tree = constraint_tree(scene)
-        except Unsupported as exc:
-            raise Unsupported(f"drake: {str(exc).partition(': ')[2]}") from None
+        tree = read_tree(scene)
+        if tree.loose:
+            raise Unsupported(
+                f"drake: particles {tree.loose} are not hung from a Pin; the adapter builds chains of joints "
+                "from fixed anchors (no free-floating bodies)"
+            )
         if tree.closures:
             raise Unsupported(
                 f"drake: constraint {tree.closures[0]} closes a loop; the adapter builds a tree of joints, and a "
@@ -231,7 +178,7 @@ class DrakeEngine(Engine):
         from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
         from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia
 
-        tree = constraint_tree(scene)
+        tree = read_tree(scene)
         q = scene.initial_positions
         inertia = self.inertia(scene, settings)
         plant = MultibodyPlant(time_step)

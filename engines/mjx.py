@@ -1,38 +1,7 @@
 """MuJoCo MJX adapter: the MuJoCo adapter's hinge model, stepped by MJX (MuJoCo in JAX) on the CPU.
 
-MJX is the JAX port of MuJoCo that most new MuJoCo users run, batched and
-in float32 by default. This adapter builds exactly the model of
-``mujoco/hinge`` (the MuJoCo adapter's own ``build``: nested bodies, a hinge
-about +y per particle, or a ball joint for a 3-D scene, a slide joint on a
-Line, a connect equality closing a loop, point masses with inertia
-``inertia_ratio``·m·L², contacts disabled), refuses what it refuses,
-compiles it with the MuJoCo C library, and hands it to MJX with ``mjx.put_model(impl="jax")``.
-
-- **Precision.** ``mjx/hinge`` runs with JAX's 64-bit mode on (float64
-  throughout, so it should agree with ``mujoco/hinge`` to round-off);
-  ``mjx/hinge-f32`` with it off, JAX's default: every array and every
-  operation in float32. The mode is set for this adapter's calls only
-  (``jax.enable_x64`` as a context), so both run in one process.
-- **Package.** MJX is the ``mujoco-mjx`` package (3.17.0 on the package
-  index), which installs as ``mujoco.mjx`` inside the MuJoCo that xval uses
-  (4.0.0) and runs beside it: the JAX implementation is used (MJX's Warp
-  implementation, which would need ``warp-lang``, is not). Its import prints
-  "Failed to import warp" to stdout when warp is absent; that is swallowed.
-- **Stepping and timing.** ``mjx.step`` is wrapped in a ``jax.lax.fori_loop``
-  over the steps between two samples and jit-compiled once per model
-  structure, precision and integrator in a process (dt is an array in MJX's
-  model, so a dt sweep reuses the compiled code). Compilation
-  (``jit(...).lower(...).compile()``) is timed apart and recorded in RunInfo
-  as ``jit_compile_time`` (0 when an earlier run in the process compiled it,
-  ``jit_cache_hit`` true); the stepping wall time is that of the compiled
-  calls alone, waiting for the last result.
-- **Read-back.** Positions, velocities and constraint forces are computed
-  from MJX's joint states (cast to float64) by the MuJoCo C library exactly as
-  for ``mujoco/hinge`` (:func:`engines.mujoco.read_samples`): the forces are
-  those the model applies at MJX's state, evaluated in float64.
-- **Instability.** MuJoCo C resets a state it finds bad (mjWARN_BADQACC);
-  MJX does not check. A state that runs away to non-finite values ends the run
-  ``unstable`` at the first such sample.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/mjx.py``.
 """
 
 from __future__ import annotations
@@ -48,6 +17,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ours.cache import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
@@ -72,6 +42,7 @@ MAX_DEPTH = 8
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
 _compiled: dict[tuple, Any] = {}
 _last_trace_x64: list[bool] = []
+_cache_configured: list[bool] = []
 
 
 def _jax():
@@ -79,9 +50,27 @@ def _jax():
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     import jax
 
+    _persistent_cache(jax)
+
     with contextlib.redirect_stdout(io.StringIO()):  # "Failed to import warp: ..." without warp-lang
         from mujoco import mjx
     return jax, mjx
+
+
+def _persistent_cache(jax) -> None:
+    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.cache``),
+    so a later process loads a stepping loop instead of compiling it again (3.7-11.9 s of CPU each).
+
+    Every compile is kept, however quick (JAX's default keeps only those over 1 s). An explicit
+    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Set once per process, before the first compile.
+    """
+    if _cache_configured:
+        return
+    _cache_configured.append(True)
+    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        jax.config.update("jax_compilation_cache_dir", str(cache_dir() / "jax"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
 def mjx_version() -> str:

@@ -1,65 +1,7 @@
 """MuJoCo adapter: the scenes as a MuJoCo user would build them, in two formulations.
 
-- **hinge** (reduced coordinates): one body per particle, nested along the
-  constraint tree. A body's frame sits at its pivot (the Pin's anchor or the
-  parent particle), its joint is a hinge about +y for a planar scene and a
-  ball joint for a 3-D one, and its point mass sits at the end of the arm.
-  Every constraint holds by construction. A ``Line`` (a slider's rail) is a
-  ``slide`` joint along the line, so a slider-pendulum is a slide joint
-  carrying a hinge. A constraint that closes a loop (a four-bar's coupler)
-  cannot be a joint of the tree: it becomes a light *arm* body hinged at one
-  end of the constraint and reaching to the other, joined to that particle's
-  body by a ``connect`` equality — soft, with the ``solref``/``solimp`` and
-  ``timeconst_steps`` options (MuJoCo's defaults unless set). The arm's mass
-  and inertia are ``inertia_ratio`` · m · (1, L²), m the mean particle mass.
-- **connect** (maximal coordinates): one free body per particle, with its
-  mass at the body origin. A ``connect`` equality is a ball joint between
-  two bodies, not a distance constraint, so each Pin and Rod becomes a rigid,
-  massless *arm* owned by one particle's body, reaching from that particle to
-  the other end (the Pin's anchor, or the other particle), with the ball at
-  the far end. A body owns at most one arm (two arms on one body would freeze
-  the angle between them), so the arms are assigned by a matching of
-  constraints to particles. The arm's body turns with the rod, so it adds the
-  rotational energy ½·ω·I·ω of the body's tiny inertia I: relative to the
-  particle energy this is ``inertia_ratio`` (1e-9 in the connect variants). MuJoCo has no
-  equality that holds a point on a line, so a ``Line`` is refused here (the
-  hinge formulation's slide joint expresses it).
-
-An ``Ellipse`` is refused by both: MuJoCo's joints move a point on a circle
-(hinge) or a line (slide), and no equality constraint holds one on an ellipse.
-
-Point-mass inertia is the hinge variants' error floor. MuJoCo refuses a moving
-body whose mass or inertia is below mjMINVAL (1e-15), so each particle body
-gets ``inertia_ratio · m · L²`` about every axis; on a hinge it adds to the
-link's moment m·l² about the pivot, a model error proportional to the ratio:
-about 2.6·ratio m on the bead and 18·ratio m on the double pendulum in 2 s
-(scripts/inertia_floor.py), which is what hinge-rk4 converges to as dt → 0.
-The hinge variants therefore use 1e-12 (:data:`HINGE_INERTIA_RATIO`; well
-conditioned down to 1e-14, ball joints included), raised to MuJoCo's absolute
-floor :data:`MIN_INERTIA` where m·L² is small (a 1 mm bead of 1 kg gets
-1e-15 kg·m², a ratio of 1e-9): the floor is 2.5e-10 m on
-the double pendulum where 1e-9 gave 1.8e-8 m. The connect variants keep 1e-9
-(:data:`CONNECT_INERTIA_RATIO`): there the inertia is what a ball joint turns
-the arm with.
-
-The model is built as MJCF text in the scene's *initial* configuration, so
-qpos0 is the initial state: hinge angles are 0 there (a child's hinge angle is
-relative to its parent, and only velocities need converting) and the
-``connect`` anchors coincide at compile time. Contacts are disabled by flag;
-MuJoCo's joint damping, armature, friction loss and passive forces default to
-zero and stay so. Nothing is rendered and MuJoCo prints nothing.
-
-Stepping uses ``mujoco.rollout`` (many steps inside C per call), in chunks so
-memory stays bounded; only those calls are timed. Positions, velocities and
-constraint forces at each sample are recomputed afterwards with ``mj_forward``
-(after ``mj_step`` the derived quantities in mjData are those of the start of
-the step, so they are never read from the stepping data).
-
-MuJoCo resets the state to qpos0 when it meets a bad (non-finite or huge)
-position, velocity or acceleration (``mjWARN_BAD*``, "autoreset"). rollout
-stops at the first warning and pads its output with the reset state; the run
-is cut at the first sample whose clock does not match its step and ends
-``unstable`` with the samples before it.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/mujoco.py``.
 """
 
 from __future__ import annotations
@@ -90,6 +32,7 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Scene
+from engines.tree import Tree, read_tree
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
 _ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
@@ -133,76 +76,25 @@ _WARNINGS = {
 # -- structure of a scene ----------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class Tree:
-    """The constraints of a scene read as a forest hung from Pins (for the hinge formulation).
-
-    parent : (n,) parent particle index, or −1 for a particle hung from a Pin or held on a Line.
-    pivot : (n, 3) m, the pivot of each particle's link (the Pin's anchor, or the parent's initial
-        position; a particle on a Line is its own pivot).
-    constraint_of : (n,) index of the constraint joining the particle to its parent.
-    order : particles, parents before children.
-    closures : constraints that close a loop (not joints of the tree): each becomes an arm body and a
-        ``connect`` equality (see :func:`closure_arm`).
-    """
-
-    parent: tuple[int, ...]
-    pivot: np.ndarray
-    constraint_of: tuple[int, ...]
-    order: tuple[int, ...]
-    closures: tuple[int, ...] = ()
-
-
 def constraint_tree(scene: Scene) -> Tree:
-    """Orient the constraints away from the Pins and Lines; a constraint met twice closes a loop.
-
-    Unsupported for an Ellipse, or unless every particle hangs from a Pin or Line.
-    """
-    n = len(scene.particles)
-    q = scene.initial_positions
-    parent, constraint_of = [-2] * n, [-1] * n
-    pivot = np.zeros((n, 3))
-    neighbours: list[list[tuple[int, int]]] = [[] for _ in range(n)]
-    queue: list[int] = []
-    closures: list[int] = []
+    """The scene's tree of joints (:func:`engines.tree.read_tree`), or Unsupported for what the hinge
+    formulation cannot build: an Ellipse, a particle not hung from a Pin or Line, a loop through a Line."""
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(_NO_ELLIPSE.format(k=k))
-        if isinstance(c, (Pin, Line)):
-            if parent[c.particle] != -2:
-                closures.append(k)  # a second Pin or Line on one particle closes a loop through the ground
-                continue
-            parent[c.particle], constraint_of[c.particle] = -1, k
-            pivot[c.particle] = c.anchor if isinstance(c, Pin) else q[c.particle]
-            queue.append(c.particle)
-        else:
-            neighbours[c.a].append((c.b, k))
-            neighbours[c.b].append((c.a, k))
-    order: list[int] = []
-    while queue:
-        i = queue.pop(0)
-        order.append(i)
-        for j, k in neighbours[i]:
-            if k == constraint_of[i] or k in closures:
-                continue
-            if parent[j] != -2:
-                closures.append(k)
-                continue
-            parent[j], constraint_of[j], pivot[j] = i, k, q[i]
-            queue.append(j)
-    loose = [i for i in range(n) if parent[i] == -2]
-    if loose:
+    tree = read_tree(scene)
+    if tree.loose:
         raise Unsupported(
-            f"mujoco/hinge: particles {loose} are not hung from a Pin; the hinge formulation builds "
+            f"mujoco/hinge: particles {tree.loose} are not hung from a Pin; the hinge formulation builds "
             "chains from a fixed anchor (use mujoco/connect for free-floating bodies)"
         )
-    for k in closures:
+    for k in tree.closures:
         if isinstance(scene.constraints[k], Line):
             raise Unsupported(
                 f"mujoco/hinge: constraint {k} holds an already-jointed particle on a line, a loop MuJoCo "
                 "cannot close (it has no point-on-line equality)"
             )
-    return Tree(tuple(parent), pivot, tuple(constraint_of), tuple(order), tuple(sorted(closures)))
+    return tree
 
 
 _NO_ELLIPSE = (

@@ -11,8 +11,8 @@ forces are the force each constraint exerts on its first particle
 form exists only for planar chains hung from a fixed point (Pin on particle 0,
 then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
 A Line or Ellipse (planar scenes only) maps to ours' curve constraints, which
-ours steps by its general (dense) λ formula; a four-bar's closed loop of Pins
-and a Rod runs in the compiled distance loop like any other scene.
+run in the same compiled loop as the distance constraints; so does a four-bar's
+closed loop of Pins and a Rod.
 The time recorded is the compiled stepping loop alone (compilation is done,
 or loaded from numba's cache, before the clock starts).
 """
@@ -77,7 +77,7 @@ def _ensure_compiled() -> float:
 
 class OursEngine(Engine):
     name = "ours"
-    capabilities = frozenset({"3d", "constraint-forces"})
+    capabilities = frozenset({"3d", "constraint-forces", "model"})
     options = {
         "method": Option("method", "baumgarte", "drift cure: plain, baumgarte, projection, rattle or lagrangian",
                          kind="str", choices=tuple(ours.METHODS)),
@@ -111,15 +111,26 @@ class OursEngine(Engine):
         """
         _ensure_compiled()
         for scene in scenes:
+            if getattr(scene, "is_model", False):  # rigid bodies: compiled when their run is set up
+                continue
             try:
                 system, q0, v0, _ = _to_system(scene)
                 ours.simulate(system, q0, v0, 1e-3, 1, method="baumgarte")
-                if system.dim == 2 and system.chain_order() is None:
+                if system.dim == 2 and system.why_not_a_chain() is None:
                     ours.simulate(system, q0, v0, 1e-3, 1, method="lagrangian")
             except (Unsupported, ours.OursError):
                 continue
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/ours_model.py)
+            from ours.rigid.method import resolve as rigid_pair
+
+            try:
+                rigid_pair(settings["method"], settings["integrator"])
+            except ours.OursError as exc:
+                raise Unsupported(f"ours: {exc}") from None
+            scene.refuse_kept_dynamics(self.name)
+            return
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])
         except ours.InvalidPair as exc:
@@ -134,7 +145,7 @@ class OursEngine(Engine):
                 raise Unsupported(
                     f"ours/lagrangian uses the link angles of a planar chain; {scene.name!r} moves in 3-D"
                 )
-            why = _to_system(scene)[0].chain_order()
+            why = _to_system(scene)[0].why_not_a_chain()
             if why is not None:
                 raise Unsupported(
                     f"ours/lagrangian needs a chain hung from a fixed point (Pin on particle 0, then "
@@ -167,6 +178,8 @@ class OursEngine(Engine):
         return None if gains is None else largest_stable_dt(*gains)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if getattr(scene, "is_model", False):  # a model file: its own loop (engines/model/stepping.py)
+            return scene.run_in(self.name, schedule, settings)
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(

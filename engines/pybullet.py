@@ -1,93 +1,7 @@
 """PyBullet adapter: point-mass scenes as one multibody, or as separate bodies joined by point-to-point constraints.
 
-Two formulations (variant families), as a PyBullet user would build them:
-
-- ``multibody`` (reduced coordinates, Featherstone): each Pin roots one
-  multibody whose fixed base sits at the Pin's anchor; every particle is a
-  link whose joint is at its parent (the anchor or the particle above it) and
-  whose centre of mass is the particle. Planar scenes use revolute joints
-  about the scene's y axis, 3-D scenes spherical joints. The model is built
-  in the scene's initial configuration (every joint angle 0, every frame
-  aligned with the scene frame), so no angle convention enters.
-- ``p2p`` (maximal coordinates): each particle is a separate body (a
-  multibody with a floating base and no links, what ``createMultiBody``
-  builds by default); each constraint is a ``JOINT_POINT2POINT`` (a ball
-  joint). A point-to-point
-  constraint holds two *points* together, so the rod has to be carried by a
-  body: each particle's body carries the arm to its parent (the Pin's
-  anchor, or the particle above it), with the pivot at the end of that arm.
-  A Pin's other side is a fixed (mass 0) body at the anchor: a
-  point-to-point constraint to the world (parent -1) did not hold in
-  PyBullet 3.2.7 (ENGINE_NOTES). Floating-base multibodies rather than
-  ``useMaximalCoordinates`` rigid bodies because only multibody constraints
-  report their force through ``getConstraintState`` (a rigid-body one
-  raised "Couldn't getConstraintState"). A body that carried two arms would lock
-  the angle between them, so a constraint that closes a loop (a four-bar's
-  coupler) gets a light arm body of its own (``ARM_MASS_RATIO``) between two
-  point-to-point constraints, one at each end. ``multibody`` refuses loops:
-  a multibody is a tree of joints.
-
-A ``Line`` (a slider's rail) is a prismatic joint in ``multibody`` (a
-prismatic link carrying the pendulum's revolute link) and a
-``JOINT_PRISMATIC`` constraint to a fixed anchor body in ``p2p``; that
-constraint's force is read from its first two rows, the impulses along the
-two axes Bullet builds perpendicular to the line (:func:`_slider_axes`). An
-``Ellipse`` is refused: no PyBullet joint or constraint holds a body on one.
-
-Point masses: PyBullet needs bodies with inertia, so each particle gets a body of
-its mass with an isotropic central inertia ``inertia_ratio · m · L²``
-(L = the scene's characteristic length), stated in RunInfo. With the
-arm carried by the body, the pendulum's moment about the pivot is
-m·l² + I: a relative excess of ``inertia_ratio·(L/l)²`` (period longer by
-about half of that), an error floor of its own. The ratio is the smallest
-each formulation stays well-conditioned with (scripts/inertia_floor.py):
-``multibody`` 1e-9 (:data:`MULTIBODY_INERTIA_RATIO`): planar multibodies
-match MuJoCo's hinge model to round-off at any ratio down to 1e-15, but a
-spherical joint's spin about its own rod has only I to resist it, and below
-1e-9 the 3-D pendulum departs from MuJoCo's (by 6e-7 m in 2 s at 1e-10,
-2.5e-5 m at 1e-12); at 1e-4 (the former default) the inertia cost the mild
-double pendulum its first order. ``p2p`` 1e-4 (:data:`P2P_INERTIA_RATIO`):
-the sequential-impulse solver does not converge with a smaller one (the
-bead's wire stretches 0.31 m at 1e-6). No collision shapes are created (PyBullet accepts
-bodies without one when the mass and inertia are given), so nothing can
-collide.
-
-PyBullet defaults overridden (all recorded in RunInfo under ``override.``):
-gravity (0 by default) set from the scene; ``fixedTimeStep`` = dt with
-``numSubSteps`` = 0; linear and angular damping 0 (default 0.04 per body and
-per multibody); joint damping 0; the velocity motor PyBullet puts on every
-revolute joint disabled (zero maximum force), and a spherical joint's motor
-likewise; sleeping disabled (a slow pendulum would otherwise fall asleep
-after 2 s below 0.8 m/s). Left in place: the multibody joint-speed clamp of
-100 rad/s (``changeDynamics(maxJointVelocity=...)`` set the base free in
-3.2.7: the pendulum fell), far above the catalog's joint speeds.
-
-What stays soft: the p2p constraints are corrected Baumgarte-style by the
-global ``erp`` (PyBullet's default 0.2); the default sequential-impulse
-solver stops after ``iterations`` passes (default 50) or when the residual
-falls below its threshold. ``scripts/defaults_pybullet.py`` measures what
-each of these costs.
-
-Constraint forces (N, scene frame, on each constraint's first particle):
-``p2p`` reads ``getConstraintState``, which for a multibody point-to-point
-constraint is the applied impulse of each row (world x, y, z) divided by dt
-inside Bullet, i.e. a force on the constraint's child side; the particle
-carrying the arm gets its negative (checked on a hanging bead: +m·g along z).
-It is the force applied during the step that ends at the sample; the sample
-at t = 0 carries the first step's force (no step precedes it).
-``multibody`` gives None: the joint force-torque sensors
-(``enableJointForceTorqueSensor``) matched the bead's tension but were about
-twice the reference rod tension in the double pendulum (bullet3 issues
-#4451, #4604), so they are not reported as constraint forces.
-
-Output: PyBullet writes to the C-level streams (``pybullet build time`` to
-stderr on import, ``switched solver`` to stdout). File descriptors 1 and 2
-point at /dev/null while PyBullet is imported and while a run builds and
-steps; Python's and C's buffers are flushed before the redirection and C's
-again before the descriptors are restored, so nothing PyBullet prints
-reaches the caller and nothing the caller wrote earlier is lost or
-reordered. While a run is in progress, anything else in the same process
-that writes to fd 1 or 2 (another thread) is discarded too.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/pybullet.py``.
 """
 
 from __future__ import annotations
@@ -106,7 +20,8 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene import Ellipse, Line, Pin, Scene
+from engines.tree import ROOT, read_tree
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
 
@@ -259,61 +174,49 @@ def grow(scene: Scene) -> tuple[list[Link], list[tuple[int, str]]]:
     Raises Unsupported for an Ellipse, for a Line that would close a loop, and
     for particles not tied to any Pin or Line.
     """
-    n = len(scene.particles)
-    q = scene.initial_positions
-    links: dict[int, Link] = {}
-    order: list[int] = []
-    closures: list[tuple[int, str]] = []
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(
                 "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute joints move "
                 f"a point on a circle, prismatic ones on a line); constraints[{k}] is an 'ellipse'"
             )
-        if isinstance(c, (Pin, Line)):
-            if c.particle in links:
-                if isinstance(c, Line):
-                    raise Unsupported(
-                        f"pybullet: constraints[{k}] holds particle {c.particle} on a line as well as "
-                        f"constraints[{links[c.particle].constraint}]: a loop through a rail, which this adapter "
-                        "cannot close"
-                    )
-                closures.append((k, (
-                    f"pybullet: particle {c.particle} is fixed twice (constraints {links[c.particle].constraint} "
-                    f"and {k}): a closed loop, which a multibody (a tree of joints) cannot express; "
-                    "pybullet/p2p closes it with a light arm body"
-                )))
-                continue
-            if isinstance(c, Pin):
-                links[c.particle] = Link(c.particle, k, None, np.asarray(c.anchor, float), True)
-            else:
-                links[c.particle] = Link(c.particle, k, None, q[c.particle].copy(), True, c.unit)
-            order.append(c.particle)
-    head = 0
-    used = {link.constraint for link in links.values()} | {k for k, _ in closures}
-    while head < len(order):
-        parent = order[head]
-        head += 1
-        for k, c in enumerate(scene.constraints):
-            if k in used or not isinstance(c, Rod) or parent not in (c.a, c.b):
-                continue
-            child = c.b if c.a == parent else c.a
-            used.add(k)
-            if child in links:
-                closures.append((k, (
-                    f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
-                    "of joints and cannot express it; pybullet/p2p closes it with a light arm body"
-                )))
-                continue
-            links[child] = Link(child, k, parent, q[parent].copy(), c.a == child)
-            order.append(child)
-    loose = [i for i in range(n) if i not in links]
-    if loose:
+    tree = read_tree(scene)
+    closures: list[tuple[int, str]] = []
+    for k in tree.found:
+        c = scene.constraints[k]
+        if isinstance(c, Line):
+            raise Unsupported(
+                f"pybullet: constraints[{k}] holds particle {c.particle} on a line as well as "
+                f"constraints[{tree.constraint_of[c.particle]}]: a loop through a rail, which this adapter "
+                "cannot close"
+            )
+        if isinstance(c, Pin):
+            closures.append((k, (
+                f"pybullet: particle {c.particle} is fixed twice (constraints {tree.constraint_of[c.particle]} "
+                f"and {k}): a closed loop, which a multibody (a tree of joints) cannot express; "
+                "pybullet/p2p closes it with a light arm body"
+            )))
+        else:  # met from the end the walk reached first: the loop closes through the other
+            child = max((c.a, c.b), key=tree.order.index)
+            closures.append((k, (
+                f"pybullet: constraint {k} closes a loop through particle {child}; a multibody is a tree "
+                "of joints and cannot express it; pybullet/p2p closes it with a light arm body"
+            )))
+    if tree.loose:
         raise Unsupported(
-            f"pybullet: particles {loose} are not tied to any Pin; this adapter builds only scenes "
+            f"pybullet: particles {tree.loose} are not tied to any Pin; this adapter builds only scenes "
             "hung from fixed anchors (no floating bodies)"
         )
-    return [links[i] for i in order], closures
+    links = []
+    for i in tree.order:
+        c = scene.constraints[tree.constraint_of[i]]
+        parent = tree.parent[i]
+        if parent == ROOT:
+            links.append(Link(i, tree.constraint_of[i], None, tree.pivot[i].copy(), True,
+                              c.unit if isinstance(c, Line) else None))
+        else:
+            links.append(Link(i, tree.constraint_of[i], parent, tree.pivot[i].copy(), c.a == i))
+    return links, closures
 
 
 def _kept(settings: Mapping[str, Any]) -> list[str]:

@@ -1,38 +1,7 @@
 """pymunk (Chipmunk2D / Munk2D) adapter: planar scenes as point masses joined by ``PinJoint``s.
 
-Formulation (variant family ``pin``): each particle is a dynamic body of the
-particle's mass and *infinite* moment of inertia, so it never rotates and its
-position is the particle's position (no rotational inertia needs to be made
-up or stated). A ``Pin`` is a ``PinJoint`` from the space's static body
-(anchor at the scene's anchor point) to the particle; a ``Rod`` is a
-``PinJoint`` between the two particles. Anchors sit on the centres of mass,
-so a ``PinJoint`` is a true distance constraint. A ``Line`` (a slider's rail)
-is a ``GrooveJoint`` from the static body to the particle: pymunk's groove is
-a segment, so it is laid along the line from −GROOVE_LENGTHS·L to
-+GROOVE_LENGTHS·L about the line's point (the scene's L), far beyond any
-excursion of the scenes, where its end stops never engage. Closed loops (a
-four-bar's two pins and coupler) need nothing special: pymunk's joints are
-independent constraints solved together. An ``Ellipse`` is refused: pymunk
-has no joint that holds a body on a curve other than a circle or a straight
-segment. No shapes are created: nothing can collide.
-
-Frame: pymunk is 2-D. The scene's (x, z) is pymunk's (x, y); the scene's y
-is 0 on the way out. The conversion happens here and nowhere else.
-
-What one ``space.step(dt)`` does (Munk2D ``cpSpaceStep``): positions first,
-x ← x + v·dt, with the velocity of the previous step; then each joint's
-pre-step measures its direction and error at the *new* positions; then
-v ← v·damping^dt + g·dt; then the warm-started impulses and ``iterations``
-Gauss–Seidel passes make the velocities satisfy each joint, plus a bias
-velocity −(1 − error_bias^dt)·C/dt (clamped to ±max_bias) that pulls the
-drift C back. Semi-implicit (symplectic) Euler: first order.
-
-Constraint forces: ``PinJoint.impulse`` is |accumulated impulse| (N·s) of
-the last step (``getImpulse`` returns ``cpfabs(jnAcc)``), so its sign is
-lost. The force is impulse/dt (N) along the joint's direction at the end of
-the step; its sign (pull or push) is recovered from the momentum balance of
-that step, m·(v_new − damping^dt·v_old − g·dt) = Σ impulses, solved in least
-squares for the signed impulses. Only the sign is taken from that balance.
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/pymunk.py``.
 """
 
 from __future__ import annotations

@@ -1,26 +1,7 @@
 """The ground truth: reduced-coordinate equations integrated at tight tolerances.
 
-Independent of ``ours/``. Two formulations cover the catalog:
-
-- **Planar chain** (bead, double pendulum, chain): a Pin to a fixed anchor
-  followed by Rods along a path, in the x–z plane. Generalized coordinates
-  are the absolute link angles θ_i from the downward vertical, so every
-  constraint holds by construction. Lagrange's equations give
-  ``M(θ) θ̈ = −S(θ) θ̇² + G(θ)`` with
-  ``M_ij = μ_ij l_i l_j cos(θ_i − θ_j)``, ``S_ij = μ_ij l_i l_j sin(θ_i − θ_j)``,
-  ``G_i = μ_ii l_i (g_x cos θ_i + g_z sin θ_i)`` and
-  ``μ_ij = Σ_{k ≥ max(i, j)} m_k``.
-- **Spherical pendulum** (one particle pinned in 3-D): spherical angles
-  (θ polar from −z, φ azimuth). The poles θ = 0, π are the only
-  singularities; with a nonzero vertical angular momentum L_z the path never
-  reaches them, and with L_z = 0 the motion is planar and the chain
-  formulation applies (so such a scene is refused here with that reason).
-
-Both are integrated with ``scipy.integrate.solve_ivp(method="DOP853")`` at
-rtol = atol = 1e-12 by default, with dense output, so a solution can be
-evaluated at any engine's sample times. Constraint forces come from the
-particle accelerations: the force link k exerts on the particle below it is
-``f_k = m_k (a_k − g) + f_{k+1}`` (Newton's law, from the free end up).
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/reference.py``.
 """
 
 from __future__ import annotations
@@ -44,6 +25,7 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
 from engines.reference_mechanisms import Mechanism, mechanism_model
 from engines.scene import Pin, Rod, Scene
+from engines.tree import read_tree
 
 DEFAULT_RTOL = 1e-12
 DEFAULT_ATOL = 1e-12
@@ -53,7 +35,7 @@ DEFAULT_ATOL = 1e-12
 
 
 @dataclass(frozen=True)
-class PlanarChain:
+class ChainModel:
     """A scene read as a serial chain hung from ``anchor``.
 
     order : (n,) particle indices from the anchor down.
@@ -143,7 +125,7 @@ class PlanarChain:
         return positions, velocities, forces
 
 
-def planar_chain(scene: Scene) -> PlanarChain:
+def chain_model(scene: Scene) -> ChainModel:
     """Read ``scene`` as a planar serial chain, or raise Unsupported saying why it is not one."""
     if not scene.is_planar:
         raise Unsupported(f"{scene.name!r} is not planar, so it is not a planar chain")
@@ -155,23 +137,15 @@ def planar_chain(scene: Scene) -> PlanarChain:
             f"the reference's chain form needs one constraint per particle "
             f"({len(scene.constraints)} constraints, {len(scene.particles)} particles)"
         )
-    rods = {k: c for k, c in enumerate(scene.constraints) if isinstance(c, Rod)}
+    tree = read_tree(scene)
+    order = tree.path()
+    if order is None or any(not isinstance(scene.constraints[tree.constraint_of[i]], (Pin, Rod)) for i in order):
+        why = "form a loop" if tree.closures else "do not form a single path from the pinned particle"
+        raise Unsupported(f"the rods of {scene.name!r} {why}")
     pin = scene.constraints[pins[0]]
-    order, links, first_is_lower = [pin.particle], [pins[0]], [True]
-    while rods:
-        here = order[-1]
-        step = [(k, c) for k, c in rods.items() if here in (c.a, c.b)]
-        if len(step) != 1:
-            raise Unsupported(f"the rods of {scene.name!r} do not form a single path from the pinned particle")
-        k, rod = step[0]
-        below = rod.b if rod.a == here else rod.a
-        if below in order:
-            raise Unsupported(f"the rods of {scene.name!r} form a loop")
-        order.append(below)
-        links.append(k)
-        first_is_lower.append(rod.a == below)
-        del rods[k]
-    return PlanarChain(
+    links = [tree.constraint_of[i] for i in order]
+    first_is_lower = [k == pins[0] or scene.constraints[k].a == i for i, k in zip(order, links)]
+    return ChainModel(
         anchor=np.asarray(pin.anchor, dtype=float),
         order=np.array(order),
         lengths=np.array([scene.constraints[k].length for k in links]),
@@ -253,7 +227,7 @@ def spherical_pin(scene: Scene) -> SphericalPin:
 # -- solving -------------------------------------------------------------------
 
 
-def model_for(scene: Scene) -> PlanarChain | SphericalPin | Mechanism:
+def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
     """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it.
 
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
@@ -266,7 +240,7 @@ def model_for(scene: Scene) -> PlanarChain | SphericalPin | Mechanism:
     mechanism = mechanism_model(scene)
     if mechanism is not None:
         return mechanism
-    return planar_chain(scene) if scene.is_planar else spherical_pin(scene)
+    return chain_model(scene) if scene.is_planar else spherical_pin(scene)
 
 
 def _solve_ivp():
@@ -320,7 +294,7 @@ class ReferenceSolution:
     """
 
     scene: Scene
-    model: PlanarChain | SphericalPin | Mechanism
+    model: ChainModel | SphericalPin | Mechanism
     ode: DenseOutput
     rtol: float
     atol: float
@@ -542,10 +516,11 @@ def _keep(path: Path, solved: tuple[ReferenceSolution, ReferenceBound]) -> None:
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
     if len(data) > _LARGEST_KEPT:
         return
-    from ours.cache import write_whole
+    from engines.files import atomic_write
 
     with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
-        write_whole(path, data)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, data, durable=False)
 
 
 def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> bool:
@@ -554,7 +529,7 @@ def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
 
 
 def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
-    from ours.cache import cache_dir  # the one user cache directory of xval
+    from engines.files import cache_dir  # the one user cache directory of xval
 
     key = hashlib.sha256()
     for part in (scene.content_hash, repr(float(rtol)), repr(float(atol)), _code_digest()):

@@ -1,33 +1,7 @@
 """Reference models of the mechanisms: a slider-pendulum, a four-bar linkage, a bead on an ellipse.
 
-Each is a reduced-coordinate model with the interface of the chain and
-spherical models in :mod:`engines.reference` (``initial_state(scene)``,
-``rhs(t, y)``, ``evaluate(scene, states)``), integrated there with DOP853.
-Each is read from a scene's *structure* (which constraints join which
-particles), never from its name, and is independent of ``ours/``.
-
-- :class:`SliderPendulum` — a Line on the slider S (mass M) and a Rod from S to
-  the bob P (mass m, length l). Coordinates: s (m) along the line from its
-  point, and θ (rad) the rod's absolute angle from the downward vertical.
-  With û the line's unit vector, e = (cos θ, sin θ), n = (sin θ, −cos θ) in (x, z):
-  ``[[M+m, m l û·e], [m l û·e, m l²]] [s̈, θ̈] = [(M+m) g·û + m l θ̇² û·n, m l g·e]``.
-- :class:`FourBar` — two Pins (crank a about A, rocker c about B) and a Rod b
-  between the two tips. Coordinate: the crank angle φ. The loop is closed at
-  every evaluation by intersecting the coupler and rocker circles on the
-  scene's assembly branch (read from the initial state); the rocker's rate
-  is ψ̇ = k(φ) φ̇ and ψ̈ = k φ̈ + h(φ) φ̇² from the first and second time
-  derivatives of ‖p₁ − p₀‖² = b², and d'Alembert's principle along φ gives
-  ``(m₀a² + m₁c²k²) φ̈ = m₀a g·e_φ + m₁c k g·e_ψ − m₁c²k h φ̇²``.
-  φ is a global coordinate only for a Grashof crank (the crank shortest and
-  a + max < the sum of the other two); every other linkage that closes is
-  :class:`LoopFourBar`, in maximal coordinates, which pass the dead points.
-- :class:`EllipseBead` — one particle on an Ellipse, by the wire's parameter u:
-  p = c + (a sin u, −b cos u), t = ∂p/∂u, and ``(t·t) ü = t·g + u̇² t·(p − c)``.
-
-Constraint forces come from Newton's law on each particle with the reduced
-accelerations (for the four-bar: the three scalar pulls along each
-constraint's direction, from the four equations by least squares — they are
-consistent, so the residual is round-off).
+Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
+``engines/reference_mechanisms.py``.
 """
 
 from __future__ import annotations

@@ -3,8 +3,7 @@
 Build a :class:`System` of masses, gravity and constraints (:class:`Pin`,
 :class:`Wire`, :class:`Rod`; in 2-D also :class:`Line` and :class:`Ellipse`), then
 :func:`simulate` a whole trajectory in one call; the stepping loop is compiled with numba
-(cached between runs) for distance constraints, and a system with a curve
-constraint runs the general dense λ formula (``ours.general``, numpy).
+(cached between runs) for every constraint kind.
 
     >>> from ours import System, Wire, simulate
     >>> bead = System((1.0,), (0.0, -9.81), (Wire(0, (0.0, 0.0), 1.0),))

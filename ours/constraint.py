@@ -2,7 +2,7 @@
 
 Two families: distance constraints (Pin, Wire, Rod; below) and curve
 constraints (Line, Ellipse: one particle on an implicit curve of a 2-D
-system; at the end of the file).
+system; at the end of the file). Both run in the same compiled loop.
 
 Every distance constraint joins a particle i to an "other end" (a second
 particle j, or a fixed point a) and depends only on the separation
@@ -18,8 +18,8 @@ alone: a class here whose ``encode`` returns a new kind code and its
 parameters, and one branch for that code in ``ours.kernel.constraint_value``
 (C and g) and ``ours.kernel.constraint_rate`` (J̇q̇ and Ċ); the specialised
 copies of the kernel (``ours.specialize``) pick the branch up with no other
-change. (The curve constraints are stepped by ``ours.general`` instead.) The
-numpy methods here are the readable closed forms, used by tests and the dense
+change. A curve is the same with the anchor as its fixed end. The numpy
+methods here are the readable closed forms, used by tests and the dense
 check against the compiled banded solve.
 
 Indices are particle indices of the :class:`ours.system.System`; positions
@@ -35,7 +35,7 @@ import numpy as np
 from ours.errors import ModelError
 
 #: Kind codes of the compiled loop (``ours.kernel``); one per closed form.
-DISTANCE = 0
+DISTANCE, LINE, ELLIPSE = 0, 1, 2
 
 
 def _point(value, field: str) -> tuple[float, ...]:
@@ -191,12 +191,12 @@ class CurveConstraint:
 
         C = c(xᵢ),   ∂C/∂xᵢ = ∇c(xᵢ),   J̇q̇ = vᵢᵀ H(xᵢ) vᵢ   (H the Hessian of c)
 
-    so a subclass gives c, ∇c and H in closed form. These are not distances,
-    so they do not go through the compiled distance loop (``ours.kernel``);
-    a system holding one is stepped by the general λ formula in
-    ``ours.general`` (dense J W Jᵀ). ``violation`` is |C| made relative
-    (≈ the distance off the curve over the curve's size) for the projection
-    and RATTLE stopping rule.
+    so a subclass gives c, ∇c and H in closed form (numpy, for reading and
+    checking) and its kind code and parameters for the compiled loop
+    (``encode``; ``ours.kernel`` has the same closed forms, written on
+    d = xᵢ − anchor). ``violation`` is |C| made relative (≈ the distance off
+    the curve over the curve's size) for the projection and RATTLE stopping
+    rule.
     """
 
     @property
@@ -237,6 +237,20 @@ class CurveConstraint:
         vi = np.asarray(v[i], dtype=float)
         return float(vi @ self.hessian(np.asarray(q[i], dtype=float)) @ vi)
 
+    def ends(self) -> tuple[int, int, tuple[float, ...]]:
+        """(i, −1, the curve's anchor point): one particle, the other end fixed."""
+        raise NotImplementedError
+
+    def encode(self, dim: int) -> tuple[int, int, tuple[float, ...], int, tuple[float, ...], float]:
+        """One row of the compiled loop's constraint table, as :meth:`DistanceConstraint.encode`; scale 1
+        (``violation`` is |C| itself)."""
+        i, j, anchor = self.ends()
+        kind, parameters = self._kind()
+        return i, j, tuple(anchor), kind, parameters, 1.0
+
+    def _kind(self) -> tuple[int, tuple[float, ...]]:
+        raise NotImplementedError
+
 
 def _planar_point(value, field: str) -> tuple[float, float]:
     point = _point(value, field)
@@ -270,6 +284,12 @@ class Line(CurveConstraint):
     def normal(self) -> np.ndarray:
         d = np.asarray(self.direction)
         return np.array([-d[1], d[0]]) / np.hypot(*d)
+
+    def ends(self):
+        return self.particle, -1, self.point
+
+    def _kind(self):
+        return LINE, tuple(float(n) for n in self.normal)
 
     def c(self, x):
         return float(self.normal @ (x - np.asarray(self.point)))
@@ -305,6 +325,12 @@ class Ellipse(CurveConstraint):
     @property
     def particle_index(self) -> int:
         return self.particle
+
+    def ends(self):
+        return self.particle, -1, self.centre
+
+    def _kind(self):
+        return ELLIPSE, tuple(1.0 / s**2 for s in self.semi_axes)
 
     def c(self, x):
         X = (x - np.asarray(self.centre)) / np.asarray(self.semi_axes)

@@ -10,7 +10,8 @@ copy of this file in which that block returns constants (``_dim`` → 2), so
 LLVM unrolls the per-coordinate loops and keeps them in registers; that copy is
 what :func:`ours.simulate` runs. Imported as it stands, this module is the
 generic form (sizes read from the arrays at run time) with the same results
-bit for bit.
+bit for bit, except that a copy for at most 3 constraints solves J W Jᵀ in
+closed form (``_closed_form``; round-off apart).
 
 Constraints. Every constraint k joins its first particle i to an "other end"
 (particle j, or the fixed point ``anchor[k]`` when j = −1) and depends only on
@@ -34,7 +35,7 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
-from ours.constraint import DISTANCE
+from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 # ---- SIZES (ours.specialize replaces this block with constants) ----
@@ -70,6 +71,13 @@ def _pairs(pair_k):
     return pair_k.shape[0]
 
 
+@compiled
+def _closed_form(band):
+    """Whether J W Jᵀ is solved in closed form (``solve_closed``): only in a copy specialised for at
+    most 3 constraints."""
+    return False
+
+
 # ---- END SIZES ----
 
 
@@ -88,8 +96,12 @@ def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
 _PLAIN, _BAUMGARTE, _PROJECTION, _RATTLE_METHOD = 0, 1, 2, 3
 _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 
-# Constraint kinds (set by ``encode`` in ``ours.constraint``):
+# Constraint kinds (set by ``encode`` in ``ours.constraint``); a curve kind holds one particle
+# (j = −1) on a curve about its anchor, d = xᵢ − anchor:
 # DISTANCE: C = ½(‖d‖² − l²), param = (l²,), g = d, J̇q̇ = ‖ḋ‖², scale l².
+# LINE: C = n·d (m), param = n (the unit normal), g = n, J̇q̇ = 0, scale 1.
+# ELLIPSE: C = ½(Σₐ dₐ² / sₐ² − 1), param = (1/sₐ²) (the inverse squared semi-axes),
+#     gₐ = dₐ / sₐ², J̇q̇ = Σₐ vₐ² / sₐ², scale 1.
 
 
 @compiled
@@ -107,6 +119,19 @@ def constraint_value(k, q, ends, anchor, kind, param, G):
             G[k, a] = d
             s += d * d
         return 0.5 * (s - param[k, 0])
+    if kind[k] == LINE:
+        s = 0.0
+        for a in range(dim):
+            G[k, a] = param[k, a]
+            s += param[k, a] * (q[i, a] - anchor[k, a])
+        return s
+    if kind[k] == ELLIPSE:
+        s = 0.0
+        for a in range(dim):
+            d = q[i, a] - anchor[k, a]
+            G[k, a] = d * param[k, a]
+            s += d * d * param[k, a]
+        return 0.5 * (s - 1.0)
     return np.nan
 
 
@@ -125,6 +150,13 @@ def constraint_rate(k, v, ends, kind, param, G):
             dd = v[i, a] - (v[j, a] if j >= 0 else 0.0)
             jdot += dd * dd
             rate += G[k, a] * dd
+    elif kind[k] == LINE:  # a straight line does not turn: J̇q̇ = 0
+        for a in range(dim):
+            rate += G[k, a] * v[i, a]
+    elif kind[k] == ELLIPSE:
+        for a in range(dim):
+            jdot += param[k, a] * v[i, a] * v[i, a]
+            rate += G[k, a] * v[i, a]
     return jdot, rate
 
 
@@ -145,12 +177,58 @@ def assemble(G, pair_k, pair_l, pair_w, band):
 
 @compiled
 def solve_jwjt(G, model, band, x):
-    """x ← (J W Jᵀ)⁻¹ x in place, J from the gradients G; False when J W Jᵀ is singular."""
+    """x ← (J W Jᵀ)⁻¹ x in place, J from the gradients G; False when J W Jᵀ is not positive definite.
+
+    By Cholesky on the band, or in closed form (Cramer's rule) when the kernel is specialised for
+    at most 3 constraints (``_closed_form``): no square roots, one division."""
     n, bandwidth = _constraints(band), _band_columns(band) - 1
     assemble(G, model[7], model[8], model[9], band)
+    if _closed_form(band):
+        return solve_closed(band, n, bandwidth, x)
     if not cholesky_banded(band, n, bandwidth):
         return False
     solve_banded(band, n, bandwidth, x)
+    return True
+
+
+@compiled
+def _entry(band, bandwidth, k, l):
+    """A[k, l] (l ≤ k) of the matrix whose lower band is ``band``; 0 outside the band."""
+    return band[k, k - l] if k - l <= bandwidth else 0.0
+
+
+@compiled
+def solve_closed(band, n, bandwidth, x):
+    """x ← A⁻¹ x for a symmetric positive-definite A of n ≤ 3 rows (lower band in ``band``), by Cramer's
+    rule; False when a leading minor is not positive (where Cholesky would fail)."""
+    a00 = band[0, 0]
+    if n == 1:
+        if not a00 > 0.0:
+            return False
+        x[0] = x[0] / a00
+        return True
+    a10, a11 = _entry(band, bandwidth, 1, 0), band[1, 0]
+    m2 = a00 * a11 - a10 * a10
+    if n == 2:
+        if not (a00 > 0.0 and m2 > 0.0):
+            return False
+        r0, r1 = x[0], x[1]
+        x[0] = (a11 * r0 - a10 * r1) / m2
+        x[1] = (a00 * r1 - a10 * r0) / m2
+        return True
+    a20, a21, a22 = _entry(band, bandwidth, 2, 0), _entry(band, bandwidth, 2, 1), band[2, 0]
+    c00 = a11 * a22 - a21 * a21
+    c10 = a21 * a20 - a10 * a22
+    c20 = a10 * a21 - a11 * a20
+    det = a00 * c00 + a10 * c10 + a20 * c20
+    if not (a00 > 0.0 and m2 > 0.0 and det > 0.0):
+        return False
+    c11 = a00 * a22 - a20 * a20
+    c21 = a10 * a20 - a00 * a21
+    r0, r1, r2 = x[0], x[1], x[2]
+    x[0] = (c00 * r0 + c10 * r1 + c20 * r2) / det
+    x[1] = (c10 * r0 + c11 * r1 + c21 * r2) / det
+    x[2] = (c20 * r0 + c21 * r1 + m2 * r2) / det
     return True
 
 

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from ours import general
 from ours.specialize import kernel_for, sizes_of
 from ours.status import STATUS_TEXT
 from ours.errors import ModelError, OursError
@@ -31,9 +30,10 @@ class Result:
     """Samples of one run (S samples, P particles, C constraints, dim 2 or 3).
 
     t : (S,) s.  q : (S, P, dim) m.  v : (S, P, dim) m/s.
-    multipliers : (S, C) λ in N/m (the constraints are C = ½(‖d‖² − l²) in m²).
-    forces : (S, C, dim) N, λ_k d_k: the force constraint k exerts on its first
-        particle (the second particle, if any, gets the negative).
+    multipliers : (S, C) λ in N/m for a distance (C = ½(‖d‖² − l²) in m²; N for a
+        Line, whose C is in m; N·m for an Ellipse, whose C has no unit).
+    forces : (S, C, dim) N, λ_k g_k (g_k = ∂C_k/∂xᵢ; d_k for a distance): the force
+        constraint k exerts on its first particle (the second particle, if any, gets the negative).
     steps : steps taken.  wall_time : s in the compiled loop alone.
     status : "ok", or why the loop stopped early ("non-finite", "singular",
         "not-converged"); the samples up to then are kept.
@@ -131,11 +131,6 @@ def simulate(
                 "max_iterations": max_iterations}
     if chosen.code == BAUMGARTE:
         settings.update(k_s=ks, k_d=kd)
-    if system.packed is None:  # a curve constraint: the general λ formula (ours.general)
-        run = general.run(system, q, v, dt, n_steps, stride, chosen, scheme, ks, kd, tolerance, max_iterations)
-        settings["path"] = "general (dense J W Jᵀ, numpy)"
-        return Result(t=run.t, q=run.q, v=run.v, multipliers=run.multipliers, forces=run.forces, steps=run.steps,
-                      wall_time=run.wall_time, status=STATUS_TEXT[run.status], settings=settings)
     n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
     out_q = np.full((n_samples, system.n_particles, system.dim), np.nan)
     out_v = np.full_like(out_q, np.nan)
@@ -146,7 +141,7 @@ def simulate(
     if chosen.code == LAGRANGIAN:
         from ours import lagrangian  # imports numba: only when a run needs it
 
-        why = system.chain_order()
+        why = system.why_not_a_chain()
         if system.dim != 2 or why is not None:
             raise ModelError(
                 "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; "
@@ -211,8 +206,6 @@ def multipliers(system: System, q, v, k_s: float = 0.0, k_d: float = 0.0) -> np.
     """(C,) λ (N/m) at one state from the compiled banded solve (same code as the stepping loop)."""
     q = _state(system, q, "q")
     v = _state(system, v, "v")
-    if system.packed is None:  # a curve constraint: the dense general formula
-        return system.dense_multipliers(q, v, k_s, k_d)
     p = system.packed
     C = system.n_constraints
     lam = np.zeros(C)

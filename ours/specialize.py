@@ -7,11 +7,14 @@ the numbers of particles, constraints, band columns and band entries. LLVM
 then unrolls those loops and keeps their values in registers (the double
 pendulum's RK4 step: about 670 ns generic, 420 ns per-dim, 340 ns fully
 specialised; ``bench/bench_ours.py``). The arithmetic and its order are
-unchanged, so the results are the generic kernel's bit for bit.
+unchanged, so the results are the generic kernel's bit for bit, with one
+exception: a copy for at most 3 constraints solves J W Jᵀ λ = r by Cramer's
+rule instead of Cholesky (``ours.kernel.solve_closed``), which moves the last
+bits (``scripts/ours_equivalence.py``: at most 3.2e-13 relative over 539 runs).
 
 The copy is written once per kernel source to
 ``<cache>/ours/ours_kernel_d<dim>[_p…c…b…n…]_<hash>.py`` (``<cache>`` from
-:func:`ours.cache.cache_dir`) and imported from there; numba caches its
+:func:`ours.files.cache_dir`) and imported from there; numba caches its
 machine code next to it like any other module, so a later process compiles
 nothing. The name carries a hash of the kernel's text and of the files it
 calls (``banded.py``, ``constraint.py``, ``status.py``), so an edit to any of
@@ -28,7 +31,7 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-from ours.cache import cache_dir, write_whole
+from ours.files import atomic_write, cache_dir
 
 _SIZES_START = "# ---- SIZES (ours.specialize replaces this block with constants) ----"
 _SIZES_END = "# ---- END SIZES ----"
@@ -41,7 +44,10 @@ _loaded: dict[tuple, ModuleType] = {}
 #: seconds, once: the machine code is cached), so larger systems share the
 #: per-dimension copy, whose loops run over sizes read at run time.
 SMALL_PARTICLES = 3
-SMALL_CONSTRAINTS = 2
+SMALL_CONSTRAINTS = 3
+#: Specialised copies for at most this many constraints solve J W Jᵀ λ = r by Cramer's rule
+#: (``ours.kernel.solve_closed``) instead of Cholesky: no square roots and one division.
+CLOSED_FORM_CONSTRAINTS = 3
 
 
 def sizes_of(n_particles: int, n_constraints: int, bandwidth: int, n_pairs: int) -> tuple[int, int, int, int] | None:
@@ -62,11 +68,15 @@ def _source(dim: int, sizes: tuple[int, int, int, int] | None = None) -> str:
         P, C, bandwidth, pairs = sizes
         functions.update(_particles=P, _constraints=C, _band_columns=bandwidth + 1, _pairs=pairs)
         label += f", P = {P}, C = {C}, bandwidth = {bandwidth}, {pairs} band entries"
+    if sizes is not None and sizes[1] <= CLOSED_FORM_CONSTRAINTS:
+        functions["_closed_form"] = True
+        label += ", J W Jᵀ solved in closed form"
     generic = {"_particles": "x.shape[0]", "_constraints": "x.shape[0]", "_band_columns": "band.shape[1]",
-               "_pairs": "pair_k.shape[0]"}
-    arguments = {"_dim": "x", "_particles": "x", "_constraints": "x", "_band_columns": "band", "_pairs": "pair_k"}
+               "_pairs": "pair_k.shape[0]", "_closed_form": False}
+    arguments = {"_dim": "x", "_particles": "x", "_constraints": "x", "_band_columns": "band", "_pairs": "pair_k",
+                 "_closed_form": "band"}
     blocks = []
-    for name in ("_dim", "_particles", "_constraints", "_band_columns", "_pairs"):
+    for name in ("_dim", "_particles", "_constraints", "_band_columns", "_pairs", "_closed_form"):
         value = functions.get(name, generic.get(name))
         blocks.append(f"@compiled\ndef {name}({arguments[name]}):\n    return {value}\n")
     sizes_text = f"{_SIZES_START}\n# Specialised by ours.specialize for {label}.\n\n\n" + "\n\n".join(blocks) + f"\n\n{_SIZES_END}"
@@ -91,7 +101,8 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
     folder = cache_dir() / "ours"
     path = folder / f"{name}.py"
     if not path.exists() or path.read_text(encoding="utf-8") != source:
-        write_whole(path, source.encode("utf-8"))  # a concurrent process never imports half a file
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, source.encode("utf-8"), durable=False)  # a concurrent process never imports half a file
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     # Registered before it runs: numba's cache finds a function's module by this name.

@@ -16,10 +16,11 @@ class Packed:
 
     inverse_mass : (P,) 1/kg.  force : (P, dim) N, the applied force m·g.
     ends : (C, 2) particle indices (i, j), j = −1 for a fixed end.
-    anchor : (C, dim) m, the fixed end (unused for rods).
-    kind : (C,) the constraint kind codes (``ours.constraint.DISTANCE``, …).
-    param : (C, n) each constraint's parameters (l² in m² for a distance), zero-padded.
-    scale : (C,) what |C_k| is divided by in the tolerance test (l² for a distance).
+    anchor : (C, dim) m, the fixed end, or a curve's point / centre (unused for rods).
+    kind : (C,) the constraint kind codes (``ours.constraint.DISTANCE``, ``LINE``, ``ELLIPSE``).
+    param : (C, n) each constraint's parameters (l² in m² for a distance, ``ours.kernel``
+        lists the others), zero-padded.
+    scale : (C,) what |C_k| is divided by in the tolerance test (l² for a distance, 1 for a curve).
     pair_k, pair_l, pair_w : (N,) the nonzeros of the lower band of J W Jᵀ:
         entry (k, l), l ≤ k, gets pair_w · d_k·d_l (pair_w = ±1/mₚ for the shared particle p).
     bandwidth : largest k − l over those pairs (1 for a chain in order, so the
@@ -47,12 +48,11 @@ class Packed:
 
 @dataclass(frozen=True)
 class System:
-    """Point masses under uniform gravity with distance constraints.
+    """Point masses under uniform gravity with distance (and, in 2-D, curve) constraints.
 
     masses : (P,) kg.  gravity : (dim,) m/s², dim 2 or 3.
     constraints : Pin / Wire / Rod records (``ours.constraint``), and in 2-D Line / Ellipse.
-    packed : the compiled loop's arrays, or None when a curve constraint (Line,
-        Ellipse) is present: such a system is stepped by ``ours.general``.
+    packed : the compiled loop's arrays.
     The Jacobian's band (and so the cost of a solve) follows the order of
     ``constraints``: list a chain's constraints from its root to its tip.
     """
@@ -97,8 +97,7 @@ class System:
                     f"constraints[{k}]: the fixed point has {len(anchor)} coordinates but the system is "
                     f"{len(gravity)}-D; give it {len(gravity)}"
                 )
-        distance_only = all(isinstance(c, DistanceConstraint) for c in self.constraints)
-        object.__setattr__(self, "packed", _pack(self) if distance_only else None)
+        object.__setattr__(self, "packed", _pack(self))
 
     @property
     def dim(self) -> int:
@@ -137,7 +136,7 @@ class System:
 
     # -- structure -------------------------------------------------------------
 
-    def chain_order(self) -> str | None:
+    def why_not_a_chain(self) -> str | None:
         """None when this is a serial chain hung from a fixed point, else why not.
 
         A chain: constraint 0 fixes particle 0 to a point (Pin or Wire), and

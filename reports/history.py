@@ -9,9 +9,12 @@ compare.history.trend.steps are marked on the figure (a dashed line before
 the first run after the step) and listed at the top of the page.
 
 Same conventions as the main report (reports/render.py): Jinja2 with
-autoescaping, figure specs in ``<script type="application/json">`` through
-``tojson``, plotly.js inlined once from the plotly package, a
-Content-Security-Policy that forbids any request: it works offline.
+autoescaping, plotly.js and each section's figure specs packed by the same
+packer (reports/pack.py: gzip as 7-bit text, unpacked in the browser), a
+Content-Security-Policy that forbids any request: it works offline. The data
+is thinned for the page: values to 3 significant digits (what the hover
+shows), and each point's hover label is built in the page from one label per
+run instead of stored per point. A plot is drawn as it nears the window.
 """
 
 from __future__ import annotations
@@ -26,12 +29,13 @@ import click
 import jinja2
 from markupsafe import Markup
 
-from compare.history.location import check_option
+from compare.cli import history_option
 from compare.history.store import History, StoredRun
 from compare.history.trend import Series, build_series, trend_metrics
 from compare.results.files import atomic_write_text, check_writable
 
 from reports.figures import Plot, plot_text
+from reports.pack import pack, template_values
 
 #: One colour per dt of a variant (largest dt first).
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
@@ -39,13 +43,18 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 ROW_HEIGHT = 170
 
 
-@functools.lru_cache(maxsize=1)
-def plotly_js() -> Markup:
-    """The plotly.js bundle of the plotly package, safe inside a ``<script>`` element."""
-    from plotly.offline import get_plotlyjs
+#: Significant digits a trend value keeps in the page, and its hover shows (the gate tolerates 10 % and more).
+DIGITS = 3
 
-    source = get_plotlyjs()
-    return Markup(source.replace("</script", "<\\/script").replace("</SCRIPT", "<\\/SCRIPT"))
+
+def _round(value: float | None) -> float | None:
+    """``value`` to :data:`DIGITS` significant digits (None stays None)."""
+    return None if value is None else float(f"{value:.{DIGITS - 1}e}")
+
+
+def run_label(run: StoredRun) -> str:
+    """A run as a plot's hover names it: run number, commit, start time."""
+    return plot_text(f"run {run.id} · commit {run.origin.short} · {str(run.started)[:16].replace('T', ' ')}")
 
 
 def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Series], runs: Sequence[StoredRun]) -> Plot:
@@ -87,11 +96,11 @@ def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Serie
             name = "observed order" if metric.per == "variant" else f"dt = {s.dt:.3g} s"
             data.append({
                 "type": "scatter", "mode": "lines+markers", "xaxis": f"x{axis}", "yaxis": f"y{axis}",
-                "x": [p.order for p in s.points], "y": [p.value for p in s.points], "connectgaps": False,
+                "x": [p.order for p in s.points], "y": [_round(p.value) for p in s.points], "connectgaps": False,
                 "name": plot_text(name), "legendgroup": plot_text(name), "showlegend": row == 0 or metric.per == "variant",
                 "line": {"color": colour, "width": 1.5}, "marker": {"size": 6, "color": colour},
-                "text": [plot_text(f"run {p.run_id} · commit {p.commit} · {p.date} · {p.status}") for p in s.points],
-                "hovertemplate": "%{text}<br>" + plot_text(metric.name) + " = %{y:.4g}" + plot_text(unit) + "<extra></extra>",
+                # customdata: the run's label (run_label), which the page fills in from x before it draws.
+                "hovertemplate": "%{customdata}<br>" + plot_text(metric.name) + " = %{y:.3g}" + plot_text(unit) + "<extra></extra>",
             })
             for step in s.steps:
                 x = s.points[step.index].order - 0.5
@@ -119,6 +128,7 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
     for run in runs_all:
         groups.setdefault((run.machine.name, run.suite_name), []).append(run)
     sections, figures, step_rows = [], [], []
+    packs: dict[str, Markup] = {}
     for (machine, suite_name), runs in groups.items():
         runs = runs[-last:] if last else runs
         mine = [s for s in all_series if s.machine == machine and s.suite == suite_name]
@@ -137,11 +147,13 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
         for (scene, engine), series in variants.items():
             plots.append(_variant_figure(len(figures) + len(plots), scene, engine, series, runs))
         figures.extend(plots)
-        sections.append({"machine": machine, "suite": suite_name, "runs": runs, "plots": plots})
+        name = f"pack-{len(sections)}"
+        packs[name] = pack({"runs": [run_label(r) for r in runs], **{p.id: p.figure for p in plots}})
+        sections.append({"machine": machine, "suite": suite_name, "runs": runs, "plots": plots, "pack": name})
     return {
         "history": history.name, "runs": runs_all, "sections": sections, "steps": group_steps(step_rows),
         "n_steps": len(step_rows), "n_plots": len(figures), "n_traces": sum(f.n_traces for f in figures),
-        "plotly_js": plotly_js(), "generated": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        **template_values(), "packs": packs, "generated": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
         "several_machines": len({m for m, _ in groups}) > 1,
     }
 
@@ -206,8 +218,7 @@ def write_history_report(location: str | None, output: str | Path, suite: str | 
 
 
 @click.command("report")
-@click.option("--history", "location", default=None, metavar="FILE|URL", callback=check_option,
-              help="The history (default: $XVAL_HISTORY, else results/history.sqlite).")
+@history_option(help="The history (default: $XVAL_HISTORY, else results/history.sqlite).")
 @click.option("--output", "-o", required=True, metavar="FILE.html", help="Where to write the page.")
 @click.option("--suite", default=None, metavar="NAME", help="Only runs of this suite.")
 @click.option("--last", type=click.IntRange(min=1), default=None, metavar="N", help="Only the last N runs of each machine × suite.")

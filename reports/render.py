@@ -5,10 +5,11 @@ autoescaping on, so every string that comes from a suite or results file is
 escaped wherever it lands in the HTML. Figure specs go into
 ``<script type="application/json">`` blocks through Jinja's ``tojson``
 filter, which escapes ``<``, ``>`` and ``&`` so no string can close the
-script element. plotly.js is embedded once, inline, from the plotly
-package, gzip-compressed and base64-encoded (1.96 MB instead of 4.8 MB);
-the page unpacks it with the browser's own DecompressionStream and makes
-no request, so it works offline and attached to a CI run or a mail.
+script element. plotly.js and the figure specs are embedded packed
+(``reports.pack``, shared with the history's trend page: gzip written seven
+bits to a character, 1.68 MB instead of 4.8 MB for plotly.js); the page unpacks them with the
+browser's own DecompressionStream and makes no request, so it works offline
+and attached to a CI run or a mail.
 
 The page opens with the verdict (:mod:`reports.verdict`); every other plot
 is built when its section is opened.
@@ -16,10 +17,7 @@ is built when its section is opened.
 
 from __future__ import annotations
 
-import base64
-import json
 import functools
-import gzip
 import math
 import re
 import time
@@ -43,6 +41,7 @@ from reports.decimate import MAX_POINTS
 from reports.emphasis import named_variants
 from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
 from reports.load import ReportData, load_report_data
+from reports.pack import pack, packed_text, template_values
 from reports.palette import Palette
 from reports.stability import stability_context
 from reports.summary import summary_tables
@@ -50,33 +49,6 @@ from reports.verdict import verdict_views
 
 #: File name of the report inside the results directory when no --output is given.
 DEFAULT_NAME = "report.html"
-
-
-#: How the plotly.js bundle is embedded: "gzip-base64" (the page unpacks it) or "plain".
-PLOTLY_ENCODING = "gzip-base64"
-
-
-@functools.lru_cache(maxsize=1)
-def plotly_js() -> Markup:
-    """The plotly.js bundle shipped with the plotly package, gzip-compressed and base64-encoded.
-
-    Base64 has no ``<`` or ``&``, so it is safe inside any element; mtime 0 keeps the bytes (and so
-    every report of the same results) identical from run to run.
-    """
-    from plotly.offline import get_plotlyjs
-
-    return packed_text(get_plotlyjs())
-
-
-def packed_text(text: str) -> Markup:
-    """``text`` gzip-compressed (mtime 0: the same bytes every time) and base64-encoded, safe in any element."""
-    packed = gzip.compress(text.encode("utf-8"), compresslevel=9, mtime=0)
-    return Markup(base64.b64encode(packed).decode("ascii"))
-
-
-def pack(items: dict[str, Any]) -> Markup:
-    """A section's figure specs and animation data (DOM id -> JSON value), packed (see :func:`packed_text`)."""
-    return packed_text(json.dumps(items, separators=(",", ":"), allow_nan=False))
 
 
 @functools.lru_cache(maxsize=1)
@@ -170,11 +142,10 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "scene_numbers": {scene.scene_id: number for number, scene in enumerate(data.scenes)},
         "clip_factor": f"{CLIP_FACTOR:g}",
         "max_points": f"{MAX_POINTS:,}",
-        "plotly_encoding": PLOTLY_ENCODING,
         "order_floor": f"{ORDER_FLOOR:g}",
         "order_ceiling": f"{ORDER_CEILING:g}",
         "order_min_points": ORDER_MIN_POINTS,
-        "plotly_js": plotly_js(),
+        **template_values(),
         "packs": packs,
         "pack_of": pack_of,
         "stability": stability,

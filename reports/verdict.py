@@ -18,10 +18,7 @@ never from strings in the results.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 from compare.results.verdict import (
     Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
@@ -29,6 +26,7 @@ from compare.results.verdict import (
 
 from markupsafe import Markup
 
+from compare.stability.dissipation import load_probe_files
 from reports.load import ReportData, SceneResults
 from reports.palette import Palette
 from reports.svgplot import Series, loglog_svg
@@ -151,26 +149,11 @@ def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict
     return f"#scene-{number}"
 
 
-def load_probes(directory: Path) -> list[dict[str, Any]]:
-    """Stored ``xval probe`` results (``DIR/probe*.json``: an object or a list of objects, each with
-    ``engine`` and ``hidden_dissipation``), or [] when there are none or they cannot be read."""
-    found: list[dict[str, Any]] = []
-    for file in sorted(Path(directory).glob("probe*.json")):
-        try:
-            data = json.loads(file.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        for item in data if isinstance(data, list) else [data]:
-            if isinstance(item, dict) and isinstance(item.get("engine"), str) and "hidden_dissipation" in item:
-                found.append(item)
-    return found
-
-
 def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) -> list[SceneVerdictView]:
     """The verdict of every scene that ran, in suite order (numbers match the scene sections')."""
     all_sweeps = [s for scene in data.scenes for s in scene.sweeps]
     focus = focus or default_focus(all_sweeps)
-    probes = [p for p in load_probes(data.path) if p.get("hidden_dissipation") is True]
+    probes = [p for p in load_probe_files(data.path) if p.get("hidden_dissipation") is True]
     views = []
     for number, scene in enumerate(data.scenes):
         if not scene.sweeps:

@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, Row, report  # noqa: E402
+from quoted import Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines import catalog
@@ -165,32 +165,7 @@ ROWS = [
     Row(D, "solimp 0.9999 only", tuple(f"solimp.{c}" for c in COLUMNS), SOFTNESS),
     Row(D, "`connect-stiff`", tuple(f"stiff.{c}" for c in COLUMNS), SOFTNESS),
 ]
-QUOTES = [
-    Quote(D, "46×", "stretch_ratio_timeconst", "({} less stretch on the double pendulum)"),
-    Quote(D, "2.7×", "stretch_ratio_solimp", "solimp alone gives {}"),
-    Quote(D, "3.3e-3", "connect_1e-4.double.cerr", "constraint error {} m, position error"),
-    Quote(D, "2.3e-2", "connect_1e-4.double.perr", "position error {} m)"),
-    Quote(D, "100×", "stiff_gain_1e-4", "improves {} ("),
-    Quote(D, "1.1e-6", "stiff_1e-4.double.cerr", "improves 100× ({} m,"),
-    Quote(D, "3.7e-4", "stiff_1e-4.double.perr", "1.1e-6 m, {} m)"),
-    Quote(D, "1.1e-6", "connect_rk4_stiff.double.perr", "holds positions to {} m"),
-    Quote(D, "0.41", "connect_rk4_stiff.double.terr", "off by {} N"),
-    Quote(D, "1.3e-7", "rk4.double.terr", "`hinge-rk4` is off by {} N"),
-    Quote(D, "7.4e-4", "hinge.bead.drift", "(drift {} on the bead"),
-    Quote(D, "6.6e-3", "hinge.double.drift", "{} on the double pendulum);"),
-    Quote(D, "6.6e-3", "implicitfast.double.drift", "{} on the double pendulum);"),
-    Quote(D, "7.1e-3", "implicit.double.drift", "implicit differs slightly ({})"),
-    Quote(D, "4.8e-13", "rk4.bead.drift", "higher-order one ({}"),
-    Quote(D, "4.6e-10", "rk4.double.drift", "and {})."),
-    Quote(D, "1.4e-2", "connect_rk4.double.drift", "(drift {} on the"),
-    Quote(D, "3.9e-4", "connect.stretch_under_g", "i.e. {} m under\ng"),
-    Quote(D, "1.9e-4", "connect.period_predicted", "r/2L ≈ {} (measured"),
-    Quote(D, "1.8e-4", "connect.period_10deg", "(measured {})"),
-    Quote(D, "1.8e-5", "inertia_hinge_1e-6.double.perr", "1e-6 shifted the RK4 double\npendulum by {} m"),
-    Quote(D, "4e-3", "inertia_hinge_1e-6.double.terr", "tension by {} N"),
-    Quote(D, "2.9e-8", "inertia_connect_1e-9.double.perr", "({} m against 1.8e-5 m)"),
-    Quote(D, "1.8e-5", "inertia_connect_1e-6.double.perr", "(2.9e-8 m against {} m)"),
-]
+QUOTES = load_quotes(__file__)
 
 
 def main() -> None:

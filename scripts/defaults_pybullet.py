@@ -30,7 +30,7 @@ from typing import Any, Mapping
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, Row, report  # noqa: E402
+from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines import catalog
@@ -40,16 +40,6 @@ from engines.trajectory import tensions
 
 #: Horizon (s) of the position- and tension-error columns.
 ERROR_HORIZON = 1.0
-
-
-@dataclass(frozen=True)
-class Case:
-    """A scene and a time step to measure settings on."""
-
-    label: str
-    scene: str
-    parameters: Mapping[str, Any]
-    dt: float
 
 
 @dataclass(frozen=True)
@@ -201,24 +191,7 @@ ROWS = [
     _row("dantzig, ERP 0.8", "dantzig_ERP_0.8"),
     _row("multibody (no constraint)", "multibody"),
 ]
-QUOTES = [
-    Quote(D, "0.35", "bead60|multibody_default_damping|energy drift", "drift {} (70%"),
-    Quote(D, "70%", "bead60|damping_lost_fraction", "({} of the swing energy)"),
-    Quote(D, "7.6e-4", "bead60|multibody_every_override|energy drift", "instead of {};"),
-    Quote(D, "0.58", "double|multibody_default_damping|energy drift", "double pendulum: {} instead of"),
-    Quote(D, "0.022", "double|multibody_every_override|energy drift", "instead of {} (multibody)"),
-    Quote(D, "0.0014", "double|p2p-dantzig_every_override|energy drift", "/ {} (p2p-dantzig)"),
-    Quote(D, "1.7", "bead60|multibody_default_joint_motors_kept|position error", "position error {} m)"),
-    Quote(D, "5e-5", "bead60|si_inertia_ratio_0.01|constraint error", "error {} m at `inertia_ratio` 1e-2"),
-    Quote(D, "6.6e-3", "bead60|si_inertia_ratio_0.0001|constraint error", "{} m at 1e-4, 0.31 m"),
-    Quote(D, "0.31", "bead60|si_inertia_ratio_1e-06|constraint error", "{} m at 1e-6)"),
-    Quote(D, "2.5e-5", "bead60|dantzig_inertia_ratio_1e-06|constraint error", "Dantzig stays at {} m for all three"),
-    Quote(D, "1.9e-2", "bead60|dantzig_ERP_0|constraint error", "drifts freely ({} m)"),
-    Quote(D, "0.86%", "bead10|p2p|period", "period comes out\n  {} long at 10°"),
-    Quote(D, "4×", "bead60|erp_gain_0.8", "cuts the error about {} from"),
-    Quote(D, "0.022", "double|multibody|energy drift", "drifts {} in energy on the double"),
-    Quote(D, "1.4e-3", "double|dantzig_ERP_0.2|energy drift", "Dantzig variants: {})"),
-]
+QUOTES = load_quotes(__file__)
 
 
 def main(argv: list[str] | None = None) -> int:

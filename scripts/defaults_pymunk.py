@@ -27,13 +27,11 @@ import argparse
 import math
 import sys
 from pathlib import Path
-from dataclasses import dataclass
-from typing import Any, Mapping
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, Row, report  # noqa: E402
+from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error  # noqa: E402
 from engines import catalog
@@ -44,16 +42,6 @@ from engines.trajectory import tensions
 
 #: Horizon (s) of the position-error column.
 ERROR_HORIZON = 1.0
-
-
-@dataclass(frozen=True)
-class Case:
-    """A scene and a time step to measure the settings on."""
-
-    label: str
-    scene: str
-    parameters: Mapping[str, Any]
-    dt: float
 
 
 CASES = (
@@ -273,25 +261,7 @@ ROWS = [
     _row("| error_bias = 0 (10 iterations)", "chain16", "bias0", "| chain of 16, 3 s | defaults"),
     _row("| error_bias = 0, 50 iterations", "chain16", "bias0_iter50", "| chain of 16, 3 s | defaults"),
 ]
-QUOTES = [
-    Quote(D, "−3.3e-7", "period|bias0", "relative period error is {} with error_bias = 0"),
-    Quote(D, "9.7e-6", "period|defaults", "With the default bias it is {}"),
-    Quote(D, "0.36%", "long|defaults|loss_10s", "loses {} of E* in 10 s"),
-    Quote(D, "3.9%", "long|defaults|loss_100s", "and {} in 100 s"),
-    Quote(D, "7.4e-4", "long|bias0|max_abs", "(within\n  ±{} over 100 s)"),
-    Quote(D, "8.0e-2", "bead60Hz|defaults|drift", "by {} E* in 10 s with the default"),
-    Quote(D, "1.3e-2", "bead60Hz|bias0|drift", "and by {} with error_bias = 0"),
-    Quote(D, "20", "chain4|bias0_iter3|drift", "*adds* energy: {} E* for the chain of 4"),
-    Quote(D, "0.52", "chain16|bias0|drift", "and {} E* for the chain of 16"),
-    Quote(D, "9.8e-3", "bead|damping0.999|drift", "from 5.3e-3 to {}"),
-    Quote(D, "0.022", "tension|bias0", "is {} N (error_bias = 0)"),
-    Quote(D, "0.036", "tension|defaults", "and {} N (default)"),
-    Quote(D, "4.9", "tension|min", "the tension spans {}–19.6 N"),
-    Quote(D, "19.6", "tension|max", "spans 4.9–{} N"),
-    Quote(D, "38", "large|defaults|speed", "speeds up to\n{} m/s"),
-    Quote(D, "8.9", "large|defaults|drift", "drifts of {} E* (defaults)"),
-    Quote(D, "0.94", "large|bias0_iter3|drift", "and {} E* (error_bias = 0"),
-]
+QUOTES = load_quotes(__file__)
 SLOW = {k for r in ROWS for k in r.keys if k.split("|")[0] in SLOW_CASES} | {
     q.key for q in QUOTES if q.key.split("|")[0] in SLOW_CASES}
 

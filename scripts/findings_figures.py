@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, Row, report  # noqa: E402
+from quoted import Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
 from compare.stability.probe import Probe  # noqa: E402
@@ -259,74 +259,7 @@ ROWS = [
     Row(D, "mujoco/connect (", ("mass.mujoco/connect.heavy", "mass.mujoco/connect.light")),
     Row(D, "mujoco/connect-rk4-stiff", (None, "mass.mujoco/connect-rk4-stiff.light")),
 ]
-QUOTES = [
-    Quote(D, "6 %", "stability.rk4.bead_below_theory", "lands {} (RK4)"),
-    Quote(D, "0.12 %", "stability.se.bead_below_theory", "and {} (symplectic Euler)"),
-    Quote(D, "34 %", "stability.rk4.whirling_below_theory", "(1.83 ms, {} below"),
-    Quote(D, "475", "gainmap.symplectic_euler.agree", "theory for symplectic Euler and RK4 ({} of 475"),
-    Quote(D, "475", "gainmap.rk4.agree", "({} of 475 cells each)"),
-    Quote(D, "22", "gainmap.euler.ok_where_theory_unstable", "disagreements ({} and 16 cells)"),
-    Quote(D, "16", "gainmap.midpoint.ok_where_theory_unstable", "(22 and {} cells)"),
-    Quote(D, "27", "large.bead.ok", "{} of 35 variants stay ok on the 1 m bead"),
-    Quote(D, "20", "large.spherical.ok", "{} of 29 on"),
-    Quote(D, "12", "large.upside-down.ok", "{} of 35 on the upside-down"),
-    Quote(D, "7", "large.whirling-bead.ok", "{} of 35\non the whirling bead"),
-    Quote(D, "5.0", "whirl.pymunk/pin-bias0_ms", "error_bias = 0 {} ms"),
-    Quote(D, "0.14", "whirl.pybullet/p2p_ms", "PyBullet p2p {} ms"),
-    Quote(D, "0.72", "whirl.pybullet/p2p-dantzig_ms", "p2p-dantzig {} ms"),
-    Quote(D, "0.77", "whirl.mujoco/connect-stiff_ms", "connect-stiff {} ms"),
-    Quote(D, "25", "whirl.mujoco/connect.drift_at_1e-4", "(energy drift {}–26 E*"),
-    Quote(D, "26", "whirl.mujoco/connect-rk4.drift_at_1e-4", "(energy drift 25–{} E*"),
-    Quote(D, "0.13", "whirl.pymunk/pin_ms", "error_bias gives {} ms"),
-    Quote(D, "20", "mass.heavy_over_light.min", "by {}–270×"),
-    Quote(D, "270", "mass.heavy_over_light.max", "by 20–{}×"),
-    Quote(D, "130", "mass.p2p_over_dantzig.heavy", "stretches {}× less"),
-    Quote(D, "0.126", "mass.limit.ours/rattle_ms", "ours/rattle is {} ms"),
-    Quote(D, "0.62", "mass.limit.ours/baumgarte-rk4_ms", "ours/baumgarte-rk4 {} ms"),
-    Quote(D, "0.67", "mass.limit.mujoco/hinge-rk4_ms", "hinge-rk4 {} ms"),
-    Quote(D, "33", "mass.light.ok_default_gain", "all {}\ndefault-gain variants"),
-    Quote(D, "0.020", "chain128.pybullet/p2p.cerr", "by {} L (p2p)"),
-    Quote(D, "0.0014", "chain128.pybullet/p2p-iter500.cerr", "{} L (p2p-iter500)"),
-    Quote(D, "4.5e-4", "chain128.pybullet/p2p-dantzig.cerr", "{} L (p2p-dantzig)"),
-    Quote(D, "1.9e-4", "chain128.pybullet/p2p-dantzig-erp0.8.cerr", "{} L (dantzig, ERP 0.8)"),
-    Quote(D, "0.057", "chain128.pymunk.cerr.min", "by {}–0.20 L"),
-    Quote(D, "0.20", "chain128.pymunk.cerr.max", "0.057–{} L"),
-    Quote(D, "1.5", "chain128.pymunk.drift.min", "gains {}–2.3 E*"),
-    Quote(D, "2.3", "chain128.pymunk.drift.max", "1.5–{} E*"),
-    Quote(D, "1.6", "chain128.plain-se.drift", "gains {} E*. PyBullet"),
-    Quote(D, "11", "chain32.engines.min_ms", "is {}–15 ms"),
-    Quote(D, "15", "chain32.engines.max_ms", "11–{} ms"),
-    Quote(D, "0.5", "chain32.ours_euler.min_ms", "and {}–0.58 ms"),
-    Quote(D, "0.58", "chain32.ours_euler.max_ms", "0.5–{} ms"),
-    Quote(D, "33", "scale.bead-100m.ok", "{} of 35 variants are ok\non the 100 m bead"),
-    Quote(D, "14", "scale.bead-1mm.ok", "{} of 35 on the 1 mm bead"),
-    Quote(D, "0.1", "scale.1mm.plain-euler_ms", "from {} ms (ours/plain-euler)"),
-    Quote(D, "32.5", "scale.1mm.hinge-rk4_ms", "to {} ms (MuJoCo"),
-    Quote(D, "32.5", "scale.1mm.lagrangian-rk4_ms", "to {} ms (MuJoCo"),
-    Quote(D, "0.37", "scale.1mm.projection-se.drift_at_50ms", "energy drift {} E*"),
-    Quote(D, "0.35", "scale.1mm.connect.stretch_mm_at_1e-4", "(stretched by {} mm)"),
-    Quote(D, "1.5e-8", "long.mujoco/hinge-rk4.drift", "reduced-coordinate RK4 {}"),
-    Quote(D, "1.5e-8", "long.ours/lagrangian-rk4.drift", "reduced-coordinate RK4 {}"),
-    Quote(D, "6.2e-6", "long.ours/baumgarte-rk4.drift", "ours/baumgarte-rk4 {},"),
-    Quote(D, "3.8e-5", "long.ours/rattle.drift", "RATTLE\n{} (bounded"),
-    Quote(D, "3.7e-3", "long.mujoco/hinge.drift", "(semi-implicit Euler) {},"),
-    Quote(D, "5.6e-3", "long.pymunk/pin-bias0.drift", "error_bias = 0 {},"),
-    Quote(D, "3.7e-3", "long.pybullet/multibody.drift", "PyBullet multibody {}."),
-    Quote(D, "27", "long.ours/baumgarte-euler.end_s", "blows up at {} s"),
-    Quote(D, "3.6e64", "long.ours/plain-euler.drift", "({} E*)"),
-    Quote(D, "17.7", "long.ours/baumgarte-symplectic-euler.drift", "({} E*, the feedback"),
-    Quote(D, "2.5", "long.ours/plain-symplectic-euler.drift", "ours/plain-symplectic-euler ({} E*)"),
-    Quote(D, "2.0e3", "long.ours/projection-symplectic-euler.drift", "({} E*)"),
-    Quote(D, "1.0e3", "long.ours/projection-euler.drift", "({} E*,"),
-    Quote(D, "24.7", "long.ours/lagrangian-euler.drift", "({} E*)"),
-    Quote(D, "1.6", "long.mujoco/connect.drift", "default solref ({} E*)"),
-    Quote(D, "0.16", "long.pybullet/p2p.cerr", "(stretches {} L)"),
-    Quote(D, "32", "upside.ok_5ms", "{} of 35 variants stay ok at 5 ms"),
-    Quote(D, "1.35", "upside.euler_departs_s", "at {} s"),
-    Quote(D, "12", "upside.ok_50ms", "only {} of 35 stay ok"),
-    Quote(D, "26", "spherical.ok_5ms", "{} are ok at 5 ms"),
-    Quote(D, "20", "spherical.ok_50ms", "and {} at 0.05 s"),
-]
+QUOTES = load_quotes(__file__)
 _quick_groups_keys = None
 SLOW = {q.key for q in QUOTES if q.key.startswith(("whirl.", "chain128.", "chain32.", "mass.limit.", "scale.1mm."))} | {
     f"long.{label}.{m}" for label in ("pymunk/pin-bias0", "pybullet/multibody", "pybullet/p2p") for m in ("drift", "cerr", "end_s")}

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, report  # noqa: E402
+from quoted import load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
 from engines import catalog  # noqa: E402
@@ -33,6 +33,9 @@ def _error(engine, scene, reference, variant, dt, ratio=None):
     options = {} if ratio is None else {"inertia_ratio": ratio}
     run = engine.simulate(scene, dt, variant=variant, options=options)
     return float(position_error(run.positions, reference.at(run.t)[0]).max()), run
+
+
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
 
 
 def figures(quick: bool = False) -> dict[str, float]:
@@ -62,23 +65,6 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["mild_hinge_error"] = _error(MUJOCO, scene, reference, "hinge", 1e-3)[0]
     return f
 
-
-D = "docs/engines.md"
-QUOTES = [
-    Quote(D, "2.6", "hinge_rk4_bead_floor_per_ratio", "about {}·ratio m on the bead"),
-    Quote(D, "18", "hinge_rk4_double_floor_per_ratio", "{}·ratio m on the double pendulum"),
-    Quote(D, "1.8e-8", "hinge_rk4_double_floor_1e-9", "{} m at 1e-9"),
-    Quote(D, "2.4e-11", "hinge_rk4_double_floor_1e-12", "{} m at 1e-12"),
-    Quote(D, "2.6e-9", "hinge_rk4_bead_floor_1e-9", "bead: {} m"),
-    Quote(D, "6.2e-12", "hinge_rk4_bead_floor_1e-12", "against {} m"),
-    Quote(D, "1.1e-8", "spherical_pybullet_vs_mujoco_1e-9", "by\n  {} m at 1e-9"),
-    Quote(D, "6.3e-7", "spherical_pybullet_vs_mujoco_1e-10", "{} m at 1e-10"),
-    Quote(D, "2.5e-5", "spherical_pybullet_vs_mujoco_1e-12", "{} m at 1e-12"),
-    Quote(D, "0.33", "mild_multibody_order_1e-4", "observed order {}"),
-    Quote(D, "1.00", "mild_multibody_order_1e-9", "order {} at 1e-9"),
-    Quote(D, "1.3e-3", "mild_hinge_error", "off by {} m"),
-]
-ROWS: list = []
 
 
 def main() -> None:

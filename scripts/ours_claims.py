@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, report  # noqa: E402
+from quoted import load_quotes, report  # noqa: E402
 
 import ours  # noqa: E402
 from ours import System, Wire, simulate  # noqa: E402
@@ -188,6 +188,9 @@ def stability(f: dict) -> None:
                 f[f"edge_{integrator}_{tag}_{int(theta_deg)}deg"] = float(min(failing)) if failing else 1.0
 
 
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
+
+
 def figures(quick: bool = False) -> dict[str, float]:
     ours.compile_all()
     f: dict[str, float] = {}
@@ -200,50 +203,6 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["rho_1.0005_500_steps"] = 1.0005**500
     return f
 
-
-D = "docs/ours.md"
-QUOTES = [
-    Quote(D, "2.4 cm", "plain_euler_off_5s", "{} at 5 s", 0.01),
-    Quote(D, "9.1 cm", "plain_euler_off_20s", "{} at 20 s", 0.01),
-    Quote(D, "57 %", "straight_step_share", "accounts for {}"),
-    Quote(D, "4.3e-9", "plain_rk4_off_20s", "plain-RK4: {} m"),
-    Quote(D, "1.99", "plain_rk4_energy_slope", "t^{}"),
-    Quote(D, "1.99", "plain_rk4_off_slope", "slope is {} for the\ndistance"),
-    Quote(D, "5.3e-9", "plain_rk4_energy_20s", "{} of m g r at 20 s"),
-    Quote(D, "+3.8e-2", "projection_energy_final_20s", "symplectic Euler: {} of m g r"),
-    Quote(D, "8.0e-2", "projection_steps_energy_20s", "steps between them add {}"),
-    Quote(D, "4.2e-2", "projection_jumps_energy_20s", "together they remove {}"),
-    Quote(D, "1.5e-6", "rattle_energy_20s", "({} of m g r over 20 s)"),
-    Quote(D, "9.1e-2", "plain_euler_off_20s", "plain-Euler {} m"),
-    Quote(D, "8.9e-4", "baumgarte_symplectic_euler_off_20s", "baumgarte-symplectic-Euler\n{} m"),
-    Quote(D, "1.6e-11", "baumgarte_rk4_off_20s", "baumgarte-RK4 {} m"),
-    Quote(D, "9.9e-13", "projection_off_20s", "projection {} m"),
-    Quote(D, "9.9e-13", "rattle_off_20s", "rattle {} m"),
-    Quote(D, "1.1e-16", "lagrangian_off_20s", "lagrangian {} m"),
-    Quote(D, "1.02", "order_euler", "Euler {},"),
-    Quote(D, "1.00", "order_symplectic_euler", "symplectic Euler {},"),
-    Quote(D, "2.03", "order_midpoint", "midpoint {},"),
-    Quote(D, "3.96", "order_rk4", "RK4 {},"),
-    Quote(D, "2.00", "order_rattle", "RATTLE {},"),
-    Quote(D, "4.06", "order_lagrangian_rk4", "Lagrangian-RK4 {};"),
-    Quote(D, "3.8e-5", "rattle_energy_first_100s", "({} of\nm g r in the first"),
-    Quote(D, "3.8e-5", "rattle_energy_last_100s", "({} of\nm g r in the first"),
-    Quote(D, "1.4", "baumgarte_symplectic_euler_energy_100s", "reaches {} m g r within 100 s"),
-    Quote(D, "5e-3", "gain_se_1", "({} m at k_s = 1"),
-    Quote(D, "1.7e-5", "gain_se_3e5", "{} m at 3e5"),
-    Quote(D, "1.8e-12", "gain_rk4_10", "({} m at k_s = 10"),
-    Quote(D, "1.9e-6", "gain_rk4_3e6", "{} m at 3e6"),
-    Quote(D, "1.96", "search_euler_ks1e6_ms", "{} ms for Euler"),
-    Quote(D, "0.827", "search_symplectic_euler_ks1e6_ms", "{} ms for symplectic Euler"),
-    Quote(D, "1.70", "search_midpoint_ks1e6_ms", "{} ms for midpoint"),
-    Quote(D, "2.62", "search_rk4_ks1e6_ms", "{} ms for RK4"),
-    Quote(D, "0.91", "edge_midpoint_ks1e6_60deg", "midpoint from {} of its"),
-    Quote(D, "0.96", "edge_rk4_ks1e6_60deg", "RK4 from {};"),
-    Quote(D, "0.79", "edge_midpoint_ks1e4_60deg", "from {} and"),
-    Quote(D, "0.88", "edge_rk4_ks1e4_60deg", "and {}. On a 1°"),
-    Quote(D, "1.3×", "rho_1.0005_500_steps", "grows\n{} in 500 steps"),
-]
-ROWS: list = []
 
 
 def main() -> None:

@@ -51,7 +51,7 @@ def runs(scenes=None):
         scene = catalog.build(name, {**params, "duration": DURATION})
         system, q0, v0, _ = _to_system(scene)
         for variant, settings in ENGINE.variants.items():
-            if settings["method"] == "lagrangian" and system.chain_order() is not None:
+            if settings["method"] == "lagrangian" and system.why_not_a_chain() is not None:
                 continue
             if settings["method"] == "lagrangian" and system.dim != 2:
                 continue

@@ -4,7 +4,8 @@ Every script in scripts/ that docs quote defines
 
 - ``figures(quick=False) -> dict[str, float]``: each figure it measures, by key;
   ``quick`` leaves out the expensive ones (named in its ``SLOW`` set);
-- ``QUOTES``: :class:`Quote` records, one number as a doc quotes it, and
+- ``QUOTES``: :class:`Quote` records, one number as a doc quotes it (data, kept in
+  ``scripts/quotes/<script>.toml`` and read by :func:`load_quotes`), and
   ``ROWS``: :class:`Row` records, one Markdown table row of a doc against keys;
 
 and its ``main()`` prints its tables and then :func:`report` (every quoted figure,
@@ -17,9 +18,10 @@ from __future__ import annotations
 
 import math
 import re
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Any, Iterable, Mapping
 
 ROOT = Path(__file__).resolve().parent.parent
 #: A quoted number may differ from the measured one by this fraction (round-off of the quote,
@@ -41,6 +43,16 @@ class Quote:
 
 
 @dataclass(frozen=True)
+class Case:
+    """A scene of the catalog (``scene`` with ``parameters``) and a time step ``dt`` (s) a script measures on."""
+
+    label: str
+    scene: str
+    parameters: Mapping[str, Any]
+    dt: float
+
+
+@dataclass(frozen=True)
 class Row:
     """The table row of ``doc`` whose first cell starts with ``label``: its numeric cells are ``keys`` in order.
 
@@ -52,6 +64,13 @@ class Row:
     label: str
     keys: tuple[str | None | tuple[str | None, ...], ...]
     after: str = ""  # look for the row only after this text (a heading), when labels repeat in the doc
+
+
+def load_quotes(script: str | Path) -> list[Quote]:
+    """The quotes of ``script`` (its ``__file__``): the ``[[quote]]`` tables of ``scripts/quotes/<name>.toml``."""
+    path = Path(script).resolve().parent / "quotes" / f"{Path(script).stem}.toml"
+    with path.open("rb") as handle:
+        return [Quote(**entry) for entry in tomllib.load(handle)["quote"]]
 
 
 def number(text: str) -> float:

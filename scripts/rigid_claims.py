@@ -20,7 +20,7 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 from ours.rigid import (  # noqa: E402
     Body, Mechanism, angular_momentum, energy, frames, initial_state, joint_errors, simulate,
 )
-from quoted import Quote, Row, report  # noqa: E402
+from quoted import Row, load_quotes, report  # noqa: E402
 from rigid_support import compound_double_pendulum, reduced_double_pendulum  # noqa: E402
 
 OUT = HERE.parent / "docs" / "figures" / "ours"
@@ -99,25 +99,7 @@ def figures(quick: bool = False, series: dict | None = None) -> dict[str, float]
 
 D = "docs/ours.md"
 DRIFT = "### Drift on SO(3)"
-QUOTES = [
-    Quote(D, "1.3e-11", "quaternion_norm_plain_rk4_20s", "at most {} over 20 s"),
-    Quote(D, "2.1e-2", "error_baumgarte_euler_dt1e-3", "baumgarte-euler {} m"),
-    Quote(D, "1.23", "order_baumgarte_euler", "(order {})"),
-    Quote(D, "3.4e-3", "error_baumgarte_symplectic_euler_dt1e-3", "\n{} m (1.03)"),
-    Quote(D, "1.03", "order_baumgarte_symplectic_euler", "m ({}), baumgarte-midpoint"),
-    Quote(D, "1.8e-5", "error_baumgarte_midpoint_dt1e-3", "baumgarte-midpoint {} m"),
-    Quote(D, "1.99", "order_baumgarte_midpoint", "m ({}), baumgarte-rk4"),
-    Quote(D, "3.4e-10", "error_baumgarte_rk4_dt1e-3", "\n{} m (3.93)"),
-    Quote(D, "3.93", "order_baumgarte_rk4", "m ({}), projection-rk4"),
-    Quote(D, "2.3e-10", "error_projection_rk4_dt1e-3", "projection-rk4 {} m"),
-    Quote(D, "3.95", "order_projection_rk4", "m ({}). A torque-free"),
-    Quote(D, "1.6e-14", "spinner_energy_rk4", "energy to {} J"),
-    Quote(D, "2.3e-14", "spinner_momentum_rk4", "momentum to {} kg"),
-    Quote(D, "3.1e-10", "spinner_energy_midpoint", "(midpoint {} J"),
-    Quote(D, "4.3e-7", "spinner_momentum_midpoint", "J and {};"),
-    Quote(D, "1.2e-3", "spinner_energy_euler", "symplectic Euler {} J)"),
-    Quote(D, "1.2e-3", "spinner_energy_symplectic_euler", "symplectic Euler {} J)"),
-]
+QUOTES = load_quotes(__file__)
 ROWS = [Row(D, f"{m}-{i}", (f"off_{m}_{i}_20s".replace("-", "_"), f"energy_{m}_{i}_20s".replace("-", "_")), DRIFT)
         for m, i in PAIRS]
 

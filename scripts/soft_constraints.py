@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from quoted import Quote, report  # noqa: E402
+from quoted import load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
 from engines import catalog  # noqa: E402
@@ -28,6 +28,9 @@ def _run(engine, scene, variant, dt, options=None):
     run = engine.simulate(scene, dt, variant=variant, options=options or {})
     e = total_energy(scene, run.positions, run.velocities)
     return run, float((e[-1] - e[0]) / scene.characteristic_energy)
+
+
+QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script
 
 
 def figures(quick: bool = False) -> dict[str, float]:
@@ -58,26 +61,6 @@ def figures(quick: bool = False) -> dict[str, float]:
         position_error(run.positions, reference.at(run.t)[0])[-1]) / length
     return f
 
-
-D = "docs/engines.md"
-QUOTES = [
-    Quote(D, "2.6e-3", "bead_energy_connect_1e-3", "loses {} E* at dt = 1e-3"),
-    Quote(D, "2.5e-3", "bead_energy_connect_1e-4", "{} at 1e-4"),
-    Quote(D, "2.4e-3", "bead_energy_connect_rk4_1e-2", "`connect-rk4` loses {} at dt = 1e-2"),
-    Quote(D, "2.4e-3", "bead_energy_connect_rk4_1e-3", "and {} at 1e-3"),
-    Quote(D, "7.1e-4", "bead_energy_connect_stiff_1e-3", "`connect-stiff` loses {}"),
-    Quote(D, "7.3e-5", "bead_energy_connect_stiff_1e-4", "and {}, ten times less"),
-    Quote(D, "3.5e-4", "bead_energy_connect_rk4_dampratio_0.5", "dampratio 0.5: {}"),
-    Quote(D, "5.2e-6", "bead_energy_connect_rk4_dampratio_0.1", "0.1: {}"),
-    Quote(D, "3.7e-6", "bead_energy_connect_rk4_solimp_0.9999", "solimp 0.9999: {}"),
-    Quote(D, "0.44", "p2p_double_final_error_3.16e-3", "ends {} L"),
-    Quote(D, "0.42", "p2p_double_energy_3.16e-3", "lost {} E*"),
-    Quote(D, "0.050", "p2p_double_stretch_3.16e-3", "stretched {} L"),
-    Quote(D, "0.044", "p2p_double_final_error_1e-3", "{} L at dt = 1e-3"),
-    Quote(D, "9.1e-4", "p2p_double_final_error_1e-4", "{} L at 1e-4"),
-    Quote(D, "3.6e-3", "p2p_dantzig_double_energy_3.16e-3", "Dantzig solver loses {} E*"),
-]
-ROWS: list = []
 
 
 def main() -> None:

@@ -9,8 +9,6 @@ fields changed, as another producer or an interrupted run would leave them.
 
 from __future__ import annotations
 
-import base64
-import gzip
 import json
 import shutil
 from dataclasses import dataclass, field
@@ -22,6 +20,7 @@ import numpy as np
 
 from engines.adapter import Engine, RawRun, Schedule
 from engines.scene import Scene
+from reports.pack import ENCODING, unpacked
 
 TESTS = Path(__file__).resolve().parent
 SUITE = TESTS / "report_suite.toml"
@@ -184,11 +183,11 @@ class PageStructure(HTMLParser):
         return [p for s in self.sections for p in s.plots]
 
     def packs(self) -> dict[str, Any]:
-        """Every packed element's content (id -> text), unpacked as the page does (base64, then gzip)."""
+        """Every packed element's content (id -> text), unpacked as the page does (7-bit text, then gzip)."""
         found = {}
         for attrs, body in zip(self.scripts, self.script_bodies):
-            if attrs.get("data-encoding") == "gzip-base64":
-                found[attrs["id"]] = gzip.decompress(base64.b64decode(body)).decode("utf-8")
+            if attrs.get("data-encoding") == ENCODING:
+                found[attrs["id"]] = unpacked(body)
         return found
 
     def figure_specs(self) -> dict[str, dict[str, Any]]:

@@ -128,3 +128,78 @@ def test_the_checker_resolves_imports_and_finds_a_planted_cycle():
     assert "compare.results.consistency" in imports_of(ROOT / "compare" / "results" / "sweep.py")
     assert find_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a -> b -> c -> a"]
     assert find_cycles({"a": {"b"}, "b": set()}) == []
+
+
+def builtin_adapters() -> dict[str, str]:
+    """engines.registry.BUILTIN read from its source (engine name -> module), without importing an engine."""
+    tree = ast.parse((ROOT / "engines" / "registry.py").read_text())
+    for node in tree.body:
+        if isinstance(node, ast.AnnAssign) and getattr(node.target, "id", None) == "BUILTIN":
+            return ast.literal_eval(node.value)
+    raise AssertionError("engines/registry.py defines no BUILTIN")
+
+
+#: Adapter -> the other adapters it may import: MJX runs MuJoCo's own model (its MJCF, its reading of samples).
+ADAPTER_USES = {"engines.mjx": {"engines.mujoco"}}
+
+
+def test_no_engine_adapter_imports_another():
+    """Shared structure (the tree of joints, the recorder) lives in neutral modules, so that an engine
+    loads without another engine's library (Drake without MuJoCo)."""
+    adapters = set(builtin_adapters().values())
+    assert {"engines.mujoco", "engines.drake", "engines.mjx"} <= adapters
+    wrong = []
+    for module in sorted(adapters):
+        path = ROOT / (module.replace(".", "/") + ".py")
+        for target in imports_of(path):
+            other = next((a for a in adapters if target == a or target.startswith(a + ".")), None)
+            if other not in (None, module) and other not in ADAPTER_USES.get(module, set()):
+                wrong.append(f"{module} imports {target}")
+    assert wrong == []
+
+
+#: The stages of compare/, lowest first; a stage imports only its own and lower ones. The suite and the
+#: record are the vocabulary every stage speaks (the runner builds records, a results directory keeps
+#: its suite), so they share the lowest rank; run, then what reads runs back.
+STAGES = {"suite": 0, "results": 0, "run": 1, "gate": 2, "stability": 2, "history": 2}
+
+
+def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():
+    wrong = []
+    for name, path in project_modules().items():
+        parts = name.split(".")
+        if parts[0] != "compare" or len(parts) < 3 or parts[1] not in STAGES:
+            continue
+        for target in imports_of(path):
+            stage = target.split(".")[1] if target.startswith("compare.") and target.count(".") >= 1 else None
+            if stage in STAGES and STAGES[stage] > STAGES[parts[1]]:
+                wrong.append(f"{path.relative_to(ROOT)} ({parts[1]}) imports {target} ({stage})")
+    assert wrong == []
+
+
+#: Modules of compare/ and reports/ that may name a results directory's cases/ folder: the store reads and
+#: writes it (into and from CaseRecords); files.py names it only to keep every output off a run's inputs.
+CASES_FOLDER_NAMED_BY = {"compare.results.store", "compare.results.files"}
+
+
+def names_the_cases_folder(tree: ast.AST) -> bool:
+    """Whether the code builds a path into a cases/ folder (``x / "cases"``, or a string with "cases/")."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div) and isinstance(node.right, ast.Constant) \
+                and node.right.value == "cases":
+            return True
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and "cases/" in node.value \
+                and "\n" not in node.value:  # a docstring may say where cases live
+            return True
+    return False
+
+
+def test_compare_reads_case_files_only_through_the_case_record():
+    """The case files (DIR/cases/*.json) are read by compare.results.store alone, into CaseRecords, in one loop."""
+    readers = [name for name, path in project_modules().items()
+               if name.split(".")[0] in ("compare", "reports") and name not in CASES_FOLDER_NAMED_BY
+               and names_the_cases_folder(ast.parse(path.read_text()))]
+    assert readers == []
+    store = (ROOT / "compare" / "results" / "store.py").read_text()
+    assert store.count('glob("*.json")') == 1  # store.read_records
+    assert names_the_cases_folder(ast.parse('open(run / "cases" / name)'))

@@ -16,20 +16,15 @@ from pathlib import Path
 import distributed
 import pytest
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:  # test engines beside this file; spawned Dask workers inherit sys.path
-    sys.path.insert(0, str(HERE))
 
-from compare.run import environment  # noqa: E402
-from compare.run.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster  # noqa: E402
-from compare.results.store import load_results  # noqa: E402
-from compare.run.runner import run_suite  # noqa: E402
-from compare.suite.reader import load_suite, parse_suite  # noqa: E402
-from engines.errors import UserError  # noqa: E402
+from compare.run import environment
+from compare.run.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite, parse_suite
+from engines.errors import UserError
+from conftest import ROOT, XVAL, XVAL_ENV, wait_for
 
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
-ENV = {**os.environ, "PYTHONPATH": str(HERE)}
 
 
 @pytest.fixture(scope="module")
@@ -154,10 +149,10 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
     started = []
     try:
         started.append(subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", address.rsplit(":", 1)[1],
-                                                "--no-dashboard"], start_new_session=True, env=ENV,
+                                                "--no-dashboard"], start_new_session=True, env=XVAL_ENV,
                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         started.append(subprocess.Popen(dask + ["worker", address, "--nthreads", "1", "--no-dashboard"],
-                                        start_new_session=True, env=ENV, cwd=ROOT,
+                                        start_new_session=True, env=XVAL_ENV, cwd=ROOT,
                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         suite_file = tmp_path / "s.toml"
         # One thread: the cases run in this order, and the sleeper holds the worker when the scheduler dies.
@@ -166,10 +161,8 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
                                          timeout=60))
         out = tmp_path / "r"
         run = subprocess.Popen(XVAL + ["run", str(suite_file), "--output", str(out), "--scheduler", address],
-                               cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and len(list((out / "cases").glob("*.json")) if out.is_dir() else []) < 3:
-            time.sleep(0.05)
+                               cwd=ROOT, env=XVAL_ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        wait_for(lambda: len(list((out / "cases").glob("*.json"))) >= 3, 60, "3 finished cases")
         os.killpg(started[0].pid, signal.SIGKILL)
         killed = time.monotonic()
         stdout, stderr = run.communicate(timeout=60)
@@ -185,7 +178,7 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
         for process in started:
             with_group_killed(process)
     resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "2 cases run" in resumed.stdout and "3 already done" in resumed.stdout
     status = {r.case.engine: r.status for r in load_results(out).records}
@@ -206,7 +199,7 @@ def test_scheduler_local_from_the_command_line(tmp_path):
     suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
     out = tmp_path / "r"
     run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--scheduler", "local:2"],
-                         cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+                         cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert f"results: {out}" in run.stdout and "2 cases run" in run.stdout
     status = {r.case.engine: (r.status, r.message) for r in load_results(out).records}

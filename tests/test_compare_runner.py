@@ -15,18 +15,14 @@ from pathlib import Path
 
 import pytest
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:  # compare_engines is a test-only module beside this file
-    sys.path.insert(0, str(HERE))
 
-from compare.results.store import load_results  # noqa: E402
-from compare.run.runner import run_suite  # noqa: E402
-from compare.suite.reader import parse_suite  # noqa: E402
-from compare.results.sweep import sweeps  # noqa: E402
-from engines.errors import UserError  # noqa: E402
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.suite.reader import parse_suite
+from compare.results.sweep import sweeps
+from engines.errors import UserError
+from conftest import ROOT, XVAL, XVAL_ENV, wait_for
 
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 
 
 def suite_text(engines: list[str], dt: str = "[1e-2]", duration: float = 0.5, scenes=("bead",), extra: str = "") -> str:
@@ -176,9 +172,7 @@ def test_sigkill_part_way_then_resume_equals_an_uninterrupted_run(tmp_path):
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )
     cases = interrupted / "cases"
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and len(list(cases.glob("*.json")) if cases.is_dir() else []) < 5:
-        time.sleep(0.01)
+    wait_for(lambda: len(list(cases.glob("*.json"))) >= 5, 60, "5 finished cases", interval=0.01)
     os.killpg(process.pid, signal.SIGKILL)  # the CLI, its pool worker and any case child
     process.wait()
     before = {f.name: f.stat().st_mtime_ns for f in cases.glob("*.json")}
@@ -223,15 +217,14 @@ def test_observed_order_of_mujoco_hinge_euler_on_the_bead_is_1(bead_sweep):
 def test_run_and_show_commands(tmp_path):
     suite_file = tmp_path / "s.toml"
     suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
-    env = {**os.environ, "PYTHONPATH": str(HERE)}
     out = tmp_path / "r"
     run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"],
-                         cwd=ROOT, capture_output=True, text=True, env=env, timeout=60)
+                         cwd=ROOT, capture_output=True, text=True, env=XVAL_ENV, timeout=60)
     assert run.returncode == 0, run.stderr
     assert "most accurate at equal cost" in run.stdout and "pymunk/pin" in run.stdout and f"results: {out}" in run.stdout
     # Off a terminal: a line at every tenth of the run (here each of the two cases), not the cases themselves.
     assert run.stderr.splitlines() == ["running: 1/2 cases (50 %)", "running: 2/2 cases (100 %), 1 not ok"]
-    show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=env)
+    show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=XVAL_ENV)
     table = show.stdout.splitlines()
     # The scene line carries the reference's own error, horizon and Lyapunov estimate (docs/metrics.md).
     assert re.fullmatch(r"scene bead \(reference error \S+ m, horizon none, Lyapunov exponent -\)", table[2])

@@ -34,7 +34,7 @@ def bad(text: str, message: str) -> None:
 def test_shipped_suites_load():
     default = load_suite(ROOT / "suites/default.toml")
     assert default.dts[0] == 0.1 and default.dts[-1] == 1e-4 and len(default.dts) == 7
-    assert {s.id for s in default.scenes} == {"bead", "double-pendulum"}
+    assert {s.id for s in default.scenes} == {"bead", "double-pendulum", "slider-pendulum", "four-bar", "bead-ellipse"}
     labels = {e.label for e in default.engines}
     assert {"mujoco/hinge", "pymunk/pin", "pybullet/multibody"} <= labels
     smoke = load_suite(ROOT / "suites/smoke.toml")
@@ -107,6 +107,16 @@ def test_unknown_tolerance_metric():
         "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_linf, position_error_l2, "
         "position_error_final, divergence_time, energy_drift, constraint_error, constraint_force_error, "
         "observed_order, momentum_drift, cost_per_simulated_second")
+
+
+def test_tolerances_and_gate_validate_a_tolerance_alike():
+    # [tolerances] and [gate] both set relative tolerances: the same rule (a number >= 0) for both,
+    # each message naming the key (and, for the suite file, the line).
+    for table in ("tolerances", "gate"):
+        suite = parse_suite(GOOD + f"\n[{table}]\nenergy_drift = 0\n")
+        assert suite.gate.tolerance("energy_drift").rtol == 0.0
+        bad(GOOD + f"\n[{table}]\nenergy_drift = -0.1\n",
+            f"s.toml:13: {table}.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1")
 
 
 def test_incomplete_sweep():

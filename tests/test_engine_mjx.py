@@ -100,3 +100,37 @@ def test_a_deep_chain_is_left_out_with_the_reason_and_the_fix(mjx):
     with pytest.raises(Unsupported, match="body tree is 32 deep .* set option max_depth = 32 to run it anyway"):
         mjx.check(catalog.build("chain", {"n": 32}), "hinge")
     mjx.check(catalog.build("chain", {"n": 32}), "hinge", {"max_depth": 32})  # the user may insist
+
+
+_CACHED_RUN = r"""
+import json, jax
+events = []
+jax.monitoring.register_event_listener(lambda name, **kwargs: events.append(name))
+from engines import catalog
+from engines.mjx import ENGINE
+run = ENGINE.simulate(catalog.build("bead", {"duration": 0.05}), 1e-2, variant="hinge")
+print(json.dumps({"status": run.info.status, "hits": events.count("/jax/compilation_cache/cache_hits"),
+                  "misses": events.count("/jax/compilation_cache/cache_misses")}))
+"""
+
+
+def test_a_second_process_loads_the_compiled_loop_from_xvals_cache_directory(tmp_path):
+    # JAX's persistent compilation cache lives in xval's cache directory ($XVAL_CACHE_DIR/jax): the first
+    # process compiles the stepping loop and stores it, the second finds every executable there.
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("JAX_COMPILATION_CACHE_DIR", "NUMBA_CACHE_DIR")}
+    env["XVAL_CACHE_DIR"] = str(tmp_path / "cache")
+    counts = []
+    for _ in range(2):
+        out = subprocess.run([sys.executable, "-c", _CACHED_RUN], env=env, capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0, out.stderr[-2000:]
+        counts.append(json.loads(out.stdout.strip().splitlines()[-1]))
+    first, second = counts
+    assert first["status"] == second["status"] == "ok"
+    assert first["misses"] >= 1 and first["hits"] == 0
+    assert second["misses"] == 0 and second["hits"] >= 1
+    assert any((tmp_path / "cache" / "jax").iterdir())

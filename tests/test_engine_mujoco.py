@@ -94,12 +94,6 @@ def test_bead_period_matches_the_elliptic_integral(variant):
 # -- the double pendulum against the reference --------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def double_pendulum():
-    scene = catalog.build("double-pendulum", {"duration": 0.5})
-    return scene, solve(scene)
-
-
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_double_pendulum_follows_the_reference(variant, double_pendulum):
     scene, reference = double_pendulum

@@ -17,7 +17,6 @@ import pytest
 from engines import catalog, closed_form
 from engines.errors import Unsupported, UserError
 from engines.pybullet import ENGINE, PYBULLET_ITERATIONS, forest
-from engines.reference import solve
 from engines.scene import Particle, Pin, Rod, Scene
 from engines.trajectory import max_constraint_error, tensions, total_energy
 
@@ -62,12 +61,6 @@ def test_bead_period_matches_the_elliptic_integral(variant):
 
 
 # -- the double pendulum against the reference ------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def double_pendulum():
-    scene = catalog.build("double-pendulum", {"duration": 0.5})
-    return scene, solve(scene)
 
 
 @pytest.mark.parametrize("variant", VARIANTS)

@@ -60,12 +60,6 @@ def test_bead_period_matches_elliptic_integral(variant):
     assert abs(measured - exact) / exact < tolerance
 
 
-@pytest.fixture(scope="module")
-def double_pendulum_reference():
-    scene = catalog.build("double-pendulum", {"duration": 0.5})
-    return scene, solve(scene)
-
-
 def _position_error(scene, solution, variant, dt):
     run = ENGINE.simulate(scene, dt, variant=variant)
     assert run.info.status == "ok"
@@ -74,8 +68,8 @@ def _position_error(scene, solution, variant, dt):
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_double_pendulum_follows_reference(variant, double_pendulum_reference):
-    scene, solution = double_pendulum_reference
+def test_double_pendulum_follows_reference(variant, double_pendulum):
+    scene, solution = double_pendulum
     error = _position_error(scene, solution, variant, 1e-4)
     # First order: the error grows like dt (measured 3.6e-4 m for pin and
     # 2.6e-4 m for bias 0 at dt = 1e-4, 7.3e-4 / 5.1e-4 m at 2e-4). The bound
@@ -84,8 +78,8 @@ def test_double_pendulum_follows_reference(variant, double_pendulum_reference):
     assert error < 5e-4 * scene.characteristic_length
 
 
-def test_double_pendulum_error_is_first_order(double_pendulum_reference):
-    scene, solution = double_pendulum_reference
+def test_double_pendulum_error_is_first_order(double_pendulum):
+    scene, solution = double_pendulum
     coarse = _position_error(scene, solution, "pin-bias0", 2e-4)
     fine = _position_error(scene, solution, "pin-bias0", 1e-4)
     # Halving dt halves a first-order error: observed order log2(coarse/fine)
@@ -177,8 +171,8 @@ def test_bead_tension_matches_reference(variant):
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
-def test_double_pendulum_tensions_match_reference(variant, double_pendulum_reference):
-    scene, solution = double_pendulum_reference
+def test_double_pendulum_tensions_match_reference(variant, double_pendulum):
+    scene, solution = double_pendulum
     dt = 1e-4
     run = ENGINE.simulate(scene, dt, variant=variant)
     reference_positions, _, reference_forces = solution.at(run.t)

@@ -13,21 +13,15 @@ import resource
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
 
-from compare.results.store import load_results  # noqa: E402
-from compare.run.runner import run_suite  # noqa: E402
-from compare.suite.reader import parse_suite  # noqa: E402
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.suite.reader import parse_suite
+from conftest import HERE, ROOT, XVAL, XVAL_ENV, wait_for
 
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), str(ROOT)])}
 
 
 def suite_text(engines, duration=0.5, dt="[1e-2]", scene="bead", parameters=""):
@@ -66,16 +60,6 @@ def descendants(root: int) -> set[int]:
     return {pid for pid in found if alive(pid)}
 
 
-def wait_for(predicate, seconds: float, what: str):
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {seconds} s waiting for {what}")
-
-
 def kill_all(pids) -> None:
     for pid in pids:
         try:
@@ -85,7 +69,7 @@ def kill_all(pids) -> None:
 
 
 def start_run(suite_file: Path, output: Path, *extra: str) -> subprocess.Popen:
-    return subprocess.Popen(XVAL + ["run", str(suite_file), "--output", str(output), *extra], cwd=ROOT, env=ENV,
+    return subprocess.Popen(XVAL + ["run", str(suite_file), "--output", str(output), *extra], cwd=ROOT, env=XVAL_ENV,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -108,7 +92,7 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
         # 2 case hosts, 2 `sleep` children of the children engine.
         seen = wait_for_hosts(first, 4)
         second = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT,
-                                env=ENV, capture_output=True, text=True, timeout=60)
+                                env=XVAL_ENV, capture_output=True, text=True, timeout=60)
         assert second.returncode == 2
         assert second.stderr.strip() == (f"xval: error: --output: {out} is being written by another xval run "
                                          f"(pid {first.pid}); wait for it to finish, or stop it, then run again "
@@ -123,7 +107,7 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
         first.communicate(timeout=30)
     assert json.loads((out / "run.json").read_text())["finished"] is None
     resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     results = load_results(out)
     assert results.header["finished"] is not None
@@ -151,7 +135,7 @@ def test_sigterm_stops_the_run_leaves_no_process_nor_temporary_and_resume_finish
     assert [p.name for p in out.rglob("*.tmp")] == []
     assert len(list((out / "cases").glob("*.json"))) == 1
     resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "1 already done" in resumed.stdout
 
@@ -199,7 +183,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     suite_file.write_text('dt = [1e-2]\nengines = ["mujoco/hinge"]\n[[scenes]]\nscene = "bead"\nparameters = { duration = 0.3 }\n'
                           '[[scenes]]\nscene = "double-pendulum"\nparameters = { duration = 1.0 }\n')
     out = tmp_path / "r"
-    full = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"], cwd=ROOT, env=ENV,
+    full = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"], cwd=ROOT, env=XVAL_ENV,
                           capture_output=True, text=True, timeout=120, preexec_fn=_small_files)
     assert full.returncode == 1, full.stderr
     [line] = full.stderr.strip().splitlines()[-1:]
@@ -207,7 +191,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     assert "Traceback" not in full.stderr
     assert [p.name for p in out.rglob("*.tmp")] == []
     assert [r.case.scene_id for r in load_results(out).records] == ["bead"]  # the finished case is kept
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT, env=ENV,
+    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT, env=XVAL_ENV,
                              capture_output=True, text=True, timeout=120)
     assert resumed.returncode == 0, resumed.stderr
     assert "1 already done" in resumed.stdout

@@ -8,7 +8,7 @@ from engines.errors import UserError
 
 from compare.gate.gate import accuracy_change, compare_case, machine_difference, timing_change
 from compare.suite.reader import parse_suite
-from compare.gate.tolerance import RULES, GateSettings, Tolerance, gate_settings
+from compare.suite.tolerance import RULES, GateSettings, Tolerance, gate_settings
 
 SETTINGS = GateSettings()
 

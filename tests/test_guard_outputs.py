@@ -121,16 +121,12 @@ def test_labels_with_ansi_escapes_print_inert(tmp_path, capsys):
 
 
 def test_gate_md_escapes_html_in_labels():
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parent))
     from gate_support import GOLDEN
 
     from compare.gate.baseline import load_baseline
     from compare.gate.gate import gate_results
     from compare.gate.report import to_markdown
-    from compare.gate.tolerance import GateSettings
+    from compare.suite.tolerance import GateSettings
 
     baseline, current = load_baseline(GOLDEN / "baseline.json"), load_baseline(GOLDEN / "current.json")
     for document in (baseline, current):

@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 
 import numpy as np
 import plotly.graph_objects as go
 import pytest
 
-from ci_mode import chromium
 from compare.history.store import History
 from compare.history.trend import build_series, steps
 from compare.results.declared import METRICS
 
 from reports.history import write_history_report
+from reports.pack import unpacked
 
+from browser_support import CHROMIUM, Page
 from history_support import ENGINE, ERRORS, add, real_run, synthetic, xval
 
 #: The first run (0-based) whose errors are doubled.
@@ -116,16 +116,25 @@ def test_the_trend_page_is_self_contained_and_marks_the_step(planted, tmp_path, 
     assert re.fullmatch(rf"history report: {re.escape(str(output))} \(12 runs, 9 step changes, \d+\.\d MB, \d+\.\d\d s\)\n", out)
     page = output.read_text()
     assert "Content-Security-Policy" in page and "default-src 'none'" in page
-    markup = re.sub(r"<script>.*?</script>", "", page, flags=re.S)  # the page without plotly.js's source
+    # The page without its packed elements (plotly.js, the figure specs) nor its script.
+    markup = re.sub(r"<script\b[^>]*>.*?</script>", "", page, flags=re.S)
     assert not re.search(r"""(src|href)\s*=\s*["']?(https?:)?//""", markup)  # nothing fetched
     assert not re.search(r"<(link|img|iframe)\b", markup)
-    specs = {m.group(1): json.loads(m.group(2)) for m in
-             re.finditer(r'<script type="application/json" id="(trend-\d+)-spec">(.*?)</script>', page, re.S)}
+    packs = {m.group(1): json.loads(unpacked(m.group(2))) for m in re.finditer(
+        r'<script type="application/octet-stream" class="xval-pack" id="(pack-\d+)" data-encoding="gzip-7bit">'
+        r'([^<]*)</script>', page)}
+    assert list(packs) == ["pack-0"]
+    runs = packs["pack-0"].pop("runs")
+    assert len(runs) == RUNS and runs[0].startswith("run ") and " · commit " in runs[0]
+    specs = packs["pack-0"]
     titles = re.findall(r"<h3>(.*?)</h3>", page)
     assert titles == ["bead · reference/loose", "bead · reference/coarse"]
     for name, spec in specs.items():
         go.Figure(spec)  # a valid plotly figure (raises on an unknown property)
-        assert f'id="{name}" data-expected-traces="{len(spec["data"])}"' in page
+        assert f'id="{name}" data-expected-traces="{len(spec["data"])}" data-pack="pack-0"' in page
+        for trace in spec["data"]:  # values kept to 3 significant digits, what the hover shows
+            assert all(y is None or float(f"{y:.2e}") == y for y in trace["y"])
+            assert set(trace["x"]) <= set(range(RUNS))
     loose = specs["trend-0"]
     dashed = [s for s in loose["layout"]["shapes"] if s["line"]["dash"] == "dash"]
     assert len(dashed) == 9 and {s["x0"] for s in dashed} == {STEP_AT - 0.5}
@@ -148,20 +157,20 @@ def test_machines_are_kept_apart(base, tmp_path):
     assert all(len(s["plots"]) == 2 for s in context["sections"])
 
 
-CHROMIUM = chromium()  # $XVAL_CHROMIUM, else on PATH or /usr/bin/chromium (tests/ci_mode.py)
-
-
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium here; install it with 'apt-get install -y chromium' (.ci/run does)")
 def test_the_trend_page_draws_every_plot_in_a_browser_with_the_network_off(planted, tmp_path):
-    page = tmp_path / "trend.html"
-    write_history_report(str(planted), page)
-    # --dump-dom prints the DOM once the page (and its virtual time budget) has run; any request that tried
-    # to leave would fail on the dead proxy and resolver, and plotly.js would then not draw.
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             "--proxy-server=127.0.0.1:9", "--host-resolver-rules=MAP * ~NOTFOUND", "--allow-file-access-from-files",
-             f"--user-data-dir={tmp_path / 'profile'}", "--virtual-time-budget=20000", "--dump-dom"]
-    dom = subprocess.run([CHROMIUM, *flags, page.as_uri()], capture_output=True, text=True, timeout=120).stdout
-    assert re.search(r'id="xval-render-status"[^>]*data-state="done"[^>]*>2 plots drawn\.', dom), dom[-2000:]
-    drawn = re.findall(r'data-expected-traces="(\d+)" data-drawn-traces="(\d+)"', dom)
-    assert len(drawn) == 2 and all(expected == got for expected, got in drawn)
+    page_path = tmp_path / "trend.html"
+    write_history_report(str(planted), page_path)
+    with Page(page_path, tmp_path / "profile") as page:
+        # Interactive before plotly.js is unpacked: the tables are plain HTML.
+        assert page.evaluate('document.getElementById("xval-render-status").getAttribute("data-state")') in ("ready", "done")
+        assert page.await_promise("window.xvalDrawAll()") == 2
+        assert page.evaluate('document.getElementById("xval-render-status").textContent') == "2 plots drawn."
+        drawn = page.evaluate('Array.from(document.querySelectorAll("div.xval-plot")).map(function (d) {'
+                              ' return [d.getAttribute("data-expected-traces"), d.getAttribute("data-drawn-traces")]; })')
+        assert len(drawn) == 2 and all(expected == got for expected, got in drawn), drawn
+        # Each point's hover label is the run's, filled in from the pack's run labels.
+        label = page.evaluate('document.getElementById("trend-0").data[0].customdata[0]')
+        assert label.startswith("run ") and " · commit " in label
+        assert page.errors() == []
+        assert all(url.startswith(("file:", "data:", "blob:", "about:")) for url in page.requests()), page.requests()

@@ -13,8 +13,6 @@ from __future__ import annotations
 import gc
 from dataclasses import replace
 import pickle
-import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -24,12 +22,7 @@ from engines.adapter import scheduled_times
 from engines.catalog import build
 from engines.reference import solve_and_bound
 
-
-HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:  # compare_engines, the misbehaving test engine, lives beside this file
-    sys.path.insert(0, str(HERE))
-
-from compare_engines import PAUSE  # noqa: E402
+from compare_engines import PAUSE
 
 
 def case(engine: str, variant: str, scene, dt: float = 1e-2, timeout: float = 60) -> CaseTask:

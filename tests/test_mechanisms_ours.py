@@ -1,8 +1,9 @@
-"""ours' curve constraints (Line, Ellipse): C, J and J̇q̇ against finite differences, and the general λ path.
+"""ours' curve constraints (Line, Ellipse): C, J and J̇q̇ against finite differences, and the compiled loop.
 
-The general path (ours.general, dense J W Jᵀ) must give the compiled distance
-loop's trajectory to round-off when the curve is a circle (Ellipse a = b
-against Pin), for every method and integrator family.
+The compiled loop's curve kinds (``ours.kernel``) must agree with the numpy
+closed forms of ``ours.constraint`` (the dense λ formula), and an Ellipse with
+a = b must give the Wire's trajectory to round-off, for every method and
+integrator family.
 """
 
 from __future__ import annotations
@@ -52,6 +53,24 @@ def test_curve_fields_are_validated_naming_the_field():
         ours.simulate(system, [[0.0, 0.0]], [[1.0, 0.0]], 1e-3, 10, method="lagrangian")
 
 
+@pytest.mark.parametrize("k_s, k_d", [(0.0, 0.0), (100.0, 20.0)])
+def test_compiled_curve_kinds_agree_with_the_numpy_closed_forms(k_s, k_d):
+    """λ from the compiled banded solve against the dense numpy formula, off the curves (so that C and Ċ,
+    fed back by Baumgarte, are not zero): the kernel's C, g, J̇q̇ and Ċ of each kind are the closed forms'."""
+    rng = np.random.default_rng(3)
+    systems = [
+        ours.System((2.0, 1.0), (0.0, -9.81), (ours.Line(0, (0.1, -0.2), (1.0, 0.4)), ours.Rod(0, 1, 1.0))),
+        ours.System((0.5,), (0.0, -9.81), (ours.Ellipse(0, (0.1, -0.4), (1.3, 0.6)),)),
+        ours.System((1.0, 3.0), (0.0, -9.81), (ours.Ellipse(0, (0.0, 0.0), (0.8, 0.5)),
+                                               ours.Line(1, (0.0, -1.0), (1.0, 0.0)))),
+    ]
+    for system in systems:
+        for _ in range(5):
+            q, v = rng.normal(size=(system.n_particles, 2)), rng.normal(size=(system.n_particles, 2))
+            np.testing.assert_allclose(ours.multipliers(system, q, v, k_s, k_d),
+                                       system.dense_multipliers(q, v, k_s, k_d), rtol=1e-12, atol=1e-12)
+
+
 def test_dense_multipliers_are_the_general_formula():
     system = ours.System((2.0, 1.0), (0.0, -9.81), (ours.Line(0, (0.0, 0.0), (1.0, 0.0)), ours.Rod(0, 1, 1.0)))
     q = np.array([[0.2, 0.0], [0.2 + np.sin(0.5), -np.cos(0.5)]])
@@ -71,15 +90,14 @@ def test_ellipse_with_equal_axes_runs_the_circle_bead_to_round_off(variant):
     for radius in (1.0, 0.7):
         bead = catalog.build("bead", {"radius": radius, "theta0": 60, "duration": 1})
         wire = catalog.build("bead-ellipse", {"a": radius, "b": radius, "theta0": 60, "duration": 1})
-        compiled, general = ENGINE.simulate(bead, 1e-3, variant=variant), ENGINE.simulate(wire, 1e-3, variant=variant)
-        assert general.info.settings["ours.path"].startswith("general")
-        np.testing.assert_allclose(general.positions, compiled.positions, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(general.velocities, compiled.velocities, rtol=0, atol=1e-13)
-        np.testing.assert_allclose(general.constraint_forces, compiled.constraint_forces, rtol=0, atol=1e-12)
+        circle, ellipse = ENGINE.simulate(bead, 1e-3, variant=variant), ENGINE.simulate(wire, 1e-3, variant=variant)
+        np.testing.assert_allclose(ellipse.positions, circle.positions, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(ellipse.velocities, circle.velocities, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(ellipse.constraint_forces, circle.constraint_forces, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("variant, order", [("baumgarte-rk4", 4), ("projection-rk4", 4), ("rattle", 2)])
-def test_general_path_reaches_each_integrators_order_on_the_ellipse(variant, order):
+def test_curve_kinds_reach_each_integrators_order_on_the_ellipse(variant, order):
     scene = catalog.build("bead-ellipse", {"duration": 1})
     solution = solve(scene)
     errors = []

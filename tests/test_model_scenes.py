@@ -131,6 +131,18 @@ def test_observed_order_on_the_model(engine_id, steps, order):
     assert abs(np.polyfit(np.log(steps), np.log(errors), 1)[0] - order) < 0.15
 
 
+def test_drake_error_control_follows_its_accuracy_on_the_model():
+    # RK3 with error control: the 2 s error falls tenfold per decade of accuracy (measured 1.9e-7, 2.0e-9 m
+    # at 1e-6, 1e-8), and the steps recorded are the integrator's own (1432, 6222), not the 200 samples.
+    scene = model_scene("dp", DOUBLE, q0={"shoulder": 30, "elbow": -20})
+    reference = REFERENCE.simulate(scene, 1e-2)
+    engine, variant = resolve("drake/rk3")
+    runs = [engine.simulate(scene, 1e-2, variant=variant, options={"accuracy": a}) for a in (1e-6, 1e-8)]
+    errors = [np.linalg.norm(r.positions - reference.positions, axis=2).max() for r in runs]
+    assert errors[0] < 1e-6 and errors[0] / errors[1] > 30
+    assert 200 < runs[0].info.steps < runs[1].info.steps
+
+
 def test_pybullet_joint_limits_are_off():
     # KUKA iiwa released at 30° and −45° swings past its joint limits within 0.5 s; PyBullet enforces the
     # URDF's limits whatever changeDynamics says unless the file's ranges are emptied. With them off it
@@ -145,7 +157,8 @@ def test_pybullet_joint_limits_are_off():
 
 @pytest.mark.parametrize("engine_id, message", [
     ("pymunk", "pymunk does not load model files (URDF, MJCF): it runs the catalog's scenes only"),
-    ("ours", "ours does not load model files"),
+    ("ours/rattle", "ours: RATTLE is not offered for rigid bodies"),
+    ("ours/lagrangian-rk4", "ours: method 'lagrangian' (reduced coordinates of a planar particle chain) does not apply"),
     ("mujoco/connect", "mujoco: a model file is compiled in joint coordinates"),
     ("pybullet/p2p", "pybullet: a model file is loaded as one multibody"),
     ("drake/discrete", "drake/discrete: a model file is loaded into a continuous plant"),
@@ -264,3 +277,15 @@ def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
     assert rows["mujoco"].count("parity-agree") == 3
     assert rows["pybullet"].count("parity-far") == 3 and "pybullet gives it 1 kg" in rows["pybullet"]
     assert rows["dart"].count("parity-far") == 3
+
+
+def test_ours_steps_a_model_in_maximal_coordinates_as_mujoco_does_in_joint_coordinates():
+    """ours' rigid bodies (engines/ours_model.py) and MuJoCo's hinges, both RK4 at 1 ms over 1 s: the joint
+    states agree to 1e-9 (each method's own error is ~1e-10 here), and projection keeps the joints shut."""
+    scene = model_scene("dp", DOUBLE, q0={"shoulder": 30, "elbow": -20}, duration=1.0)
+    runs = {eid: resolve(eid)[0].simulate(scene, 1e-3, variant=resolve(eid)[1])
+            for eid in ("mujoco/hinge-rk4", "ours/projection-rk4", "ours/baumgarte-rk4")}
+    for eid in ("ours/projection-rk4", "ours/baumgarte-rk4"):
+        assert np.abs(runs[eid].joint_states - runs["mujoco/hinge-rk4"].joint_states).max() < 1e-9
+        assert np.abs(runs[eid].positions - runs["mujoco/hinge-rk4"].positions).max() < 1e-9
+    assert runs["ours/projection-rk4"].info.settings["method"] == "projection"

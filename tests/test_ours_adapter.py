@@ -20,7 +20,7 @@ def test_variant_ids_follow_method_integrator():
         assert wanted in ids
     assert ids[0] == "ours/baumgarte-rk4"  # the default
     assert "ours/lagrangian-symplectic-euler" not in ids and "ours/rattle-rk4" not in ids
-    assert OURS.capabilities == {"3d", "constraint-forces"}
+    assert OURS.capabilities == {"3d", "constraint-forces", "model"}
 
 
 def test_lagrangian_refuses_a_3d_scene_with_the_reason():

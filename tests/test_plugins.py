@@ -10,29 +10,23 @@ from __future__ import annotations
 import importlib.metadata
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:  # plugin_engines and plugin_broken_import are test-only modules beside this file
-    sys.path.insert(0, str(HERE))
 
-from compare.gate.baseline import build_baseline, load_baseline  # noqa: E402
-from compare.gate.gate import gate_results  # noqa: E402
-from compare.results.store import load_results  # noqa: E402
-from compare.run.runner import run_suite  # noqa: E402
-from compare.suite.reader import load_suite, parse_suite  # noqa: E402
-from compare.gate.tolerance import GateSettings  # noqa: E402
-from engines import catalog, registry  # noqa: E402
-from engines.adapter import API_VERSION, api_version_problem  # noqa: E402
-from engines.errors import UserError  # noqa: E402
+from compare.gate.baseline import build_baseline, load_baseline
+from compare.gate.gate import gate_results
+from compare.results.store import load_results
+from compare.run.runner import run_suite
+from compare.suite.reader import load_suite, parse_suite
+from compare.suite.tolerance import GateSettings
+from engines import catalog, registry
+from engines.adapter import API_VERSION, api_version_problem
+from engines.errors import UserError
+from conftest import ROOT, XVAL
 
 EXAMPLE = ROOT / "examples" / "my-solver"
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 INSTALL = "install it with 'make test' or '.venv/bin/python -m pip install -e examples/my-solver'"
 
 

@@ -123,12 +123,17 @@ def _status_in_child(task, queue):
 
 
 def test_probe_output_is_what_the_report_lists(capsys, tmp_path):
-    from reports.verdict import load_probes
+    from compare.stability.dissipation import PROBE_VERSION, load_probe_files
 
     code, _, _ = run_cli(capsys, *["probe", "pymunk/pin", "--option", "damping=0.9", "--duration", "5",
                               "--output", str(tmp_path)])
     assert code == 0
-    stored = load_probes(tmp_path)
+    stored = load_probe_files(tmp_path)
     assert [p["engine"] for p in stored] == ["pymunk/pin"] and stored[0]["hidden_dissipation"] is True
+    assert (stored[0]["schema"], stored[0]["schema_version"]) == ("xval-probe", PROBE_VERSION)
+    # A file of another version is not read as this one's fields.
+    (file,) = tmp_path.glob("probe*.json")
+    file.write_text(file.read_text().replace(f'"schema_version": {PROBE_VERSION}', '"schema_version": 99'))
+    assert load_probe_files(tmp_path) == []
     code, _, err = run_cli(capsys, *["probe", "pymunk/pin", "--output", str(tmp_path / "nope")])
     assert code == 2 and "does not exist" in err

@@ -20,6 +20,8 @@ from engines import catalog, command, protocol, registry
 from engines.adapter import Schedule
 from engines.errors import UserError
 
+from conftest import wait_for
+
 HERE = Path(__file__).resolve().parent
 PROGRAM = [sys.executable, str(HERE / "protocol_program.py")]
 BEAD = catalog.build("bead", {"duration": 0.2})
@@ -204,12 +206,12 @@ def live_members(pgid: int) -> list[int]:
     return members
 
 
-def wait_for(pidfile: Path) -> tuple[int, int, int]:
-    for _ in range(500):
-        if pidfile.exists() and len(pidfile.read_text().split()) == 3:
-            return tuple(int(x) for x in pidfile.read_text().split())  # type: ignore[return-value]
-        time.sleep(0.01)
-    raise AssertionError(f"the program never wrote {pidfile}")
+def read_pids(pidfile: Path) -> tuple[int, int, int]:
+    """The three pids the hanging program writes, once it has written them."""
+    def pids():
+        fields = pidfile.read_text().split() if pidfile.exists() else []
+        return tuple(int(x) for x in fields) if len(fields) == 3 else None
+    return wait_for(pids, 5, f"the program to write {pidfile}", interval=0.01)
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc to list a process group's members")
@@ -225,7 +227,7 @@ def test_a_timed_out_program_and_its_children_are_killed(tmp_path):
     assert trajectory.info.status == "timeout" and 1.0 <= elapsed < 60.0
     assert trajectory.info.message.endswith("hang ran past the timeout of 1 s and its process group was killed; "
                                             "raise the timeout if it is only slow")
-    pid, pgid, child = wait_for(pidfile)
+    pid, pgid, child = read_pids(pidfile)
     assert pgid == pid and pgid != os.getpgid(0)  # its own group, not the test's
     assert live_members(pgid) == []               # the program and its `sleep 600` child are gone
 
@@ -257,7 +259,7 @@ options = {{ pidfile = {json.dumps(str(pidfile))} }}
     assert record.status == "timeout", record.message
     assert "hang ran past the timeout of 1 s and its process group was killed" in record.message
     assert record.run_info["variant"] == "command/hang"
-    pid, pgid, child = wait_for(pidfile)
+    pid, pgid, child = read_pids(pidfile)
     assert live_members(pgid) == []
 
 
@@ -282,6 +284,19 @@ options = { method = "rk4", order = 4 }
     made = spec.engine.spec
     assert made.argv == (str(tmp_path / "build" / "solver"), "--input", "data/x.txt") and made.cwd == str(tmp_path)
     assert made.version == "1.2" and made.capabilities == {"constraint-forces"}
+
+
+def test_reading_a_suite_registers_nothing(tmp_path):
+    # A suite read is pure: its command engine travels with the suite to the run, and the
+    # process-wide table of command labels (what `command/<label>` ids resolve against) is untouched.
+    from compare.suite.reader import load_suite
+
+    (tmp_path / "suite.toml").write_text(SUITE_HEAD + '[[engines]]\ncommand = ["prog"]\nlabel = "unread"\n')
+    before = command.registered_labels()
+    (spec,) = load_suite(tmp_path / "suite.toml").engines
+    assert spec.engine.spec.label == "unread" and command.registered_labels() == before
+    with pytest.raises(UserError, match="no command engine labelled 'unread' here"):
+        registry.load_engine("command/unread")
 
 
 @pytest.mark.parametrize("entry, message", [

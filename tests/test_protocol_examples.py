@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import ast
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -19,11 +18,10 @@ import pytest
 
 from engines import catalog, command
 from engines.reference import solve
+from conftest import ROOT, XVAL, XVAL_ENV
 
-ROOT = Path(__file__).resolve().parent.parent
 CPP = ROOT / "examples" / "cpp"
 PYTHON_BEAD = ROOT / "examples" / "python" / "bead.py"
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 
 
 @pytest.fixture(scope="session")
@@ -38,8 +36,7 @@ def cpp_build(tmp_path_factory) -> Path:
 
 
 def xval(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([*XVAL, *args], capture_output=True, text=True, cwd=cwd, env=env)
+    return subprocess.run([*XVAL, *args], capture_output=True, text=True, cwd=cwd, env=XVAL_ENV)
 
 
 def max_error(engine: command.CommandEngine, scene, dt: float, reference):

@@ -228,20 +228,20 @@ def test_kept_samples_are_the_solution_at_those_times_and_need_no_scipy(kept_dou
 
 
 def test_a_cache_file_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
-    # ours.cache.write_whole (the kept references, ours' generated kernels): a write of the same file
-    # that fails (here its rename) leaves the old file as it was and no temporary beside it.
-    import ours.cache
-    from ours.cache import write_whole
+    # ours.files.atomic_write (every file xval writes): a write of the same file that fails (here its
+    # rename) leaves the old file as it was and no temporary beside it.
+    import ours.files
+    from ours.files import atomic_write
 
     target = tmp_path / "kept.pickle"
-    write_whole(target, b"first")
+    atomic_write(target, b"first")
 
     def failing_replace(source, destination):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(ours.cache.os, "replace", failing_replace)
+    monkeypatch.setattr(ours.files.os, "replace", failing_replace)
     with pytest.raises(OSError):
-        write_whole(target, b"second")
+        atomic_write(target, b"second")
     assert target.read_bytes() == b"first" and [p.name for p in tmp_path.iterdir()] == ["kept.pickle"]
 
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from engines import catalog
-from engines.reference import planar_chain
+from engines.reference import chain_model
 from engines.scene import Scene
 from engines.trajectory import constraint_errors
 
@@ -28,7 +28,7 @@ def test_double_pendulum_round_trips_through_json_and_reduced_coordinates(m1, m2
     again = Scene.from_dict(scene.to_dict())
     assert again == scene and again.content_hash == scene.content_hash
     # The reference reads back exactly the angles and rates the catalog was given.
-    chain = planar_chain(scene)
+    chain = chain_model(scene)
     state = chain.initial_state(scene)
     expected = [math.radians(theta1), math.radians(theta2), omega1, omega2]
     np.testing.assert_allclose(state, expected, rtol=1e-9, atol=1e-9)

@@ -13,18 +13,15 @@ After a deliberate change of accuracy, or of suites/smoke.toml, run
 from __future__ import annotations
 
 import subprocess
-import sys
-from pathlib import Path
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.gate.gate import gate_results
 from compare.results.store import load_results
-from compare.gate.tolerance import GateSettings
+from compare.suite.tolerance import GateSettings
+from conftest import ROOT, XVAL
 
-ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "smoke.toml"
 BASELINE = ROOT / "baselines" / "smoke.json"
-XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 REGENERATE = "run 'make baseline' and commit baselines/smoke.json, saying why in the commit message"
 
 

@@ -13,11 +13,11 @@ from compare.gate.baseline import build_baseline, load_baseline
 from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
-from compare.history.location import check_option
+from compare.cli import history_option
 from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
 from compare.results.store import load_results
-from compare.gate.tolerance import GateSettings
+from compare.suite.tolerance import GateSettings
 from compare.suite.reader import load_run_settings
 
 
@@ -31,8 +31,7 @@ def settings_of(directory: Path) -> GateSettings:
 @click.argument("directory", metavar="DIR")
 @click.option("--baseline", "baseline_path", default=None, metavar="BASELINE.json",
               help="The baseline to compare with (made by 'xval baseline').")
-@click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
-              help="Instead of a baseline: the last runs of the suite on this machine in this history "
+@history_option(name="history", help="Instead of a baseline: the last runs of the suite on this machine in this history "
                    "(accuracy against the best of them, timing against their spread).")
 @click.option("--window", type=click.IntRange(min=1), default=None, metavar="N",
               help=f"With --history: how many of the last runs (default {DEFAULT_WINDOW}).")

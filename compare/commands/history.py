@@ -14,18 +14,14 @@ from typing import Any
 
 import click
 
-from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE, check_option
+from compare.cli import history_option
+from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE
 from compare.history.origin import given_origin, recorded_origin, tree_origin
 from compare.history.store import AlreadyRecorded, History, StoredRun, baseline_of
 from compare.results.store import load_results
 
 HISTORY_HELP = (f"The history: a SQLite file, or a postgresql:// URL (default: ${LOCATION_VARIABLE}, "
                 f"else {DEFAULT_LOCATION}).")
-
-
-def history_option(**extra: Any):
-    return click.option("--history", "location", default=None, metavar="FILE|URL", help=HISTORY_HELP,
-                        callback=check_option, **extra)
 
 
 class HistoryGroup(click.Group):
@@ -76,7 +72,7 @@ def add_directory(directory: str | Path, location: str | None, commit: str | Non
 
 @command.command("add")
 @click.argument("directories", metavar="DIR...", nargs=-1, required=True)
-@history_option()
+@history_option(HISTORY_HELP)
 @click.option("--commit", default=None, metavar="SHA[+dirty]",
               help="The commit the run was made at (default: the one DIR/run.json recorded, i.e. xval's checkout).")
 def add(directories, location, commit) -> None:
@@ -98,7 +94,7 @@ def add(directories, location, commit) -> None:
 
 
 @command.command("show")
-@history_option()
+@history_option(HISTORY_HELP)
 @click.option("--scene", default=None, metavar="S", help="Only this scene id (shell patterns allowed).")
 @click.option("--engine", default=None, metavar="E", help="Only this engine label, e.g. ours/rattle or 'ours/*'.")
 @click.option("--metric", "metric_names", multiple=True, metavar="M",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from compare.cli import parse_assignments, scene_from_params
+from compare.cli import engine_option_option, param_option, parse_assignments, scene_from_params
 from compare.results.files import atomic_write_text, check_writable
 from compare.stability.dissipation import DEFAULT_DTS, DEFAULT_DURATION, Dissipation, probe
 from engines import registry
@@ -33,10 +33,9 @@ def table(result: Dissipation) -> str:
 
 @click.command("probe")
 @click.argument("engine_id", metavar="ENGINE/VARIANT")
-@click.option("--option", "options", multiple=True, metavar="NAME=VALUE",
-              help="Engine option (see 'xval engines'); repeatable.")
+@engine_option_option()
 @click.option("--scene", "scene_name", default="bead", show_default=True, help="Catalog scene (see 'xval scenes').")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE", help="Scene parameter; repeatable.")
+@param_option()
 @click.option("--duration", type=click.FloatRange(min=0, min_open=True), default=DEFAULT_DURATION,
               show_default=True, help="Seconds simulated at each dt.")
 @click.option("--dt", "dts", multiple=True, type=click.FloatRange(min=0, min_open=True),
@@ -69,7 +68,7 @@ def command(engine_id, options, scene_name, params, duration, dts, fmt, output) 
     result = probe(engine_id if "/" in engine_id else f"{engine_id}/{variant}", scene, engine_options, steps)
     document = json.dumps(result.to_dict(), indent=2)
     if target is not None:
-        atomic_write_text(target, document + "\n")
+        atomic_write_text(target, json.dumps(result.to_file(), indent=2) + "\n")
     click.echo(document if fmt == "json" else table(result))
     if result.hidden_dissipation is None:
         raise click.exceptions.Exit(1)

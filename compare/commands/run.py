@@ -11,16 +11,14 @@ from compare.run import startup
 startup.load_blas_single_threaded()  # first, before anything imports numpy (why: compare/run/startup.py)
 
 from engines.errors import UserError  # noqa: E402
-from engines.limits import MAX_JOBS  # noqa: E402
 
-from compare.cli import MemorySize, Seconds, output_path  # noqa: E402
+from compare.cli import MemorySize, history_option, jobs_option, output_path, timeout_option  # noqa: E402
 from compare.run.isolation import DEFAULT_MEMORY_LIMIT  # noqa: E402
 
 from compare.results.sweep import sweeps  # noqa: E402
 from compare.results.table import scene_tables  # noqa: E402
 from compare.results.verdict import scene_verdicts  # noqa: E402
 from compare.results.verdict_format import format_verdicts  # noqa: E402
-from compare.history.location import check_option  # noqa: E402
 from compare.run.progress import progress_for  # noqa: E402
 from compare.run.runner import run_suite  # noqa: E402
 from compare.suite.reader import load_suite  # noqa: E402
@@ -30,11 +28,9 @@ from compare.suite.reader import load_suite  # noqa: E402
 @click.argument("suite_path", metavar="SUITE")
 @click.option("--output", required=True, metavar="DIR", callback=output_path,
               help="Results directory to create (or finish, with --resume).")
-@click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
-              help=f"Cases run at once (case host processes), 1 to {MAX_JOBS} (default: all cores).")
+@jobs_option("Cases run at once (case host processes)")
 @click.option("--resume", is_flag=True, help="Run only the cases DIR does not hold yet.")
-@click.option("--timeout", type=Seconds(), default=None, metavar="S",
-              help="Seconds per case (and per scene's reference solve) before it is killed and recorded as "
+@timeout_option(help="Seconds per case (and per scene's reference solve) before it is killed and recorded as "
                    "timeout, at most 1e6 (default: the suite's).")
 @click.option("--memory-limit", type=MemorySize(), default=f"{DEFAULT_MEMORY_LIMIT // 2**30}G", metavar="SIZE",
               show_default=True,
@@ -45,8 +41,7 @@ from compare.suite.reader import load_suite  # noqa: E402
                    "in-process cluster of N workers (needs: pip install 'xval[dask]').")
 @click.option("--quiet", "-q", is_flag=True, help="No progress while running; at the end only the verdict and the problems.")
 @click.option("--verbose", "-v", is_flag=True, help="A line per case while running, and every scene's table at the end.")
-@click.option("--history", "history", default=None, metavar="FILE|URL", callback=check_option,
-              help="Also append the finished run to this history (xval history; a SQLite file or a postgresql:// URL).")
+@history_option(name="history", help="Also append the finished run to this history (xval history; a SQLite file or a postgresql:// URL).")
 def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, quiet, verbose, history) -> None:
     """Run every scene x engine variant x dt of SUITE (a TOML file) and record each case in DIR.
 

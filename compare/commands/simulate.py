@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from compare.cli import Seconds, output_path, parse_assignments, scene_from_params
+from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, constraint_error, largest, relative_drift
@@ -49,10 +49,8 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
                    "--command), the reference, which says so.")
 @click.option("--dt", required=True, help="Time step in seconds, e.g. 1e-3.")
 @click.option("--duration", default=None, help="Simulated time in seconds (default: the scene's).")
-@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
-              help="Scene parameter (see 'xval scenes'); repeatable.")
-@click.option("--option", "options", multiple=True, metavar="NAME=VALUE",
-              help="Engine option (see 'xval engines'); repeatable.")
+@param_option()
+@engine_option_option()
 @click.option("--sample-interval", default=None, type=Seconds(),
               help="Seconds between stored samples (default 0.01; at least one step).")
 @click.option("--command", "program", default=None, metavar='"PROG ARGS"',

@@ -6,8 +6,7 @@ import sys
 
 import click
 
-from compare.cli import Seconds, output_path
-from engines.limits import MAX_JOBS
+from compare.cli import jobs_option, output_path, timeout_option
 
 from compare.stability.gainmap import plan_gainmap, run_gainmap
 from compare.stability.search import BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, PairResult, plan_stability, run_stability
@@ -34,10 +33,8 @@ def describe(result: PairResult) -> str:
 @click.argument("suite_path", metavar="SUITE")
 @click.option("--output", required=True, metavar="DIR", callback=output_path,
               help="Directory for stability.json and gainmap.json (created; may hold an 'xval run' of the suite).")
-@click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
-              help=f"Pairs searched at once, 1 to {MAX_JOBS} (default: all cores).")
-@click.option("--timeout", type=Seconds(), default=None, metavar="S",
-              help="Seconds per probe before it is killed and counted unstable (default: the suite's).")
+@jobs_option("Pairs searched at once")
+@timeout_option(help="Seconds per probe before it is killed and counted unstable (default: the suite's).")
 @click.option("--force", is_flag=True, help="Replace stability.json / gainmap.json already in DIR.")
 @click.option("--search/--no-search", default=True, help="Run the stability search (default: yes).")
 @click.option("--gain-map/--no-gain-map", "gain_map", default=True,

@@ -7,7 +7,7 @@ A baseline keeps, per case, what a later run is compared with:
   renaming gets a new hash, so it is reported as changed, not compared);
 - the engine version that produced it (another version is "not comparable");
 - status and message;
-- the deterministic metrics (``compare.gate.tolerance.RULES``: errors, drifts,
+- the deterministic metrics (``compare.suite.tolerance.RULES``: errors, drifts,
   constraint errors, divergence time, the sweep's observed order);
 - the timing: median cost per simulated second and the per-repeat costs, so
   the gate can tell a slowdown from the spread of the repeats.
@@ -35,7 +35,7 @@ from compare.results.files import atomic_write_text
 from compare.results.record import CaseKey, CaseRecord
 from compare.results.store import Results, jsonable, now
 from compare.results.sweep import VariantSweep
-from compare.gate.tolerance import RULES, TIMING_METRIC
+from compare.suite.tolerance import RULES, TIMING_METRIC
 
 #: Bump when a field of the baseline file changes meaning.
 BASELINE_SCHEMA_VERSION = 1

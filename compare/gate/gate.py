@@ -55,7 +55,7 @@ from typing import Any
 from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, case_name
-from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
+from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
 from compare.results.record import PROBLEMS
 
 #: Case verdicts, in the order a table lists them (most urgent first).

@@ -35,7 +35,7 @@ import statistics
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
-from compare.gate.tolerance import RULES
+from compare.suite.tolerance import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
 from compare.results.store import Results

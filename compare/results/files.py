@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import stat
-import itertools
 import sys
 from pathlib import Path
 from typing import Iterable
@@ -91,29 +90,6 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
     return target
 
 
-#: Distinguishes the temporaries of one process's writes (with its pid in the name: other processes').
-_TEMPORARY_NUMBERS = itertools.count()
-
-
-def _temporary_beside(target: Path, mode: int | None) -> tuple[int, Path]:
-    """(fd open for writing, path) of a new file ``.NAME.<pid>.<n>.tmp`` beside ``target``.
-
-    mode : the permissions to give it, or None for a new file's: 0666 less the
-    umask (and a default ACL), applied by the kernel as it creates the file,
-    as for any file the user creates.
-    """
-    for _ in range(1000):
-        tmp = target.parent / f".{target.name[:200]}.{os.getpid()}.{next(_TEMPORARY_NUMBERS)}.tmp"
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666 if mode is None else 0o600)
-        except FileExistsError:  # left by a killed process whose pid this one now has
-            continue
-        if mode is not None:
-            os.fchmod(fd, mode)
-        return fd, tmp
-    raise FileExistsError(17, "no free temporary name", str(target.parent))
-
-
 def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bool = True) -> None:
     """Write ``text`` (str, or bytes already encoded as UTF-8) to ``path`` so that no reader sees half
     of it (the rules in the module docstring).
@@ -140,30 +116,11 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
             sys.stdout.write(text)
             sys.stdout.flush()
         return
-    target = Path(path)
-    if target.is_symlink():
-        target = target.resolve()  # write through the link; os.replace on the link would replace the link
-    try:
-        info = target.stat()
-    except FileNotFoundError:
-        info = None
-    if info is not None and not stat.S_ISREG(info.st_mode):
-        if stat.S_ISDIR(info.st_mode):
-            raise IsADirectoryError(21, "is a directory", str(target))
-        with open(target, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
-            handle.write(text)  # a device or FIFO is written, never replaced
-        return
-    fd, tmp = _temporary_beside(target, stat.S_IMODE(info.st_mode) if info is not None else None)
-    try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
-            handle.write(text)
-            handle.flush()
-            if durable:
-                os.fsync(handle.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    # Imported here, not at the top: it loads the ours package (numpy with it), which a command must not
+    # do before its start-up (compare/run/startup.py); by the time anything is written, numpy is loaded.
+    from engines.files import atomic_write
+
+    atomic_write(path, text, durable=durable)
 
 
 def remove_stale_temporaries(directory: str | os.PathLike) -> list[Path]:

@@ -244,13 +244,7 @@ class ResultsDir:
 
     def done_records(self) -> dict[Path, CaseRecord]:
         """The whole, readable records already here, by file (a damaged one's case is run again)."""
-        done = {}
-        for file in sorted(self.cases.glob("*.json")):
-            try:
-                done[file] = CaseRecord.from_json(json.loads(file.read_text()), file)
-            except (OSError, ValueError, UserError):
-                continue
-        return done
+        return dict(read_records(self.cases, skip_damaged=True))
 
     def write_case(self, record: dict[str, Any]) -> Path:
         """Write one case record atomically; returns its path.
@@ -287,12 +281,27 @@ def read_json(path: Path) -> dict[str, Any]:
         raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
 
 
-def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
-    """Every case record under ``cases_dir``, typed (temporary files of an interrupted write are ignored)."""
+def read_records(cases_dir: Path, *, skip_damaged: bool = False) -> Iterator[tuple[Path, CaseRecord]]:
+    """(file, typed record) for every case file under ``cases_dir``, in file order: the one loop over them.
+
+    Temporary files of an interrupted write are not case files. A damaged file raises UserError naming
+    it, or is passed over with ``skip_damaged`` (a resumed run runs its case again).
+    """
     if not cases_dir.is_dir():
         return
     for file in sorted(cases_dir.glob("*.json")):
-        yield CaseRecord.from_json(read_json(file), file)
+        try:
+            record = CaseRecord.from_json(read_json(file), file)
+        except (UserError, ValueError):
+            if skip_damaged:
+                continue
+            raise
+        yield file, record
+
+
+def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
+    """Every case record under ``cases_dir``, typed; UserError naming a damaged file."""
+    return (record for _, record in read_records(cases_dir))
 
 
 @dataclass(frozen=True)

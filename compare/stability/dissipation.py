@@ -28,8 +28,10 @@ the engine through the runner's case host (:func:`compare.run.isolation.execute`
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -85,6 +87,33 @@ class Dissipation:
         out["options"] = dict(self.options)
         out["points"] = [asdict(p) for p in self.points]
         return out
+
+    def to_file(self) -> dict[str, Any]:
+        """The document ``xval probe --output DIR`` writes (``DIR/probe-<engine>-<variant>.json``): versioned."""
+        return {"schema": PROBE_SCHEMA, "schema_version": PROBE_VERSION, **self.to_dict()}
+
+
+#: What a stored probe file says it is, and the version of its fields (a reader refuses other versions).
+PROBE_SCHEMA = "xval-probe"
+PROBE_VERSION = 1
+
+
+def load_probe_files(directory: str | Path) -> list[dict[str, Any]]:
+    """The stored ``xval probe`` results in ``directory`` (``probe*.json``), each a dict with ``engine`` and
+    ``hidden_dissipation``; files that cannot be read, or are not probe documents of this version, are passed
+    over (the report leaves their marks out). A file from before versioning (no ``schema``) is version 1."""
+    found: list[dict[str, Any]] = []
+    for file in sorted(Path(directory).glob("probe*.json")):
+        try:
+            data = json.loads(file.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        for item in data if isinstance(data, list) else [data]:
+            if not (isinstance(item, dict) and isinstance(item.get("engine"), str) and "hidden_dissipation" in item):
+                continue
+            if item.get("schema", PROBE_SCHEMA) == PROBE_SCHEMA and item.get("schema_version", 1) == PROBE_VERSION:
+                found.append(item)
+    return found
 
 
 def loss_rate(scene: Scene, t: np.ndarray, positions: np.ndarray, velocities: np.ndarray) -> float:

@@ -26,7 +26,10 @@ COMMAND_KEYS = ("command", "label", "version", "capabilities", "options")
 
 def command_engine_spec(entry: Mapping[str, Any], key: str, suite_path: str,
                         error: Callable[[str, str], UserError]) -> tuple[command.CommandEngine, dict[str, Any]]:
-    """The registered CommandEngine of one ``[[engines]]`` command entry, and its options.
+    """The CommandEngine of one ``[[engines]]`` command entry, and its options.
+
+    Reading registers nothing: the engine travels with the suite (EngineSpec.engine) to the run that
+    uses it; no module-level registry learns of it.
 
     error(key, message) builds the reader's UserError (file, line, key). The
     program runs in the folder of ``suite_path`` (the current directory for
@@ -54,4 +57,4 @@ def command_engine_spec(entry: Mapping[str, Any], key: str, suite_path: str,
                                  entry.get("capabilities", ()), where=key)
     except command.SpecError as exc:
         raise error(f"{key}.{exc.field}", exc.reason) from None
-    return command.register(spec), dict(options)
+    return command.CommandEngine(spec), dict(options)

@@ -25,7 +25,7 @@ A suite file (see ``suites/default.toml`` for a commented example)::
     [tolerances]                   # per-metric tolerances, for the gate
     position_error_linf = 0.1
 
-    [gate]                         # `xval gate` overrides (compare/gate/tolerance.py)
+    [gate]                         # `xval gate` overrides (compare/suite/tolerance.py)
     timing_factor = 1.5
     energy_drift = { rtol = 0.2, atol = 1e-9 }
 
@@ -76,7 +76,7 @@ from compare.results.consistency import DEFAULT_TOLERANCE
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.gate.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
@@ -386,9 +386,9 @@ class _Reader:
             self.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
             self.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
         )
-        # [tolerances] ends up in ``gate``; checked here first for its own messages (positive numbers, line numbers).
-        for key, value in self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC)).items():
-            self.number(f"tolerances.{key}", value)
+        # [tolerances] ends up in ``gate``: its keys checked here (with line numbers), its values by gate_settings,
+        # by the same rule as [gate]'s (a number >= 0; 0 asks for no change at all).
+        self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC))
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)

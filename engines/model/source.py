@@ -55,8 +55,9 @@ class ModelSource:
                 note += ", …)" if len(missing) > 3 else ")"
             notes.append(note)
         if dropped["mimic"]:
-            notes.append(f"{dropped['mimic']} <mimic> elements removed: each mimic joint is an independent "
-                         f"coordinate here (the tree's M, bias and accelerations, no coupling constraint)")
+            count = dropped["mimic"]
+            notes.append(f"{count} <mimic> element{'s' if count > 1 else ''} removed: each mimic joint is an "
+                         f"independent coordinate here (the tree's M, bias and accelerations, no coupling constraint)")
         return ET.tostring(root, encoding="unicode"), tuple(notes)
 
     def _missing_meshes(self, element: ET.Element) -> set[str]:

@@ -142,6 +142,9 @@ class DrakeStepper:
             self.time += self.dt
         self.simulator.AdvanceTo(self.time)
 
+    def steps_taken(self) -> int:
+        return int(self.integrator.get_num_steps_taken())
+
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         x = self.plant.GetPositionsAndVelocities(self.context)
         return x[self.qpos].copy(), x[self.nq:][self.dof].copy()
@@ -202,4 +205,10 @@ def stepper(engine: str, scene: Any, dt: float, settings: dict[str, Any]) -> Any
         return DrakeStepper(scene, dt, settings["scheme"], not settings["error_control"], settings["accuracy"])
     if engine == "pybullet":
         return PyBulletStepper(scene, dt)
+    if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/ours_model.py)
+        from engines.ours_model import OursStepper
+
+        return OursStepper(scene, dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
+                           k_d=settings["k_d"], tolerance=settings["tolerance"],
+                           max_iterations=settings["max_iterations"])
     raise ValueError(f"no model stepper for engine {engine!r}")

@@ -51,7 +51,9 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     if finite.any():
         good = np.flatnonzero(finite)
         positions[good], velocities[good] = scene.frame_states(q[good], v[good])
-    raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings)
+    # An error-controlled integrator takes steps of its own choosing: the stepper counts them.
+    taken = stepper.steps_taken() if hasattr(stepper, "steps_taken") else None
+    raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings, steps=taken)
     return replace(raw, joint_states=states)
 
 

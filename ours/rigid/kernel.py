@@ -208,6 +208,30 @@ def _coupling(i, p, nb, JA, JB, r, c):
     return JA[i - nb, r, c]
 
 
+@inlined
+def _eliminate(D, X, H, JA, JB, nb, i, p, di, dp):
+    """Factor node i's reduced block (negated first for a joint) and, below a parent p (dp > 0), fold
+    it into the parent's: X[i] = (D_i⁻¹ H_{i,p})ᵀ, D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}. False if not definite."""
+    sign = 1.0 if i < nb else -1.0
+    if sign < 0.0:
+        for r in range(di):
+            for c in range(di):
+                D[i, r, c] = -D[i, r, c]
+    if not _cholesky(D, i, di):
+        return False
+    for c in range(dp):  # row c of X[i] = D_i⁻¹ (column c of H_{i,p})
+        for r in range(di):
+            X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
+        _chol_solve(D, i, di, X, i, c, sign)
+    for r in range(dp):  # lower triangle only (the Cholesky reads no more)
+        for c in range(r + 1):
+            s = 0.0
+            for m in range(di):
+                s += H[r, m] * X[i, c, m]
+            D[p, r, c] -= s
+    return True
+
+
 @compiled
 def tree_factor(y, model, work):
     """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
@@ -231,28 +255,18 @@ def tree_factor(y, model, work):
                 D[b, 3 + r, 3 + c] = s
     for idx in range(nn):
         i = order[idx]
-        di = 6 if i < nb else rows[i - nb]
-        sign = 1.0 if i < nb else -1.0
-        if sign < 0.0:
-            for r in range(di):
-                for c in range(di):
-                    D[i, r, c] = -D[i, r, c]
-        if not _cholesky(D, i, di):
-            return False
         p = up[i]
-        if p < 0:
-            continue
-        dp = 6 if p < nb else rows[p - nb]
-        for c in range(dp):  # X[i] = (D_i⁻¹ H_{i,p})ᵀ, row c = D_i⁻¹ (column c of H_{i,p})
-            for r in range(di):
-                X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
-            _chol_solve(D, i, di, X, i, c, sign)
-        for r in range(dp):  # D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}, lower triangle only (Cholesky reads no more)
-            for c in range(r + 1):
-                s = 0.0
-                for m in range(di):
-                    s += H[r, m] * X[i, c, m]
-                D[p, r, c] -= s
+        di = 6 if i < nb else rows[i - nb]
+        dp = 0 if p < 0 else (6 if p < nb else rows[p - nb])
+        # the common pairs with their sizes as constants, so that the compiler unrolls the small loops
+        if di == 6 and dp == 5:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 6, 5)
+        elif di == 5 and dp == 6:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 5, 6)
+        else:
+            ok = _eliminate(D, X, H, JA, JB, nb, i, p, di, dp)
+        if not ok:
+            return False
     return True
 
 
@@ -271,7 +285,13 @@ def tree_solve(model, work, x):
                 s += X[i, r, m] * x[i, 0, m]
             x[p, 0, r] -= s
     for i in range(nn):
-        _chol_solve(D, i, dims[i], x, i, 0, 1.0 if i < nb else -1.0)
+        sign = 1.0 if i < nb else -1.0
+        if dims[i] == 6:  # constant sizes: unrolled
+            _chol_solve(D, i, 6, x, i, 0, sign)
+        elif dims[i] == 5:
+            _chol_solve(D, i, 5, x, i, 0, sign)
+        else:
+            _chol_solve(D, i, dims[i], x, i, 0, sign)
     for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
         i = order[idx]
         p = up[i]
@@ -374,45 +394,52 @@ def _constraint_norm(model, work):
 
 @compiled
 def _correction(y, model, work, velocity):
-    """work[7] ← the bodies' corrections −W Jᵀ (J W Jᵀ)⁻¹ e with e = C (positions) or J u (velocity):
-    the tree system with no force and −e on the joints. Rows must be current; False if singular."""
+    """work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body with e = C (positions) or J u (velocity), through the
+    factor in work (the tree system with no force and −e on the joints); returns max |e|."""
     nb, rows, C, JA, JB, sol = model[0].shape[0], model[11], work[1], work[2], work[3], work[7]
-    if not tree_factor(y, model, work):
-        return False
     for b in range(nb):
         for r in range(6):
             sol[b, 0, r] = 0.0
+    worst = 0.0
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
-            sol[nb + k, 0, r] = -(_row_rate(y, model, JA, JB, k, r) if velocity else C[k, r])
+            e = _row_rate(y, model, JA, JB, k, r) if velocity else C[k, r]
+            worst = max(worst, abs(e))
+            sol[nb + k, 0, r] = -e
     tree_solve(model, work, sol)
-    return True
+    return worst
 
 
 @compiled
 def project(y, model, work, tolerance, max_iterations):
-    """Newton on C(q) = 0 in the mass metric (Δ = −W Jᵀ (J W Jᵀ)⁻¹ C, rotations by the exponential map,
-    quaternions renormalised), then u ← u − W Jᵀ (J W Jᵀ)⁻¹ J u. Returns a status code."""
+    """Positions onto C(q) = 0, then velocities onto J u = 0, both in the mass metric: Δ = −W Jᵀ (J W Jᵀ)⁻¹ e
+    (e = C, rotations by the exponential map and quaternions renormalised; then e = J u), repeated until
+    max |e| ≤ tolerance. J W Jᵀ is factored once, at the state the step arrived at (a chord method, as SHAKE
+    does): the iterations cost a right-hand side and a solve each. Returns a status code."""
     nb, R, sol = model[0].shape[0], work[0], work[7]
-    for it in range(max_iterations + 1):
-        rotations(y, nb, R)
-        joint_rows(y, model, R, work[1], work[2], work[3], work[4])
-        if _constraint_norm(model, work) <= tolerance:
-            break
-        if it == max_iterations:
-            return NOT_CONVERGED
-        if not _correction(y, model, work, False):
-            return SINGULAR
-        for b in range(nb):
-            o = 13 * b
-            for r in range(3):
-                y[o + r] += sol[b, 0, r]
-            _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
-    if not _correction(y, model, work, True):
+    rotations(y, nb, R)
+    joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+    if not tree_factor(y, model, work):
         return SINGULAR
-    for b in range(nb):
-        for r in range(6):
-            y[13 * b + 7 + r] += sol[b, 0, r]
+    for velocity in (False, True):
+        for it in range(max_iterations + 1):
+            if it > 0 and not velocity:
+                rotations(y, nb, R)
+                joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+            worst = _correction(y, model, work, velocity)
+            if worst <= tolerance:
+                break
+            if it == max_iterations:
+                return NOT_CONVERGED
+            for b in range(nb):
+                o = 13 * b
+                if velocity:
+                    for r in range(6):
+                        y[o + 7 + r] += sol[b, 0, r]
+                else:
+                    for r in range(3):
+                        y[o + r] += sol[b, 0, r]
+                    _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
     return OK
 
 

@@ -1,0 +1,121 @@
+"""A suite run twice on one fresh cache directory: what a kept cache saves (the figures docs/engines.md quotes).
+
+    .venv/bin/python scripts/peers_cache_timing.py [suites/peers.toml] [--jobs 2] [--cache DIR] [--reduced]
+
+Runs ``xval run SUITE --jobs N`` twice with ``XVAL_CACHE_DIR`` set to one new,
+empty directory (or ``--cache``, emptied first): the first run compiles and
+solves everything (MJX's stepping loops into ``<cache>/jax``, ours' kernels,
+the references), the second finds them kept. For each run it prints the wall
+time, the CPU time of the process tree, and the MJX cases' summed
+``jit_compile_time`` (seconds spent compiling or loading a compiled loop from
+the cache) and how many MJX cases compiled more than 0.5 s, with the load
+average before and after.
+
+``--reduced`` runs a smaller copy of the suite instead (written to the
+cache's parent folder and printed): without its ``chain-32`` scene, and with
+time steps from 1e-2 to 1e-3 s (two per decade) and tolerances from 1e-4 to
+1e-8: every MJX model structure, precision and integrator of the full suite
+is still compiled, in a fraction of its stepping.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _mjx_compiles(output: Path) -> tuple[float, int, int]:
+    """(summed jit_compile_time s, MJX cases, cases over 0.5 s) from a run's case records."""
+    total, cases, slow = 0.0, 0, 0
+    for path in output.rglob("*.json"):
+        text = path.read_text(encoding="utf-8", errors="replace")
+        if "jit_compile_time" not in text:
+            continue
+        seconds = _find(json.loads(text), "jit_compile_time")
+        if seconds is None:
+            continue
+        total, cases, slow = total + seconds, cases + 1, slow + (seconds > 0.5)
+    return total, cases, slow
+
+
+def _find(value, key):
+    if isinstance(value, dict):
+        if key in value and isinstance(value[key], (int, float)):
+            return float(value[key])
+        value = list(value.values())
+    if isinstance(value, list):
+        for item in value:
+            found = _find(item, key)
+            if found is not None:
+                return found
+    return None
+
+
+def _reduced(suite: Path, target: Path) -> Path:
+    """``suite`` without its chain-32 scene, dt 1e-2..1e-3 and tolerances 1e-4..1e-8, written to ``target``."""
+    text = suite.read_text(encoding="utf-8")
+    chain = text.index('[[scenes]]\nid = "chain-32"')
+    text = text[:chain] + text[text.index("[[engines]]", chain):]
+    text = re.sub(r"^dt = .*$", "dt = { from = 1e-2, to = 1e-3, per_decade = 2 }", text, count=1, flags=re.M)
+    text = re.sub(r"^tolerance = .*$", "tolerance = { from = 1e-4, to = 1e-8, per_decade = 1 }", text, count=1,
+                  flags=re.M)
+    target.write_text(text, encoding="utf-8")
+    return target
+
+
+def _load() -> str:
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("suite", nargs="?", default=str(ROOT / "suites" / "peers.toml"))
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--cache", type=Path, default=None, help="cache directory (emptied first)")
+    parser.add_argument("--reduced", action="store_true", help="a smaller copy of the suite (see above)")
+    args = parser.parse_args()
+    cache = args.cache or Path(tempfile.mkdtemp(prefix="xval-cache-timing-")) / "cache"
+    shutil.rmtree(cache, ignore_errors=True)
+    cache.mkdir(parents=True)
+    if args.reduced:
+        args.suite = str(_reduced(Path(args.suite), cache.parent / "reduced.toml"))
+    env = {**os.environ, "XVAL_CACHE_DIR": str(cache)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    env.pop("JAX_COMPILATION_CACHE_DIR", None)
+    xval = Path(sys.executable).with_name("xval")
+    print(f"suite {args.suite}, --jobs {args.jobs}, cache {cache} (empty before run 1), {os.cpu_count()} cores")
+    walls = []
+    with tempfile.TemporaryDirectory() as out:
+        for run in (1, 2):
+            output = Path(out) / f"run{run}"
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            load = _load()
+            start = time.perf_counter()
+            done = subprocess.run([str(xval), "run", args.suite, "--jobs", str(args.jobs), "--output", str(output)],
+                                  env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            wall = time.perf_counter() - start
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            lines = [line for line in done.stdout.splitlines() if line.strip()]
+            compile_s, cases, slow = _mjx_compiles(output)
+            walls.append(wall)
+            print(f"run {run}: exit {done.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s; MJX cases {cases}, "
+                  f"jit_compile_time summed {compile_s:.1f} s, {slow} over 0.5 s; "
+                  f"load before {load}, after {_load()}")
+            print(f"  its last line: {lines[-1] if lines else '(nothing printed)'}")
+    print(f"second run / first run, wall: {walls[1] / walls[0]:.2f} (first {walls[0] / walls[1]:.2f}x slower)")
+
+
+if __name__ == "__main__":
+    main()
