@@ -129,7 +129,7 @@ class OursEngine(Engine):
                 rigid_pair(settings["method"], settings["integrator"])
             except ours.OursError as exc:
                 raise Unsupported(f"ours: {exc}") from None
-            scene.refuse_kept_dynamics(self.name)
+            scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
             return
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])
@@ -179,7 +179,7 @@ class OursEngine(Engine):
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         if getattr(scene, "is_model", False):  # a model file: its own loop (engines/model/stepping.py)
-            return scene.run_in(self.name, schedule, settings)
+            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(
