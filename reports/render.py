@@ -97,7 +97,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "plots": scene_plots(scene, number, palette, ceilings),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
-            "parity": parity_view(data.path, scene.scene_id) if scene.scene.get("kind") == "model" else None,
+            "parity": parity_view(data.path, scene.scene_id, scene.scene) if scene.scene.get("kind") == "model" else None,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
     packs: dict[str, Markup] = {}

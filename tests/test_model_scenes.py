@@ -7,6 +7,7 @@ pin 4.1.0 (``.venv/bin/python -m pytest tests/test_model_scenes.py -q -p no:xdis
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from pathlib import Path
@@ -289,3 +290,23 @@ def test_ours_steps_a_model_in_maximal_coordinates_as_mujoco_does_in_joint_coord
         assert np.abs(runs[eid].joint_states - runs["mujoco/hinge-rk4"].joint_states).max() < 1e-9
         assert np.abs(runs[eid].positions - runs["mujoco/hinge-rk4"].positions).max() < 1e-9
     assert runs["ours/projection-rk4"].info.settings["method"] == "projection"
+
+
+def test_report_runs_the_parity_check_itself_when_the_run_has_none(tmp_path, capsys):
+    # No model_check/ JSON in the run: `xval report` checks the scene's file itself, writes the JSON beside the
+    # cases (so the next report reads it) and shows the table, PyBullet flagged for the 1 kg it gives the link.
+    model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.1\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
+                     f'[[engines]]\nid = "mujoco/hinge"\n')
+    out = tmp_path / "run"
+    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
+    assert code == 0, err
+    code, _, err = run_cli(capsys, "report", out)
+    assert code == 0, err
+    written = json.loads((out / "model_check" / "bare.json").read_text())
+    assert {e["engine"]: e["agrees"] for e in written["engines"]}["pybullet"] is False
+    page = (out / "report.html").read_text()
+    assert "Dynamics parity of the import (model_check/bare.json)" in page and "No parity table" not in page
+    row = page.split("<tr><td>pybullet ")[1].split("</tr>")[0]
+    assert row.count("parity-far") == 3 and "pybullet gives it 1 kg" in row
