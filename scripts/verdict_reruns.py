@@ -29,15 +29,22 @@ def main(directories: list[str]) -> None:
         rows = []
         for directory, doc in zip(directories, documents):
             c = doc["scenes"][k]["comparison"]
+            if c is None:  # no second family on this scene to compare with
+                rows.append((set(), set(), None, None))
+                print(f"  {Path(directory).name}: no comparison")
+                continue
             low, high = c["ratio_interval"] or (None, None)
             winners = {c["focus"], *c["focus_ties"]}
             others = {c["other"], *c["other_ties"]}
             rows.append((winners, others, low, high))
+            # No ratio when one side never reaches the accuracy (a plateau, or no ok points).
+            ratio = "none" if c["ratio"] is None else f"{c['ratio']:.3g} [{low:.3g}, {high:.3g}]"
             print(f"  {Path(directory).name}: {c['focus']} (ties: {', '.join(c['focus_ties']) or 'none'}) vs "
-                  f"{c['other']} (ties: {', '.join(c['other_ties']) or 'none'}); ratio {c['ratio']:.3g} "
-                  f"[{low:.3g}, {high:.3g}]{' tie' if c['tie'] else ''}")
+                  f"{c['other']} (ties: {', '.join(c['other_ties']) or 'none'}); ratio {ratio}"
+                  f"{' tie' if c['tie'] else ''}")
         shared = set.intersection(*(w for w, _, _, _ in rows))
-        overlap = all(a[2] <= b[3] and b[2] <= a[3] for a in rows for b in rows)
+        bounded = [r for r in rows if r[2] is not None]
+        overlap = all(a[2] <= b[3] and b[2] <= a[3] for a in bounded for b in bounded)
         print(f"  winner named in every run: {', '.join(sorted(shared)) or 'none'}; "
               f"other side the same: {len({frozenset(o) for _, o, _, _ in rows}) == 1}; ratio intervals overlap: {overlap}")
 
