@@ -154,3 +154,18 @@ def test_a_suite_carries_its_gate_table_and_a_mistake_names_the_line():
     assert suite.gate.timing_factor == 3.0
     with pytest.raises(UserError, match=r"^s\.toml:8: gate\.timing_factor: must be a number > 1"):
         parse_suite(SUITE + "[gate]\ntiming_factor = 0\n", "s.toml")
+
+
+def test_a_side_without_a_reference_has_its_null_divergence_time_unmeasured_not_infinite():
+    # A reference that timed out leaves the position metrics null, divergence_time with them: that null
+    # is "not measured", not "never diverged", so no divergence-time change is made of it either way.
+    case = {"scene_id": "bead", "engine": "mujoco/hinge", "dt": 0.01, "status": "ok", "message": "no reference"}
+    measured = {**case, "metrics": {"position_error_linf": 1e-3, "divergence_time": 0.5}}
+    unmeasured = {**case, "metrics": {"position_error_linf": None, "divergence_time": None}}
+    for base, current in ((measured, unmeasured), (unmeasured, measured)):
+        result = compare_case(base, current, SETTINGS, timing_gated=True, why_not="")
+        assert "divergence_time" not in {c.metric for c in result.changes}
+    assert compare_case(measured, unmeasured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"
+    # With a reference on both sides a null divergence time still means never diverged.
+    never = {**case, "metrics": {"position_error_linf": 1e-3, "divergence_time": None}}
+    assert compare_case(never, measured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"

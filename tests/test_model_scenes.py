@@ -256,16 +256,22 @@ def test_file_damping_is_set_to_0_unless_kept(tmp_path):
         model_scene("df", damped_copy(tmp_path, '<dynamics damping="0.3" friction="0.1"/>'), file_dynamics="keep")
 
 
-def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
-    # A run of the no-<inertial> pitfall and its `xval model check` JSON in DIR/model_check/: the report's
-    # parity table colours PyBullet's and DART's differences (1 kg given to the link) "far", MuJoCo's "agree".
+def _run_no_inertial(tmp_path, capsys, duration: float, q0: str = "") -> tuple[str, Path]:
+    """`xval run` of the no-<inertial> pitfall as scene "bare" on mujoco/hinge; its model path and run dir."""
     model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
     suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = 0.2\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
-                     f'q0 = {{ shoulder = 20 }}\n[[engines]]\nid = "mujoco/hinge"\n')
+    suite.write_text(f'duration = {duration}\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
+                     f'{q0}[[engines]]\nid = "mujoco/hinge"\n')
     out = tmp_path / "run"
     code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
     assert code == 0, err
+    return model, out
+
+
+def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
+    # A run of the no-<inertial> pitfall and its `xval model check` JSON in DIR/model_check/: the report's
+    # parity table colours PyBullet's and DART's differences (1 kg given to the link) "far", MuJoCo's "agree".
+    model, out = _run_no_inertial(tmp_path, capsys, duration=0.2, q0="q0 = { shoulder = 20 }\n")
     code, check, err = run_cli(capsys, "model", "check", model, "--format", "json", "--states", "5")
     assert code == 1, err  # PyBullet and DART disagree
     (out / "model_check").mkdir()
@@ -295,13 +301,7 @@ def test_ours_steps_a_model_in_maximal_coordinates_as_mujoco_does_in_joint_coord
 def test_report_runs_the_parity_check_itself_when_the_run_has_none(tmp_path, capsys):
     # No model_check/ JSON in the run: `xval report` checks the scene's file itself, writes the JSON beside the
     # cases (so the next report reads it) and shows the table, PyBullet flagged for the 1 kg it gives the link.
-    model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
-    suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = 0.1\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
-                     f'[[engines]]\nid = "mujoco/hinge"\n')
-    out = tmp_path / "run"
-    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
-    assert code == 0, err
+    model, out = _run_no_inertial(tmp_path, capsys, duration=0.1)
     code, _, err = run_cli(capsys, "report", out)
     assert code == 0, err
     written = json.loads((out / "model_check" / "bare.json").read_text())
