@@ -7,6 +7,7 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.metadata
 import importlib.util
 import io
@@ -17,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ours.cache import cache_dir
+from ours.files import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
@@ -42,9 +43,9 @@ MAX_DEPTH = 8
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
 _compiled: dict[tuple, Any] = {}
 _last_trace_x64: list[bool] = []
-_cache_configured: list[bool] = []
 
 
+@functools.cache
 def _jax():
     """(jax, mjx), imported on first use: `xval engines` lists this engine without paying for JAX's import."""
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
@@ -58,15 +59,13 @@ def _jax():
 
 
 def _persistent_cache(jax) -> None:
-    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.cache``),
+    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.files``),
     so a later process loads a stepping loop instead of compiling it again (3.7-11.9 s of CPU each).
 
     Every compile is kept, however quick (JAX's default keeps only those over 1 s). An explicit
-    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Set once per process, before the first compile.
+    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Called by :func:`_jax`, once per process, before
+    the first compile.
     """
-    if _cache_configured:
-        return
-    _cache_configured.append(True)
     if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
         jax.config.update("jax_compilation_cache_dir", str(cache_dir() / "jax"))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)

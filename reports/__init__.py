@@ -11,7 +11,7 @@
 - :mod:`reports.decimate`: largest-triangle-three-buckets, at most 2,000 points a trace.
 - :mod:`reports.stability`: the stability search and gain-map sections.
 - :mod:`reports.render`: the Jinja2 page (``templates/report.html.j2``); plotly.js and the figure data
-  packed (gzip, base64) and unpacked by the browser when a section is opened.
+  packed (gzip as 7-bit text, reports/pack.py) and unpacked by the browser when a section is opened.
 - :mod:`reports.cli`: the ``report`` verb, added to ``xval`` through the ``xval.commands`` entry point.
 
 Imports go one way: reports uses compare and engines; nothing imports reports.

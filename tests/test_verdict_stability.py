@@ -115,3 +115,20 @@ def test_docs_report_quotes_what_scripts_verdict_example_prints():
     quoted = [line.strip() for line in printed.splitlines() if line.strip()]
     missing = [line for line in quoted if line not in docs]
     assert missing == [], "docs/report.md does not quote these lines of scripts/verdict_example.py"
+
+
+def test_the_cost_model_separates_the_per_run_overhead_and_ignores_a_slowed_case():
+    # T = a + c·n exactly, the longest case slowed 52×: Theil–Sen gives c itself (6 of the 10 pairwise slopes
+    # are c); a median or mean of T/n would carry a/n or the slowed case and miss c by orders of magnitude.
+    from compare.results.cost import fit
+
+    overhead, per_step = 0.05, 1e-6
+    rows = [{"scene": "bead", "engine": "ours/x", "dt": dt, "error": dt, "steps": round(2.0 / dt), "length": 1.0,
+             "reference_error": 0.0} for dt in (1e-2, 5e-3, 2e-3, 1e-3, 5e-4)]
+    records = [record(row, [(overhead + per_step * row["steps"]) * (52 if row["dt"] == 5e-4 else 1)])
+               for row in rows]
+    model = fit("ours/x", records)
+    assert model is not None and model.how == "fit"
+    assert model.per_step == pytest.approx(per_step, rel=1e-6)
+    assert model.overhead == pytest.approx(overhead, rel=1e-6)
+    assert model.low <= per_step <= model.high

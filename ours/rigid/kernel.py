@@ -270,6 +270,16 @@ def tree_factor(y, model, work):
     return True
 
 
+@inlined
+def _subtract_coupling(X, i, x, dst, src, n_dst, n_src, transpose):
+    """x[dst] −= L x[src] with L = X[i] (n_dst, n_src), or Xᵢᵀ when ``transpose``: one sweep of the tree solve."""
+    for r in range(n_dst):
+        s = 0.0
+        for m in range(n_src):
+            s += (X[i, m, r] if transpose else X[i, r, m]) * x[src, 0, m]
+        x[dst, 0, r] -= s
+
+
 @compiled
 def tree_solve(model, work, x):
     """Solve the factored system in place: x (nodes, 1, 6) holds the right side on entry."""
@@ -279,11 +289,8 @@ def tree_solve(model, work, x):
     for idx in range(nn):  # forward: y_p −= L_{p,i} y_i, children first
         i = order[idx]
         p = up[i]
-        for r in range(dims[p] if p >= 0 else 0):
-            s = 0.0
-            for m in range(dims[i]):
-                s += X[i, r, m] * x[i, 0, m]
-            x[p, 0, r] -= s
+        if p >= 0:
+            _subtract_coupling(X, i, x, p, i, dims[p], dims[i], False)
     for i in range(nn):
         sign = 1.0 if i < nb else -1.0
         if dims[i] == 6:  # constant sizes: unrolled
@@ -295,11 +302,8 @@ def tree_solve(model, work, x):
     for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
         i = order[idx]
         p = up[i]
-        for r in range(dims[i] if p >= 0 else 0):
-            s = 0.0
-            for m in range(dims[p]):
-                s += X[i, m, r] * x[p, 0, m]
-            x[i, 0, r] -= s
+        if p >= 0:
+            _subtract_coupling(X, i, x, i, p, dims[i], dims[p], True)
 
 
 # --- dynamics --------------------------------------------------------------------------------
