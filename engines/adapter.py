@@ -38,7 +38,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene import Scene
+from engines.scene import Ellipse, Scene
 from engines.trajectory import RunInfo, Trajectory
 
 #: Default interval between stored samples, s.
@@ -170,6 +170,13 @@ class Schedule:
 
 
 @functools.lru_cache(maxsize=256)
+def refuse_ellipse(scene: Scene, why: str) -> None:
+    """Raise Unsupported for the first Ellipse of ``scene``: ``why`` (the engine's reason), then its index."""
+    for k, c in enumerate(scene.constraints):
+        if isinstance(c, Ellipse):
+            raise Unsupported(f"{why}; constraints[{k}] is an 'ellipse'")
+
+
 def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
     """(N,) s: ``Schedule.make(duration, dt, sample_interval).times``, read-only and built once: every
     engine of a scene and dt is sampled there, and the reference's kept samples are keyed by these

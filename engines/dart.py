@@ -22,11 +22,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported
 from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene import Line, Pin, Rod, Scene
 from engines.tree import Tree, read_tree
 
 # dartpy itself (0.6 s to import) is imported where a skeleton is built, and by preload before a run forks.
@@ -106,12 +106,8 @@ class DartEngine(Engine):
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         if getattr(scene, "is_model", False):
             return  # a model's joints are 1-degree-of-freedom (engines.model): both variants step them
-        for k, c in enumerate(scene.constraints):
-            if isinstance(c, Ellipse):
-                raise Unsupported(
-                    f"dart: no DART joint moves a point on an ellipse (a revolute joint moves it on a circle, a "
-                    f"prismatic joint on a line); constraints[{k}] is an 'ellipse'"
-                )
+        refuse_ellipse(scene, "dart: no DART joint moves a point on an ellipse (a revolute joint moves it on "
+                              "a circle, a prismatic joint on a line)")
         refuse_constraint_kinds(scene, (Pin, Rod, Line), "dart")
         tree = read_tree(scene)
         if tree.loose:

@@ -28,7 +28,7 @@ finally:
         del os.environ["MUJOCO_GL"]
 import numpy as np  # noqa: E402 (after the guarded import above)
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
 from engines.scene import Ellipse, Line, Pin, Scene
@@ -79,9 +79,7 @@ _WARNINGS = {
 def constraint_tree(scene: Scene) -> Tree:
     """The scene's tree of joints (:func:`engines.tree.read_tree`), or Unsupported for what the hinge
     formulation cannot build: an Ellipse, a particle not hung from a Pin or Line, a loop through a Line."""
-    for k, c in enumerate(scene.constraints):
-        if isinstance(c, Ellipse):
-            raise Unsupported(_NO_ELLIPSE.format(k=k))
+    refuse_ellipse(scene, _NO_ELLIPSE)
     tree = read_tree(scene)
     if tree.loose:
         raise Unsupported(
@@ -99,7 +97,7 @@ def constraint_tree(scene: Scene) -> Tree:
 
 _NO_ELLIPSE = (
     "MuJoCo cannot hold a body on an ellipse: its joints move a point on a circle (hinge) or a line "
-    "(slide), and no equality constraint holds one on a curve; constraints[{k}] is an 'ellipse'"
+    "(slide), and no equality constraint holds one on a curve"
 )
 
 
@@ -131,7 +129,7 @@ def arm_owners(scene: Scene) -> list[int]:
     """
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
-            raise Unsupported(_NO_ELLIPSE.format(k=k))
+            raise Unsupported(f"{_NO_ELLIPSE}; constraints[{k}] is an 'ellipse'")
         if isinstance(c, Line):
             raise Unsupported(
                 f"mujoco/connect: MuJoCo has no equality constraint that holds a point on a line "

@@ -17,10 +17,10 @@ from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Scene
+from engines.scene import Line, Pin, Scene
 from engines.tree import ROOT, read_tree
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
@@ -174,12 +174,8 @@ def grow(scene: Scene) -> tuple[list[Link], list[tuple[int, str]]]:
     Raises Unsupported for an Ellipse, for a Line that would close a loop, and
     for particles not tied to any Pin or Line.
     """
-    for k, c in enumerate(scene.constraints):
-        if isinstance(c, Ellipse):
-            raise Unsupported(
-                "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute joints move "
-                f"a point on a circle, prismatic ones on a line); constraints[{k}] is an 'ellipse'"
-            )
+    refuse_ellipse(scene, "pybullet: no joint or constraint of PyBullet holds a body on an ellipse (revolute "
+                          "joints move a point on a circle, prismatic ones on a line)")
     tree = read_tree(scene)
     closures: list[tuple[int, str]] = []
     for k in tree.found:

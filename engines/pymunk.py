@@ -12,11 +12,11 @@ from typing import Any, Mapping
 import numpy as np
 import pymunk
 
-from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.errors import Unsupported, UserError
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.errors import UserError
 from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene import Line, Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
 _PROBE_SPACE = pymunk.Space()
@@ -78,12 +78,8 @@ class PymunkEngine(Engine):
         return f"{pymunk.version} (Munk2D {pymunk.chipmunk_version.split('-')[0]})"
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        for k, c in enumerate(scene.constraints):
-            if isinstance(c, Ellipse):
-                raise Unsupported(
-                    f"pymunk has no joint that holds a body on an ellipse (only circles, via PinJoint, and "
-                    f"straight segments, via GrooveJoint); constraints[{k}] is an 'ellipse'"
-                )
+        refuse_ellipse(scene, "pymunk has no joint that holds a body on an ellipse (only circles, via PinJoint, "
+                              "and straight segments, via GrooveJoint)")
         refuse_constraint_kinds(scene, (Pin, Rod, Line), "pymunk")
         _check_settings(settings)
 

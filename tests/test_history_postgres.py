@@ -11,7 +11,6 @@ installed; .ci/run installs both.
 
 from __future__ import annotations
 
-import glob
 import json
 import multiprocessing
 import os
@@ -28,18 +27,8 @@ from compare.gate.baseline import build_baseline
 from compare.history.store import AlreadyRecorded, History, HistoryError
 from compare.history.window import window_baseline
 
+from ci_mode import postgres_binaries
 from history_support import ENGINE, add_in_process, ERRORS, add, real_run, synthetic, xval
-
-
-def server_binaries() -> Path | None:
-    """The directory holding initdb and pg_ctl: on PATH, or Debian's /usr/lib/postgresql/<version>/bin."""
-    found = shutil.which("initdb")
-    if found and shutil.which("pg_ctl"):
-        return Path(found).resolve().parent
-    for candidate in sorted(glob.glob("/usr/lib/postgresql/*/bin"), reverse=True):
-        if Path(candidate, "initdb").exists() and Path(candidate, "pg_ctl").exists():
-            return Path(candidate)
-    return None
 
 
 def free_port() -> int:
@@ -53,7 +42,7 @@ def server():
     """A running PostgreSQL server: yields its URL (database ``postgres``, user ``xval``); stopped and removed after."""
     pytest.importorskip("sqlalchemy", reason="the postgres extra is not installed: pip install 'xval[postgres]'")
     pytest.importorskip("psycopg", reason="the postgres extra is not installed: pip install 'xval[postgres]'")
-    binaries = server_binaries()
+    binaries = postgres_binaries()
     if binaries is None:
         pytest.skip("PostgreSQL server binaries (initdb, pg_ctl) not installed: apt-get install postgresql")
     user = None
