@@ -13,12 +13,7 @@ import math
 
 from numba import njit
 
-#: The decorator of every compiled function in ours: cached on disk, and without
-#: reference counting of arrays. With it, every call between compiled functions
-#: increfs and decrefs each array argument (atomic operations), which measured
-#: about 2x slower per step on the double pendulum. The price: compiled code must
-#: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
-#: numba's switch for this (an underscored option of numba 0.68's ``njit``).
+
 def _has_nrt_switch() -> bool:
     """Whether this numba accepts ``_nrt`` (checked on its option table: probing by compiling
     a function would cost a compilation at every import)."""
@@ -29,15 +24,31 @@ def _has_nrt_switch() -> bool:
     return hasattr(CPUTargetOptions, "_nrt")
 
 
-if _has_nrt_switch():
-    compiled = njit(cache=True, _nrt=False)
-    inlined = njit(cache=True, _nrt=False, inline="always")
-else:  # pragma: no cover - same results; the compiled code allocates nothing either way
-    compiled = njit(cache=True)
-    inlined = njit(cache=True, inline="always")
-
+#: The decorator of every compiled function in ours: cached on disk, and without
+#: reference counting of arrays. With it, every call between compiled functions
+#: increfs and decrefs each array argument (atomic operations), which measured
+#: about 2x slower per step on the double pendulum. The price: compiled code must
+#: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
+#: numba's switch for this (an underscored option of numba 0.68's ``njit``).
+_OPTIONS = {"cache": True, "_nrt": False} if _has_nrt_switch() else {"cache": True}
+compiled = njit(**_OPTIONS)
 #: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
 #: per-constraint functions called inside the step, where a call would copy every array argument).
+inlined = njit(**_OPTIONS, inline="always")
+
+
+def inlined_into(*callers: str):
+    """``compiled``, but numba pastes the function's body into calls made (directly, or through a body
+    it pasted) by the functions named in ``callers``, and calls it elsewhere.
+
+    For a function the step calls many times and the rest of the kernel rarely: every paste is typed
+    again, which costs compile time, so only the hot callers get one."""
+
+    def in_a_hot_caller(expr, caller, callee) -> bool:  # numba's inlining cost model (untyped IR)
+        return caller.func_id.func_name in callers
+
+    in_a_hot_caller.__qualname__ = f"inlined_into{callers}"
+    return njit(**_OPTIONS, inline=in_a_hot_caller)
 
 
 @compiled
