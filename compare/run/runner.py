@@ -563,7 +563,7 @@ def scene_fields(scene: Scene) -> dict[str, Any]:
     }
 
 
-def case_key(case: Case) -> CaseKey:
+def key_of(case: Case) -> CaseKey:
     """The record's key of ``case`` (JSON-ready options)."""
     return CaseKey(
         id=case.id, scene_id=case.scene.id, scene_name=case.scene.name, engine=case.engine.label,
@@ -584,7 +584,7 @@ def build_record(
     scene_part : ``scene_fields(case.scene.scene)``, kept by the caller for every case of the scene
     (shared, not copied).
     """
-    record = CaseRecord(case=case_key(case), status=Status.SKIPPED, message=skipped or "", metrics={}, run_info=None,
+    record = CaseRecord(case=key_of(case), status=Status.SKIPPED, message=skipped or "", metrics={}, run_info=None,
                         wall_times=(), elapsed=0.0, series=None, reference=None, finished=now(), **scene_part)
     if outcome is None:
         return record
