@@ -7,7 +7,7 @@ import pytest
 
 from compare.gate.gate import best_spread, calibrated, cpu_timing_change, timing_change
 from compare.run.isolation import CaseTask, calibration_cpu_time, simulate
-from engines import catalog
+from engines.scene import catalog
 
 
 def timing(cpu: list[float], calibration: list[float]) -> dict:

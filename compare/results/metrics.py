@@ -21,8 +21,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from engines.scene import Scene
-from engines.trajectory import Trajectory, max_constraint_error, total_energy, trajectory_energy
+from engines.scene.scene import Scene
+from engines.scene.trajectory import Trajectory, max_constraint_error, total_energy, trajectory_energy
 
 #: Default divergence threshold δ: e(t) > δ·L counts as diverged.
 DEFAULT_DELTA = 1e-2
