@@ -756,6 +756,7 @@ def _truncate(trajectory, n: int):
     """The first n samples of ``trajectory``."""
     forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
     joints = None if trajectory.joint_states is None else trajectory.joint_states[:n]
+    violation = None if trajectory.constraint_violation is None else trajectory.constraint_violation[:n]
     return replace(
         trajectory,
         t=trajectory.t[:n],
@@ -763,4 +764,5 @@ def _truncate(trajectory, n: int):
         velocities=trajectory.velocities[:n],
         constraint_forces=forces,
         joint_states=joints,
+        constraint_violation=violation,
     )
