@@ -21,10 +21,10 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 import pytest
 
-from engines import catalog
-from engines.closed_form import pendulum_period
-from engines.mujoco import ENGINE as MUJOCO
-from engines.reference import ENGINE as REFERENCE
+from engines.scene import catalog
+from engines.reference.closed_form import pendulum_period
+from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.reference.reference import ENGINE as REFERENCE
 
 HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_spec("mujoco.mjx") is not None
 pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip install 'xval[mjx]'")
@@ -33,16 +33,16 @@ G = 9.81
 
 def _call(method, *args, **kwargs):
     """ENGINE.<method>(...) in the spawned process, where JAX may be imported."""
-    from engines.mjx import ENGINE
+    from engines.adapters.mjx import ENGINE
 
     return getattr(ENGINE, method)(*args, **kwargs)
 
 
 def _forget_compiled():
     """Empty the adapter's compiled loops in the spawned process, so the next run compiles."""
-    import engines.mjx
+    import engines.adapters.mjx
 
-    engines.mjx._compiled.clear()
+    engines.adapters.mjx._compiled.clear()
 
 
 class SpawnedMJX:
@@ -138,8 +138,8 @@ _CACHED_RUN = r"""
 import json, jax
 events = []
 jax.monitoring.register_event_listener(lambda name, **kwargs: events.append(name))
-from engines import catalog
-from engines.mjx import ENGINE
+from engines.scene import catalog
+from engines.adapters.mjx import ENGINE
 run = ENGINE.simulate(catalog.build("bead", {"duration": 0.05}), 1e-2, variant="hinge")
 print(json.dumps({"status": run.info.status, "hits": events.count("/jax/compilation_cache/cache_hits"),
                   "misses": events.count("/jax/compilation_cache/cache_misses")}))

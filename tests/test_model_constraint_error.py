@@ -16,9 +16,9 @@ from compare.run.runner import _truncate, run_suite
 from compare.suite.reader import parse_suite
 from engines.adapter import Schedule
 from engines.model.scene import model_scene
-from engines.ours import OursEngine
+from engines.adapters.ours import OursEngine
 from engines.registry import resolve
-from engines.trajectory import trajectory_constraint_error
+from engines.scene.trajectory import trajectory_constraint_error
 
 ROOT = Path(__file__).resolve().parent.parent
 DOUBLE = str(ROOT / "models" / "double_pendulum.urdf")
