@@ -33,13 +33,13 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterable, Mapping
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Scene
-from engines.trajectory import RunInfo, Trajectory
+from engines.scene.scene import Ellipse, Scene
+from engines.scene.trajectory import RunInfo, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
@@ -175,6 +175,15 @@ def refuse_ellipse(scene: Scene, why: str) -> None:
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(f"{why}; constraints[{k}] is an 'ellipse'")
+
+
+def refuse_constraint_kinds(scene: Scene, kinds: Iterable[type], engine: str) -> None:
+    """Raise Unsupported naming the first constraint of ``scene`` not of one of ``kinds``."""
+    kinds = tuple(kinds)
+    for k, c in enumerate(scene.constraints):
+        if not isinstance(c, kinds):
+            names = ", ".join(getattr(t, "kind", t.__name__) for t in kinds)
+            raise Unsupported(f"{engine} models only {names} constraints; constraints[{k}] is a {c.kind!r}")
 
 
 def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
@@ -444,7 +453,7 @@ def _as_samples(name: str, field_name: str, value: Any, n_particles_or_constrain
     if array.ndim != 3 or array.shape[1:] != (n_particles_or_constraints, 3) or not 1 <= array.shape[0] <= n_max:
         raise RawRunError(
             f"{name}: RawRun.{field_name} has shape {array.shape}, expected {expected}; record one row per "
-            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.Recorder builds it)"
+            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.external.plugin.Recorder builds it)"
         )
     return array
 
@@ -465,7 +474,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """
     if not isinstance(raw, RawRun):
         raise RawRunError(f"{name}: _run returned {type(raw).__name__}, expected engines.adapter.RawRun "
-                          f"(engines.plugin.Recorder builds one)")
+                          f"(engines.external.plugin.Recorder builds one)")
     n_max, n_p, n_c = len(schedule.times), len(scene.particles), len(scene.constraints)
     positions = _as_samples(name, "positions", raw.positions, n_p, "particles", n_max)
     velocities = _as_samples(name, "velocities", raw.velocities, n_p, "particles", n_max)

@@ -16,10 +16,10 @@ import math
 import numpy as np
 import pytest
 
-from engines import catalog
-from engines.closed_form import pendulum_period
-from engines.mujoco import ENGINE as MUJOCO
-from engines.reference import ENGINE as REFERENCE
+from engines.scene import catalog
+from engines.reference.closed_form import pendulum_period
+from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.reference.reference import ENGINE as REFERENCE
 
 HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_spec("mujoco.mjx") is not None
 pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip install 'xval[mjx]'")
@@ -28,7 +28,7 @@ G = 9.81
 
 @pytest.fixture(scope="module")
 def mjx():
-    from engines.mjx import ENGINE
+    from engines.adapters.mjx import ENGINE
 
     return ENGINE
 
@@ -83,7 +83,7 @@ def test_jit_compile_time_is_recorded_apart_from_stepping(mjx, monkeypatch):
     # A dt sweep reuses the compiled loop (dt is an array in MJX's model): the second run compiles nothing.
     # The compiled loops are emptied first, so the first run compiles (an earlier test may have compiled
     # this scene's loop already).
-    import engines.mjx as adapter
+    import engines.adapters.mjx as adapter
 
     monkeypatch.setattr(adapter, "_compiled", {})
     scene = catalog.build("bead", {"duration": 0.5})
@@ -106,8 +106,8 @@ _CACHED_RUN = r"""
 import json, jax
 events = []
 jax.monitoring.register_event_listener(lambda name, **kwargs: events.append(name))
-from engines import catalog
-from engines.mjx import ENGINE
+from engines.scene import catalog
+from engines.adapters.mjx import ENGINE
 run = ENGINE.simulate(catalog.build("bead", {"duration": 0.05}), 1e-2, variant="hinge")
 print(json.dumps({"status": run.info.status, "hits": events.count("/jax/compilation_cache/cache_hits"),
                   "misses": events.count("/jax/compilation_cache/cache_misses")}))

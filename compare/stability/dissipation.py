@@ -36,8 +36,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from engines.scene import Scene
-from engines.trajectory import Trajectory, total_energy
+from engines.scene.scene import Scene
+from engines.scene.trajectory import Trajectory, total_energy
 
 #: Below this extrapolated loss rate (E* per second) an engine's damping is immaterial.
 RATE_FLOOR = 1e-6

@@ -67,10 +67,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from engines import catalog, registry
+from engines import registry
 from engines.adapter import Engine
 from engines.errors import SceneError, UserError
-from engines.scene import Scene
+from engines.scene import catalog
+from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
 from compare.results.metrics import DEFAULT_DELTA, Bounds

@@ -28,7 +28,7 @@ from typing import Mapping
 import numpy as np
 
 from engines.errors import Unsupported
-from engines.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene
 
 
 @dataclass(frozen=True)

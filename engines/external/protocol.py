@@ -28,7 +28,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from engines.scene import Scene
+from engines.scene.scene import Scene
 
 #: The protocol version this xval writes in the document's ``protocol`` field and reads back.
 PROTOCOL_VERSION = 1

@@ -26,7 +26,7 @@ import numpy as np
 import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
 
@@ -122,7 +122,7 @@ class OursEngine(Engine):
                 continue
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/ours_model.py)
+        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/model/ours.py)
             from ours.rigid.method import resolve as rigid_pair
 
             try:
