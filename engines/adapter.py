@@ -11,18 +11,7 @@ An adapter subclasses :class:`Engine` and fills in:
   ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
   and time only the stepping loop.
 
-The public :meth:`Engine.simulate` owns everything else, in one place:
-validating dt, resolving variant and options, refusing unsupported scenes,
-turning exceptions into ``failed`` and non-finite samples into ``unstable``,
-and checking what ``_run`` returned (:func:`check_raw_run`: shapes, sample
-count, the first sample against the scene's initial state, seconds of wall
-time), so an adapter with a wrong shape, unit or frame is ``failed`` with a
-message that names it, never compared. (After scipy's ``OdeSolver.step`` /
-``_step_impl`` split.)
-
-The protocol is versioned (:data:`API_VERSION`): an adapter declares the
-version it was written for in ``api_version``; :func:`api_version_problem`
-says what to do when that is not one this xval speaks (docs/plugins.md).
+Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 
 from __future__ import annotations

@@ -1,17 +1,12 @@
 """The case record: one frozen, validated object per case, and the status a case can end in.
 
-The runner builds a CaseRecord and writes :meth:`CaseRecord.to_json`; a case file (``DIR/cases/<id>.json``)
-is read once, by :meth:`CaseRecord.from_json`. Everything downstream (show, report, baseline, gate,
-history, stability) works on these objects, never on the raw dict. JSON layout (schema version 1)::
+The runner builds a CaseRecord and writes :meth:`CaseRecord.to_json`; a case
+file (``DIR/cases/<id>.json``) is read once, by :meth:`CaseRecord.from_json`.
+Everything downstream — show, report, baseline, gate, history, stability —
+works on these objects, never on the raw dict, so a misspelt field is an
+AttributeError at once, not a silent None.
 
-    {"schema_version": 1,
-     "case": {"id", "scene_id", "scene_name", "engine", "engine_id", "variant", "options", "dt", "position"},
-     "status", "message", "metrics" (name -> number | null, see compare.results.declared),
-     "run_info" (the engine's RunInfo.to_dict(), engine_version among it), "wall_times", "elapsed",
-     "scene" (Scene.to_dict()), "scene_hash", "characteristic": {"length", "energy"},
-     "series" (downsampled plot series), "reference" (how the reference was solved), "finished",
-     optional: "cpu_times", "calibrations", "consistent", "consistency", "reference_horizon",
-     "tolerance" (in "case")}
+Details: docs/architecture.md, "Module notes", ``compare/results/record.py``.
 """
 
 from __future__ import annotations
