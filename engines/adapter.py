@@ -11,18 +11,7 @@ An adapter subclasses :class:`Engine` and fills in:
   ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
   and time only the stepping loop.
 
-The public :meth:`Engine.simulate` owns everything else, in one place:
-validating dt, resolving variant and options, refusing unsupported scenes,
-turning exceptions into ``failed`` and non-finite samples into ``unstable``,
-and checking what ``_run`` returned (:func:`check_raw_run`: shapes, sample
-count, the first sample against the scene's initial state, seconds of wall
-time), so an adapter with a wrong shape, unit or frame is ``failed`` with a
-message that names it, never compared. (After scipy's ``OdeSolver.step`` /
-``_step_impl`` split.)
-
-The protocol is versioned (:data:`API_VERSION`): an adapter declares the
-version it was written for in ``api_version``; :func:`api_version_problem`
-says what to do when that is not one this xval speaks (docs/plugins.md).
+Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 
 from __future__ import annotations
@@ -33,13 +22,13 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterable, Mapping
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Scene
-from engines.trajectory import RunInfo, Trajectory
+from engines.scene.scene import Ellipse, Scene
+from engines.scene.trajectory import RunInfo, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
@@ -177,6 +166,15 @@ def refuse_ellipse(scene: Scene, why: str) -> None:
             raise Unsupported(f"{why}; constraints[{k}] is an 'ellipse'")
 
 
+def refuse_constraint_kinds(scene: Scene, kinds: Iterable[type], engine: str) -> None:
+    """Raise Unsupported naming the first constraint of ``scene`` not of one of ``kinds``."""
+    kinds = tuple(kinds)
+    for k, c in enumerate(scene.constraints):
+        if not isinstance(c, kinds):
+            names = ", ".join(getattr(t, "kind", t.__name__) for t in kinds)
+            raise Unsupported(f"{engine} models only {names} constraints; constraints[{k}] is a {c.kind!r}")
+
+
 def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
     """(N,) s: ``Schedule.make(duration, dt, sample_interval).times``, read-only and built once: every
     engine of a scene and dt is sampled there, and the reference's kept samples are keyed by these
@@ -223,6 +221,9 @@ class RawRun:
     cpu_time: float | None = None
     #: (n_recorded, 2·nq) q then v of a model scene's joints (engines.model.stepping), else None.
     joint_states: np.ndarray | None = None
+    #: (n_recorded,) m: the largest violation of the engine's own constraints at each sample, for an
+    #: engine whose constraints the positions cannot show (Trajectory.constraint_violation), else None.
+    constraint_violation: np.ndarray | None = None
 
 
 def loop_cpu_time(raw: RawRun, cpu: float) -> float:
@@ -441,7 +442,7 @@ def _as_samples(name: str, field_name: str, value: Any, n_particles_or_constrain
     if array.ndim != 3 or array.shape[1:] != (n_particles_or_constraints, 3) or not 1 <= array.shape[0] <= n_max:
         raise RawRunError(
             f"{name}: RawRun.{field_name} has shape {array.shape}, expected {expected}; record one row per "
-            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.Recorder builds it)"
+            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.external.plugin.Recorder builds it)"
         )
     return array
 
@@ -450,7 +451,8 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """Check what ``_run`` returned, once for every adapter; RawRunError says what is wrong and how to fix it.
 
     - ``raw`` is a RawRun; positions and velocities are (n, P, 3) with
-      1 <= n <= len(schedule.times); forces are (n, C, 3) or None;
+      1 <= n <= len(schedule.times); forces are (n, C, 3) or None; joint_states
+      (n, 2·nq) and constraint_violation (n,) or None;
     - units and frame: the first sample is the scene's initial state (m, m/s,
       scene frame, particles in scene order) to :data:`INITIAL_STATE_TOLERANCE`;
     - steps is an integer >= 0; wall_time is seconds, finite,
@@ -461,7 +463,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """
     if not isinstance(raw, RawRun):
         raise RawRunError(f"{name}: _run returned {type(raw).__name__}, expected engines.adapter.RawRun "
-                          f"(engines.plugin.Recorder builds one)")
+                          f"(engines.external.plugin.Recorder builds one)")
     n_max, n_p, n_c = len(schedule.times), len(scene.particles), len(scene.constraints)
     positions = _as_samples(name, "positions", raw.positions, n_p, "particles", n_max)
     velocities = _as_samples(name, "velocities", raw.velocities, n_p, "particles", n_max)
@@ -481,6 +483,13 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
         if joint_states.ndim != 2 or len(joint_states) != len(positions):
             raise RawRunError(f"{name}: RawRun.joint_states has shape {joint_states.shape}, expected "
                               f"({len(positions)}, 2·nq): q then v at each recorded sample")
+    violation = raw.constraint_violation
+    if violation is not None:
+        violation = np.asarray(violation, dtype=np.float64)
+        if violation.shape != (len(positions),):
+            raise RawRunError(f"{name}: RawRun.constraint_violation has shape {violation.shape}, expected "
+                              f"({len(positions)},): the largest constraint violation (m) at each recorded "
+                              f"sample, or None")
     # No upper bound: an adaptive solver (the reference's DOP853) takes its own number of steps.
     if isinstance(raw.steps, bool) or not isinstance(raw.steps, (int, np.integer)) or raw.steps < 0:
         raise RawRunError(f"{name}: RawRun.steps = {raw.steps!r}, expected the integer number of steps taken (>= 0)")
@@ -494,7 +503,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
             f"loop's wall time in seconds (time.perf_counter() differences), not ms or ns"
         )
     return replace(raw, positions=positions, velocities=velocities, forces=forces, steps=int(raw.steps),
-                   wall_time=float(wall), joint_states=joint_states)
+                   wall_time=float(wall), joint_states=joint_states, constraint_violation=violation)
 
 
 def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray) -> None:
@@ -519,10 +528,14 @@ def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray
 
 
 def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) -> Trajectory:
-    """Build the Trajectory; truncate at the first non-finite sample and mark it unstable."""
+    """Build the Trajectory; truncate at the first non-finite sample (state, or reported constraint
+    violation) and mark it unstable."""
     n = len(raw.positions)
     t = schedule.times[:n]
     finite = np.isfinite(raw.positions).all(axis=(1, 2)) & np.isfinite(raw.velocities).all(axis=(1, 2))
+    if raw.constraint_violation is not None:
+        # A joint gap that overflowed is a state gone non-finite, though the joint coordinates read finite.
+        finite &= np.isfinite(raw.constraint_violation)
     status, message = "ok", raw.message
     if not finite.all():
         first_bad = int(np.argmin(finite))
@@ -544,7 +557,8 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
         settings={**info.settings, **raw.settings},
     )
     joint_states = None if raw.joint_states is None else raw.joint_states[:n]
-    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces, joint_states)
+    violation = None if raw.constraint_violation is None else raw.constraint_violation[:n]
+    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces, joint_states, violation)
 
 
 def parse_engine_id(engine_id: str) -> tuple[str, str | None]:

@@ -140,14 +140,17 @@ def builtin_adapters() -> dict[str, str]:
 
 
 #: Adapter -> the other adapters it may import: MJX runs MuJoCo's own model (its MJCF, its reading of samples).
-ADAPTER_USES = {"engines.mjx": {"engines.mujoco"}}
+ADAPTER_USES = {"engines.adapters.mjx": {"engines.adapters.mujoco"}}
 
 
 def test_no_engine_adapter_imports_another():
     """Shared structure (the tree of joints, the recorder) lives in neutral modules, so that an engine
     loads without another engine's library (Drake without MuJoCo)."""
     adapters = set(builtin_adapters().values())
-    assert {"engines.mujoco", "engines.drake", "engines.mjx"} <= adapters
+    assert {"engines.adapters.mujoco", "engines.adapters.drake", "engines.adapters.mjx"} <= adapters
+    # Every built-in is an adapter of engines/adapters/ or the reference; a new folder of them would
+    # otherwise go unchecked by the layers below.
+    assert sorted(m for m in adapters if m.rpartition(".")[0] not in ("engines.adapters", "engines.reference")) == []
     wrong = []
     for module in sorted(adapters):
         path = ROOT / (module.replace(".", "/") + ".py")
@@ -155,6 +158,33 @@ def test_no_engine_adapter_imports_another():
             other = next((a for a in adapters if target == a or target.startswith(a + ".")), None)
             if other not in (None, module) and other not in ADAPTER_USES.get(module, set()):
                 wrong.append(f"{module} imports {target}")
+    assert wrong == []
+
+
+#: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
+#: same rank). The errors and the scene language are what every engine speaks; the engine protocol
+#: (adapter) and the one stepping loop on it (recorder) are built on them; each adapter of an engine
+#: library, and each kind of engine from outside xval (processes, plugins), on those; the robot models
+#: import files through the adapters' libraries; the reference integrates scenes and models; the registry
+#: names them all.
+ENGINE_PARTS = {"errors": 0, "files": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
+                "model": 5, "reference": 6, "registry": 7}
+
+
+def test_no_import_in_engines_points_back_up_or_across():
+    present = {p.stem for p in (ROOT / "engines").iterdir() if p.suffix == ".py" or (p / "__init__.py").is_file()}
+    assert sorted(present - {"__init__"} - set(ENGINE_PARTS)) == []  # a new part is given its rank here
+    wrong = []
+    for name, path in project_modules().items():
+        parts = name.split(".")
+        if parts[0] != "engines" or len(parts) < 2:
+            continue
+        for target in imports_of(path):
+            to = target.split(".")
+            if to[0] != "engines" or len(to) < 2 or to[1] not in ENGINE_PARTS or to[1] == parts[1]:
+                continue
+            if ENGINE_PARTS[to[1]] >= ENGINE_PARTS[parts[1]]:
+                wrong.append(f"{path.relative_to(ROOT)} ({parts[1]}) imports {target} ({to[1]})")
     assert wrong == []
 
 
@@ -205,3 +235,67 @@ def test_compare_reads_case_files_only_through_the_case_record():
     store = (ROOT / "compare" / "results" / "store.py").read_text()
     assert store.count('glob("*.json")') == 1  # store.read_records
     assert names_the_cases_folder(ast.parse('open(run / "cases" / name)'))
+
+
+def calls_to(name: str, attribute: str | None = None) -> dict[str, list[int]]:
+    """Module of compare/ or reports/ -> lines calling ``name(...)`` (or ``name.attribute(...)``)."""
+    found: dict[str, list[int]] = {}
+    for module, path in project_modules().items():
+        if module.split(".")[0] not in ("compare", "reports"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Call):
+                continue
+            func = node.func
+            if attribute is None:
+                hit = (isinstance(func, ast.Name) and func.id == name) or (
+                    isinstance(func, ast.Attribute) and func.attr == name)
+            else:
+                hit = (isinstance(func, ast.Attribute) and func.attr == attribute
+                       and isinstance(func.value, ast.Name) and func.value.id == name)
+            if hit:
+                found.setdefault(module, []).append(node.lineno)
+    return found
+
+
+def test_a_case_has_one_shape_from_the_runner_to_disk_to_gate_baseline_and_history():
+    """The runner builds the CaseRecord and writes its to_json; only the two stores of records parse them
+    (case files, the history's record column); no module builds a case document as a dict of its own."""
+    assert set(calls_to("CaseRecord", "from_json")) == {"compare.results.store", "compare.history.store"}
+    assert set(calls_to("write_case")) == {"compare.run.runner"}
+    documents = []
+    for module, path in project_modules().items():
+        if module.split(".")[0] in ("compare", "reports") and module != "compare.results.record":
+            for node in ast.walk(ast.parse(path.read_text())):
+                keys = {k.value for k in getattr(node, "keys", ()) if isinstance(k, ast.Constant)}
+                if isinstance(node, ast.Dict) and {"case", "status", "metrics"} <= keys:
+                    documents.append(f"{module}:{node.lineno}")
+    assert documents == []
+
+
+#: Fields of a case record or a baseline entry: read as attributes of the typed objects, never by key.
+CASE_FIELDS = {"case", "status", "message", "metrics", "run_info", "series", "timing", "engine_version", "scene_hash",
+               "consistent", "consistency", "scene_id", "engine", "engine_id", "dt", "position", "cases", "wall_times",
+               "cpu_times", "calibrations", "reference_horizon", "characteristic", "variant", "options"}
+#: The modules that move cases from the runner to the gate: none indexes a raw case or entry.
+TYPED_ONLY = ("compare.run.runner", "compare.gate.gate", "compare.gate.report", "compare.gate.junit",
+              "compare.history.window", "compare.history.trend", "compare.commands.gate", "compare.commands.baseline")
+
+
+def test_baseline_entries_are_typed_and_made_from_case_records_in_one_place():
+    assert set(calls_to("BaselineEntry")) == {"compare.gate.entry"}  # entry_of and from_json
+    assert set(calls_to("entry_of")) == {"compare.gate.baseline"}  # a baseline's, the history's, the gate's current
+    modules = project_modules()
+    keyed = []
+    for module in TYPED_ONLY:
+        for node in ast.walk(ast.parse(modules[module].read_text())):
+            key = None
+            if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant):
+                key = node.slice.value
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr in ("get", "pop", "setdefault") and node.args
+                  and isinstance(node.args[0], ast.Constant)):
+                key = node.args[0].value
+            if key in CASE_FIELDS:
+                keyed.append(f"{module}:{node.lineno} [{key!r}]")
+    assert keyed == []
