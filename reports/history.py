@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -124,14 +125,21 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
     """Everything the template lays out."""
     all_series = build_series(history, suite=suite, last=last)
     runs_all = history.runs(suite=suite)
+    # Grouped as build_series groups them (by the machine's fingerprint): a point's x is its run's place
+    # in its group's window, and the hover names the run at that place in this section's window. Two
+    # machines can share a name (fields that differ only where the name shows nothing).
     groups: dict[tuple[str, str], list[StoredRun]] = {}
     for run in runs_all:
-        groups.setdefault((run.machine.name, run.suite_name), []).append(run)
+        groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
+    name_of = {fingerprint: runs[0].machine.name for (fingerprint, _), runs in groups.items()}
+    alike = Counter(name_of.values())
     sections, figures, step_rows = [], [], []
     packs: dict[str, Markup] = {}
-    for (machine, suite_name), runs in groups.items():
+    for (fingerprint, suite_name), runs in groups.items():
         runs = runs[-last:] if last else runs
-        mine = [s for s in all_series if s.machine == machine and s.suite == suite_name]
+        machine = name_of[fingerprint] + (f" (fingerprint {fingerprint})" if alike[name_of[fingerprint]] > 1 else "")
+        ids = {run.id for run in runs}
+        mine = [s for s in all_series if s.suite == suite_name and s.points[0].run_id in ids]
         variants: dict[tuple[str, str], list[Series]] = {}
         for s in mine:
             variants.setdefault((s.scene_id, s.engine), []).append(s)
@@ -154,7 +162,7 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
         "history": history.name, "runs": runs_all, "sections": sections, "steps": group_steps(step_rows),
         "n_steps": len(step_rows), "n_plots": len(figures), "n_traces": sum(f.n_traces for f in figures),
         **template_values(), "packs": packs, "generated": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        "several_machines": len({m for m, _ in groups}) > 1,
+        "several_machines": len({f for f, _ in groups}) > 1,
     }
 
 

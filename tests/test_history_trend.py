@@ -157,6 +157,36 @@ def test_machines_are_kept_apart(base, tmp_path):
     assert all(len(s["plots"]) == 2 for s in context["sections"])
 
 
+@pytest.mark.parametrize("last", [None, 3])
+def test_every_point_is_labelled_with_its_own_run(base, tmp_path, last):
+    """Each point's hover label (the pack's run labels, by x) names the run the point's value came from,
+    with the whole history or the last N runs, and with two machines whose names read alike (run.json
+    fields that differ only where the name shows nothing: no machine type, or an empty one)."""
+    from reports.history import page_context
+
+    factor = {}  # run id -> the factor its reference/loose errors were scaled by: identifies the run by value
+    with History.open(tmp_path / "h.sqlite", create=True) as history:
+        for index in range(4):
+            for offset, kind in ((0, None), (10, "")):
+                run = add(history, synthetic(base, index + offset, error=index + offset + 1.0,
+                                             machine={"machine": kind}), index + offset)
+                factor[run.id] = index + offset + 1.0
+        context = page_context(history, last=last)
+    assert [len(s["runs"]) for s in context["sections"]] == [last or 4] * 2
+    checked = 0
+    for section in context["sections"]:
+        pack = json.loads(unpacked(context["packs"][section["pack"]]))
+        labelled = [factor[int(re.match(r"run (\d+) ", label).group(1))] for label in pack["runs"]]
+        for plot in section["plots"]:
+            for trace in pack[plot.id]["data"]:
+                if plot.title.endswith(ENGINE) and f"{ERRORS[0]} =" in trace["hovertemplate"]:
+                    first = trace["x"][0]
+                    for x, y in zip(trace["x"], trace["y"]):
+                        assert y / trace["y"][0] == pytest.approx(labelled[x] / labelled[first], rel=1e-2)
+                        checked += 1
+    assert checked == 2 * 3 * (last or 4)  # two machines, three dts
+
+
 @pytest.mark.skipif(CHROMIUM is None, reason="no chromium here; install it with 'apt-get install -y chromium' (.ci/run does)")
 def test_the_trend_page_draws_every_plot_in_a_browser_with_the_network_off(planted, tmp_path):
     page_path = tmp_path / "trend.html"
