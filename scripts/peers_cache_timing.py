@@ -1,6 +1,7 @@
 """A suite run twice on one fresh cache directory: what a kept cache saves (the figures docs/engines.md quotes).
 
     .venv/bin/python scripts/peers_cache_timing.py [suites/peers.toml] [--jobs 2] [--cache DIR] [--reduced]
+        [--keep DIR]
 
 Runs ``xval run SUITE --jobs N`` twice with ``XVAL_CACHE_DIR`` set to one new,
 empty directory (or ``--cache``, emptied first): the first run compiles and
@@ -10,6 +11,9 @@ time, the CPU time of the process tree, and the MJX cases' summed
 ``jit_compile_time`` (seconds spent compiling or loading a compiled loop from
 the cache) and how many MJX cases compiled more than 0.5 s, with the load
 average before and after.
+
+``--keep DIR`` writes the second run's results directory to DIR (which must not exist) and
+keeps it; both runs' results are otherwise deleted at the end.
 
 ``--reduced`` runs a smaller copy of the suite instead (written to the
 cache's parent folder and printed): without its ``chain-32`` scene, and with
@@ -84,7 +88,10 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--cache", type=Path, default=None, help="cache directory (emptied first)")
     parser.add_argument("--reduced", action="store_true", help="a smaller copy of the suite (see above)")
+    parser.add_argument("--keep", type=Path, default=None, help="the second run's results directory (kept)")
     args = parser.parse_args()
+    if args.keep is not None and args.keep.exists():
+        parser.error(f"--keep: {args.keep} exists; name a new directory")
     cache = args.cache or Path(tempfile.mkdtemp(prefix="xval-cache-timing-")) / "cache"
     shutil.rmtree(cache, ignore_errors=True)
     cache.mkdir(parents=True)
@@ -98,7 +105,7 @@ def main() -> None:
     walls = []
     with tempfile.TemporaryDirectory() as out:
         for run in (1, 2):
-            output = Path(out) / f"run{run}"
+            output = args.keep if run == 2 and args.keep is not None else Path(out) / f"run{run}"
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             load = _load()
             start = time.perf_counter()
