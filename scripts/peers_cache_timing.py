@@ -15,6 +15,11 @@ average before and after.
 ``--keep DIR`` writes the second run's results directory to DIR (which must not exist) and
 keeps it; both runs' results are otherwise deleted at the end.
 
+``--summarize DIR [DIR ...]`` runs nothing: it prints, for results directories already made
+(the two runs', say), where each run's time went, per engine: cases, timeouts, the cases' summed
+elapsed time in their hosts (building, compiling, stepping, reading), summed stepping wall and CPU
+time, and MJX's summed ``jit_compile_time``. The same table ends each timing run.
+
 ``--reduced`` runs a smaller copy of the suite instead (written to the
 cache's parent folder and printed): without its ``chain-32`` scene, and with
 time steps from 1e-2 to 1e-3 s (two per decade) and tolerances from 1e-4 to
@@ -66,6 +71,26 @@ def _find(value, key):
     return None
 
 
+def engine_table(output: Path) -> list[str]:
+    """Lines: per engine of a results directory, cases, timeouts and summed seconds (see the module notes)."""
+    rows: dict[str, list[float]] = {}
+    for path in sorted((output / "cases").glob("*.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        info = record.get("run_info") or {}
+        row = rows.setdefault(record["case"]["engine"].split("/")[0], [0, 0, 0.0, 0.0, 0.0, 0.0])
+        row[0] += 1
+        row[1] += record["status"] == "timeout"
+        row[2] += record.get("elapsed") or 0.0
+        row[3] += info.get("wall_time") or 0.0
+        row[4] += sum(record.get("cpu_times") or ())
+        row[5] += (info.get("settings") or {}).get("jit_compile_time") or 0.0
+    lines = [f"  {'engine':<10} {'cases':>5} {'timeouts':>8} {'elapsed s':>10} {'stepping s':>10} "
+             f"{'stepping CPU s':>14} {'jit compile s':>13}"]
+    for engine, (cases, timeouts, elapsed, wall, cpu, jit) in sorted(rows.items(), key=lambda item: -item[1][2]):
+        lines.append(f"  {engine:<10} {cases:5d} {timeouts:8d} {elapsed:10.1f} {wall:10.1f} {cpu:14.1f} {jit:13.1f}")
+    return lines
+
+
 def _reduced(suite: Path, target: Path) -> Path:
     """``suite`` without its chain-32 scene, dt 1e-2..1e-3 and tolerances 1e-4..1e-8, written to ``target``."""
     text = suite.read_text(encoding="utf-8")
@@ -89,7 +114,14 @@ def main() -> None:
     parser.add_argument("--cache", type=Path, default=None, help="cache directory (emptied first)")
     parser.add_argument("--reduced", action="store_true", help="a smaller copy of the suite (see above)")
     parser.add_argument("--keep", type=Path, default=None, help="the second run's results directory (kept)")
+    parser.add_argument("--summarize", type=Path, nargs="+", default=None, metavar="DIR",
+                        help="print where these results directories' time went, and run nothing")
     args = parser.parse_args()
+    if args.summarize:
+        for output in args.summarize:
+            print(f"{output}:")
+            print("\n".join(engine_table(output)))
+        return
     if args.keep is not None and args.keep.exists():
         parser.error(f"--keep: {args.keep} exists; name a new directory")
     cache = args.cache or Path(tempfile.mkdtemp(prefix="xval-cache-timing-")) / "cache"
@@ -121,6 +153,7 @@ def main() -> None:
                   f"jit_compile_time summed {compile_s:.1f} s, {slow} over 0.5 s; "
                   f"load before {load}, after {_load()}")
             print(f"  its last line: {lines[-1] if lines else '(nothing printed)'}")
+            print("\n".join(engine_table(output)))
     print(f"second run / first run, wall: {walls[1] / walls[0]:.2f} (first {walls[0] / walls[1]:.2f}x slower)")
 
 
