@@ -240,8 +240,8 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
     cannot load here.
     """
     if ":" in engine_id:
-        target, _, variant = engine_id.partition("/")
-        return load_path(target), (variant or None)
+        target, _, given = engine_id.partition("/")
+        return load_path(target), (given or None)
     name, variant = parse_engine_id(engine_id)
     if name == "command" and name not in BUILTIN:  # an outside program (engines.external.command), registered by label
         from engines.external.command import registered

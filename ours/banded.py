@@ -10,6 +10,7 @@ Lagrangian form uses for its mass matrix.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from numba import njit
 
@@ -29,12 +30,11 @@ def _has_nrt_switch() -> bool:
     return hasattr(CPUTargetOptions, "_nrt")
 
 
-if _has_nrt_switch():
-    compiled = njit(cache=True, _nrt=False)
-    inlined = njit(cache=True, _nrt=False, inline="always")
-else:  # pragma: no cover - same results; the compiled code allocates nothing either way
-    compiled = njit(cache=True)
-    inlined = njit(cache=True, inline="always")
+# Passed as a dict: numba's type stubs leave the underscored option out. Without it (another numba), the
+# same results: the compiled code allocates nothing either way.
+_NO_RUNTIME: dict[str, Any] = {"_nrt": False} if _has_nrt_switch() else {}
+compiled = njit(cache=True, **_NO_RUNTIME)
+inlined = njit(cache=True, inline="always", **_NO_RUNTIME)
 
 #: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
 #: per-constraint functions called inside the step, where a call would copy every array argument).

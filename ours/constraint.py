@@ -82,7 +82,11 @@ class DistanceConstraint:
 
     def _d(self, x: np.ndarray) -> np.ndarray:
         i, j, anchor = self.ends()
-        return x[i] - (x[j] if j >= 0 else np.asarray(anchor[: x.shape[1]]))
+        if j >= 0:
+            return x[i] - x[j]
+        if anchor is None:
+            raise ModelError(f"{type(self).__name__}: one end is fixed (j = -1) but it has no anchor point")
+        return x[i] - np.asarray(anchor[: x.shape[1]])
 
     def value(self, q: np.ndarray) -> float:
         """C(q) = ½(‖d‖² − l²), m²."""
@@ -256,7 +260,7 @@ def _planar_point(value, field: str) -> tuple[float, float]:
     point = _point(value, field)
     if len(point) != 2:
         raise ModelError(f"{field}: curve constraints are planar (2-D systems); give 2 numbers, got {value!r}")
-    return point  # type: ignore[return-value]
+    return point
 
 
 @dataclass(frozen=True)

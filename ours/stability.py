@@ -99,6 +99,7 @@ def largest_stable_dt(integrator: str, k_s: float, k_d: float, h_max: float = 10
     return lo
 
 
-def critical_limit(integrator: str) -> float:
-    """h·√k_s at the stability limit for critical damping (k_d = 2√k_s), from the theory (dimensionless)."""
+def critical_limit(integrator: str) -> float | None:
+    """h·√k_s at the stability limit for critical damping (k_d = 2√k_s), from the theory (dimensionless);
+    None for an integrator the theory does not cover."""
     return largest_stable_dt(integrator, 1.0, 2.0)

@@ -44,8 +44,8 @@ def emphasise(figure: dict[str, Any], engines: Iterable[str | None], named: set[
     grey = [engine is not None and engine not in named for engine in engines]
     if not any(grey) or all(grey[k] or engines[k] is None for k in range(len(traces))):
         return figure
-    coloured = {"line.color": [], "marker.color": [], "line.width": [], "opacity": []}
-    muted = {key: [] for key in coloured}
+    coloured: dict[str, list[Any]] = {"line.color": [], "marker.color": [], "line.width": [], "opacity": []}
+    muted: dict[str, list[Any]] = {key: [] for key in coloured}
     for trace, off in zip(traces, grey):
         line, marker = trace.get("line") or {}, trace.get("marker") or {}
         own = {"line.color": line.get("color"), "marker.color": marker.get("color", line.get("color")),

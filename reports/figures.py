@@ -25,7 +25,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
@@ -88,7 +88,7 @@ def _rounded(values: Iterable[Any]) -> list[Any]:
     return [_round(v) for v in values]
 
 
-def _positive(value: Any) -> bool:
+def _positive(value: Any) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
 
 
@@ -148,7 +148,9 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
     if x_key == "cost":
         found = points(sweep)
         return [p.cost for p in found], [p.error for p in found], [[plot_text(sweep.engine), p.dt] for p in found]
-    xs, ys, custom = [], [], []
+    xs: list[float] = []
+    ys: list[float] = []
+    custom: list[list[Any]] = []
     for record in sweep.records:
         dt = record.case.dt
         if x_key == "dt" and record.case.tolerance is not None:
@@ -367,7 +369,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
 
 def _norms(forces: Sequence[Any], constraint: int) -> list[Any]:
     """‖F‖ (N) of one constraint over samples; None where a sample is missing."""
-    out = []
+    out: list[Any] = []
     for sample in forces:
         f = None if sample is None or constraint >= len(sample) else sample[constraint]
         if f is None or any(c is None for c in f):
@@ -526,12 +528,12 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     them, else from the reference engine's own case (at the chosen dt, or any).
     """
     for _, _, record in _chosen_cases(scene):
-        if (record.series or {}).get("reference_positions"):
-            return record.series["reference_positions"], "the reference solution"
+        if (stored := (record.series or {}).get("reference_positions")):
+            return stored, "the reference solution"
     for sweep in (s for s in scene.sweeps if s.is_reference):
         for record in sorted(sweep.records, key=lambda r: r.case.dt != scene.chosen_dt):
-            if record.status is Status.OK and (record.series or {}).get("positions"):
-                return record.series["positions"], f"{sweep.engine} at dt = {record.case.dt:.3g} s"
+            if record.status is Status.OK and (stored := (record.series or {}).get("positions")):
+                return stored, f"{sweep.engine} at dt = {record.case.dt:.3g} s"
     return None, ""
 
 
@@ -543,7 +545,8 @@ def _particle_xz(positions: list[Any], particle: int) -> tuple[list[Any], list[A
 
 def _clip_path(xs: list[Any], zs: list[Any], box: float) -> tuple[list[Any], list[Any]]:
     """A path cut where it leaves ±``box`` m (a blow-up), so the axes keep to the scene."""
-    out_x, out_z = [], []
+    out_x: list[Any] = []
+    out_z: list[Any] = []
     for x, z in zip(xs, zs):
         if x is None or z is None or abs(x) > box or abs(z) > box:
             out_x.append(None)

@@ -127,7 +127,9 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
     groups: dict[tuple[str, str], list[StoredRun]] = {}
     for run in runs_all:
         groups.setdefault((run.machine.name, run.suite_name), []).append(run)
-    sections, figures, step_rows = [], [], []
+    sections: list[dict[str, Any]] = []
+    figures: list[Plot] = []
+    step_rows = []
     packs: dict[str, Markup] = {}
     for (machine, suite_name), runs in groups.items():
         runs = runs[-last:] if last else runs
@@ -143,7 +145,7 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
                     "date": point.date, "before": step.before, "after": step.after, "ratio": step.ratio,
                     "verdict": step.verdict,
                 })
-        plots = []
+        plots: list[Plot] = []
         for (scene, engine), series in variants.items():
             plots.append(_variant_figure(len(figures) + len(plots), scene, engine, series, runs))
         figures.extend(plots)

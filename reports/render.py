@@ -102,22 +102,22 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
     packs: dict[str, Markup] = {}
     pack_of: dict[str, str] = {}
-    for scene in scenes:
-        name = f"pack-{scene['number']}"
-        items: dict[str, Any] = {p.id: p.figure for p in scene["plots"]}
-        results = scene["results"]
-        if any(p.id == f"s{scene['number']}-ts" for p in scene["plots"]):
+    for entry in scenes:
+        name = f"pack-{entry['number']}"
+        items: dict[str, Any] = {p.id: p.figure for p in entry["plots"]}
+        results = entry["results"]
+        if any(p.id == f"s{entry['number']}-ts" for p in entry["plots"]):
             # The time series at the scene's other dts: the dt selector switches the plot with the table.
             named = named_variants(results)
             for j, dt in enumerate(results.dts):
                 if dt != results.chosen_dt:
-                    other = time_series(results, palette, scene["ceilings"], dt, named)
+                    other = time_series(results, palette, entry["ceilings"], dt, named)
                     if other is not None:
-                        items[f"s{scene['number']}-ts@{j}"] = other.figure
-        if scene["animation"] is not None:
-            items[f"anim-{scene['number']}"] = scene["animation"].data
+                        items[f"s{entry['number']}-ts@{j}"] = other.figure
+        if entry["animation"] is not None:
+            items[f"anim-{entry['number']}"] = entry["animation"].data
         packs[name] = pack(items)
-        pack_of.update({p.id: name for p in scene["plots"]})
+        pack_of.update({p.id: name for p in entry["plots"]})
     stability = stability_context(data.path)  # None unless DIR holds xval stability output
     if stability is not None:
         plots = plots + stability["plots"]

@@ -63,5 +63,5 @@ def command(suite_path, output, jobs, timeout, force, search, gain_map) -> None:
             if done % 100 == 0 or done == total:
                 print(f"gain map: {done}/{total} cells", file=sys.stderr, flush=True)
 
-        path = run_gainmap(suite, output, jobs=jobs, timeout=timeout, force=force, on_cell=progress)
-        click.echo(f"gain map: {path}")
+        gain_path = run_gainmap(suite, output, jobs=jobs, timeout=timeout, force=force, on_cell=progress)
+        click.echo(f"gain map: {gain_path}")

@@ -223,7 +223,7 @@ class _SQLAlchemy:
         parsed = sqlalchemy.engine.make_url(_driver_url(url))
         self.name = parsed.render_as_string(hide_password=True)
         self.engine = sqlalchemy.create_engine(parsed, poolclass=sqlalchemy.pool.NullPool)
-        self._connection = None
+        self._connection: Any = None  # the open transaction's sqlalchemy Connection (imported lazily)
         try:
             with self.engine.connect():
                 pass

@@ -58,10 +58,10 @@ class _Job:
     task: CaseTask | ReferenceTask
     future: cf.Future
     started: float = 0.0
-    _pickled: bytes | None = None
+    _pickled: memoryview | None = None
 
     @property
-    def pickled(self) -> bytes:
+    def pickled(self) -> memoryview:
         """The task as it travels through a pipe (pickled once)."""
         if self._pickled is None:
             self._pickled = ForkingPickler.dumps(self.task)

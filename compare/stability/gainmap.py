@@ -88,7 +88,7 @@ def run_gainmap(
         engine = _cell_engine(plan.engines[k], plan.x, plan.x_values[a], plan.y, plan.y_values[b])
         return cell, run_probe(plan.scene, engine, plan.dt, suite, timeout, plan.sample_interval)
 
-    maps = {}
+    maps: dict[str, dict[str, Any]] = {}
     for engine in plan.engines:
         rho = [[_rho(engine, plan, xv, yv) for xv in plan.x_values] for yv in plan.y_values]
         maps[engine.label] = {

@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.util
 import time
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, cast
 
 import numpy as np
 
@@ -184,7 +184,8 @@ class DrakeEngine(Engine):
         if time_step > 0:
             plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scene.gravity, dtype=float))
-        bodies, joints = {}, {}
+        bodies: dict[int, Any] = {}
+        joints: dict[int, Any] = {}
         for i in tree.order:
             arm = q[i] - tree.pivot[i]
             spatial = SpatialInertia.MakeFromCentralInertia(
@@ -194,14 +195,15 @@ class DrakeEngine(Engine):
             parent = plant.world_body() if tree.parent[i] == -1 else bodies[tree.parent[i]]
             # The parent's frame sits at its own pivot: this body's pivot is at (pivot − parent's pivot).
             offset = tree.pivot[i] - (0.0 if tree.parent[i] == -1 else tree.pivot[tree.parent[i]])
+            joint: RevoluteJoint | BallRpyJoint
             if scene.is_planar:
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
-                joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), [0.0, 1.0, 0.0], damping=0.0)
+                joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), np.array([0.0, 1.0, 0.0]), damping=0.0)
             else:
                 # x of the child's joint frame along the arm, so pitch ±90° is the arm vertical (module docstring).
                 R_BM = _frame_with_x_along(arm)
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
-                on_child = plant.AddFrame(_fixed_frame(f"arm{i}", body.body_frame(), RigidTransform(R_BM, [0, 0, 0])))
+                on_child = plant.AddFrame(_fixed_frame(f"arm{i}", body.body_frame(), RigidTransform(R_BM, np.zeros(3))))
                 joint = BallRpyJoint(f"j{i}", on_parent, on_child, damping=0.0)
             joints[i] = plant.AddJoint(joint)
             bodies[i] = body
@@ -371,7 +373,7 @@ class DrakeModel:
         port = plant.get_reaction_forces_output_port()
         for s, x in enumerate(states):
             plant.SetPositionsAndVelocities(context, x)
-            reactions = port.Eval(context)
+            reactions = cast("list[Any]", port.Eval(context))  # Eval is typed object: here a SpatialForce per joint
             for i in tree.order:
                 body = self.bodies[i]
                 X_WB = body.EvalPoseInWorld(context)

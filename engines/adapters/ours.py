@@ -98,7 +98,7 @@ class OursEngine(Engine):
         name: f"{ours.METHODS[v['method']].doc} Integrator: {ours.INTEGRATORS[v['integrator']].doc}"
         for name, v in variants.items()
     }
-    overrides: Mapping[str, Any] = {}
+    overrides = {}
 
     def version(self) -> str:
         return ours.__version__

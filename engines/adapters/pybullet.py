@@ -149,8 +149,8 @@ def _tree_sizes(links: list[Link]) -> dict[int, int]:
     sizes: dict[int, int] = {}
     for particle in parent:
         root = particle
-        while parent[root] is not None:
-            root = parent[root]
+        while (up := parent[root]) is not None:
+            root = up
         sizes[root] = sizes.get(root, 0) + 1
     return sizes
 

@@ -173,7 +173,7 @@ class CommandEngine(Engine):
     """An outside program as an engine; see the module docstring."""
 
     name = NAME
-    options: Mapping[str, Any] = {}
+    options = {}
     #: Nothing to warm up in xval's process: every run starts the program afresh (its start-up is
     #: outside the stepping time it reports, or inside the process time it is timed by).
     needs_warm_up = False

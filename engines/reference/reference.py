@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 import scipy
@@ -26,6 +26,9 @@ from engines.errors import Unsupported
 from engines.reference.mechanisms import Mechanism, mechanism_model
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.tree import read_tree
+
+if TYPE_CHECKING:  # imported on use: only model-file scenes need Pinocchio
+    from engines.model.dynamics import ModelDynamics
 
 DEFAULT_RTOL = 1e-12
 DEFAULT_ATOL = 1e-12
@@ -227,7 +230,7 @@ def spherical_pin(scene: Scene) -> SphericalPin:
 # -- solving -------------------------------------------------------------------
 
 
-def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
+def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism | ModelDynamics:
     """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it.
 
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
@@ -261,6 +264,8 @@ class DenseOutput:
     """
 
     __slots__ = ("_ode", "_pickled")
+    _ode: Any  # scipy's OdeSolution, or None while only its pickle is held
+    _pickled: bytes | None
 
     def __init__(self, ode: Any) -> None:
         self._ode, self._pickled = ode, None

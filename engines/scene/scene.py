@@ -43,7 +43,7 @@ def _vector(value: Any, field_name: str) -> Vector:
         raise SceneError(
             f"{field_name}: components must lie in [-{largest:g}, {largest:g}] {unit}, got {components}"
         )
-    return components  # type: ignore[return-value]
+    return components
 
 
 #: Field name -> (largest |component|, unit); any other vector is a position (m).
