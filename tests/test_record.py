@@ -32,7 +32,7 @@ def test_a_run_written_by_the_previous_release_reads_whole_and_round_trips():
         raw = json.loads(file.read_text())
         record = CaseRecord.from_json(raw, file)
         assert record.status is Status.OK
-        # Nothing lost, nothing added; position_error_l2 (this release's name) is read as position_error_rms.
+        # Nothing lost, nothing added; position_error_l2 (that release's name) is read as position_error_rms.
         assert record.metrics["position_error_rms"] == raw["metrics"]["position_error_l2"]
         assert record.to_json() == {**raw, "metrics": declared.current_names(raw["metrics"])}
     by_variant = results.by_variant()
