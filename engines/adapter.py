@@ -223,6 +223,9 @@ class RawRun:
     cpu_time: float | None = None
     #: (n_recorded, 2·nq) q then v of a model scene's joints (engines.model.stepping), else None.
     joint_states: np.ndarray | None = None
+    #: (n_recorded,) m: the largest violation of the engine's own constraints at each sample, for an
+    #: engine whose constraints the positions cannot show (Trajectory.constraint_violation), else None.
+    constraint_violation: np.ndarray | None = None
 
 
 def loop_cpu_time(raw: RawRun, cpu: float) -> float:
@@ -450,7 +453,8 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """Check what ``_run`` returned, once for every adapter; RawRunError says what is wrong and how to fix it.
 
     - ``raw`` is a RawRun; positions and velocities are (n, P, 3) with
-      1 <= n <= len(schedule.times); forces are (n, C, 3) or None;
+      1 <= n <= len(schedule.times); forces are (n, C, 3) or None; joint_states
+      (n, 2·nq) and constraint_violation (n,) or None;
     - units and frame: the first sample is the scene's initial state (m, m/s,
       scene frame, particles in scene order) to :data:`INITIAL_STATE_TOLERANCE`;
     - steps is an integer >= 0; wall_time is seconds, finite,
@@ -481,6 +485,13 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
         if joint_states.ndim != 2 or len(joint_states) != len(positions):
             raise RawRunError(f"{name}: RawRun.joint_states has shape {joint_states.shape}, expected "
                               f"({len(positions)}, 2·nq): q then v at each recorded sample")
+    violation = raw.constraint_violation
+    if violation is not None:
+        violation = np.asarray(violation, dtype=np.float64)
+        if violation.shape != (len(positions),):
+            raise RawRunError(f"{name}: RawRun.constraint_violation has shape {violation.shape}, expected "
+                              f"({len(positions)},): the largest constraint violation (m) at each recorded "
+                              f"sample, or None")
     # No upper bound: an adaptive solver (the reference's DOP853) takes its own number of steps.
     if isinstance(raw.steps, bool) or not isinstance(raw.steps, (int, np.integer)) or raw.steps < 0:
         raise RawRunError(f"{name}: RawRun.steps = {raw.steps!r}, expected the integer number of steps taken (>= 0)")
@@ -494,7 +505,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
             f"loop's wall time in seconds (time.perf_counter() differences), not ms or ns"
         )
     return replace(raw, positions=positions, velocities=velocities, forces=forces, steps=int(raw.steps),
-                   wall_time=float(wall), joint_states=joint_states)
+                   wall_time=float(wall), joint_states=joint_states, constraint_violation=violation)
 
 
 def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray) -> None:
@@ -519,10 +530,14 @@ def _check_initial_state(name: str, scene: Scene, q0: np.ndarray, v0: np.ndarray
 
 
 def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) -> Trajectory:
-    """Build the Trajectory; truncate at the first non-finite sample and mark it unstable."""
+    """Build the Trajectory; truncate at the first non-finite sample (state, or reported constraint
+    violation) and mark it unstable."""
     n = len(raw.positions)
     t = schedule.times[:n]
     finite = np.isfinite(raw.positions).all(axis=(1, 2)) & np.isfinite(raw.velocities).all(axis=(1, 2))
+    if raw.constraint_violation is not None:
+        # A joint gap that overflowed is a state gone non-finite, though the joint coordinates read finite.
+        finite &= np.isfinite(raw.constraint_violation)
     status, message = "ok", raw.message
     if not finite.all():
         first_bad = int(np.argmin(finite))
@@ -544,7 +559,8 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
         settings={**info.settings, **raw.settings},
     )
     joint_states = None if raw.joint_states is None else raw.joint_states[:n]
-    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces, joint_states)
+    violation = None if raw.constraint_violation is None else raw.constraint_violation[:n]
+    return Trajectory(t[:n], raw.positions[:n], raw.velocities[:n], info, forces, joint_states, violation)
 
 
 def parse_engine_id(engine_id: str) -> tuple[str, str | None]:

@@ -18,7 +18,9 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import combine, world_inertia
 from engines.model.kinematics import rpy_matrix
 from ours import OursError
-from ours.rigid import Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, simulate
+from ours.rigid import (
+    Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, simulate,
+)
 
 GRAVITY = (0.0, 0.0, -9.81)
 
@@ -95,9 +97,12 @@ def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_ev
 class OursStepper:
     """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
     start from the scene's joint state, step with the variant's method and integrator. Revolute angles
-    are read continuously from sample to sample (ours' rows fix them only modulo 2π)."""
+    are read continuously from sample to sample (ours' rows fix them only modulo 2π). Its joints are
+    constraint rows, so they can come apart: :meth:`constraint_violation` says by how much."""
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
+        self.scene = scene
+        self._length: float | None = None  # m, the scene's L: read by the first constraint_violation()
         self.model = translate(scene.description)
         names = self.model.joint_names
         q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
@@ -125,3 +130,14 @@ class OursStepper:
         q[self._revolute] += 2 * np.pi * turns[self._revolute]
         self._last = q.copy()
         return q, v
+
+    def constraint_violation(self) -> float:
+        """m: the largest joint violation at the current state (NaN once stepping failed): the anchor gaps and
+        prismatic slides off their axes (m), and each misalignment of a joint's axes θ as L·sin θ (m), the
+        displacement it makes at the scene's characteristic length L (the arm's reach). docs/metrics.md."""
+        if self.run.status != "ok":
+            return float("nan")
+        if self._length is None:
+            self._length = float(self.scene.characteristic_length)
+        distance, sine = joint_errors(self.model.mechanism, self.run.y)
+        return max(float(distance[0]), self._length * float(sine[0]))

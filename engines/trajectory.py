@@ -71,6 +71,10 @@ class Trajectory:
     info : RunInfo.
     joint_states : (n_samples, 2·nq), q then v (rad or m, rad/s or m/s) of a model scene's moving
         joints (engines.model.scene), whose "particles" are its link frames; None for catalog scenes.
+    constraint_violation : (n_samples,) m, the largest violation of the engine's own constraints at
+        each sample as the engine reports it (a maximal-coordinate solver's joints, which the link
+        frames cannot show: they are computed from the joint coordinates), or None: nothing beyond
+        what the positions show (reduced coordinates hold their joints by construction).
     """
 
     t: np.ndarray
@@ -79,6 +83,7 @@ class Trajectory:
     info: RunInfo
     constraint_forces: np.ndarray | None = None
     joint_states: np.ndarray | None = None
+    constraint_violation: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -96,6 +101,11 @@ class Trajectory:
             if states.ndim != 2 or states.shape[0] != n:
                 raise ValueError(f"Trajectory.joint_states: expected shape ({n}, 2·nq), got {states.shape}")
             object.__setattr__(self, "joint_states", states)
+        if self.constraint_violation is not None:
+            violation = np.asarray(self.constraint_violation, dtype=np.float64)
+            if violation.shape != (n,):
+                raise ValueError(f"Trajectory.constraint_violation: expected shape ({n},), got {violation.shape}")
+            object.__setattr__(self, "constraint_violation", violation)
         if self.positions.shape != self.velocities.shape:
             raise ValueError("Trajectory: positions and velocities must have the same shape")
 
@@ -164,6 +174,15 @@ def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
     if not scene.constraints:
         return np.zeros(positions.shape[0])
     return constraint_errors(scene, positions).max(axis=1)
+
+
+def trajectory_constraint_error(scene: Any, trajectory: Trajectory) -> np.ndarray:
+    """(n_samples,) m: the largest constraint error at each sample: the distance form of the scene's
+    constraints (:func:`max_constraint_error`) or the engine's reported ``constraint_violation``,
+    whichever is larger (a NaN in either stays NaN)."""
+    errors = max_constraint_error(scene, trajectory.positions)
+    reported = trajectory.constraint_violation
+    return errors if reported is None else np.maximum(errors, reported)
 
 
 def linear_momentum(scene: Scene, velocities: np.ndarray) -> np.ndarray:

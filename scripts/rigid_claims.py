@@ -73,17 +73,72 @@ def orders(f: dict, series: dict) -> None:
         series[f"{method}-{integrator}"] = (ORDER_DTS, errors)
 
 
+SPINNER_INERTIA = (1.0, 2.0, 3.0)  # kg·m², principal; spun about the intermediate (y) axis
+SPINNER_OMEGA = (0.01, 1.0, 0.0)  # rad/s, world = body at t = 0
+
+
 def spinner(f: dict) -> None:
-    """The torque-free body spun about its intermediate axis: energy and momentum errors over 20 s at 1 ms."""
-    mech = Mechanism((Body("box", 1.0, np.zeros(3), np.diag([1.0, 2.0, 3.0])),), (), np.zeros(3))
+    """The torque-free body spun about its intermediate axis: energy and momentum errors over 20 s at 1 ms,
+    and when it first flips (RK4), against Euler's equations solved by DOP853."""
+    mech = Mechanism((Body("box", 1.0, np.zeros(3), np.diag(SPINNER_INERTIA)),), (), np.zeros(3))
     y0 = np.zeros(13)
-    y0[3], y0[10:13] = 1.0, [0.01, 1.0, 0.0]
+    y0[3], y0[10:13] = 1.0, SPINNER_OMEGA
     for integrator in ("euler", "symplectic-euler", "midpoint", "rk4"):
-        run = simulate(mech, y0, 1e-3, 20_000, 100, method="plain", integrator=integrator)
+        run = simulate(mech, y0, 1e-3, 20_000, 10, method="plain", integrator=integrator)
         key = integrator.replace("-", "_")
         f[f"spinner_energy_{key}"] = float(np.abs(energy(mech, run.y) - energy(mech, y0)).max())
         f[f"spinner_momentum_{key}"] = float(np.linalg.norm(angular_momentum(mech, run.y) - angular_momentum(mech, y0),
                                                              axis=-1).max())
+        if integrator == "rk4":
+            _, R = frames(mech, run.y)
+            f["spinner_flip_rk4"] = first_flip(run.t, np.einsum("sji,sj->si", R[:, 0], run.y[:, 10:13])[:, 1])
+    f["spinner_flip_euler_equations"] = euler_equations_flip()
+
+
+def first_flip(t: np.ndarray, omega_y: np.ndarray) -> float:
+    """s: the first time the body-frame ω_y (rad/s) changes sign, linear between samples: the intermediate
+    axis has turned over, since (R e_y)·L = I₂ ω_y with L the (constant) angular momentum."""
+    k = int(np.argmax(omega_y < 0.0))
+    return float(t[k - 1] + (t[k] - t[k - 1]) * omega_y[k - 1] / (omega_y[k - 1] - omega_y[k]))
+
+
+def euler_equations_flip() -> float:
+    """s: the first sign change of ω_y under Euler's equations I ω̇ = (I ω) × ω (body frame), DOP853 at
+    rtol 1e-12: the spinner's flip, independent of ours."""
+    from scipy.integrate import solve_ivp
+
+    inertia = np.array(SPINNER_INERTIA)
+
+    def crossing(_t, w):
+        return w[1]
+
+    crossing.terminal, crossing.direction = True, -1  # type: ignore[attr-defined]
+    sol = solve_ivp(lambda _t, w: np.cross(inertia * w, w) / inertia, (0.0, 20.0), SPINNER_OMEGA, method="DOP853",
+                    rtol=1e-12, atol=1e-14, events=crossing)
+    return float(sol.t_events[0][0])
+
+
+MODEL = HERE.parent / "models" / "double_pendulum.urdf"
+
+
+def model_joints(f: dict) -> None:
+    """ours' joint gap on a model scene as the constraint-error metric reads it (engines/ours_model.py): the
+    double pendulum fixture, q0 = 30°, −20°, 2 s; largest gap at dt = 1 ms and the slope over 4, 2, 1 ms."""
+    from engines.model.scene import model_scene
+    from engines.registry import resolve
+    from engines.trajectory import trajectory_constraint_error
+
+    scene = model_scene("double", str(MODEL), q0={"shoulder": 30, "elbow": -20}, duration=2.0)
+    for variant in ("plain-rk4", "baumgarte-rk4", "baumgarte-symplectic-euler", "projection-rk4",
+                    "projection-symplectic-euler", "hinge-rk4"):
+        engine_id = f"{'mujoco' if variant.startswith('hinge') else 'ours'}/{variant}"
+        engine, name = resolve(engine_id)
+        errors = [float(trajectory_constraint_error(scene, engine.simulate(scene, dt, variant=name)).max())
+                  for dt in (ORDER_DTS if variant.startswith(("plain", "baumgarte")) else ORDER_DTS[-1:])]
+        key = engine_id.replace("/", "_").replace("-", "_")
+        f[f"model_gap_{key}"] = errors[-1]
+        if len(errors) > 1:
+            f[f"model_gap_order_{key}"] = float(np.polyfit(np.log(ORDER_DTS), np.log(errors), 1)[0])
 
 
 def figures(quick: bool = False, series: dict | None = None) -> dict[str, float]:
@@ -94,6 +149,7 @@ def figures(quick: bool = False, series: dict | None = None) -> dict[str, float]
     drift(f, series["drift"])
     orders(f, series["orders"])
     spinner(f)
+    model_joints(f)
     return f
 
 

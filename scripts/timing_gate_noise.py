@@ -21,13 +21,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
-from compare.gate.baseline import build_baseline  # noqa: E402
+from compare.gate.baseline import Baseline, build_baseline  # noqa: E402
 from compare.gate.gate import gate_results  # noqa: E402
 from compare.results.store import load_results  # noqa: E402
 from compare.run.runner import run_suite  # noqa: E402
@@ -51,15 +52,11 @@ LOAD_SECONDS = 900
 LOAD = f"import time\nend = time.monotonic() + {LOAD_SECONDS}\nwhile time.monotonic() < end: pass\n"
 
 
-def without_cpu(document: dict) -> dict:
-    """The baseline document with the CPU timings removed: what the wall-time rule sees."""
-    cases = {}
-    for key, entry in document["cases"].items():
-        timing = entry.get("timing")
-        if timing:
-            timing = {k: v for k, v in timing.items() if k not in ("cpu", "calibration")}
-        cases[key] = {**entry, "timing": timing}
-    return {**document, "cases": cases}
+def without_cpu(baseline: Baseline) -> Baseline:
+    """The baseline with the CPU timings removed: what the wall-time rule sees."""
+    cases = {key: replace(entry, timing=entry.timing and replace(entry.timing, cpu=None, calibration=None))
+             for key, entry in baseline.cases.items()}
+    return replace(baseline, cases=cases)
 
 
 def slow_rows(report) -> list[str]:

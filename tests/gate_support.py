@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 
+from compare.results.record import CaseRecord
 from compare.results.store import ResultsDir, read_json
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
@@ -43,8 +44,7 @@ def edit_case(directory: Path, case_id: str, change: Callable[[dict[str, Any]], 
         record = read_json(file)  # the raw JSON: tests edit what a file holds
         if record["case"]["id"] == case_id:
             change(record)
-            record.pop("schema_version", None)
-            ResultsDir(directory).write_case(record)
+            ResultsDir(directory).write_case(CaseRecord.from_json(record, file))
             return record
     raise KeyError(case_id)
 

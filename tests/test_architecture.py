@@ -205,3 +205,67 @@ def test_compare_reads_case_files_only_through_the_case_record():
     store = (ROOT / "compare" / "results" / "store.py").read_text()
     assert store.count('glob("*.json")') == 1  # store.read_records
     assert names_the_cases_folder(ast.parse('open(run / "cases" / name)'))
+
+
+def calls_to(name: str, attribute: str | None = None) -> dict[str, list[int]]:
+    """Module of compare/ or reports/ -> lines calling ``name(...)`` (or ``name.attribute(...)``)."""
+    found: dict[str, list[int]] = {}
+    for module, path in project_modules().items():
+        if module.split(".")[0] not in ("compare", "reports"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Call):
+                continue
+            func = node.func
+            if attribute is None:
+                hit = (isinstance(func, ast.Name) and func.id == name) or (
+                    isinstance(func, ast.Attribute) and func.attr == name)
+            else:
+                hit = (isinstance(func, ast.Attribute) and func.attr == attribute
+                       and isinstance(func.value, ast.Name) and func.value.id == name)
+            if hit:
+                found.setdefault(module, []).append(node.lineno)
+    return found
+
+
+def test_a_case_has_one_shape_from_the_runner_to_disk_to_gate_baseline_and_history():
+    """The runner builds the CaseRecord and writes its to_json; only the two stores of records parse them
+    (case files, the history's record column); no module builds a case document as a dict of its own."""
+    assert set(calls_to("CaseRecord", "from_json")) == {"compare.results.store", "compare.history.store"}
+    assert set(calls_to("write_case")) == {"compare.run.runner"}
+    documents = []
+    for module, path in project_modules().items():
+        if module.split(".")[0] in ("compare", "reports") and module != "compare.results.record":
+            for node in ast.walk(ast.parse(path.read_text())):
+                keys = {k.value for k in getattr(node, "keys", ()) if isinstance(k, ast.Constant)}
+                if isinstance(node, ast.Dict) and {"case", "status", "metrics"} <= keys:
+                    documents.append(f"{module}:{node.lineno}")
+    assert documents == []
+
+
+#: Fields of a case record or a baseline entry: read as attributes of the typed objects, never by key.
+CASE_FIELDS = {"case", "status", "message", "metrics", "run_info", "series", "timing", "engine_version", "scene_hash",
+               "consistent", "consistency", "scene_id", "engine", "engine_id", "dt", "position", "cases", "wall_times",
+               "cpu_times", "calibrations", "reference_horizon", "characteristic", "variant", "options"}
+#: The modules that move cases from the runner to the gate: none indexes a raw case or entry.
+TYPED_ONLY = ("compare.run.runner", "compare.gate.gate", "compare.gate.report", "compare.gate.junit",
+              "compare.history.window", "compare.history.trend", "compare.commands.gate", "compare.commands.baseline")
+
+
+def test_baseline_entries_are_typed_and_made_from_case_records_in_one_place():
+    assert set(calls_to("BaselineEntry")) == {"compare.gate.entry"}  # entry_of and from_json
+    assert set(calls_to("entry_of")) == {"compare.gate.baseline"}  # a baseline's, the history's, the gate's current
+    modules = project_modules()
+    keyed = []
+    for module in TYPED_ONLY:
+        for node in ast.walk(ast.parse(modules[module].read_text())):
+            key = None
+            if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant):
+                key = node.slice.value
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr in ("get", "pop", "setdefault") and node.args
+                  and isinstance(node.args[0], ast.Constant)):
+                key = node.args[0].value
+            if key in CASE_FIELDS:
+                keyed.append(f"{module}:{node.lineno} [{key!r}]")
+    assert keyed == []

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from compare.gate.baseline import BASELINE_SCHEMA_VERSION, build_baseline, case_key, load_baseline, write_baseline
+from compare.gate.baseline import BASELINE_SCHEMA_VERSION, build_baseline, load_baseline, write_baseline
+from compare.gate.entry import record_key
 from compare.gate.report import format_value
 from compare.results.store import load_results, read_json
 from compare.results.sweep import sweeps
@@ -56,23 +57,23 @@ def rows(out: str, verdict: str) -> list[list[str]]:
 
 
 def test_baseline_stores_per_case_metrics_timing_spread_and_versions(runs):
+    assert read_json(runs["baseline"])["schema_version"] == BASELINE_SCHEMA_VERSION
     document = load_baseline(runs["baseline"])
-    assert document["schema_version"] == BASELINE_SCHEMA_VERSION
-    assert document["suite"]["name"] == "gate-test"
-    assert len(document["cases"]) == 6
+    assert document.suite["name"] == "gate-test"
+    assert len(document.cases) == 6
     record = next(r for r in _records(runs["first"]) if r.case.id == CASE)
-    entry = document["cases"][case_key(record.case, record.scene_hash)]
-    assert entry["engine_version"] == record.run_info["engine_version"]
-    assert entry["status"] == "ok"
-    assert entry["metrics"]["position_error_linf"] == record.metrics["position_error_linf"]
+    entry = document.cases[record_key(record)]
+    assert entry.engine_version == record.run_info["engine_version"]
+    assert entry.status == "ok"
+    assert entry.metric("position_error_linf") == record.metrics["position_error_linf"]
     # The sweep's fitted order is stored with each of its cases.
     for sweep in sweeps(_records(runs["first"])):
-        stored = {e["metrics"]["observed_order"] for e in document["cases"].values() if e["engine"] == sweep.engine}
+        stored = {e.metric("observed_order") for e in document.cases.values() if e.engine == sweep.engine}
         assert stored == {sweep.order.order}
-    timing = entry["timing"]
-    assert len(timing["repeats"]) == 3
-    assert timing["spread"] == [min(timing["repeats"]), max(timing["repeats"])]
-    assert timing["cost"] == pytest.approx(record.metrics["cost_per_simulated_second"])
+    timing = entry.timing
+    assert len(timing.repeats) == 3
+    assert timing.spread == (min(timing.repeats), max(timing.repeats))
+    assert timing.cost == pytest.approx(record.metrics["cost_per_simulated_second"])
 
 
 def _records(directory: Path):

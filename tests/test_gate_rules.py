@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
+
 import pytest
 
 from engines.errors import UserError
 
+from compare.gate.baseline import load_baseline, write_baseline
+from compare.gate.entry import BaselineEntry, Timing
 from compare.gate.gate import accuracy_change, compare_case, machine_difference, timing_change
+from compare.results.record import Status
 from compare.suite.reader import parse_suite
 from compare.suite.tolerance import RULES, GateSettings, Tolerance, gate_settings
 
@@ -55,9 +62,9 @@ def test_a_null_divergence_time_means_never_diverged(baseline, current, verdict)
     assert accuracy_change(RULES["divergence_time"], baseline, current, SETTINGS).verdict == verdict
 
 
-def timing(*repeats: float) -> dict:
+def timing(*repeats: float) -> Timing:
     ordered = sorted(repeats)
-    return {"cost": ordered[len(ordered) // 2], "repeats": list(repeats), "spread": [ordered[0], ordered[-1]]}
+    return Timing(ordered[len(ordered) // 2], repeats, (ordered[0], ordered[-1]))
 
 
 @pytest.mark.parametrize(
@@ -80,10 +87,10 @@ def test_single_repeats_are_shown_but_never_gated():
     assert change.note == "5.00× slower (factor 1.5, repeat spread 0 s/s); not gated: fewer than 2 timing repeats, so the noise is unknown (set repeats in the suite)"
 
 
-def entry(status: str, message: str = "", version: str | None = "1.0") -> dict:
-    """A baseline entry of one case with no metrics or timing (enough for the status rules)."""
-    return {"scene_id": "bead", "engine": "e/v", "dt": 0.01, "status": status, "message": message,
-            "engine_version": version, "metrics": None, "timing": None}
+def entry(status: str, message: str = "", version: str | None = "1.0", metrics: dict | None = None) -> BaselineEntry:
+    """A baseline entry of one case with no timing (no metrics either unless given: enough for the status rules)."""
+    return BaselineEntry("bead", "h", "e/v", "e/v", "v", {}, 0.01, (0, 0, 0), version, Status(status), message,
+                         metrics, None, "", None)
 
 
 @pytest.mark.parametrize(
@@ -159,13 +166,37 @@ def test_a_suite_carries_its_gate_table_and_a_mistake_names_the_line():
 def test_a_side_without_a_reference_has_its_null_divergence_time_unmeasured_not_infinite():
     # A reference that timed out leaves the position metrics null, divergence_time with them: that null
     # is "not measured", not "never diverged", so no divergence-time change is made of it either way.
-    case = {"scene_id": "bead", "engine": "mujoco/hinge", "dt": 0.01, "status": "ok", "message": "no reference"}
-    measured = {**case, "metrics": {"position_error_linf": 1e-3, "divergence_time": 0.5}}
-    unmeasured = {**case, "metrics": {"position_error_linf": None, "divergence_time": None}}
+    measured = entry("ok", "no reference", metrics={"position_error_linf": 1e-3, "divergence_time": 0.5})
+    unmeasured = entry("ok", "no reference", metrics={"position_error_linf": None, "divergence_time": None})
     for base, current in ((measured, unmeasured), (unmeasured, measured)):
         result = compare_case(base, current, SETTINGS, timing_gated=True, why_not="")
         assert "divergence_time" not in {c.metric for c in result.changes}
     assert compare_case(measured, unmeasured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"
     # With a reference on both sides a null divergence time still means never diverged.
-    never = {**case, "metrics": {"position_error_linf": 1e-3, "divergence_time": None}}
+    never = entry("ok", "no reference", metrics={"position_error_linf": 1e-3, "divergence_time": None})
     assert compare_case(never, measured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"
+
+
+BASELINES = Path(__file__).resolve().parents[1] / "baselines"
+
+
+def test_a_committed_baseline_reads_into_typed_entries_and_writes_back_byte_for_byte(tmp_path):
+    baseline = load_baseline(BASELINES / "smoke.json")
+    assert all(isinstance(e, BaselineEntry) and isinstance(e.status, Status) for e in baseline.cases.values())
+    assert all(key == entry.key for key, entry in baseline.cases.items())
+    write_baseline(baseline, tmp_path / "again.json")
+    assert (tmp_path / "again.json").read_text() == (BASELINES / "smoke.json").read_text()
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("status", "fine", r"field status is 'fine'; expected one of ok, unstable, failed, timeout, skipped"),
+    ("dt", "0.01", r"field dt must be a finite number, got '0.01'"),
+    ("metrics", {"position_error_linf": "small"}, r"field metrics must be an object of numbers or null"),
+])
+def test_a_damaged_baseline_entry_is_one_error_naming_the_file_the_case_and_the_field(tmp_path, field, value, message):
+    document = json.loads((BASELINES / "smoke.json").read_text())
+    key = next(iter(document["cases"]))
+    document["cases"][key][field] = value
+    (tmp_path / "b.json").write_text(json.dumps(document))
+    with pytest.raises(UserError, match=rf"^--baseline: {re.escape(str(tmp_path))}/b\.json: case .*: {message}.*; make it again"):
+        load_baseline(tmp_path / "b.json")

@@ -123,15 +123,18 @@ def test_labels_with_ansi_escapes_print_inert(tmp_path, capsys):
 def test_gate_md_escapes_html_in_labels():
     from gate_support import GOLDEN
 
+    from dataclasses import replace
+
     from compare.gate.baseline import load_baseline
     from compare.gate.gate import gate_results
     from compare.gate.report import to_markdown
     from compare.suite.tolerance import GateSettings
 
-    baseline, current = load_baseline(GOLDEN / "baseline.json"), load_baseline(GOLDEN / "current.json")
-    for document in (baseline, current):
-        for entry in document["cases"].values():
-            entry["engine"] = "<img src=x onerror=alert(1)>|" + entry["engine"]
+    def labelled(baseline):
+        return replace(baseline, cases={key: replace(entry, engine="<img src=x onerror=alert(1)>|" + entry.engine)
+                                        for key, entry in baseline.cases.items()})
+
+    baseline, current = labelled(load_baseline(GOLDEN / "baseline.json")), labelled(load_baseline(GOLDEN / "current.json"))
     text = to_markdown(gate_results(baseline, current, GateSettings(), "baseline.json"))
     assert "<img" not in text
     assert "&lt;img src=x onerror=alert(1)&gt;\\|ours/" in text

@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import pytest
 
+from dataclasses import replace
+
+from compare.gate.entry import Timing
 from compare.gate.gate import best_spread, calibrated, cpu_timing_change, timing_change
 from compare.run.isolation import CaseTask, calibration_cpu_time, simulate
 from engines import catalog
 
 
-def timing(cpu: list[float], calibration: list[float]) -> dict:
-    return {"cost": sorted(cpu)[len(cpu) // 2], "repeats": list(cpu), "spread": [min(cpu), max(cpu)],
-            "cpu": list(cpu), "calibration": list(calibration)}
+def timing(cpu: list[float], calibration: list[float]) -> Timing:
+    return Timing(sorted(cpu)[len(cpu) // 2], tuple(cpu), (min(cpu), max(cpu)), tuple(cpu), tuple(calibration))
 
 
 BASE = timing([1.00, 1.02, 1.30], [0.5, 0.5, 0.5])
@@ -48,7 +50,7 @@ def test_a_2x_slowdown_is_worse_and_the_limit_widens_with_the_measured_spread():
 def test_faster_is_better_and_the_cpu_rule_is_used_only_when_both_sides_have_it():
     halved = timing([0.5, 0.51, 0.52], [0.5, 0.5, 0.5])
     assert cpu_timing_change(BASE, halved, factor=1.5, gated=True).verdict == "better"
-    wall_only = {k: v for k, v in halved.items() if k not in ("cpu", "calibration")}
+    wall_only = replace(halved, cpu=None, calibration=None)
     change = timing_change(BASE, wall_only, 1.5, gated=True)
     assert change.note.startswith("2.00× faster") and "calibration" not in change.note
 

@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from compare.gate.baseline import build_baseline, case_key
+from compare.gate.baseline import build_baseline
+from compare.gate.entry import record_key
 from compare.gate.gate import gate
 from compare.suite.tolerance import GateSettings
 from compare.history import store as store_module
@@ -56,13 +57,13 @@ def test_a_stored_run_reads_back_whole(base, tmp_path):
         assert run.engines == base.header["environment"]["engines"]
         stored = {c.case_key: c for c in history.cases([run.id])}
         document = build_baseline(base)
-        assert set(stored) == set(document["cases"]) and len(stored) == len(base.records) == 6
+        assert set(stored) == set(document.cases) and len(stored) == len(base.records) == 6
         for record in base.records:
-            key = case_key(record.case, record.scene_hash)
-            assert stored[key].entry == document["cases"][key]
+            key = record_key(record)
+            assert stored[key].entry == document.cases[key]
             assert history.record(run.id, key).to_json() == record.to_json()  # series and all
             assert stored[key].metrics["position_error_linf"] == record.metrics["position_error_linf"]
-        assert history.baseline_document(run)["cases"] == document["cases"]
+        assert history.baseline_document(run).cases == document.cases
 
 
 def test_appending_never_changes_an_earlier_run_and_stored_rows_refuse_updates(base, tmp_path):
@@ -345,5 +346,5 @@ def test_window_leaves_out_other_machines_and_the_run_itself(base, tmp_path):
         add(history, base, 2)
         window = window_baseline(history, base, 5)
     assert [r.id for r in window.runs] == [2]
-    own = build_baseline(base)["cases"]
-    assert {k: e["metrics"] for k, e in window.document["cases"].items()} == {k: e["metrics"] for k, e in own.items()}
+    own = build_baseline(base).cases
+    assert {k: e.metrics for k, e in window.document.cases.items()} == {k: e.metrics for k, e in own.items()}

@@ -111,7 +111,7 @@ def test_round_trip_append_only_and_a_run_added_once(base, url):
         add(history, synthetic(base, 1, error=2.0), 1)
         assert "postgresql+psycopg://xval@127.0.0.1" in history.name
         stored = {c.case_key: c for c in history.cases([first.id])}
-        assert {k: e for k, e in build_baseline(base)["cases"].items()} == {k: c.entry for k, c in stored.items()}
+        assert dict(build_baseline(base).cases) == {k: c.entry for k, c in stored.items()}
         key = next(iter(stored))
         assert history.record(first.id, key).to_json() in [r.to_json() for r in base.records]
         with pytest.raises(AlreadyRecorded, match=r"already in the history .* as run 1 \(added [^)]+\); not added again"):
@@ -151,11 +151,11 @@ def test_the_windowed_gate_reads_the_same_from_postgresql(base, url):
             add(history, synthetic(base, index, error=1.0 + 0.5 * index), index)
         window = window_baseline(history, synthetic(base, 9), 3)
     assert [r.id for r in window.runs] == [1, 2, 3]
-    best = build_baseline(base)["cases"]
-    for key, entry in window.document["cases"].items():
+    best = build_baseline(base).cases
+    for key, entry in window.document.cases.items():
         for metric in ERRORS:  # the best of 1×, 1.5×, 2× is 1×
-            assert entry["metrics"][metric] == best[key]["metrics"][metric]
-    assert any(e["engine"] == ENGINE for e in window.document["cases"].values())
+            assert entry.metric(metric) == best[key].metric(metric)
+    assert any(e.engine == ENGINE for e in window.document.cases.values())
 
 
 def test_an_unreachable_server_is_one_clear_error():

@@ -152,7 +152,7 @@ def test_a_metric_declared_once_appears_in_show_report_baseline_and_gate(dummy_m
     assert code == 0, err
     entries = json.loads(baseline.read_text())["cases"].values()
     assert sorted(e["metrics"][DUMMY] for e in entries) == sorted(speeds)
-    assert build_baseline(results)["cases"]  # the in-process path agrees
+    assert build_baseline(results).cases  # the in-process path agrees
 
     code, out, err = xval(capsys, "gate", run, "--baseline", baseline, "--timing", "report")
     assert code == 0, out + err

@@ -1,5 +1,5 @@
 """Stored series are rounded to SERIES_DIGITS significant digits with array arithmetic
-(compare.results.store.round_significant); they must be the numbers string formatting gives."""
+(compare.results.series.round_significant); they must be the numbers string formatting gives."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from compare.results.store import SERIES_DIGITS, SeriesView, as_json_list, round_significant
+from compare.results.series import SERIES_DIGITS, SeriesView, as_json_list, round_significant
 
 
 def formatted(x: float, digits: int = SERIES_DIGITS) -> float:
@@ -59,7 +59,7 @@ def test_shapes_are_kept_as_nested_lists_of_python_floats():
 
 def test_a_run_keeps_in_memory_the_series_its_files_hold(tmp_path):
     """The runner keeps the records it wrote, their series as arrays read as lists on demand
-    (store.SeriesView): what a reader of the run's summary sees must be what the file says."""
+    (series.SeriesView): what a reader of the run's summary sees must be what the file says."""
     import json
 
     from compare.run.runner import run_suite
@@ -68,12 +68,14 @@ def test_a_run_keeps_in_memory_the_series_its_files_hold(tmp_path):
     suite = parse_suite('duration = 0.3\ndt = [1e-2]\n[[scenes]]\nscene = "double-pendulum"\n'
                         '[[engines]]\nid = "mujoco/connect"\n[[engines]]\nid = "pymunk/pin"\n')
     summary = run_suite(suite, tmp_path / "out", jobs=1)
-    stored = {d["case"]["id"]: d["series"] for d in
+    stored = {d["case"]["id"]: d for d in
               (json.loads(p.read_text()) for p in (tmp_path / "out" / "cases").glob("*.json"))}
     assert len(summary.records) == len(stored) == 2
     for record in summary.records:
         assert "constraint_forces" in record.series
-        assert dict(record.series) == stored[record.case.id]
+        assert dict(record.series) == stored[record.case.id]["series"]
+        # One shape: the record the runner built is the file it wrote, field for field.
+        assert record.to_json() == stored[record.case.id]
 
 
 def test_a_series_view_reads_non_finite_values_as_none():

@@ -25,10 +25,10 @@ def command(directory, output) -> None:
     """
     target = check_writable(output, inputs=results_inputs(directory))
     results = load_results(directory)
-    document = build_baseline(results)
-    write_baseline(document, target)
+    baseline = build_baseline(results)
+    write_baseline(baseline, target)
     statuses: dict[str, int] = {}
-    for entry in document["cases"].values():
-        statuses[entry["status"]] = statuses.get(entry["status"], 0) + 1
+    for entry in baseline.cases.values():
+        statuses[entry.status.value] = statuses.get(entry.status.value, 0) + 1
     counts = ", ".join(f"{n} {status}" for status, n in sorted(statuses.items()))
-    click.echo(f"baseline of suite {document['suite']['name']}: {len(document['cases'])} cases ({counts}) -> {target}")
+    click.echo(f"baseline of suite {baseline.suite['name']}: {len(baseline.cases)} cases ({counts}) -> {target}")

@@ -64,9 +64,8 @@ def command(directory, baseline_path, history, window, junit, summary, timing) -
         baseline, baseline_path, heading = history_baseline(history, results, window or DEFAULT_WINDOW)
     report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
     if history is None:
-        made = baseline.get("results") or {}
-        heading = (f"baseline {baseline_path}: suite {baseline['suite'].get('name')}, {len(baseline['cases'])} cases, "
-                   f"made {baseline.get('created')} from commit {made.get('git_commit')}")
+        heading = (f"baseline {baseline_path}: suite {baseline.suite.get('name')}, {len(baseline.cases)} cases, "
+                   f"made {baseline.created} from commit {baseline.results.get('git_commit')}")
     click.echo(heading + "\n")
     click.echo(format_table(report), nl=False)
     if junit_file:

@@ -13,13 +13,13 @@ import numpy as np
 from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
-from compare.results.metrics import Bounds, apply_bounds, constraint_error, largest, relative_drift
+from compare.results.metrics import Bounds, apply_bounds, largest, relative_drift
 from engines import registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.command import command_engine
 from engines.errors import UserError
 from engines.limits import check_case_size
-from engines.trajectory import trajectory_energy
+from engines.trajectory import trajectory_constraint_error, trajectory_energy
 
 
 def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
@@ -110,7 +110,7 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
     if trajectory.n_samples:
         with np.errstate(all="ignore"):  # a run that blew up overflows here; its numbers say so
             drift = largest(relative_drift(scene, trajectory_energy(scene, trajectory)))
-            error = constraint_error(scene, trajectory.positions)
+            error = largest(trajectory_constraint_error(scene, trajectory))
         status, message = apply_bounds(status, message, types.SimpleNamespace(energy_drift=drift, constraint_error=error),
                                        limits, scene)
         details = (

@@ -1,19 +1,11 @@
 """Baselines: the gate-relevant part of a results directory, in one small versioned JSON file.
 
-A baseline keeps, per case, what a later run is compared with:
-
-- the case's identity: scene id and content hash, engine label, engine id,
-  variant, options and dt (``case_key`` joins them; a scene edited without
-  renaming gets a new hash, so it is reported as changed, not compared);
-- the engine version that produced it (another version is "not comparable");
-- status and message;
-- the deterministic metrics (``compare.suite.tolerance.RULES``: errors, drifts,
-  constraint errors, divergence time, the sweep's observed order);
-- the timing: median cost per simulated second and the per-repeat costs, so
-  the gate can tell a slowdown from the spread of the repeats.
-
-Series, scenes and references are left out: a baseline of a large suite stays
-a few hundred bytes per case and diffs readably in review.
+A baseline keeps, per case, a :class:`~compare.gate.entry.BaselineEntry`
+(its key: scene id and content hash, engine, variant, options, dt; the engine
+version; status; the gated metrics; the timing and its repeats), made from the
+case record by :func:`compare.gate.entry.entry_of`. :class:`Baseline` is the
+typed document a gate compares: a baseline file, the current results, or a
+window of the history's runs.
 
 File layout (``BASELINE_SCHEMA_VERSION``)::
 
@@ -26,16 +18,15 @@ File layout (``BASELINE_SCHEMA_VERSION``)::
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from engines.errors import UserError
 
+from compare.gate.entry import BaselineEntry, EntryError, entry_of, record_key
 from compare.results.files import atomic_write_text
-from compare.results.record import CaseKey, CaseRecord
 from compare.results.store import Results, jsonable, now
-from compare.results.sweep import VariantSweep
-from compare.suite.tolerance import RULES, TIMING_METRIC
 
 #: Bump when a field of the baseline file changes meaning.
 BASELINE_SCHEMA_VERSION = 1
@@ -45,92 +36,59 @@ BASELINE_KIND = "xval-baseline"
 MACHINE_FIELDS = ("cpu", "cpu_count", "machine")
 
 
-def case_key(case: CaseKey | dict[str, Any], scene_hash: str) -> str:
-    """The key a case is stored and matched under: scene id and content hash, engine, variant, options, dt.
+@dataclass(frozen=True)
+class Baseline:
+    """What a gate compares: per case key its entry, and where the entries came from.
 
-    case : a record's CaseKey, or a baseline entry (a dict with the same fields).
-    The scene id is part of it so two scenes with identical content (a
-    suite may list one scene twice under different ids) stay distinct.
+    suite : name, fingerprint, path of the suite; created : when it was made; results :
+    started, git_commit, xval_version of the run; machine : MACHINE_FIELDS of the machine it
+    ran on; engines : engine name -> version; window : the history runs it was made of (None:
+    one results directory).
     """
-    if isinstance(case, CaseKey):
-        scene_id, engine, variant, options, dt = case.scene_id, case.engine, case.variant, case.options, case.dt
-    else:
-        scene_id, engine, variant, options, dt = (
-            case["scene_id"], case["engine"], case.get("variant"), case.get("options"), case["dt"]
+
+    suite: Mapping[str, Any]
+    cases: Mapping[str, BaselineEntry]
+    created: str | None = None
+    results: Mapping[str, Any] = field(default_factory=dict)
+    machine: Mapping[str, Any] = field(default_factory=dict)
+    engines: Mapping[str, Any] = field(default_factory=dict)
+    window: tuple[int, ...] | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """The baseline file's document."""
+        document = {
+            "kind": BASELINE_KIND, "schema_version": BASELINE_SCHEMA_VERSION, "suite": dict(self.suite),
+            "created": self.created, "results": dict(self.results), "machine": dict(self.machine),
+            "engines": dict(self.engines), "cases": {key: entry.to_json() for key, entry in self.cases.items()},
+        }
+        if self.window is not None:
+            document["window"] = list(self.window)
+        return jsonable(document)
+
+    @classmethod
+    def from_json(cls, document: dict[str, Any], where: str) -> "Baseline":
+        """Type a baseline document whose kind and version were checked; EntryError naming a damaged entry."""
+        window = document.get("window")
+        return cls(
+            suite=document["suite"],
+            cases={key: BaselineEntry.from_json(entry, f"{where}: case {key}") for key, entry in document["cases"].items()},
+            created=document.get("created"), results=document.get("results") or {},
+            machine=document.get("machine") or {}, engines=document.get("engines") or {},
+            window=None if window is None else tuple(int(i) for i in window),
         )
-    text = json.dumps(dict(options or {}), sort_keys=True, separators=(",", ":"))
-    return f"{scene_id}#{scene_hash}|{engine}|{variant}|{text}|dt={dt:.12g}"
 
 
-def case_name(entry: dict[str, Any]) -> str:
-    """``scene · engine · dt=…``: how a case is named in tables, JUnit and Markdown."""
-    return f"{entry['scene_id']} · {entry['engine']} · dt={entry['dt']:.3g}"
-
-
-def engine_version(record: CaseRecord, header: dict[str, Any]) -> str | None:
-    """The version of the engine that ran ``record``: from its RunInfo, else (skipped cases) from run.json."""
-    if record.engine_version:
-        return record.engine_version
-    engine_name = record.case.engine_id.split("/")[0]
-    return (header.get("environment") or {}).get("engines", {}).get(engine_name)
-
-
-def _timing(record: CaseRecord) -> dict[str, Any] | None:
-    """Median cost (s per simulated s) and the cost of every repeat, or None without timings."""
-    cost, wall = record.metrics.get(TIMING_METRIC), record.metrics.get("wall_time")
-    repeats = record.wall_times
-    if cost is None or not wall or not repeats:
-        return None
-    # Each repeat stepped the same simulated time, so cost scales with wall time.
-    per_repeat = [w * cost / wall for w in repeats]
-    timing = {"cost": cost, "repeats": per_repeat, "spread": [min(per_repeat), max(per_repeat)]}
-    cpu_times = record.extra.get("cpu_times") or []
-    calibrations = record.extra.get("calibrations") or []
-    if (len(cpu_times) == len(calibrations) == len(repeats)
-            and all(isinstance(c, (int, float)) and c > 0 for c in [*cpu_times, *calibrations])):
-        # CPU s per simulated s of each repeat, and the calibration kernel's CPU s timed beside it:
-        # what the timing gate compares when both sides have them.
-        timing["cpu"] = [c * cost / wall for c in cpu_times]
-        timing["calibration"] = list(calibrations)
-    return timing
-
-
-def entry_from_record(record: CaseRecord, header: dict[str, Any], sweep: VariantSweep | None = None) -> dict[str, Any]:
-    """The baseline entry of one case record; ``sweep`` gives its variant's order and consistency."""
-    case = record.case
-    metrics = dict(record.metrics)
-    metrics["observed_order"] = sweep.order.order if sweep is not None and sweep.order else None
-    verdict = sweep.consistency if sweep is not None else None
-    return {
-        "scene_id": case.scene_id,
-        "scene_hash": record.scene_hash,
-        "engine": case.engine,
-        "engine_id": case.engine_id,
-        "variant": case.variant,
-        "options": dict(case.options),
-        "dt": case.dt,
-        "position": list(case.position),
-        "engine_version": engine_version(record, header),
-        "status": record.status.value,
-        "message": record.message,
-        "metrics": {name: metrics.get(name) for name in RULES} if record.has_metrics else None,
-        "consistent": verdict.consistent if verdict else None,
-        "consistency": verdict.reason if verdict else "",
-        "timing": _timing(record),
-    }
-
-
-def entries(results: Results) -> dict[str, dict[str, Any]]:
+def entries(results: Results) -> dict[str, BaselineEntry]:
     """Baseline entries of every case in ``results``, keyed by ``case_key``, in the suite's order."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, BaselineEntry] = {}
     for sweep in results.sweeps():
         for record in sweep.records:
-            out[case_key(record.case, record.scene_hash)] = entry_from_record(record, results.header, sweep)
+            out[record_key(record)] = entry_of(record, results.header, sweep)
     return out
 
 
-def build_baseline(results: Results, then: str = "make the baseline") -> dict[str, Any]:
-    """The baseline document of a finished results directory.
+def build_baseline(results: Results, then: str = "make the baseline") -> Baseline:
+    """The baseline of a finished results directory.
 
     An unfinished run is refused (UserError ending "then ``then``"): its
     absent cases would otherwise be silently missing from a baseline, or
@@ -143,33 +101,29 @@ def build_baseline(results: Results, then: str = "make the baseline") -> dict[st
             f"(xval run SUITE --output {results.path} --resume), then {then}"
         )
     environment = header.get("environment") or {}
-    return jsonable(
-        {
-            "kind": BASELINE_KIND,
-            "schema_version": BASELINE_SCHEMA_VERSION,
-            "suite": {k: header["suite"].get(k) for k in ("name", "fingerprint", "path")},
-            "created": now(),
-            "results": {
-                "started": header.get("started"),
-                "git_commit": environment.get("git_commit"),
-                "xval_version": header.get("xval_version"),
-            },
-            "machine": {k: environment.get(k) for k in MACHINE_FIELDS},
-            "engines": environment.get("engines", {}),
-            "cases": entries(results),
-        }
+    return Baseline(
+        suite={k: header["suite"].get(k) for k in ("name", "fingerprint", "path")},
+        cases=entries(results),
+        created=now(),
+        results={
+            "started": header.get("started"),
+            "git_commit": environment.get("git_commit"),
+            "xval_version": header.get("xval_version"),
+        },
+        machine={k: environment.get(k) for k in MACHINE_FIELDS},
+        engines=environment.get("engines", {}),
     )
 
 
-def write_baseline(document: dict[str, Any], path: str | Path) -> None:
+def write_baseline(baseline: Baseline, path: str | Path) -> None:
     # indent=1 and sorted keys: a regenerated baseline diffs line by line in review.
-    atomic_write_text(path, json.dumps(document, indent=1, sort_keys=True, allow_nan=False) + "\n")
+    atomic_write_text(path, json.dumps(baseline.to_json(), indent=1, sort_keys=True, allow_nan=False) + "\n")
 
 
 REMAKE = "make it again with 'xval baseline DIR --output {path}' from a results directory of the suite"
 
 
-def load_baseline(path: str | Path) -> dict[str, Any]:
+def load_baseline(path: str | Path) -> Baseline:
     """Read and check a baseline file; UserError naming the file and the fix for anything else."""
     path = Path(path)
     fix = REMAKE.format(path=path)
@@ -197,4 +151,7 @@ def load_baseline(path: str | Path) -> dict[str, Any]:
         )
     if not isinstance(document.get("cases"), dict) or not isinstance(document.get("suite"), dict):
         raise UserError(f"--baseline: {path}: the baseline has no cases or suite; {fix}")
-    return document
+    try:
+        return Baseline.from_json(document, f"--baseline: {path}")
+    except EntryError as exc:
+        raise UserError(f"{exc}; {fix}") from None

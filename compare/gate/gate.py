@@ -42,21 +42,23 @@ Rules (asv's ``continuous``: fail only on a change larger than the noise):
   the reference could not be solved, the engine stopped giving forces) is
   **worse**: an absent number must not pass as unchanged.
 
-Everything here is a pure function of two baseline-shaped documents (the
-results are turned into baseline entries first), so the rules are tested
-without running anything.
+Everything here is a pure function of two :class:`~compare.gate.baseline.Baseline`
+documents of typed entries (the results are turned into one first, by the
+same function that makes a baseline), so the rules are tested without running
+anything.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Mapping
 
 from engines.errors import UserError
 
-from compare.gate.baseline import MACHINE_FIELDS, case_name
+from compare.gate.baseline import MACHINE_FIELDS, Baseline
+from compare.gate.entry import BaselineEntry, Timing, case_name
 from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
-from compare.results.record import PROBLEMS
+from compare.results.record import PROBLEMS, Status
 
 #: Case verdicts, in the order a table lists them (most urgent first).
 VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")
@@ -104,7 +106,7 @@ class CaseResult:
 
     @property
     def name(self) -> str:
-        return case_name({"scene_id": self.scene_id, "engine": self.engine, "dt": self.dt})
+        return case_name(self.scene_id, self.engine, self.dt)
 
     def decisive(self) -> list[Change]:
         """The gated changes that made the verdict (all worse ones for ``worse``, better ones for ``better``)."""
@@ -168,8 +170,8 @@ def accuracy_change(rule: MetricRule, baseline: float | None, current: float | N
     return Change(rule.name, rule.unit, baseline, current, limit, verdict)
 
 
-def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | None, factor: float, gated: bool, why_not: str = "") -> Change | None:
-    """Compare timings ({"cost", "repeats", "spread": [min, max]}); a change must beat the factor and both spreads.
+def timing_change(baseline: Timing | None, current: Timing | None, factor: float, gated: bool, why_not: str = "") -> Change | None:
+    """Compare timings; a change must beat the factor and both spreads.
 
     With a single repeat on either side the noise is unknown (a spread of
     zero would let one disturbed run fail the gate), so the change is shown
@@ -177,12 +179,12 @@ def timing_change(baseline: dict[str, Any] | None, current: dict[str, Any] | Non
     """
     if not baseline or not current:
         return None
-    b, c = baseline["cost"], current["cost"]
-    if gated and min(len(baseline.get("repeats", ())), len(current.get("repeats", ()))) < MIN_TIMING_REPEATS:
+    b, c = baseline.cost, current.cost
+    if gated and min(len(baseline.repeats), len(current.repeats)) < MIN_TIMING_REPEATS:
         gated, why_not = False, f"fewer than {MIN_TIMING_REPEATS} timing repeats, so the noise is unknown (set repeats in the suite)"
-    if baseline.get("cpu") and current.get("cpu") and baseline.get("calibration") and current.get("calibration"):
+    if baseline.cpu and current.cpu and baseline.calibration and current.calibration:
         return cpu_timing_change(baseline, current, factor, gated, why_not)
-    noise = (baseline["spread"][1] - baseline["spread"][0]) + (current["spread"][1] - current["spread"][0])
+    noise = (baseline.spread[1] - baseline.spread[0]) + (current.spread[1] - current.spread[0])
     if c > factor * b and c - b > noise:
         verdict, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
     elif b > factor * c and b - c > noise:
@@ -207,14 +209,13 @@ def best_spread(values: list[float]) -> float:
     return (ordered[1] - ordered[0]) / ordered[0]
 
 
-def calibrated(timing: dict[str, Any]) -> list[float]:
+def calibrated(timing: Timing) -> list[float]:
     """Each repeat's CPU cost (s/s) in units of the run's fastest calibration kernel (s)."""
-    unit = min(timing["calibration"])
-    return [c / unit for c in timing["cpu"]]
+    unit = min(timing.calibration or ())
+    return [c / unit for c in timing.cpu or ()]
 
 
-def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor: float, gated: bool,
-                      why_not: str = "") -> Change:
+def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: bool, why_not: str = "") -> Change:
     """The statistical timing rule (module docstring) on two timing entries with "cpu" and "calibration".
 
     worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated
@@ -224,7 +225,7 @@ def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor:
     ratio = min(c_cal) / min(b_cal)
     widen = 1 + best_spread(b_cal) + best_spread(c_cal)
     limit = factor * widen
-    b, c = min(baseline["cpu"]), min(current["cpu"])
+    b, c = min(baseline.cpu or ()), min(current.cpu or ())
     how = (f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} repeats; "
            f"limit {factor:g} × {widen:.3g} = {limit:.3g}")
     if ratio > limit:
@@ -239,52 +240,53 @@ def cpu_timing_change(baseline: dict[str, Any], current: dict[str, Any], factor:
 # -- one case ------------------------------------------------------------------------
 
 
-def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSettings, timing_gated: bool, why_not: str) -> CaseResult:
+def compare_case(base: BaselineEntry, current: BaselineEntry, settings: GateSettings, timing_gated: bool,
+                 why_not: str) -> CaseResult:
     """The verdict on one case present in both the baseline and the results, under the same key."""
-    b_status, c_status = base["status"], current["status"]
+    b_status, c_status = base.status, current.status
     common = dict(
-        scene_id=current["scene_id"], engine=current["engine"], dt=current["dt"],
-        position=tuple(current.get("position", (0, 0, 0))), baseline_status=b_status, current_status=c_status,
+        scene_id=current.scene_id, engine=current.engine, dt=current.dt, position=current.position,
+        baseline_status=b_status.value, current_status=c_status.value,
     )
-    if c_status == "skipped" and b_status != "skipped":
+    skipped = Status.SKIPPED
+    if c_status is skipped and b_status is not skipped:
         # The engine no longer loads here (a broken plug-in, a missing library) or no longer
         # expresses the scene: a solver that stopped running must not pass the gate silently.
-        lost = Change("status", "", b_status, "skipped", None, "worse", note=current["message"])
-        return CaseResult(**common, verdict="worse", reason=f"skipped now: {current['message']}", changes=(lost,))
-    if b_status == "skipped" and c_status != "skipped":
-        return CaseResult(**common, verdict="not comparable", reason=f"skipped in the baseline: {base['message']}")
-    if base.get("engine_version") != current.get("engine_version"):
+        lost = Change("status", "", b_status.value, c_status.value, None, "worse", note=current.message)
+        return CaseResult(**common, verdict="worse", reason=f"skipped now: {current.message}", changes=(lost,))
+    if b_status is skipped and c_status is not skipped:
+        return CaseResult(**common, verdict="not comparable", reason=f"skipped in the baseline: {base.message}")
+    if base.engine_version != current.engine_version:
         return CaseResult(
             **common, verdict="not comparable",
-            reason=f"engine version changed: {base.get('engine_version')} → {current.get('engine_version')}",
+            reason=f"engine version changed: {base.engine_version} → {current.engine_version}",
         )
-    status = Change("status", "", b_status, c_status, None, "unchanged")
-    if b_status != c_status:
-        if b_status == "ok" and c_status in PROBLEMS:
-            status = Change("status", "", b_status, c_status, None, "worse", note=current["message"])
-        elif c_status == "ok":
-            status = Change("status", "", b_status, c_status, None, "better")
+    status = Change("status", "", b_status.value, c_status.value, None, "unchanged")
+    if b_status is not c_status:
+        if b_status is Status.OK and c_status in PROBLEMS:
+            status = replace(status, verdict="worse", note=current.message)
+        elif c_status is Status.OK:
+            status = replace(status, verdict="better")
         else:
-            status = Change("status", "", b_status, c_status, None, "unchanged", note="not ok before either")
+            status = replace(status, note="not ok before either")
     changes = [status]
     verdict_change = consistency_change(base, current)
     if verdict_change is not None:
         changes.append(verdict_change)
-    if b_status == "ok" and c_status == "ok":
-        b_metrics, c_metrics = base.get("metrics") or {}, current.get("metrics") or {}
+    if b_status is Status.OK and c_status is Status.OK:
         # A side without a position error had no reference: its null divergence time is "not measured".
-        unmeasured = b_metrics.get("position_error_linf") is None or c_metrics.get("position_error_linf") is None
+        unmeasured = base.metric("position_error_linf") is None or current.metric("position_error_linf") is None
         for rule in RULES.values():
-            b_value, c_value = b_metrics.get(rule.name), c_metrics.get(rule.name)
+            b_value, c_value = base.metric(rule.name), current.metric(rule.name)
             if unmeasured and rule.none_means == "infinite" and None in (b_value, c_value):
                 continue
             change = accuracy_change(rule, b_value, c_value, settings)
             if change is None and b_value is not None and c_value is None:
                 change = Change(rule.name, rule.unit, b_value, None, None, "worse",
-                                note=f"no value now, the baseline had one: {current.get('message') or 'see the case'}")
+                                note=f"no value now, the baseline had one: {current.message or 'see the case'}")
             if change is not None:
                 changes.append(change)
-        timing = timing_change(base.get("timing"), current.get("timing"), settings.timing_factor, timing_gated, why_not)
+        timing = timing_change(base.timing, current.timing, settings.timing_factor, timing_gated, why_not)
         if timing is not None:
             changes.append(timing)
     gated = [c.verdict for c in changes if c.gated]
@@ -292,56 +294,56 @@ def compare_case(base: dict[str, Any], current: dict[str, Any], settings: GateSe
     return CaseResult(**common, verdict=verdict, changes=tuple(changes))
 
 
-def consistency_change(base: dict[str, Any], current: dict[str, Any]) -> Change | None:
+def consistency_change(base: BaselineEntry, current: BaselineEntry) -> Change | None:
     """A variant that turned inconsistent (converges to something else now) is worse; the reverse is better.
 
-    None when neither side was judged (``consistent`` null or absent on both).
+    None when neither side was judged (``consistent`` null on both).
     """
-    b, c = base.get("consistent"), current.get("consistent")
+    b, c = base.consistent, current.consistent
     if b is None and c is None:
         return None
     if c is False and b is not False:
-        return Change("consistent", "", b, c, None, "worse", note=current.get("consistency", ""))
+        return Change("consistent", "", b, c, None, "worse", note=current.consistency)
     if b is False and c is True:
-        return Change("consistent", "", b, c, None, "better", note=current.get("consistency", ""))
+        return Change("consistent", "", b, c, None, "better", note=current.consistency)
     return Change("consistent", "", b, c, None, "unchanged")
 
 
-def _identity(entry: dict[str, Any]) -> tuple:
+def _identity(entry: BaselineEntry) -> tuple:
     """What names a case to a reader (scene id, engine label, dt): used to pair cases whose key changed."""
-    return (entry["scene_id"], entry["engine"], round(entry["dt"], 15))
+    return (entry.scene_id, entry.engine, round(entry.dt, 15))
 
 
-def _key_change(base: dict[str, Any], current: dict[str, Any]) -> str:
-    if base["scene_hash"] != current["scene_hash"]:
-        return f"scene changed (content hash {base['scene_hash']} → {current['scene_hash']})"
+def _key_change(base: BaselineEntry, current: BaselineEntry) -> str:
+    if base.scene_hash != current.scene_hash:
+        return f"scene changed (content hash {base.scene_hash} → {current.scene_hash})"
     return (
-        f"engine variant or options changed ({base.get('variant')} {base.get('options')} → "
-        f"{current.get('variant')} {current.get('options')})"
+        f"engine variant or options changed ({base.variant} {dict(base.options)} → "
+        f"{current.variant} {dict(current.options)})"
     )
 
 
 # -- the whole gate -------------------------------------------------------------------
 
 
-def check_same_suite(baseline: dict[str, Any], suite: dict[str, Any], baseline_path: str) -> list[str]:
+def check_same_suite(baseline: Baseline, suite: Mapping[str, Any], baseline_path: str) -> list[str]:
     """UserError when the baseline was made from another suite; notes when the same suite was edited."""
-    name = baseline["suite"].get("name")
+    name = baseline.suite.get("name")
     if name != suite.get("name"):
         raise UserError(
             f"--baseline: {baseline_path} is a baseline of suite {name!r}, but the results are of suite "
             f"{suite.get('name')!r}; pass the baseline of {suite.get('name')!r}, or make one with "
             f"'xval baseline DIR --output FILE'"
         )
-    if baseline["suite"].get("fingerprint") != suite.get("fingerprint"):
+    if baseline.suite.get("fingerprint") != suite.get("fingerprint"):
         return [
-            f"suite {name!r} changed since the baseline (fingerprint {baseline['suite'].get('fingerprint')} → "
+            f"suite {name!r} changed since the baseline (fingerprint {baseline.suite.get('fingerprint')} → "
             f"{suite.get('fingerprint')}): cases it added are new, cases it dropped are missing"
         ]
     return []
 
 
-def machine_difference(baseline_machine: dict[str, Any], current_machine: dict[str, Any]) -> str:
+def machine_difference(baseline_machine: Mapping[str, Any], current_machine: Mapping[str, Any]) -> str:
     """Why timings of the two runs do not compare ("" when they were taken on the same kind of machine)."""
     differing = [
         f"{k} {baseline_machine.get(k)!r} → {current_machine.get(k)!r}"
@@ -351,8 +353,8 @@ def machine_difference(baseline_machine: dict[str, Any], current_machine: dict[s
     return "timed on another machine (" + ", ".join(differing) + ")" if differing else ""
 
 
-def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, *, timing: str = "gate") -> GateReport:
-    """Compare two baseline documents (``current`` built from the results being gated).
+def gate(baseline: Baseline, current: Baseline, settings: GateSettings, *, timing: str = "gate") -> GateReport:
+    """Compare two baselines (``current`` built from the results being gated).
 
     timing : "gate" judges timing when both runs were timed on the same kind
         of machine (MACHINE_FIELDS); "report" shows timing changes without
@@ -361,11 +363,10 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
     if timing not in TIMING_MODES:
         raise UserError(f"--timing: {timing!r}; choose one of: {', '.join(TIMING_MODES)}")
     why_not = "timing is reported only (--timing report)" if timing == "report" else machine_difference(
-        baseline.get("machine") or {}, current.get("machine") or {}
+        baseline.machine, current.machine
     )
     timing_gated = not why_not
-    base_cases: dict[str, dict] = baseline["cases"]
-    current_cases: dict[str, dict] = current["cases"]
+    base_cases, current_cases = baseline.cases, current.cases
     results: list[CaseResult] = []
     for key, entry in current_cases.items():
         if key in base_cases:
@@ -376,25 +377,24 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
         if key in base_cases:
             continue
         base = unmatched_base.pop(_identity(entry), None)
-        position = tuple(entry.get("position", (0, 0, 0)))
         if base is not None:
             results.append(CaseResult(
-                entry["scene_id"], entry["engine"], entry["dt"], position, "not comparable",
-                reason=_key_change(base, entry), baseline_status=base["status"], current_status=entry["status"],
+                entry.scene_id, entry.engine, entry.dt, entry.position, "not comparable",
+                reason=_key_change(base, entry), baseline_status=base.status.value, current_status=entry.status.value,
             ))
         else:
             results.append(CaseResult(
-                entry["scene_id"], entry["engine"], entry["dt"], position, "new",
-                reason="not in the baseline", current_status=entry["status"],
+                entry.scene_id, entry.engine, entry.dt, entry.position, "new",
+                reason="not in the baseline", current_status=entry.status.value,
             ))
     for base in unmatched_base.values():
         results.append(CaseResult(
-            base["scene_id"], base["engine"], base["dt"], tuple(base.get("position", (0, 0, 0))), "missing",
-            reason="in the baseline, not in the results", baseline_status=base["status"],
+            base.scene_id, base.engine, base.dt, base.position, "missing",
+            reason="in the baseline, not in the results", baseline_status=base.status.value,
         ))
     results.sort(key=lambda r: (VERDICTS.index(r.verdict), r.position, r.scene_id, r.engine, -r.dt))
     missing = [r for r in results if r.verdict == "missing"]
-    same_suite = (baseline.get("suite") or {}).get("fingerprint") == (current.get("suite") or {}).get("fingerprint")
+    same_suite = baseline.suite.get("fingerprint") == current.suite.get("fingerprint")
     missing_fails = bool(missing) and (same_suite or len(missing) == len(base_cases))
     notes: tuple[str, ...] = ()
     if missing_fails:
@@ -402,7 +402,7 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
         notes = (f"{len(missing)} of the baseline's {len(base_cases)} cases are missing from the results ({names}); "
                  f"finish the run with 'xval run SUITE --output DIR --resume'",)
     return GateReport(
-        suite=current["suite"].get("name", ""),
+        suite=current.suite.get("name", ""),
         cases=tuple(results),
         settings=settings,
         timing=timing,
@@ -412,9 +412,10 @@ def gate(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettin
     )
 
 
-def gate_results(baseline: dict[str, Any], current: dict[str, Any], settings: GateSettings, baseline_path: str, *, timing: str = "gate") -> GateReport:
+def gate_results(baseline: Baseline, current: Baseline, settings: GateSettings, baseline_path: str, *,
+                 timing: str = "gate") -> GateReport:
     """:func:`gate` after checking both come from the same suite; the report carries the suite notes."""
-    notes = check_same_suite(baseline, current["suite"], baseline_path)
+    notes = check_same_suite(baseline, current.suite, baseline_path)
     report = gate(baseline, current, settings, timing=timing)
     return replace(report, notes=(*notes, *report.notes))
 

@@ -54,7 +54,7 @@ def rows(history: History, filters: Filters, metrics: Sequence[Metric]) -> list[
         runs = runs[-filters.last:] if filters.last > 0 else []
     out = []
     for run in runs:
-        for case in sorted(by_run[run.id], key=lambda c: (tuple(c.entry.get("position") or ()), -c.dt)):
+        for case in sorted(by_run[run.id], key=lambda c: (c.entry.position, -c.dt)):
             out.append({
                 "run": run.id, "commit": run.origin.commit, "dirty": run.origin.dirty, "commit_date": run.origin.date,
                 "date": run.started, "machine": run.machine.fingerprint, "machine_name": run.machine.name,

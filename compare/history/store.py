@@ -50,7 +50,8 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from engines.errors import UserError
 
-from compare.gate.baseline import build_baseline, case_key
+from compare.gate.baseline import Baseline, build_baseline
+from compare.gate.entry import BaselineEntry, record_key
 from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
 from compare.results.record import CaseRecord
@@ -333,22 +334,21 @@ class StoredRun:
         started = _utc(self.started) or _dt.datetime.min.replace(tzinfo=_dt.timezone.utc)
         return (_utc(self.origin.date) or started, started, self.id)
 
-    def baseline_head(self) -> dict[str, Any]:
-        """The fields of a baseline document other than ``cases`` (compare.gate.baseline.build_baseline)."""
+    def as_baseline(self, cases: Mapping[str, BaselineEntry], window: tuple[int, ...] | None = None) -> Baseline:
+        """A baseline of ``cases`` that says it came from this run (as compare.gate.baseline.build_baseline would)."""
         environment = self.header.get("environment") or {}
         suite = self.header.get("suite") or {}
-        return {
-            "suite": {k: suite.get(k) for k in ("name", "fingerprint", "path")},
-            "created": self.added,
-            "results": {"started": self.started, "git_commit": environment.get("git_commit")},
-            "machine": dict(self.machine.fields),
-            "engines": self.engines,
-        }
+        return Baseline(
+            suite={k: suite.get(k) for k in ("name", "fingerprint", "path")}, cases=cases, created=self.added,
+            results={"started": self.started, "git_commit": environment.get("git_commit")},
+            machine=dict(self.machine.fields), engines=self.engines, window=window,
+        )
 
 
 @dataclass(frozen=True)
 class StoredCase:
-    """One case of a stored run: the gate's baseline ``entry`` and every metric (observed_order included)."""
+    """One case of a stored run: its baseline ``entry`` (compare.gate.entry.entry_of) and every metric
+    (observed_order included)."""
 
     run_id: int
     case_key: str
@@ -356,7 +356,7 @@ class StoredCase:
     engine: str
     dt: float
     status: str
-    entry: Mapping[str, Any]
+    entry: BaselineEntry
     metrics: Mapping[str, Any]
 
 
@@ -364,8 +364,8 @@ class StoredCase:
 _VOLATILE = ("finished", "resumed", "counts")
 
 
-def baseline_of(results: Results) -> dict[str, Any]:
-    """The gate's baseline document of ``results`` (UserError for an unfinished run, naming the fix)."""
+def baseline_of(results: Results) -> Baseline:
+    """The gate's baseline of ``results`` (UserError for an unfinished run, naming the fix)."""
     return build_baseline(results, then="add it to the history")
 
 
@@ -498,7 +498,7 @@ class History:
     # -- writing ----------------------------------------------------------------------------
 
     def add(self, results: Results, origin: Origin, source: str | None = None,
-            document: dict[str, Any] | None = None) -> StoredRun:
+            document: Baseline | None = None) -> StoredRun:
         """Append the finished run ``results``; AlreadyRecorded when it is in the history already.
 
         origin : the commit it ran at (see compare.history.origin); source : the
@@ -519,12 +519,12 @@ class History:
         }
         case_rows = []
         for record in results.records:
-            k = case_key(record.case, record.scene_hash)
-            entry = document["cases"][k]
-            metrics = {**dict(record.metrics), "observed_order": (entry.get("metrics") or {}).get("observed_order")}
+            k = record_key(record)
+            entry = document.cases[k]
+            metrics = {**dict(record.metrics), "observed_order": entry.metric("observed_order")}
             case_rows.append({
                 "case_key": k, "scene_id": record.case.scene_id, "engine": record.case.engine, "dt": record.case.dt,
-                "status": record.status.value, "entry": json.dumps(entry, sort_keys=True),
+                "status": record.status.value, "entry": json.dumps(entry.to_json(), sort_keys=True),
                 "metrics": json.dumps(metrics, sort_keys=True),
                 "record": zlib.compress(_canonical(record.to_json()), 6),
             })
@@ -594,7 +594,8 @@ class History:
             params.update({n: int(i) for n, i in zip(names, run_ids)})
         out = []
         for run_id, key, scene_id, engine_label, dt, status, entry, metrics in self.backend.query(sql, params):
-            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, json.loads(entry), json.loads(metrics)))
+            typed = BaselineEntry.from_json(json.loads(entry), f"{self.name}: run {run_id} case {key}")
+            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, typed, json.loads(metrics)))
         return out
 
     def record(self, run_id: int, key: str) -> CaseRecord:
@@ -606,9 +607,9 @@ class History:
             raise HistoryError(f"{self.name}: run {run_id} has no case {key}")
         return CaseRecord.from_json(json.loads(zlib.decompress(bytes(rows[0][0]))), f"{self.name} run {run_id}")
 
-    def baseline_document(self, run: StoredRun) -> dict[str, Any]:
-        """The stored run as a baseline document (what compare.gate.gate compares)."""
-        return {**run.baseline_head(), "cases": {c.case_key: dict(c.entry) for c in self.cases([run.id])}}
+    def baseline_document(self, run: StoredRun) -> Baseline:
+        """The stored run as a baseline (what compare.gate.gate compares)."""
+        return run.as_baseline({c.case_key: c.entry for c in self.cases([run.id])})
 
     def schema_version(self) -> int:
         return int(dict(self.backend.query("SELECT key, value FROM xval_meta"))["schema_version"])

@@ -216,7 +216,7 @@ def build_series(history: Any, suite: str | None = None, metrics: Sequence[Metri
                     for c in ordered
                 )
                 series = Series(by_run[ordered[0].run_id].machine.name, suite_name, scene_id, engine, dt, metric,
-                                points, (), tuple(ordered[-1].entry.get("position") or ()))
+                                points, (), ordered[-1].entry.position)
                 if not series.has_values:
                     continue
                 found = steps([p.value for p in points], metric)

@@ -1,7 +1,7 @@
 """The gate against the recent past: a results directory against the last N runs of its suite on the same machine.
 
-compare.gate compares two baseline-shaped documents; this module builds the
-first one from a window of stored runs and hands both to the same
+compare.gate compares two baselines; this module builds the first one from
+the stored entries of a window of runs and hands both to the same
 :func:`compare.gate.gate.gate_results`, so every rule (tolerances, statuses,
 consistency, not-comparable cases, the timing rule) is the gate's own. What
 the window changes is the baseline each case is held to:
@@ -32,9 +32,12 @@ same suite name count. The run being gated is left out of its own window
 from __future__ import annotations
 
 import statistics
-from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any, Sequence
 
+from compare.gate.baseline import Baseline
+from compare.gate.entry import BaselineEntry, Timing, engine_version, record_key
+from compare.results.record import Status
 from compare.suite.tolerance import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
@@ -46,10 +49,10 @@ DEFAULT_WINDOW = 5
 
 @dataclass(frozen=True)
 class Window:
-    """The runs a gate compares with (oldest first) and the baseline document made from them."""
+    """The runs a gate compares with (oldest first) and the baseline made from them."""
 
     runs: tuple[StoredRun, ...]
-    document: dict[str, Any]
+    document: Baseline
     machine: str
     suite: str
 
@@ -82,49 +85,38 @@ def _best(values: Sequence[Any], rule: Any) -> Any:
     return max(numbers) if rule.higher_is_better else min(numbers)
 
 
-def _window_timing(timings: Sequence[Mapping[str, Any] | None]) -> dict[str, Any] | None:
+def _window_timing(timings: Sequence[Timing | None]) -> Timing | None:
     """The window's timing: median of the runs' costs; repeats and spread over every repeat of every run."""
     timed = [t for t in timings if t]
     if not timed:
         return None
-    repeats = [c for t in timed for c in t.get("repeats") or (t["cost"],)]
-    return {"cost": statistics.median(t["cost"] for t in timed), "repeats": repeats,
-            "spread": [min(repeats), max(repeats)], "runs": len(timed)}
+    repeats = tuple(c for t in timed for c in t.repeats or (t.cost,))
+    return Timing(statistics.median(t.cost for t in timed), repeats, (min(repeats), max(repeats)), runs=len(timed))
 
 
-def combine(entries: Sequence[Mapping[str, Any]], current_version: str | None) -> dict[str, Any]:
+def combine(entries: Sequence[BaselineEntry], current_version: str | None) -> BaselineEntry:
     """One baseline entry from a case's entries across the window (oldest first): the best of each."""
-    latest = entries[-1]
-    same = [e for e in entries if e.get("engine_version") == current_version]
+    same = [e for e in entries if e.engine_version == current_version]
     if not same:
-        return dict(latest)  # the engine version changed: "not comparable", as against a baseline file
-    latest = same[-1]
-    ok = [e for e in same if e["status"] == "ok"]
+        return entries[-1]  # the engine version changed: "not comparable", as against a baseline file
+    ok = [e for e in same if e.status is Status.OK]
     if not ok:
-        return dict(latest)  # never ok in the window: its latest state is the baseline
-    combined = dict(ok[-1])
-    combined["status"], combined["message"] = "ok", ok[-1].get("message", "")
-    with_metrics = [e for e in ok if e.get("metrics")]
+        return same[-1]  # never ok in the window: its latest state is the baseline
+    with_metrics = [e for e in ok if e.metrics]
+    metrics = ok[-1].metrics
     if with_metrics:
-        combined["metrics"] = {
-            name: _best([(e["metrics"] or {}).get(name) for e in with_metrics], rule) for name, rule in RULES.items()
-        }
-    verdicts = [e.get("consistent") for e in same]
-    combined["consistent"] = True if True in verdicts else False if False in verdicts else None
-    combined["timing"] = _window_timing([e.get("timing") for e in ok])
-    return combined
+        metrics = {name: _best([e.metric(name) for e in with_metrics], rule) for name, rule in RULES.items()}
+    verdicts = [e.consistent for e in same]
+    return replace(ok[-1], metrics=metrics, timing=_window_timing([e.timing for e in ok]),
+                   consistent=True if True in verdicts else False if False in verdicts else None)
 
 
 def window_baseline(history: History, results: Results, size: int = DEFAULT_WINDOW) -> Window:
-    """The baseline document of the window for ``results`` (see the module docstring)."""
+    """The baseline of the window for ``results`` (see the module docstring)."""
     machine = machine_of(results.header)
     suite = str((results.header.get("suite") or {}).get("name", ""))
     runs = window_runs(history, results, size)
-    head = runs[-1].baseline_head() if runs else {
-        "suite": {"name": suite, "fingerprint": (results.header.get("suite") or {}).get("fingerprint"), "path": None},
-        "created": None, "results": {}, "machine": dict(machine.fields), "engines": {},
-    }
-    per_key: dict[str, list[Mapping[str, Any]]] = {}
+    per_key: dict[str, list[BaselineEntry]] = {}
     for run in runs:  # oldest first
         for case in history.cases([run.id]):
             per_key.setdefault(case.case_key, []).append(case.entry)
@@ -133,20 +125,22 @@ def window_baseline(history: History, results: Results, size: int = DEFAULT_WIND
     cases = {}
     for key, entries in per_key.items():
         if key in latest_keys or key in current_versions:
-            cases[key] = combine(entries, current_versions.get(key, entries[-1].get("engine_version")))
-    document = {**head, "cases": cases, "window": [r.id for r in runs]}
+            cases[key] = combine(entries, current_versions.get(key, entries[-1].engine_version))
+    ids = tuple(r.id for r in runs)
+    document = runs[-1].as_baseline(cases, window=ids) if runs else Baseline(
+        suite={"name": suite, "fingerprint": (results.header.get("suite") or {}).get("fingerprint"), "path": None},
+        cases=cases, machine=dict(machine.fields), window=ids,
+    )
     return Window(tuple(runs), document, machine.name, suite)
 
 
 def _current_versions(results: Results) -> dict[str, str | None]:
     """Case key -> engine version of the run being gated."""
-    from compare.gate.baseline import case_key, engine_version
-
-    return {case_key(r.case, r.scene_hash): engine_version(r, results.header) for r in results.records}
+    return {record_key(r): engine_version(r, results.header) for r in results.records}
 
 
-def history_baseline(location: str, results: Results, size: int = DEFAULT_WINDOW) -> tuple[dict[str, Any], str, str]:
-    """For ``xval gate --history``: (the window's baseline document, a name for messages, the heading line)."""
+def history_baseline(location: str, results: Results, size: int = DEFAULT_WINDOW) -> tuple[Baseline, str, str]:
+    """For ``xval gate --history``: (the window's baseline, a name for messages, the heading line)."""
     with History.open(location) as history:
         window = window_baseline(history, results, size)
         return window.document, f"{history.name} (window of {len(window.runs)} runs)", window.describe(history.name)

@@ -22,7 +22,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from engines.scene import Scene
-from engines.trajectory import Trajectory, max_constraint_error, total_energy, trajectory_energy
+from engines.trajectory import (
+    Trajectory, max_constraint_error, total_energy, trajectory_constraint_error, trajectory_energy,
+)
 
 #: Default divergence threshold δ: e(t) > δ·L counts as diverged.
 DEFAULT_DELTA = 1e-2
@@ -224,7 +226,8 @@ def case_metrics(
     cost = stepping_cost(wall_times, trajectory.info.steps * trajectory.info.dt, trajectory.info.steps)
     # Each series once; the scalar metrics are their maxima, as energy_drift and constraint_error give them.
     drift = relative_drift(scene, trajectory_energy(scene, trajectory))
-    constraint_errors = max_constraint_error(scene, trajectory.positions)
+    # The distance form of the scene's constraints, or the engine's own joints where it reports them.
+    constraint_errors = trajectory_constraint_error(scene, trajectory)
     metrics = CaseMetrics(
         position_error_final=summary.final if complete else math.nan,
         position_error_l2=summary.l2,

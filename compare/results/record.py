@@ -1,9 +1,10 @@
-"""The case record: one frozen, validated object per case file, and the status a case can end in.
+"""The case record: one frozen, validated object per case, and the status a case can end in.
 
-A case file (``DIR/cases/<id>.json``, written by :mod:`compare.run.runner`)
-is read once, by :meth:`CaseRecord.from_json`; everything downstream — show,
-report, baseline, gate, stability — works on these objects, never on the raw
-dict, so a misspelt field is an AttributeError at once, not a silent None.
+The runner builds a CaseRecord and writes :meth:`CaseRecord.to_json`; a case
+file (``DIR/cases/<id>.json``) is read once, by :meth:`CaseRecord.from_json`.
+Everything downstream — show, report, baseline, gate, history, stability —
+works on these objects, never on the raw dict, so a misspelt field is an
+AttributeError at once, not a silent None.
 
 JSON layout (schema version 1, unchanged from the dict records it types)::
 
@@ -14,7 +15,8 @@ JSON layout (schema version 1, unchanged from the dict records it types)::
      "run_info" (the engine's RunInfo.to_dict(), engine_version among it), "wall_times", "elapsed",
      "scene" (Scene.to_dict()), "scene_hash", "characteristic": {"length", "energy"},
      "series" (downsampled plot series), "reference" (how the reference was solved), "finished",
-     optional: "consistent", "consistency", "reference_horizon", "tolerance" (in "case")}
+     optional: "cpu_times", "calibrations", "consistent", "consistency", "reference_horizon",
+     "tolerance" (in "case")}
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from engines.errors import UserError
+
+from compare.results.series import SeriesView
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
 SCHEMA_VERSION = 1
@@ -120,6 +124,10 @@ class CaseRecord:
         None = fewer than two ok dts, or not judged. consistency : the one-line reason.
     reference_horizon : s, the time the reference's own two solves part by more than the
         stated fraction of the tolerance (None: they agree over the whole run).
+    cpu_times : s of CPU of the stepping loop per repeat; calibrations : s of CPU of the
+        calibration kernel timed beside each repeat (what the timing gate compares). None: not
+        recorded (a skipped case, or a file older than them).
+    series : name -> values; a record the runner holds keeps its rounded arrays in a SeriesView.
     """
 
     case: CaseKey
@@ -138,6 +146,8 @@ class CaseRecord:
     consistent: bool | None = None
     consistency: str = ""
     reference_horizon: float | None = None
+    cpu_times: tuple[float | None, ...] | None = None
+    calibrations: tuple[float | None, ...] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     # -- views ------------------------------------------------------------------------------
@@ -176,8 +186,16 @@ class CaseRecord:
 
     # -- JSON -------------------------------------------------------------------------------
 
-    def to_json(self) -> dict[str, Any]:
-        """The JSON document (as the runner writes it, schema_version included)."""
+    def to_json(self, *, arrays: bool = False) -> dict[str, Any]:
+        """The JSON document: what the runner writes, schema_version included.
+
+        arrays : a SeriesView's series as its float arrays (for a writer that serialises numpy,
+            as ResultsDir.write_case does), not as lists of Python floats.
+        """
+        if isinstance(self.series, SeriesView):
+            series: Any = self.series.arrays if arrays else {name: self.series[name] for name in self.series}
+        else:
+            series = None if self.series is None else dict(self.series)
         case = {
             "id": self.case.id, "scene_id": self.case.scene_id, "scene_name": self.case.scene_name,
             "engine": self.case.engine, "engine_id": self.case.engine_id, "variant": self.case.variant,
@@ -197,7 +215,7 @@ class CaseRecord:
             "scene": dict(self.scene),
             "scene_hash": self.scene_hash,
             "characteristic": {"length": self.characteristic.length, "energy": self.characteristic.energy},
-            "series": None if self.series is None else dict(self.series),
+            "series": series,
             "reference": None if self.reference is None else dict(self.reference),
             "finished": self.finished,
             **dict(self.extra),
@@ -207,6 +225,10 @@ class CaseRecord:
             document["consistency"] = self.consistency
         if self.reference_horizon is not None:
             document["reference_horizon"] = self.reference_horizon
+        if self.cpu_times is not None:
+            document["cpu_times"] = list(self.cpu_times)
+        if self.calibrations is not None:
+            document["calibrations"] = list(self.calibrations)
         return document
 
     @classmethod
@@ -267,6 +289,8 @@ class CaseRecord:
             consistent=consistent,
             consistency=str(data.get("consistency") or ""),
             reference_horizon=reader.optional_number(data, "reference_horizon"),
+            cpu_times=reader.optional_numbers(data, "cpu_times"),
+            calibrations=reader.optional_numbers(data, "calibrations"),
             extra={k: v for k, v in data.items() if k not in known},
         )
 
@@ -274,7 +298,7 @@ class CaseRecord:
 _KNOWN_FIELDS = (
     "schema_version", "case", "status", "message", "metrics", "run_info", "wall_times", "elapsed", "scene",
     "scene_hash", "characteristic", "series", "reference", "finished", "consistent", "consistency",
-    "reference_horizon",
+    "reference_horizon", "cpu_times", "calibrations",
 )
 
 
@@ -330,6 +354,16 @@ class _FieldReader:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self._wrong(dotted, "a number or null", value)
         return float(value)
+
+    def optional_numbers(self, data: Mapping[str, Any], dotted: str) -> tuple[float | None, ...] | None:
+        """A list of numbers (null where one was not finite), kept as written; None when absent."""
+        value = data.get(dotted.rsplit(".", 1)[-1])
+        if value is None:
+            return None
+        if not isinstance(value, list) or any(v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)))
+                                              for v in value):
+            raise self._wrong(dotted, "a list of numbers or null", value)
+        return tuple(value)
 
     def sequence(self, data: Mapping[str, Any], dotted: str, default: Any) -> list[Any]:
         value = data.get(dotted.rsplit(".", 1)[-1], default)

@@ -57,10 +57,9 @@ from compare.results.files import remove_stale_temporaries
 from compare.results.metrics import apply_bounds, case_metrics
 from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
-from compare.results.record import SCHEMA_VERSION, CaseRecord, status_counts
-from compare.results.store import (
-    ResultsDir, SeriesView, downsample_indices, jsonable, now, round_each,
-)
+from compare.results.record import CaseKey, CaseRecord, Characteristic, Status, status_counts
+from compare.results.series import SeriesView, downsample_indices, round_each
+from compare.results.store import ResultsDir, jsonable, now
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
@@ -547,13 +546,8 @@ class _Writer:
             self.scene_fields[case.scene.id] = scene_fields(case.scene.scene)
         record = build_record(case, outcome, reference, self.suite, skipped=skipped,
                               scene_part=self.scene_fields[case.scene.id])
-        path = self.results.write_case(record)
-        series = record.get("series")
-        typed = CaseRecord.from_json({"schema_version": SCHEMA_VERSION, **record, "series": None}, path)
-        if series is not None:
-            typed = replace(typed, series=SeriesView(series))
-        self.written[path] = typed
-        self.progress.advance(typed)
+        self.written[self.results.write_case(record)] = record
+        self.progress.advance(record)
 
     def records(self) -> list[CaseRecord]:
         """Every record in the results directory, in file order (an earlier run's and this run's)."""
@@ -561,64 +555,55 @@ class _Writer:
 
 
 def scene_fields(scene: Scene) -> dict[str, Any]:
-    """The fields of a record that depend on its scene alone (JSON-ready): the same for every case of it."""
+    """The CaseRecord fields that depend on the scene alone (JSON-ready): the same for every case of it."""
     return {
         "scene": jsonable(scene.to_dict()),
         "scene_hash": scene.content_hash,
-        "characteristic": {"length": scene.characteristic_length, "energy": scene.characteristic_energy},
+        "characteristic": Characteristic(scene.characteristic_length, scene.characteristic_energy),
     }
+
+
+def key_of(case: Case) -> CaseKey:
+    """The record's key of ``case`` (JSON-ready options)."""
+    return CaseKey(
+        id=case.id, scene_id=case.scene.id, scene_name=case.scene.name, engine=case.engine.label,
+        engine_id=case.engine.id, variant=case.engine.variant, options=jsonable(dict(case.engine.options)),
+        dt=float(case.dt), position=tuple(int(i) for i in case.position), tolerance=case.tolerance,
+    )
 
 
 def build_record(
     case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, scene_part: dict[str, Any],
     skipped: str | None = None,
-) -> dict[str, Any]:
-    """The record of one case, JSON-ready except its ``series``: float arrays rounded to
-    SERIES_DIGITS significant digits (ResultsDir.write_case writes them as lists).
+) -> CaseRecord:
+    """The record of one case: its metrics, status and message, and its series (a SeriesView of float
+    arrays rounded to SERIES_DIGITS significant digits, which ResultsDir.write_case writes as lists).
 
     reference : the scene's SampledReference, or the exception that kept it
     from being solved (position metrics are then null and the message says why).
     scene_part : ``scene_fields(case.scene.scene)``, kept by the caller for every case of the scene
     (shared, not copied).
     """
-    scene = case.scene.scene
-    record: dict[str, Any] = {
-        "case": {
-            "id": case.id,
-            "scene_id": case.scene.id,
-            "scene_name": case.scene.name,
-            "engine": case.engine.label,
-            "engine_id": case.engine.id,
-            "variant": case.engine.variant,
-            "options": dict(case.engine.options),
-            "dt": case.dt,
-            "position": list(case.position),
-            "tolerance": case.tolerance,
-        },
-        "status": "skipped",
-        "message": skipped or "",
-        "metrics": None,
-        "run_info": None,
-        "wall_times": [],
-        "elapsed": 0.0,
-        "scene": None,  # scene_part's fields, added once the rest is JSON-ready
-        "scene_hash": None,
-        "characteristic": None,
-        "series": None,
-        "reference": None,
-        "finished": now(),
-    }
+    record = CaseRecord(case=key_of(case), status=Status.SKIPPED, message=skipped or "", metrics={}, run_info=None,
+                        wall_times=(), elapsed=0.0, series=None, reference=None, finished=now(), **scene_part)
     if outcome is None:
-        return {**jsonable(record), **scene_part}
-    record["status"], record["message"], record["elapsed"] = outcome.status, outcome.message, outcome.elapsed
-    record["wall_times"] = outcome.wall_times
-    record["cpu_times"] = outcome.cpu_times  # s of CPU per repeat: what the timing gate compares,
-    record["calibrations"] = outcome.calibrations  # in units of this kernel's CPU time, timed beside each
+        return record
+    record = replace(
+        record, status=Status(outcome.status), message=outcome.message or "", elapsed=float(outcome.elapsed),
+        wall_times=tuple(float(w) for w in outcome.wall_times),
+        cpu_times=tuple(jsonable(outcome.cpu_times)),  # s of CPU per repeat: what the timing gate compares,
+        calibrations=tuple(jsonable(outcome.calibrations)),  # in units of this kernel's CPU time, timed beside each
+    )
+    if outcome.trajectory is None:
+        return record
+    return _measured(record, case, outcome, reference, suite)
+
+
+def _measured(record: CaseRecord, case: Case, outcome: CaseOutcome, reference: Any, suite: Suite) -> CaseRecord:
+    """``record`` with what the trajectory of ``outcome`` gives: run info, reference, metrics, status, series."""
+    scene = case.scene.scene
     trajectory = outcome.trajectory
-    if trajectory is None:
-        return {**jsonable(record), **scene_part}
     info = trajectory.info
-    record["run_info"] = info.to_dict()
     status, message = info.status, info.message
     if not (np.isfinite(trajectory.positions).all() and np.isfinite(trajectory.velocities).all()):
         # Engine.simulate already cuts a run at its first non-finite state; an engine
@@ -631,6 +616,8 @@ def build_record(
     scheduled = scheduled_times(scene.duration, case.dt, suite.sample_interval)
     n = trajectory.n_samples
     reference_note = ""
+    solved: dict[str, Any] | None = None
+    horizon = None
     if isinstance(reference, Exception) or reference is None:
         why = reference if reference is not None else "no reference"
         ref_positions = np.full((n, len(scene.particles), 3), math.nan)
@@ -644,22 +631,18 @@ def build_record(
         # solution), of which the trajectory holds the first n; else at an engine's own sample times.
         ref_times = scheduled if np.array_equal(trajectory.t, scheduled[:n]) else trajectory.t
         ref_positions, _, ref_forces = solution.at(ref_times)
-        record["reference"] = {
-            "rtol": solution.rtol,
-            "atol": solution.atol,
-            "steps": solution.n_steps,
-            "wall_time": solution.wall_time,
-        }
+        solved = {"rtol": solution.rtol, "atol": solution.atol, "steps": solution.n_steps,
+                  "wall_time": solution.wall_time}
         if reference.bound is not None:
             from engines.reference import growth_rate  # loaded already: it made ``reference``
 
             # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
-            record["reference"].update(reference_error=reference.bound.reference_error,
-                                       tight_rtol=reference.bound.tight_rtol,
-                                       horizon_threshold=reference.bound.threshold,
-                                       lyapunov_exponent=growth_rate(reference.bound.t, reference.bound.difference,
-                                                                     scene.characteristic_length))
-            record["reference_horizon"] = reference.bound.reference_horizon
+            solved.update(reference_error=reference.bound.reference_error,
+                          tight_rtol=reference.bound.tight_rtol,
+                          horizon_threshold=reference.bound.threshold,
+                          lyapunov_exponent=growth_rate(reference.bound.t, reference.bound.difference,
+                                                        scene.characteristic_length))
+            horizon = reference.bound.reference_horizon
     # A state that ran away (finite, but 1e200 m/s) overflows numpy in the energy: a warning in the case's
     # message, not a line on the terminal.
     with warnings.catch_warnings(record=True) as heard:
@@ -677,19 +660,16 @@ def build_record(
         extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
     status, message = _with_note(apply_bounds(status, message, metrics, suite.bounds, scene), reference_note)
     message = join_messages(message, warning_note(heard))
-    record["status"], record["message"] = status, message
-    record["metrics"] = {**metrics.to_dict(), **extras}
-    horizon = record.get("reference_horizon")
+    values = {**metrics.to_dict(), **extras}
     if horizon is not None and n:
         # Past the horizon the reference is not trusted: judge the errors within it, keep the whole run's too.
-        record["metrics"].update(
+        values.update(
             within_horizon(scene, trajectory, ref_positions, ref_forces, scheduled, horizon, outcome.wall_times,
                            suite.delta, metrics.to_dict())
         )
     keep = downsample_indices(n)
-    record = {**jsonable(record), **scene_part}
-    # Added after jsonable, as rounded float arrays: ResultsDir.write_case writes them as lists, and
-    # making ~5,000 Python floats a record here was most of the cost of writing it.
+    # Kept as rounded float arrays: ResultsDir.write_case writes them as lists, and making ~5,000 Python
+    # floats a record here was most of the cost of writing it.
     series_arrays = {
         "t": series.t[keep],
         "position_error": series.position_error[keep],
@@ -705,8 +685,11 @@ def build_record(
         series_arrays["constraint_forces"] = trajectory.constraint_forces[keep]
         if ref_forces is not None and len(ref_forces) >= n:
             series_arrays["reference_constraint_forces"] = ref_forces[:n][keep]
-    record["series"] = round_each(series_arrays)
-    return record
+    return replace(
+        record, status=Status(status), message=message, metrics=jsonable(values), run_info=jsonable(info.to_dict()),
+        reference=jsonable(solved), reference_horizon=None if horizon is None else float(horizon),
+        series=SeriesView(round_each(series_arrays)),
+    )
 
 
 def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
@@ -756,6 +739,7 @@ def _truncate(trajectory, n: int):
     """The first n samples of ``trajectory``."""
     forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
     joints = None if trajectory.joint_states is None else trajectory.joint_states[:n]
+    violation = None if trajectory.constraint_violation is None else trajectory.constraint_violation[:n]
     return replace(
         trajectory,
         t=trajectory.t[:n],
@@ -763,4 +747,5 @@ def _truncate(trajectory, n: int):
         velocities=trajectory.velocities[:n],
         constraint_forces=forces,
         joint_states=joints,
+        constraint_violation=violation,
     )

@@ -35,14 +35,28 @@ class Stepper(Protocol):
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
 
+    # Optional, for an engine whose joints can come apart (maximal coordinates, ours):
+    # ``constraint_violation() -> float``, m: the largest joint violation at the current state
+    # (RawRun.constraint_violation). A reduced-coordinate engine has none: its joints hold by construction.
+
 
 def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     """Step ``scene`` (an engines.model.scene.ModelScene) to every sample of ``schedule`` through the one
     Recorder loop (it stops at a non-finite state).
-    Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v."""
+    Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v;
+    ``constraint_violation`` (n,) m the stepper's joint violation, when it measures one."""
     recorder = Recorder(scene, schedule)
-    recorder.record(0, *stepper.state())
-    recorder.run(stepper.advance, stepper.state)
+    measure = getattr(stepper, "constraint_violation", None)
+    violations: list[float] = []
+
+    def read() -> tuple[np.ndarray, np.ndarray]:
+        # Read once per recorded sample, outside the timed stepping, so it stays in step with the samples.
+        if measure is not None:
+            violations.append(measure())
+        return stepper.state()
+
+    recorder.record(0, *read())
+    recorder.run(stepper.advance, read)
     q, v = recorder.samples()
     states = np.concatenate([q, v], axis=1)
     positions = np.full((len(states), len(scene.frames), 3), np.nan)
@@ -54,7 +68,8 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     # An error-controlled integrator takes steps of its own choosing: the stepper counts them.
     taken = stepper.steps_taken() if hasattr(stepper, "steps_taken") else None
     raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings, steps=taken)
-    return replace(raw, joint_states=states)
+    return replace(raw, joint_states=states,
+                   constraint_violation=np.array(violations, dtype=float) if measure is not None else None)
 
 
 def file_values(scene: Any) -> dict[str, dict[str, float]]:

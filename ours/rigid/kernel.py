@@ -397,9 +397,10 @@ def _constraint_norm(model, work):
 
 
 @compiled
-def _correction(y, model, work, velocity):
-    """work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body with e = C (positions) or J u (velocity), through the
-    factor in work (the tree system with no force and −e on the joints); returns max |e|."""
+def _correction(y, model, work, velocity, tolerance):
+    """Returns max |e| with e = C (positions) or J u (velocity); when it exceeds ``tolerance``, also
+    work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body, through the factor in work (the tree system with no force
+    and −e on the joints). A converged residual is not solved for: that solve would be thrown away."""
     nb, rows, C, JA, JB, sol = model[0].shape[0], model[11], work[1], work[2], work[3], work[7]
     for b in range(nb):
         for r in range(6):
@@ -410,7 +411,8 @@ def _correction(y, model, work, velocity):
             e = _row_rate(y, model, JA, JB, k, r) if velocity else C[k, r]
             worst = max(worst, abs(e))
             sol[nb + k, 0, r] = -e
-    tree_solve(model, work, sol)
+    if not worst <= tolerance:  # NaN too: solved, so it reaches the state and the step says non-finite
+        tree_solve(model, work, sol)
     return worst
 
 
@@ -430,7 +432,7 @@ def project(y, model, work, tolerance, max_iterations):
             if it > 0 and not velocity:
                 rotations(y, nb, R)
                 joint_rows(y, model, R, work[1], work[2], work[3], work[4])
-            worst = _correction(y, model, work, velocity)
+            worst = _correction(y, model, work, velocity, tolerance)
             if worst <= tolerance:
                 break
             if it == max_iterations:

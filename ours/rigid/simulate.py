@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,6 +58,18 @@ def pack(mech: Mechanism) -> tuple:
     dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
     return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
             rows, order, up)
+
+
+_PACKED: "weakref.WeakKeyDictionary[Mechanism, tuple]" = weakref.WeakKeyDictionary()
+
+
+def packed(mech: Mechanism) -> tuple:
+    """:func:`pack` of ``mech``, made once per Mechanism (records are frozen) for the readers of states
+    (:func:`joint_coordinates`, :func:`joint_errors`), which run once per sample; read-only."""
+    model = _PACKED.get(mech)
+    if model is None:
+        model = _PACKED[mech] = pack(mech)
+    return model
 
 
 def workspace(mech: Mechanism, stages: int) -> tuple:
@@ -204,8 +217,7 @@ def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.nd
     y = np.asarray(y, dtype=float)
     s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
     origin, R = frames(mech, y)
-    model = pack(mech)
-    FA = model[9]
+    FA, FB = packed(mech)[9:11]  # FB[k] is joint k's frame (Joint.frame), made once
     qs, vs = [], []
     for k in mech.moving_joints:
         j = mech.joints[k]
@@ -221,7 +233,7 @@ def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.nd
         axis = joint_frame[..., :, 2]
         wc = s[..., c, 10:13]
         if j.kind == "revolute":
-            rel = np.swapaxes(joint_frame, -1, -2) @ R[..., c, :, :] @ j.frame
+            rel = np.swapaxes(joint_frame, -1, -2) @ R[..., c, :, :] @ FB[k]
             qs.append(np.arctan2(rel[..., 1, 0], rel[..., 0, 0]))
             vs.append(np.sum((wc - wp) * axis, axis=-1))
         else:
@@ -309,7 +321,7 @@ def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
     sine of the misalignment)."""
     kernel = _kernel()
     states = np.atleast_2d(np.asarray(y, dtype=float))
-    model, work = pack(mech), workspace(mech, 1)
+    model, work = packed(mech), workspace(mech, 1)
     kind, rows = model[4], model[11]
     # which rows hold lengths: the anchor rows 0–2 (not prismatic), the slide rows 3–4 (prismatic)
     length = np.zeros((len(mech.joints), 6), dtype=bool)
