@@ -54,8 +54,8 @@ import numpy as np  # noqa: E402
 import fused  # noqa: E402
 from bench_harness import machine_speed  # noqa: E402
 import ours  # noqa: E402
-from engines import catalog  # noqa: E402
-from engines.ours import _to_system  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from engines.adapters.ours import _to_system  # noqa: E402
 from engines.registry import resolve  # noqa: E402
 
 RK4_TARGET = 4.0
@@ -69,14 +69,14 @@ _COMPILE = r"""
 import json, time, numpy as np
 w, c = time.perf_counter(), time.process_time()
 import ours
-from engines import catalog
-from engines.ours import _to_system
+from engines.scene import catalog
+from engines.adapters.ours import _to_system
 for name in ("bead", "double-pendulum"):
     system, q0, v0, _ = _to_system(catalog.build(name))
     for method in ("baumgarte", "lagrangian"):
         ours.simulate(system, q0, v0, 1e-3, 1, method=method)
         ours.multipliers(system, q0, v0)
-from engines._reference_kernels import chain_rhs
+from engines.reference.kernels import chain_rhs
 chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
 print(json.dumps({"wall": time.perf_counter() - w, "cpu": time.process_time() - c}))
 """

@@ -8,7 +8,7 @@
    the same document on stdin and its stdout collected, which is the
    program's own time (its start-up and stepping and writing included).
    The overhead is the difference of the medians.
-2. Reading CSV (target: at least 1e6 numbers/s): ``engines.protocol.read_csv``
+2. Reading CSV (target: at least 1e6 numbers/s): ``engines.external.protocol.read_csv``
    plus ``match_columns`` on a 100 000-row double-pendulum table, against
    ``numpy.loadtxt`` on the same text as the peer; and writing it
    (``write_csv``) against ``numpy.savetxt`` with ``%r``.
@@ -31,7 +31,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from engines import catalog, command, protocol  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from engines.external import command, protocol  # noqa: E402
 from engines.adapter import Schedule  # noqa: E402
 
 REPEATS = 15

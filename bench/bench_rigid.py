@@ -80,7 +80,7 @@ def kuka_rows(repeats: int, steps: int = 500) -> list[dict]:
     from engines.model import mujoco as mujoco_model
     from engines.model.source import resolve
     from engines.model.urdf import read
-    from engines.ours_model import translate
+    from engines.model.ours import translate
 
     source = resolve("pybullet_data:kuka_iiwa/model.urdf")
     description = read(source)

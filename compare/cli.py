@@ -202,8 +202,8 @@ def output_path(ctx: click.Context | None, param: click.Parameter | None, value:
 
 
 def scene_from_params(name: str, overrides: dict[str, str]):
-    """engines.catalog.build, after printing a warning (stderr) for each angle that looks like radians."""
-    from engines import catalog
+    """engines.scene.catalog.build, after printing a warning (stderr) for each angle that looks like radians."""
+    from engines.scene import catalog
 
     for line in catalog.unit_warnings(name, overrides):
         click.echo(f"xval: warning: {line}", err=True)
@@ -233,7 +233,7 @@ def history_option(help: str, name: str = "location"):
 
 def jobs_option(what: str):
     """``--jobs N``, 1 to MAX_JOBS; ``what`` says what runs at once (default: all cores)."""
-    from engines.limits import MAX_JOBS
+    from engines.scene.limits import MAX_JOBS
 
     return click.option("--jobs", type=click.IntRange(min=1, max=MAX_JOBS), default=None,
                         help=f"{what}, 1 to {MAX_JOBS} (default: all cores).")

@@ -11,18 +11,7 @@ An adapter subclasses :class:`Engine` and fills in:
   ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
   and time only the stepping loop.
 
-The public :meth:`Engine.simulate` owns everything else, in one place:
-validating dt, resolving variant and options, refusing unsupported scenes,
-turning exceptions into ``failed`` and non-finite samples into ``unstable``,
-and checking what ``_run`` returned (:func:`check_raw_run`: shapes, sample
-count, the first sample against the scene's initial state, seconds of wall
-time), so an adapter with a wrong shape, unit or frame is ``failed`` with a
-message that names it, never compared. (After scipy's ``OdeSolver.step`` /
-``_step_impl`` split.)
-
-The protocol is versioned (:data:`API_VERSION`): an adapter declares the
-version it was written for in ``api_version``; :func:`api_version_problem`
-says what to do when that is not one this xval speaks (docs/plugins.md).
+Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 
 from __future__ import annotations
@@ -33,13 +22,13 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Iterable, Mapping
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Scene
-from engines.trajectory import RunInfo, Trajectory
+from engines.scene.scene import Ellipse, Scene
+from engines.scene.trajectory import RunInfo, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
@@ -175,6 +164,15 @@ def refuse_ellipse(scene: Scene, why: str) -> None:
     for k, c in enumerate(scene.constraints):
         if isinstance(c, Ellipse):
             raise Unsupported(f"{why}; constraints[{k}] is an 'ellipse'")
+
+
+def refuse_constraint_kinds(scene: Scene, kinds: Iterable[type], engine: str) -> None:
+    """Raise Unsupported naming the first constraint of ``scene`` not of one of ``kinds``."""
+    kinds = tuple(kinds)
+    for k, c in enumerate(scene.constraints):
+        if not isinstance(c, kinds):
+            names = ", ".join(getattr(t, "kind", t.__name__) for t in kinds)
+            raise Unsupported(f"{engine} models only {names} constraints; constraints[{k}] is a {c.kind!r}")
 
 
 def scheduled_times(duration: float, dt: float, sample_interval: float) -> np.ndarray:
@@ -444,7 +442,7 @@ def _as_samples(name: str, field_name: str, value: Any, n_particles_or_constrain
     if array.ndim != 3 or array.shape[1:] != (n_particles_or_constraints, 3) or not 1 <= array.shape[0] <= n_max:
         raise RawRunError(
             f"{name}: RawRun.{field_name} has shape {array.shape}, expected {expected}; record one row per "
-            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.plugin.Recorder builds it)"
+            f"scheduled sample (schedule.sample_steps), in the scene frame (engines.external.plugin.Recorder builds it)"
         )
     return array
 
@@ -465,7 +463,7 @@ def check_raw_run(name: str, raw: Any, scene: Scene, schedule: Schedule, elapsed
     """
     if not isinstance(raw, RawRun):
         raise RawRunError(f"{name}: _run returned {type(raw).__name__}, expected engines.adapter.RawRun "
-                          f"(engines.plugin.Recorder builds one)")
+                          f"(engines.external.plugin.Recorder builds one)")
     n_max, n_p, n_c = len(schedule.times), len(scene.particles), len(scene.constraints)
     positions = _as_samples(name, "positions", raw.positions, n_p, "particles", n_max)
     velocities = _as_samples(name, "velocities", raw.velocities, n_p, "particles", n_max)

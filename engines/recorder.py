@@ -23,8 +23,8 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from engines.adapter import RawRun, Schedule
-from engines.pendulum import force_array
-from engines.scene import Scene
+from engines.scene.pendulum import force_array
+from engines.scene.scene import Scene
 
 #: A coordinate this many characteristic lengths L from the origin has run away: stepping stops there.
 RUNAWAY_LENGTHS = 1e6

@@ -1,22 +1,11 @@
 """Which engines exist, and the one place an engine id is turned into an adapter.
 
-Three kinds of engine, all loaded lazily so one that cannot load is
-"unavailable" (with the reason), never a crash of everything else:
+Four kinds of engine, all loaded lazily so one that cannot load is "unavailable" (with the
+reason): built-in (``BUILTIN``: name → module defining ``ENGINE``), plugin (entry point group
+``xval.engines``), by path (``package.module:ATTRIBUTE[/variant]``) and command
+(``command/<label>``, an outside program speaking the process protocol).
 
-- **built-in**: ``BUILTIN`` maps a name to the module defining ``ENGINE``;
-- **plugin**: an installed package's entry point in the group
-  ``xval.engines`` (``my-solver = "my_solver.adapter:ENGINE"``), named by the
-  entry point's name;
-- **by path**: ``package.module:ATTRIBUTE[/variant]`` in a suite or on the
-  command line, for a solver that is not a package yet (and test engines);
-- **command**: ``command/<label>``, an outside program speaking the process
-  protocol (:mod:`engines.command`), registered in this process by
-  :func:`engines.command.command_engine` (a suite's ``[[engines]] command``).
-
-A plugin (entry point or path) may point at an Engine instance or an Engine
-subclass (instantiated with no arguments); its ``api_version`` is checked
-(:func:`engines.adapter.api_version_problem`). A built-in's name wins over a
-plugin of the same name, and the plugin is listed as unavailable, saying so.
+Details: docs/engines.md, "Adapter notes", ``engines/registry.py``.
 """
 
 from __future__ import annotations
@@ -32,14 +21,14 @@ from engines.errors import UserError
 
 #: Built-in adapters: engine name -> module defining ``ENGINE``.
 BUILTIN: dict[str, str] = {
-    "reference": "engines.reference",
-    "ours": "engines.ours",
-    "mujoco": "engines.mujoco",
-    "pybullet": "engines.pybullet",
-    "pymunk": "engines.pymunk",
-    "drake": "engines.drake",
-    "mjx": "engines.mjx",
-    "dart": "engines.dart",
+    "reference": "engines.reference.reference",
+    "ours": "engines.adapters.ours",
+    "mujoco": "engines.adapters.mujoco",
+    "pybullet": "engines.adapters.pybullet",
+    "pymunk": "engines.adapters.pymunk",
+    "drake": "engines.adapters.drake",
+    "mjx": "engines.adapters.mjx",
+    "dart": "engines.adapters.dart",
 }
 
 #: Built-ins whose library is an optional extra: the pip line that installs it, shown when it is missing.
@@ -69,7 +58,7 @@ class EngineUnavailable(UserError):
 class EngineStatus:
     """What ``xval engines`` shows for one engine.
 
-    origin : where it comes from: ``engines.mujoco`` (built-in),
+    origin : where it comes from: ``engines.adapters.mujoco`` (built-in),
         ``plugin my-solver 0.1.0: my_solver.adapter:ENGINE`` (entry point),
         or ``module:ATTRIBUTE`` (by path).
     kind : ``"built-in"``, ``"plugin"`` or ``"path"``.
@@ -243,8 +232,8 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
         target, _, variant = engine_id.partition("/")
         return load_path(target), (variant or None)
     name, variant = parse_engine_id(engine_id)
-    if name == "command" and name not in BUILTIN:  # an outside program (engines.command), registered by label
-        from engines.command import registered
+    if name == "command" and name not in BUILTIN:  # an outside program (engines.external.command), registered by label
+        from engines.external.command import registered
 
         if not variant:
             raise UserError("engine 'command' needs a label: command/<label>, declared in the suite as "

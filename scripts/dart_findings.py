@@ -20,10 +20,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Quote, Row, report  # noqa: E402
 
-from engines import catalog  # noqa: E402
-from engines.dart import ENGINE as DART  # noqa: E402
-from engines.mujoco import ENGINE as MUJOCO  # noqa: E402
-from engines.reference import ENGINE as REFERENCE  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from engines.adapters.dart import ENGINE as DART  # noqa: E402
+from engines.adapters.mujoco import ENGINE as MUJOCO  # noqa: E402
+from engines.reference.reference import ENGINE as REFERENCE  # noqa: E402
 
 G = 9.81
 ORDER_STEPS = {"world": (5e-3, 2.5e-3, 1.25e-3), "rk4": (4e-2, 2e-2, 1e-2)}

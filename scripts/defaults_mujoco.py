@@ -22,10 +22,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
-from engines import catalog
-from engines.mujoco import ENGINE
-from engines.reference import solve
-from engines.trajectory import tensions
+from engines.scene import catalog
+from engines.adapters.mujoco import ENGINE
+from engines.reference.reference import solve
+from engines.scene.trajectory import tensions
 
 BEAD = catalog.build("bead", {"duration": 10})
 DOUBLE = catalog.build("double-pendulum", {"duration": 2})
@@ -122,7 +122,7 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["stretch_ratio_solimp"] = f["connect.double.cerr"] / f["solimp.double.cerr"]
     f["stiff_gain_1e-4"] = f["stiff.double.cerr"] / f["stiff_1e-4.double.cerr"]
     # The default connect's steady stretch under g, r = (1 − d)·g/(d·k), and the period it costs the 10° bead.
-    from engines.mujoco import MUJOCO_SOLIMP, MUJOCO_SOLREF
+    from engines.adapters.mujoco import MUJOCO_SOLIMP, MUJOCO_SOLREF
 
     k = 1.0 / (MUJOCO_SOLIMP[1] * MUJOCO_SOLREF[0] * MUJOCO_SOLREF[1]) ** 2
     f["connect.stretch_under_g"] = (1 - MUJOCO_SOLIMP[0]) * 9.81 / (MUJOCO_SOLIMP[0] * k)
@@ -135,7 +135,7 @@ def relative_period_error(variant: str, dt: float = 1e-3) -> float:
     """(T − T_exact)/T_exact of the 10° bead over three periods, from the zero crossings of x."""
     import math
 
-    from engines.closed_form import pendulum_period
+    from engines.reference.closed_form import pendulum_period
 
     exact = pendulum_period(1.0, 9.81, math.radians(10.0))
     scene = catalog.build("bead", {"theta0": 10.0, "duration": 3.2 * exact})

@@ -1,6 +1,6 @@
 """Measure what each PyBullet default costs: damping, motors, sleeping, ERP, solver, iterations, point-mass inertia.
 
-Runs the PyBullet adapter (engines/pybullet.py) with one default left in
+Runs the PyBullet adapter (engines/adapters/pybullet.py) with one default left in
 place (or one setting changed) at a time, and prints Markdown tables:
 
 - constraint error: max |‖a − b‖ − l| over constraints and samples, m;
@@ -33,10 +33,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
-from engines import catalog
-from engines.pybullet import ENGINE
-from engines.reference import solve
-from engines.trajectory import tensions
+from engines.scene import catalog
+from engines.adapters.pybullet import ENGINE
+from engines.reference.reference import solve
+from engines.scene.trajectory import tensions
 
 #: Horizon (s) of the position- and tension-error columns.
 ERROR_HORIZON = 1.0
@@ -57,7 +57,7 @@ DOUBLE = Case("double pendulum (120°, −10°), 10 s, dt = 1e-3", "double-pendu
 CHAIN = Case("chain of 4, 5 s, dt = 1e-3", "chain", {"duration": 5.0}, 1e-3)
 SPHERICAL = Case("spherical pendulum, 10 s, dt = 1e-3", "spherical-pendulum", {"duration": 10.0}, 1e-3)
 
-#: Table 1: the overrides of engines/pybullet.py, each switched off in turn.
+#: Table 1: the overrides of engines/adapters/pybullet.py, each switched off in turn.
 KEPT_DEFAULTS = (
     Setting("multibody, every override", "multibody", {}),
     Setting("multibody, default damping (0.04) kept", "multibody", {"keep_defaults": "damping"}),
@@ -159,7 +159,7 @@ def _period_error(variant: str, dt: float = 1e-3) -> float:
     """(T − T_exact)/T_exact of the 10° bead over three periods, from the zero crossings of x."""
     import math
 
-    from engines.closed_form import pendulum_period
+    from engines.reference.closed_form import pendulum_period
 
     exact = pendulum_period(1.0, 9.81, math.radians(10.0))
     scene = catalog.build("bead", {"theta0": 10.0, "duration": 6.5})

@@ -34,11 +34,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error  # noqa: E402
-from engines import catalog
-from engines.closed_form import pendulum_period
-from engines.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
-from engines.reference import solve
-from engines.trajectory import tensions
+from engines.scene import catalog
+from engines.reference.closed_form import pendulum_period
+from engines.adapters.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
+from engines.reference.reference import solve
+from engines.scene.trajectory import tensions
 
 #: Horizon (s) of the position-error column.
 ERROR_HORIZON = 1.0

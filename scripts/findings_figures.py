@@ -29,9 +29,9 @@ from compare.stability.probe import Probe  # noqa: E402
 from compare.stability.search import search  # noqa: E402
 from compare.suite.plans import SearchSettings  # noqa: E402
 from compare.suite.reader import load_suite  # noqa: E402
-from engines.reference import solve  # noqa: E402
+from engines.reference.reference import solve  # noqa: E402
 from ours.stability import RHO_SLACK  # noqa: E402  (the slack the gain map allows ρ = 1 for round-off)
-from engines.trajectory import max_constraint_error, total_energy  # noqa: E402
+from engines.scene.trajectory import max_constraint_error, total_energy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = load_suite(ROOT / "suites" / "stiff.toml")

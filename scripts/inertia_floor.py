@@ -20,10 +20,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
-from engines import catalog  # noqa: E402
-from engines.mujoco import ENGINE as MUJOCO  # noqa: E402
-from engines.pybullet import ENGINE as PYBULLET  # noqa: E402
-from engines.reference import solve  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from engines.adapters.mujoco import ENGINE as MUJOCO  # noqa: E402
+from engines.adapters.pybullet import ENGINE as PYBULLET  # noqa: E402
+from engines.reference.reference import solve  # noqa: E402
 
 SLOW: set[str] = set()
 MILD = {"theta1": 30.0, "theta2": 20.0, "duration": 2.0}

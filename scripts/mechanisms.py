@@ -30,11 +30,11 @@ import math
 
 import numpy as np
 
-from engines import catalog
+from engines.scene import catalog
 from engines.errors import Unsupported
-from engines.mujoco import STIFF
-from engines.reference import solve
-from engines.trajectory import constraint_errors, linear_momentum_drift, total_energy
+from engines.adapters.mujoco import STIFF
+from engines.reference.reference import solve
+from engines.scene.trajectory import constraint_errors, linear_momentum_drift, total_energy
 
 ENGINES = ("ours", "mujoco", "pybullet", "pymunk")
 STIFF_LOOP = {"timeconst_steps": 2.0, "solimp": STIFF["solimp"]}

@@ -20,9 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Quote, Row, report  # noqa: E402
 
 from engines.model.scene import model_scene  # noqa: E402
-from engines.reference import ENGINE as REFERENCE  # noqa: E402
+from engines.reference.reference import ENGINE as REFERENCE  # noqa: E402
 from engines.registry import resolve  # noqa: E402
-from engines.trajectory import trajectory_energy  # noqa: E402
+from engines.scene.trajectory import trajectory_energy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = {

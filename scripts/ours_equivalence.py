@@ -26,9 +26,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import ours  # noqa: E402
-from engines import catalog  # noqa: E402
+from engines.scene import catalog  # noqa: E402
 from engines.adapter import Schedule  # noqa: E402
-from engines.ours import ENGINE, _to_system  # noqa: E402
+from engines.adapters.ours import ENGINE, _to_system  # noqa: E402
 
 SCENES = {
     "bead": ("bead", {"theta0": 60}),

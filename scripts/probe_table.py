@@ -17,7 +17,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Row, report  # noqa: E402
 
 from compare.stability.dissipation import RULE, probe  # noqa: E402
-from engines import catalog, registry  # noqa: E402
+from engines import registry  # noqa: E402
+from engines.scene import catalog  # noqa: E402
 
 BUILTIN = ("ours", "mujoco", "pybullet", "pymunk", "drake", "mjx")
 QUICK = ("mujoco/hinge", "mujoco/connect", "pymunk/pin", "pybullet/p2p")

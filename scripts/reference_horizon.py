@@ -5,8 +5,8 @@ Run:  .venv/bin/python scripts/reference_horizon.py      (a few seconds)
 Each scene (catalog defaults, 40 s) is solved at the suites' tolerance (DOP853, rtol = atol = 1e-12)
 and 100× tighter (floored at the 2.2e-14 DOP853 accepts): ``reference_error`` is the largest
 distance between the two over the run, ``reference_horizon`` the first time it exceeds 0.1 of
-the reference's stated accuracy (1e-9 L), i.e. 1e-10 L (engines/reference.py: bound). The
-Lyapunov exponent is Benettin's estimate over the same 40 s (engines/reference.py: lyapunov_exponent).
+the reference's stated accuracy (1e-9 L), i.e. 1e-10 L (engines/reference/reference.py: bound). The
+Lyapunov exponent is Benettin's estimate over the same 40 s (engines/reference/reference.py: lyapunov_exponent).
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Quote, Row, report  # noqa: E402
 
-from engines import catalog  # noqa: E402
-from engines.reference import bound, lyapunov_exponent  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from engines.reference.reference import bound, lyapunov_exponent  # noqa: E402
 
 DURATION = 40.0
 #: Left out of a quick run: the 4-link chain's Lyapunov estimate is the costliest.

@@ -122,11 +122,11 @@ MODEL = HERE.parent / "models" / "double_pendulum.urdf"
 
 
 def model_joints(f: dict) -> None:
-    """ours' joint gap on a model scene as the constraint-error metric reads it (engines/ours_model.py): the
+    """ours' joint gap on a model scene as the constraint-error metric reads it (engines/model/ours.py): the
     double pendulum fixture, q0 = 30°, −20°, 2 s; largest gap at dt = 1 ms and the slope over 4, 2, 1 ms."""
     from engines.model.scene import model_scene
     from engines.registry import resolve
-    from engines.trajectory import trajectory_constraint_error
+    from engines.scene.trajectory import trajectory_constraint_error
 
     scene = model_scene("double", str(MODEL), q0={"shoulder": 30, "elbow": -20}, duration=2.0)
     for variant in ("plain-rk4", "baumgarte-rk4", "baumgarte-symplectic-euler", "projection-rk4",

@@ -11,8 +11,8 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 
-from engines.mujoco import MuJoCoEngine
-from engines.pymunk import PymunkEngine
+from engines.adapters.mujoco import MuJoCoEngine
+from engines.adapters.pymunk import PymunkEngine
 
 
 def _slowed(cls):

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.scene import Scene
+from engines.scene.scene import Scene
 
 MODES = ("exact", "raise", "nan", "sleep", "pause", "kill", "exit", "drift", "kill-worker")
 #: s the ``pause`` mode waits before it answers like ``exact``.
@@ -48,7 +48,7 @@ class MisbehavingEngine(Engine):
         return "test 1"
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        from engines.reference import solve
+        from engines.reference.reference import solve
 
         mode = settings["mode"]
         if mode == "raise":
@@ -99,7 +99,7 @@ class OwnTimesEngine(MisbehavingEngine):
     def simulate(self, scene: Scene, dt: float, *, variant=None, options=None, sample_interval=None):
         from dataclasses import replace
 
-        from engines.reference import solve
+        from engines.reference.reference import solve
 
         trajectory = super().simulate(scene, dt, variant=variant, options=options, sample_interval=sample_interval)
         t = trajectory.t.copy()

@@ -42,8 +42,8 @@ def wait_for(predicate: Callable[[], T], seconds: float, what: str, interval: fl
 @pytest.fixture(scope="session")
 def double_pendulum():
     """(scene, reference solution): the catalog's double pendulum for 0.5 s, solved once per session."""
-    from engines import catalog
-    from engines.reference import solve
+    from engines.scene import catalog
+    from engines.reference.reference import solve
 
     scene = catalog.build("double-pendulum", {"duration": 0.5})
     return scene, solve(scene)

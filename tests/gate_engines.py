@@ -13,8 +13,8 @@ import os
 from typing import Any, Mapping
 
 from engines.adapter import RawRun, Schedule
-from engines.reference import ReferenceEngine
-from engines.scene import Scene
+from engines.reference.reference import ReferenceEngine
+from engines.scene.scene import Scene
 
 #: Set to "1" to make SOLVER less accurate (read in the worker, so forked cases see it).
 REGRESSION = "XVAL_TEST_SOLVER_REGRESSION"

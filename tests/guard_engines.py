@@ -18,7 +18,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from engines.adapter import Engine, Option, RawRun, Schedule
-from engines.scene import Scene
+from engines.scene.scene import Scene
 
 MODES = ("memory", "children", "slow", "spin")
 
@@ -37,7 +37,7 @@ class HogEngine(Engine):
         return "test 1"
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        from engines.reference import solve
+        from engines.reference.reference import solve
 
         mode = settings["mode"]
         if mode == "memory" and schedule.n_steps > 2:  # not in the two-step warm-up

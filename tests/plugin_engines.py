@@ -10,12 +10,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines.plugin import Engine, RawRun, Schedule, capabilities
-from engines.scene import Scene
+from engines.external.plugin import Engine, RawRun, Schedule, capabilities
+from engines.scene.scene import Scene
 
 
 def _reference(scene: Scene, schedule: Schedule) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from engines.reference import solve
+    from engines.reference.reference import solve
 
     return solve(scene).at(schedule.times)
 

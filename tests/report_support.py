@@ -19,7 +19,7 @@ from typing import Any, Callable
 import numpy as np
 
 from engines.adapter import Engine, RawRun, Schedule
-from engines.scene import Scene
+from engines.scene.scene import Scene
 from reports.pack import ENCODING, unpacked
 
 TESTS = Path(__file__).resolve().parent

@@ -140,14 +140,17 @@ def builtin_adapters() -> dict[str, str]:
 
 
 #: Adapter -> the other adapters it may import: MJX runs MuJoCo's own model (its MJCF, its reading of samples).
-ADAPTER_USES = {"engines.mjx": {"engines.mujoco"}}
+ADAPTER_USES = {"engines.adapters.mjx": {"engines.adapters.mujoco"}}
 
 
 def test_no_engine_adapter_imports_another():
     """Shared structure (the tree of joints, the recorder) lives in neutral modules, so that an engine
     loads without another engine's library (Drake without MuJoCo)."""
     adapters = set(builtin_adapters().values())
-    assert {"engines.mujoco", "engines.drake", "engines.mjx"} <= adapters
+    assert {"engines.adapters.mujoco", "engines.adapters.drake", "engines.adapters.mjx"} <= adapters
+    # Every built-in is an adapter of engines/adapters/ or the reference; a new folder of them would
+    # otherwise go unchecked by the layers below.
+    assert sorted(m for m in adapters if m.rpartition(".")[0] not in ("engines.adapters", "engines.reference")) == []
     wrong = []
     for module in sorted(adapters):
         path = ROOT / (module.replace(".", "/") + ".py")
@@ -155,6 +158,33 @@ def test_no_engine_adapter_imports_another():
             other = next((a for a in adapters if target == a or target.startswith(a + ".")), None)
             if other not in (None, module) and other not in ADAPTER_USES.get(module, set()):
                 wrong.append(f"{module} imports {target}")
+    assert wrong == []
+
+
+#: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
+#: same rank). The errors and the scene language are what every engine speaks; the engine protocol
+#: (adapter) and the one stepping loop on it (recorder) are built on them; each adapter of an engine
+#: library, and each kind of engine from outside xval (processes, plugins), on those; the robot models
+#: import files through the adapters' libraries; the reference integrates scenes and models; the registry
+#: names them all.
+ENGINE_PARTS = {"errors": 0, "files": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
+                "model": 5, "reference": 6, "registry": 7}
+
+
+def test_no_import_in_engines_points_back_up_or_across():
+    present = {p.stem for p in (ROOT / "engines").iterdir() if p.suffix == ".py" or (p / "__init__.py").is_file()}
+    assert sorted(present - {"__init__"} - set(ENGINE_PARTS)) == []  # a new part is given its rank here
+    wrong = []
+    for name, path in project_modules().items():
+        parts = name.split(".")
+        if parts[0] != "engines" or len(parts) < 2:
+            continue
+        for target in imports_of(path):
+            to = target.split(".")
+            if to[0] != "engines" or len(to) < 2 or to[1] not in ENGINE_PARTS or to[1] == parts[1]:
+                continue
+            if ENGINE_PARTS[to[1]] >= ENGINE_PARTS[parts[1]]:
+                wrong.append(f"{path.relative_to(ROOT)} ({parts[1]}) imports {target} ({to[1]})")
     assert wrong == []
 
 

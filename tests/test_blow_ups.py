@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engines import catalog
+from engines.scene import catalog
 from engines.adapter import blow_up_cause
 
 pytest.importorskip("pydrake", reason="Drake is not installed: pip install 'xval[drake]'")
@@ -44,7 +44,7 @@ def test_drakes_finiteness_assertion_is_a_blow_up_named_in_one_line():
 
 
 def test_drake_discrete_chain_32_at_a_large_step_is_unstable_not_failed():
-    from engines.drake import ENGINE as DRAKE
+    from engines.adapters.drake import ENGINE as DRAKE
 
     # suites/peers.toml's chain-32 at dt 1e-2 (the case): the discrete plant's state goes non-finite.
     scene = catalog.build("chain", {"n": 32, "length": 0.03125, "mass": 0.03125, "duration": 1.0})

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cli_support import run_cli
-from engines import catalog, registry
+from engines.scene import catalog
+from engines import registry
 
 BUILT_IN = ["ours", "mujoco", "pybullet", "pymunk"]
 VARIANTS = [v for name in BUILT_IN for v in registry.get_engine(name).variant_ids()]

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from compare.cli import main
-from engines import catalog
+from engines.scene import catalog
 
 
 def run(capsys, *argv):

@@ -20,9 +20,9 @@ from compare.results.metrics import (
     stepping_cost,
     summarize_error,
 )
-from engines import catalog
-from engines.reference import solve
-from engines.trajectory import RunInfo, Trajectory
+from engines.scene import catalog
+from engines.reference.reference import solve
+from engines.scene.trajectory import RunInfo, Trajectory
 
 BEAD = catalog.build("bead", {"duration": 1.0})  # m = 1 kg, L = 1 m, g = 9.81: E* = 9.81 J
 

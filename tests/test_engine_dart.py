@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from engines import catalog
-from engines.closed_form import pendulum_period
-from engines.dart import ENGINE as DART
+from engines.scene import catalog
+from engines.reference.closed_form import pendulum_period
+from engines.adapters.dart import ENGINE as DART
 from engines.errors import Unsupported, UserError
-from engines.mujoco import ENGINE as MUJOCO
-from engines.reference import ENGINE as REFERENCE
+from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.reference.reference import ENGINE as REFERENCE
 from engines.registry import resolve
 
 G = 9.81

@@ -6,31 +6,65 @@ without the extras shows). Each model structure and precision costs one jit
 compile (~2-5 s of CPU on the bead), so every test here uses the bead or the
 double pendulum, and short runs. Numbers in comments were measured with
 mujoco-mjx 3.17.0, jax 0.10.2, mujoco 4.0.0.
+
+MJX runs in a spawned process (the ``mjx`` fixture), never in the test process: JAX starts threads on
+import, and the test process forks later (tests/fork_guard.py fails a test that leaves JAX in it).
 """
 
 from __future__ import annotations
 
 import importlib.util
 import math
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
 
-from engines import catalog
-from engines.closed_form import pendulum_period
-from engines.mujoco import ENGINE as MUJOCO
-from engines.reference import ENGINE as REFERENCE
+from engines.scene import catalog
+from engines.reference.closed_form import pendulum_period
+from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.reference.reference import ENGINE as REFERENCE
 
 HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_spec("mujoco.mjx") is not None
 pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip install 'xval[mjx]'")
 G = 9.81
 
 
+def _call(method, *args, **kwargs):
+    """ENGINE.<method>(...) in the spawned process, where JAX may be imported."""
+    from engines.adapters.mjx import ENGINE
+
+    return getattr(ENGINE, method)(*args, **kwargs)
+
+
+def _forget_compiled():
+    """Empty the adapter's compiled loops in the spawned process, so the next run compiles."""
+    import engines.adapters.mjx
+
+    engines.adapters.mjx._compiled.clear()
+
+
+class SpawnedMJX:
+    """The MJX engine's simulate and check, run in one spawned process (results and errors come back)."""
+
+    def __init__(self, pool: ProcessPoolExecutor):
+        self.pool = pool
+
+    def simulate(self, *args, **kwargs):
+        return self.pool.submit(_call, "simulate", *args, **kwargs).result()
+
+    def check(self, *args, **kwargs):
+        return self.pool.submit(_call, "check", *args, **kwargs).result()
+
+    def forget_compiled(self):
+        self.pool.submit(_forget_compiled).result()
+
+
 @pytest.fixture(scope="module")
 def mjx():
-    from engines.mjx import ENGINE
-
-    return ENGINE
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield SpawnedMJX(pool)
 
 
 def test_float64_equals_mujoco_hinge(mjx):
@@ -79,13 +113,11 @@ def test_float32_error_floor_is_measured_above_float64s(mjx):
         assert e32 > 10 * e64
 
 
-def test_jit_compile_time_is_recorded_apart_from_stepping(mjx, monkeypatch):
+def test_jit_compile_time_is_recorded_apart_from_stepping(mjx):
     # A dt sweep reuses the compiled loop (dt is an array in MJX's model): the second run compiles nothing.
     # The compiled loops are emptied first, so the first run compiles (an earlier test may have compiled
     # this scene's loop already).
-    import engines.mjx as adapter
-
-    monkeypatch.setattr(adapter, "_compiled", {})
+    mjx.forget_compiled()
     scene = catalog.build("bead", {"duration": 0.5})
     first = mjx.simulate(scene, 2e-3, variant="hinge")
     second = mjx.simulate(scene, 1e-3, variant="hinge")
@@ -106,8 +138,8 @@ _CACHED_RUN = r"""
 import json, jax
 events = []
 jax.monitoring.register_event_listener(lambda name, **kwargs: events.append(name))
-from engines import catalog
-from engines.mjx import ENGINE
+from engines.scene import catalog
+from engines.adapters.mjx import ENGINE
 run = ENGINE.simulate(catalog.build("bead", {"duration": 0.05}), 1e-2, variant="hinge")
 print(json.dumps({"status": run.info.status, "hits": events.count("/jax/compilation_cache/cache_hits"),
                   "misses": events.count("/jax/compilation_cache/cache_misses")}))

@@ -13,13 +13,13 @@ import math
 import numpy as np
 import pytest
 
-from engines import catalog
-from engines.closed_form import normal_modes, pendulum_period
+from engines.scene import catalog
+from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
-from engines.pymunk import ENGINE
-from engines.reference import solve
-from engines.scene import Pin, Rod, Scene
-from engines.trajectory import max_constraint_error, tensions, total_energy
+from engines.adapters.pymunk import ENGINE
+from engines.reference.reference import solve
+from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.trajectory import max_constraint_error, tensions, total_energy
 
 VARIANTS = list(ENGINE.variants)
 G = 9.81
@@ -236,7 +236,7 @@ def test_frame_and_constraint_error():
 
 
 def test_blow_up_ends_unstable_with_samples_so_far():
-    # The scene language refuses speeds past 1e6 m/s (engines/limits.py), so the bead is made to run
+    # The scene language refuses speeds past 1e6 m/s (engines/scene/limits.py), so the bead is made to run
     # away instead: the fastest spin and strongest gravity allowed, with pymunk's error correction off.
     scene = catalog.build("bead", {"omega0": 1e6, "radius": 1e-6, "g": 1e6, "duration": 0.1})
     run = ENGINE.simulate(scene, 1e-3, variant="pin", options={"error_bias": 1.0})

@@ -199,7 +199,7 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
 
 
 def test_kill_9_also_ends_an_outside_program_in_its_own_session(tmp_path):
-    # A command engine's program runs in a session of its own (engines/command.py), out of the case
+    # A command engine's program runs in a session of its own (engines/external/command.py), out of the case
     # host's group: the host, told by the kernel that xval died, kills that group too.
     pidfile = tmp_path / "pids"
     suite_file = tmp_path / "s.toml"

@@ -10,7 +10,7 @@ from dataclasses import replace
 from compare.gate.entry import Timing
 from compare.gate.gate import best_spread, calibrated, cpu_timing_change, timing_change
 from compare.run.isolation import CaseTask, calibration_cpu_time, simulate
-from engines import catalog
+from engines.scene import catalog
 
 
 def timing(cpu: list[float], calibration: list[float]) -> Timing:

@@ -19,8 +19,8 @@ import numpy as np
 from compare.run.hosts import PIPELINED_BYTES, HostPool
 from compare.run.isolation import _DRIVER_ENDS, CaseHost, CaseTask, ReferenceTask, send
 from engines.adapter import scheduled_times
-from engines.catalog import build
-from engines.reference import solve_and_bound
+from engines.scene.catalog import build
+from engines.reference.reference import solve_and_bound
 
 from compare_engines import PAUSE
 

@@ -2,7 +2,7 @@
 
 JAX starts threads on import, and a fork of a process with them may deadlock (JAX warns "os.fork() was
 called ... JAX is multithreaded"). So the xval process, which forks every case host, must never import
-it: the MJX adapter imports JAX on first use (engines.mjx._jax), inside the host running the case, and
+it: the MJX adapter imports JAX on first use (engines.adapters.mjx._jax), inside the host running the case, and
 the host has forked its one child (the reaper) before any case runs.
 """
 
@@ -41,3 +41,43 @@ def test_an_mjx_run_never_imports_jax_where_hosts_are_forked(tmp_path):
     seen = json.loads(done.stdout.splitlines()[-1])
     assert seen == {"jax_here": False, "statuses": ["ok", "ok"]}  # MJX ran, in its host
     assert "os.fork()" not in done.stderr  # JAX's warning from any process that forked with it loaded
+
+
+GUARDED = """
+import os
+
+
+def test_imports_jax():
+    import jax  # noqa: F401
+
+
+def test_forks_with_jax_loaded():
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    os.waitpid(pid, 0)
+
+
+def test_forks_without_jax():
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    os.waitpid(pid, 0)
+"""
+
+
+def test_the_test_processes_guard_fails_a_test_that_imports_jax_or_forks_with_it(tmp_path):
+    # tests/fork_guard.py, loaded in every pytest run: the first test leaves JAX in the process, the second
+    # forks with it loaded; both fail, naming why. (The third runs alone, in a process without JAX.)
+    (tmp_path / "test_guarded.py").write_text(GUARDED)
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
+                           "test_guarded.py::test_imports_jax", "test_guarded.py::test_forks_with_jax_loaded"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert "2 failed" in done.stdout, done.stdout[-3000:]
+    assert "this test imported JAX into the test process" in done.stdout
+    assert "forked 1 time(s) with JAX imported" in done.stdout
+    alone = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
+                            "test_guarded.py::test_forks_without_jax"],
+                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert "1 passed" in alone.stdout, alone.stdout[-3000:]

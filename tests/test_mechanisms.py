@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 
-from engines import catalog
-from engines.catalog import four_bar_joint
+from engines.scene import catalog
+from engines.scene.catalog import four_bar_joint
 from engines.errors import SceneError, Unsupported
-from engines.reference import model_for as model_for_check, solve
-from engines.reference_mechanisms import EllipseBead, FourBar, SliderPendulum
-from engines.scene import Ellipse, Line, Particle, Rod, Scene, ellipse_distance
-from engines.trajectory import (
+from engines.reference.reference import model_for as model_for_check, solve
+from engines.reference.mechanisms import EllipseBead, FourBar, SliderPendulum
+from engines.scene.scene import Ellipse, Line, Particle, Rod, Scene, ellipse_distance
+from engines.scene.trajectory import (
     constraint_errors,
     free_direction,
     linear_momentum,
@@ -126,9 +126,9 @@ def test_four_bar_refuses_only_a_loop_that_cannot_close_naming_the_rule():
 
 
 def test_a_triple_rocker_passes_its_dead_points_conserving_energy_with_ours_converging_to_it():
-    from engines.ours import ENGINE as OURS
-    from engines.reference import solve
-    from engines.trajectory import max_constraint_error, total_energy
+    from engines.adapters.ours import ENGINE as OURS
+    from engines.reference.reference import solve
+    from engines.scene.trajectory import max_constraint_error, total_energy
 
     # a = 0.5, b = 1, c = 0.8, d = 0.6: no Grashof crank. Thrown at 6 rad/s from 30°, the crank swings until
     # coupler and rocker fold (its tip |b − c| = 0.2 m from the rocker pivot: the dead point, where a crank

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import ours
-from engines import catalog
-from engines.ours import ENGINE
-from engines.reference import solve
+from engines.scene import catalog
+from engines.adapters.ours import ENGINE
+from engines.reference.reference import solve
 
 CURVES = [
     ours.Line(0, (0.3, -0.2), (2.0, 1.0)),

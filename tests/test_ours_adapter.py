@@ -1,14 +1,16 @@
-"""engines/ours.py: variants, refusals, frames, and agreement with the reference engine."""
+"""engines/adapters/ours.py: variants, refusals, frames, and agreement with the reference engine."""
 
 import math
 
 import numpy as np
 import pytest
 
-from engines import catalog, closed_form, reference
+from engines.scene import catalog
+
+from engines.reference import closed_form, reference
 from engines.errors import Unsupported, UserError
 from engines.registry import resolve
-from engines.trajectory import max_constraint_error
+from engines.scene.trajectory import max_constraint_error
 
 OURS, _ = resolve("ours")
 

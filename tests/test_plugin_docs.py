@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engines import catalog
+from engines.scene import catalog
 from engines.errors import Unsupported
-from engines.reference import solve
+from engines.reference.reference import solve
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "plugins.md"

@@ -21,7 +21,8 @@ from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
 from compare.suite.tolerance import GateSettings
-from engines import catalog, registry
+from engines.scene import catalog
+from engines import registry
 from engines.adapter import API_VERSION, api_version_problem
 from engines.errors import UserError
 from conftest import ROOT, XVAL
@@ -54,7 +55,7 @@ def test_the_example_is_discovered_through_its_entry_point():
     listed = xval("engines")
     assert listed.returncode == 0, listed.stderr
     assert "my-solver 0.1.0  [plugin from my-solver 0.1.0: my_solver.xval_adapter:ENGINE]" in listed.stdout
-    assert "reference scipy" in listed.stdout and "[built-in: engines.reference]" in listed.stdout
+    assert "reference scipy" in listed.stdout and "[built-in: engines.reference.reference]" in listed.stdout
 
 
 def test_the_example_solver_is_second_order_and_agrees_with_ours_rattle():
@@ -70,7 +71,7 @@ def test_the_example_solver_is_second_order_and_agrees_with_ours_rattle():
         # Same scheme, different code: positions agree to round-off amplified by a chaotic scene.
         assert np.abs(a.positions - b.positions).max() < 1e-9
         errors.append(np.abs(a.positions[-1] - b.positions[-1]).max())
-    from engines.reference import solve
+    from engines.reference.reference import solve
 
     reference = solve(scene)
     e = [np.abs(mine.simulate(scene, dt).positions[-1] - reference.at(np.array([1.0]))[0][0]).max() for dt in (4e-3, 2e-3)]
@@ -158,7 +159,7 @@ BROKEN = {
     "plugin_engines:FLAT_POSITIONS/default": (
         "failed", "RawRunError: flat-positions: RawRun.positions has shape (31, 3), expected (n <= 31, 1, 3): "
         "samples x particles x (x, y, z); record one row per scheduled sample (schedule.sample_steps), in the "
-        "scene frame (engines.plugin.Recorder builds it)"),
+        "scene frame (engines.external.plugin.Recorder builds it)"),
     "plugin_engines:TOO_MANY_SAMPLES/default": (
         "failed", "RawRunError: too-many-samples: RawRun.positions has shape (93, 1, 3), expected (n <= 31, 1, 3)"),
     "plugin_engines:WRONG_FORCES/default": (

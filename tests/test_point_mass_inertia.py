@@ -2,7 +2,7 @@
 
 Both step reduced coordinates with semi-implicit Euler; the only model
 difference is the tiny rotational inertia each gives a point mass
-(engines/pybullet.py, engines/mujoco.py, scripts/inertia_floor.py).
+(engines/adapters/pybullet.py, engines/adapters/mujoco.py, scripts/inertia_floor.py).
 """
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from compare.results.metrics import position_error
-from engines import catalog
-from engines.mujoco import ENGINE as MUJOCO
-from engines.pybullet import ENGINE as PYBULLET
-from engines.reference import solve
+from engines.scene import catalog
+from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.adapters.pybullet import ENGINE as PYBULLET
+from engines.reference.reference import solve
 
 #: A mild double pendulum: small enough angles that 2 s of semi-implicit Euler is in its asymptotic range.
 MILD = {"theta1": 30.0, "theta2": 20.0, "duration": 2.0}

@@ -9,8 +9,8 @@ import pytest
 
 from cli_support import run_cli
 from compare.stability.dissipation import RATE_FLOOR, extrapolate, hidden, loss_rate, probe
-from engines import catalog
-from engines.scene import Particle, Scene
+from engines.scene import catalog
+from engines.scene.scene import Particle, Scene
 
 BEAD = catalog.build("bead", {"duration": 20.0})
 

@@ -16,7 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engines import catalog, command, protocol, registry
+from engines.scene import catalog
+
+from engines.external import command, protocol
+
+from engines import registry
 from engines.adapter import Schedule
 from engines.errors import UserError
 

@@ -16,8 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engines import catalog, command
-from engines.reference import solve
+from engines.scene import catalog
+
+from engines.external import command
+from engines.reference.reference import solve
 from conftest import ROOT, XVAL, XVAL_ENV
 
 CPP = ROOT / "examples" / "cpp"

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from engines import catalog
+from engines.scene import catalog
 from engines.adapter import Schedule
-from engines.plugin import Engine, Recorder, capabilities, scene_arrays
+from engines.external.plugin import Engine, Recorder, capabilities, scene_arrays
 from engines.recorder import RUNAWAY_LENGTHS, finite_sample, largest_coordinate
 
 

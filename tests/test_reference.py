@@ -12,11 +12,13 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from engines import catalog, reference
-from engines.closed_form import normal_modes, pendulum_period
+from engines.scene import catalog
+
+from engines.reference import reference
+from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported
-from engines.scene import Scene
-from engines.trajectory import constraint_errors, tensions, total_energy
+from engines.scene.scene import Scene
+from engines.scene.trajectory import constraint_errors, tensions, total_energy
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -132,7 +134,7 @@ def test_reference_engine_samples_on_the_shared_schedule():
 
 
 def test_reference_refuses_what_it_cannot_express():
-    from engines.scene import Particle, Pin, Rod, Scene
+    from engines.scene.scene import Particle, Pin, Rod, Scene
 
     # A triangle of rods is not a chain.
     a, b, c = (1, 0, 0), (2, 0, 0), (1.5, 0, math.sqrt(3) / 2)
@@ -189,7 +191,8 @@ def test_a_kept_reference_is_the_solved_one_and_a_damaged_or_other_one_is_solved
 KEPT_PROBE = r"""
 import json, sys
 import numpy as np
-from engines import catalog, reference
+from engines.scene import catalog
+from engines.reference import reference
 scene = catalog.build("double-pendulum", {"duration": 1.0})
 times = np.linspace(0.0, 1.0, 101)
 solution, _ = reference.solve_and_bound_kept(scene, 1e-10, 1e-10, sample_times=[times])

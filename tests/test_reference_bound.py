@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engines import catalog, reference
-from engines.scene import Particle, Pin, Rod, Scene
-from engines.trajectory import momentum_drift, vertical_axis
+from engines.scene import catalog
+
+from engines.reference import reference
+from engines.scene.scene import Particle, Pin, Rod, Scene
+from engines.scene.trajectory import momentum_drift, vertical_axis
 
 
 def test_the_bead_has_no_horizon_over_40_s():
@@ -70,7 +72,7 @@ def test_momentum_drift_is_none_where_lz_is_not_conserved_or_trivially_zero():
 
 def test_momentum_drift_is_a_declared_gated_metric_computed_for_each_case():
     from compare.results.declared import METRICS, MetricInputs, computed_extras
-    from engines.mujoco import ENGINE as MUJOCO
+    from engines.adapters.mujoco import ENGINE as MUJOCO
 
     metric = METRICS["momentum_drift"]
     assert metric.gated and metric.better == "lower" and metric.unit == "L*"

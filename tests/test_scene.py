@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from engines import catalog
+from engines.scene import catalog
 from engines.errors import SceneError
-from engines.scene import Particle, Pin, Rod, Scene
+from engines.scene.scene import Particle, Pin, Rod, Scene
 
 
 def pendulum(mass=1.0, position=(1.0, 0.0, 0.0), velocity=(0.0, 0.0, 0.0), length=1.0, duration=1.0):

@@ -7,10 +7,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engines import catalog
-from engines.reference import chain_model
-from engines.scene import Scene
-from engines.trajectory import constraint_errors
+from engines.scene import catalog
+from engines.reference.reference import chain_model
+from engines.scene.scene import Scene
+from engines.scene.trajectory import constraint_errors
 
 angles = st.floats(-179.0, 179.0)
 lengths = st.floats(1e-3, 1e2)

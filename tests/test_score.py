@@ -13,8 +13,9 @@ import pytest
 from compare.cli import main
 from compare.results.score import SCORE_METRICS, score
 from compare.results.table import row_fields
-from engines import catalog, protocol
-from engines.reference import solve
+from engines.scene import catalog
+from engines.external import protocol
+from engines.reference.reference import solve
 from cli_support import run_cli as run
 
 SCENE = catalog.build("double-pendulum", {"duration": 2.0, "theta1": 60})

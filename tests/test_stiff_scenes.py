@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engines.reference import solve
-from engines.trajectory import total_energy
+from engines.reference.reference import solve
+from engines.scene.trajectory import total_energy
 
 from compare.run.runner import skip_reason
 from compare.suite.reader import load_suite

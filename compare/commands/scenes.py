@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from engines.catalog import CATALOG
+from engines.scene.catalog import CATALOG
 
 
 @click.command("scenes")

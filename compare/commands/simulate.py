@@ -16,10 +16,10 @@ from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, largest, relative_drift
 from engines import registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
-from engines.command import command_engine
+from engines.external.command import command_engine
 from engines.errors import UserError
-from engines.limits import check_case_size
-from engines.trajectory import trajectory_constraint_error, trajectory_energy
+from engines.scene.limits import check_case_size
+from engines.scene.trajectory import trajectory_constraint_error, trajectory_energy
 
 
 def parse_bounds(pairs: tuple[str, ...]) -> Bounds:

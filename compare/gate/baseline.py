@@ -7,12 +7,7 @@ case record by :func:`compare.gate.entry.entry_of`. :class:`Baseline` is the
 typed document a gate compares: a baseline file, the current results, or a
 window of the history's runs.
 
-File layout (``BASELINE_SCHEMA_VERSION``)::
-
-    {"kind": "xval-baseline", "schema_version": 1,
-     "suite": {"name", "fingerprint", "path"}, "created", "results": {...},
-     "machine": {"cpu", "cpu_count", "machine"}, "engines": {name: version},
-     "cases": {case_key: entry, ...}}
+Details: docs/architecture.md, "Module notes", ``compare/gate/baseline.py``.
 """
 
 from __future__ import annotations

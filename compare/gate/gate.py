@@ -1,51 +1,13 @@
 """The gate: compare a results directory with a baseline and decide, per case, better / worse / unchanged / ….
 
-Rules (asv's ``continuous``: fail only on a change larger than the noise):
+Rules (asv's ``continuous``: fail only on a change larger than the noise): a metric is worse or
+better past its ``rtol``/``atol``; a status that leaves ``ok``, a case skipped now, a missing case of
+the same suite or a number that became null is worse; timing is judged by ``timing_factor`` widened
+by the noise measured in both runs; a changed scene, option set or engine version is not comparable.
+Everything here is a pure function of two :class:`~compare.gate.baseline.Baseline` documents, so the
+rules are tested without running anything.
 
-- accuracy metric (lower is better: errors, drifts): **worse** when
-  current > baseline·(1 + rtol) + atol, **better** when baseline >
-  current·(1 + rtol) + atol; mirrored for metrics where higher is better
-  (divergence time, observed order). A null divergence time means "never
-  diverged" and ranks above any time.
-- status: ok → unstable / failed / timeout is always **worse**; back to ok is
-  **better**. A case that ran in the baseline but is skipped now is **worse**
-  (its engine no longer loads here — a broken plug-in, a missing library — or
-  no longer expresses the scene): a solver that stopped running must fail
-  the gate. Skipped in the baseline only is **not comparable**.
-- timing (cost per simulated second), when both sides recorded the stepping
-  loop's CPU time and the calibration kernel's (:func:`cpu_timing_change`,
-  docs/reliability.md): each repeat's CPU cost is divided by the smallest
-  calibration time of its run, and the *best* (smallest) of the repeats is
-  compared: **worse** when current best > baseline best · ``timing_factor`` ·
-  (1 + s_b + s_c), where s = (second best − best) / best of a side (how far
-  its best is from being reproduced): the threshold widens with the noise
-  measured in both runs. CPU time does not count the time a process waits
-  for a core; the calibration cancels a CPU that is itself slower now (a
-  shared physical core, a lower clock); the best of the repeats drops those
-  hit by a burst. Older records (wall time only): **worse** only when the
-  median slowed by more than ``timing_factor`` *and* by more than the spread
-  of the repeats on both sides (max − min of each). Either way, never gated
-  with fewer than two repeats a side, when the two runs were timed on
-  different machines, or when the caller asks for timing to be reported only
-  (``timing="report"``).
-- **not comparable** (reported, never failed): the scene's content changed,
-  the engine's options or variant changed, or the engine's version changed.
-- consistency (per variant, from its dt sweep, compare.results.consistency):
-  a variant that converged to the reference in the baseline and converges
-  to something else now is **worse**.
-- **new** / **missing**: a case only in the results / only in the baseline.
-  Missing cases fail the gate (named in a note) when the results were made
-  from the same suite as the baseline (an interrupted or partial run must not
-  pass), or when not one baseline case is in the results; after the suite
-  was edited, the cases it dropped are reported only.
-- a metric the baseline had a number for and the results have none (null:
-  the reference could not be solved, the engine stopped giving forces) is
-  **worse**: an absent number must not pass as unchanged.
-
-Everything here is a pure function of two :class:`~compare.gate.baseline.Baseline`
-documents of typed entries (the results are turned into one first, by the
-same function that makes a baseline), so the rules are tested without running
-anything.
+Details: docs/architecture.md, "Module notes", ``compare/gate/gate.py``.
 """
 
 from __future__ import annotations

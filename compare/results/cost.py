@@ -4,9 +4,9 @@ Per case i: T_i = the least CPU time (s) over its repeats of the engine's run, n
 the model T_i = a + c·n_i is fitted by Theil–Sen (the median of the pairwise slopes, as
 scipy.stats.theilslopes), so one disturbed case cannot move it: a (s) is what a run costs whatever its
 length, c (s/step) the per-step cost. A case's cost per simulated second is then steps × c / simulated
-time = c/dt for a fixed step: monotone in dt by construction. c's interval is what a rerun needs: at least a factor
-RESOLUTION either side (run-to-run noise of CPU time on a shared machine), wider where leaving out one
-case moves the fit further. With fewer than MIN_FIT cases timed, c is the median of T_i/n_i (an upper
+time = c/dt for a fixed step: monotone in dt by construction. c's interval is what a rerun needs: at
+least a factor RESOLUTION either side (run-to-run noise of CPU time on a shared machine), wider where
+leaving out one case moves the fit further. With fewer than MIN_FIT cases timed, c is the median of T_i/n_i (an upper
 bound: it carries a) and its interval spans every repeat's T/n, widened likewise.
 
 Records without CPU times (results of an older xval, hand-made records) fall back on their

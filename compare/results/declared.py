@@ -42,7 +42,7 @@ class Tolerance:
 class MetricInputs:
     """What a metric's ``compute`` receives for one case (all in the scene frame, SI units).
 
-    scene : engines.scene.Scene; trajectory : engines.trajectory.Trajectory (first n samples);
+    scene : engines.scene.scene.Scene; trajectory : engines.scene.trajectory.Trajectory (first n samples);
     reference_positions : (n, P, 3) m at the trajectory's times; position_error : (n,) m.
     """
 
@@ -150,7 +150,7 @@ _BUILT_IN = (
 
 
 def _momentum_drift(inputs: "MetricInputs") -> float | None:
-    from engines.trajectory import momentum_drift
+    from engines.scene.trajectory import momentum_drift
 
     trajectory = inputs.trajectory
     return momentum_drift(inputs.scene, trajectory.positions, trajectory.velocities)

@@ -1,6 +1,6 @@
 """A trajectory as a table: one row per sample, the columns ``xval simulate`` writes.
 
-The columns are the process protocol's (engines.protocol, docs/protocol.md),
+The columns are the process protocol's (engines.external.protocol, docs/protocol.md),
 so what ``xval simulate`` writes is what ``xval score`` and a ``command/``
 engine's reader accept: ``t``, the state of every particle, optionally the
 constraint forces ``f{k}_x..z``, then the derived ``energy`` and
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from engines import protocol
-from engines.scene import Scene
-from engines.trajectory import Trajectory, max_constraint_error, total_energy
+from engines.external import protocol
+from engines.scene.scene import Scene
+from engines.scene.trajectory import Trajectory, max_constraint_error, total_energy
 
 
 def trajectory_columns(scene: Scene, forces: bool = False) -> list[str]:

@@ -21,8 +21,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from engines.scene import Scene
-from engines.trajectory import (
+from engines.scene.scene import Scene
+from engines.scene.trajectory import (
     Trajectory, max_constraint_error, total_energy, trajectory_constraint_error, trajectory_energy,
 )
 

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from engines import protocol
+from engines.external import protocol
 from engines.errors import UserError
 from engines.model.scene import ModelScene
-from engines.trajectory import Trajectory, trajectory_energy
+from engines.scene.trajectory import Trajectory, trajectory_energy
 
 _AXES = ("x", "y", "z")
 

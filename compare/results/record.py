@@ -6,17 +6,7 @@ Everything downstream — show, report, baseline, gate, history, stability —
 works on these objects, never on the raw dict, so a misspelt field is an
 AttributeError at once, not a silent None.
 
-JSON layout (schema version 1, unchanged from the dict records it types)::
-
-    {"schema_version": 1,
-     "case": {"id", "scene_id", "scene_name", "engine", "engine_id", "variant",
-              "options", "dt", "position"},
-     "status", "message", "metrics" (name -> number | null, see compare.results.declared),
-     "run_info" (the engine's RunInfo.to_dict(), engine_version among it), "wall_times", "elapsed",
-     "scene" (Scene.to_dict()), "scene_hash", "characteristic": {"length", "energy"},
-     "series" (downsampled plot series), "reference" (how the reference was solved), "finished",
-     optional: "cpu_times", "calibrations", "consistent", "consistency", "reference_horizon",
-     "tolerance" (in "case")}
+Details: docs/architecture.md, "Module notes", ``compare/results/record.py``.
 """
 
 from __future__ import annotations

@@ -15,12 +15,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from engines import protocol
+from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE
 from engines.errors import UserError
-from engines.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
-from engines.scene import Scene
-from engines.trajectory import RunInfo, Trajectory
+from engines.reference.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
+from engines.scene.scene import Scene
+from engines.scene.trajectory import RunInfo, Trajectory
 
 from compare.results import declared
 from compare.results.metrics import DEFAULT_DELTA, case_metrics

@@ -7,30 +7,7 @@ of a variant's label before its first ``/`` (``mujoco`` for
 ``mujoco/hinge-rk4``), and the family a comparison is made for (the *focus*)
 is a parameter, by default the first family of the suite.
 
-Quantities (per scene; L = the scene's characteristic length, m):
-
-- a *point* is one ``ok`` case with a positive, finite max position error
-  (m) and stepping cost (s of CPU time per simulated s, from its variant's
-  cost model, compare.results.cost);
-- the *Pareto front* is the set of points no other point beats in both cost
-  and error: for each budget, the most accurate run that fits in it;
-- the *cost to reach* a target error (default 1e-6·L) is read off a
-  variant's own curve (its ok points in dt order), interpolated linearly in
-  log cost against log error between the last point above the target and the
-  first at or below it; "at most" when its cheapest point is already below,
-  None ("not reached") when no point is;
-- a *tie*: the variants whose cost intervals link up (overlap, or overlap
-  one that does) with the cheapest's; the data cannot order them, so the
-  one named first is the one that needs the fewest steps (a property of the
-  physics, not of timing noise), then by name;
-- *equal cost*: the budget is the top of the cost range every engine family
-  covered (the smallest, over families, of each family's dearest run); when
-  the families' ranges do not overlap, the smallest budget at which every
-  family has a run (the largest, over families, of each family's cheapest
-  run). Per family, its most accurate run within that budget;
-- *problems*: a variant that is inconsistent (converges to something other
-  than the reference, compare.results.consistency), unstable (the dts at
-  which it was, the suite's largest first), failed or timed out.
+Details: docs/architecture.md, "Module notes", ``compare/results/verdict.py``.
 """
 
 from __future__ import annotations

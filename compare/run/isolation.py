@@ -1,42 +1,12 @@
 """Running one case so that whatever the engine does (raise, hang, segfault) only that case pays.
 
-Every isolated case runs in a *case host*: a child process forked from the
-process that drives it, which runs cases one after another and answers each
-on a pipe. A local run's hosts are driven straight from the ``xval`` process
-(:class:`compare.run.hosts.HostPool`, ``jobs`` hosts); on an executor given to
-the runner (a cluster's, a ThreadPoolExecutor) :func:`execute` is what runs
-in the executor's worker, and each worker thread forks its own host. Either
-way the driver waits at most ``timeout`` seconds for the answer:
+Each case runs in a *case host*, a child forked from the driving process that runs cases one after
+another and answers on a pipe; the driver waits at most ``timeout`` s. An exception is ``failed``,
+a dead host is ``failed`` with its exit code or signal, no answer in time kills the host and is
+``timeout``; the next case gets a new host. Nothing xval starts outlives it (process groups,
+PR_SET_PDEATHSIG, a reaper), and ``RLIMIT_AS`` bounds each task's memory.
 
-- the engine raised: the host catches it and answers ``failed``;
-- the host died (a segfault, ``os._exit``, SIGKILL): the pipe closes
-  without an answer, the case is ``failed`` with the exit code or signal,
-  and the next case gets a new host;
-- no answer in time: the host is killed, the case is ``timeout``, and the
-  next case gets a new host.
-
-The reference solve of a scene (a :class:`ReferenceTask`) runs in the same
-host under the same timeout and memory limit, so a scene whose reference
-would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
-
-Lifetime: nothing xval starts outlives it. Each host is the leader of its
-own process group (so the engine's own children are killed with it on a
-timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGKILL
-when the process that forked it dies, even inside compiled code; its reaper
-then kills the group and any outside program's (:func:`_start_reaper`). The
-workers of a process pool make the same request for their parent, the
-``xval`` process (:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before
-each task so that the task may map at most ``memory_limit`` bytes more than
-the host does as the task starts: a case past it raises MemoryError (or its
-allocation fails inside the engine) and is ``failed`` with the reason.
-
-The driver never runs engine code, so a case that kills its process never
-breaks a pool. Reusing the host across cases (rather than forking per case)
-matters for speed: a fork per case cost 90–250 ms (copying a process that
-holds numba, MuJoCo and PyBullet, and re-initializing them), more than most
-cases' stepping. It needs the ``fork`` start method (Linux, macOS); with
-``isolate=False`` the case runs in the executor's worker itself (no timeout,
-and a crash breaks the pool, which the runner then rebuilds).
+Details: docs/architecture.md, "Module notes", ``compare/run/isolation.py``.
 """
 
 from __future__ import annotations
@@ -54,8 +24,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 from engines.adapter import Engine, scheduled_times
-from engines.scene import Scene
-from engines.trajectory import Trajectory
+from engines.scene.scene import Scene
+from engines.scene.trajectory import Trajectory
 
 
 @dataclass(frozen=True)
@@ -77,7 +47,7 @@ class CaseTask:
     timeout: float = 120.0
     isolate: bool = True
     memory_limit: int | None = None
-    #: An outside program's spec (engines.command.spec_of), so any worker, here or on another machine, can run it.
+    #: An outside program's spec (engines.external.command.spec_of), so any worker, here or on another machine, can run it.
     command: Mapping[str, Any] | None = None
 
 
@@ -170,7 +140,7 @@ def _engine_for(task: CaseTask) -> Engine:
     from engines.registry import load_engine  # here, not at import: loaded in the process that runs the case
 
     if task.command is not None:
-        from engines.command import adopt
+        from engines.external.command import adopt
 
         return adopt(task.command)
     return load_engine(task.engine_id)[0]
@@ -208,10 +178,10 @@ def simulate(task: CaseTask) -> CaseOutcome:
 
 
 def _command_deadline(task: CaseTask) -> Any:
-    """The case's timeout as the deadline of a command engine's program (engines.command.deadline)."""
+    """The case's timeout as the deadline of a command engine's program (engines.external.command.deadline)."""
     if task.command is None:
         return contextlib.nullcontext()
-    from engines.command import deadline
+    from engines.external.command import deadline
 
     return deadline(max(task.timeout - COMMAND_MARGIN, 0.5 * task.timeout))
 
@@ -265,9 +235,9 @@ def die_with_parent(sig: int = signal.SIGKILL) -> None:
 
 def _kill_own_group(signum: int, frame: Any) -> None:
     """The host's SIGTERM handler: SIGKILL the process groups of any outside program the engine runs
-    (engines.command starts each in a session of its own), then the host's own group (the host and
+    (engines.external.command starts each in a session of its own), then the host's own group (the host and
     any child of the engine)."""
-    command = sys.modules.get("engines.command")
+    command = sys.modules.get("engines.external.command")
     for group in list(getattr(command, "LIVE_GROUPS", ())):
         try:
             os.killpg(group, signal.SIGKILL)
@@ -295,7 +265,7 @@ def _become_host() -> None:
 
 
 class _ReportedGroups(set):
-    """engines.command.LIVE_GROUPS in a host: each outside program's process group, also told to the reaper."""
+    """engines.external.command.LIVE_GROUPS in a host: each outside program's process group, also told to the reaper."""
 
     def __init__(self, fd: int, groups: Any = ()) -> None:
         super().__init__(groups)
@@ -313,9 +283,9 @@ class _ReportedGroups(set):
 def _start_reaper() -> None:
     """Fork the host's reaper: a small process, in the host's group, that waits on a pipe only the host
     holds. When the host dies (EOF), however it died, the reaper SIGKILLs the process groups of the
-    outside programs the host had running (each in a session of its own, engines.command; the host
+    outside programs the host had running (each in a session of its own, engines.external.command; the host
     reports them on the pipe), then the host's group — the engine's own children, and itself."""
-    from engines import command  # small, no engine library: the reaper needs its LIVE_GROUPS to report to
+    from engines.external import command  # small, no engine library: the reaper needs its LIVE_GROUPS to report to
 
     read_end, write_end = os.pipe()
     pid = os.fork()
@@ -411,7 +381,7 @@ def _failure(task: Any, exc: BaseException) -> CaseOutcome:
 def _run_in_host(task: Any) -> Any:
     """What the host does with one task: a case's CaseOutcome, or a reference's solution."""
     if isinstance(task, ReferenceTask):
-        from engines.reference import solve_and_bound_kept
+        from engines.reference.reference import solve_and_bound_kept
 
         times = [scheduled_times(task.scene.duration, dt, task.sample_interval) for dt in task.sample_dts]
         return solve_and_bound_kept(task.scene, rtol=task.rtol, atol=task.atol, sample_times=times)

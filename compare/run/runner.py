@@ -1,27 +1,11 @@
 """Running a suite: cases through case hosts or a concurrent.futures.Executor, one record written per
 finished case.
 
-Division of work (why it is split this way):
+The runner plans the cases, solves each scene's reference once, dispatches the cases to case hosts
+(compare.run.isolation) or an executor, and turns each answer into a CaseRecord written as it
+finishes, so an interrupted run resumes without redoing finished cases.
 
-- **Case hosts** only simulate. Each case is a
-  :class:`~compare.run.isolation.CaseTask` run in a case host, a forked child
-  (see :mod:`compare.run.isolation`), so a case that raises, hangs or kills
-  its process is recorded and the run carries on. A local run drives its
-  hosts itself (:mod:`compare.run.hosts`); given an executor (a cluster's),
-  the runner submits the tasks to it and each of its workers drives a host.
-- **The reference** for each scene is solved once (or found kept from an
-  earlier run), as its own task on the same executor (so it overlaps with
-  the engines' cases), evaluated there at the sample times of each dt of the
-  run's cases, and comes back to the parent as a pickled dense solution with
-  those samples.
-- **The parent** takes each case's reference samples from it (evaluating the
-  dense solution itself only for an engine that samples at times of its
-  own), computes the metrics (cheap, pure functions), applies the status
-  bounds and writes the record. Cases that finish before their scene's
-  reference wait in memory for it.
-
-Cases are submitted longest first (smallest dt) so that on a few cores the
-long cases do not end up alone at the tail of the run.
+Details: docs/architecture.md, "Module notes", ``compare/run/runner.py``.
 """
 
 from __future__ import annotations
@@ -42,10 +26,10 @@ from typing import Any, Iterable
 import numpy as np
 
 from engines.adapter import join_messages, scheduled_times, warning_note
-from engines.limits import check_case_size
-from engines.command import spec_of
+from engines.scene.limits import check_case_size
+from engines.external.command import spec_of
 from engines.errors import Unsupported
-from engines.scene import Scene
+from engines.scene.scene import Scene
 
 from compare.run.environment import environment
 from compare.run.hosts import HostPool
@@ -133,7 +117,7 @@ def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
 def solve_reference(task: ReferenceTask) -> Any:
     """The reference's (dense solution, ReferenceBound) of ``task.scene``, solved in a case host
     under the case timeout (what an executor's worker runs; module-level so it pickles). Raises ReferenceFailed saying
-    why not. The bound (engines.reference.solve_and_bound_kept) is the reference's own error bar and horizon."""
+    why not. The bound (engines.reference.reference.solve_and_bound_kept) is the reference's own error bar and horizon."""
     return execute_reference(task)
 
 
@@ -172,7 +156,7 @@ def run_suite(suite: Suite, output: str | Path, **options: Any) -> RunSummary:
 
 
 def check_sizes(suite: Suite) -> None:
-    """UserError naming the scene and dt of the first case too big to run (engines/limits.py)."""
+    """UserError naming the scene and dt of the first case too big to run (engines/scene/limits.py)."""
     for spec in suite.scenes:
         for dt in suite.dts:
             check_case_size(len(spec.scene.particles), spec.scene.duration, dt, suite.sample_interval,
@@ -274,7 +258,7 @@ def _init_worker() -> None:
     """A pool worker's start (cases not isolated: the worker runs the engines itself): die with the
     xval process, and have the reference solver imported (preload_engines did, before the fork)."""
     die_with_parent()
-    import engines.reference  # noqa: F401
+    import engines.reference.reference  # noqa: F401
 
 
 class _ExecutorPool:
@@ -499,12 +483,12 @@ def preload_engines(suite: Suite, cases) -> None:
     will need once, here, before the pool forks: workers and case hosts inherit it instead of each importing and loading it again
     (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
     that fails is ignored (the cases report their own errors)."""
-    from engines.reference import ENGINE as REFERENCE, is_kept
+    from engines.reference.reference import ENGINE as REFERENCE, is_kept
 
     engines = {id(c.engine.engine): c.engine.engine for c in cases if c.engine.engine is not None}
     scenes = list({c.scene.id: c.scene.scene for c in cases}.values())  # those with cases to run
     # The reference solves each of them; its solver (scipy.integrate) is loaded only when some scene's
-    # solution is not kept from an earlier run (engines.reference.solve_and_bound_kept).
+    # solution is not kept from an earlier run (engines.reference.reference.solve_and_bound_kept).
     if not all(is_kept(scene, suite.rtol, suite.atol) for scene in scenes):
         engines.setdefault(id(REFERENCE), REFERENCE)
     for key, engine in engines.items():
@@ -634,7 +618,7 @@ def _measured(record: CaseRecord, case: Case, outcome: CaseOutcome, reference: A
         solved = {"rtol": solution.rtol, "atol": solution.atol, "steps": solution.n_steps,
                   "wall_time": solution.wall_time}
         if reference.bound is not None:
-            from engines.reference import growth_rate  # loaded already: it made ``reference``
+            from engines.reference.reference import growth_rate  # loaded already: it made ``reference``
 
             # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
             solved.update(reference_error=reference.bound.reference_error,

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from engines.adapter import Schedule
-from engines.command import spec_of
+from engines.external.command import spec_of
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text

@@ -8,22 +8,7 @@ and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
 (non-finite state, a bound exceeded, the engine raised, died or timed out)
 is not stable.
 
-Search (per pair, :func:`search`): probe ``dt_max``; if it is stable the
-pair is ``stable-at-largest``. Otherwise step down by ``bracket_factor``
-(√10: two probes per decade) until a probe is stable (then bisect on a log
-scale between the stable and the unstable dt until their ratio is ≤
-``resolution``, 1.1 = 10 % in dt) or ``dt_min`` is reached unstable
-(``unstable-at-smallest``). The search assumes one boundary: a variant
-stable at dt but not at some dt' < dt (a chaotic scene whose drift crosses
-a bound by chance) is reported at the first boundary found, and every
-probe is kept so the report can show it.
-
-Every probe runs through :func:`compare.run.isolation.execute` (a forked case
-host per thread), so a crash or a hang costs that probe only. Pairs run in
-parallel on ``jobs`` threads; each pair's probes are sequential (each one
-depends on the last). Results go to ``DIR/stability.json`` (versioned,
-rewritten atomically after each pair, so a stopped search keeps what it
-found).
+Details: docs/architecture.md, "Module notes", ``compare/stability/search.py``.
 """
 
 from __future__ import annotations

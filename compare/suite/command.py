@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from engines import command
+from engines.external import command
 from engines.errors import UserError
 
 #: Keys a command entry may hold.

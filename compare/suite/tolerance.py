@@ -6,16 +6,7 @@ differs across machines (BLAS, CPU instruction sets, numpy / scipy builds),
 amplified a little by sensitive scenes. Timing is noisy everywhere, so it is
 judged by a factor *and* the spread of the repeats (see :mod:`compare.gate.gate`).
 
-A suite overrides any default in its ``[gate]`` table::
-
-    [gate]
-    timing_factor = 2.0                                  # slowdown that may fail a gate
-    position_error_linf = { rtol = 0.2, atol = 1e-8 }    # either key may be left out
-    energy_drift = 0.5                                   # a bare number is rtol
-
-The older ``[tolerances]`` table (``metric = number``) is read as rtol
-overrides, so suites written for it keep working; ``[gate]`` wins where both
-name a metric.
+Details: docs/architecture.md, "Module notes", ``compare/suite/tolerance.py``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The reference's equations of motion for a model scene: Pinocchio's articulated-body algorithm.
 
 :class:`ModelDynamics` has the shape of the catalog's reduced-coordinate
-models (engines/reference.py integrates it with DOP853): the state is
+models (engines/reference/reference.py integrates it with DOP853): the state is
 y = (q, v) in the model's joint order, ``rhs`` is (v, aba(q, v, τ)) with τ
 the file's joint damping (−d·v) when the scene keeps it (friction, being
 non-smooth, is left out of the reference and said so), and ``evaluate``

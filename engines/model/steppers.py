@@ -73,7 +73,7 @@ class DartStepper:
     def __init__(self, scene: Any, dt: float, integrator: str) -> None:
         import dartpy as dart
 
-        from engines.dart import rk4_stepper as rk4_step
+        from engines.adapters.dart import rk4_stepper as rk4_step
         from engines.model import dart as importer
 
         loaded = importer.load(scene.source, scene.description)
@@ -138,7 +138,7 @@ class DrakeStepper:
                          "fixed_step_mode": fixed, "target_accuracy": None if fixed else accuracy}
 
     def advance(self, steps: int) -> None:
-        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/drake.py)
+        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/adapters/drake.py)
             self.time += self.dt
         self.simulator.AdvanceTo(self.time)
 
@@ -155,7 +155,7 @@ class PyBulletStepper:
 
     def __init__(self, scene: Any, dt: float) -> None:
         from engines.model import pybullet as importer
-        from engines.pybullet import _pb as pb, quiet_output
+        from engines.adapters.pybullet import _pb as pb, quiet_output
 
         self.pb, self.quiet = pb, quiet_output
         loaded = self.loaded = importer.load(_without_limits(scene.source), scene.description)
@@ -205,8 +205,8 @@ def stepper(engine: str, scene: Any, dt: float, settings: dict[str, Any]) -> Any
         return DrakeStepper(scene, dt, settings["scheme"], not settings["error_control"], settings["accuracy"])
     if engine == "pybullet":
         return PyBulletStepper(scene, dt)
-    if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/ours_model.py)
-        from engines.ours_model import OursStepper
+    if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/model/ours.py)
+        from engines.model.ours import OursStepper
 
         return OursStepper(scene, dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
                            k_d=settings["k_d"], tolerance=settings["tolerance"],

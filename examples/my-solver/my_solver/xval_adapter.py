@@ -16,8 +16,8 @@ from __future__ import annotations
 import os
 from typing import Any, Mapping
 
-from engines.plugin import Engine, Option, Recorder, Schedule, capabilities, scene_arrays
-from engines.scene import Scene
+from engines.external.plugin import Engine, Option, Recorder, Schedule, capabilities, scene_arrays
+from engines.scene.scene import Scene
 
 from my_solver import __version__
 from my_solver.rattle import Constraints, Rattle

@@ -1,7 +1,7 @@
 """PyBullet adapter: point-mass scenes as one multibody, or as separate bodies joined by point-to-point constraints.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/pybullet.py``.
+``engines/adapters/pybullet.py``.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import numpy as np
 from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
-from engines.scene import Line, Pin, Scene
-from engines.tree import ROOT, read_tree
+from engines.scene.scene import Line, Pin, Scene
+from engines.scene.tree import ROOT, read_tree
 
 # -- keeping PyBullet's prints out of the caller's output -------------------------------
 

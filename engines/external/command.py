@@ -1,7 +1,7 @@
 """``command/<label>``: an engine that is an outside program speaking the process protocol (docs/protocol.md).
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/command.py``.
+``engines/external/command.py``.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-from engines import protocol
+from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE, Engine, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Scene
-from engines.trajectory import Trajectory
+from engines.scene.scene import Scene
+from engines.scene.trajectory import Trajectory
 
 #: The engine name every command engine shares; its variant is the label (``command/my-bead``).
 NAME = "command"

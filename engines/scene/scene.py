@@ -18,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines import limits
+from engines.scene import limits
 from engines.errors import SceneError
 
 #: Largest |‖a − b‖ − l| (relative to l) accepted in a scene's initial state.
@@ -48,7 +48,7 @@ def _vector(value: Any, field_name: str) -> Vector:
 
 #: Field name -> (largest |component|, unit); any other vector is a position (m).
 _VECTOR_LIMITS = {"velocity": (limits.MAX_SPEED, "m/s"), "gravity": (limits.MAX_GRAVITY, "m/s^2")}
-#: Field name -> (allowed range, unit) of a positive quantity (engines/limits.py says why).
+#: Field name -> (allowed range, unit) of a positive quantity (engines/scene/limits.py says why).
 _POSITIVE_LIMITS = {
     "mass": (limits.MASS_RANGE, " kg"),
     "length": (limits.LENGTH_RANGE, " m"),

@@ -4,17 +4,7 @@ Variants are ``<method>-<integrator>`` (``baumgarte-rk4``, ``plain-euler``,
 ``projection-symplectic-euler``, ``lagrangian-rk4``, …) plus ``rattle``, which
 is its own integrator; every pair ``ours.valid_pairs()`` accepts has one.
 
-Frame: a planar scene (x–z) runs in ours' 2-D coordinates (scene x → ours x,
-scene z → ours y), anything else in 3-D with the scene's axes. Constraint
-forces are the force each constraint exerts on its first particle
-(``Pin.particle``, ``Rod.a``), mapped back to the scene frame. The Lagrangian
-form exists only for planar chains hung from a fixed point (Pin on particle 0,
-then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
-A Line or Ellipse (planar scenes only) maps to ours' curve constraints, which
-run in the same compiled loop as the distance constraints; so does a four-bar's
-closed loop of Pins and a Rod.
-The time recorded is the compiled stepping loop alone (compilation is done,
-or loaded from numba's cache, before the clock starts).
+Details: docs/engines.md, "Adapter notes", ``engines/adapters/ours.py``.
 """
 
 from __future__ import annotations
@@ -26,7 +16,7 @@ import numpy as np
 import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
 
@@ -122,7 +112,7 @@ class OursEngine(Engine):
                 continue
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/ours_model.py)
+        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/model/ours.py)
             from ours.rigid.method import resolve as rigid_pair
 
             try:

@@ -1,7 +1,7 @@
 """The ground truth: reduced-coordinate equations integrated at tight tolerances.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/reference.py``.
+``engines/reference/reference.py``.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ import scipy
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
-from engines.reference_mechanisms import Mechanism, mechanism_model
-from engines.scene import Pin, Rod, Scene
-from engines.tree import read_tree
+from engines.reference.mechanisms import Mechanism, mechanism_model
+from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.tree import read_tree
 
 DEFAULT_RTOL = 1e-12
 DEFAULT_ATOL = 1e-12
@@ -84,13 +84,13 @@ class ChainModel:
     def accelerations(self, theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
         """(n,) rad/s²: θ̈ from Lagrange's equations."""
         gx, gz = self.gravity
-        from engines._reference_kernels import chain_accelerations
+        from engines.reference.kernels import chain_accelerations
 
         return chain_accelerations(theta, theta_dot, self._inertia, self._weight, gx, gz)
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         gx, gz = self.gravity
-        from engines._reference_kernels import chain_rhs
+        from engines.reference.kernels import chain_rhs
 
         return chain_rhs(y, self._inertia, self._weight, gx, gz)
 
@@ -231,7 +231,7 @@ def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
     """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it.
 
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
-    :mod:`engines.reference_mechanisms`; everything else is a chain or a spherical pin.
+    :mod:`engines.reference.mechanisms`; everything else is a chain or a spherical pin.
     """
     if getattr(scene, "is_model", False):  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
         from engines.model.dynamics import ModelDynamics
@@ -463,9 +463,10 @@ def solve_and_bound(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFA
     return solution, bound(scene, rtol, atol, times=np.linspace(0.0, scene.duration, n), solution=solution)
 
 
-#: The reference's own source: part of the key of a kept solution, so an edit to it solves again.
-_SOURCES = ("reference.py", "reference_mechanisms.py", "_reference_kernels.py", "scene.py", "model/dynamics.py",
-            "model/scene.py")
+#: The reference's own source (paths under engines/): part of the key of a kept solution, so an edit to it
+#: solves again.
+_SOURCES = ("reference/reference.py", "reference/mechanisms.py", "reference/kernels.py", "scene/scene.py",
+            "model/dynamics.py", "model/scene.py")
 #: A solution whose pickle is larger is solved again each run rather than kept (bytes).
 _LARGEST_KEPT = 64 * 2**20
 
@@ -542,7 +543,7 @@ def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
 def _code_digest() -> str:
     """A hash of what a kept solution's code depends on: the reference's source files and the versions
     of Python, numpy and scipy (read once per process: a run asks for every scene, in parent and host)."""
-    here = Path(__file__).parent
+    here = Path(__file__).parents[1]
     key = hashlib.sha256()
     for part in (sys.version, np.__version__, scipy.__version__,
                  *((here / name).read_text(encoding="utf-8") for name in _SOURCES)):
@@ -620,7 +621,7 @@ class ReferenceEngine(Engine):
         process, so that workers forked from it do not each do it again."""
         _solve_ivp()
 
-        from engines._reference_kernels import chain_rhs
+        from engines.reference.kernels import chain_rhs
 
         chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
 

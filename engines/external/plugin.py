@@ -2,40 +2,22 @@
 
 A plugin imports from here only (docs/plugins.md walks through one)::
 
-    from engines.plugin import Engine, Option, Recorder, Schedule, capabilities, scene_arrays
+    from engines.external.plugin import Engine, Option, Recorder, Schedule, capabilities, scene_arrays
 
-- :func:`capabilities` declares what the solver can express; scenes needing
-  more are left out of its runs with the reason (never faked).
-- :func:`scene_arrays` reads a Scene's particles and constraints as arrays,
-  one row per constraint whatever its kind.
-- :class:`Recorder` (engines.recorder, the loop every built-in adapter uses)
-  stores the state at the scheduled sample steps, stops a run that runs away,
-  times the stepping and builds the :class:`RawRun` that ``_run`` returns.
-- :func:`refuse_constraint_kinds` refuses scenes with constraints the solver
-  does not model, naming the constraint.
-- :func:`planar_chain` converts between pendulum angles and particle
-  positions / velocities (:mod:`engines.pendulum`); :func:`force_array`
-  builds per-constraint forces with NaN for "not reported".
-
-What xval checks for every adapter, so a plugin need not (engines.adapter):
-shapes and sample count of what ``_run`` returns, that sample 0 is the
-scene's initial state (catches unit, frame and particle-order mistakes),
-wall time in seconds, non-finite states (-> ``unstable``), exceptions
-(-> ``failed``) and the declared ``api_version``.
+Details: docs/engines.md, "Adapter notes", ``engines/external/plugin.py``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable
 
 import numpy as np
 
-from engines.adapter import API_VERSION, Engine, Option, RawRun, Schedule
+from engines.adapter import API_VERSION, Engine, Option, RawRun, Schedule, refuse_constraint_kinds
 from engines.errors import Unsupported, UserError
-from engines.pendulum import PlanarChain, force_array, planar_chain
+from engines.scene.pendulum import PlanarChain, force_array, planar_chain
 from engines.recorder import RUNAWAY_LENGTHS, Recorder
-from engines.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene
 
 __all__ = [
     "API_VERSION", "CONSTRAINT_FORCES", "RUNAWAY_LENGTHS", "THREE_D", "Engine", "Option", "PlanarChain", "RawRun", "Recorder",
@@ -89,7 +71,7 @@ class SceneArrays:
 
 def scene_arrays(scene: Scene) -> SceneArrays:
     """The particles and constraints of ``scene`` as arrays (see :class:`SceneArrays`)."""
-    refuse_constraint_kinds(scene, (Pin, Rod), "engines.plugin.scene_arrays")
+    refuse_constraint_kinds(scene, (Pin, Rod), "engines.external.plugin.scene_arrays")
     n = len(scene.constraints)
     first, second = np.empty(n, dtype=np.int64), np.full(n, -1, dtype=np.int64)
     anchors, lengths = np.zeros((n, 3)), np.empty(n)
@@ -102,12 +84,3 @@ def scene_arrays(scene: Scene) -> SceneArrays:
     masses = scene.masses
     return SceneArrays(masses, 1.0 / masses, scene.initial_positions, scene.initial_velocities,
                        np.asarray(scene.gravity, dtype=np.float64), first, second, anchors, lengths)
-
-
-def refuse_constraint_kinds(scene: Scene, kinds: Iterable[type], engine: str) -> None:
-    """Raise Unsupported naming the first constraint of ``scene`` not of one of ``kinds``."""
-    kinds = tuple(kinds)
-    for k, c in enumerate(scene.constraints):
-        if not isinstance(c, kinds):
-            names = ", ".join(getattr(t, "kind", t.__name__) for t in kinds)
-            raise Unsupported(f"{engine} models only {names} constraints; constraints[{k}] is a {c.kind!r}")

@@ -1,7 +1,7 @@
 """MuJoCo adapter: the scenes as a MuJoCo user would build them, in two formulations.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/mujoco.py``.
+``engines/adapters/mujoco.py``.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ import numpy as np  # noqa: E402 (after the guarded import above)
 from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
-from engines.scene import Ellipse, Line, Pin, Scene
-from engines.tree import Tree, read_tree
+from engines.scene.scene import Ellipse, Line, Pin, Scene
+from engines.scene.tree import Tree, read_tree
 
 #: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
 _ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
@@ -77,7 +77,7 @@ _WARNINGS = {
 
 
 def constraint_tree(scene: Scene) -> Tree:
-    """The scene's tree of joints (:func:`engines.tree.read_tree`), or Unsupported for what the hinge
+    """The scene's tree of joints (:func:`engines.scene.tree.read_tree`), or Unsupported for what the hinge
     formulation cannot build: an Ellipse, a particle not hung from a Pin or Line, a loop through a Line."""
     refuse_ellipse(scene, _NO_ELLIPSE)
     tree = read_tree(scene)

@@ -1,7 +1,7 @@
 """pymunk (Chipmunk2D / Munk2D) adapter: planar scenes as point masses joined by ``PinJoint``s.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/pymunk.py``.
+``engines/adapters/pymunk.py``.
 """
 
 from __future__ import annotations
@@ -12,11 +12,10 @@ from typing import Any, Mapping
 import numpy as np
 import pymunk
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
 from engines.errors import UserError
-from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
-from engines.scene import Line, Pin, Rod, Scene
+from engines.scene.scene import Line, Pin, Rod, Scene
 
 #: pymunk's own defaults, read from the library rather than copied.
 _PROBE_SPACE = pymunk.Space()

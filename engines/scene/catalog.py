@@ -12,9 +12,9 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
-from engines import limits
+from engines.scene import limits
 from engines.errors import SceneError
-from engines.scene import Ellipse, Line, Particle, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Particle, Pin, Rod, Scene
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class Parameter:
         return value
 
 
-#: Allowed ranges of positive parameters by unit (engines/limits.py says why).
+#: Allowed ranges of positive parameters by unit (engines/scene/limits.py says why).
 _UNIT_RANGES = {"kg": limits.MASS_RANGE, "m": limits.LENGTH_RANGE, "s": (0.0, limits.MAX_DURATION)}
 
 

@@ -22,12 +22,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
 from engines.errors import Unsupported
-from engines.plugin import refuse_constraint_kinds
 from engines.recorder import Recorder
-from engines.scene import Line, Pin, Rod, Scene
-from engines.tree import Tree, read_tree
+from engines.scene.scene import Line, Pin, Rod, Scene
+from engines.scene.tree import Tree, read_tree
 
 # dartpy itself (0.6 s to import) is imported where a skeleton is built, and by preload before a run forks.
 if importlib.util.find_spec("dartpy") is None:

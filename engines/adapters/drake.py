@@ -1,7 +1,7 @@
 """Drake adapter: a MultibodyPlant per scene, stepped by Drake's own integrators or its discrete plant.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/drake.py``.
+``engines/adapters/drake.py``.
 """
 
 from __future__ import annotations
@@ -13,11 +13,10 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule
+from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds
 from engines.errors import Unsupported, UserError
-from engines.plugin import refuse_constraint_kinds
-from engines.scene import Pin, Rod, Scene
-from engines.tree import Tree, read_tree
+from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.tree import Tree, read_tree
 
 # pydrake itself is imported where a plant is built (and by preload, before a run forks its hosts):
 # listing the engines (`xval engines`) or planning a run needs only to know it is installed, and

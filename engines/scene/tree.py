@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engines.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene
 
 #: Tree.parent of a particle a Pin, Line or Ellipse holds (its joint is on the ground).
 ROOT = -1

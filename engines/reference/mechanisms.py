@@ -1,7 +1,7 @@
 """Reference models of the mechanisms: a slider-pendulum, a four-bar linkage, a bead on an ellipse.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/reference_mechanisms.py``.
+``engines/reference/mechanisms.py``.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from engines.errors import Unsupported
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 
 def _xz(vector) -> np.ndarray:

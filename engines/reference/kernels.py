@@ -1,5 +1,5 @@
 """The reference's compiled right-hand side (numba), in its own module so that importing
-``engines.reference`` (as ``xval engines`` does) neither imports numba nor compiles anything."""
+``engines.reference.reference`` (as ``xval engines`` does) neither imports numba nor compiles anything."""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 STATUSES = ("ok", "unstable", "failed", "skipped", "timeout")
 

@@ -111,7 +111,7 @@ class OursStepper:
         self.run = Stepping(mech, initial_state(mech, q0, v0), dt, method=method, integrator=integrator, **options)
         self._last = np.array([q0[n] for n in names])
         self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
-        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.ours_model",
+        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.model.ours",
                          "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
                                                                      self.model.carriers.items() if b >= 0 and
                                                                      mech.bodies[b].name != n},

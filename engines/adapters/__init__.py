@@ -1,0 +1,1 @@
+"""One adapter per engine library, all on the engine protocol of engines.adapter."""

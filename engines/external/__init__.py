@@ -1,0 +1,1 @@
+"""Engines from outside xval: programs speaking the process protocol, and third-party plugins."""
