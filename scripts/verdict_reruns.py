@@ -6,7 +6,9 @@ Runs `xval verdict DIR --format json` on each directory (the same document users
 the focus family's winner with its ties against the best other engine with its ties, and the cost ratio with
 its interval, per run; then whether every family's winner and ties, the comparison's two sides and the
 equal-cost best are the same in every run, and whether every pair of ratio intervals overlaps. Last, the
-largest run-to-run ratio of one variant's per-step CPU cost (what compare.results.cost.RESOLUTION covers).
+largest run-to-run ratio of one variant's per-step CPU cost (what compare.results.cost.RESOLUTION covers),
+and the verdict over all scenes: winners, ties and comparisons; the equal-cost best apart (a statement at
+one measured budget, so a run within noise of it can fall either side).
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def overlapping(intervals: list[list[float]]) -> bool:
 def main(directories: list[str]) -> None:
     documents = [document(d) for d in directories]
     names = [Path(d).name for d in directories]
-    agreed = True
+    agreed, moved = True, []
     for k, scene in enumerate(documents[0]["scenes"]):
         print(f"{scene['scene']}:")
         runs = [doc["scenes"][k] for doc in documents]
@@ -63,7 +65,16 @@ def main(directories: list[str]) -> None:
         same = {key: all(v[key] == views[0][key] for v in views) for key in views[0]}
         intervals = [run["comparison"]["ratio_interval"] for run in runs
                      if run["comparison"] is not None and run["comparison"]["ratio_interval"] is not None]
-        agreed = agreed and all(same.values()) and overlapping(intervals)
+        agreed = agreed and same["winners"] and same["comparison"] and overlapping(intervals)
+        if not same["equal-cost best"]:
+            moved.append(scene["scene"])
+            for name, run in zip(names, runs):
+                budget = run["equal_cost"]["budget"]
+                changed = [b for j, b in enumerate(run["equal_cost"]["best"])
+                           if any(v["equal-cost best"][j] != named(run)["equal-cost best"][j] for v in views)]
+                print(f"  {name}: budget {budget:.3g} s/s; " + "; ".join(
+                    f"{b['engine']} dt {b['dt']:.3g} s, cost {b['cost']:.3g} s/s, error {b['error']:.3g} m"
+                    for b in changed if b["engine"] is not None))
         print("  same in every run: " + "; ".join(f"{key} {value}" for key, value in same.items())
               + f"; ratio intervals overlap: {overlapping(intervals)}")
     per_step: dict[tuple[str, str], list[float]] = {}
@@ -77,7 +88,8 @@ def main(directories: list[str]) -> None:
         worst = max(spread, key=spread.__getitem__)
         print(f"largest run-to-run ratio of a per-step cost: {spread[worst]:.2f} ({worst[1]} on {worst[0]}, "
               f"{len(spread)} variants timed in every run)")
-    print(f"every scene the same in every run: {agreed}")
+    print(f"winners, ties and comparisons the same in every run, ratio intervals overlapping: {agreed}")
+    print(f"equal-cost best the same in every run: {not moved}" + (f" (not on {', '.join(moved)})" if moved else ""))
 
 
 if __name__ == "__main__":
