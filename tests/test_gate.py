@@ -339,12 +339,8 @@ def test_a_bad_gate_table_names_the_key(runs, rerun, capsys):
 SOLVER_SUITE = """name = "solver-ci"
 duration = 0.5
 dt = [1e-2, 5e-3]
-
-[[scenes]]
-scene = "double-pendulum"
-
-[[engines]]
-id = "gate_engines:SOLVER/default"
+scenes = [{ scene = "double-pendulum" }]
+engines = ["gate_engines:SOLVER/default"]
 """
 
 

@@ -177,17 +177,8 @@ name = "many-variants"
 duration = 0.2
 sample_interval = 0.01
 dt = [1e-2, 3e-3, 1e-3]
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "ours/*"
-[[engines]]
-id = "mujoco/*"
-[[engines]]
-id = "pymunk/*"
-[[engines]]
-id = "pybullet/*"
+scenes = [{ id = "bead", scene = "bead" }]
+engines = ["ours/*", "mujoco/*", "pymunk/*", "pybullet/*"]
 """
 
 #: Per trace of a plot: its stroke colour as drawn.

@@ -37,21 +37,17 @@ name = "bead-stability"
 duration = 0.5
 dt = [1e-2, 1e-4]
 timeout = 60
+scenes = [{{ id = "bead", scene = "bead" }}]
+engines = [
+    {{ id = "ours/baumgarte-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }},
+    {{ id = "ours/baumgarte-symplectic-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }},
+]
 [bounds]
 energy_drift = 1.0
 constraint_error = 0.1
 [stability]
 dt_max = 1e-2
 dt_min = 1e-4
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "ours/baumgarte-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
-[[engines]]
-id = "ours/baumgarte-symplectic-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
 """
 
 
@@ -187,14 +183,8 @@ def test_a_run_that_blows_up_is_recorded_unstable_with_its_samples(tmp_path):
     text = f"""
 duration = 1.0
 dt = [5e-3, 1e-3]
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "ours/baumgarte-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
-[[engines]]
-id = "ours/rattle"
+scenes = [{{ id = "bead", scene = "bead" }}]
+engines = [{{ id = "ours/baumgarte-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }}, "ours/rattle"]
 """
     summary = run_suite(parse_suite(text, "blowup.toml"), tmp_path / "run", jobs=2)
     records = {(r.case.engine, r.case.dt): r for r in load_results(summary.path).records}

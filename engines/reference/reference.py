@@ -23,7 +23,7 @@ import scipy
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
-from engines.reference.mechanisms import Mechanism, mechanism_model
+from engines.reference.mechanisms import Mechanism, empty_samples, mechanism_model
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.tree import read_tree
 
@@ -112,10 +112,7 @@ class ChainModel:
         own = self.masses[None, :, None] * (a - self.gravity)
         f = np.cumsum(own[:, ::-1], axis=1)[:, ::-1]
 
-        n_samples = len(states)
-        positions = np.zeros((n_samples, len(scene.particles), 3))
-        velocities = np.zeros_like(positions)
-        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        positions, velocities, forces = empty_samples(scene, len(states))
         for k, p in enumerate(self.order):
             positions[:, p, 0], positions[:, p, 2] = q[:, k, 0], q[:, k, 1]
             velocities[:, p, 0], velocities[:, p, 2] = v[:, k, 0], v[:, k, 1]
