@@ -307,14 +307,18 @@ class Engine:
     def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
         """Raise Unsupported with the reason when this engine (variant) cannot express ``scene``."""
         missing = scene.requires - self.capabilities
-        if "model" in missing:
-            raise Unsupported(f"{self.name} does not load model files (URDF, MJCF): it runs the catalog's scenes "
-                              f"only, and {scene.name!r} is a model")
-        if "3d" in missing:
-            raise Unsupported(f"{self.name} is 2-D and cannot express the 3-D scene {scene.name!r}")
         if missing:
-            raise Unsupported(f"{self.name} lacks {', '.join(sorted(missing))} needed by {scene.name!r}")
+            raise Unsupported(self._lacking(scene, missing))
         self._check(scene, self.resolve(variant, options))
+
+    def _lacking(self, scene: Scene, missing: frozenset[str]) -> str:
+        """Why this engine cannot express ``scene``, which needs the capabilities ``missing``."""
+        if "model" in missing:
+            return (f"{self.name} does not load model files (URDF, MJCF): it runs the catalog's scenes only, and "
+                    f"{scene.name!r} is a model")
+        if "3d" in missing:
+            return f"{self.name} is 2-D and cannot express the 3-D scene {scene.name!r}"
+        return f"{self.name} lacks {', '.join(sorted(missing))} needed by {scene.name!r}"
 
     def simulate(
         self,

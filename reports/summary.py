@@ -160,7 +160,7 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool],
 
 
 #: Metrics whose error bar is the reference's own (``reference_error``, m).
-REFERENCE_BARRED = ("position_error_final", "position_error_l2", "position_error_linf")
+REFERENCE_BARRED = ("position_error_final", "position_error_rms", "position_error_linf")
 #: A constraint error under this many ε·L is the round-off of a constraint the formulation holds exactly.
 ROUND_OFF = 64 * 2.220446049250313e-16
 BY_CONSTRUCTION = "0 (by construction)"

@@ -118,14 +118,14 @@ def test_machines_differ_in_the_named_fields():
 
 def test_gate_table_overrides_and_legacy_tolerances():
     settings = gate_settings(
-        {"timing_factor": 2, "energy_drift": {"atol": 1e-6}, "position_error_l2": 0.3},
-        {"position_error_linf": 0.2, "position_error_l2": 0.9},
+        {"timing_factor": 2, "energy_drift": {"atol": 1e-6}, "position_error_rms": 0.3},
+        {"position_error_linf": 0.2, "position_error_rms": 0.9},
         error,
     )
     assert settings.timing_factor == 2.0
     assert settings.tolerance("energy_drift") == Tolerance(0.1, 1e-6)
     assert settings.tolerance("position_error_linf") == Tolerance(0.2, 1e-9)
-    assert settings.tolerance("position_error_l2") == Tolerance(0.3, 1e-9)  # [gate] wins over [tolerances]
+    assert settings.tolerance("position_error_rms") == Tolerance(0.3, 1e-9)  # [gate] wins over [tolerances]
     assert gate_settings(None, {"cost_per_simulated_second": 1.0}, error).timing_factor == 2.0
 
 
@@ -133,7 +133,7 @@ def test_gate_table_overrides_and_legacy_tolerances():
     "gate, message",
     [
         ({"nosuch": 1}, "suite.toml: gate.nosuch: unknown key; valid keys are: timing_factor, position_error_linf, "
-                        "position_error_l2, position_error_final, divergence_time, energy_drift, constraint_error, "
+                        "position_error_rms, position_error_final, divergence_time, energy_drift, constraint_error, "
                         "constraint_force_error, observed_order, momentum_drift"),
         ({"timing_factor": 1}, "suite.toml: gate.timing_factor: must be a number > 1 (a slowdown factor), got 1; write e.g. timing_factor = 1.5"),
         ({"energy_drift": -0.1}, "suite.toml: gate.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1"),

@@ -18,7 +18,7 @@ COLUMNS = (
     ("samples", "n_samples"),
     ("t_end/s", "t_end"),
     ("final/m", "position_error_final"),
-    ("l2/m", "position_error_l2"),
+    ("rms/m", "position_error_rms"),
     ("linf/m", "position_error_linf"),
     ("diverged/s", "divergence_time"),
     ("drift/E*", "energy_drift"),

@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 from engines.errors import UserError
 
+from compare.results.declared import current_names
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import VariantSweep
 from compare.suite.tolerance import RULES, TIMING_METRIC
@@ -173,7 +174,8 @@ class BaselineEntry:
             options=options, dt=_number(data.get("dt"), f"{where}: field dt"),
             position=tuple(int(i) for i in _numbers(data.get("position", (0, 0, 0)), f"{where}: field position")),
             engine_version=text("engine_version", optional=True), status=status,
-            message=text("message", optional=True) or "", metrics=metrics, consistent=consistent,
+            message=text("message", optional=True) or "", consistent=consistent,
+            metrics=None if metrics is None else current_names(metrics),  # an earlier release's names as today's
             consistency=text("consistency", optional=True) or "",
             timing=None if timing is None else Timing.from_json(timing, where),
         )

@@ -19,6 +19,7 @@ from typing import Any, Iterable, Mapping
 
 from engines.errors import UserError
 
+from compare.results.declared import current_names
 from compare.results.series import SeriesView
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
@@ -263,7 +264,7 @@ class CaseRecord:
             case=key,
             status=status,
             message=str(data.get("message") or ""),
-            metrics=metrics,
+            metrics=current_names(metrics),  # the names an earlier release wrote read as today's
             run_info=reader.optional_mapping(data, "run_info"),
             wall_times=tuple(float(w) for w in reader.sequence(data, "wall_times", default=())),
             elapsed=float(data.get("elapsed") or 0.0),
