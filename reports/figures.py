@@ -589,16 +589,17 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
 
 
 def scene_plots(scene: SceneResults, number: int, palette: Palette | None = None,
-                ceilings: Ceilings | None = None) -> list[Plot]:
+                ceilings: Ceilings | None = None, named: set[str] | None = None) -> list[Plot]:
     """Every plot of ``scene`` that has something to draw, in page order.
 
     number : the scene's position on the page; DOM ids are built from it
     (``s0-wp``), never from the scene id, which comes from a file.
     ceilings : where blow-ups are clipped (default: CLIP_FACTOR × L, 1 E*, 0.1 L).
+    named : the variants in colour (default: those the scene's verdict names, reports.emphasis).
     """
     palette = palette or Palette(s.engine for s in scene.sweeps)
     ceilings = ceilings or Ceilings.for_scene(scene.length, 1.0, 0.1)
-    named = named_variants(scene)
+    named = named_variants(scene) if named is None else named
     built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings, named=named),
              constraint_forces(scene, palette, ceilings), phase_plot(scene, palette), paths(scene, palette))
     for plot in built:
