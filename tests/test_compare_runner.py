@@ -239,7 +239,7 @@ def test_run_and_show_commands(tmp_path):
 def test_cli_errors_are_one_line(tmp_path):
     missing = run_xval("run", "nope.toml", "--output", str(tmp_path / "r"))
     assert missing.returncode == 2
-    assert missing.stderr.startswith("xval: error: nope.toml: no such suite file") and missing.stderr.count("\n") == 1
+    assert missing.stderr.startswith("xval: error: nope.toml: no such file; pass the path of a suite") and missing.stderr.count("\n") == 1
     show = run_xval("show", str(tmp_path))
     assert show.returncode == 2
     assert show.stderr == f"xval: error: {tmp_path}: not a results directory (no run.json); give the --output directory of 'xval run'\n"

@@ -62,7 +62,7 @@ def test_geometric_sweep():
 
 
 def test_missing_file():
-    with pytest.raises(UserError, match=r"^nope\.toml: no such suite file; pass the path of a \.toml suite"):
+    with pytest.raises(UserError, match=r"^nope\.toml: no such file; pass the path of a suite: a UTF-8 \.toml file"):
         load_suite("nope.toml")
 
 

@@ -275,7 +275,7 @@ def test_show_table_lists_runs_cases_and_the_short_metrics(three_runs, capsys):
     assert code == 0
     lines = out.splitlines()
     assert re.split(r"\s{2,}", lines[0]) == ["run", "commit", "date", "machine", "scene", "engine", "dt", "status",
-                                             "error/m", "drift/E*", "c.err/m", "cost s/s", "order"]
+                                             "error/m", "drift/E*", "c.err/m", "wall s/s", "order"]
     body = [line for line in lines[1:] if re.match(r"\d+  ", line)]
     assert len(body) == 3 * 6
     assert re.split(r"\s{2,}", body[0])[:8] == ["1", "0000000000", "2026-11-01 12:00", body[0].split()[4], "bead",

@@ -73,19 +73,43 @@ def test_the_fixture_is_real_noise():
     assert max(spreads) > 1.2
 
 
+def named(verdict: SceneVerdict) -> dict[str, Any]:
+    """What the verdict names: per family its winner and ties, and the two sides of the comparison."""
+    comparison = verdict.comparison
+    assert comparison is not None and comparison.focus is not None and comparison.other is not None
+    return {"winners": [(w.family, w.reach.engine, w.ties) for w in verdict.winners],
+            "focus": (comparison.focus.engine, comparison.focus_ties),
+            "other": (comparison.other.engine, comparison.other_ties)}
+
+
 @pytest.mark.parametrize("scene", ["bead", "double-pendulum"])
-def test_the_winner_and_the_ratio_hold_across_runs_repeats_and_a_slowed_case(scene):
+def test_winners_and_ties_are_the_same_across_runs_repeats_and_a_slowed_case(scene):
     base = verdicts(RUNS[0])[scene]
-    base_winners = winners(base)
+    assert base.comparison.ratio is not None and base.comparison.ratio_low <= base.comparison.ratio \
+        <= base.comparison.ratio_high
     base_ratio = (base.comparison.ratio_low, base.comparison.ratio_high)
-    assert base.comparison.ratio is not None and base_ratio[0] <= base.comparison.ratio <= base_ratio[1]
     for label, (k, times) in variants():
         other = verdicts(RUNS[k], times)[scene]
-        # The winner stays among the base's winner and ties (a tie may take in one more or one fewer) ...
-        assert winners(other) & base_winners, label
-        assert other.comparison.other.engine == base.comparison.other.engine, label
+        # The same winner, named the same, with the same ties: not one variant more or fewer ...
+        assert named(other) == named(base), label
         # ... and the cost ratio's interval overlaps the base's.
         assert overlap((other.comparison.ratio_low, other.comparison.ratio_high), base_ratio), label
+
+
+def test_a_tie_is_named_by_the_fewest_steps_not_by_the_timing():
+    rows = [row for row in RUNS[0] if row["scene"] == "double-pendulum"]
+    # Make ours/plain-rk4 look the cheapest by timing alone (its CPU times scaled down, still tied with the
+    # others): the tie and the name it goes by stay; only the costs move.
+    base = verdicts(rows)["double-pendulum"]
+    cheap = verdicts(rows, lambda r: [t * (0.4 if r["engine"] == "ours/plain-rk4" else 1) for t in r["cpu_times"]])
+    cheap = cheap["double-pendulum"]
+    reaches = {r.engine: r for r in cheap.reaches}
+    assert min((r for r in cheap.reaches if r.engine.startswith("ours/")), key=lambda r: r.cost).engine \
+        == "ours/plain-rk4"
+    assert named(cheap) == named(base)
+    focus = cheap.comparison.focus
+    tied = [reaches[name] for name in cheap.comparison.focus_ties]
+    assert all(focus.steps < r.steps for r in tied)  # named by its steps: a property of the physics
 
 
 def test_overlapping_intervals_are_a_tie_that_names_both():

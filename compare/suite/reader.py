@@ -27,6 +27,7 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
+from compare.results.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
@@ -169,16 +170,7 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
 def load_suite(path: str | Path) -> Suite:
     """Read and validate the suite at ``path``; UserError naming the file, key and fix."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such suite file; pass the path of a .toml suite such as suites/smoke.toml") from None
-    except UnicodeDecodeError as exc:
-        raise UserError(f"{path}: not UTF-8 text (byte {exc.start}); save the suite as UTF-8") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a directory; pass the path of a .toml suite file") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read the suite file ({exc.strerror})") from None
+    text = read_user_text(path, str(path), "pass the path of a suite: a UTF-8 .toml file such as suites/smoke.toml")
     return parse_suite(text, str(path))
 
 

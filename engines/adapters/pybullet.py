@@ -485,6 +485,13 @@ class _Run:
             physicsClientId=c,
         )
 
+    def _point_mass(self, body: int, link: int, particle: int, **dynamics: Any) -> None:
+        """Give ``link`` of ``body`` the mass m of ``particle`` and the central inertia ``self.inertia`` · m per axis."""
+        m = float(self.scene.masses[particle])
+        # The mass goes with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass.
+        _pb.changeDynamics(body, link, mass=m, localInertiaDiagonal=[self.inertia * m] * 3, physicsClientId=self.client,
+                           **dynamics)
+
     def _build_multibody(self) -> None:
         """One multibody per Pin; every particle a link with its joint at its parent."""
         pb, c = _pb, self.client
@@ -536,10 +543,7 @@ class _Run:
             for j, link in enumerate(members):
                 i = link.particle
                 self.handles[i] = (body, j)
-                pb.changeDynamics(
-                    body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                    jointDamping=0.0, **self.damping, physicsClientId=c,
-                )
+                self._point_mass(body, j, i, jointDamping=0.0, **self.damping)
                 if link.slide is not None:  # a prismatic joint: the speed along the line; no turning
                     omega[i] = np.zeros(3)
                     if not self.keep_motors:
@@ -576,18 +580,13 @@ class _Run:
         pb, c = _pb, self.client
         q = self.scene.initial_positions
         v = self.scene.initial_velocities
-        masses = self.scene.masses
         self.bodies = [-1] * self.n_particles
         for i in range(self.n_particles):
             body = pb.createMultiBody(
-                baseMass=float(masses[i]), baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                baseMass=float(self.scene.masses[i]), baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
                 basePosition=list(q[i]), physicsClientId=c,
             )
-            # Mass passed with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass (ENGINE_NOTES).
-            pb.changeDynamics(
-                body, -1, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                **self.damping, **self.activation, physicsClientId=c,
-            )
+            self._point_mass(body, -1, i, **self.damping, **self.activation)
             self.bodies[i] = body
         omega = {}
         self.constraint_ids = [-1] * self.n_constraints
