@@ -6,18 +6,7 @@ Python has to do is produce JSON, and building dicts is much faster than
 validating graph objects (the tests validate the specs against plotly's
 schema instead).
 
-Every string from a results file that plotly.js renders (trace names, hover
-text) goes through :func:`plot_text`: plotly.js interprets a subset of HTML
-in those strings, so an engine label such as ``<b>x</b>`` would otherwise be
-rendered as markup. HTML-escaped text is decoded back to the literal
-characters by plotly.js, so the user sees exactly what the file says.
-
-Colours come from :class:`reports.palette.Palette` (a hue per engine
-family, the same in every report); legends list a family's variants
-together under the family's name. Time series are thinned to at most
-:data:`reports.decimate.MAX_POINTS` points a trace, and a value past
-``CLIP_FACTOR`` × its bound is drawn at that ceiling and marked "blew up at
-t = …", so no axis is stretched by a blow-up.
+Details: docs/architecture.md, "Module notes", ``reports/figures.py``.
 """
 
 from __future__ import annotations

@@ -8,13 +8,7 @@ commit; hover = commit, date, run, value, status). Step changes found by
 compare.history.trend.steps are marked on the figure (a dashed line before
 the first run after the step) and listed at the top of the page.
 
-Same conventions as the main report (reports/render.py): Jinja2 with
-autoescaping, plotly.js and each section's figure specs packed by the same
-packer (reports/pack.py: gzip as 7-bit text, unpacked in the browser), a
-Content-Security-Policy that forbids any request: it works offline. The data
-is thinned for the page: values to 3 significant digits (what the hover
-shows), and each point's hover label is built in the page from one label per
-run instead of stored per point. A plot is drawn as it nears the window.
+Details: docs/architecture.md, "Module notes", ``reports/history.py``.
 """
 
 from __future__ import annotations

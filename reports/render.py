@@ -11,8 +11,7 @@ bits to a character, 1.68 MB instead of 4.8 MB for plotly.js); the page unpacks 
 browser's own DecompressionStream and makes no request, so it works offline
 and attached to a CI run or a mail.
 
-The page opens with the verdict (:mod:`reports.verdict`); every other plot
-is built when its section is opened.
+Details: docs/architecture.md, "Module notes", ``reports/render.py``.
 """
 
 from __future__ import annotations

@@ -1,19 +1,9 @@
 """The report's first section: per scene, the answer before the tables.
 
-From :mod:`compare.results.verdict` (the same numbers ``xval run`` ends
-with), arranged for the page:
+Per scene, from :mod:`compare.results.verdict`: the Pareto front of error against cost, the cost to
+reach the tolerance, the focus family against the best other, the stability heat map and the problems.
 
-1. the Pareto front of error against cost over every variant and dt (inline SVG, drawn without
-   plotly.js, so the verdict shows as soon as the page is parsed);
-2. the cost to reach 1e-6·L per variant (a sortable table);
-3. the focus family's best against the best other engine, as a ratio (a sentence);
-4. a stability heat map, variants × dt, each cell coloured by its status and
-   linking to that case's row in the scene's tables;
-5. the problems (inconsistent, failed, timed out, unstable, hidden dissipation
-   where a probe result is stored), each linking to its evidence.
-
-DOM ids are built from positions (scene number, variant number, dt number),
-never from strings in the results.
+Details: docs/architecture.md, "Module notes", ``reports/verdict.py``.
 """
 
 from __future__ import annotations
