@@ -7,13 +7,11 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import functools
 import os
-import sys
 import threading
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -22,61 +20,9 @@ from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Scene
 from engines.scene.tree import ROOT, read_tree
+from engines.stdio import quiet_output
 
-# -- keeping PyBullet's prints out of the caller's output -------------------------------
-
-_LIBC = ctypes.CDLL(None)
-_quiet_lock = threading.Lock()
-_quiet_depth = 0
-_saved_fds: dict[int, int] = {}
-
-
-def _flush_all() -> None:
-    """Flush Python's streams and C's stdio (fflush(NULL)) so text goes where fd 1 and 2 point now."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    _LIBC.fflush(None)
-
-
-@contextlib.contextmanager
-def quiet_output() -> Iterator[None]:
-    """Point file descriptors 1 and 2 at /dev/null for the duration; nested and concurrent uses share one redirection.
-
-    PyBullet writes to both (``pybullet build time`` to stderr on import,
-    ``switched solver`` to stdout). Everything already written through
-    Python or C stdio is flushed on entry, so the caller's pending text
-    reaches the real streams first; C's stdio is flushed again before the
-    descriptors are restored, so PyBullet's buffered text goes to /dev/null
-    rather than out later. A descriptor that is not open is left alone.
-    """
-    global _quiet_depth
-    with _quiet_lock:
-        if _quiet_depth == 0:
-            _flush_all()
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            try:
-                for fd in (1, 2):
-                    try:
-                        _saved_fds[fd] = os.dup(fd)
-                    except OSError:
-                        continue
-                    os.dup2(devnull, fd)
-            finally:
-                os.close(devnull)
-        _quiet_depth += 1
-    try:
-        yield
-    finally:
-        with _quiet_lock:
-            _quiet_depth -= 1
-            if _quiet_depth == 0:
-                _flush_all()
-                for fd, saved in _saved_fds.items():
-                    os.dup2(saved, fd)
-                    os.close(saved)
-                _saved_fds.clear()
-
+# -- keeping PyBullet's prints out of the caller's output (engines/stdio.py) -------------------
 
 with quiet_output():
     import pybullet as _pb  # prints "pybullet build time: ..." at import
