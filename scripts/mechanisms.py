@@ -49,7 +49,7 @@ def variants():
     """(label, engine, variant, options) for every built-in variant, plus mujoco's hinge with a stiff loop."""
     out = []
     for name in ENGINES:
-        engine = importlib.import_module(f"engines.{name}").ENGINE
+        engine = importlib.import_module(f"engines.adapters.{name}").ENGINE
         out += [(f"{name}/{v}", engine, v, {}) for v in engine.variants]
         if name == "mujoco":
             out += [(f"mujoco/{v}-stiffloop", engine, v, STIFF_LOOP) for v in ("hinge", "hinge-rk4")]

@@ -48,7 +48,7 @@ ORDERS = [
 
 
 def _engine(name):
-    return importlib.import_module(f"engines.{name}").ENGINE
+    return importlib.import_module(f"engines.adapters.{name}").ENGINE
 
 
 @pytest.mark.parametrize("scene_name, engine, variant, options, order, dts", ORDERS,
