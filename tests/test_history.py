@@ -343,7 +343,7 @@ def test_window_gate_holds_accuracy_to_the_best_run_of_the_window(base, tmp_path
         current = build_baseline(synthetic(base, 5, error=1.05 ** 5))
         creep = window_baseline(history, synthetic(base, 5, error=1.05 ** 5), 5)
         latest_only = window_baseline(history, synthetic(base, 5, error=1.05 ** 5), 1)
-    verdicts = lambda report: {c.verdict for c in report.cases if c.engine == ENGINE}  # noqa: E731
+    verdicts = lambda report: {c.outcome for c in report.cases if c.engine == ENGINE}  # noqa: E731
     assert verdicts(gate(creep.document, current, GateSettings(), timing="report")) == {"worse"}
     assert verdicts(gate(latest_only.document, current, GateSettings(), timing="report")) == {"unchanged"}
 
@@ -354,7 +354,7 @@ def test_window_gate_times_against_the_windows_spread(base, window):
             current = synthetic(base, 9, timing=factor, tight=True)
             document = window_baseline(history, current, 5).document
             report = gate(document, build_baseline(current), GateSettings())
-            return {c.verdict for c in report.cases}
+            return {c.outcome for c in report.cases}
 
         # The window's runs cost 0.6 … 1.4 × the base: 1.6 × is past the 1.5 factor of their median (1.0)
         # but not past it by more than the window's spread (0.8 × the base, plus the repeats'); 2.5 × is past both.

@@ -235,13 +235,13 @@ def entry_of(record: CaseRecord, header: Mapping[str, Any], sweep: VariantSweep 
     """
     case = record.case
     order = sweep.order.order if sweep is not None and sweep.order else None
-    verdict = sweep.consistency if sweep is not None else None
+    judged = sweep.consistency if sweep is not None else None
     metrics = {name: order if name == "observed_order" else record.metrics.get(name) for name in RULES}
     return BaselineEntry(
         scene_id=case.scene_id, scene_hash=record.scene_hash, engine=case.engine, engine_id=case.engine_id,
         variant=case.variant, options=dict(case.options), dt=case.dt, position=tuple(case.position),
         engine_version=engine_version(record, header), status=record.status, message=record.message,
         metrics=metrics if record.has_metrics else None,
-        consistent=verdict.consistent if verdict else None, consistency=verdict.reason if verdict else "",
+        consistent=judged.consistent if judged else None, consistency=judged.reason if judged else "",
         timing=timing_of(record),
     )
