@@ -156,3 +156,19 @@ def test_the_cost_model_separates_the_per_run_overhead_and_ignores_a_slowed_case
     assert model.per_step == pytest.approx(per_step, rel=1e-6)
     assert model.overhead == pytest.approx(overhead, rel=1e-6)
     assert model.low <= per_step <= model.high
+
+
+def test_a_tie_is_the_chain_of_overlapping_intervals_from_the_cheapest():
+    from compare.results.verdict import Reach, leader
+
+    def reach(engine: str, low: float, high: float, steps: float) -> Reach:
+        return Reach(engine, 1e-6, (low * high) ** 0.5, "interpolated", (0.1, 0.01), 1e-7, low, high, None, steps)
+
+    # a overlaps b, b overlaps c, c does not reach down to a: one chain, the same whichever is cheapest.
+    # d starts above every one of them: not tied. The name goes to the fewest steps (c), not the cheapest (a).
+    a, b, c, d = reach("x/a", 1.0, 2.0, 90), reach("x/b", 1.8, 3.5, 60), reach("x/c", 3.0, 6.0, 50), \
+        reach("x/d", 6.5, 9.0, 10)
+    named, ties = leader([d, c, b, a])
+    assert named is c and set(ties) == {"x/a", "x/b"}
+    # Without b the chain breaks: a alone is the cheapest, tied with nothing.
+    assert leader([a, c, d]) == (a, ())
