@@ -161,6 +161,15 @@ def test_no_engine_adapter_imports_another():
     assert wrong == []
 
 
+def test_model_scenes_reach_adapters_through_one_dispatch():
+    """engines.adapter.Engine routes a model file to _check_model / _run_model; no adapter of
+    engines/adapters/ tests a scene for being one (the special case each used to write)."""
+    testing = [(path.name, line.strip()) for path in sorted((ROOT / "engines" / "adapters").glob("*.py"))
+               for line in path.read_text().splitlines() if "is_model" in line]
+    # ours' preload passes over model scenes (nothing to compile ahead): a loop over scenes, not a dispatch.
+    assert testing == [("ours.py", "if scene.is_model:  # rigid bodies: compiled when their run is set up")]
+
+
 #: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
 #: same rank). The errors, the file helpers, the silencing of C libraries' prints (stdio) and the scene
 #: language are what every engine speaks; the engine protocol (adapter) and the one stepping loop on it

@@ -57,7 +57,7 @@ def load(path: str | Path, scene: Scene) -> Loaded:
         raise UserError(f"{where}: cannot read it ({exc.strerror})") from None
     try:
         table = protocol.read_csv(text, where)
-        if getattr(scene, "is_model", False):
+        if scene.is_model:
             return _load_model_run(where, table, scene)
         state = protocol.match_columns(table, scene, where)
     except protocol.ProtocolError as exc:

@@ -270,6 +270,25 @@ class PyBulletEngine(Engine):
         return _pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
+        if settings["formulation"] == "multibody":
+            largest = max(_tree_sizes(links).values(), default=0)
+            if largest > MAX_MULTIBODY_LINKS:
+                raise Unsupported(
+                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
+                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
+                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
+                )
+
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        if settings["formulation"] != "multibody":
+            raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
+                              "build particle scenes from separate bodies, use pybullet/multibody")
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
         # A bad option value is the user's mistake (UserError), not a scene PyBullet cannot express
         # (Unsupported): a suite would record the latter as a skipped case and run on.
         if not 0.0 <= settings["erp"] <= 1.0:
@@ -286,24 +305,8 @@ class PyBulletEngine(Engine):
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
-        if getattr(scene, "is_model", False):
-            if settings["formulation"] != "multibody":
-                raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
-                                  "build particle scenes from separate bodies, use pybullet/multibody")
-            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
-        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
-        if settings["formulation"] == "multibody":
-            largest = max(_tree_sizes(links).values(), default=0)
-            if largest > MAX_MULTIBODY_LINKS:
-                raise Unsupported(
-                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
-                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
-                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
-                )
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         with quiet_output():
             client = _clients.take()
             try:

@@ -230,7 +230,7 @@ def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
     :mod:`engines.reference.mechanisms`; everything else is a chain or a spherical pin.
     """
-    if getattr(scene, "is_model", False):  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
+    if scene.is_model:  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
         from engines.model.dynamics import ModelDynamics
 
         return ModelDynamics(scene)
@@ -625,10 +625,19 @@ class ReferenceEngine(Engine):
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        model_for(scene)
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return self._solved(scene, schedule, settings, model=False)
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        """A model file: Pinocchio's ABA (model_for) solved the same way; its joint states, no constraint forces."""
+        return self._solved(scene, schedule, settings, model=True)
+
+    def _solved(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
         solution = solve(scene, settings["rtol"], settings["atol"])
         positions, velocities, forces = solution.at(schedule.times)
-        model = getattr(scene, "is_model", False)
         return RawRun(
             positions,
             velocities,
