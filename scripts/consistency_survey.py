@@ -4,10 +4,11 @@
 
 docs/findings.md ("The consistency rule on the built-in suites") quotes what it prints for the default,
 mechanisms, stiff and peers suites (`xval run suites/default.toml --output results/default`, likewise the
-others). With --detail only the inconsistent ones are listed (the not-judged ones counted by reason), each
-followed by its ok runs — dt (or tolerance), max position error, constraint error, energy drift: the cause
-read off (a floor, or an error that grows) — and the verdict on its siblings on that scene, the variants
-whose label extends its own (mujoco/connect-rk4 -> mujoco/connect-rk4-stiff): one setting apart.
+others). With --detail it lists only the inconsistent variants and those consistent at a precision floor
+their engine declares, and counts the not-judged ones by reason; each inconsistent one is followed by its
+ok runs — dt (or tolerance), max position error, constraint error, energy drift: the cause read off (a
+floor, or an error that grows) — and the verdict on its siblings on that scene, the variants whose label
+extends its own (mujoco/connect-rk4 -> mujoco/connect-rk4-stiff): one setting apart.
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ def survey(directory: str, detail: bool = False) -> list[str]:
             state = "inconsistent" if verdict.consistent is False else "not judged"
             lines.append(f"  {sweep.scene_id:<18} {sweep.engine:<34} {state:<12} {verdict.reason}")
             lines.extend(_detail(sweep) + _siblings(sweep, every) if detail else [])
+        elif detail and verdict.consistent and "declared precision floor" in verdict.reason:
+            lines.append(f"  {sweep.scene_id:<18} {sweep.engine:<34} {'at its floor':<12} {verdict.reason}")
         elif verdict.consistent is None:
             unjudged["the reference is chaotic within the run" if "chaotic" in verdict.reason
                       else "fewer than two ok runs with an error"] += 1

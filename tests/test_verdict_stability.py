@@ -1,7 +1,8 @@
-"""The verdict holds against timing noise: fed CPU-time samples recorded from real runs of the default suite on
-a shared 2-core machine (tests/fixtures/cost_samples.json, written by scripts/cost_samples.py), it names the
-same winners whichever run, whichever single repeat, and with one case slowed 52× (a neighbour loading the
-machine, as seen on CI); ratios' intervals overlap. And where intervals overlap it says *tie*, naming both.
+"""The verdict holds against timing noise: fed CPU-time samples recorded from six real runs of the default suite
+on a shared 2-core machine (tests/fixtures/cost_samples.json, written by scripts/cost_samples.py: three runs of
+one day, three in a row of another, the bead and the double pendulum), it names the same winners with the same
+ties whichever run, whichever single repeat, and with one case slowed 52× (a neighbour loading the machine, as
+seen on CI); ratios' intervals overlap. And where intervals overlap it says *tie*, naming both.
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ def variants() -> list[tuple[str, Callable[[dict[str, Any]], list[float]]]]:
 
 
 def test_the_fixture_is_real_noise():
-    assert len(RUNS) == 3
+    assert len(RUNS) == 6
     spreads = [max(r["cpu_times"]) / min(r["cpu_times"]) for run in RUNS for r in run if r["steps"] >= 2000]
     # Repeats of one case differ by tens of per cent at times: the noise the verdict must not follow.
     assert max(spreads) > 1.2

@@ -25,7 +25,7 @@ from compare.results.record import CaseRecord, Status
 #: Fewest timed cases for the Theil–Sen fit (below it, per-case ratios).
 MIN_FIT = 3
 #: Least factor either side of a per-step cost its interval spans. One variant's per-step cost moved by up
-#: to 1.95× between three runs of the default suite on a shared 2-core machine (tests/fixtures/
+#: to 1.95× between six runs of the default suite on a shared 2-core machine (tests/fixtures/
 #: cost_samples.json; scripts/verdict_example.py prints it): intervals of c/1.7 to 1.7·c from any two such
 #: runs overlap (1.7² = 2.9 > 1.95). Theil–Sen's rank interval from one run was often narrower than that
 #: (and at times reached down to 0 s/step, from the scatter of runs a few steps long).
