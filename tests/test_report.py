@@ -402,3 +402,22 @@ def test_best_flags_mark_no_star_inside_the_error_bars():
     # Beyond both bars the best keeps its star.
     assert _best_flags(low, [4.22e-12, 6.23e-8, 1e-3], [True, True, True], [4.2e-12, 4.2e-12, 4.2e-12]) == \
         [True, False, False]
+
+
+def test_each_scenes_verdict_is_computed_once_per_report(small_results, monkeypatch):
+    # The verdict section, the plots' colours and the time series at every dt all come from one verdict per scene.
+    import compare.results.verdict as verdict
+    import reports.emphasis
+    import reports.verdict
+
+    calls: list[str] = []
+
+    def counted(sweeps, *args, **kwargs):
+        calls.append(sweeps[0].scene_id)
+        return verdict.scene_verdicts(sweeps, *args, **kwargs)
+
+    monkeypatch.setattr(reports.verdict, "scene_verdicts", counted)
+    monkeypatch.setattr(reports.emphasis, "scene_verdicts", counted)
+    data = load_report_data(small_results)
+    render(data)
+    assert sorted(calls) == sorted(scene.scene_id for scene in data.scenes if scene.sweeps)

@@ -49,7 +49,8 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
 def _rankings(verdict: SceneVerdict) -> list[str]:
     lines = []
     if verdict.winners:
-        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s with its interval):")
+        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s with its interval; "
+                     "a tie goes by its member with the fewest steps):")
         width = max(len(w.reach.engine) for w in verdict.winners)
         for winner in verdict.winners:
             lines.append(f"    {winner.reach.engine:<{width}}  {winner.reach.describe()}"
