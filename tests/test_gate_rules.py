@@ -147,6 +147,15 @@ def test_a_bad_gate_table_names_the_key_and_the_fix(gate, message):
     assert str(raised.value) == message
 
 
+def test_tolerances_and_gate_forgive_no_slowdown_alike():
+    """[tolerances] cost_per_simulated_second = 0 is the timing factor 1 that [gate] refuses: refused too."""
+    with pytest.raises(UserError) as raised:
+        gate_settings(None, {"cost_per_simulated_second": 0}, error)
+    assert str(raised.value) == ("suite.toml: tolerances.cost_per_simulated_second: must be a number > 0 (the slowdown "
+                                 "forgiven: 0.5 is a factor 1.5), got 0; or write [gate] timing_factor = 1.5")
+    assert gate_settings(None, {"energy_drift": 0}, error).tolerance("energy_drift").rtol == 0.0  # as [gate] allows
+
+
 SUITE = """name = "s"
 dt = [1e-2]
 [[scenes]]

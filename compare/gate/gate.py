@@ -19,7 +19,8 @@ from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, Baseline
 from compare.gate.entry import BaselineEntry, Timing, case_name
-from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
+from compare.results.declared import Metric
+from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings
 from compare.results.record import PROBLEMS, Status
 
 #: Case outcomes, in the order a table lists them (most urgent first).
@@ -104,7 +105,7 @@ class GateReport:
 # -- one metric -------------------------------------------------------------------------
 
 
-def accuracy_change(rule: MetricRule, baseline: float | None, current: float | None, settings: GateSettings) -> Change | None:
+def accuracy_change(rule: Metric, baseline: float | None, current: float | None, settings: GateSettings) -> Change | None:
     """Compare one accuracy metric; None when either side has no value to compare."""
     tol = settings.tolerance(rule.name)
     infinite = rule.none_means == "infinite"
