@@ -1,22 +1,11 @@
 """Which engines exist, and the one place an engine id is turned into an adapter.
 
-Three kinds of engine, all loaded lazily so one that cannot load is
-"unavailable" (with the reason), never a crash of everything else:
+Four kinds of engine, all loaded lazily so one that cannot load is "unavailable" (with the
+reason): built-in (``BUILTIN``: name → module defining ``ENGINE``), plugin (entry point group
+``xval.engines``), by path (``package.module:ATTRIBUTE[/variant]``) and command
+(``command/<label>``, an outside program speaking the process protocol).
 
-- **built-in**: ``BUILTIN`` maps a name to the module defining ``ENGINE``;
-- **plugin**: an installed package's entry point in the group
-  ``xval.engines`` (``my-solver = "my_solver.adapter:ENGINE"``), named by the
-  entry point's name;
-- **by path**: ``package.module:ATTRIBUTE[/variant]`` in a suite or on the
-  command line, for a solver that is not a package yet (and test engines);
-- **command**: ``command/<label>``, an outside program speaking the process
-  protocol (:mod:`engines.external.command`), registered in this process by
-  :func:`engines.external.command.command_engine` (a suite's ``[[engines]] command``).
-
-A plugin (entry point or path) may point at an Engine instance or an Engine
-subclass (instantiated with no arguments); its ``api_version`` is checked
-(:func:`engines.adapter.api_version_problem`). A built-in's name wins over a
-plugin of the same name, and the plugin is listed as unavailable, saying so.
+Details: docs/engines.md, "Adapter notes", ``engines/registry.py``.
 """
 
 from __future__ import annotations

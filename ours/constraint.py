@@ -10,20 +10,7 @@ d = xᵢ − x_other, so its Jacobian is g = ∂C/∂d on i and −g on j:
 
     C = ½(‖d‖² − l²)   (m²),   g = d   (m),   J̇q̇ = ‖ḋ‖² = ‖vᵢ − vⱼ‖²   (m²/s²)
 
-so each class only says which ends it joins and its length.
-
-The compiled loop (``ours.kernel``) reads the packed form from :meth:`encode`:
-(i, j, anchor, kind, parameters, scale). To add a kind that depends on d
-alone: a class here whose ``encode`` returns a new kind code and its
-parameters, and one branch for that code in ``ours.kernel.constraint_value``
-(C and g) and ``ours.kernel.constraint_rate`` (J̇q̇ and Ċ); the specialised
-copies of the kernel (``ours.specialize``) pick the branch up with no other
-change. A curve is the same with the anchor as its fixed end. The numpy
-methods here are the readable closed forms, used by tests and the dense
-check against the compiled banded solve.
-
-Indices are particle indices of the :class:`ours.system.System`; positions
-``q`` and velocities ``v`` are (n_particles, dim) arrays in m and m/s.
+Details: docs/ours.md, "Module notes", ``ours/constraint.py``.
 """
 
 from __future__ import annotations

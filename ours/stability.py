@@ -10,9 +10,7 @@ symplectic Euler (kick, then drift with the new velocity) maps it to
 M = [[1 − h²k_s, h(1 − h k_d)], [−h k_s, 1 − h k_d]]. The feedback is
 stable when the spectral radius ρ of that step matrix is ≤ 1.
 
-The engines adapter (engines/adapters/ours.py) offers this through the engine
-protocol (``Engine.spectral_radius`` / ``Engine.largest_stable_dt``), so the
-stability search and the gain map never import ours.
+Details: docs/ours.md, "Module notes", ``ours/stability.py``.
 """
 
 from __future__ import annotations

@@ -6,18 +6,7 @@ Python has to do is produce JSON, and building dicts is much faster than
 validating graph objects (the tests validate the specs against plotly's
 schema instead).
 
-Every string from a results file that plotly.js renders (trace names, hover
-text) goes through :func:`plot_text`: plotly.js interprets a subset of HTML
-in those strings, so an engine label such as ``<b>x</b>`` would otherwise be
-rendered as markup. HTML-escaped text is decoded back to the literal
-characters by plotly.js, so the user sees exactly what the file says.
-
-Colours come from :class:`reports.palette.Palette` (a hue per engine
-family, the same in every report); legends list a family's variants
-together under the family's name. Time series are thinned to at most
-:data:`reports.decimate.MAX_POINTS` points a trace, and a value past
-``CLIP_FACTOR`` × its bound is drawn at that ceiling and marked "blew up at
-t = …", so no axis is stretched by a blow-up.
+Details: docs/architecture.md, "Module notes", ``reports/figures.py``.
 """
 
 from __future__ import annotations
@@ -603,16 +592,17 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
 
 
 def scene_plots(scene: SceneResults, number: int, palette: Palette | None = None,
-                ceilings: Ceilings | None = None) -> list[Plot]:
+                ceilings: Ceilings | None = None, named: set[str] | None = None) -> list[Plot]:
     """Every plot of ``scene`` that has something to draw, in page order.
 
     number : the scene's position on the page; DOM ids are built from it
     (``s0-wp``), never from the scene id, which comes from a file.
     ceilings : where blow-ups are clipped (default: CLIP_FACTOR × L, 1 E*, 0.1 L).
+    named : the variants in colour (default: those the scene's verdict names, reports.emphasis).
     """
     palette = palette or Palette(s.engine for s in scene.sweeps)
     ceilings = ceilings or Ceilings.for_scene(scene.length, 1.0, 0.1)
-    named = named_variants(scene)
+    named = named_variants(scene) if named is None else named
     built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings, named=named),
              constraint_forces(scene, palette, ceilings), phase_plot(scene, palette), paths(scene, palette))
     for plot in built:

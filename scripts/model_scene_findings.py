@@ -5,8 +5,9 @@ Run:  .venv/bin/python scripts/model_scene_findings.py      (about half a minute
 
 For the compound double pendulum fixture (models/double_pendulum.urdf, q0 = 30°, −20°) and KUKA iiwa
 (pybullet_data, q0 joint 2 = 30°, joint 4 = −45°), 2 s at dt = 1e-3: each engine variant's largest
-link-frame position error (m) against the reference and its energy drift max |E − E0| / E* (rotational
-kinetic energy included). KUKA is left out of the quick run the docs test makes.
+link-frame position error (m) against the reference, its energy drift max |E − E0| / E* (rotational
+kinetic energy included) and its constraint error (m: ours' joint gap; 0 for joint coordinates). KUKA is
+left out of the quick run the docs test makes.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from quoted import Quote, Row, report  # noqa: E402
 from engines.model.scene import model_scene  # noqa: E402
 from engines.reference.reference import ENGINE as REFERENCE  # noqa: E402
 from engines.registry import resolve  # noqa: E402
-from engines.scene.trajectory import trajectory_energy  # noqa: E402
+from engines.scene.trajectory import trajectory_constraint_error, trajectory_energy  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = {
@@ -30,7 +31,8 @@ SCENES = {
     "kuka": ("pybullet_data:kuka_iiwa/model.urdf", {"lbr_iiwa_joint_2": 30, "lbr_iiwa_joint_4": -45}),
 }
 ENGINES = ("mujoco/hinge", "mujoco/hinge-rk4", "pybullet/multibody", "drake/semi-explicit-euler", "drake/rk2",
-           "dart/world", "dart/rk4")
+           "dart/world", "dart/rk4", "ours/baumgarte-rk4", "ours/projection-rk4", "ours/projection-symplectic-euler")
+METRICS = ("error", "drift", "gap")
 DT = 1e-3
 QUICK_SKIP = ("kuka",)
 
@@ -48,23 +50,25 @@ def figures(quick: bool = False) -> dict[str, float]:
             energy = trajectory_energy(scene, run)
             f[f"{key}|{engine_id}|error"] = float(np.linalg.norm(run.positions - reference.positions, axis=2).max())
             f[f"{key}|{engine_id}|drift"] = float(np.abs(energy - energy[0]).max() / scene.characteristic_energy)
+            f[f"{key}|{engine_id}|gap"] = float(trajectory_constraint_error(scene, run).max())
     return f
 
 
 D = "docs/models.md"
 HEADING = "## Models as scenes"
-ROWS = [Row(D, f"`{e}`", tuple(f"{s}|{e}|{m}" for s in SCENES for m in ("error", "drift")), HEADING)
+ROWS = [Row(D, f"`{e}`", tuple(f"{s}|{e}|{m}" for s in SCENES for m in METRICS), HEADING)
         for e in ENGINES]
 QUOTES: list[Quote] = []
-SLOW = {f"kuka|{e}|{m}" for e in ENGINES for m in ("error", "drift")}
+SLOW = {f"kuka|{e}|{m}" for e in ENGINES for m in METRICS}
 
 
 def main() -> None:
     f = figures()
-    print("| engine | double pendulum error (m) | drift (E*) | KUKA iiwa error (m) | drift (E*) |")
-    print("|---|---|---|---|---|")
+    print("| engine | double pendulum error (m) | drift (E*) | constraint error (m) | KUKA iiwa error (m) | drift (E*) "
+          "| constraint error (m) |")
+    print("|---|---|---|---|---|---|---|")
     for e in ENGINES:
-        cells = " | ".join(f"{f[f'{s}|{e}|{m}']:.2g}" for s in SCENES for m in ("error", "drift"))
+        cells = " | ".join(f"{f[f'{s}|{e}|{m}']:.2g}" for s in SCENES for m in METRICS)
         print(f"| `{e}` | {cells} |")
     report(f, QUOTES, ROWS)
 

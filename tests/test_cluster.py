@@ -23,7 +23,7 @@ from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
 from engines.errors import UserError
-from conftest import ROOT, XVAL, XVAL_ENV, wait_for
+from conftest import ROOT, XVAL, XVAL_ENV, run_xval, wait_for
 
 
 
@@ -177,8 +177,7 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
     finally:
         for process in started:
             with_group_killed(process)
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    resumed = run_xval("run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1")
     assert resumed.returncode == 0, resumed.stderr
     assert "2 cases run" in resumed.stdout and "3 already done" in resumed.stdout
     status = {r.case.engine: r.status for r in load_results(out).records}
@@ -198,8 +197,7 @@ def test_scheduler_local_from_the_command_line(tmp_path):
     suite_file = tmp_path / "s.toml"
     suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
     out = tmp_path / "r"
-    run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--scheduler", "local:2"],
-                         cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    run = run_xval("run", str(suite_file), "--output", str(out), "--scheduler", "local:2")
     assert run.returncode == 0, run.stderr
     assert f"results: {out}" in run.stdout and "2 cases run" in run.stdout
     status = {r.case.engine: (r.status, r.message) for r in load_results(out).records}

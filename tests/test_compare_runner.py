@@ -21,7 +21,7 @@ from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from compare.results.sweep import sweeps
 from engines.errors import UserError
-from conftest import ROOT, XVAL, XVAL_ENV, wait_for
+from conftest import ROOT, XVAL, run_xval, wait_for
 
 
 
@@ -179,10 +179,7 @@ def test_sigkill_part_way_then_resume_equals_an_uninterrupted_run(tmp_path):
     assert 5 <= len(before) < total
     assert json.loads((interrupted / "run.json").read_text())["finished"] is None
 
-    resumed = subprocess.run(
-        XVAL + ["run", str(suite_file), "--output", str(interrupted), "--resume", "--jobs", "2"],
-        cwd=ROOT, capture_output=True, text=True, timeout=120,
-    )
+    resumed = run_xval("run", str(suite_file), "--output", str(interrupted), "--resume", "--jobs", "2")
     assert resumed.returncode == 0, resumed.stderr
     assert f"{len(before)} already done" in resumed.stdout
     after = {f.name: f.stat().st_mtime_ns for f in cases.glob("*.json")}
@@ -218,13 +215,12 @@ def test_run_and_show_commands(tmp_path):
     suite_file = tmp_path / "s.toml"
     suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
     out = tmp_path / "r"
-    run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"],
-                         cwd=ROOT, capture_output=True, text=True, env=XVAL_ENV, timeout=60)
+    run = run_xval("run", str(suite_file), "--output", str(out), "--jobs", "1", timeout=60)
     assert run.returncode == 0, run.stderr
     assert "most accurate at equal cost" in run.stdout and "pymunk/pin" in run.stdout and f"results: {out}" in run.stdout
     # Off a terminal: a line at every tenth of the run (here each of the two cases), not the cases themselves.
     assert run.stderr.splitlines() == ["running: 1/2 cases (50 %)", "running: 2/2 cases (100 %), 1 not ok"]
-    show = subprocess.run(XVAL + ["show", str(out)], cwd=ROOT, capture_output=True, text=True, env=XVAL_ENV)
+    show = run_xval("show", str(out))
     table = show.stdout.splitlines()
     # The scene line carries the reference's own error, horizon and Lyapunov estimate (docs/metrics.md).
     assert re.fullmatch(r"scene bead \(reference error \S+ m, horizon none, Lyapunov exponent -\)", table[2])
@@ -233,20 +229,18 @@ def test_run_and_show_commands(tmp_path):
     assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
     assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
     assert table[6] == "  compare_engines:MISBEHAVING/raise: RuntimeError: deliberate failure in the stepping loop"
-    csv_out = subprocess.run(XVAL + ["show", str(out), "--format", "csv"], cwd=ROOT, capture_output=True, text=True)
+    csv_out = run_xval("show", str(out), "--format", "csv")
     lines = csv_out.stdout.splitlines()
     assert lines[0].startswith("scene,engine,dt,status,message,position_error_final") and len(lines) == 3
-    rows = json.loads(subprocess.run(XVAL + ["show", str(out), "--format", "json"], cwd=ROOT,
-                                     capture_output=True, text=True).stdout)
+    rows = json.loads(run_xval("show", str(out), "--format", "json").stdout)
     assert [(r["engine"], r["status"]) for r in rows] == [("pymunk/pin", "ok"), ("compare_engines:MISBEHAVING/raise", "failed")]
 
 
 def test_cli_errors_are_one_line(tmp_path):
-    missing = subprocess.run(XVAL + ["run", "nope.toml", "--output", str(tmp_path / "r")],
-                             cwd=ROOT, capture_output=True, text=True)
+    missing = run_xval("run", "nope.toml", "--output", str(tmp_path / "r"))
     assert missing.returncode == 2
-    assert missing.stderr.startswith("xval: error: nope.toml: no such suite file") and missing.stderr.count("\n") == 1
-    show = subprocess.run(XVAL + ["show", str(tmp_path)], cwd=ROOT, capture_output=True, text=True)
+    assert missing.stderr.startswith("xval: error: nope.toml: no such file; pass the path of a suite") and missing.stderr.count("\n") == 1
+    show = run_xval("show", str(tmp_path))
     assert show.returncode == 2
     assert show.stderr == f"xval: error: {tmp_path}: not a results directory (no run.json); give the --output directory of 'xval run'\n"
 

@@ -92,7 +92,7 @@ def test_the_example_suite_passes_its_gate_and_fails_it_when_velocity_projection
     assert gated.returncode == 0, f"the example no longer matches {baseline}:\n{gated.stdout}{gated.stderr}"
     # Every case was compared (same engine versions and scenes), so the pass is not vacuous.
     report = gate_results(load_baseline(baseline), build_baseline(load_results(good)), GateSettings(), str(baseline))
-    verdicts = {c.verdict for c in report.cases if "my-solver" in c.name}
+    verdicts = {c.outcome for c in report.cases if "my-solver" in c.name}
     assert verdicts == {"unchanged"}, gated.stdout
 
     worse = tmp_path / "worse"

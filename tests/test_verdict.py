@@ -138,19 +138,8 @@ name = "tiny"
 duration = 0.1
 sample_interval = 0.01
 dt = [1e-2, 5e-3]
-
-[[scenes]]
-scene = "bead"
-
-[[engines]]
-id = "mujoco/hinge"
-
-[[engines]]
-id = "pymunk/pin"
-
-[[engines]]
-id = "report_support:BROKEN/raise"
-label = "broken/raise"
+scenes = [{ scene = "bead" }]
+engines = ["mujoco/hinge", "pymunk/pin", { id = "report_support:BROKEN/raise", label = "broken/raise" }]
 """
 
 

@@ -9,10 +9,7 @@ The commit is the one recorded when the run was made whenever possible:
   (the xval checkout that made the run, recorded at run time), or the
   ``--commit`` given (a suite kept in another repository, added later).
 
-The machine fingerprint is a short hash of the fields the gate uses to decide
-whether two timings compare (``compare.gate.baseline.MACHINE_FIELDS``: CPU
-model, core count, architecture), so "the same machine" means the same thing
-to the history as to the gate.
+Details: docs/architecture.md, "Module notes", ``compare/history/origin.py``.
 """
 
 from __future__ import annotations

@@ -9,30 +9,7 @@ ever changed or deleted: the tables carry triggers that abort any UPDATE or
 DELETE, so appending a run cannot alter an earlier one, whatever the code
 that appends does.
 
-A run is identified by a SHA-256 of its run.json (less the fields a resume
-with nothing left to run rewrites) and every case record, so
-adding the same directory twice (or a copy of it) is refused with one line,
-while two runs of the same suite made at the same second are two runs.
-
-SQLite (standard library ``sqlite3``): WAL journal, every write in a
-``BEGIN IMMEDIATE`` transaction and a 60 s busy timeout, so several
-``xval run --history`` at once each wait their turn and all land. A file
-that is not an xval history, or is damaged, is one clear error naming it.
-
-PostgreSQL: ``--history postgresql://USER@HOST:PORT/DB`` through SQLAlchemy
-and psycopg (``pip install 'xval[postgres]'``); the same tables, prefixed
-``xval_`` so they can share a database; schema changes under an advisory lock.
-
-Schema (``SCHEMA_VERSION``; ``xval_meta`` holds ``kind`` and ``schema_version``)::
-
-    xval_runs  (id, run_key UNIQUE, suite_name, suite_fingerprint, commit_sha, dirty, commit_date,
-                started, finished, added, machine, machine_name, source, header)
-    xval_cases (run_id → xval_runs.id, case_key, scene_id, engine, dt, status,
-                entry (baseline entry JSON), metrics (JSON), record (zlib JSON); PRIMARY KEY (run_id, case_key))
-
-``MIGRATIONS[i]`` takes a store from version i to i + 1; opening an older
-store applies the missing ones in one transaction; a store from a newer xval
-is refused with the fix (upgrade xval).
+Details: docs/architecture.md, "Module notes", ``compare/history/store.py``.
 """
 
 from __future__ import annotations
@@ -54,6 +31,7 @@ from compare.gate.baseline import Baseline, build_baseline
 from compare.gate.entry import BaselineEntry, record_key
 from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
+from compare.results.declared import current_names
 from compare.results.record import CaseRecord
 from compare.results.store import Results, now
 
@@ -595,7 +573,8 @@ class History:
         out = []
         for run_id, key, scene_id, engine_label, dt, status, entry, metrics in self.backend.query(sql, params):
             typed = BaselineEntry.from_json(json.loads(entry), f"{self.name}: run {run_id} case {key}")
-            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, typed, json.loads(metrics)))
+            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, typed,
+                                  current_names(json.loads(metrics))))
         return out
 
     def record(self, run_id: int, key: str) -> CaseRecord:

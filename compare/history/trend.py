@@ -1,42 +1,11 @@
 """Trends across runs: per machine × suite × scene × variant × dt, each metric's value run after run, and its steps.
 
-The step rule (a documented test of our own: binary segmentation with a
-two-sample test against a robust noise estimate; no tuning beyond the
-constants below):
+Steps are found by binary segmentation with a two-sample test against a robust noise estimate
+(σ from successive differences, on log10 of positive series); a step must also be a change the
+gate would call worse or better. Accuracy series (σ = 0) step at the first changed run; timing
+series need MIN_NOISY_RUNS runs, NOISY_SEGMENT runs a side and SIGMAS · σ.
 
-1. Take the finite values of one series in history order (runs where the
-   case was not ``ok`` or has no value are gaps, not zeros). Work on
-   z = log10(value) when every value is positive (errors span decades, and
-   timing noise is multiplicative), on the values themselves otherwise.
-2. Noise: σ = 1.4826 · median |z[i+1] − z[i]| / √2, the spread of successive
-   differences (a step moves one difference, noise moves them all, so σ is
-   not inflated by the steps it is used to find). σ = 0 for a deterministic
-   metric on one machine.
-3. Among the splits that leave at least ``MIN_SEGMENT`` runs on each side,
-   take the one with the least squared deviation of each side from its mean.
-4. Accept it as a **step** when both hold:
-   - the medians of the two sides, b (before) and a (after), differ by more
-     than the metric's gate tolerance (compare.results.declared: a > b·(1 +
-     rtol) + atol, or the mirror), so a step is a change the gate would call
-     worse or better, never round-off;
-   - the two sides' mean z differ by more than ``SIGMAS`` · σ · √(1/n_b + 1/n_a);
-   - a side of exactly two runs has both on its side of the midpoint
-     between the medians (the median of two is their mean, so one odd run
-     beside an ordinary one is not a new level).
-5. Recurse into both sides; stop where a split fails the test. Each step
-   is then reported with the medians of the segments on either side of it.
-
-A step is **worse** or **better** by the metric's declared direction.
-Accuracy metrics are deterministic on one machine (σ = 0): they change
-only when the code does, so MIN_SEGMENT = 1 and a change in the latest run
-alone is a step, at that run. Timings (the metrics the gate does not judge
-for accuracy: cost, wall time, steps per second) are noisy by nature: a
-series needs MIN_NOISY_RUNS = 6 runs before its noise is measured and steps
-are looked for, and a step needs NOISY_SEGMENT = 2 runs on each side.
-SIGMAS = 5: on 12-run timing series of pure log-normal noise it marks a
-step in about 1 % of them, and it finds a 1.3× step in 5 %-noise timings
-9 times in 10 (scripts/history_trend_rates.py prints both rates;
-docs/history.md quotes them).
+Details: docs/architecture.md, "Module notes", ``compare/history/trend.py``.
 """
 
 from __future__ import annotations
@@ -67,14 +36,14 @@ class Step:
     """A step change in a series: ``index`` is the first point after it (into the series' points).
 
     before, after : medians of the two sides (the metric's unit); ratio : after / before (None when before is 0);
-    verdict : "worse" or "better" by the metric's direction; noise : σ of the series (of log10 values when all are positive).
+    outcome : "worse" or "better" by the metric's direction; noise : σ of the series (of log10 values when all are positive).
     """
 
     index: int
     before: float
     after: float
     ratio: float | None
-    verdict: str
+    outcome: str
     noise: float
 
 
@@ -141,8 +110,8 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
     found = []
     for i in range(1, len(edges) - 1):
         b, a = _median(y[edges[i - 1]:edges[i]]), _median(y[edges[i]:edges[i + 1]])
-        verdict = "better" if (a > b) == metric.higher_is_better else "worse"
-        found.append(Step(positions[edges[i]], b, a, a / b if b != 0 else None, verdict, sigma))
+        outcome = "better" if (a > b) == metric.higher_is_better else "worse"
+        found.append(Step(positions[edges[i]], b, a, a / b if b != 0 else None, outcome, sigma))
     return found
 
 

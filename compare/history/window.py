@@ -1,32 +1,10 @@
 """The gate against the recent past: a results directory against the last N runs of its suite on the same machine.
 
-compare.gate compares two baselines; this module builds the first one from
-the stored entries of a window of runs and hands both to the same
-:func:`compare.gate.gate.gate_results`, so every rule (tolerances, statuses,
-consistency, not-comparable cases, the timing rule) is the gate's own. What
-the window changes is the baseline each case is held to:
+It builds a baseline from the stored entries of a window of runs and hands it to the same
+:func:`compare.gate.gate.gate_results`, so every rule is the gate's own; only the baseline each
+case is held to changes.
 
-- **accuracy**: per metric, the best value any ``ok`` run in the window
-  reached (the lowest error, the latest divergence time — null, "never",
-  ranks first — the highest observed order). A slow creep that stays
-  inside the tolerance from one commit to the next still fails once it is
-  past the tolerance of the best recent run.
-- **status**: ``ok`` if the case was ok in any run of the window (so a case
-  that broke since fails); consistency: true if any run converged.
-- **timing**: the median of the window's run costs, with the window's
-  spread (every repeat of every run in the window, min to max) as the noise.
-  A slowdown must exceed the suite's timing factor *and* that spread plus
-  the current run's own — a machine whose timings wander by 30 % from run
-  to run widens the allowance by as much, where one baseline run would not
-  know it. The gate's rule that the current run needs at least two repeats
-  for its timing to be gated is kept.
-- **engine version**: only window runs made with the current engine version
-  give the best values; when none was, the latest entry is the baseline, so
-  the case is "not comparable" as with a baseline file.
-
-Only runs on the same machine (compare.history.origin.machine_of) and of the
-same suite name count. The run being gated is left out of its own window
-(``xval run --history`` stores it before ``xval gate --history`` runs).
+Details: docs/architecture.md, "Module notes", ``compare/history/window.py``.
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
 """Consistency: does a variant's error keep falling towards the reference as dt shrinks, or converge to something else?
 
-``ok`` only says a run did not blow up; a solver with gravity hard-coded to 9.8 converges cleanly, at its
-full order, to the wrong trajectory. Per scene × variant over its ``ok`` runs (e = max position error, m),
-finest dt first, the local order between neighbours is log(e₂/e₁)/log(dt₂/dt₁). The error has
-*plateaued* when the local order between the two finest points is below MIN_LOCAL_ORDER (0.5); the
-plateau runs on to coarser points while the order stays below it. Then:
+Per scene × variant over its ``ok`` runs, finest dt first: the error has plateaued when the local
+order log(e₂/e₁)/log(dt₂/dt₁) between the two finest points is below MIN_LOCAL_ORDER (0.5).
+consistent: no plateau, or one explained (the reference's error bar, a declared precision floor,
+the tolerance); inconsistent: a plateau above all of these; None with fewer than two ok points.
 
-- **true** when the error still falls, or when its plateau (the finest error) is explained: by the
-  reference's own error bar (within REFERENCE_MARGIN × ``reference_error``), by a precision floor the
-  engine declares (``precision_floor`` in its run settings, m: float32 arithmetic), or by the verdict
-  tolerance (``[verdict] tolerance`` · L, default 1e-6·L);
-- **false** when it plateaus above all of these: "converges to something 5.9e-3 m from the reference";
-- **null** with fewer than two ok points, or when the reference is trusted only up to a horizon inside
-  the run (a chaotic scene) and the plateau is not explained: chaos, not the engine, may have stopped it.
+Details: docs/architecture.md, "Module notes", ``compare/results/consistency.py``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Writing files so that a reader never sees half of one, and refusing bad output paths up front.
+"""Writing files so that a reader never sees half of one, refusing bad output paths up front, and reading
+the files a user names with one error for each way that fails.
 
 Rules every output of xval follows (issue 21):
 
@@ -88,6 +89,24 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
     if not os.access(parent, os.W_OK) or (real.exists() and not os.access(real, os.W_OK)):
         raise UserError(f"{flag}: {target} is not writable; choose a path you can write")
     return target
+
+
+def read_user_text(path: Path, where: str, fix: str) -> str:
+    """The UTF-8 text of a file the user named; UserError ``<where>: <what is wrong>; <fix>`` otherwise.
+
+    where : how the message names the file (``--baseline: PATH``); fix : what the user should do instead.
+    """
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        problem = "no such file"
+    except UnicodeDecodeError as exc:
+        problem = f"not UTF-8 text (byte {exc.start})"
+    except IsADirectoryError:
+        problem = "is a directory"
+    except OSError as exc:
+        problem = f"cannot read it ({exc.strerror})"
+    raise UserError(f"{where}: {problem}; {fix}")
 
 
 def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bool = True) -> None:

@@ -49,7 +49,8 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
 def _rankings(verdict: SceneVerdict) -> list[str]:
     lines = []
     if verdict.winners:
-        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s, 95 % interval):")
+        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s with its interval; "
+                     "a tie goes by its member with the fewest steps):")
         width = max(len(w.reach.engine) for w in verdict.winners)
         for winner in verdict.winners:
             lines.append(f"    {winner.reach.engine:<{width}}  {winner.reach.describe()}"
@@ -83,7 +84,8 @@ def _point(p: Point) -> dict[str, Any]:
 
 def _reach(r: Reach) -> dict[str, Any]:
     return {"engine": r.engine, "cost": r.cost, "cost_interval": list(r.interval) if r.interval else None,
-            "how": r.how, "dts": list(r.dts), "best_error": r.best_error, "plateau": r.plateau}
+            "how": r.how, "dts": list(r.dts), "best_error": r.best_error, "plateau": r.plateau,
+            "steps_per_simulated_second": r.steps}
 
 
 def scene_document(verdict: SceneVerdict) -> dict[str, Any]:

@@ -8,26 +8,7 @@ kills its process behave exactly as locally. Results come back to the client,
 which computes the metrics and writes the records case by case, so
 ``--resume`` and the statuses are unchanged.
 
-The reference of a scene is one task: it is solved once on some worker and
-its dense solution comes back to the client, the only place that needs it
-(metrics are computed there); no case recomputes it.
-
-Why a thin Executor over ``client.submit`` rather than
-``client.get_executor()``:
-
-- a case whose Dask worker process died (``KilledWorker``) must become a
-  ``failed`` record whose message says so (:class:`WorkerDied`);
-- a lost scheduler connection cancels every Dask future. ``get_executor``
-  would hand those on as cancelled futures, which the runner records as
-  failed cases; here they raise :class:`SchedulerLost`, which stops the run
-  and leaves the unfinished cases without a record for ``--resume``;
-- each result is fetched as soon as its task ends and the Dask future
-  released, so trajectories do not pile up in the workers' memory;
-- tasks are named after their case, which the Dask dashboard shows.
-
-``dask[distributed]`` is optional (``pip install 'xval[dask]'``): this module
-imports it only inside functions, and the CLI imports this module only when
-``--scheduler`` is given.
+Details: docs/architecture.md, "Module notes", ``compare/run/cluster.py``.
 """
 
 from __future__ import annotations

@@ -8,28 +8,7 @@ until the first answer or the nearest deadline, and turns each answer, death
 or timeout into its future's result exactly as
 :func:`~compare.run.isolation.execute` does in an executor's worker thread.
 
-Each host is sent its next task before it has answered the one it runs
-(``depth`` tasks at most), so it starts that case as soon as it answers,
-while this process turns the answer into a record, instead of sleeping until
-it is woken with the next task. Only a task that fits in a pipe however small
-(:data:`PIPELINED_BYTES`) is sent to a busy host: a bigger one could fill the
-pipe and block this thread's write until the host reads it, while the host,
-still on its task, blocks writing an answer this thread is not there to read.
-A task's timeout counts from when its host
-began it (its predecessor's answer); a task waiting behind one whose host died
-or was killed goes back to the queue, never run, and gets a new host.
-
-Why not a ProcessPoolExecutor whose workers each fork a host: its workers
-never run engine code, so all they did was pass each task and each trajectory
-on (a trajectory pickled three times, not once, and a process and two feeder
-threads kept busy doing it); ``bench/bench_harness.py`` measures what a run
-costs around the physics. A host's death here is its case's failure, never a
-broken pool.
-
-Forks happen only in the driving thread, at :class:`HostPool` construction
-(before the progress bar starts its thread) and to replace a host that died,
-timed out or ran out of memory. Each host asks for SIGTERM when the ``xval``
-process dies (``die_with_parent``), so a ``kill -9`` of xval still ends them.
+Details: docs/architecture.md, "Module notes", ``compare/run/hosts.py``.
 """
 
 from __future__ import annotations

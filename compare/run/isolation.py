@@ -1,42 +1,12 @@
 """Running one case so that whatever the engine does (raise, hang, segfault) only that case pays.
 
-Every isolated case runs in a *case host*: a child process forked from the
-process that drives it, which runs cases one after another and answers each
-on a pipe. A local run's hosts are driven straight from the ``xval`` process
-(:class:`compare.run.hosts.HostPool`, ``jobs`` hosts); on an executor given to
-the runner (a cluster's, a ThreadPoolExecutor) :func:`execute` is what runs
-in the executor's worker, and each worker thread forks its own host. Either
-way the driver waits at most ``timeout`` seconds for the answer:
+Each case runs in a *case host*, a child forked from the driving process that runs cases one after
+another and answers on a pipe; the driver waits at most ``timeout`` s. An exception is ``failed``,
+a dead host is ``failed`` with its exit code or signal, no answer in time kills the host and is
+``timeout``; the next case gets a new host. Nothing xval starts outlives it (process groups,
+PR_SET_PDEATHSIG, a reaper), and ``RLIMIT_AS`` bounds each task's memory.
 
-- the engine raised: the host catches it and answers ``failed``;
-- the host died (a segfault, ``os._exit``, SIGKILL): the pipe closes
-  without an answer, the case is ``failed`` with the exit code or signal,
-  and the next case gets a new host;
-- no answer in time: the host is killed, the case is ``timeout``, and the
-  next case gets a new host.
-
-The reference solve of a scene (a :class:`ReferenceTask`) runs in the same
-host under the same timeout and memory limit, so a scene whose reference
-would take hours (``omega0 = 1e6``) ends as a recorded timeout, not a hang.
-
-Lifetime: nothing xval starts outlives it. Each host is the leader of its
-own process group (so the engine's own children are killed with it on a
-timeout) and asks the kernel (``prctl(PR_SET_PDEATHSIG)``, Linux) for SIGKILL
-when the process that forked it dies, even inside compiled code; its reaper
-then kills the group and any outside program's (:func:`_start_reaper`). The
-workers of a process pool make the same request for their parent, the
-``xval`` process (:func:`die_with_parent`). A host sets ``RLIMIT_AS`` before
-each task so that the task may map at most ``memory_limit`` bytes more than
-the host does as the task starts: a case past it raises MemoryError (or its
-allocation fails inside the engine) and is ``failed`` with the reason.
-
-The driver never runs engine code, so a case that kills its process never
-breaks a pool. Reusing the host across cases (rather than forking per case)
-matters for speed: a fork per case cost 90–250 ms (copying a process that
-holds numba, MuJoCo and PyBullet, and re-initializing them), more than most
-cases' stepping. It needs the ``fork`` start method (Linux, macOS); with
-``isolate=False`` the case runs in the executor's worker itself (no timeout,
-and a crash breaks the pool, which the runner then rebuilds).
+Details: docs/architecture.md, "Module notes", ``compare/run/isolation.py``.
 """
 
 from __future__ import annotations

@@ -1,27 +1,11 @@
 """Running a suite: cases through case hosts or a concurrent.futures.Executor, one record written per
 finished case.
 
-Division of work (why it is split this way):
+The runner plans the cases, solves each scene's reference once, dispatches the cases to case hosts
+(compare.run.isolation) or an executor, and turns each answer into a CaseRecord written as it
+finishes, so an interrupted run resumes without redoing finished cases.
 
-- **Case hosts** only simulate. Each case is a
-  :class:`~compare.run.isolation.CaseTask` run in a case host, a forked child
-  (see :mod:`compare.run.isolation`), so a case that raises, hangs or kills
-  its process is recorded and the run carries on. A local run drives its
-  hosts itself (:mod:`compare.run.hosts`); given an executor (a cluster's),
-  the runner submits the tasks to it and each of its workers drives a host.
-- **The reference** for each scene is solved once (or found kept from an
-  earlier run), as its own task on the same executor (so it overlaps with
-  the engines' cases), evaluated there at the sample times of each dt of the
-  run's cases, and comes back to the parent as a pickled dense solution with
-  those samples.
-- **The parent** takes each case's reference samples from it (evaluating the
-  dense solution itself only for an engine that samples at times of its
-  own), computes the metrics (cheap, pure functions), applies the status
-  bounds and writes the record. Cases that finish before their scene's
-  reference wait in memory for it.
-
-Cases are submitted longest first (smallest dt) so that on a few cores the
-long cases do not end up alone at the tail of the run.
+Details: docs/architecture.md, "Module notes", ``compare/run/runner.py``.
 """
 
 from __future__ import annotations
@@ -703,7 +687,7 @@ def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
 #: Metrics judged within the reference's horizon (when it ends inside the run); the whole run's values
 #: stay in the record as ``<name>_whole_run``.
 HORIZON_METRICS = (
-    "position_error_final", "position_error_l2", "position_error_linf", "divergence_time",
+    "position_error_final", "position_error_rms", "position_error_linf", "divergence_time",
     "constraint_force_error", "constraint_force_error_relative",
 )
 

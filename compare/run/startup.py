@@ -2,23 +2,7 @@
 
 Both measured with ``bench/bench_harness.py`` (the CPU a run costs around the physics).
 
-**BLAS with one thread.** OpenBLAS (numpy and scipy each bundle a copy)
-starts a thread per core as it loads, and their start-up alone cost
-measurable CPU in every run. A run has no use for them: its matrices are a
-few rows, and its cores belong to the case hosts, whose timings other threads
-would disturb. The limit is set through OpenBLAS's own environment variable
-(read only when it loads) for the duration of the imports, then the
-environment is put back, so the programs a run starts (command engines) get
-the one they were given. A limit the user set (``OPENBLAS_NUM_THREADS``,
-``GOTO_NUM_THREADS`` or ``OMP_NUM_THREADS``) is kept.
-
-**No garbage collection while loading.** Importing numba, scipy and the
-engines creates many long-lived objects, and the
-collector's full passes walked them again and again as they grew. Python's
-advice for a process that forks workers is the one followed here (see
-``gc.freeze``): collection off while loading, everything loaded frozen just
-before the fork (:func:`compare.run.runner.preload_engines`), collection on
-again (:func:`resume_collection`).
+Details: docs/architecture.md, "Module notes", ``compare/run/startup.py``.
 """
 
 from __future__ import annotations

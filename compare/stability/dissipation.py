@@ -6,24 +6,7 @@ removes energy every step whatever the step) does not. So run one scene at
 several time steps over a long horizon, measure the energy-loss rate at each,
 and extrapolate the rate to dt → 0.
 
-- **Rate** at one dt (:func:`loss_rate`): minus the least-squares slope of
-  (E(t) − E(0)) / E* against t over the whole run, in E* per second
-  (positive: energy lost). A bounded oscillation of the energy (a symplectic
-  integrator's) has no slope; a steady loss has.
-- **Extrapolation** (:func:`extrapolate`): rate(dt) = r₀ + c·dt fitted by least
-  squares (first order, the leading error of every default integrator here;
-  a higher-order engine's rates are already at r₀). The uncertainty σ is the
-  larger of the fit's standard error of r₀ and the change of r₀ when only
-  the two smallest steps are used (Richardson), so a rate that is not yet
-  linear in dt widens it instead of biasing the verdict.
-- **Rule** (:data:`RULE`): ``hidden_dissipation`` is true when
-  r₀ − 3σ > :data:`RATE_FLOOR`, i.e. the extrapolated rate is clearly above zero
-  *and* above a floor below which a loss would not matter (1e-6 E*/s: 0.1 % of
-  E* in 1,000 s). A run that does not end ``ok`` at some dt leaves that dt
-  out; fewer than three ``ok`` steps give no verdict (None) with the reason.
-
-Everything here is a pure function of arrays except :func:`probe`, which runs
-the engine through the runner's case host (:func:`compare.run.isolation.execute`).
+Details: docs/architecture.md, "Module notes", ``compare/stability/dissipation.py``.
 """
 
 from __future__ import annotations

@@ -1,59 +1,12 @@
 """Suites: which scenes, engine variants and time steps to compare, read from TOML.
 
-A suite file (see ``suites/default.toml`` for a commented example)::
+:func:`load_suite` reads the file (keys: ``dt``, ``scenes``, ``engines``, and the optional tables
+``[reference]``, ``[bounds]``, ``[tolerances]``, ``[gate]``, ``[verdict]``, ``[stability]``,
+``[gainmap]``; suites/default.toml is a commented example) into a typed :class:`Suite`. Every mistake
+is a :class:`UserError` naming the file (and line), the key and the fix; an engine that cannot be
+imported here is kept as *unavailable* and its cases are ``skipped`` with the reason.
 
-    name = "smoke"                 # optional, defaults to the file's stem
-    description = "..."            # optional
-    duration = 2.0                 # s, optional: overrides every scene's duration
-    sample_interval = 0.01         # s between stored samples
-    delta = 1e-2                   # divergence threshold δ (e(t) > δ·L)
-    repeats = 1                    # timing repeats per case (median taken)
-    timeout = 120                  # s per case, before it is recorded as `timeout`
-    dt = [1e-2, 1e-3]              # a list, or a geometric sweep:
-    # dt = { from = 1e-1, to = 1e-4, per_decade = 2 }
-    tolerance = { from = 1e-4, to = 1e-10, per_decade = 1 }   # optional: error-controlled
-                                   # variants sweep this instead of dt (compare/suite/tolerance_axis.py)
-
-    [reference]                    # settings of the DOP853 reference
-    rtol = 1e-12
-    atol = 1e-12
-
-    [bounds]                       # an `ok` run past these is `unstable`
-    energy_drift = 1.0             # × E*
-    constraint_error = 0.1         # × L
-
-    [tolerances]                   # per-metric tolerances, for the gate
-    position_error_linf = 0.1
-
-    [gate]                         # `xval gate` overrides (compare/suite/tolerance.py)
-    timing_factor = 1.5
-    energy_drift = { rtol = 0.2, atol = 1e-9 }
-
-    [verdict]                      # consistency: right when the error is under tolerance · L
-    tolerance = 1e-2
-
-    [stability]                    # xval stability: pairs and dt range (compare/suite/plans.py)
-    [gainmap]                      # a sweep over two numeric options of engine variants
-
-    [[scenes]]
-    id = "bead-60"                 # readable id, defaults to the scene name
-    scene = "bead"                 # a catalog name
-    parameters = { theta0 = 60 }
-
-    [[engines]]
-    id = "mujoco/*"                # every variant; or "mujoco/hinge-rk4", or
-    options = {}                   # "package.module:ATTRIBUTE[/variant]"
-
-    [[engines]]                    # an outside program (compare/suite/command.py)
-    command = ["python3", "solvers/bead.py"]
-    label = "my-bead"              # results call it command/my-bead
-
-``engines`` items may also be plain strings (``engines = ["ours/*"]``).
-
-Every mistake is a :class:`UserError` whose message starts with the file
-(and line, where one is known), names the key and says how to fix it. An
-engine whose library cannot be imported here is kept as *unavailable*: its
-cases are recorded as ``skipped`` with the reason, like asv.
+Details: docs/architecture.md, "Module notes", ``compare/suite/reader.py``.
 """
 
 from __future__ import annotations
@@ -74,6 +27,7 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
+from compare.results.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
@@ -216,16 +170,7 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
 def load_suite(path: str | Path) -> Suite:
     """Read and validate the suite at ``path``; UserError naming the file, key and fix."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such suite file; pass the path of a .toml suite such as suites/smoke.toml") from None
-    except UnicodeDecodeError as exc:
-        raise UserError(f"{path}: not UTF-8 text (byte {exc.start}); save the suite as UTF-8") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a directory; pass the path of a .toml suite file") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read the suite file ({exc.strerror})") from None
+    text = read_user_text(path, str(path), "pass the path of a suite: a UTF-8 .toml file such as suites/smoke.toml")
     return parse_suite(text, str(path))
 
 

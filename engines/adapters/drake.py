@@ -129,21 +129,7 @@ class DrakeEngine(Engine):
         return settings["plant"] == "continuous" and settings["error_control"]
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if settings[TOLERANCE_OPTION] <= 0:
-            raise UserError(f"drake: option accuracy must be positive, got {settings[TOLERANCE_OPTION]}")
-        if settings["inertia_ratio"] < 0:
-            raise UserError(f"drake: option inertia_ratio must be ≥ 0, got {settings['inertia_ratio']}")
-        if (settings["plant"] == "continuous" and settings["error_control"]
-                and settings["integrator"] not in ERROR_CONTROLLED):
-            raise UserError(
-                f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
-                f"or choose one of {', '.join(ERROR_CONTROLLED)}"
-            )
-        if getattr(scene, "is_model", False):
-            if settings["plant"] == "discrete":
-                raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
-                                  "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
-            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
+        self._check_options(settings)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         tree = read_tree(scene)
         if tree.loose:
@@ -160,6 +146,25 @@ class DrakeEngine(Engine):
             raise Unsupported(
                 "drake: a 3-D scene is built with a ball joint per particle, and only one-particle 3-D scenes "
                 "keep the roll-pitch-yaw ball joint away from its singular pitch"
+            )
+
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        if settings["plant"] == "discrete":
+            raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
+                              "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
+        if settings[TOLERANCE_OPTION] <= 0:
+            raise UserError(f"drake: option accuracy must be positive, got {settings[TOLERANCE_OPTION]}")
+        if settings["inertia_ratio"] < 0:
+            raise UserError(f"drake: option inertia_ratio must be ≥ 0, got {settings['inertia_ratio']}")
+        if (settings["plant"] == "continuous" and settings["error_control"]
+                and settings["integrator"] not in ERROR_CONTROLLED):
+            raise UserError(
+                f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
+                f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
 
     # -- building ----------------------------------------------------------------------
@@ -213,11 +218,13 @@ class DrakeEngine(Engine):
 
     # -- running -----------------------------------------------------------------------
 
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        # The model layer's Drake stepper integrates with the variant's scheme (SCHEMES).
+        return super()._run_model(scene, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})  # type: ignore[attr-defined]  # a ModelScene (is_model)
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant

@@ -414,12 +414,12 @@ class MuJoCoEngine(Engine):
     def version(self) -> str:
         return mujoco.mj_versionString()
 
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        if settings["formulation"] != "hinge":
+            raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
+                              "build particle scenes from free bodies, use mujoco/hinge*")
+
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):
-            if settings["formulation"] != "hinge":
-                raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
-                                  "build particle scenes from free bodies, use mujoco/hinge*")
-            return
         if len(settings["solref"]) != 2 or not all(x > 0 for x in settings["solref"]):
             raise UserError(
                 f"mujoco: option solref must be two positive numbers (timeconst s, dampratio), "
@@ -458,8 +458,6 @@ class MuJoCoEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         xml, inertia = self.mjcf(scene, schedule.dt, settings)
         model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"

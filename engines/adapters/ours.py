@@ -4,17 +4,7 @@ Variants are ``<method>-<integrator>`` (``baumgarte-rk4``, ``plain-euler``,
 ``projection-symplectic-euler``, ``lagrangian-rk4``, …) plus ``rattle``, which
 is its own integrator; every pair ``ours.valid_pairs()`` accepts has one.
 
-Frame: a planar scene (x–z) runs in ours' 2-D coordinates (scene x → ours x,
-scene z → ours y), anything else in 3-D with the scene's axes. Constraint
-forces are the force each constraint exerts on its first particle
-(``Pin.particle``, ``Rod.a``), mapped back to the scene frame. The Lagrangian
-form exists only for planar chains hung from a fixed point (Pin on particle 0,
-then Rod(k − 1, k) for k = 1, 2, …); other scenes are refused with the reason.
-A Line or Ellipse (planar scenes only) maps to ours' curve constraints, which
-run in the same compiled loop as the distance constraints; so does a four-bar's
-closed loop of Pins and a Rod.
-The time recorded is the compiled stepping loop alone (compilation is done,
-or loaded from numba's cache, before the clock starts).
+Details: docs/engines.md, "Adapter notes", ``engines/adapters/ours.py``.
 """
 
 from __future__ import annotations
@@ -111,7 +101,7 @@ class OursEngine(Engine):
         """
         _ensure_compiled()
         for scene in scenes:
-            if getattr(scene, "is_model", False):  # rigid bodies: compiled when their run is set up
+            if scene.is_model:  # rigid bodies: compiled when their run is set up
                 continue
             try:
                 system, q0, v0, _ = _to_system(scene)
@@ -121,16 +111,17 @@ class OursEngine(Engine):
             except (Unsupported, ours.OursError):
                 continue
 
-    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/model/ours.py)
-            from ours.rigid.method import resolve as rigid_pair
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        """A model file: ours' rigid bodies (engines/model/ours.py) with the variant's method and integrator."""
+        from ours.rigid.method import resolve as rigid_pair
 
-            try:
-                rigid_pair(settings["method"], settings["integrator"])
-            except ours.OursError as exc:
-                raise Unsupported(f"ours: {exc}") from None
-            scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
-            return
+        try:
+            rigid_pair(settings["method"], settings["integrator"])
+        except ours.OursError as exc:
+            raise Unsupported(f"ours: {exc}") from None
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])
         except ours.InvalidPair as exc:
@@ -178,8 +169,6 @@ class OursEngine(Engine):
         return None if gains is None else largest_stable_dt(*gains)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own loop (engines/model/stepping.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(

@@ -4,24 +4,7 @@ A plugin imports from here only (docs/plugins.md walks through one)::
 
     from engines.external.plugin import Engine, Option, Recorder, Schedule, capabilities, scene_arrays
 
-- :func:`capabilities` declares what the solver can express; scenes needing
-  more are left out of its runs with the reason (never faked).
-- :func:`scene_arrays` reads a Scene's particles and constraints as arrays,
-  one row per constraint whatever its kind.
-- :class:`Recorder` (engines.recorder, the loop every built-in adapter uses)
-  stores the state at the scheduled sample steps, stops a run that runs away,
-  times the stepping and builds the :class:`RawRun` that ``_run`` returns.
-- :func:`refuse_constraint_kinds` refuses scenes with constraints the solver
-  does not model, naming the constraint.
-- :func:`planar_chain` converts between pendulum angles and particle
-  positions / velocities (:mod:`engines.scene.pendulum`); :func:`force_array`
-  builds per-constraint forces with NaN for "not reported".
-
-What xval checks for every adapter, so a plugin need not (engines.adapter):
-shapes and sample count of what ``_run`` returns, that sample 0 is the
-scene's initial state (catches unit, frame and particle-order mistakes),
-wall time in seconds, non-finite states (-> ``unstable``), exceptions
-(-> ``failed``) and the declared ``api_version``.
+Details: docs/engines.md, "Adapter notes", ``engines/external/plugin.py``.
 """
 
 from __future__ import annotations

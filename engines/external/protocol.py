@@ -11,11 +11,7 @@ its first particle, ``Pin.particle`` / ``Rod.a``, N), optionally ``energy``
 (it recomputes both). Lines starting with ``#`` are comments; ``# wall_time
 = S`` and ``# version = V`` are read, other keys ignored.
 
-Reading is vectorised (:func:`read_csv`: the numbers are split and converted
-by C code, never a Python loop over rows); only when the text is bad does a
-slow path walk it to name the line and column. Writing (:func:`write_csv`)
-formats every number with ``repr`` (shortest round-trip) in one ``%``
-operation.
+Details: docs/engines.md, "Adapter notes", ``engines/external/protocol.py``.
 """
 
 from __future__ import annotations

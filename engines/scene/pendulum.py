@@ -10,14 +10,7 @@ ways, for one state or many at once::
     theta, omega = chain.angles(q), chain.rates(q, v)      # (..., P) rad, rad/s
     q, v = chain.positions(theta), chain.velocities(theta, omega)
 
-Angles follow the catalog: measured from the downward vertical (−z) toward
-+x, each link's angle absolute (from the vertical) unless ``relative=True``
-(then from the previous link's direction, as MuJoCo's nested hinges
-measure them).
-
-:func:`force_array` builds the ``(C, 3)`` array of constraint forces a
-solver reports with NaN for constraints it does not report (xval then
-compares only the ones reported).
+Details: docs/engines.md, "Adapter notes", ``engines/scene/pendulum.py``.
 """
 
 from __future__ import annotations
