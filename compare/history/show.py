@@ -33,7 +33,7 @@ class Filters:
 
 def metric_named(name: str) -> Metric:
     """The declared metric ``name`` (or its name before a rename); UserError listing the declared ones otherwise."""
-    name = declared.RENAMED.get(name, name)
+    name = declared.current_name(name)
     if name not in declared.METRICS:
         raise UserError(f"--metric: unknown metric {name!r}; declared metrics are: {', '.join(declared.METRICS)}")
     return declared.METRICS[name]
