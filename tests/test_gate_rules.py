@@ -214,6 +214,13 @@ def test_a_baseline_written_before_the_rms_rename_reads_as_today(tmp_path):
     assert load_baseline(old).cases == load_baseline(BASELINES / "smoke.json").cases
 
 
+def test_a_directory_given_for_the_baseline_is_told_to_give_the_file(tmp_path):
+    with pytest.raises(UserError) as raised:
+        load_baseline(tmp_path)
+    assert str(raised.value) == (f"--baseline: {tmp_path}: is a directory; give the baseline JSON file "
+                                 "(xval baseline DIR --output FILE)")
+
+
 @pytest.mark.parametrize("field, value, message", [
     ("status", "fine", r"field status is 'fine'; expected one of ok, unstable, failed, timeout, skipped"),
     ("dt", "0.01", r"field dt must be a finite number, got '0.01'"),

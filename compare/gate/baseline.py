@@ -122,7 +122,9 @@ def load_baseline(path: str | Path) -> Baseline:
     """Read and check a baseline file; UserError naming the file and the fix for anything else."""
     path = Path(path)
     fix = REMAKE.format(path=path)
-    text = read_user_text(path, f"--baseline: {path}", fix)
+    # A results directory passed for its baseline: remaking the baseline at that path would not do.
+    text = read_user_text(path, f"--baseline: {path}", fix,
+                          directory_fix="give the baseline JSON file (xval baseline DIR --output FILE)")
     try:
         document = json.loads(text)
     except json.JSONDecodeError as exc:

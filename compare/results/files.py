@@ -91,10 +91,11 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
     return target
 
 
-def read_user_text(path: Path, where: str, fix: str) -> str:
+def read_user_text(path: Path, where: str, fix: str, directory_fix: str | None = None) -> str:
     """The UTF-8 text of a file the user named; UserError ``<where>: <what is wrong>; <fix>`` otherwise.
 
-    where : how the message names the file (``--baseline: PATH``); fix : what the user should do instead.
+    where : how the message names the file (``--baseline: PATH``); fix : what the user should do instead;
+    directory_fix : the fix when ``path`` is a directory, where ``fix`` would not do (default ``fix``).
     """
     try:
         return path.read_text(encoding="utf-8")
@@ -103,7 +104,7 @@ def read_user_text(path: Path, where: str, fix: str) -> str:
     except UnicodeDecodeError as exc:
         problem = f"not UTF-8 text (byte {exc.start})"
     except IsADirectoryError:
-        problem = "is a directory"
+        problem, fix = "is a directory", directory_fix or fix
     except OSError as exc:
         problem = f"cannot read it ({exc.strerror})"
     raise UserError(f"{where}: {problem}; {fix}")
