@@ -224,8 +224,8 @@ def test_run_and_show_commands(tmp_path):
     table = show.stdout.splitlines()
     # The scene line carries the reference's own error, horizon and Lyapunov estimate (docs/metrics.md).
     assert re.fullmatch(r"scene bead \(reference error \S+ m, horizon none, Lyapunov exponent -\)", table[2])
-    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "cost", "s/s", "order", "s/step",
-                                "[95", "%]", "consistent"]
+    assert table[3].split() == ["engine", "status", "dt", "error/m", "drift/E*", "c.err/m", "wall", "s/s", "order", "s/step",
+                                "[interval]", "consistent"]
     assert table[4].split()[:4] == ["pymunk/pin", "ok", "1/1", "0.01"]
     assert table[5].split()[:3] == ["compare_engines:MISBEHAVING/raise", "failed", "1"]
     assert table[6] == "  compare_engines:MISBEHAVING/raise: RuntimeError: deliberate failure in the stepping loop"

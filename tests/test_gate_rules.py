@@ -172,6 +172,15 @@ def test_a_suite_carries_its_gate_table_and_a_mistake_names_the_line():
         parse_suite(SUITE + "[gate]\ntiming_factor = 0\n", "s.toml")
 
 
+def test_a_suite_written_before_the_rms_rename_still_reads_its_tolerances():
+    """position_error_rms was position_error_l2: a suite (or the suite.toml kept in an older results
+    directory, which xval gate reads) that names the old key sets the new metric's tolerance."""
+    suite = parse_suite(SUITE + "[tolerances]\nposition_error_l2 = 0.7\n", "s.toml")
+    assert suite.gate.tolerance("position_error_rms") == Tolerance(0.7, 1e-9)
+    suite = parse_suite(SUITE + "[gate]\nposition_error_l2 = { rtol = 0.4, atol = 1e-6 }\n", "s.toml")
+    assert suite.gate.tolerance("position_error_rms") == Tolerance(0.4, 1e-6)
+
+
 def test_a_side_without_a_reference_has_its_null_divergence_time_unmeasured_not_infinite():
     # A reference that timed out leaves the position metrics null, divergence_time with them: that null
     # is "not measured", not "never diverged", so no divergence-time change is made of it either way.
@@ -195,6 +204,14 @@ def test_a_committed_baseline_reads_into_typed_entries_and_writes_back_byte_for_
     assert all(key == entry.key for key, entry in baseline.cases.items())
     write_baseline(baseline, tmp_path / "again.json")
     assert (tmp_path / "again.json").read_text() == (BASELINES / "smoke.json").read_text()
+
+
+def test_a_baseline_written_before_the_rms_rename_reads_as_today(tmp_path):
+    """A baseline made when position_error_rms was position_error_l2 reads into the same entries."""
+    old = tmp_path / "old.json"
+    old.write_text((BASELINES / "smoke.json").read_text().replace('"position_error_rms"', '"position_error_l2"'))
+    assert '"position_error_l2"' in old.read_text()
+    assert load_baseline(old).cases == load_baseline(BASELINES / "smoke.json").cases
 
 
 @pytest.mark.parametrize("field, value, message", [

@@ -288,6 +288,13 @@ def test_show_an_unknown_metric_lists_the_declared_ones(three_runs, capsys):
     assert code == 2 and err.startswith("xval: error: --metric: unknown metric 'speed'; declared metrics are: position_error_linf, ")
 
 
+def test_show_reads_a_metric_by_its_name_before_the_rename(three_runs, capsys):
+    code, out, _ = xval(capsys, "history", "show", "--history", three_runs, "--metric", "position_error_l2", "--format", "json")
+    table = json.loads(out)
+    assert code == 0 and len(table) == 3 * 6
+    assert all(isinstance(row["position_error_rms"], float) for row in table if row["status"] == "ok")
+
+
 # -- the windowed gate --------------------------------------------------------------------------------
 
 

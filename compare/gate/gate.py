@@ -86,7 +86,7 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
-    #: True when the missing cases fail the gate (see the module docstring).
+    #: True when the missing cases fail the gate (the rule: docs/architecture.md, "Module notes").
     missing_fails: bool = False
 
     @property
@@ -179,7 +179,8 @@ def calibrated(timing: Timing) -> list[float]:
 
 
 def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: bool, why_not: str = "") -> Change:
-    """The statistical timing rule (module docstring) on two timing entries with "cpu" and "calibration".
+    """The statistical timing rule (docs/architecture.md, "Module notes") on two timing entries with "cpu"
+    and "calibration".
 
     worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated
     costs, s = :func:`best_spread`; better in mirror. The Change shows the best CPU costs (s/s).

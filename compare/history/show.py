@@ -32,7 +32,8 @@ class Filters:
 
 
 def metric_named(name: str) -> Metric:
-    """The declared metric ``name``; UserError listing the declared ones otherwise."""
+    """The declared metric ``name`` (or its name before a rename); UserError listing the declared ones otherwise."""
+    name = declared.current_name(name)
     if name not in declared.METRICS:
         raise UserError(f"--metric: unknown metric {name!r}; declared metrics are: {', '.join(declared.METRICS)}")
     return declared.METRICS[name]

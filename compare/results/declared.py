@@ -169,13 +169,18 @@ RENAMED = {
 }
 
 
+def current_name(name: str) -> str:
+    """The metric name that replaced ``name`` (:data:`RENAMED`), else ``name``."""
+    return RENAMED.get(name, name)
+
+
 def current_names(metrics: Mapping[str, Any]) -> dict[str, Any]:
     """``metrics`` with every name of :data:`RENAMED` under its current name.
 
     The readers of stored metrics (a case record, a baseline entry, a history row) call it, so results,
     baselines and histories written before a rename still compare with new runs.
     """
-    return {RENAMED.get(name, name): value for name, value in metrics.items()}
+    return {current_name(name): value for name, value in metrics.items()}
 
 
 def register(metric: Metric) -> Metric:

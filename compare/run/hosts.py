@@ -132,7 +132,8 @@ class HostPool:
                 if not self.queue or len(slot.jobs) != place:
                     continue
                 if place > 0 and len(self.queue[0].pickled) > PIPELINED_BYTES:
-                    return  # it waits for an idle host (module docstring), and the tasks behind it too
+                    # It waits for an idle host (docs/architecture.md, "Module notes"), and the tasks behind it too.
+                    return
                 job = self.queue.popleft()
                 if place == 0:
                     slot.host = send(slot.host, job.task)  # a new host when it has none, or it died

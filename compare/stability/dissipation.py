@@ -110,7 +110,8 @@ def loss_rate(scene: Scene, t: np.ndarray, positions: np.ndarray, velocities: np
 
 
 def extrapolate(dts: Sequence[float], rates: Sequence[float]) -> tuple[float, float]:
-    """(r₀, σ) in E*/s: rate(dt) = r₀ + c·dt at dt → 0; needs ≥ 3 points (see the module docstring)."""
+    """(r₀, σ) in E*/s: rate(dt) = r₀ + c·dt at dt → 0; needs ≥ 3 points (σ:
+    docs/architecture.md, "Module notes")."""
     x, y = np.asarray(dts, float), np.asarray(rates, float)
     if len(x) < 3:
         raise ValueError("extrapolate needs at least 3 time steps")

@@ -77,7 +77,8 @@ class PairResult:
 
 
 def search(trial: Callable[[float], Trial], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Trial]]:
-    """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; see the module docstring."""
+    """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; the search:
+    docs/architecture.md, "Module notes"."""
     trials: list[Trial] = []
 
     def stable(dt: float) -> bool:

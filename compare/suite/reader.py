@@ -27,6 +27,7 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
+from compare.results.declared import current_name
 from compare.results.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
@@ -334,7 +335,10 @@ class _Reader:
         )
         # [tolerances] ends up in ``gate``: its keys checked here (with line numbers), its values by gate_settings,
         # by the same rule as [gate]'s (a number >= 0; 0 asks for no change at all).
-        self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC))
+        tolerances = data.get("tolerances", {})
+        if isinstance(tolerances, dict):  # a metric's earlier name reads as today's
+            tolerances = {current_name(name): value for name, value in tolerances.items()}
+        self.table("tolerances", tolerances, (*RULES, TIMING_METRIC))
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)

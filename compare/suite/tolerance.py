@@ -82,6 +82,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
         if not isinstance(tolerances, dict):
             raise make_error("tolerances", f"must be a table of metric = rtol, got {tolerances!r}")
         for name, value in tolerances.items():
+            name = declared.current_name(name)  # a suite written before a rename still reads
             if name == TIMING_METRIC:
                 # A relative tolerance on cost is the slowdown it forgives: the factor 1 + value, which must
                 # be > 1 as [gate] timing_factor must (timing is noisy; 0 would fail every rerun).
@@ -99,6 +100,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
         raise make_error("gate", "must be a table, e.g. [gate] with timing_factor = 1.5")
     for name, value in gate.items():
         key = f"gate.{name}"
+        name = declared.current_name(name)  # a suite written before a rename still reads
         if name == "timing_factor":
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 1 or not math.isfinite(value):
                 raise make_error(key, f"must be a number > 1 (a slowdown factor), got {value!r}; write e.g. timing_factor = 1.5")

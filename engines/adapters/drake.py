@@ -205,7 +205,8 @@ class DrakeEngine(Engine):
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
                 joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), np.array([0.0, 1.0, 0.0]), damping=0.0)
             else:
-                # x of the child's joint frame along the arm, so pitch ±90° is the arm vertical (module docstring).
+                # x of the child's joint frame along the arm, so pitch ±90° is the arm vertical
+                # (docs/engines.md, "Adapter notes").
                 R_BM = _frame_with_x_along(arm)
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
                 on_child = plant.AddFrame(_fixed_frame(f"arm{i}", body.body_frame(), RigidTransform(R_BM, np.zeros(3))))

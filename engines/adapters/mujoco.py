@@ -40,7 +40,7 @@ mujoco.mj_defaultSolRefImp(_ref, _imp)
 MUJOCO_SOLREF: tuple[float, ...] = tuple(float(x) for x in _ref)
 MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
 
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; module docstring).
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
 HINGE_INERTIA_RATIO = 1e-12
 CONNECT_INERTIA_RATIO = 1e-9
 #: kg·m²: the least inertia MuJoCo compiles ("mass and inertia of moving bodies must be larger than

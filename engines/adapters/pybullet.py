@@ -48,7 +48,7 @@ SOLVERS = {
 #: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
 KEEPABLE = ("damping", "motors", "sleeping")
 
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; see the module docstring).
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
 MULTIBODY_INERTIA_RATIO = 1e-9
 P2P_INERTIA_RATIO = 1e-4
 
