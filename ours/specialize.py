@@ -89,6 +89,8 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(path, source.encode("utf-8"), durable=False)  # a concurrent process never imports half a file
     spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:  # a .py path always has a loader; say so if that ever changes
+        raise ImportError(f"cannot load the specialised kernel module {path}")
     module = importlib.util.module_from_spec(spec)
     # Registered before it runs: numba's cache finds a function's module by this name.
     sys.modules[name] = module

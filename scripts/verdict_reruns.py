@@ -74,6 +74,7 @@ def main(directories: list[str]) -> None:
                            if any(v["equal-cost best"][j] != named(run)["equal-cost best"][j] for v in views)]
                 print(f"  {name}: budget {budget:.3g} s/s; " + "; ".join(
                     f"{b['engine']} dt {b['dt']:.3g} s, cost {b['cost']:.3g} s/s, error {b['error']:.3g} m"
+                    + (f" (ties: {', '.join(b['ties'])})" if b["ties"] else "")
                     for b in changed if b["engine"] is not None))
         print("  same in every run: " + "; ".join(f"{key} {value}" for key, value in same.items())
               + f"; ratio intervals overlap: {overlapping(intervals)}")

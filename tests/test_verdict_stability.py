@@ -173,3 +173,19 @@ def test_a_tie_is_the_chain_of_overlapping_intervals_from_the_cheapest():
     assert named is c and set(ties) == {"x/a", "x/b"}
     # Without b the chain breaks: a alone is the cheapest, tied with nothing.
     assert leader([a, c, d]) == (a, ())
+
+
+def test_equal_cost_counts_a_run_a_rerun_may_put_within_the_budget():
+    from compare.results.verdict import best_at_equal_cost
+
+    # Per-step costs (s/step) exactly 1e-6 (a), 1.2e-6 (b), 2.5e-6 (c): costs per simulated s c/dt, each with
+    # its interval of 1.7× either side. The budget is a's dearest run, 1e-3 s/s. b's run at dt 1e-3 s costs
+    # 1.2e-3 s/s, within noise of the budget (its interval reaches down to 7e-4): it counts. c's costs 2.5e-3,
+    # its interval starting at 1.5e-3: it does not.
+    rows = [{"scene": "bead", "engine": engine, "dt": dt, "error": dt ** 2, "steps": round(2.0 / dt), "length": 1.0,
+             "reference_error": 0.0, "per_step": per_step}
+            for engine, per_step in (("a/x", 1e-6), ("b/y", 1.2e-6), ("c/z", 2.5e-6)) for dt in (0.1, 0.01, 0.001)]
+    found = sweeps([record(row, [row["per_step"] * row["steps"]]) for row in rows])
+    budget, best = best_at_equal_cost(found)
+    assert budget == pytest.approx(1e-3)
+    assert [(b.family, b.point.dt) for b in best] == [("a", 0.001), ("b", 0.001), ("c", 0.01)]

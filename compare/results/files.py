@@ -128,7 +128,7 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
     """
     binary = isinstance(text, bytes)
     if str(path) == STDOUT:
-        if binary:
+        if isinstance(text, bytes):
             sys.stdout.flush()
             sys.stdout.buffer.write(text)
             sys.stdout.buffer.flush()

@@ -243,8 +243,16 @@ def _same_error(a: Point, b: Point) -> bool:
     return abs(a.error - b.error) <= a.error_bar + b.error_bar
 
 
+def _fits(p: Point, budget: float) -> bool:
+    """Whether ``p`` may cost no more than ``budget`` (s/s): the low end of its cost interval is within it, so
+    a rerun may put it either side. Deciding on the cost itself let a run 1 % under the budget in one run
+    and over it in the next change a family's pick; its interval spans that noise."""
+    return p.interval[0] <= budget
+
+
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
-    """(budget s/s, per family in suite order its most accurate run costing ≤ budget); see the module docstring.
+    """(budget s/s, per family in suite order its most accurate run that may cost ≤ budget (:func:`_fits`));
+    see the module docstring.
 
     A family with no ok run gets ``Best(family, None)``.
     """
@@ -259,7 +267,7 @@ def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, li
     budget = common_top if every_family <= common_top else every_family
     result = []
     for name, ps in by_family.items():
-        within = [p for p in ps if p.cost <= budget]
+        within = [p for p in ps if _fits(p, budget)]
         if within:
             winner = min(within, key=lambda p: (p.error, p.cost))
             ties = sorted({p.engine for p in within if p.engine != winner.engine and _same_error(p, winner)})
@@ -273,7 +281,7 @@ def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, li
 class EqualCost:
     """Two families compared over the cost range where both have runs ([low, high] s/s; None: no overlap).
 
-    focus / other : each side's most accurate run costing ≤ high. ratio : other error / focus error
+    focus / other : each side's most accurate run that may cost ≤ high (:func:`_fits`). ratio : other error / focus error
     (> 1: the focus is more accurate); tie : the errors agree within the reference's error bars.
     """
 
@@ -293,8 +301,8 @@ def equal_cost(focus_points: Sequence[Point], other_points: Sequence[Point]) -> 
     high = min(max(p.cost for p in focus_points), max(p.cost for p in other_points))
     if low > high:
         return EqualCost(None, None, None, None, None, False)
-    mine = min((p for p in focus_points if p.cost <= high), key=lambda p: (p.error, p.cost))
-    theirs = min((p for p in other_points if p.cost <= high), key=lambda p: (p.error, p.cost))
+    mine = min((p for p in focus_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
+    theirs = min((p for p in other_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
     return EqualCost(low, high, mine, theirs, theirs.error / mine.error, _same_error(mine, theirs))
 
 

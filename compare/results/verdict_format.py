@@ -56,7 +56,7 @@ def _rankings(verdict: SceneVerdict) -> list[str]:
             lines.append(f"    {winner.reach.engine:<{width}}  {winner.reach.describe()}"
                          + (f"; tie: {', '.join(winner.ties)}" if winner.ties else ""))
     if verdict.budget is not None:
-        lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s):")
+        lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s, within a cost's interval):")
         width = max((len(b.point.engine) for b in verdict.best if b.point is not None), default=0)
         for best in verdict.best:
             if best.point is None:
