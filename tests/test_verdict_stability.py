@@ -189,3 +189,18 @@ def test_equal_cost_counts_a_run_a_rerun_may_put_within_the_budget():
     budget, best = best_at_equal_cost(found)
     assert budget == pytest.approx(1e-3)
     assert [(b.family, b.point.dt) for b in best] == [("a", 0.001), ("b", 0.001), ("c", 0.01)]
+
+
+def test_a_run_without_cpu_times_gets_the_same_resolution_as_a_modelled_one():
+    # tests/fixtures/run-v1-smoke predates CPU timing: each case has one wall-clock cost and no CPU times.
+    # Its interval must be as wide as a fitted model's least (RESOLUTION either side), not zero-width,
+    # or two variants a timing's noise apart would never tie.
+    from compare.results.cost import RESOLUTION, cpu_times, modelled
+    from compare.results.store import load_results
+
+    records = load_results(Path(__file__).parent / "fixtures" / "run-v1-smoke").records
+    assert records and all(cpu_times(r) == [] for r in records)
+    for record in records:
+        cost, low, high = modelled(None, record)
+        assert cost == record.metrics["cost_per_simulated_second"]
+        assert low == pytest.approx(cost / RESOLUTION) and high == pytest.approx(cost * RESOLUTION)

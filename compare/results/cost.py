@@ -38,8 +38,7 @@ def _positive(value: Any) -> TypeGuard[float]:
 
 def cpu_times(record: CaseRecord) -> list[float]:
     """s, the CPU time of each repeat of ``record``'s run (empty when not recorded)."""
-    values = getattr(record, "cpu_times", None) or record.extra.get("cpu_times") or []
-    return [float(v) for v in values if _positive(v)]
+    return [float(v) for v in record.cpu_times or () if _positive(v)]
 
 
 def steps(record: CaseRecord) -> int | None:
@@ -137,10 +136,11 @@ def metric_cost(record: CaseRecord) -> float | None:
 
 def modelled(model: CostModel | None, record: CaseRecord) -> tuple[float, float, float] | None:
     """(cost, low, high) s/s of ``record`` under its variant's ``model``; the record's own metric when
-    the variant has no model (then low = high = cost); None without either."""
+    the variant has no model (a run without CPU times: one wall-clock sample, so its interval is at least
+    RESOLUTION either side, as a model's is); None without either."""
     if model is None:
         value = metric_cost(record)
-        return None if value is None else (value, value, value)
+        return None if value is None else (value, *_widened(value, value, value))
     duration = (record.scene or {}).get("duration")
     n = steps(record) if record.case.tolerance is not None else None
     return model.per_simulated_second(record.case.dt, n, duration if _positive(duration) else None)

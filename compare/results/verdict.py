@@ -252,7 +252,7 @@ def _fits(p: Point, budget: float) -> bool:
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
     """(budget s/s, per family in suite order its most accurate run that may cost ≤ budget (:func:`_fits`));
-    see the module docstring.
+    see docs/architecture.md, "Module notes".
 
     A family with no ok run gets ``Best(family, None)``.
     """
@@ -497,7 +497,7 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
 
 @dataclass(frozen=True)
 class SceneVerdict:
-    """Everything the verdict says about one scene (see the module docstring for each quantity).
+    """Everything the verdict says about one scene (each quantity: docs/architecture.md, "Module notes").
 
     length : L, m. target : TARGET_FRACTION · L, m. reaches : per competing variant, suite order.
     budget : s/s, the equal-cost budget; best : per family its most accurate run within it.
