@@ -252,3 +252,11 @@ def param_option(help: str = "Scene parameter (see 'xval scenes'); repeatable.")
 def engine_option_option(help: str = "Engine option (see 'xval engines'); repeatable."):
     """``--option NAME=VALUE`` (repeatable) into ``options``; read with ``parse_assignments(options, "--option")``."""
     return click.option("--option", "options", multiple=True, metavar="NAME=VALUE", help=help)
+
+
+def model_option(use: str):
+    """``--model MODEL`` into ``model``: a model file in place of a catalog SCENE; ``use`` says what is done with it."""
+    return click.option("--model", "model", default=None, metavar="MODEL",
+                        help=f"{use} a model file instead of a catalog SCENE (a URDF or MJCF path, or "
+                             "pybullet_data:<path>); --param q0.JOINT=DEG (metres for prismatic), v0.JOINT=RAD/S "
+                             "(docs/models.md).")

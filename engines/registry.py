@@ -103,8 +103,30 @@ def engine_names() -> list[str]:
 # -- loading ---------------------------------------------------------------------
 
 
+#: Modules of engines/ before it was split into folders by job, by where they are now: a plugin written
+#: against them fails to import, and its error says where to import from.
+MOVED = {
+    **{f"engines.{n}": f"engines.scene.{n}" for n in ("limits", "catalog", "trajectory", "pendulum", "tree")},
+    "engines.reference_mechanisms": "engines.reference.mechanisms",
+    "engines.closed_form": "engines.reference.closed_form",
+    **{f"engines.{n}": f"engines.adapters.{n}"
+       for n in ("mujoco", "pybullet", "pymunk", "drake", "dart", "mjx", "ours")},
+    **{f"engines.{n}": f"engines.external.{n}" for n in ("protocol", "command", "plugin")},
+}
+#: Old modules that are packages now, by where their contents went.
+BECAME_PACKAGES = {"engines": "engines.scene.catalog, engines.external.plugin, …",
+                   "engines.scene": "engines.scene.scene", "engines.reference": "engines.reference.reference"}
+
+
 def _failure(exc: BaseException) -> str:
-    return f"{type(exc).__name__}: {exc}".splitlines()[0]
+    message = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    name = exc.name if isinstance(exc, ImportError) else None
+    if isinstance(exc, ModuleNotFoundError) and name in MOVED:
+        return f"{message}; {name} is {MOVED[name]} now: import it from there"
+    if isinstance(exc, ImportError) and not isinstance(exc, ModuleNotFoundError) and name in BECAME_PACKAGES:
+        return (f"{message}; {name} is a package of modules now ({BECAME_PACKAGES[name]}): import from the module, "
+                f"or take what a plugin needs from engines.external.plugin (docs/plugins.md)")
+    return message
 
 
 def _adopt(obj: Any, who: str) -> Engine:
@@ -229,8 +251,8 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
     cannot load here.
     """
     if ":" in engine_id:
-        target, _, variant = engine_id.partition("/")
-        return load_path(target), (variant or None)
+        target, _, given = engine_id.partition("/")
+        return load_path(target), (given or None)
     name, variant = parse_engine_id(engine_id)
     if name == "command" and name not in BUILTIN:  # an outside program (engines.external.command), registered by label
         from engines.external.command import registered

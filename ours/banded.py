@@ -10,6 +10,7 @@ Lagrangian form uses for its mass matrix.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from numba import njit
 
@@ -29,12 +30,14 @@ def _has_nrt_switch() -> bool:
 #: increfs and decrefs each array argument (atomic operations), which measured
 #: about 2x slower per step on the double pendulum. The price: compiled code must
 #: not allocate, so callers pass in preallocated scratch arrays. ``_nrt`` is
-#: numba's switch for this (an underscored option of numba 0.68's ``njit``).
-_OPTIONS = {"cache": True, "_nrt": False} if _has_nrt_switch() else {"cache": True}
-compiled = njit(**_OPTIONS)
+#: numba's switch for this (an underscored option of numba 0.68's ``njit``),
+#: passed as a dict: numba's type stubs leave the underscored option out. Without
+#: it (another numba), the same results: the compiled code allocates nothing either way.
+_NO_RUNTIME: dict[str, Any] = {"_nrt": False} if _has_nrt_switch() else {}
+compiled = njit(cache=True, **_NO_RUNTIME)
 #: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
 #: per-constraint functions called inside the step, where a call would copy every array argument).
-inlined = njit(**_OPTIONS, inline="always")
+inlined = njit(cache=True, inline="always", **_NO_RUNTIME)
 
 
 def inlined_into(*callers: str):
@@ -48,7 +51,7 @@ def inlined_into(*callers: str):
         return caller.func_id.func_name in callers
 
     in_a_hot_caller.__qualname__ = f"inlined_into{callers}"
-    return njit(**_OPTIONS, inline=in_a_hot_caller)
+    return njit(cache=True, inline=in_a_hot_caller, **_NO_RUNTIME)
 
 
 @compiled

@@ -10,20 +10,7 @@ d = xᵢ − x_other, so its Jacobian is g = ∂C/∂d on i and −g on j:
 
     C = ½(‖d‖² − l²)   (m²),   g = d   (m),   J̇q̇ = ‖ḋ‖² = ‖vᵢ − vⱼ‖²   (m²/s²)
 
-so each class only says which ends it joins and its length.
-
-The compiled loop (``ours.kernel``) reads the packed form from :meth:`encode`:
-(i, j, anchor, kind, parameters, scale). To add a kind that depends on d
-alone: a class here whose ``encode`` returns a new kind code and its
-parameters, and one branch for that code in ``ours.kernel.constraint_value``
-(C and g) and ``ours.kernel.constraint_rate`` (J̇q̇ and Ċ); the specialised
-copies of the kernel (``ours.specialize``) pick the branch up with no other
-change. A curve is the same with the anchor as its fixed end. The numpy
-methods here are the readable closed forms, used by tests and the dense
-check against the compiled banded solve.
-
-Indices are particle indices of the :class:`ours.system.System`; positions
-``q`` and velocities ``v`` are (n_particles, dim) arrays in m and m/s.
+Details: docs/ours.md, "Module notes", ``ours/constraint.py``.
 """
 
 from __future__ import annotations
@@ -82,7 +69,11 @@ class DistanceConstraint:
 
     def _d(self, x: np.ndarray) -> np.ndarray:
         i, j, anchor = self.ends()
-        return x[i] - (x[j] if j >= 0 else np.asarray(anchor[: x.shape[1]]))
+        if j >= 0:
+            return x[i] - x[j]
+        if anchor is None:
+            raise ModelError(f"{type(self).__name__}: one end is fixed (j = -1) but it has no anchor point")
+        return x[i] - np.asarray(anchor[: x.shape[1]])
 
     def value(self, q: np.ndarray) -> float:
         """C(q) = ½(‖d‖² − l²), m²."""
@@ -256,7 +247,7 @@ def _planar_point(value, field: str) -> tuple[float, float]:
     point = _point(value, field)
     if len(point) != 2:
         raise ModelError(f"{field}: curve constraints are planar (2-D systems); give 2 numbers, got {value!r}")
-    return point  # type: ignore[return-value]
+    return point
 
 
 @dataclass(frozen=True)

@@ -85,12 +85,12 @@ def atomic_write(path: str | os.PathLike, data: str | bytes, *, durable: bool = 
     if info is not None and not stat.S_ISREG(info.st_mode):
         if stat.S_ISDIR(info.st_mode):
             raise IsADirectoryError(21, "is a directory", str(target))
-        with open(target, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
+        with open(target, "wb" if binary else "w", newline=None if binary else "") as handle:
             handle.write(data)  # a device or FIFO is written, never replaced
         return
     fd, tmp = _temporary_beside(target, stat.S_IMODE(info.st_mode) if info is not None else None)
     try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else {"newline": ""})) as handle:
+        with os.fdopen(fd, "wb" if binary else "w", newline=None if binary else "") as handle:
             handle.write(data)
             handle.flush()
             if durable:

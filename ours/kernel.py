@@ -4,28 +4,7 @@ Everything here is numba-compiled (``ours.banded.compiled``: cached, no
 reference counting). The compiled code allocates nothing: scratch arrays come
 from :func:`workspace`.
 
-Specialisation. The sizes the loops run over come from the small functions in
-the block marked ``SIZES`` (``_dim``: 2 or 3). ``ours.specialize`` writes a
-copy of this file in which that block returns constants (``_dim`` → 2), so
-LLVM unrolls the per-coordinate loops and keeps them in registers; that copy is
-what :func:`ours.simulate` runs. Imported as it stands, this module is the
-generic form (sizes read from the arrays at run time) with the same results
-bit for bit, except that a copy for at most 3 constraints solves J W Jᵀ in
-closed form (``_closed_form``; round-off apart).
-
-Constraints. Every constraint k joins its first particle i to an "other end"
-(particle j, or the fixed point ``anchor[k]`` when j = −1) and depends only on
-the separation d = xᵢ − x_other. So its Jacobian row is g on i and −g on j, with
-g = ∂C/∂d, and J W Jᵀ has (k, l) entry Σ_p ±w_p g_k·g_l over the particles p
-they share (the ``pair_*`` tables of :class:`ours.system.Packed`). What a kind
-contributes — C, g, J̇q̇ and the scale of its violation — is in
-:func:`constraint_value` and :func:`constraint_rate`, one branch per kind; a
-new kind is one branch in each (and a class in ``ours.constraint``).
-
-Shapes: P particles, C constraints, dim 2 or 3. ``model`` is the tuple
-(inverse_mass (P,), force (P, dim), ends (C, 2), anchor (C, dim), kind (C,),
-param (C, n_param), scale (C,), pair_k, pair_l, pair_w (N,), bandwidth) of
-:class:`ours.system.Packed`.
+Details: docs/ours.md, "Module notes", ``ours/kernel.py``.
 """
 
 from __future__ import annotations
@@ -41,8 +20,8 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 #: The functions of an explicit step (Runge–Kutta, symplectic Euler): the bodies of the functions
 #: they call per stage are pasted into them (``ours.banded.inlined_into``). A call between compiled
 #: functions copies every field of every array argument (``model`` alone is 11 arrays) onto the
-#: stack; pasted, the double pendulum's RK4 step took about 0.25 µs instead of 0.45–0.68 µs, for
-#: a few seconds more of compilation, once per kernel (``bench/bench_ours.py``).
+#: stack; pasted, the double pendulum's RK4 step costs about half as much, for about a quarter more
+#: compile time, once per kernel (``bench/bench_ours.py``; the figures are in docs/ours.md).
 _STEP = ("run", "rk_step", "acceleration", "multipliers")
 in_the_step = inlined_into(*_STEP)
 

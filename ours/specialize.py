@@ -1,26 +1,11 @@
 """Specialised copies of ``ours.kernel``: the same source with its sizes made compile-time constants.
 
-``kernel_for(dim, sizes)`` returns a module with the functions of
-``ours.kernel`` in which the size functions of its SIZES block return
-constants: ``_dim`` always, and for a small system (:func:`sizes_of`) also
-the numbers of particles, constraints, band columns and band entries. LLVM
-then unrolls those loops and keeps their values in registers (the double
-pendulum's RK4 step: about 670 ns generic, 420 ns per-dim, 340 ns fully
-specialised; ``bench/bench_ours.py``). The arithmetic and its order are
-unchanged, so the results are the generic kernel's bit for bit, with one
-exception: a copy for at most 3 constraints solves J W Jᵀ λ = r by Cramer's
-rule instead of Cholesky (``ours.kernel.solve_closed``), which moves the last
-bits (``scripts/ours_equivalence.py``: at most 3.2e-13 relative over 539 runs).
+``kernel_for(dim, sizes)`` returns ``ours.kernel``'s functions with the size functions of its SIZES
+block returning constants, so LLVM unrolls those loops; results are the generic kernel's bit for bit
+(but Cramer's rule for at most 3 constraints). The copy is written once per kernel source under the
+user cache directory, named by a hash of the source it depends on.
 
-The copy is written once per kernel source to
-``<cache>/ours/ours_kernel_d<dim>[_p…c…b…n…]_<hash>.py`` (``<cache>`` from
-:func:`ours.files.cache_dir`) and imported from there; numba caches its
-machine code next to it like any other module, so a later process compiles
-nothing. The name carries a hash of the kernel's text and of the files it
-calls (``banded.py``, ``constraint.py``, ``status.py``), so an edit to any of
-them makes a new copy and numba never runs stale machine code; a new
-constraint kind added to ``ours.kernel`` reaches the copies that way. Nothing
-here names a kind or a scene.
+Details: docs/ours.md, "Module notes", ``ours/specialize.py``.
 """
 
 from __future__ import annotations
@@ -104,6 +89,8 @@ def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> Modu
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(path, source.encode("utf-8"), durable=False)  # a concurrent process never imports half a file
     spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:  # a .py path always has a loader; say so if that ever changes
+        raise ImportError(f"cannot load the specialised kernel module {path}")
     module = importlib.util.module_from_spec(spec)
     # Registered before it runs: numba's cache finds a function's module by this name.
     sys.modules[name] = module

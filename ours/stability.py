@@ -10,9 +10,7 @@ symplectic Euler (kick, then drift with the new velocity) maps it to
 M = [[1 − h²k_s, h(1 − h k_d)], [−h k_s, 1 − h k_d]]. The feedback is
 stable when the spectral radius ρ of that step matrix is ≤ 1.
 
-The engines adapter (engines/adapters/ours.py) offers this through the engine
-protocol (``Engine.spectral_radius`` / ``Engine.largest_stable_dt``), so the
-stability search and the gain map never import ours.
+Details: docs/ours.md, "Module notes", ``ours/stability.py``.
 """
 
 from __future__ import annotations
@@ -99,6 +97,7 @@ def largest_stable_dt(integrator: str, k_s: float, k_d: float, h_max: float = 10
     return lo
 
 
-def critical_limit(integrator: str) -> float:
-    """h·√k_s at the stability limit for critical damping (k_d = 2√k_s), from the theory (dimensionless)."""
+def critical_limit(integrator: str) -> float | None:
+    """h·√k_s at the stability limit for critical damping (k_d = 2√k_s), from the theory (dimensionless);
+    None for an integrator the theory does not cover."""
     return largest_stable_dt(integrator, 1.0, 2.0)

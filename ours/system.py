@@ -92,7 +92,7 @@ class System:
                     )
                 continue
             _, j, anchor = c.ends()
-            if j < 0 and len(anchor) != len(gravity):
+            if j < 0 and anchor is not None and len(anchor) != len(gravity):
                 raise ModelError(
                     f"constraints[{k}]: the fixed point has {len(anchor)} coordinates but the system is "
                     f"{len(gravity)}-D; give it {len(gravity)}"

@@ -42,7 +42,7 @@ def _frame(sample: Any, box: float) -> list[Any] | None:
     """One sample (P, 3) m as [[x, z] | None per particle]; None for a missing sample."""
     if sample is None:
         return None
-    out = []
+    out: list[Any] = []
     for p in sample:
         if p is None or p[0] is None or p[2] is None or abs(p[0]) > box or abs(p[2]) > box:
             out.append(None)

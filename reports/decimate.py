@@ -11,13 +11,13 @@ sample) are kept as gaps.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from typing import Sequence, TypeGuard
 
 #: Most points drawn per trace.
 MAX_POINTS = 2000
 
 
-def _finite(value: object) -> bool:
+def _finite(value: object) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and math.isfinite(value)
 
 
@@ -32,28 +32,29 @@ def lttb_indices(x: Sequence[float], y: Sequence[float | None], limit: int = MAX
     limit = max(limit, 3)
     keep = [0]
     every = (n - 2) / (limit - 2)
+    values = [v if _finite(v) else math.nan for v in y]  # gaps as NaN: floats from here on
     a = 0
     for bucket in range(limit - 2):
         start = int(bucket * every) + 1
         stop = min(int((bucket + 1) * every) + 1, n - 1)
         nxt_start, nxt_stop = stop, min(int((bucket + 2) * every) + 1, n)
-        nxt = [(x[i], y[i]) for i in range(nxt_start, nxt_stop) if _finite(y[i])]
+        nxt = [(x[i], values[i]) for i in range(nxt_start, nxt_stop) if math.isfinite(values[i])]
         if nxt:
             mean_x = sum(p[0] for p in nxt) / len(nxt)
             mean_y = sum(p[1] for p in nxt) / len(nxt)
         else:
             mean_x, mean_y = x[min(nxt_start, n - 1)], 0.0
-        gap = next((i for i in range(start, stop) if not _finite(y[i])), None)
-        if gap is not None and _finite(y[keep[-1]]):
+        gap = next((i for i in range(start, stop) if not math.isfinite(values[i])), None)
+        if gap is not None and math.isfinite(values[keep[-1]]):
             keep.append(gap)  # a break in the line must survive the thinning
             a = gap
             continue
-        ya = y[a] if _finite(y[a]) else 0.0
+        ya = values[a] if math.isfinite(values[a]) else 0.0
         best, area = start, -1.0
         for i in range(start, stop):
-            if not _finite(y[i]):
+            if not math.isfinite(values[i]):
                 continue
-            value = abs((x[a] - mean_x) * (y[i] - ya) - (x[a] - x[i]) * (mean_y - ya))
+            value = abs((x[a] - mean_x) * (values[i] - ya) - (x[a] - x[i]) * (mean_y - ya))
             if value > area:
                 best, area = i, value
         keep.append(best)

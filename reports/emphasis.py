@@ -12,20 +12,23 @@ from __future__ import annotations
 
 from typing import Any, Iterable
 
-from compare.results.verdict import scene_verdicts
+from compare.results.verdict import SceneVerdict, scene_verdicts
 
 from reports.load import SceneResults
+from reports.palette import GREY
 
-#: Colour of a variant the verdict does not name, and its line width.
-GREY = "#c4c4c4"
+#: Line width of a variant the verdict does not name (its colour: reports.palette.GREY).
 GREY_WIDTH = 1.0
 
 
 def named_variants(scene: SceneResults) -> set[str]:
-    """Labels of the variants the verdict names for ``scene`` (front, family winners and their ties)."""
-    if not scene.sweeps:
-        return set()
-    verdict = scene_verdicts(scene.sweeps)[0]
+    """Labels of the variants the verdict names for ``scene`` (front, family winners and their ties); the report
+    computes each scene's verdict once and calls :func:`named_by` with it."""
+    return named_by(scene_verdicts(scene.sweeps)[0]) if scene.sweeps else set()
+
+
+def named_by(verdict: SceneVerdict) -> set[str]:
+    """Labels of the variants ``verdict`` names: those with a run on the front, family winners and their ties."""
     named = {p.engine for p in verdict.front}
     for winner in verdict.winners:
         named.add(winner.reach.engine)
@@ -44,8 +47,8 @@ def emphasise(figure: dict[str, Any], engines: Iterable[str | None], named: set[
     grey = [engine is not None and engine not in named for engine in engines]
     if not any(grey) or all(grey[k] or engines[k] is None for k in range(len(traces))):
         return figure
-    coloured = {"line.color": [], "marker.color": [], "line.width": [], "opacity": []}
-    muted = {key: [] for key in coloured}
+    coloured: dict[str, list[Any]] = {"line.color": [], "marker.color": [], "line.width": [], "opacity": []}
+    muted: dict[str, list[Any]] = {key: [] for key in coloured}
     for trace, off in zip(traces, grey):
         line, marker = trace.get("line") or {}, trace.get("marker") or {}
         own = {"line.color": line.get("color"), "marker.color": marker.get("color", line.get("color")),

@@ -6,18 +6,7 @@ Python has to do is produce JSON, and building dicts is much faster than
 validating graph objects (the tests validate the specs against plotly's
 schema instead).
 
-Every string from a results file that plotly.js renders (trace names, hover
-text) goes through :func:`plot_text`: plotly.js interprets a subset of HTML
-in those strings, so an engine label such as ``<b>x</b>`` would otherwise be
-rendered as markup. HTML-escaped text is decoded back to the literal
-characters by plotly.js, so the user sees exactly what the file says.
-
-Colours come from :class:`reports.palette.Palette` (a hue per engine
-family, the same in every report); legends list a family's variants
-together under the family's name. Time series are thinned to at most
-:data:`reports.decimate.MAX_POINTS` points a trace, and a value past
-``CLIP_FACTOR`` × its bound is drawn at that ceiling and marked "blew up at
-t = …", so no axis is stretched by a blow-up.
+Details: docs/architecture.md, "Module notes", ``reports/figures.py``.
 """
 
 from __future__ import annotations
@@ -25,7 +14,7 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
@@ -88,7 +77,7 @@ def _rounded(values: Iterable[Any]) -> list[Any]:
     return [_round(v) for v in values]
 
 
-def _positive(value: Any) -> bool:
+def _positive(value: Any) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and math.isfinite(value) and value > 0
 
 
@@ -148,7 +137,9 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
     if x_key == "cost":
         found = points(sweep)
         return [p.cost for p in found], [p.error for p in found], [[plot_text(sweep.engine), p.dt] for p in found]
-    xs, ys, custom = [], [], []
+    xs: list[float] = []
+    ys: list[float] = []
+    custom: list[list[Any]] = []
     for record in sweep.records:
         dt = record.case.dt
         if x_key == "dt" and record.case.tolerance is not None:
@@ -367,7 +358,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
 
 def _norms(forces: Sequence[Any], constraint: int) -> list[Any]:
     """‖F‖ (N) of one constraint over samples; None where a sample is missing."""
-    out = []
+    out: list[Any] = []
     for sample in forces:
         f = None if sample is None or constraint >= len(sample) else sample[constraint]
         if f is None or any(c is None for c in f):
@@ -526,12 +517,12 @@ def _reference_positions(scene: SceneResults) -> tuple[list[Any] | None, str]:
     them, else from the reference engine's own case (at the chosen dt, or any).
     """
     for _, _, record in _chosen_cases(scene):
-        if (record.series or {}).get("reference_positions"):
-            return record.series["reference_positions"], "the reference solution"
+        if (stored := (record.series or {}).get("reference_positions")):
+            return stored, "the reference solution"
     for sweep in (s for s in scene.sweeps if s.is_reference):
         for record in sorted(sweep.records, key=lambda r: r.case.dt != scene.chosen_dt):
-            if record.status is Status.OK and (record.series or {}).get("positions"):
-                return record.series["positions"], f"{sweep.engine} at dt = {record.case.dt:.3g} s"
+            if record.status is Status.OK and (stored := (record.series or {}).get("positions")):
+                return stored, f"{sweep.engine} at dt = {record.case.dt:.3g} s"
     return None, ""
 
 
@@ -543,7 +534,8 @@ def _particle_xz(positions: list[Any], particle: int) -> tuple[list[Any], list[A
 
 def _clip_path(xs: list[Any], zs: list[Any], box: float) -> tuple[list[Any], list[Any]]:
     """A path cut where it leaves ±``box`` m (a blow-up), so the axes keep to the scene."""
-    out_x, out_z = [], []
+    out_x: list[Any] = []
+    out_z: list[Any] = []
     for x, z in zip(xs, zs):
         if x is None or z is None or abs(x) > box or abs(z) > box:
             out_x.append(None)
@@ -600,16 +592,17 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
 
 
 def scene_plots(scene: SceneResults, number: int, palette: Palette | None = None,
-                ceilings: Ceilings | None = None) -> list[Plot]:
+                ceilings: Ceilings | None = None, named: set[str] | None = None) -> list[Plot]:
     """Every plot of ``scene`` that has something to draw, in page order.
 
     number : the scene's position on the page; DOM ids are built from it
     (``s0-wp``), never from the scene id, which comes from a file.
     ceilings : where blow-ups are clipped (default: CLIP_FACTOR × L, 1 E*, 0.1 L).
+    named : the variants in colour (default: those the scene's verdict names, reports.emphasis).
     """
     palette = palette or Palette(s.engine for s in scene.sweeps)
     ceilings = ceilings or Ceilings.for_scene(scene.length, 1.0, 0.1)
-    named = named_variants(scene)
+    named = named_variants(scene) if named is None else named
     built = (work_precision(scene, palette), error_vs_dt(scene, palette), time_series(scene, palette, ceilings, named=named),
              constraint_forces(scene, palette, ceilings), phase_plot(scene, palette), paths(scene, palette))
     for plot in built:

@@ -8,13 +8,7 @@ commit; hover = commit, date, run, value, status). Step changes found by
 compare.history.trend.steps are marked on the figure (a dashed line before
 the first run after the step) and listed at the top of the page.
 
-Same conventions as the main report (reports/render.py): Jinja2 with
-autoescaping, plotly.js and each section's figure specs packed by the same
-packer (reports/pack.py: gzip as 7-bit text, unpacked in the browser), a
-Content-Security-Policy that forbids any request: it works offline. The data
-is thinned for the page: values to 3 significant digits (what the hover
-shows), and each point's hover label is built in the page from one label per
-run instead of stored per point. A plot is drawn as it nears the window.
+Details: docs/architecture.md, "Module notes", ``reports/history.py``.
 """
 
 from __future__ import annotations
@@ -105,7 +99,7 @@ def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Serie
             })
             for step in s.steps:
                 x = s.points[step.index].order - 0.5
-                colour_step = "#d62728" if step.verdict == "worse" else "#2ca02c"
+                colour_step = "#d62728" if step.outcome == "worse" else "#2ca02c"
                 layout["shapes"].append({
                     "type": "line", "xref": f"x{axis}", "yref": f"y{axis} domain", "x0": x, "x1": x, "y0": 0, "y1": 1,
                     "line": {"color": colour_step, "dash": "dash", "width": 2},
@@ -113,7 +107,7 @@ def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Serie
                 ratio = f"×{step.ratio:.3g}" if step.ratio is not None else f"{step.before:.3g} → {step.after:.3g}"
                 layout["annotations"].append({
                     "xref": f"x{axis}", "yref": f"y{axis} domain", "x": x, "y": 1, "yanchor": "bottom", "showarrow": False,
-                    "text": plot_text(f"{ratio} {step.verdict}"), "font": {"size": 10, "color": colour_step},
+                    "text": plot_text(f"{ratio} {step.outcome}"), "font": {"size": 10, "color": colour_step},
                 })
     title = f"{scene} · {engine}"
     caption = (f"{len(runs)} runs; one row per metric, one line per dt; a dashed line marks a step change "
@@ -133,7 +127,9 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
         groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
     name_of = {fingerprint: runs[0].machine.name for (fingerprint, _), runs in groups.items()}
     alike = Counter(name_of.values())
-    sections, figures, step_rows = [], [], []
+    sections: list[dict[str, Any]] = []
+    figures: list[Plot] = []
+    step_rows = []
     packs: dict[str, Markup] = {}
     for (fingerprint, suite_name), runs in groups.items():
         runs = runs[-last:] if last else runs
@@ -149,9 +145,9 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
                     "machine": machine, "suite": suite_name, "scene": s.scene_id, "engine": s.engine, "dt": s.dt,
                     "metric": s.metric.name, "unit": s.metric.unit, "commit": point.commit, "run": point.run_id,
                     "date": point.date, "before": step.before, "after": step.after, "ratio": step.ratio,
-                    "verdict": step.verdict,
+                    "outcome": step.outcome,
                 })
-        plots = []
+        plots: list[Plot] = []
         for (scene, engine), series in variants.items():
             plots.append(_variant_figure(len(figures) + len(plots), scene, engine, series, runs))
         figures.extend(plots)
@@ -170,7 +166,7 @@ def group_steps(step_rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Steps of one variant at one run in one direction, as one row: the metrics and dts it moved, the ratios' range."""
     grouped: dict[tuple, dict[str, Any]] = {}
     for row in step_rows:
-        key = (row["machine"], row["suite"], row["scene"], row["engine"], row["run"], row["verdict"])
+        key = (row["machine"], row["suite"], row["scene"], row["engine"], row["run"], row["outcome"])
         group = grouped.setdefault(key, {**row, "metrics": [], "dts": [], "ratios": []})
         if row["metric"] not in group["metrics"]:
             group["metrics"].append(row["metric"])
@@ -184,7 +180,7 @@ def group_steps(step_rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         group["ratio_text"] = "–" if not ratios else (
             f"×{min(ratios):.3g}" if f"{min(ratios):.3g}" == f"{max(ratios):.3g}" else f"×{min(ratios):.3g} … ×{max(ratios):.3g}")
         group["dts"] = sorted(group["dts"], reverse=True)
-    out.sort(key=lambda g: (g["verdict"] != "worse", g["machine"], g["suite"], g["scene"], g["engine"], g["run"]))
+    out.sort(key=lambda g: (g["outcome"] != "worse", g["machine"], g["suite"], g["scene"], g["engine"], g["run"]))
     return out
 
 

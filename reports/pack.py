@@ -37,7 +37,7 @@ def seven_bit(data: bytes) -> str:
     values = bits.reshape(-1, 7).astype(np.uint32) @ _WEIGHTS
     codes, keep = values.copy(), np.ones(len(values), dtype=bool)
     skip = -1
-    for i in np.flatnonzero(np.isin(values, ILLEGAL)):  # ~3 in 128 of the values
+    for i in np.flatnonzero(np.isin(values, ILLEGAL)).tolist():  # ~3 in 128 of the values
         if i == skip:  # already carried by the character before it
             continue
         k = ILLEGAL.index(int(values[i]))

@@ -24,6 +24,8 @@ SHADES = (0.30, 0.40, 0.50, 0.60, 0.35, 0.45, 0.55, 0.65)
 #: Dashes a variant may get, so two variants of one family differ even when their shades are close.
 DASHES = ("solid", "dash", "dot", "dashdot", "longdash")
 REFERENCE_COLOUR = "rgba(0,0,0,0.45)"
+#: Colour of a variant a plot mutes (one the verdict does not name: reports.emphasis).
+GREY = "#c4c4c4"
 #: Marker symbols a variant may get (plotly names), so variants of one family differ in shape as well.
 SYMBOLS = ("circle", "square", "diamond", "triangle-up", "triangle-down", "cross", "x", "star", "pentagon",
            "hexagon")

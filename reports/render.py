@@ -11,8 +11,7 @@ bits to a character, 1.68 MB instead of 4.8 MB for plotly.js); the page unpacks 
 browser's own DecompressionStream and makes no request, so it works offline
 and attached to a CI run or a mail.
 
-The page opens with the verdict (:mod:`reports.verdict`); every other plot
-is built when its section is opened.
+Details: docs/architecture.md, "Module notes", ``reports/render.py``.
 """
 
 from __future__ import annotations
@@ -38,7 +37,6 @@ from compare.suite.reader import RunSettings, load_run_settings
 from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
-from reports.emphasis import named_variants
 from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
 from reports.load import ReportData, load_report_data
 from reports.pack import pack, packed_text, template_values
@@ -86,6 +84,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     settings = suite_settings(data.path)
     palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
     verdicts = verdict_views(data, palette, focus)
+    named = {view.number: view.named for view in verdicts}  # each scene's verdict, computed once, colours its plots
     scenes: list[dict[str, Any]] = []
     for number, scene in enumerate(data.scenes):
         ceilings = Ceilings.for_scene(scene.length, settings["energy_bound"], settings["constraint_bound"],
@@ -94,7 +93,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "number": number,
             "results": scene,
             "tables": summary_tables(scene, palette) if scene.sweeps else [],
-            "plots": scene_plots(scene, number, palette, ceilings),
+            "plots": scene_plots(scene, number, palette, ceilings, named.get(number, set())),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
             "parity": parity_view(data.path, scene.scene_id, scene.scene) if scene.scene.get("kind") == "model" else None,
@@ -102,22 +101,21 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
     packs: dict[str, Markup] = {}
     pack_of: dict[str, str] = {}
-    for scene in scenes:
-        name = f"pack-{scene['number']}"
-        items: dict[str, Any] = {p.id: p.figure for p in scene["plots"]}
-        results = scene["results"]
-        if any(p.id == f"s{scene['number']}-ts" for p in scene["plots"]):
+    for entry in scenes:
+        name = f"pack-{entry['number']}"
+        items: dict[str, Any] = {p.id: p.figure for p in entry["plots"]}
+        results = entry["results"]
+        if any(p.id == f"s{entry['number']}-ts" for p in entry["plots"]):
             # The time series at the scene's other dts: the dt selector switches the plot with the table.
-            named = named_variants(results)
             for j, dt in enumerate(results.dts):
                 if dt != results.chosen_dt:
-                    other = time_series(results, palette, scene["ceilings"], dt, named)
+                    other = time_series(results, palette, entry["ceilings"], dt, named.get(entry["number"], set()))
                     if other is not None:
-                        items[f"s{scene['number']}-ts@{j}"] = other.figure
-        if scene["animation"] is not None:
-            items[f"anim-{scene['number']}"] = scene["animation"].data
+                        items[f"s{entry['number']}-ts@{j}"] = other.figure
+        if entry["animation"] is not None:
+            items[f"anim-{entry['number']}"] = entry["animation"].data
         packs[name] = pack(items)
-        pack_of.update({p.id: name for p in scene["plots"]})
+        pack_of.update({p.id: name for p in entry["plots"]})
     stability = stability_context(data.path)  # None unless DIR holds xval stability output
     if stability is not None:
         plots = plots + stability["plots"]

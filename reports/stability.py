@@ -85,16 +85,19 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
     for index, scene in enumerate(document.get("scenes") or {}):
         ys, patterns, hover = [], [], []
         for engine in engines:
-            result = by_pair.get((scene, engine))
-            verdict = None if result is None else result["verdict"]
+            result = by_pair.get((scene, engine)) or {}
+            verdict = result.get("verdict")
             if verdict == BOUNDED:
-                ys.append(result["largest_stable_dt"]), patterns.append(""), hover.append("largest stable dt")
+                y, pattern, text = result["largest_stable_dt"], "", "largest stable dt"
             elif verdict == STABLE_AT_LARGEST:
-                ys.append(result["largest_stable_dt"]), patterns.append("/"), hover.append("stable at the largest dt tried")
+                y, pattern, text = result["largest_stable_dt"], "/", "stable at the largest dt tried"
             elif verdict == UNSTABLE_AT_SMALLEST and dt_min:
-                ys.append(dt_min / 2), patterns.append("x"), hover.append(f"UNSTABLE even at {dt_min:g} s")
+                y, pattern, text = dt_min / 2, "x", f"UNSTABLE even at {dt_min:g} s"
             else:
-                ys.append(None), patterns.append(""), hover.append("skipped" if verdict == SKIPPED else "not searched")
+                y, pattern, text = None, "", "skipped" if verdict == SKIPPED else "not searched"
+            ys.append(y)
+            patterns.append(pattern)
+            hover.append(text)
         traces.append({
             "type": "bar", "name": plot_text(scene), "x": [plot_text(e) for e in engines], "y": ys,
             "marker": {"color": PALETTE[index % len(PALETTE)], "pattern": {"shape": patterns}},

@@ -1,8 +1,10 @@
 """The per-scene summary tables: one per dt of the scene, one row per engine variant, best value per column marked.
 
 The columns are the declared metrics (:mod:`compare.results.declared`)
-with ``report = True``, then the per-variant observed order: a metric
-declared for the report gets a column with no edit here.
+with ``report = True``, the CPU cost of the case from its variant's cost
+model (compare.results.cost: what the verdict ranks by, not the wall-clock
+``cost_per_simulated_second``), then the per-variant observed order: a
+metric declared for the report gets a column with no edit here.
 
 Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
@@ -19,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from compare.results import declared
+from compare.results.cost import modelled
 from compare.results.record import Status
 from compare.results.sweep import VariantSweep
 
@@ -59,6 +62,16 @@ def metric_columns() -> tuple[Column, ...]:
         columns.append(Column(metric.name, metric.title or metric.name, metric.unit, better, metric.missing, fmt,
                               metric.description))
     return tuple(columns)
+
+
+#: Key of the CPU-cost column in a row's values (no declared metric: it comes from the variant's cost model).
+CPU_COST = "cpu_cost"
+
+
+def cost_column() -> Column:
+    return Column(CPU_COST, "CPU cost", "s/s", "low", "–", _exponent,
+                  "CPU time of the stepping loop per simulated second from the variant's cost model: per-step cost "
+                  "× steps per simulated second (hover a value for its interval)")
 
 
 def order_column() -> Column:
@@ -147,7 +160,7 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool],
 
 
 #: Metrics whose error bar is the reference's own (``reference_error``, m).
-REFERENCE_BARRED = ("position_error_final", "position_error_l2", "position_error_linf")
+REFERENCE_BARRED = ("position_error_final", "position_error_rms", "position_error_linf")
 #: A constraint error under this many ε·L is the round-off of a constraint the formulation holds exactly.
 ROUND_OFF = 64 * 2.220446049250313e-16
 BY_CONSTRUCTION = "0 (by construction)"
@@ -162,14 +175,22 @@ def _sort_key(column: Column, value: Any) -> str:
     return ""
 
 
+def _title(column: Column, cost: tuple[float, float, float] | None) -> str:
+    """The tooltip of a CPU-cost cell: its interval."""
+    return f"interval [{cost[1]:.2e}, {cost[2]:.2e}] s/s" if column.key == CPU_COST and cost is not None else ""
+
+
 def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette | None = None) -> SummaryTable:
     """The summary table of ``scene`` at ``dt`` (s; default its chosen dt)."""
     dt = scene.chosen_dt if dt is None else dt
     palette = palette or Palette(s.engine for s in scene.sweeps)
-    columns = metric_columns()
+    columns = metric_columns() + (cost_column(),)
     order_col = order_column()
     cases = [scene.case_at(sweep, dt) for sweep in scene.sweeps]
-    metrics = [(case.metrics if case is not None else {}) for case in cases]
+    costs = [modelled(sweep.cost, case) if case is not None and case.has_metrics else None
+             for sweep, case in zip(scene.sweeps, cases)]
+    metrics = [{**(case.metrics if case is not None else {}), CPU_COST: None if cost is None else cost[0]}
+               for case, cost in zip(cases, costs)]
     # The reference is the yardstick, not a competitor: its zero error would always be "best".
     ok = [case is not None and case.status is Status.OK and not sweep.is_reference
           for case, sweep in zip(cases, scene.sweeps)]
@@ -185,9 +206,11 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
                 for v in values]
         bars = [float((case.reference or {}).get("reference_error") or 0.0) if case is not None
                 and col.key in REFERENCE_BARRED else 0.0 for case in cases]
+        if col.key == CPU_COST:  # a cost is best only beyond its interval (what a rerun may give)
+            bars = [0.0 if c is None else max(c[2] - c[0], c[0] - c[1]) for c in costs]
         flags = _best_flags(col, values, [o and not u and not z for o, u, z in zip(ok, unknown, zero)], bars)
         cells = []
-        for value, best, case, unknown_here, zero_here in zip(values, flags, cases, unknown, zero):
+        for value, best, case, cost, unknown_here, zero_here in zip(values, flags, cases, costs, unknown, zero):
             if case is None or not case.metrics or not case.metrics.get("n_samples"):
                 # A run with no samples (it raised at once) has drift and constraint error 0 by
                 # definition; printing those zeros would read as a perfect result.
@@ -198,7 +221,8 @@ def summary_table(scene: SceneResults, dt: float | None = None, palette: Palette
                 cells.append(Cell(BY_CONSTRUCTION, title=f"{value:.2g} m: round-off (under 64 ε·L); not ranked",
                                   sort="0"))
             else:
-                cells.append(Cell(col.missing if value is None else col.fmt(value), best, sort=_sort_key(col, value)))
+                cells.append(Cell(col.missing if value is None else col.fmt(value), best, _title(col, cost),
+                                  sort=_sort_key(col, value)))
         columns_cells.append(cells)
     orders = [s.order.order if s.order is not None else None for s in scene.sweeps]
     order_flags = _best_flags(order_col, orders, [o is not None and not s.is_reference for o, s in zip(orders, scene.sweeps)])

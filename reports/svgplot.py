@@ -16,15 +16,22 @@ from typing import Sequence
 
 from markupsafe import Markup
 
+from reports.palette import GREY
+
 
 @dataclass(frozen=True)
 class Series:
-    """One variant's points: name (legend), colour, group (legend heading), and (x, y, hover text) triples."""
+    """One variant's points: name (legend), colour, group (legend heading), and (x, y, hover text) triples.
+
+    muted : drawn grey and under the others until the page asks for every colour (its own colour is kept
+    in the CSS variable ``--own``: a rule ``.all-colour g.series.muted {fill: var(--own)}`` brings it back).
+    """
 
     name: str
     colour: str
     group: str
     points: Sequence[tuple[float, float, str]]
+    muted: bool = False
 
 
 def _escape(text: str) -> str:
@@ -43,8 +50,9 @@ def _tick_label(exponent: int) -> str:
 def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *, x_title: str, y_title: str,
                target: float | None = None, target_label: str = "", width: int = 720, height: int = 420,
                element_id: str = "") -> Markup:
-    """An SVG log–log plot: ``series`` as dots (one ``<g>`` per series, ``data-series`` = its index), ``front``
-    as a black staircase (step after each point), an optional dotted horizontal line at ``target``."""
+    """An SVG log–log plot: ``series`` as dots (one ``<g>`` per series, ``data-series`` = its index; muted ones
+    grey and drawn first, under the others), ``front`` as a black staircase (step after each point), an
+    optional dotted horizontal line at ``target``."""
     xs = [p[0] for s in series for p in s.points if p[0] > 0]
     ys = [p[1] for s in series for p in s.points if p[1] > 0]
     if target is not None and target > 0:
@@ -85,12 +93,17 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
                      f'stroke-dasharray="3 3"/>')
         parts.append(f'<text x="{left + plot_w - 4}" y="{y - 4:.1f}" text-anchor="end" fill="#777" font-size="10">'
                      f'{_escape(target_label)}</text>')
-    for index, s in enumerate(series):
+    for index, s in sorted(enumerate(series), key=lambda item: not item[1].muted):  # muted first: underneath
         dots = "".join(
-            f'<circle cx="{px(x):.1f}" cy="{py(y):.1f}" r="4"><title>{_escape(text)}</title></circle>'
+            f'<circle cx="{px(x):.1f}" cy="{py(y):.1f}" r="{3 if s.muted else 4}"><title>{_escape(text)}</title></circle>'
             for x, y, text in s.points if x > 0 and y > 0
         )
-        parts.append(f'<g class="series" data-series="{index}" fill="{_escape(s.colour)}" fill-opacity="0.8">{dots}</g>')
+        if s.muted:
+            parts.append(f'<g class="series muted" data-series="{index}" fill="{GREY}" fill-opacity="0.7" '
+                         f'style="--own: {_escape(s.colour)}">{dots}</g>')
+        else:
+            parts.append(f'<g class="series" data-series="{index}" fill="{_escape(s.colour)}" fill-opacity="0.8">'
+                         f'{dots}</g>')
     if front:
         path = [f"M{px(front[0][0]):.1f},{py(front[0][1]):.1f}"]
         for (xb, yb) in front[1:]:

@@ -1,19 +1,9 @@
 """The report's first section: per scene, the answer before the tables.
 
-From :mod:`compare.results.verdict` (the same numbers ``xval run`` ends
-with), arranged for the page:
+Per scene, from :mod:`compare.results.verdict`: the Pareto front of error against cost, the cost to
+reach the tolerance, the focus family against the best other, the stability heat map and the problems.
 
-1. the Pareto front of error against cost over every variant and dt (inline SVG, drawn without
-   plotly.js, so the verdict shows as soon as the page is parsed);
-2. the cost to reach 1e-6·L per variant (a sortable table);
-3. the focus family's best against the best other engine, as a ratio (a sentence);
-4. a stability heat map, variants × dt, each cell coloured by its status and
-   linking to that case's row in the scene's tables;
-5. the problems (inconsistent, failed, timed out, unstable, hidden dissipation
-   where a probe result is stored), each linking to its evidence.
-
-DOM ids are built from positions (scene number, variant number, dt number),
-never from strings in the results.
+Details: docs/architecture.md, "Module notes", ``reports/verdict.py``.
 """
 
 from __future__ import annotations
@@ -27,6 +17,7 @@ from compare.results.verdict import (
 from markupsafe import Markup
 
 from compare.stability.dissipation import load_probe_files
+from reports.emphasis import named_by
 from reports.load import ReportData, SceneResults
 from reports.palette import Palette
 from reports.svgplot import Series, loglog_svg
@@ -91,29 +82,41 @@ class SceneVerdictView:
     dts: list[float]
     heat: list[HeatRow]
     problems: list[ProblemItem] = field(default_factory=list)
+    named: set[str] = field(default_factory=set)  # the variants the verdict names (plots colour only these)
 
 
 @dataclass(frozen=True)
 class LegendEntry:
-    """One variant in the Pareto plot's legend: its series index in the SVG, label and colour."""
+    """One variant in the Pareto plot's legend: its series index in the SVG, label, colour, and whether it is
+    muted (grey until "all variants in colour")."""
 
     index: int
     engine: str
     colour: str
+    muted: bool = False
 
 
 @dataclass(frozen=True)
 class ParetoPlot:
-    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries)."""
+    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries); muted : some
+    variants are grey (the page then offers "all variants in colour")."""
 
     svg: Markup
     legend: list[tuple[str, list[LegendEntry]]]
+    muted: bool = False
 
 
-def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette: Palette) -> ParetoPlot | None:
-    """Every ok (cost, error) point of every competing variant, and the Pareto front; None when there is none."""
+def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette: Palette,
+                named: set[str] | None = None) -> ParetoPlot | None:
+    """Every ok (cost, error) point of every competing variant, and the Pareto front; None when there is none.
+
+    named : the variants in colour (default: every one); the others grey, as the plotly plots mute theirs,
+    unless that would grey all or none.
+    """
     competing = {r.engine for r in verdict.reaches}
     sweeps = [s for s in scene.sweeps if s.engine in competing]
+    drawn = [s.engine for s in sweeps if points(s)]
+    mute = named is not None and any(e in named for e in drawn) and any(e not in named for e in drawn)
     order: dict[str, int] = {}
     for sweep in sweeps:
         order.setdefault(family(sweep.engine), len(order))
@@ -125,16 +128,17 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
         if not pts:
             continue
         colour = palette.colour(sweep.engine)
+        muted = mute and sweep.engine not in named  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
-            for p in pts]))
-        groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour))
+            for p in pts], muted))
+        groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour, muted))
     if not series:
         return None
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}")
-    return ParetoPlot(svg, list(groups.items()))
+    return ParetoPlot(svg, list(groups.items()), mute)
 
 
 def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> str:
@@ -158,7 +162,8 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
     for number, scene in enumerate(data.scenes):
         if not scene.sweeps:
             continue
-        verdict = scene_verdicts(scene.sweeps, focus)[0]
+        verdict = scene_verdicts(scene.sweeps, focus)[0]  # once per scene: the plots' colours come from it too
+        named = named_by(verdict)
         variants = {s.engine: k for k, s in enumerate(scene.sweeps)}
         heat = []
         for k, sweep in enumerate(scene.sweeps):
@@ -191,6 +196,7 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
         else:
             sentence = f"only one engine family ran on this scene; nothing to compare {focus} with"
         views.append(SceneVerdictView(number, scene.scene_id, verdict, sentence,
-                                      pareto_plot(scene, number, verdict, palette), reaches, scene.dts, heat, items))
+                                      pareto_plot(scene, number, verdict, palette, named), reaches, scene.dts, heat,
+                                      items, named))
     return views
 

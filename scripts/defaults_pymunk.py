@@ -95,13 +95,16 @@ def measure(case: Case) -> list[tuple[str, str, float, float, float, float]]:
     return rows
 
 
+def table_head(title: str, *columns: str) -> list[str]:
+    """The Markdown lines that open one table of this script's output: its heading and header rows."""
+    return [f"### {title}", "", "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+
+
 def table(case: Case, rows) -> str:
-    lines = [
-        f"### {case.label}",
-        "",
-        "| setting | status | constraint error (m) | energy drift (E*) | position error, first 1 s (m) | cost (s/s) |",
-        "|---|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        case.label,
+        "setting", "status", "constraint error (m)", "energy drift (E*)", "position error, first 1 s (m)", "cost (s/s)",
+    )
     for label, status, c_err, drift, p_err, cost in rows:
         lines.append(f"| {label} | {status} | {c_err:.2g} | {drift:.2g} | {p_err:.2g} | {cost:.2g} |")
     return "\n".join(lines)
@@ -110,12 +113,10 @@ def table(case: Case, rows) -> str:
 def long_run_energy() -> str:
     """Signed energy change of the 60° bead over 100 s: is the default bias's loss steady?"""
     scene = catalog.build("bead", {"duration": 100.0})
-    lines = [
-        "### bead, 60°, 100 s, dt = 1e-3: signed energy change (E − E(0)) / E*",
-        "",
-        "| setting | at 10 s | at 100 s | max abs over 100 s |",
-        "|---|---|---|---|",
-    ]
+    lines = table_head(
+        "bead, 60°, 100 s, dt = 1e-3: signed energy change (E − E(0)) / E*",
+        "setting", "at 10 s", "at 100 s", "max abs over 100 s",
+    )
     for label, options in SETTINGS[:2]:
         run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
         series = energy_drift_series(scene, run.positions, run.velocities)
@@ -129,12 +130,10 @@ def bead_period() -> str:
     dt, theta0 = 1e-3, math.radians(10.0)
     exact = pendulum_period(1.0, 9.81, theta0)
     scene = catalog.build("bead", {"theta0": 10.0, "duration": 4 * exact})
-    lines = [
-        "### bead, 10°, dt = 1e-3: period against the elliptic-integral period",
-        "",
-        "| setting | relative period error |",
-        "|---|---|",
-    ]
+    lines = table_head(
+        "bead, 10°, dt = 1e-3: period against the elliptic-integral period",
+        "setting", "relative period error",
+    )
     for label, options in SETTINGS[:2]:
         run = ENGINE.simulate(scene, dt, variant="pin", options=options, sample_interval=dt)
         x = run.positions[:, 0, 0]
@@ -149,12 +148,10 @@ def tension_error() -> str:
     """Largest |T − T_ref| (N) on the 60° bead over 1 s (the whole tension range) at dt = 1e-3."""
     scene = catalog.build("bead", {"duration": 1.0})
     reference = solve(scene)
-    lines = [
-        "### bead, 60°, 1 s, dt = 1e-3: tension from impulse / dt against the reference",
-        "",
-        "| setting | max tension error (N) | reference tension range (N) |",
-        "|---|---|---|",
-    ]
+    lines = table_head(
+        "bead, 60°, 1 s, dt = 1e-3: tension from impulse / dt against the reference",
+        "setting", "max tension error (N)", "reference tension range (N)",
+    )
     for label, options in SETTINGS[:2]:
         run = ENGINE.simulate(scene, 1e-3, variant="pin", options=options)
         positions, _, forces = reference.at(run.t)
@@ -170,12 +167,10 @@ def large_steps() -> str:
     """Status and largest speed of the chain of 16 at large steps: does pymunk blow up?"""
     case = CASES[-1]
     scene = catalog.build(case.scene, {**case.parameters, "duration": 5.0})
-    lines = [
-        "### chain of 16, 5 s, large steps: status and largest speed",
-        "",
-        "| setting | dt (s) | status | max speed (m/s) | energy drift (E*) |",
-        "|---|---|---|---|---|",
-    ]
+    lines = table_head(
+        "chain of 16, 5 s, large steps: status and largest speed",
+        "setting", "dt (s)", "status", "max speed (m/s)", "energy drift (E*)",
+    )
     for label, options in (SETTINGS[0], SETTINGS[4]):
         for dt in (0.02, 0.05, 0.1):
             run = ENGINE.simulate(scene, dt, variant="pin", options=options)

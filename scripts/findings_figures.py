@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
-from compare.stability.probe import Probe  # noqa: E402
+from compare.stability.trial import Trial  # noqa: E402
 from compare.stability.search import search  # noqa: E402
 from compare.suite.plans import SearchSettings  # noqa: E402
 from compare.suite.reader import load_suite  # noqa: E402
@@ -74,9 +74,9 @@ def _expresses(spec, scene) -> bool:
 @functools.lru_cache(maxsize=None)
 def largest_stable(scene_id: str, label: str) -> float:
     """s: the search's largest stable dt (inf when stable at 0.05 s, 0 when unstable at 1e-4 s)."""
-    def probe(dt: float) -> Probe:
-        return Probe(dt, case(scene_id, label, dt, SEARCH.sample_interval)["status"])
-    verdict, largest, _, _ = search(probe, SEARCH)
+    def trial(dt: float) -> Trial:
+        return Trial(dt, case(scene_id, label, dt, SEARCH.sample_interval)["status"])
+    verdict, largest, _, _ = search(trial, SEARCH)
     if verdict == "stable-at-largest":
         return math.inf
     return largest if largest is not None else 0.0

@@ -25,11 +25,11 @@ docs/findings.md ("## Mechanisms") quotes this script's output:
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
 
 import numpy as np
 
+from engines import registry
 from engines.scene import catalog
 from engines.errors import Unsupported
 from engines.adapters.mujoco import STIFF
@@ -49,7 +49,7 @@ def variants():
     """(label, engine, variant, options) for every built-in variant, plus mujoco's hinge with a stiff loop."""
     out = []
     for name in ENGINES:
-        engine = importlib.import_module(f"engines.{name}").ENGINE
+        engine = registry.get_engine(name)
         out += [(f"{name}/{v}", engine, v, {}) for v in engine.variants]
         if name == "mujoco":
             out += [(f"mujoco/{v}-stiffloop", engine, v, STIFF_LOOP) for v in ("hinge", "hinge-rk4")]

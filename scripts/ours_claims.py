@@ -164,16 +164,16 @@ def _stable(integrator: str, dt: float, k_s: float, theta0: float, duration: flo
 def stability(f: dict) -> None:
     """Largest stable dt at k_s = 1e6, k_d = 2000 on the 60° bead (2 s), by the stability search's rule.
 
-    The same search as ``xval stability`` (compare/stability/search.py: two probes per decade
+    The same search as ``xval stability`` (compare/stability/search.py: two trials per decade
     from 0.05 s down, then bisection to 10 %), run in this process on ours directly.
     """
-    from compare.stability.probe import Probe
+    from compare.stability.trial import Trial
     from compare.stability.search import search
     from compare.suite.plans import SearchSettings
 
     settings = SearchSettings(dt_max=0.05, dt_min=1e-4)
     for integrator in ("euler", "symplectic-euler", "midpoint", "rk4"):
-        _, largest, _, _ = search(lambda dt: Probe(dt, "ok" if _stable(integrator, dt, 1e6, THETA0) else "unstable"),  # noqa: B023
+        _, largest, _, _ = search(lambda dt: Trial(dt, "ok" if _stable(integrator, dt, 1e6, THETA0) else "unstable"),  # noqa: B023
                                   settings)
         f[f"search_{integrator.replace('-', '_')}_ks1e6_ms"] = largest * 1e3
         f[f"theory_{integrator.replace('-', '_')}_ks1e6_ms"] = LIMITS[integrator] / 1e3 * 1e3

@@ -1,4 +1,4 @@
-"""Measure the peers' findings quoted in docs/findings.md ("The peers: Drake and MJX").
+"""Measure the peers' findings quoted in docs/findings.md ("The peers: Drake and MuJoCo MJX").
 
 Run: ``.venv/bin/python scripts/peers_findings.py`` (needs ``pip install 'xval[all]'``; a
 few minutes, most of it MJX's jit compiles and ours' dt sweep; name sections to run only

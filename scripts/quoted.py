@@ -10,8 +10,8 @@ Every script in scripts/ that docs quote defines
 
 and its ``main()`` prints its tables and then :func:`report` (every quoted figure,
 measured against quoted). tests/test_docs_figures.py calls ``figures(quick=True)``
-and fails when a doc no longer contains a quote, or a quoted number is more
-than :data:`TOLERANCE` off what the script measures now.
+and fails when a doc no longer contains a quote, or a quoted number is not what the
+script measures now rounded to the digits the doc shows (:func:`shown`).
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 ROOT = Path(__file__).resolve().parent.parent
-#: A quoted number may differ from the measured one by this fraction (round-off of the quote,
-#: machine-to-machine differences of chaotic runs); a physics change moves figures by far more.
-TOLERANCE = 0.2
 
 _NUMBER = re.compile(r"[−-]?\d[\d,]*(?:\.\d+)?(?:\s*[eE×]\s*[−-]?\d+|·10\^?[−-]?\d+)?")
+#: The digits after the decimal point, and the power of ten, of a number as _NUMBER matches it.
+_DECIMALS = re.compile(r"\.(\d+)")
+_EXPONENT = re.compile(r"(?:[eE×]|·10\^?)\s*([−-]?\d+)$")
 
 
 @dataclass(frozen=True)
@@ -92,11 +92,27 @@ def number(text: str) -> float:
     return value
 
 
-def close(measured: float, quoted: float, tolerance: float = TOLERANCE) -> bool:
-    """Whether ``measured`` is within ``tolerance`` (relative) of ``quoted``; zeros and infinities must match."""
-    if quoted == 0.0 or not math.isfinite(quoted):
-        return measured == quoted
-    return abs(measured / quoted - 1.0) <= tolerance
+def half_step(text: str) -> float:
+    """Half a unit in the last digit ``text`` shows, in the units :func:`number` reads it in: "3.8e-2" → 5e-4,
+    "0.86%" → 5e-5, "1,000 s" → 0.5; 0 for the words (true, none, ...), which must match exactly."""
+    match = _NUMBER.search(text.replace("\u2212", "-"))
+    if match is None or text.strip().strip("*`").lower() in ("true", "yes", "false", "no", "none", "never"):
+        return 0.0
+    raw = match.group(0)
+    exponent = _EXPONENT.search(raw)
+    mantissa = raw[: exponent.start()] if exponent else raw
+    decimals = _DECIMALS.search(mantissa)
+    step = 10.0 ** (-(len(decimals.group(1)) if decimals else 0) + (int(exponent.group(1).replace("−", "-")) if exponent else 0))
+    return 0.5 * step / (100.0 if text.strip().endswith("%") else 1.0)
+
+
+def shown(measured: float, text: str, unit: float = 1.0) -> bool:
+    """Whether ``measured`` (a figure, = the quoted number × ``unit``) rounds to ``text`` at the digits it shows."""
+    quoted = number(text)
+    if not math.isfinite(quoted) or not math.isfinite(measured):
+        return measured == quoted * unit
+    # A relative 1e-9 for the binary round-off of the quote's own decimal digits (0.15 is not exact).
+    return abs(measured / unit - quoted) <= half_step(text) * (1 + 1e-9) + 1e-12 * abs(quoted)
 
 
 def row_cells(doc_text: str, label: str, after: str = "") -> list[str] | None:
@@ -120,7 +136,7 @@ def row_cells(doc_text: str, label: str, after: str = "") -> list[str] | None:
 
 
 def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterable[Row]) -> list[str]:
-    """Every quote or row cell that is missing from its doc or more than TOLERANCE off; [] when all hold.
+    """Every quote or row cell that is missing from its doc or is not the figure at the digits shown; [] when all hold.
 
     Quotes and rows whose key is not in ``figures`` (left out by a quick run) are checked for
     presence in the doc only.
@@ -139,8 +155,8 @@ def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterab
         if needle not in where:
             out.append(f"{q.doc}: quote {needle!r} ({q.key}) is not in the doc")
             continue
-        if q.key in figures and not close(figures[q.key], number(q.text) * q.unit):
-            out.append(f"{q.doc}: {q.key} is quoted as {q.text} but measures {figures[q.key]:.3g}")
+        if q.key in figures and not shown(figures[q.key], q.text, q.unit):
+            out.append(f"{q.doc}: {q.key} is quoted as {q.text} but measures {figures[q.key] / q.unit:.6g}")
     for r in rows:
         cells = row_cells(text_of(r.doc), r.label, r.after)
         if cells is None:
@@ -153,8 +169,8 @@ def problems(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterab
             for one, text in pairs:
                 if one is None or one not in figures:
                     continue
-                if not close(figures[one], number(text)):
-                    out.append(f"{r.doc}: row {r.label!r}: {one} is quoted as {text} but measures {figures[one]:.3g}")
+                if not shown(figures[one], text):
+                    out.append(f"{r.doc}: row {r.label!r}: {one} is quoted as {text} but measures {figures[one]:.6g}")
     return out
 
 
@@ -164,5 +180,4 @@ def report(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterable
     for key in sorted(figures):
         print(f"{key} = {figures[key]:.4g}")
     found = problems(figures, quotes, rows)
-    print("\n" + ("\n".join(found) if found else "every quoted figure is within "
-                                                   f"{TOLERANCE:.0%} of what this run measured"))
+    print("\n" + ("\n".join(found) if found else "every quoted figure is what this run measured, to the digits shown"))

@@ -61,7 +61,7 @@ def without_cpu(baseline: Baseline) -> Baseline:
 
 def slow_rows(report) -> list[str]:
     return [f"{c.scene_id} {c.engine}: {ch.note}" for c in report.cases for ch in c.changes
-            if ch.metric == "cost_per_simulated_second" and ch.verdict == "worse" and ch.gated]
+            if ch.metric == "cost_per_simulated_second" and ch.outcome == "worse" and ch.gated]
 
 
 def main() -> None:

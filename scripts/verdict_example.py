@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from compare.results.consistency import DEFAULT_TOLERANCE  # noqa: E402
-from compare.results.cost import case_cost  # noqa: E402
+from compare.results.cost import RESOLUTION, case_cost  # noqa: E402
 from compare.results.sweep import sweeps  # noqa: E402
 from compare.results.verdict import scene_verdicts  # noqa: E402
 from test_verdict_stability import RUNS, record  # noqa: E402
@@ -33,15 +33,27 @@ def main() -> None:
         c = case_cost(r)
         print(f"   {r.case.dt:<9.3g} {c.steps:>6}  {c.cpu_min:11.3e}  {c.spread:6.0%}")
     model = hinge.cost
-    print(f"   Theil-Sen fit T = a + c·steps: c = {model.describe()} (95 %), a = {model.overhead:.2g} s")
+    print(f"   Theil-Sen fit T = a + c·steps: c = {model.describe()}, a = {model.overhead:.2g} s")
+    print(f"   (interval: {RESOLUTION:g}× either side of c, or the fits leaving out one case each where wider)")
+    per_step: dict[tuple[str, str], list[float]] = {}
+    for run in RUNS:
+        for sweep in sweeps([record(row, row["cpu_times"]) for row in run]):
+            if sweep.cost is not None:
+                per_step.setdefault((sweep.scene_id, sweep.engine), []).append(sweep.cost.per_step)
+    spread = {key: max(v) / min(v) for key, v in per_step.items()}
+    worst = max(spread, key=spread.__getitem__)
+    print(f"   one variant's c across the fixture's {len(RUNS)} runs: up to {spread[worst]:.2f}× apart "
+          f"({worst[1]} on the {worst[0]}) < {RESOLUTION:g}² = {RESOLUTION ** 2:.2g}")
     print(f"   cost per simulated s at dt 1e-3 s = c / dt = {model.per_step / 1e-3:.3g} s/s "
           f"[{model.low / 1e-3:.3g}, {model.high / 1e-3:.3g}]")
 
     verdict = {v.scene_id: v for v in scene_verdicts(found, focus="ours")}["bead"]
-    print("\n2. cost to reach 1e-6·L = 1e-06 m on the bead")
-    for reach in verdict.reaches:
-        if reach.engine in ("ours/lagrangian-rk4", "mujoco/hinge-rk4"):
-            print(f"   {reach.engine:<20} {reach.describe()}")
+    print("\n2. cost to reach 1e-6·L = 1e-06 m on the bead, cheapest first (steps per simulated s at the crossing)")
+    for reach in sorted((r for r in verdict.reaches if r.reached), key=lambda r: r.cost):
+        print(f"   {reach.engine:<25} {reach.steps:5.0f} steps/s  {reach.describe()}")
+    named = verdict.comparison.focus
+    print(f"   ours' tie (intervals linked to the cheapest's): {', '.join(sorted([named.engine, *verdict.comparison.focus_ties]))}; "
+          f"named by the fewest steps: {named.engine}")
     comparison = verdict.comparison
     print(f"   ratio = {comparison.ratio:.3g} [{comparison.ratio_low:.3g}, {comparison.ratio_high:.3g}]; "
           f"tie: {comparison.tie}")

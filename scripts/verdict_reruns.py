@@ -1,10 +1,14 @@
-"""Do reruns give the same verdict? Per scene, each run's winners, ties and ratio interval from `xval verdict --format json`.
+"""Do reruns give the same verdict? Per scene, what each run's `xval verdict --format json` names, and whether it agrees.
 
     .venv/bin/python scripts/verdict_reruns.py RESULTS_DIR RESULTS_DIR [...]
 
-Runs `xval verdict DIR --format json` on each directory (the same document users get) and prints, per scene
-and run, the focus family's winner with its ties, the best other engine with its ties, and the cost ratio
-with its interval; then whether the winners agree and every pair of ratio intervals overlaps.
+Runs `xval verdict DIR --format json` on each directory (the same document users get) and prints, per scene:
+the focus family's winner with its ties against the best other engine with its ties, and the cost ratio with
+its interval, per run; then whether every family's winner and ties, the comparison's two sides and the
+equal-cost best are the same in every run, and whether every pair of ratio intervals overlaps. Last, the
+largest run-to-run ratio of one variant's per-step CPU cost (what compare.results.cost.RESOLUTION covers),
+and the verdict over all scenes: winners, ties and comparisons; the equal-cost best apart (a statement at
+one measured budget, so a run within noise of it can fall either side).
 """
 
 from __future__ import annotations
@@ -13,40 +17,80 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 
 
-def document(directory: str) -> dict:
+def document(directory: str) -> dict[str, Any]:
     out = subprocess.run([*XVAL, "verdict", directory, "--format", "json"], capture_output=True, text=True, check=True)
     return json.loads(out.stdout)
 
 
+def named(scene: dict[str, Any]) -> dict[str, Any]:
+    """What one run's verdict names on one scene: winners with ties, the comparison's sides, the equal-cost best."""
+    c = scene["comparison"]
+    return {
+        "winners": [(w["family"], w["engine"], tuple(w["ties"])) for w in scene["winners"]],
+        "comparison": None if c is None else (c["focus"], tuple(c["focus_ties"]), c["other"], tuple(c["other_ties"])),
+        "equal-cost best": [(b["family"], b["engine"], tuple(b["ties"])) for b in scene["equal_cost"]["best"]],
+    }
+
+
+def line(name: str, scene: dict[str, Any]) -> str:
+    c = scene["comparison"]
+    if c is None:  # no second family on this scene to compare with
+        return f"  {name}: no comparison"
+    # No ratio when one side never reaches the accuracy (a plateau, or no ok points).
+    ratio = "none" if c["ratio"] is None else \
+        f"{c['ratio']:.3g} [{c['ratio_interval'][0]:.3g}, {c['ratio_interval'][1]:.3g}]"
+    return (f"  {name}: {c['focus']} (ties: {', '.join(c['focus_ties']) or 'none'}) vs "
+            f"{c['other']} (ties: {', '.join(c['other_ties']) or 'none'}); ratio {ratio}{' tie' if c['tie'] else ''}")
+
+
+def overlapping(intervals: list[list[float]]) -> bool:
+    return all(a[0] <= b[1] and b[0] <= a[1] for a in intervals for b in intervals)
+
+
 def main(directories: list[str]) -> None:
     documents = [document(d) for d in directories]
+    names = [Path(d).name for d in directories]
+    agreed, moved = True, []
     for k, scene in enumerate(documents[0]["scenes"]):
         print(f"{scene['scene']}:")
-        rows = []
-        for directory, doc in zip(directories, documents):
-            c = doc["scenes"][k]["comparison"]
-            if c is None:  # no second family on this scene to compare with
-                rows.append((set(), set(), None, None))
-                print(f"  {Path(directory).name}: no comparison")
-                continue
-            low, high = c["ratio_interval"] or (None, None)
-            winners = {c["focus"], *c["focus_ties"]}
-            others = {c["other"], *c["other_ties"]}
-            rows.append((winners, others, low, high))
-            # No ratio when one side never reaches the accuracy (a plateau, or no ok points).
-            ratio = "none" if c["ratio"] is None else f"{c['ratio']:.3g} [{low:.3g}, {high:.3g}]"
-            print(f"  {Path(directory).name}: {c['focus']} (ties: {', '.join(c['focus_ties']) or 'none'}) vs "
-                  f"{c['other']} (ties: {', '.join(c['other_ties']) or 'none'}); ratio {ratio}"
-                  f"{' tie' if c['tie'] else ''}")
-        shared = set.intersection(*(w for w, _, _, _ in rows))
-        bounded = [r for r in rows if r[2] is not None]
-        overlap = all(a[2] <= b[3] and b[2] <= a[3] for a in bounded for b in bounded)
-        print(f"  winner named in every run: {', '.join(sorted(shared)) or 'none'}; "
-              f"other side the same: {len({frozenset(o) for _, o, _, _ in rows}) == 1}; ratio intervals overlap: {overlap}")
+        runs = [doc["scenes"][k] for doc in documents]
+        for name, run in zip(names, runs):
+            print(line(name, run))
+        views = [named(run) for run in runs]
+        same = {key: all(v[key] == views[0][key] for v in views) for key in views[0]}
+        intervals = [run["comparison"]["ratio_interval"] for run in runs
+                     if run["comparison"] is not None and run["comparison"]["ratio_interval"] is not None]
+        agreed = agreed and same["winners"] and same["comparison"] and overlapping(intervals)
+        if not same["equal-cost best"]:
+            moved.append(scene["scene"])
+            for name, run in zip(names, runs):
+                budget = run["equal_cost"]["budget"]
+                changed = [b for j, b in enumerate(run["equal_cost"]["best"])
+                           if any(v["equal-cost best"][j] != named(run)["equal-cost best"][j] for v in views)]
+                print(f"  {name}: budget {budget:.3g} s/s; " + "; ".join(
+                    f"{b['engine']} dt {b['dt']:.3g} s, cost {b['cost']:.3g} s/s, error {b['error']:.3g} m"
+                    + (f" (ties: {', '.join(b['ties'])})" if b["ties"] else "")
+                    for b in changed if b["engine"] is not None))
+        print("  same in every run: " + "; ".join(f"{key} {value}" for key, value in same.items())
+              + f"; ratio intervals overlap: {overlapping(intervals)}")
+    per_step: dict[tuple[str, str], list[float]] = {}
+    for doc in documents:
+        for scene in doc["scenes"]:
+            for model in scene["cost_models"]:
+                if model["how"] != "metric":
+                    per_step.setdefault((scene["scene"], model["engine"]), []).append(model["per_step"])
+    spread = {key: max(v) / min(v) for key, v in per_step.items() if len(v) == len(documents)}
+    if spread:
+        worst = max(spread, key=spread.__getitem__)
+        print(f"largest run-to-run ratio of a per-step cost: {spread[worst]:.2f} ({worst[1]} on {worst[0]}, "
+              f"{len(spread)} variants timed in every run)")
+    print(f"winners, ties and comparisons the same in every run, ratio intervals overlapping: {agreed}")
+    print(f"equal-cost best the same in every run: {not moved}" + (f" (not on {', '.join(moved)})" if moved else ""))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""What the tests share: the xval command, the environment its processes need, one poller, and fixtures.
+"""What the tests share: the xval command (and :func:`run_xval`), the environment its processes need,
+one poller, and fixtures.
 
 The test-only modules beside this file (compare_engines, plugin_engines, gate_support, ...) and the
 scripts are importable because pyproject.toml's ``[tool.pytest.ini_options] pythonpath`` puts tests/
@@ -9,6 +10,7 @@ and scripts/ on the path: no test edits ``sys.path``. A process a test starts ge
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -25,6 +27,13 @@ XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 XVAL_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), str(ROOT)])}
 
 T = TypeVar("T")
+
+
+def run_xval(*args: object, timeout: float = 120, **options) -> subprocess.CompletedProcess:
+    """``xval ARGS...`` in a process of its own, from the repository root with :data:`XVAL_ENV`: its exit
+    code and output as text (``options`` go to subprocess.run)."""
+    return subprocess.run(XVAL + [str(a) for a in args], cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True,
+                          timeout=timeout, **options)
 
 
 def wait_for(predicate: Callable[[], T], seconds: float, what: str, interval: float = 0.05) -> T:

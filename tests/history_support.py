@@ -33,7 +33,7 @@ TESTS = Path(__file__).resolve().parent
 SUITE = TESTS / "gate_suite.toml"
 #: The variant the regressions are planted in.
 ENGINE = "reference/loose"
-ERRORS = ("position_error_linf", "position_error_l2", "position_error_final")
+ERRORS = ("position_error_linf", "position_error_rms", "position_error_final")
 TIMING = ("wall_time", "cost_per_simulated_second")
 T0 = _dt.datetime(2026, 11, 1, 12, 0, tzinfo=_dt.timezone.utc)
 

@@ -224,18 +224,11 @@ name = '{HOSTILE}'
 description = '{HOSTILE}'
 duration = 0.2
 dt = [1e-2, 5e-3]
-
-[[scenes]]
-id = "bead"
-scene = "bead"
-
-[[engines]]
-id = "pymunk/pin"
-label = '{HOSTILE}'
-
-[[engines]]
-id = "report_support:BROKEN/raise"
-label = "broken/raise"
+scenes = [{{ id = "bead", scene = "bead" }}]
+engines = [
+    {{ id = "pymunk/pin", label = '{HOSTILE}' }},
+    {{ id = "report_support:BROKEN/raise", label = "broken/raise" }},
+]
 """
 
 

@@ -161,13 +161,22 @@ def test_no_engine_adapter_imports_another():
     assert wrong == []
 
 
+def test_model_scenes_reach_adapters_through_one_dispatch():
+    """engines.adapter.Engine routes a model file to _check_model / _run_model; no adapter of
+    engines/adapters/ tests a scene for being one (the special case each used to write)."""
+    testing = [(path.name, line.strip()) for path in sorted((ROOT / "engines" / "adapters").glob("*.py"))
+               for line in path.read_text().splitlines() if "is_model" in line]
+    # ours' preload passes over model scenes (nothing to compile ahead): a loop over scenes, not a dispatch.
+    assert testing == [("ours.py", "if scene.is_model:  # rigid bodies: compiled when their run is set up")]
+
+
 #: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
-#: same rank). The errors and the scene language are what every engine speaks; the engine protocol
-#: (adapter) and the one stepping loop on it (recorder) are built on them; each adapter of an engine
-#: library, and each kind of engine from outside xval (processes, plugins), on those; the robot models
-#: import files through the adapters' libraries; the reference integrates scenes and models; the registry
-#: names them all.
-ENGINE_PARTS = {"errors": 0, "files": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
+#: same rank). The errors, the file helpers, the silencing of C libraries' prints (stdio) and the scene
+#: language are what every engine speaks; the engine protocol (adapter) and the one stepping loop on it
+#: (recorder) are built on them; each adapter of an engine library, and each kind of engine from outside
+#: xval (processes, plugins), on those; the robot models import files through the adapters' libraries;
+#: the reference integrates scenes and models; the registry names them all.
+ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
                 "model": 5, "reference": 6, "registry": 7}
 
 
@@ -185,6 +194,22 @@ def test_no_import_in_engines_points_back_up_or_across():
                 continue
             if ENGINE_PARTS[to[1]] >= ENGINE_PARTS[parts[1]]:
                 wrong.append(f"{path.relative_to(ROOT)} ({parts[1]}) imports {target} ({to[1]})")
+    assert wrong == []
+
+
+def test_a_model_import_uses_only_its_own_engine_s_adapter():
+    """engines/model/<engine>.py loads a file with <engine>'s library: importing another engine's adapter
+    would make it fail where that other library is missing (DART's import without PyBullet)."""
+    adapters = {m.rpartition(".")[2] for m in builtin_adapters().values() if m.startswith("engines.adapters.")}
+    wrong = []
+    for engine in sorted(adapters):
+        path = ROOT / "engines" / "model" / f"{engine}.py"
+        if not path.is_file():
+            continue
+        for target in imports_of(path):
+            parts = target.split(".")
+            if parts[:2] == ["engines", "adapters"] and len(parts) > 2 and parts[2] != engine:
+                wrong.append(f"engines.model.{engine} imports {target}")
     assert wrong == []
 
 

@@ -10,7 +10,6 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import distributed
@@ -23,7 +22,7 @@ from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
 from engines.errors import UserError
-from conftest import ROOT, XVAL, XVAL_ENV, wait_for
+from conftest import ROOT, XVAL, XVAL_ENV, run_xval, wait_for
 
 
 
@@ -119,16 +118,17 @@ def test_a_killed_worker_fails_only_its_case(cluster, tmp_path):
     engines = ["compare_engines:MISBEHAVING/kill-worker", "compare_engines:MISBEHAVING/exact",
                "compare_engines:MISBEHAVING/kill", "compare_engines:MISBEHAVING/sleep",
                "compare_engines:MISBEHAVING/raise", "mujoco/hinge"]
-    start = time.perf_counter()
-    summary = run_on_cluster(parse_suite(suite_text(engines, timeout=3)), tmp_path / "r", cluster.scheduler_address)
-    assert time.perf_counter() - start < 60
+    # Timing-robust on a loaded machine: the timeout (20 s) is ~100× what exact, raise and hinge take on a
+    # quiet one (a restarted worker's imports included), so only the hour-long sleeper reaches it; no wall-clock
+    # bound on the run (a hang is pytest-timeout's to catch).
+    summary = run_on_cluster(parse_suite(suite_text(engines, timeout=20)), tmp_path / "r", cluster.scheduler_address)
     status = {r.case.engine.split("/")[-1]: (r.status, r.message) for r in load_results(tmp_path / "r").records}
     # The worker killer took down a worker on each of its two attempts (allowed-failures = 1, as the local pool retries once).
     assert status.pop("kill-worker")[0] == "failed"
     assert status == {
         "exact": ("ok", ""),
         "kill": ("failed", "the engine's process died (signal SIGKILL) before returning a result"),
-        "sleep": ("timeout", "ran past the timeout of 3 s and was killed; raise --timeout if it is only slow"),
+        "sleep": ("timeout", "ran past the timeout of 20 s and was killed; raise --timeout if it is only slow"),
         "raise": ("failed", "RuntimeError: deliberate failure in the stepping loop"),
         "hinge": ("ok", ""),
     }
@@ -162,11 +162,9 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
         out = tmp_path / "r"
         run = subprocess.Popen(XVAL + ["run", str(suite_file), "--output", str(out), "--scheduler", address],
                                cwd=ROOT, env=XVAL_ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        wait_for(lambda: len(list((out / "cases").glob("*.json"))) >= 3, 60, "3 finished cases")
+        wait_for(lambda: len(list((out / "cases").glob("*.json"))) >= 3, 180, "3 finished cases")
         os.killpg(started[0].pid, signal.SIGKILL)
-        killed = time.monotonic()
-        stdout, stderr = run.communicate(timeout=60)
-        assert time.monotonic() - killed < 20
+        stdout, stderr = run.communicate(timeout=120)  # the run notices the lost scheduler (a hang fails here)
         assert run.returncode == 1, stderr
         assert stderr.splitlines()[-1] == (f"xval: error: lost the connection to the Dask scheduler at {address}; "
                                            f"the finished cases are in {out}: run again with --resume")
@@ -177,8 +175,8 @@ def test_a_lost_scheduler_stops_the_run_and_resume_finishes_it(tmp_path):
     finally:
         for process in started:
             with_group_killed(process)
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    # --timeout 10: the sleeper's (an hour) stops it; raise, the other case left, needs far less even under load.
+    resumed = run_xval("run", str(suite_file), "--output", str(out), "--resume", "--timeout", "10")
     assert resumed.returncode == 0, resumed.stderr
     assert "2 cases run" in resumed.stdout and "3 already done" in resumed.stdout
     status = {r.case.engine: r.status for r in load_results(out).records}
@@ -198,8 +196,7 @@ def test_scheduler_local_from_the_command_line(tmp_path):
     suite_file = tmp_path / "s.toml"
     suite_file.write_text(suite_text(["pymunk/pin", "compare_engines:MISBEHAVING/raise"]))
     out = tmp_path / "r"
-    run = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--scheduler", "local:2"],
-                         cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    run = run_xval("run", str(suite_file), "--output", str(out), "--scheduler", "local:2")
     assert run.returncode == 0, run.stderr
     assert f"results: {out}" in run.stdout and "2 cases run" in run.stdout
     status = {r.case.engine: (r.status, r.message) for r in load_results(out).records}

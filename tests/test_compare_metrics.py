@@ -44,10 +44,10 @@ def test_constant_offset_gives_that_error_everywhere(exact):
     e = position_error(p + np.array([0.3, 0.0, 0.4]), p)
     np.testing.assert_allclose(e, 0.5, rtol=1e-12)
     summary = summarize_error(e)
-    assert summary.final == pytest.approx(0.5) and summary.l2 == pytest.approx(0.5) and summary.linf == pytest.approx(0.5)
+    assert summary.final == pytest.approx(0.5) and summary.rms == pytest.approx(0.5) and summary.linf == pytest.approx(0.5)
 
 
-def test_error_is_max_over_particles_and_l2_is_rms():
+def test_error_is_max_over_particles_and_rms_is_the_root_mean_square():
     reference = np.zeros((2, 2, 3))
     moved = reference.copy()
     moved[0, 1] = [0.0, 0.0, 3.0]  # sample 0: particle 1 off by 3 m
@@ -56,7 +56,7 @@ def test_error_is_max_over_particles_and_l2_is_rms():
     np.testing.assert_allclose(e, [3.0, 4.0])
     summary = summarize_error(e)
     assert (summary.final, summary.linf) == (4.0, 4.0)
-    assert summary.l2 == pytest.approx(math.sqrt((9 + 16) / 2))
+    assert summary.rms == pytest.approx(math.sqrt((9 + 16) / 2))
 
 
 def test_divergence_time_is_the_first_sample_strictly_above_delta_L():

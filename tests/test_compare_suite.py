@@ -62,7 +62,7 @@ def test_geometric_sweep():
 
 
 def test_missing_file():
-    with pytest.raises(UserError, match=r"^nope\.toml: no such suite file; pass the path of a \.toml suite"):
+    with pytest.raises(UserError, match=r"^nope\.toml: no such file; pass the path of a suite: a UTF-8 \.toml file"):
         load_suite("nope.toml")
 
 
@@ -104,7 +104,7 @@ def test_unknown_key_in_a_table():
 
 def test_unknown_tolerance_metric():
     bad(GOOD + "\n[tolerances]\nspeed = 1.0\n",
-        "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_linf, position_error_l2, "
+        "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_linf, position_error_rms, "
         "position_error_final, divergence_time, energy_drift, constraint_error, constraint_force_error, "
         "observed_order, momentum_drift, cost_per_simulated_second")
 

@@ -199,7 +199,8 @@ def test_a_bad_option_value_is_a_user_error_naming_the_option(options, message):
 
 
 def test_the_iterations_default_is_what_a_fresh_client_reports():
-    from engines.adapters.pybullet import _pb, quiet_output
+    from engines.adapters.pybullet import _pb
+    from engines.stdio import quiet_output
 
     with quiet_output():
         client = _pb.connect(_pb.DIRECT)

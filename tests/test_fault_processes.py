@@ -20,7 +20,7 @@ from pathlib import Path
 from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
-from conftest import HERE, ROOT, XVAL, XVAL_ENV, wait_for
+from conftest import HERE, ROOT, XVAL, XVAL_ENV, run_xval, wait_for
 
 
 
@@ -91,8 +91,7 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
     try:
         # 2 case hosts, 2 `sleep` children of the children engine.
         seen = wait_for_hosts(first, 4)
-        second = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT,
-                                env=XVAL_ENV, capture_output=True, text=True, timeout=60)
+        second = run_xval("run", str(suite_file), "--output", str(out), "--resume", timeout=60)
         assert second.returncode == 2
         assert second.stderr.strip() == (f"xval: error: --output: {out} is being written by another xval run "
                                          f"(pid {first.pid}); wait for it to finish, or stop it, then run again "
@@ -106,8 +105,7 @@ def test_kill_9_leaves_no_process_a_second_run_is_locked_out_and_resume_finishes
         kill_all(seen)
         first.communicate(timeout=30)
     assert json.loads((out / "run.json").read_text())["finished"] is None
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    resumed = run_xval("run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1")
     assert resumed.returncode == 0, resumed.stderr
     results = load_results(out)
     assert results.header["finished"] is not None
@@ -134,8 +132,7 @@ def test_sigterm_stops_the_run_leaves_no_process_nor_temporary_and_resume_finish
         kill_all(seen)
     assert [p.name for p in out.rglob("*.tmp")] == []
     assert len(list((out / "cases").glob("*.json"))) == 1
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1"],
-                             cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True, timeout=120)
+    resumed = run_xval("run", str(suite_file), "--output", str(out), "--resume", "--timeout", "1")
     assert resumed.returncode == 0, resumed.stderr
     assert "1 already done" in resumed.stdout
 
@@ -157,7 +154,7 @@ def test_the_reference_solve_runs_under_the_case_timeout(tmp_path):
     [record] = load_results(tmp_path / "r").records
     assert ("reference failed (the reference of scene 'bead' ran past the timeout of 2 s and was killed): "
             "no reference-based metric") in record.message
-    for name in ("position_error_linf", "position_error_l2", "position_error_final", "divergence_time"):
+    for name in ("position_error_linf", "position_error_rms", "position_error_final", "divergence_time"):
         assert record.metrics[name] is None, name  # null: not measured (the message says why), never "never diverged"
 
 
@@ -183,16 +180,14 @@ def test_a_full_disk_mid_run_is_one_line_exit_1_and_resume_finishes(tmp_path):
     suite_file.write_text('dt = [1e-2]\nengines = ["mujoco/hinge"]\n[[scenes]]\nscene = "bead"\nparameters = { duration = 0.3 }\n'
                           '[[scenes]]\nscene = "double-pendulum"\nparameters = { duration = 1.0 }\n')
     out = tmp_path / "r"
-    full = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--jobs", "1"], cwd=ROOT, env=XVAL_ENV,
-                          capture_output=True, text=True, timeout=120, preexec_fn=_small_files)
+    full = run_xval("run", str(suite_file), "--output", str(out), "--jobs", "1", preexec_fn=_small_files)
     assert full.returncode == 1, full.stderr
     [line] = full.stderr.strip().splitlines()[-1:]
     assert line.startswith("xval: error: ") and "File too large: no room to write" in line
     assert "Traceback" not in full.stderr
     assert [p.name for p in out.rglob("*.tmp")] == []
     assert [r.case.scene_id for r in load_results(out).records] == ["bead"]  # the finished case is kept
-    resumed = subprocess.run(XVAL + ["run", str(suite_file), "--output", str(out), "--resume"], cwd=ROOT, env=XVAL_ENV,
-                             capture_output=True, text=True, timeout=120)
+    resumed = run_xval("run", str(suite_file), "--output", str(out), "--resume")
     assert resumed.returncode == 0, resumed.stderr
     assert "1 already done" in resumed.stdout
     assert len(load_results(out).records) == 2

@@ -261,30 +261,35 @@ def test_a_missing_case_of_the_same_suite_fails_the_gate_and_is_named(runs, reru
 REMAKE = "make it again with 'xval baseline DIR --output {path}' from a results directory of the suite"
 
 
+def baseline_error(runs, capsys, baseline: Path) -> str:
+    """The error of ``xval gate`` on the session's rerun against ``baseline``: exit 2, nothing on stdout,
+    one line on stderr (returned without its ``xval: error:`` prefix and newline)."""
+    code, out, err = xval(capsys, "gate", runs["rerun"], "--baseline", baseline)
+    assert (code, out) == (2, "")
+    assert err.startswith("xval: error: ") and err.count("\n") == 1 and err.endswith("\n"), err
+    return err[len("xval: error: "):-1]
+
+
 def test_no_such_baseline(runs, tmp_path, capsys):
     path = tmp_path / "nosuch.json"
-    code, out, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
-    assert (code, out) == (2, "")
-    assert err == f"xval: error: --baseline: {path}: no such file; {REMAKE.format(path=path)}\n"
+    assert baseline_error(runs, capsys, path) == f"--baseline: {path}: no such file; {REMAKE.format(path=path)}"
 
 
 def test_a_baseline_that_is_not_json(runs, tmp_path, capsys):
     path = tmp_path / "broken.json"
     path.write_text('{"kind": "xval-baseline",\n')
-    code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
-    assert code == 2
-    assert err == (
-        f"xval: error: --baseline: {path}: not valid JSON (Expecting property name enclosed in double quotes "
-        f"at line 2); {REMAKE.format(path=path)}\n"
+    assert baseline_error(runs, capsys, path) == (
+        f"--baseline: {path}: not valid JSON (Expecting property name enclosed in double quotes at line 2); "
+        f"{REMAKE.format(path=path)}"
     )
 
 
 def test_a_json_file_that_is_not_a_baseline(runs, tmp_path, capsys):
     path = tmp_path / "other.json"
     path.write_text("[1, 2, 3]\n")
-    code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
-    assert code == 2
-    assert err == f'xval: error: --baseline: {path}: not an xval baseline (no "kind": "xval-baseline"); {REMAKE.format(path=path)}\n'
+    assert baseline_error(runs, capsys, path) == (
+        f'--baseline: {path}: not an xval baseline (no "kind": "xval-baseline"); {REMAKE.format(path=path)}'
+    )
 
 
 def edited_baseline(runs, path: Path, **changes) -> Path:
@@ -298,21 +303,16 @@ def edited_baseline(runs, path: Path, **changes) -> Path:
 
 def test_a_baseline_of_an_old_schema(runs, tmp_path, capsys):
     path = edited_baseline(runs, tmp_path / "old.json", schema_version=0)
-    code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
-    assert code == 2
-    assert err == (
-        f"xval: error: --baseline: {path}: baseline schema version 0, but this xval reads version 1; "
-        f"{REMAKE.format(path=path)}\n"
+    assert baseline_error(runs, capsys, path) == (
+        f"--baseline: {path}: baseline schema version 0, but this xval reads version 1; {REMAKE.format(path=path)}"
     )
 
 
 def test_a_baseline_of_another_suite(runs, tmp_path, capsys):
     path = edited_baseline(runs, tmp_path / "smoke.json", suite={"name": "smoke"})
-    code, _, err = xval(capsys, "gate", runs["rerun"], "--baseline", path)
-    assert code == 2
-    assert err == (
-        f"xval: error: --baseline: {path} is a baseline of suite 'smoke', but the results are of suite "
-        f"'gate-test'; pass the baseline of 'gate-test', or make one with 'xval baseline DIR --output FILE'\n"
+    assert baseline_error(runs, capsys, path) == (
+        f"--baseline: {path} is a baseline of suite 'smoke', but the results are of suite "
+        f"'gate-test'; pass the baseline of 'gate-test', or make one with 'xval baseline DIR --output FILE'"
     )
 
 
@@ -339,12 +339,8 @@ def test_a_bad_gate_table_names_the_key(runs, rerun, capsys):
 SOLVER_SUITE = """name = "solver-ci"
 duration = 0.5
 dt = [1e-2, 5e-3]
-
-[[scenes]]
-scene = "double-pendulum"
-
-[[engines]]
-id = "gate_engines:SOLVER/default"
+scenes = [{ scene = "double-pendulum" }]
+engines = ["gate_engines:SOLVER/default"]
 """
 
 

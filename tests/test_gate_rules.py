@@ -36,13 +36,13 @@ def error(key: str, message: str) -> UserError:
 )
 def test_an_error_is_worse_past_baseline_times_one_plus_rtol_plus_atol(current, verdict):
     change = accuracy_change(RULES["position_error_linf"], 1.0e-3, current, SETTINGS)
-    assert change.verdict == verdict
+    assert change.outcome == verdict
     assert change.limit == pytest.approx(1.0e-3 * 1.1 + 1e-9)
 
 
 def test_errors_below_atol_are_noise():
     # Round-off-sized constraint errors that grow 100× are still below atol = 1e-10 m.
-    assert accuracy_change(RULES["constraint_error"], 1e-15, 1e-13, SETTINGS).verdict == "unchanged"
+    assert accuracy_change(RULES["constraint_error"], 1e-15, 1e-13, SETTINGS).outcome == "unchanged"
 
 
 @pytest.mark.parametrize(
@@ -51,7 +51,7 @@ def test_errors_below_atol_are_noise():
 )
 def test_a_lower_observed_order_is_worse_and_a_missing_fit_is_not_compared(baseline, current, verdict):
     change = accuracy_change(RULES["observed_order"], baseline, current, SETTINGS)
-    assert (change.verdict if change else None) == verdict
+    assert (change.outcome if change else None) == verdict
 
 
 @pytest.mark.parametrize(
@@ -59,7 +59,7 @@ def test_a_lower_observed_order_is_worse_and_a_missing_fit_is_not_compared(basel
     [(None, None, "unchanged"), (None, 0.4, "worse"), (0.4, None, "better"), (0.5, 0.3, "worse"), (0.5, 0.49, "unchanged")],
 )
 def test_a_null_divergence_time_means_never_diverged(baseline, current, verdict):
-    assert accuracy_change(RULES["divergence_time"], baseline, current, SETTINGS).verdict == verdict
+    assert accuracy_change(RULES["divergence_time"], baseline, current, SETTINGS).outcome == verdict
 
 
 def timing(*repeats: float) -> Timing:
@@ -78,12 +78,12 @@ def timing(*repeats: float) -> Timing:
 )
 def test_a_slowdown_must_exceed_the_factor_and_the_spread_of_both_sides(baseline, current, verdict):
     change = timing_change(baseline, current, 1.5, gated=True)
-    assert change.verdict == verdict and change.gated
+    assert change.outcome == verdict and change.gated
 
 
 def test_single_repeats_are_shown_but_never_gated():
     change = timing_change(timing(1.0), timing(5.0), 1.5, gated=True)
-    assert change.verdict == "worse" and not change.gated
+    assert change.outcome == "worse" and not change.gated
     assert change.note == "5.00× slower (factor 1.5, repeat spread 0 s/s); not gated: fewer than 2 timing repeats, so the noise is unknown (set repeats in the suite)"
 
 
@@ -107,7 +107,7 @@ def entry(status: str, message: str = "", version: str | None = "1.0", metrics: 
 )
 def test_status_rules_for_skipped_and_versioned_cases(baseline, current, verdict, reason):
     case = compare_case(baseline, current, SETTINGS, timing_gated=True, why_not="")
-    assert (case.verdict, case.reason) == (verdict, reason)
+    assert (case.outcome, case.reason) == (verdict, reason)
 
 
 def test_machines_differ_in_the_named_fields():
@@ -118,14 +118,14 @@ def test_machines_differ_in_the_named_fields():
 
 def test_gate_table_overrides_and_legacy_tolerances():
     settings = gate_settings(
-        {"timing_factor": 2, "energy_drift": {"atol": 1e-6}, "position_error_l2": 0.3},
-        {"position_error_linf": 0.2, "position_error_l2": 0.9},
+        {"timing_factor": 2, "energy_drift": {"atol": 1e-6}, "position_error_rms": 0.3},
+        {"position_error_linf": 0.2, "position_error_rms": 0.9},
         error,
     )
     assert settings.timing_factor == 2.0
     assert settings.tolerance("energy_drift") == Tolerance(0.1, 1e-6)
     assert settings.tolerance("position_error_linf") == Tolerance(0.2, 1e-9)
-    assert settings.tolerance("position_error_l2") == Tolerance(0.3, 1e-9)  # [gate] wins over [tolerances]
+    assert settings.tolerance("position_error_rms") == Tolerance(0.3, 1e-9)  # [gate] wins over [tolerances]
     assert gate_settings(None, {"cost_per_simulated_second": 1.0}, error).timing_factor == 2.0
 
 
@@ -133,7 +133,7 @@ def test_gate_table_overrides_and_legacy_tolerances():
     "gate, message",
     [
         ({"nosuch": 1}, "suite.toml: gate.nosuch: unknown key; valid keys are: timing_factor, position_error_linf, "
-                        "position_error_l2, position_error_final, divergence_time, energy_drift, constraint_error, "
+                        "position_error_rms, position_error_final, divergence_time, energy_drift, constraint_error, "
                         "constraint_force_error, observed_order, momentum_drift"),
         ({"timing_factor": 1}, "suite.toml: gate.timing_factor: must be a number > 1 (a slowdown factor), got 1; write e.g. timing_factor = 1.5"),
         ({"energy_drift": -0.1}, "suite.toml: gate.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1"),
@@ -145,6 +145,15 @@ def test_a_bad_gate_table_names_the_key_and_the_fix(gate, message):
     with pytest.raises(UserError) as raised:
         gate_settings(gate, None, error)
     assert str(raised.value) == message
+
+
+def test_tolerances_and_gate_forgive_no_slowdown_alike():
+    """[tolerances] cost_per_simulated_second = 0 is the timing factor 1 that [gate] refuses: refused too."""
+    with pytest.raises(UserError) as raised:
+        gate_settings(None, {"cost_per_simulated_second": 0}, error)
+    assert str(raised.value) == ("suite.toml: tolerances.cost_per_simulated_second: must be a number > 0 (the slowdown "
+                                 "forgiven: 0.5 is a factor 1.5), got 0; or write [gate] timing_factor = 1.5")
+    assert gate_settings(None, {"energy_drift": 0}, error).tolerance("energy_drift").rtol == 0.0  # as [gate] allows
 
 
 SUITE = """name = "s"
@@ -163,6 +172,15 @@ def test_a_suite_carries_its_gate_table_and_a_mistake_names_the_line():
         parse_suite(SUITE + "[gate]\ntiming_factor = 0\n", "s.toml")
 
 
+def test_a_suite_written_before_the_rms_rename_still_reads_its_tolerances():
+    """position_error_rms was position_error_l2: a suite (or the suite.toml kept in an older results
+    directory, which xval gate reads) that names the old key sets the new metric's tolerance."""
+    suite = parse_suite(SUITE + "[tolerances]\nposition_error_l2 = 0.7\n", "s.toml")
+    assert suite.gate.tolerance("position_error_rms") == Tolerance(0.7, 1e-9)
+    suite = parse_suite(SUITE + "[gate]\nposition_error_l2 = { rtol = 0.4, atol = 1e-6 }\n", "s.toml")
+    assert suite.gate.tolerance("position_error_rms") == Tolerance(0.4, 1e-6)
+
+
 def test_a_side_without_a_reference_has_its_null_divergence_time_unmeasured_not_infinite():
     # A reference that timed out leaves the position metrics null, divergence_time with them: that null
     # is "not measured", not "never diverged", so no divergence-time change is made of it either way.
@@ -171,10 +189,10 @@ def test_a_side_without_a_reference_has_its_null_divergence_time_unmeasured_not_
     for base, current in ((measured, unmeasured), (unmeasured, measured)):
         result = compare_case(base, current, SETTINGS, timing_gated=True, why_not="")
         assert "divergence_time" not in {c.metric for c in result.changes}
-    assert compare_case(measured, unmeasured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"
+    assert compare_case(measured, unmeasured, SETTINGS, timing_gated=True, why_not="").outcome == "worse"
     # With a reference on both sides a null divergence time still means never diverged.
     never = entry("ok", "no reference", metrics={"position_error_linf": 1e-3, "divergence_time": None})
-    assert compare_case(never, measured, SETTINGS, timing_gated=True, why_not="").verdict == "worse"
+    assert compare_case(never, measured, SETTINGS, timing_gated=True, why_not="").outcome == "worse"
 
 
 BASELINES = Path(__file__).resolve().parents[1] / "baselines"
@@ -186,6 +204,21 @@ def test_a_committed_baseline_reads_into_typed_entries_and_writes_back_byte_for_
     assert all(key == entry.key for key, entry in baseline.cases.items())
     write_baseline(baseline, tmp_path / "again.json")
     assert (tmp_path / "again.json").read_text() == (BASELINES / "smoke.json").read_text()
+
+
+def test_a_baseline_written_before_the_rms_rename_reads_as_today(tmp_path):
+    """A baseline made when position_error_rms was position_error_l2 reads into the same entries."""
+    old = tmp_path / "old.json"
+    old.write_text((BASELINES / "smoke.json").read_text().replace('"position_error_rms"', '"position_error_l2"'))
+    assert '"position_error_l2"' in old.read_text()
+    assert load_baseline(old).cases == load_baseline(BASELINES / "smoke.json").cases
+
+
+def test_a_directory_given_for_the_baseline_is_told_to_give_the_file(tmp_path):
+    with pytest.raises(UserError) as raised:
+        load_baseline(tmp_path)
+    assert str(raised.value) == (f"--baseline: {tmp_path}: is a directory; give the baseline JSON file "
+                                 "(xval baseline DIR --output FILE)")
 
 
 @pytest.mark.parametrize("field, value, message", [

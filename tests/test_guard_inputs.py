@@ -91,7 +91,7 @@ CASES = [
     ("option-choice", {}, SIM + ["--engine", "mujoco", "--option", "integrator=leapfrog"], r"mujoco: option integrator must be one of"),
     ("option-3d-in-2d-engine", {}, ["simulate", "spherical-pendulum", "--engine", "pymunk", "--dt", "1e-2", "--output", "{tmp}/o.csv"], r"pymunk is 2-D and cannot express the 3-D scene 'spherical-pendulum'"),
     # -- suite files ---------------------------------------------------------------------------------
-    ("suite-missing", {}, ["run", "{tmp}/none.toml", "--output", "{tmp}/r"], r"none.toml: no such suite file"),
+    ("suite-missing", {}, ["run", "{tmp}/none.toml", "--output", "{tmp}/r"], r"none.toml: no such file; pass the path of a suite"),
     ("suite-not-utf8", {"s.toml": b"name = \"\xff\xfe\"\n"}, RUN, r"s.toml: .*(UTF-8|utf-8)"),
     ("suite-invalid-toml", {"s.toml": "dt = [1e-2\n"}, RUN, r"s.toml(:\d+)?: invalid TOML"),
     ("suite-unknown-key", {"s.toml": suite(colour='"red"')}, RUN, r"s.toml:\d+: colour: unknown key"),
@@ -107,7 +107,7 @@ CASES = [
     ("suite-engine-unknown", {"s.toml": suite(engines='["bullet"]')}, RUN, r"engines\[0\].id: .*bullet"),
     ("suite-engine-option-range", {"s.toml": suite(engines=None, engine_table='[[engines]]\nid = "ours/baumgarte-rk4"\noptions = { k_s = -5 }\n')}, RUN, r"engines\[0\].options: ours: option k_s = -5.0 is outside the allowed range"),
     ("run-output-name-too-long", {"s.toml": GOOD_SUITE}, ["run", "{tmp}/s.toml", "--output", "{tmp}/" + "d" * 300], r"/d{300}: File name too long; choose a shorter path or name"),
-    ("suite-name-too-long", {}, ["run", "{tmp}/" + "s" * 300 + ".toml", "--output", "{tmp}/r"], r"/s{300}\.toml: cannot read the suite file \(File name too long\)"),
+    ("suite-name-too-long", {}, ["run", "{tmp}/" + "s" * 300 + ".toml", "--output", "{tmp}/r"], r"/s{300}\.toml: cannot read it \(File name too long\); pass the path of a suite"),
 ]
 
 

@@ -30,13 +30,13 @@ def test_a_machine_that_is_slower_for_everyone_is_not_a_regression():
     # Every repeat and the calibration kernel 1.8x slower: a shared core, a lower clock.
     slow_machine = timing([1.8, 1.84, 2.3], [0.9, 0.9, 0.9])
     change = cpu_timing_change(BASE, slow_machine, factor=1.5, gated=True)
-    assert change.verdict == "unchanged" and change.gated
+    assert change.outcome == "unchanged" and change.gated
 
 
 def test_a_2x_slowdown_is_worse_and_the_limit_widens_with_the_measured_spread():
     doubled = timing([2.0, 2.06, 2.1], [0.5, 0.5, 0.5])
     change = cpu_timing_change(BASE, doubled, factor=1.5, gated=True)
-    assert change.verdict == "worse"
+    assert change.outcome == "worse"
     # limit 1.5 x (1 + 0.02 + 0.03) = 1.575, printed 1.58
     assert change.note == ("2.00× slower (CPU time per calibration, best of 3/3 repeats; "
                            "limit 1.5 × 1.05 = 1.58)")
@@ -44,12 +44,12 @@ def test_a_2x_slowdown_is_worse_and_the_limit_widens_with_the_measured_spread():
     # The same 2x, but neither side could reproduce its best within 40%: the limit passes 2x, so no verdict.
     noisy_base = timing([1.0, 1.4, 1.5], [0.5, 0.5, 0.5])
     noisy = timing([2.0, 2.8, 2.9], [0.5, 0.5, 0.5])
-    assert cpu_timing_change(noisy_base, noisy, factor=1.5, gated=True).verdict == "unchanged"
+    assert cpu_timing_change(noisy_base, noisy, factor=1.5, gated=True).outcome == "unchanged"
 
 
 def test_faster_is_better_and_the_cpu_rule_is_used_only_when_both_sides_have_it():
     halved = timing([0.5, 0.51, 0.52], [0.5, 0.5, 0.5])
-    assert cpu_timing_change(BASE, halved, factor=1.5, gated=True).verdict == "better"
+    assert cpu_timing_change(BASE, halved, factor=1.5, gated=True).outcome == "better"
     wall_only = replace(halved, cpu=None, calibration=None)
     change = timing_change(BASE, wall_only, 1.5, gated=True)
     assert change.note.startswith("2.00× faster") and "calibration" not in change.note
@@ -57,7 +57,7 @@ def test_faster_is_better_and_the_cpu_rule_is_used_only_when_both_sides_have_it(
 
 def test_one_repeat_a_side_is_shown_but_not_gated():
     change = timing_change(timing([1.0], [0.5]), timing([3.0], [0.5]), 1.5, gated=True)
-    assert change.verdict == "worse" and not change.gated
+    assert change.outcome == "worse" and not change.gated
     assert change.note.endswith("not gated: fewer than 2 timing repeats, so the noise is unknown (set repeats in the suite)")
 
 

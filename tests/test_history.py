@@ -66,6 +66,30 @@ def test_a_stored_run_reads_back_whole(base, tmp_path):
         assert history.baseline_document(run).cases == document.cases
 
 
+def test_a_history_of_the_old_metric_name_reads_it_as_the_new_one_and_gates_on_it(base, tmp_path, capsys):
+    """Rows stored when position_error_rms was called position_error_l2 (made here by editing a stored run's
+    text past its append-only triggers, as an older xval wrote it) read and gate under today's name."""
+    path = tmp_path / "h.sqlite"
+    with History.open(path, create=True) as history:
+        add(history, base, 0)
+    with sqlite3.connect(path) as connection:
+        connection.execute("DROP TRIGGER xval_cases_keep_update")
+        connection.execute("UPDATE xval_cases SET entry = replace(entry, 'position_error_rms', 'position_error_l2'), "
+                           "metrics = replace(metrics, 'position_error_rms', 'position_error_l2')")
+        stored = connection.execute("SELECT entry || metrics FROM xval_cases").fetchall()
+    assert all("position_error_l2" in row[0] and "position_error_rms" not in row[0] for row in stored)
+    with History.open(path) as history:
+        cases = {c.case_key: c for c in history.cases()}
+    for record in base.records:
+        case = cases[record_key(record)]
+        assert "position_error_l2" not in case.metrics and "position_error_l2" not in (case.entry.metrics or {})
+        assert case.metrics.get("position_error_rms") == record.metrics.get("position_error_rms")
+        assert case.entry.metric("position_error_rms") == record.metrics.get("position_error_rms")
+    worse = write_results(synthetic(base, 1, error=3.0), tmp_path / "worse")
+    code, out, err = xval(capsys, "gate", worse, "--history", path, "--timing", "report")
+    assert code == 1 and any(row[4:5] == ["position_error_rms"] for row in rows(out, "worse")), out + err
+
+
 def test_appending_never_changes_an_earlier_run_and_stored_rows_refuse_updates(base, tmp_path):
     path = tmp_path / "h.sqlite"
     with History.open(path, create=True) as history:
@@ -251,7 +275,7 @@ def test_show_table_lists_runs_cases_and_the_short_metrics(three_runs, capsys):
     assert code == 0
     lines = out.splitlines()
     assert re.split(r"\s{2,}", lines[0]) == ["run", "commit", "date", "machine", "scene", "engine", "dt", "status",
-                                             "error/m", "drift/E*", "c.err/m", "cost s/s", "order"]
+                                             "error/m", "drift/E*", "c.err/m", "wall s/s", "order"]
     body = [line for line in lines[1:] if re.match(r"\d+  ", line)]
     assert len(body) == 3 * 6
     assert re.split(r"\s{2,}", body[0])[:8] == ["1", "0000000000", "2026-11-01 12:00", body[0].split()[4], "bead",
@@ -262,6 +286,13 @@ def test_show_table_lists_runs_cases_and_the_short_metrics(three_runs, capsys):
 def test_show_an_unknown_metric_lists_the_declared_ones(three_runs, capsys):
     code, _, err = xval(capsys, "history", "show", "--history", three_runs, "--metric", "speed")
     assert code == 2 and err.startswith("xval: error: --metric: unknown metric 'speed'; declared metrics are: position_error_linf, ")
+
+
+def test_show_reads_a_metric_by_its_name_before_the_rename(three_runs, capsys):
+    code, out, _ = xval(capsys, "history", "show", "--history", three_runs, "--metric", "position_error_l2", "--format", "json")
+    table = json.loads(out)
+    assert code == 0 and len(table) == 3 * 6
+    assert all(isinstance(row["position_error_rms"], float) for row in table if row["status"] == "ok")
 
 
 # -- the windowed gate --------------------------------------------------------------------------------
@@ -287,7 +318,7 @@ def test_window_gate_catches_a_doubled_error_and_passes_an_unchanged_rerun(base,
     assert code == 1
     worse = rows(out, "worse")
     assert {(r[1], r[2], r[4]) for r in worse} == {
-        ("bead", ENGINE, metric) for metric in ("position_error_linf", "position_error_l2", "position_error_final")}
+        ("bead", ENGINE, metric) for metric in ("position_error_linf", "position_error_rms", "position_error_final")}
 
 
 def test_gate_takes_a_baseline_or_a_history(base, window, capsys):
@@ -319,7 +350,7 @@ def test_window_gate_holds_accuracy_to_the_best_run_of_the_window(base, tmp_path
         current = build_baseline(synthetic(base, 5, error=1.05 ** 5))
         creep = window_baseline(history, synthetic(base, 5, error=1.05 ** 5), 5)
         latest_only = window_baseline(history, synthetic(base, 5, error=1.05 ** 5), 1)
-    verdicts = lambda report: {c.verdict for c in report.cases if c.engine == ENGINE}  # noqa: E731
+    verdicts = lambda report: {c.outcome for c in report.cases if c.engine == ENGINE}  # noqa: E731
     assert verdicts(gate(creep.document, current, GateSettings(), timing="report")) == {"worse"}
     assert verdicts(gate(latest_only.document, current, GateSettings(), timing="report")) == {"unchanged"}
 
@@ -330,7 +361,7 @@ def test_window_gate_times_against_the_windows_spread(base, window):
             current = synthetic(base, 9, timing=factor, tight=True)
             document = window_baseline(history, current, 5).document
             report = gate(document, build_baseline(current), GateSettings())
-            return {c.verdict for c in report.cases}
+            return {c.outcome for c in report.cases}
 
         # The window's runs cost 0.6 … 1.4 × the base: 1.6 × is past the 1.5 factor of their median (1.0)
         # but not past it by more than the window's spread (0.8 × the base, plus the repeats'); 2.5 × is past both.

@@ -58,7 +58,7 @@ def test_the_planted_step_is_found_where_it_was_planted_and_nowhere_else(planted
     for s in stepped:
         (step,) = s.steps
         assert step.index == STEP_AT and s.points[step.index].run_id == STEP_AT + 1
-        assert step.verdict == "worse" and step.ratio == pytest.approx(2.0, rel=1e-12)
+        assert step.outcome == "worse" and step.ratio == pytest.approx(2.0, rel=1e-12)
     timings = [s for s in series if s.metric.name == "cost_per_simulated_second"]
     assert len(timings) == 6 and all(len(s.points) == RUNS for s in timings)
 
@@ -66,13 +66,13 @@ def test_the_planted_step_is_found_where_it_was_planted_and_nowhere_else(planted
 def test_a_regression_and_its_fix_are_two_steps():
     metric = METRICS["position_error_linf"]
     found = steps([1e-3] * 4 + [3e-3] * 4 + [1e-3] * 4, metric)
-    assert [(s.index, s.verdict, s.ratio) for s in found] == [(4, "worse", pytest.approx(3.0)), (8, "better", pytest.approx(1 / 3))]
+    assert [(s.index, s.outcome, s.ratio) for s in found] == [(4, "worse", pytest.approx(3.0)), (8, "better", pytest.approx(1 / 3))]
 
 
 def test_gaps_keep_their_place_and_direction_follows_the_declaration():
     divergence = METRICS["divergence_time"]  # higher is better
     found = steps([0.8, None, 0.8, 0.8, 0.4, None, 0.4, 0.4], divergence)
-    assert [(s.index, s.verdict) for s in found] == [(4, "worse")]
+    assert [(s.index, s.outcome) for s in found] == [(4, "worse")]
 
 
 @pytest.mark.parametrize("values", [
@@ -86,7 +86,7 @@ def test_no_step_where_the_gate_would_see_none(values):
 
 def test_a_change_in_the_latest_run_is_a_step_at_that_run():
     found = steps([1e-3] * 5 + [5e-3], METRICS["position_error_linf"])
-    assert [(s.index, s.verdict, s.before, s.after) for s in found] == [(5, "worse", 1e-3, 5e-3)]
+    assert [(s.index, s.outcome, s.before, s.after) for s in found] == [(5, "worse", 1e-3, 5e-3)]
 
 
 def test_a_timing_needs_enough_runs_to_measure_its_noise_first():
@@ -103,7 +103,7 @@ def test_noise_alone_is_not_a_step_and_a_step_above_it_is():
     noise = np.exp(0.05 * rng.standard_normal(12))
     assert steps(list(1e-3 * noise), cost) == []
     found = steps(list(1e-3 * noise * np.r_[np.ones(6), 1.5 * np.ones(6)]), cost)
-    assert [(s.index, s.verdict) for s in found] == [(6, "worse")]
+    assert [(s.index, s.outcome) for s in found] == [(6, "worse")]
 
 
 # -- the page -------------------------------------------------------------------------------------

@@ -8,6 +8,7 @@ the host has forked its one child (the reaper) before any case runs.
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -18,7 +19,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 
-pytest.importorskip("mujoco.mjx", reason="MJX is not installed: pip install 'xval[mjx]'")
+# find_spec, not importorskip: importing mujoco.mjx would load JAX into this (forking) test process.
+if importlib.util.find_spec("jax") is None or importlib.util.find_spec("mujoco.mjx") is None:
+    pytest.skip("MJX is not installed: pip install 'xval[mjx]'", allow_module_level=True)
 
 PROBE = """
 import json, sys, warnings

@@ -10,7 +10,6 @@ that cannot express a scene says why in one line.
 
 from __future__ import annotations
 
-import importlib
 import math
 
 import numpy as np
@@ -18,6 +17,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
+from engines import registry
 from engines.scene import catalog
 from engines.errors import Unsupported
 from engines.adapters.mujoco import STIFF
@@ -48,7 +48,7 @@ ORDERS = [
 
 
 def _engine(name):
-    return importlib.import_module(f"engines.{name}").ENGINE
+    return registry.get_engine(name)
 
 
 @pytest.mark.parametrize("scene_name, engine, variant, options, order, dts", ORDERS,

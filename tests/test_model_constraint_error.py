@@ -127,8 +127,8 @@ def test_an_overflowing_joint_gap_is_a_non_finite_state_and_truncation_keeps_the
 class _OneShort(OursEngine):
     """ours, but its channel is one sample short of its positions."""
 
-    def _run(self, scene, schedule, settings):
-        raw = super()._run(scene, schedule, settings)
+    def _run_model(self, scene, schedule, settings):
+        raw = super()._run_model(scene, schedule, settings)
         return replace(raw, constraint_violation=raw.constraint_violation[:-1])
 
 

@@ -90,15 +90,8 @@ def test_the_ci_gate_commands_run_on_the_page_s_adapters(tmp_path):
 name = "plugins-doc"
 duration = 0.5
 dt = [1e-2, 5e-3]
-
-[[scenes]]
-scene = "bead"
-
-[[engines]]
-id = "euler_projection:ENGINE/default"
-
-[[engines]]
-id = "angle_pendulum:ENGINE/default"
+scenes = [{ scene = "bead" }]
+engines = ["euler_projection:ENGINE/default", "angle_pendulum:ENGINE/default"]
 """)
     step2 = "xval run suite.toml --output results && xval baseline results --output baseline.json"
     assert f"`{step2}`" in DOC.read_text()

@@ -92,7 +92,7 @@ def test_the_example_suite_passes_its_gate_and_fails_it_when_velocity_projection
     assert gated.returncode == 0, f"the example no longer matches {baseline}:\n{gated.stdout}{gated.stderr}"
     # Every case was compared (same engine versions and scenes), so the pass is not vacuous.
     report = gate_results(load_baseline(baseline), build_baseline(load_results(good)), GateSettings(), str(baseline))
-    verdicts = {c.verdict for c in report.cases if "my-solver" in c.name}
+    verdicts = {c.outcome for c in report.cases if "my-solver" in c.name}
     assert verdicts == {"unchanged"}, gated.stdout
 
     worse = tmp_path / "worse"
@@ -189,6 +189,22 @@ def test_broken_plugins_are_reported_and_every_other_engine_still_runs(tmp_path)
     assert records["reference/dop853"].status == "ok"
     # The NaN plugin keeps its samples before the first non-finite one (t = 0 .. 0.14 s).
     assert records["plugin_engines:NAN_HALFWAY/default"].metrics["n_samples"] == 15
+
+
+@pytest.mark.parametrize("line, fix", [
+    ("from engines.plugin import Engine", "ModuleNotFoundError: No module named 'engines.plugin'; engines.plugin is "
+     "engines.external.plugin now: import it from there"),
+    ("from engines.scene import Scene", "engines.scene is a package of modules now (engines.scene.scene): import from "
+     "the module, or take what a plugin needs from engines.external.plugin (docs/plugins.md)"),
+])
+def test_a_plugin_written_before_engines_was_split_into_folders_is_told_where_to_import_from(
+        line, fix, tmp_path, monkeypatch):
+    (tmp_path / "pre_split_plugin.py").write_text(f"{line}\nENGINE = None\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(registry.EngineUnavailable) as raised:
+        registry.load_engine("pre_split_plugin:ENGINE")
+    assert str(raised.value).startswith("engine 'pre_split_plugin:ENGINE' is unavailable: importing pre_split_plugin "
+                                        "failed: ") and str(raised.value).endswith(fix)
 
 
 def test_a_broken_entry_point_is_unavailable_with_its_name_and_the_reason():

@@ -214,8 +214,8 @@ version = "{version}"
     settings = suite.gate
     (unchanged,) = gate_results(before, same, settings, "before.json", timing="report").cases
     (bumped,) = gate_results(before, after, settings, "before.json", timing="report").cases
-    assert unchanged.verdict == "unchanged"
-    assert bumped.verdict == "not comparable" and "1.0" in bumped.reason and "1.1" in bumped.reason
+    assert unchanged.outcome == "unchanged"
+    assert bumped.outcome == "not comparable" and "1.0" in bumped.reason and "1.1" in bumped.reason
 
 
 def test_the_example_suite_names_the_built_programs_by_paths_relative_to_it(tmp_path, monkeypatch):

@@ -15,7 +15,7 @@ from compare.results import declared
 from compare.results.declared import Metric, Tolerance
 from compare.results.record import CaseRecord, Status
 from engines.errors import UserError
-from compare.results.store import load_results
+from compare.results.store import ResultsDir, load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from gate_support import edit_case, xval
@@ -32,7 +32,9 @@ def test_a_run_written_by_the_previous_release_reads_whole_and_round_trips():
         raw = json.loads(file.read_text())
         record = CaseRecord.from_json(raw, file)
         assert record.status is Status.OK
-        assert record.to_json() == raw  # nothing lost, nothing added
+        # Nothing lost, nothing added; position_error_l2 (that release's name) is read as position_error_rms.
+        assert record.metrics["position_error_rms"] == raw["metrics"]["position_error_l2"]
+        assert record.to_json() == {**raw, "metrics": declared.current_names(raw["metrics"])}
     by_variant = results.by_variant()
     assert [r.case.dt for r in by_variant[("bead", "mujoco/hinge")]] == [1e-2, 3e-3, 1e-3]
     sweeps = {(s.scene_id, s.engine): s for s in results.sweeps()}
@@ -56,6 +58,27 @@ def test_show_report_and_gate_read_the_old_run(tmp_path, capsys):
     code, out, err = xval(capsys, "gate", FIXTURE, "--baseline", tmp_path / "old-baseline.json", "--timing", "report")
     assert code == 0, out + err
     assert "0 worse" in out + err and "42 unchanged" in out + err
+
+
+def test_an_old_baseline_gates_a_new_run_on_the_renamed_metric(tmp_path, capsys):
+    """A baseline and a run of the release that called position_error_rms position_error_l2 still gate
+    today's runs on it: a doubled RMS error in a new run is worse against the old baseline."""
+    code, _, err = xval(capsys, "baseline", FIXTURE, "--output", tmp_path / "baseline.json")
+    assert code == 0, err
+    old = tmp_path / "baseline.json"
+    old.write_text(old.read_text().replace('"position_error_rms"', '"position_error_l2"'))
+    assert old.read_text().count('"position_error_l2"') == 42
+    run = tmp_path / "run"
+    shutil.copytree(FIXTURE, run)
+    for file in (run / "cases").glob("*.json"):  # written as today's runner writes them
+        ResultsDir(run).write_case(CaseRecord.from_json(json.loads(file.read_text()), file))
+    assert all('"position_error_rms"' in f.read_text() for f in (run / "cases").glob("*.json"))
+    case = "bead|mujoco/hinge|dt=0.01"
+    edit_case(run, case, lambda r: r["metrics"].update(position_error_rms=2 * r["metrics"]["position_error_rms"]))
+    code, out, err = xval(capsys, "gate", run, "--baseline", old, "--timing", "report")
+    assert code == 1, out + err
+    worse = [line.split() for line in out.splitlines() if line.startswith("worse ")]
+    assert [row[:5] for row in worse] == [["worse", "bead", "mujoco/hinge", "0.01", "position_error_rms"]]
 
 
 @pytest.mark.parametrize("damage, message", [

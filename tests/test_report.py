@@ -114,9 +114,15 @@ def test_summary_marks_the_best_value_of_each_column(small_page):
     # Neither ok variant diverges: a tie of everyone, so no star at all in that column.
     divergence = column["divergence time / s"]
     assert [rows[n][divergence] for n in ("mujoco/hinge-rk4", "pymunk/pin")] == ["never", "never"]
-    # Every other column has exactly one star (the order only pymunk's first-order sweep could fit).
-    stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(4, len(header)) if k != divergence]
+    # Every other column has exactly one star (the order only pymunk's first-order sweep could fit) but the CPU
+    # cost's: a cost is starred only beyond its interval (at least 1.7× either side), which two engines this
+    # close need not be.
+    cost = column["CPU cost / s/s"]
+    stars = [sum(row[k].startswith("★") for row in rows.values()) for k in range(4, len(header))
+             if k not in (divergence, cost)]
     assert stars == [1] * len(stars)
+    assert sum(row[cost].startswith("★") for row in rows.values()) <= 1
+    assert all(float(rows[n][cost].lstrip("★ ")) > 0 for n in ("mujoco/hinge-rk4", "pymunk/pin"))
 
 
 def test_a_run_without_samples_shows_no_numbers(small_page):
@@ -396,3 +402,22 @@ def test_best_flags_mark_no_star_inside_the_error_bars():
     # Beyond both bars the best keeps its star.
     assert _best_flags(low, [4.22e-12, 6.23e-8, 1e-3], [True, True, True], [4.2e-12, 4.2e-12, 4.2e-12]) == \
         [True, False, False]
+
+
+def test_each_scenes_verdict_is_computed_once_per_report(small_results, monkeypatch):
+    # The verdict section, the plots' colours and the time series at every dt all come from one verdict per scene.
+    import compare.results.verdict as verdict
+    import reports.emphasis
+    import reports.verdict
+
+    calls: list[str] = []
+
+    def counted(sweeps, *args, **kwargs):
+        calls.append(sweeps[0].scene_id)
+        return verdict.scene_verdicts(sweeps, *args, **kwargs)
+
+    monkeypatch.setattr(reports.verdict, "scene_verdicts", counted)
+    monkeypatch.setattr(reports.emphasis, "scene_verdicts", counted)
+    data = load_report_data(small_results)
+    render(data)
+    assert sorted(calls) == sorted(scene.scene_id for scene in data.scenes if scene.sweeps)

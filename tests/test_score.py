@@ -50,7 +50,7 @@ def test_the_reference_scores_zero_against_itself(reference_csv, capsys):
     assert code == 0, err
     (row,) = json.loads(out)
     assert row["status"] == "ok" and row["n_samples"] == 201 and row["t_end"] == 2.0
-    for name in ("position_error_final", "position_error_l2", "position_error_linf"):
+    for name in ("position_error_final", "position_error_rms", "position_error_linf"):
         assert row[name] <= 1e-12
     assert row["divergence_time"] is None
     assert row["energy_drift"] < 1e-10 and row["constraint_error"] < 1e-12
@@ -72,7 +72,7 @@ def test_a_known_perturbation_is_reported_as_that_amount(reference_csv, tmp_path
     for row, amount in zip(rows, (1e-3, 0.05)):
         assert row["position_error_linf"] == pytest.approx(amount, rel=1e-9)
         assert row["position_error_final"] == pytest.approx(amount, rel=1e-9)
-        assert row["position_error_l2"] == pytest.approx(amount * np.sqrt(later.mean()), rel=1e-9)
+        assert row["position_error_rms"] == pytest.approx(amount * np.sqrt(later.mean()), rel=1e-9)
     assert rows[0]["divergence_time"] is None
     assert rows[1]["divergence_time"] == pytest.approx(1.0, abs=1e-12)
 
@@ -109,7 +109,7 @@ def test_the_table_has_one_line_per_file(reference_csv, capsys):
     code, out, _ = run(capsys, "score", "double-pendulum", str(reference_csv), str(reference_csv),
                        "--param", "duration=2", "--param", "theta1=60")
     lines = out.splitlines()
-    assert code == 0 and lines[0].split() == ["file", "status", "samples", "t_end/s", "final/m", "l2/m", "linf/m",
+    assert code == 0 and lines[0].split() == ["file", "status", "samples", "t_end/s", "final/m", "rms/m", "linf/m",
                                               "diverged/s", "drift/E*", "c.err/m", "force/N"]
     assert len(lines) == 3 and all(line.startswith(str(reference_csv)) for line in lines[1:])
 

@@ -38,11 +38,11 @@ def test_the_smoke_suite_is_no_worse_than_its_committed_baseline(tmp_path):
 
     # A baseline that no longer matches the suite would pass vacuously: its cases would be new or missing.
     report = gate_results(load_baseline(BASELINE), build_baseline(load_results(results)), GateSettings(), str(BASELINE))
-    stale = [c for c in report.cases if c.verdict in ("new", "missing") or c.reason.startswith("scene changed")]
+    stale = [c for c in report.cases if c.outcome in ("new", "missing") or c.reason.startswith("scene changed")]
     assert not stale, f"suites/smoke.toml changed since {BASELINE} was made; {REGENERATE}:\n{gated.stdout}"
     # ours' version is this project's, so a dependency upgrade cannot make its cases
     # "not comparable": every one of them must really have been compared.
-    uncompared = [c for c in report.cases if c.engine.startswith("ours/") and c.verdict == "not comparable"]
+    uncompared = [c for c in report.cases if c.engine.startswith("ours/") and c.outcome == "not comparable"]
     assert not uncompared, f"ours cases were not compared; {REGENERATE}:\n{gated.stdout}"
     assert sum(c.engine.startswith("ours/") for c in report.cases) == 30  # 5 variants × 2 scenes × 3 dt
 

@@ -20,7 +20,7 @@ from compare.stability.search import (
     BOUNDED,
     STABLE_AT_LARGEST,
     UNSTABLE_AT_SMALLEST,
-    Probe,
+    Trial,
     SearchSettings,
     load_stability,
     plan_stability,
@@ -37,45 +37,41 @@ name = "bead-stability"
 duration = 0.5
 dt = [1e-2, 1e-4]
 timeout = 60
+scenes = [{{ id = "bead", scene = "bead" }}]
+engines = [
+    {{ id = "ours/baumgarte-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }},
+    {{ id = "ours/baumgarte-symplectic-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }},
+]
 [bounds]
 energy_drift = 1.0
 constraint_error = 0.1
 [stability]
 dt_max = 1e-2
 dt_min = 1e-4
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "ours/baumgarte-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
-[[engines]]
-id = "ours/baumgarte-symplectic-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
 """
 
 
 # -- the pure search ---------------------------------------------------------------------------
 
 
-def threshold_probe(boundary: float):
+def threshold_trial(boundary: float):
     """A fake engine stable exactly for dt ≤ boundary (s)."""
-    return lambda dt: Probe(dt, "ok" if dt <= boundary else "unstable")
+    return lambda dt: Trial(dt, "ok" if dt <= boundary else "unstable")
 
 
 @pytest.mark.parametrize("boundary", [3.7e-4, 1e-3, 2.2e-3, 9.9e-3])
 def test_search_brackets_a_known_boundary_to_ten_percent(boundary):
-    verdict, lo, hi, probes = search(threshold_probe(boundary), SearchSettings(1e-2, 1e-4))
+    verdict, lo, hi, trials = search(threshold_trial(boundary), SearchSettings(1e-2, 1e-4))
     assert verdict == BOUNDED
     assert lo <= boundary < hi and hi / lo <= 1.1 * (1 + 1e-9)
-    assert len(probes) <= 10  # two per decade down, then ~4 bisections
+    assert len(trials) <= 10  # two per decade down, then ~4 bisections
 
 
 def test_search_edges_stable_at_largest_and_unstable_at_smallest():
-    assert search(threshold_probe(1.0), SearchSettings(1e-2, 1e-4))[:3] == (STABLE_AT_LARGEST, 1e-2, None)
-    verdict, lo, hi, probes = search(threshold_probe(1e-6), SearchSettings(1e-2, 1e-4))
+    assert search(threshold_trial(1.0), SearchSettings(1e-2, 1e-4))[:3] == (STABLE_AT_LARGEST, 1e-2, None)
+    verdict, lo, hi, trials = search(threshold_trial(1e-6), SearchSettings(1e-2, 1e-4))
     assert (verdict, lo, hi) == (UNSTABLE_AT_SMALLEST, None, 1e-4)
-    assert probes[-1].dt == 1e-4  # the smallest dt was tried, not skipped over
+    assert trials[-1].dt == 1e-4  # the smallest dt was tried, not skipped over
 
 
 # -- theory ------------------------------------------------------------------------------------
@@ -107,7 +103,7 @@ def test_search_finds_the_analytic_baumgarte_boundary_on_the_bead(tmp_path):
     suite = parse_suite(BEAD_SUITE, str(tmp_path / "bead.toml"))
     path = run_stability(suite, tmp_path / "out", jobs=2)
     document = load_stability(path.parent)
-    assert document["schema_version"] == 1 and "energy drift" in document["criterion"]
+    assert document["schema_version"] == 2 and "energy drift" in document["criterion"]
     results = {r["engine"]: r for r in document["results"]}
     euler = results["ours/baumgarte-euler"]
     analytic = 2 / math.sqrt(K_S)  # |1 + λh| ≤ 1 with λ = −√k_s (double): h ≤ 2/√k_s = 2 ms
@@ -115,6 +111,7 @@ def test_search_finds_the_analytic_baumgarte_boundary_on_the_bead(tmp_path):
     assert euler["verdict"] == BOUNDED
     assert abs(euler["largest_stable_dt"] / analytic - 1) < 0.2
     assert euler["smallest_unstable_dt"] / euler["largest_stable_dt"] <= 1.1 + 1e-9
+    assert [t["dt"] for t in euler["trials"]][:2] == [1e-2, pytest.approx(1e-2 / math.sqrt(10))]  # every run kept
     symplectic = results["ours/baumgarte-symplectic-euler"]
     assert abs(symplectic["largest_stable_dt"] / (2 * (math.sqrt(2) - 1) / math.sqrt(K_S)) - 1) < 0.2
     with pytest.raises(UserError, match="exists; pass --force"):
@@ -143,12 +140,26 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
 def test_output_files_of_another_version_are_refused_with_the_command_that_rewrites_them(tmp_path):
     assert load_stability(tmp_path) is None and load_gainmap(tmp_path) is None  # none written: no section
     (tmp_path / "stability.json").write_text('{"schema": "xval-stability", "schema_version": 0}')
-    with pytest.raises(UserError, match=r"stability\.json: xval-stability version 0, but this xval reads version 1; "
+    with pytest.raises(UserError, match=r"stability\.json: xval-stability version 0, but this xval reads version 2; "
                                         r"rerun xval stability SUITE --output DIR --force$"):
         load_stability(tmp_path)
     (tmp_path / "gainmap.json").write_text("{")
     with pytest.raises(UserError, match=r"gainmap\.json: cannot read it \(.*\); rerun xval stability SUITE"):
         load_gainmap(tmp_path)
+
+
+def test_a_version_1_stability_file_reads_with_its_probes_as_trials(tmp_path):
+    """Version 1 called each pair's runs "probes" (the word of ``xval probe``, which measures something else)."""
+    trial = {"dt": 0.01, "status": "unstable", "message": "", "energy_drift": 2.0, "constraint_error": None,
+             "elapsed": 0.1}
+    old = {"schema": "xval-stability", "schema_version": 1, "criterion": "c",
+           "results": [{"scene_id": "bead", "engine": "ours/baumgarte-euler", "verdict": UNSTABLE_AT_SMALLEST,
+                        "largest_stable_dt": None, "smallest_unstable_dt": 0.01, "reason": "", "analytic_dt": None,
+                        "probes": [trial]}]}
+    (tmp_path / "stability.json").write_text(json.dumps(old))
+    document = load_stability(tmp_path)
+    assert document["schema_version"] == 2 and document["results"][0]["trials"] == [trial]
+    assert "probes" not in document["results"][0]
 
 
 # -- gain map ------------------------------------------------------------------------------------
@@ -187,14 +198,8 @@ def test_a_run_that_blows_up_is_recorded_unstable_with_its_samples(tmp_path):
     text = f"""
 duration = 1.0
 dt = [5e-3, 1e-3]
-[[scenes]]
-id = "bead"
-scene = "bead"
-[[engines]]
-id = "ours/baumgarte-euler"
-options = {{ k_s = {K_S}, k_d = {K_D} }}
-[[engines]]
-id = "ours/rattle"
+scenes = [{{ id = "bead", scene = "bead" }}]
+engines = [{{ id = "ours/baumgarte-euler", options = {{ k_s = {K_S}, k_d = {K_D} }} }}, "ours/rattle"]
 """
     summary = run_suite(parse_suite(text, "blowup.toml"), tmp_path / "run", jobs=2)
     records = {(r.case.engine, r.case.dt): r for r in load_results(summary.path).records}

@@ -26,14 +26,8 @@ SUITE = """
 duration = 0.5
 dt = [1e-2, 1e-3]
 tolerance = { from = 1e-4, to = 1e-8, per_decade = 1 }
-[[scenes]]
-scene = "double-pendulum"
-[[engines]]
-id = "drake/rk3"
-[[engines]]
-id = "drake/semi-explicit-euler"
-[[engines]]
-id = "mujoco/hinge-rk4"
+scenes = [{ scene = "double-pendulum" }]
+engines = ["drake/rk3", "drake/semi-explicit-euler", "mujoco/hinge-rk4"]
 """
 
 
@@ -110,7 +104,7 @@ def test_a_tolerance_sweep_runs_and_its_error_falls_with_the_tolerance(tmp_path)
 
 
 def test_the_reference_sweeps_both_of_its_tolerances():
-    suite = parse_suite(SUITE.replace('id = "drake/rk3"', 'id = "reference/dop853"'))
+    suite = parse_suite(SUITE.replace('"drake/rk3"', '"reference/dop853"'))
     cases = [c for c in plan(suite) if c.engine.label == "reference/dop853"]
     assert [c.engine.options for c in cases][:2] == [{"rtol": 1e-4, "atol": 1e-4}, {"rtol": 1e-5, "atol": 1e-5}]
 

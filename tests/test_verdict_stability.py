@@ -1,7 +1,8 @@
-"""The verdict holds against timing noise: fed CPU-time samples recorded from real runs of the default suite on
-a shared 2-core machine (tests/fixtures/cost_samples.json, written by scripts/cost_samples.py), it names the
-same winners whichever run, whichever single repeat, and with one case slowed 52× (a neighbour loading the
-machine, as seen on CI); ratios' intervals overlap. And where intervals overlap it says *tie*, naming both.
+"""The verdict holds against timing noise: fed CPU-time samples recorded from six real runs of the default suite
+on a shared 2-core machine (tests/fixtures/cost_samples.json, written by scripts/cost_samples.py: three runs of
+one day, three in a row of another, the bead and the double pendulum), it names the same winners with the same
+ties whichever run, whichever single repeat, and with one case slowed 52× (a neighbour loading the machine, as
+seen on CI); ratios' intervals overlap. And where intervals overlap it says *tie*, naming both.
 """
 
 from __future__ import annotations
@@ -67,25 +68,49 @@ def variants() -> list[tuple[str, Callable[[dict[str, Any]], list[float]]]]:
 
 
 def test_the_fixture_is_real_noise():
-    assert len(RUNS) == 3
+    assert len(RUNS) == 6
     spreads = [max(r["cpu_times"]) / min(r["cpu_times"]) for run in RUNS for r in run if r["steps"] >= 2000]
     # Repeats of one case differ by tens of per cent at times: the noise the verdict must not follow.
     assert max(spreads) > 1.2
 
 
+def named(verdict: SceneVerdict) -> dict[str, Any]:
+    """What the verdict names: per family its winner and ties, and the two sides of the comparison."""
+    comparison = verdict.comparison
+    assert comparison is not None and comparison.focus is not None and comparison.other is not None
+    return {"winners": [(w.family, w.reach.engine, w.ties) for w in verdict.winners],
+            "focus": (comparison.focus.engine, comparison.focus_ties),
+            "other": (comparison.other.engine, comparison.other_ties)}
+
+
 @pytest.mark.parametrize("scene", ["bead", "double-pendulum"])
-def test_the_winner_and_the_ratio_hold_across_runs_repeats_and_a_slowed_case(scene):
+def test_winners_and_ties_are_the_same_across_runs_repeats_and_a_slowed_case(scene):
     base = verdicts(RUNS[0])[scene]
-    base_winners = winners(base)
+    assert base.comparison.ratio is not None and base.comparison.ratio_low <= base.comparison.ratio \
+        <= base.comparison.ratio_high
     base_ratio = (base.comparison.ratio_low, base.comparison.ratio_high)
-    assert base.comparison.ratio is not None and base_ratio[0] <= base.comparison.ratio <= base_ratio[1]
     for label, (k, times) in variants():
         other = verdicts(RUNS[k], times)[scene]
-        # The winner stays among the base's winner and ties (a tie may take in one more or one fewer) ...
-        assert winners(other) & base_winners, label
-        assert other.comparison.other.engine == base.comparison.other.engine, label
+        # The same winner, named the same, with the same ties: not one variant more or fewer ...
+        assert named(other) == named(base), label
         # ... and the cost ratio's interval overlaps the base's.
         assert overlap((other.comparison.ratio_low, other.comparison.ratio_high), base_ratio), label
+
+
+def test_a_tie_is_named_by_the_fewest_steps_not_by_the_timing():
+    rows = [row for row in RUNS[0] if row["scene"] == "double-pendulum"]
+    # Make ours/plain-rk4 look the cheapest by timing alone (its CPU times scaled down, still tied with the
+    # others): the tie and the name it goes by stay; only the costs move.
+    base = verdicts(rows)["double-pendulum"]
+    cheap = verdicts(rows, lambda r: [t * (0.4 if r["engine"] == "ours/plain-rk4" else 1) for t in r["cpu_times"]])
+    cheap = cheap["double-pendulum"]
+    reaches = {r.engine: r for r in cheap.reaches}
+    assert min((r for r in cheap.reaches if r.engine.startswith("ours/")), key=lambda r: r.cost).engine \
+        == "ours/plain-rk4"
+    assert named(cheap) == named(base)
+    focus = cheap.comparison.focus
+    tied = [reaches[name] for name in cheap.comparison.focus_ties]
+    assert all(focus.steps < r.steps for r in tied)  # named by its steps: a property of the physics
 
 
 def test_overlapping_intervals_are_a_tie_that_names_both():
@@ -132,3 +157,50 @@ def test_the_cost_model_separates_the_per_run_overhead_and_ignores_a_slowed_case
     assert model.per_step == pytest.approx(per_step, rel=1e-6)
     assert model.overhead == pytest.approx(overhead, rel=1e-6)
     assert model.low <= per_step <= model.high
+
+
+def test_a_tie_is_the_chain_of_overlapping_intervals_from_the_cheapest():
+    from compare.results.verdict import Reach, leader
+
+    def reach(engine: str, low: float, high: float, steps: float) -> Reach:
+        return Reach(engine, 1e-6, (low * high) ** 0.5, "interpolated", (0.1, 0.01), 1e-7, low, high, None, steps)
+
+    # a overlaps b, b overlaps c, c does not reach down to a: one chain, the same whichever is cheapest.
+    # d starts above every one of them: not tied. The name goes to the fewest steps (c), not the cheapest (a).
+    a, b, c, d = reach("x/a", 1.0, 2.0, 90), reach("x/b", 1.8, 3.5, 60), reach("x/c", 3.0, 6.0, 50), \
+        reach("x/d", 6.5, 9.0, 10)
+    named, ties = leader([d, c, b, a])
+    assert named is c and set(ties) == {"x/a", "x/b"}
+    # Without b the chain breaks: a alone is the cheapest, tied with nothing.
+    assert leader([a, c, d]) == (a, ())
+
+
+def test_equal_cost_counts_a_run_a_rerun_may_put_within_the_budget():
+    from compare.results.verdict import best_at_equal_cost
+
+    # Per-step costs (s/step) exactly 1e-6 (a), 1.2e-6 (b), 2.5e-6 (c): costs per simulated s c/dt, each with
+    # its interval of 1.7× either side. The budget is a's dearest run, 1e-3 s/s. b's run at dt 1e-3 s costs
+    # 1.2e-3 s/s, within noise of the budget (its interval reaches down to 7e-4): it counts. c's costs 2.5e-3,
+    # its interval starting at 1.5e-3: it does not.
+    rows = [{"scene": "bead", "engine": engine, "dt": dt, "error": dt ** 2, "steps": round(2.0 / dt), "length": 1.0,
+             "reference_error": 0.0, "per_step": per_step}
+            for engine, per_step in (("a/x", 1e-6), ("b/y", 1.2e-6), ("c/z", 2.5e-6)) for dt in (0.1, 0.01, 0.001)]
+    found = sweeps([record(row, [row["per_step"] * row["steps"]]) for row in rows])
+    budget, best = best_at_equal_cost(found)
+    assert budget == pytest.approx(1e-3)
+    assert [(b.family, b.point.dt) for b in best] == [("a", 0.001), ("b", 0.001), ("c", 0.01)]
+
+
+def test_a_run_without_cpu_times_gets_the_same_resolution_as_a_modelled_one():
+    # tests/fixtures/run-v1-smoke predates CPU timing: each case has one wall-clock cost and no CPU times.
+    # Its interval must be as wide as a fitted model's least (RESOLUTION either side), not zero-width,
+    # or two variants a timing's noise apart would never tie.
+    from compare.results.cost import RESOLUTION, cpu_times, modelled
+    from compare.results.store import load_results
+
+    records = load_results(Path(__file__).parent / "fixtures" / "run-v1-smoke").records
+    assert records and all(cpu_times(r) == [] for r in records)
+    for record in records:
+        cost, low, high = modelled(None, record)
+        assert cost == record.metrics["cost_per_simulated_second"]
+        assert low == pytest.approx(cost / RESOLUTION) and high == pytest.approx(cost * RESOLUTION)

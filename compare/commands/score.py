@@ -6,7 +6,7 @@ import json
 
 import click
 
-from compare.cli import output_path, param_option, parse_assignments, scene_from_params
+from compare.cli import model_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
@@ -18,7 +18,7 @@ COLUMNS = (
     ("samples", "n_samples"),
     ("t_end/s", "t_end"),
     ("final/m", "position_error_final"),
-    ("l2/m", "position_error_l2"),
+    ("rms/m", "position_error_rms"),
     ("linf/m", "position_error_linf"),
     ("diverged/s", "divergence_time"),
     ("drift/E*", "energy_drift"),
@@ -30,9 +30,7 @@ COLUMNS = (
 @click.command("score")
 @click.argument("scene_name", metavar="SCENE", required=False)
 @click.argument("files", metavar="FILE.csv...", nargs=-1)
-@click.option("--model", "model", default=None, metavar="MODEL",
-              help="Grade runs of a model file (a URDF or MJCF path, or pybullet_data:<path>) instead of a catalog "
-                   "SCENE: the files have t, q_<joint>, v_<joint> columns; --param q0.JOINT=DEG, v0.JOINT=RAD/S.")
+@model_option("Grade runs (CSV columns t, q_<joint>, v_<joint>) of")
 @param_option(help="Scene parameter the files were made with (see 'xval scenes'); repeatable.")
 @click.option("--delta", default=DEFAULT_DELTA, show_default=True, type=float,
               help="Divergence threshold: the first t with position error > delta * L.")

@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from compare.cli import Seconds, engine_option_option, output_path, param_option, parse_assignments, scene_from_params
+from compare.cli import Seconds, engine_option_option, model_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
 from compare.results.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import Bounds, apply_bounds, largest, relative_drift
@@ -40,10 +40,7 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
 
 @click.command("simulate")
 @click.argument("scene_name", metavar="SCENE", required=False)
-@click.option("--model", "model", default=None, metavar="MODEL",
-              help="Simulate a model file instead of a catalog SCENE: a URDF or MJCF path, or pybullet_data:<path>; "
-                   "its initial state by --param q0.JOINT=DEG (metres for prismatic) and v0.JOINT=RAD/S "
-                   "(docs/models.md).")
+@model_option("Simulate")
 @click.option("--engine", "engine_id", default=None,
               help="ENGINE or ENGINE/VARIANT, e.g. mujoco/hinge-rk4 (see 'xval engines'); without it (and without "
                    "--command), the reference, which says so.")

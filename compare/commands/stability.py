@@ -34,7 +34,7 @@ def describe(result: PairResult) -> str:
 @click.option("--output", required=True, metavar="DIR", callback=output_path,
               help="Directory for stability.json and gainmap.json (created; may hold an 'xval run' of the suite).")
 @jobs_option("Pairs searched at once")
-@timeout_option(help="Seconds per probe before it is killed and counted unstable (default: the suite's).")
+@timeout_option(help="Seconds per trial run before it is killed and counted unstable (default: the suite's).")
 @click.option("--force", is_flag=True, help="Replace stability.json / gainmap.json already in DIR.")
 @click.option("--search/--no-search", default=True, help="Run the stability search (default: yes).")
 @click.option("--gain-map/--no-gain-map", "gain_map", default=True,
@@ -51,7 +51,7 @@ def command(suite_path, output, jobs, timeout, force, search, gain_map) -> None:
     completed, 2 for bad input.
     """
     suite = load_suite(suite_path)
-    # Validate both plans before any probe runs, so a typo costs nothing.
+    # Validate both plans before any trial runs, so a typo costs nothing.
     plan_stability(suite)
     gain_plan = plan_gainmap(suite) if gain_map else None
     if search:
@@ -63,5 +63,5 @@ def command(suite_path, output, jobs, timeout, force, search, gain_map) -> None:
             if done % 100 == 0 or done == total:
                 print(f"gain map: {done}/{total} cells", file=sys.stderr, flush=True)
 
-        path = run_gainmap(suite, output, jobs=jobs, timeout=timeout, force=force, on_cell=progress)
-        click.echo(f"gain map: {path}")
+        gain_path = run_gainmap(suite, output, jobs=jobs, timeout=timeout, force=force, on_cell=progress)
+        click.echo(f"gain map: {gain_path}")

@@ -20,7 +20,7 @@ from typing import Any, Mapping
 from engines.errors import UserError
 
 from compare.gate.entry import BaselineEntry, EntryError, entry_of, record_key
-from compare.results.files import atomic_write_text
+from compare.results.files import atomic_write_text, read_user_text
 from compare.results.store import Results, jsonable, now
 
 #: Bump when a field of the baseline file changes meaning.
@@ -122,16 +122,9 @@ def load_baseline(path: str | Path) -> Baseline:
     """Read and check a baseline file; UserError naming the file and the fix for anything else."""
     path = Path(path)
     fix = REMAKE.format(path=path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"--baseline: {path}: no such file; {fix}") from None
-    except UnicodeDecodeError as exc:
-        raise UserError(f"--baseline: {path}: not UTF-8 text (byte {exc.start}), so not an xval baseline; {fix}") from None
-    except IsADirectoryError:
-        raise UserError(f"--baseline: {path} is a directory; give the baseline JSON file (xval baseline DIR --output FILE)") from None
-    except OSError as exc:
-        raise UserError(f"--baseline: {path}: cannot read it ({exc.strerror})") from None
+    # A results directory passed for its baseline: remaking the baseline at that path would not do.
+    text = read_user_text(path, f"--baseline: {path}", fix,
+                          directory_fix="give the baseline JSON file (xval baseline DIR --output FILE)")
     try:
         document = json.loads(text)
     except json.JSONDecodeError as exc:

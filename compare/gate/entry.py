@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 from engines.errors import UserError
 
+from compare.results.declared import current_names
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import VariantSweep
 from compare.suite.tolerance import RULES, TIMING_METRIC
@@ -173,7 +174,8 @@ class BaselineEntry:
             options=options, dt=_number(data.get("dt"), f"{where}: field dt"),
             position=tuple(int(i) for i in _numbers(data.get("position", (0, 0, 0)), f"{where}: field position")),
             engine_version=text("engine_version", optional=True), status=status,
-            message=text("message", optional=True) or "", metrics=metrics, consistent=consistent,
+            message=text("message", optional=True) or "", consistent=consistent,
+            metrics=None if metrics is None else current_names(metrics),  # an earlier release's names as today's
             consistency=text("consistency", optional=True) or "",
             timing=None if timing is None else Timing.from_json(timing, where),
         )
@@ -233,13 +235,13 @@ def entry_of(record: CaseRecord, header: Mapping[str, Any], sweep: VariantSweep 
     """
     case = record.case
     order = sweep.order.order if sweep is not None and sweep.order else None
-    verdict = sweep.consistency if sweep is not None else None
+    judged = sweep.consistency if sweep is not None else None
     metrics = {name: order if name == "observed_order" else record.metrics.get(name) for name in RULES}
     return BaselineEntry(
         scene_id=case.scene_id, scene_hash=record.scene_hash, engine=case.engine, engine_id=case.engine_id,
         variant=case.variant, options=dict(case.options), dt=case.dt, position=tuple(case.position),
         engine_version=engine_version(record, header), status=record.status, message=record.message,
         metrics=metrics if record.has_metrics else None,
-        consistent=verdict.consistent if verdict else None, consistency=verdict.reason if verdict else "",
+        consistent=judged.consistent if judged else None, consistency=judged.reason if judged else "",
         timing=timing_of(record),
     )

@@ -19,11 +19,12 @@ from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, Baseline
 from compare.gate.entry import BaselineEntry, Timing, case_name
-from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, MetricRule
+from compare.results.declared import Metric
+from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings
 from compare.results.record import PROBLEMS, Status
 
-#: Case verdicts, in the order a table lists them (most urgent first).
-VERDICTS = ("worse", "not comparable", "missing", "new", "better", "unchanged")
+#: Case outcomes, in the order a table lists them (most urgent first).
+OUTCOMES = ("worse", "not comparable", "missing", "new", "better", "unchanged")
 #: How timing is treated: "gate" (a real slowdown fails) or "report" (shown, never fails).
 TIMING_MODES = ("gate", "report")
 #: Fewest timing repeats on each side for a timing change to be gated (the spread needs two).
@@ -37,7 +38,7 @@ class Change:
     metric : a metric name, ``"status"``, or ``TIMING_METRIC``.
     baseline, current : the two values (a status is a string; None: absent).
     limit : the value past which ``current`` counts as worse (None when not numeric).
-    verdict : "worse", "better" or "unchanged".
+    outcome : "worse", "better" or "unchanged".
     gated : False for a timing change that is shown but cannot fail the gate.
     note : why, in words (the bound exceeded, the timing rule, …).
     """
@@ -47,20 +48,20 @@ class Change:
     baseline: Any
     current: Any
     limit: float | None
-    verdict: str
+    outcome: str
     gated: bool = True
     note: str = ""
 
 
 @dataclass(frozen=True)
 class CaseResult:
-    """The gate's verdict on one case (scene × engine × dt) with every change it compared."""
+    """The gate's outcome for one case (scene × engine × dt) with every change it compared."""
 
     scene_id: str
     engine: str
     dt: float
     position: tuple
-    verdict: str
+    outcome: str
     reason: str = ""
     changes: tuple[Change, ...] = ()
     baseline_status: str | None = None
@@ -71,13 +72,13 @@ class CaseResult:
         return case_name(self.scene_id, self.engine, self.dt)
 
     def decisive(self) -> list[Change]:
-        """The gated changes that made the verdict (all worse ones for ``worse``, better ones for ``better``)."""
-        return [c for c in self.changes if c.gated and c.verdict == self.verdict]
+        """The gated changes that made the outcome (all worse ones for ``worse``, better ones for ``better``)."""
+        return [c for c in self.changes if c.gated and c.outcome == self.outcome]
 
 
 @dataclass(frozen=True)
 class GateReport:
-    """Every case's verdict, in table order, plus what the comparison was made under."""
+    """Every case's outcome, in table order, plus what the comparison was made under."""
 
     suite: str
     cases: tuple[CaseResult, ...]
@@ -85,14 +86,14 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
-    #: True when the missing cases fail the gate (see the module docstring).
+    #: True when the missing cases fail the gate (the rule: docs/architecture.md, "Module notes").
     missing_fails: bool = False
 
     @property
     def counts(self) -> dict[str, int]:
-        counts = {v: 0 for v in VERDICTS}
+        counts = {v: 0 for v in OUTCOMES}
         for case in self.cases:
-            counts[case.verdict] += 1
+            counts[case.outcome] += 1
         return counts
 
     @property
@@ -104,7 +105,7 @@ class GateReport:
 # -- one metric -------------------------------------------------------------------------
 
 
-def accuracy_change(rule: MetricRule, baseline: float | None, current: float | None, settings: GateSettings) -> Change | None:
+def accuracy_change(rule: Metric, baseline: float | None, current: float | None, settings: GateSettings) -> Change | None:
     """Compare one accuracy metric; None when either side has no value to compare."""
     tol = settings.tolerance(rule.name)
     infinite = rule.none_means == "infinite"
@@ -128,8 +129,8 @@ def accuracy_change(rule: MetricRule, baseline: float | None, current: float | N
     else:
         worse, better = exceeds(current, baseline), exceeds(baseline, current)
         limit = baseline * (1 + tol.rtol) + tol.atol
-    verdict = "worse" if worse else "better" if better else "unchanged"
-    return Change(rule.name, rule.unit, baseline, current, limit, verdict)
+    outcome = "worse" if worse else "better" if better else "unchanged"
+    return Change(rule.name, rule.unit, baseline, current, limit, outcome)
 
 
 def timing_change(baseline: Timing | None, current: Timing | None, factor: float, gated: bool, why_not: str = "") -> Change | None:
@@ -148,19 +149,19 @@ def timing_change(baseline: Timing | None, current: Timing | None, factor: float
         return cpu_timing_change(baseline, current, factor, gated, why_not)
     noise = (baseline.spread[1] - baseline.spread[0]) + (current.spread[1] - current.spread[0])
     if c > factor * b and c - b > noise:
-        verdict, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
+        outcome, note = "worse", f"{c / b:.2f}× slower (factor {factor:g}, repeat spread {noise:.2g} s/s)"
     elif b > factor * c and b - c > noise:
-        verdict, note = "better", f"{b / c:.2f}× faster"
+        outcome, note = "better", f"{b / c:.2f}× faster"
     else:
-        verdict, note = "unchanged", ""
-    return _timing(b, c, factor * b, verdict, note, gated, why_not)
+        outcome, note = "unchanged", ""
+    return _timing(b, c, factor * b, outcome, note, gated, why_not)
 
 
-def _timing(b: float, c: float, limit: float, verdict: str, note: str, gated: bool, why_not: str) -> Change:
+def _timing(b: float, c: float, limit: float, outcome: str, note: str, gated: bool, why_not: str) -> Change:
     """The timing Change (s/s), saying why a change that is not gated is not."""
-    if verdict != "unchanged" and not gated:
+    if outcome != "unchanged" and not gated:
         note += f"; not gated: {why_not}"
-    return Change(TIMING_METRIC, "s/s", b, c, limit, verdict, gated=gated, note=note)
+    return Change(TIMING_METRIC, "s/s", b, c, limit, outcome, gated=gated, note=note)
 
 
 def best_spread(values: list[float]) -> float:
@@ -178,7 +179,8 @@ def calibrated(timing: Timing) -> list[float]:
 
 
 def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: bool, why_not: str = "") -> Change:
-    """The statistical timing rule (module docstring) on two timing entries with "cpu" and "calibration".
+    """The statistical timing rule (docs/architecture.md, "Module notes") on two timing entries with "cpu"
+    and "calibration".
 
     worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated
     costs, s = :func:`best_spread`; better in mirror. The Change shows the best CPU costs (s/s).
@@ -191,12 +193,12 @@ def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: b
     how = (f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} repeats; "
            f"limit {factor:g} × {widen:.3g} = {limit:.3g}")
     if ratio > limit:
-        verdict, note = "worse", f"{ratio:.2f}× slower ({how})"
+        outcome, note = "worse", f"{ratio:.2f}× slower ({how})"
     elif 1 / ratio > limit:
-        verdict, note = "better", f"{1 / ratio:.2f}× faster ({how})"
+        outcome, note = "better", f"{1 / ratio:.2f}× faster ({how})"
     else:
-        verdict, note = "unchanged", ""
-    return _timing(b, c, limit * b, verdict, note, gated, why_not)
+        outcome, note = "unchanged", ""
+    return _timing(b, c, limit * b, outcome, note, gated, why_not)
 
 
 # -- one case ------------------------------------------------------------------------
@@ -204,7 +206,7 @@ def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: b
 
 def compare_case(base: BaselineEntry, current: BaselineEntry, settings: GateSettings, timing_gated: bool,
                  why_not: str) -> CaseResult:
-    """The verdict on one case present in both the baseline and the results, under the same key."""
+    """The outcome of one case present in both the baseline and the results, under the same key."""
     b_status, c_status = base.status, current.status
     common = dict(
         scene_id=current.scene_id, engine=current.engine, dt=current.dt, position=current.position,
@@ -215,26 +217,26 @@ def compare_case(base: BaselineEntry, current: BaselineEntry, settings: GateSett
         # The engine no longer loads here (a broken plug-in, a missing library) or no longer
         # expresses the scene: a solver that stopped running must not pass the gate silently.
         lost = Change("status", "", b_status.value, c_status.value, None, "worse", note=current.message)
-        return CaseResult(**common, verdict="worse", reason=f"skipped now: {current.message}", changes=(lost,))
+        return CaseResult(**common, outcome="worse", reason=f"skipped now: {current.message}", changes=(lost,))
     if b_status is skipped and c_status is not skipped:
-        return CaseResult(**common, verdict="not comparable", reason=f"skipped in the baseline: {base.message}")
+        return CaseResult(**common, outcome="not comparable", reason=f"skipped in the baseline: {base.message}")
     if base.engine_version != current.engine_version:
         return CaseResult(
-            **common, verdict="not comparable",
+            **common, outcome="not comparable",
             reason=f"engine version changed: {base.engine_version} → {current.engine_version}",
         )
     status = Change("status", "", b_status.value, c_status.value, None, "unchanged")
     if b_status is not c_status:
         if b_status is Status.OK and c_status in PROBLEMS:
-            status = replace(status, verdict="worse", note=current.message)
+            status = replace(status, outcome="worse", note=current.message)
         elif c_status is Status.OK:
-            status = replace(status, verdict="better")
+            status = replace(status, outcome="better")
         else:
             status = replace(status, note="not ok before either")
     changes = [status]
-    verdict_change = consistency_change(base, current)
-    if verdict_change is not None:
-        changes.append(verdict_change)
+    consistency_changed = consistency_change(base, current)
+    if consistency_changed is not None:
+        changes.append(consistency_changed)
     if b_status is Status.OK and c_status is Status.OK:
         # A side without a position error had no reference: its null divergence time is "not measured".
         unmeasured = base.metric("position_error_linf") is None or current.metric("position_error_linf") is None
@@ -251,9 +253,9 @@ def compare_case(base: BaselineEntry, current: BaselineEntry, settings: GateSett
         timing = timing_change(base.timing, current.timing, settings.timing_factor, timing_gated, why_not)
         if timing is not None:
             changes.append(timing)
-    gated = [c.verdict for c in changes if c.gated]
-    verdict = "worse" if "worse" in gated else "better" if "better" in gated else "unchanged"
-    return CaseResult(**common, verdict=verdict, changes=tuple(changes))
+    gated = [c.outcome for c in changes if c.gated]
+    outcome = "worse" if "worse" in gated else "better" if "better" in gated else "unchanged"
+    return CaseResult(**common, outcome=outcome, changes=tuple(changes))
 
 
 def consistency_change(base: BaselineEntry, current: BaselineEntry) -> Change | None:
@@ -354,8 +356,8 @@ def gate(baseline: Baseline, current: Baseline, settings: GateSettings, *, timin
             base.scene_id, base.engine, base.dt, base.position, "missing",
             reason="in the baseline, not in the results", baseline_status=base.status.value,
         ))
-    results.sort(key=lambda r: (VERDICTS.index(r.verdict), r.position, r.scene_id, r.engine, -r.dt))
-    missing = [r for r in results if r.verdict == "missing"]
+    results.sort(key=lambda r: (OUTCOMES.index(r.outcome), r.position, r.scene_id, r.engine, -r.dt))
+    missing = [r for r in results if r.outcome == "missing"]
     same_suite = baseline.suite.get("fingerprint") == current.suite.get("fingerprint")
     missing_fails = bool(missing) and (same_suite or len(missing) == len(base_cases))
     notes: tuple[str, ...] = ()

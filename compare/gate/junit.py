@@ -47,14 +47,14 @@ def to_junit(report: GateReport) -> str:
             suite, "testcase", classname=f"xval.{report.suite}.{case.scene_id}", name=f"{case.engine} dt={case.dt:.3g}"
         )
         detail = "\n".join("  ".join(v for v in row if v) for row in case_rows(case))
-        if case.verdict == "worse":
+        if case.outcome == "worse":
             failure = ET.SubElement(element, "failure", message=f"{case.name}: {_failure_message(case)}", type="worse")
             failure.text = detail
-        elif case.verdict == "missing" and report.missing_fails:
+        elif case.outcome == "missing" and report.missing_fails:
             failure = ET.SubElement(element, "failure", message=f"{case.name}: missing: {case.reason}", type="missing")
             failure.text = detail
-        elif case.verdict in ("not comparable", "missing"):
-            ET.SubElement(element, "skipped", message=f"{case.verdict}: {case.reason}")
+        elif case.outcome in ("not comparable", "missing"):
+            ET.SubElement(element, "skipped", message=f"{case.outcome}: {case.reason}")
         else:
             ET.SubElement(element, "system-out").text = detail
     root = ET.Element("testsuites", name="xval gate", tests=suite.get("tests"), failures=suite.get("failures"))

@@ -6,7 +6,7 @@ found by grep is complete on its own. Unchanged cases show their headline
 (max position error, or status); timing changes that cannot fail the gate
 (another machine, ``--timing report``, a single repeat) are shown with the
 reason, labelled ``slower (not gated)`` / ``faster (not gated)`` rather than
-with the case's verdict, so a row that starts ``worse`` always failed the gate.
+with the case's outcome, so a row that starts ``worse`` always failed the gate.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 from compare.gate.gate import CaseResult, Change, GateReport
 from compare.text import inert
 
-COLUMNS = ("verdict", "scene", "engine", "dt", "metric", "baseline", "current", "note")
+COLUMNS = ("outcome", "scene", "engine", "dt", "metric", "baseline", "current", "note")
 #: The metric an unchanged case is summarised by.
 HEADLINE = "position_error_linf"
 #: The label of a row whose change is shown but cannot fail the gate (only timing can be ungated).
@@ -41,7 +41,7 @@ def _note(change: Change) -> str:
     parts = []
     if isinstance(change.baseline, (int, float)) and isinstance(change.current, (int, float)) and change.baseline > 0:
         parts.append(f"×{change.current / change.baseline:.2f}")
-    if change.verdict == "worse" and change.limit is not None:
+    if change.outcome == "worse" and change.limit is not None:
         parts.append(f"limit {format_value(change.metric, change.limit)}")
     return ", ".join(parts)
 
@@ -49,15 +49,15 @@ def _note(change: Change) -> str:
 def case_rows(case: CaseResult) -> list[list[str]]:
     """The table rows of one case (columns COLUMNS)."""
     where = [case.scene_id, case.engine, f"{case.dt:.3g}"]
-    if case.verdict in ("not comparable", "missing", "new"):
-        return [[case.verdict, *where, "-", case.baseline_status or "-", case.current_status or "-", case.reason]]
+    if case.outcome in ("not comparable", "missing", "new"):
+        return [[case.outcome, *where, "-", case.baseline_status or "-", case.current_status or "-", case.reason]]
     shown: list[Change] = case.decisive()
-    if case.verdict == "unchanged":
+    if case.outcome == "unchanged":
         headline = [c for c in case.changes if c.metric == HEADLINE] or [c for c in case.changes if c.metric == "status"]
         shown = headline[:1]
-    shown += [c for c in case.changes if not c.gated and c.verdict != "unchanged"]
+    shown += [c for c in case.changes if not c.gated and c.outcome != "unchanged"]
     return [
-        [case.verdict if c.gated else NOT_GATED[c.verdict], *where,
+        [case.outcome if c.gated else NOT_GATED[c.outcome], *where,
          c.metric, format_value(c.metric, c.baseline), format_value(c.metric, c.current), _note(c)]
         for c in shown
     ]
@@ -71,8 +71,8 @@ def _table(rows: list[list[str]]) -> list[str]:
 
 
 def summary_line(report: GateReport) -> str:
-    """``gate FAILED: 1 worse, …`` / ``gate passed: …`` with the counts of every verdict."""
-    counts = ", ".join(f"{n} {verdict}" for verdict, n in report.counts.items())
+    """``gate FAILED: 1 worse, …`` / ``gate passed: …`` with the counts of every outcome."""
+    counts = ", ".join(f"{n} {outcome}" for outcome, n in report.counts.items())
     state = "passed" if report.passed else "FAILED"
     timing = f"timing factor {report.settings.timing_factor:g}"
     timing += f", not gated: {report.timing_note}" if report.timing_note else ", gated"
@@ -95,10 +95,10 @@ def _md_escape(text: str) -> str:
 
 
 def to_markdown(report: GateReport) -> str:
-    """Markdown for a CI job summary: verdict, counts, the changed cases, the unchanged ones folded away."""
+    """Markdown for a CI job summary: pass or fail, counts, the changed cases, the unchanged ones folded away."""
     state = "passed" if report.passed else "FAILED"
     lines = [f"## xval gate {state}: suite {_md_escape(report.suite)}", ""]
-    lines.append(", ".join(f"**{n}** {verdict}" for verdict, n in report.counts.items() if n) + ".")
+    lines.append(", ".join(f"**{n}** {outcome}" for outcome, n in report.counts.items() if n) + ".")
     if report.timing_note:
         lines.append(f"Timing not gated: {_md_escape(report.timing_note)}.")
     lines += [f"Note: {_md_escape(note)}" for note in report.notes]
@@ -107,8 +107,8 @@ def to_markdown(report: GateReport) -> str:
     def rows_of(cases: list[CaseResult]) -> list[str]:
         return ["| " + " | ".join(_md_escape(v) for v in row) + " |" for case in cases for row in case_rows(case)]
 
-    changed = [c for c in report.cases if c.verdict != "unchanged"]
-    unchanged = [c for c in report.cases if c.verdict == "unchanged"]
+    changed = [c for c in report.cases if c.outcome != "unchanged"]
+    unchanged = [c for c in report.cases if c.outcome == "unchanged"]
     lines.append("")
     lines += header + rows_of(changed) if changed else ["No case changed."]
     if unchanged:

@@ -32,7 +32,8 @@ class Filters:
 
 
 def metric_named(name: str) -> Metric:
-    """The declared metric ``name``; UserError listing the declared ones otherwise."""
+    """The declared metric ``name`` (or its name before a rename); UserError listing the declared ones otherwise."""
+    name = declared.current_name(name)
     if name not in declared.METRICS:
         raise UserError(f"--metric: unknown metric {name!r}; declared metrics are: {', '.join(declared.METRICS)}")
     return declared.METRICS[name]
@@ -91,8 +92,8 @@ def format_table(table: list[dict[str, Any]], metrics: Sequence[Metric], locatio
     widths = [max(len(c), *(len(r[i]) for r in body)) for i, c in enumerate(columns)]
     left = 6  # run … engine are text; dt, status and the metrics right-aligned
     lines = ["  ".join(c.ljust(w) if i < left else c.rjust(w) for i, (c, w) in enumerate(zip(columns, widths)))]
-    for row in body:
-        lines.append("  ".join(v.ljust(w) if i < left else v.rjust(w) for i, (v, w) in enumerate(zip(row, widths))))
+    for cells in body:
+        lines.append("  ".join(v.ljust(w) if i < left else v.rjust(w) for i, (v, w) in enumerate(zip(cells, widths))))
     machines = sorted({(r["machine"][:8], r["machine_name"]) for r in table})
     runs = len({r["run"] for r in table})
     lines.append("")

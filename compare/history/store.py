@@ -31,6 +31,7 @@ from compare.gate.baseline import Baseline, build_baseline
 from compare.gate.entry import BaselineEntry, record_key
 from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
+from compare.results.declared import current_names
 from compare.results.record import CaseRecord
 from compare.results.store import Results, now
 
@@ -200,7 +201,7 @@ class _SQLAlchemy:
         parsed = sqlalchemy.engine.make_url(_driver_url(url))
         self.name = parsed.render_as_string(hide_password=True)
         self.engine = sqlalchemy.create_engine(parsed, poolclass=sqlalchemy.pool.NullPool)
-        self._connection = None
+        self._connection: Any = None  # the open transaction's sqlalchemy Connection (imported lazily)
         try:
             with self.engine.connect():
                 pass
@@ -572,7 +573,8 @@ class History:
         out = []
         for run_id, key, scene_id, engine_label, dt, status, entry, metrics in self.backend.query(sql, params):
             typed = BaselineEntry.from_json(json.loads(entry), f"{self.name}: run {run_id} case {key}")
-            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, typed, json.loads(metrics)))
+            out.append(StoredCase(int(run_id), key, scene_id, engine_label, float(dt), status, typed,
+                                  current_names(json.loads(metrics))))
         return out
 
     def record(self, run_id: int, key: str) -> CaseRecord:

@@ -36,14 +36,14 @@ class Step:
     """A step change in a series: ``index`` is the first point after it (into the series' points).
 
     before, after : medians of the two sides (the metric's unit); ratio : after / before (None when before is 0);
-    verdict : "worse" or "better" by the metric's direction; noise : σ of the series (of log10 values when all are positive).
+    outcome : "worse" or "better" by the metric's direction; noise : σ of the series (of log10 values when all are positive).
     """
 
     index: int
     before: float
     after: float
     ratio: float | None
-    verdict: str
+    outcome: str
     noise: float
 
 
@@ -110,8 +110,8 @@ def steps(values: Sequence[float | None], metric: Metric, tolerance: Tolerance |
     found = []
     for i in range(1, len(edges) - 1):
         b, a = _median(y[edges[i - 1]:edges[i]]), _median(y[edges[i]:edges[i + 1]])
-        verdict = "better" if (a > b) == metric.higher_is_better else "worse"
-        found.append(Step(positions[edges[i]], b, a, a / b if b != 0 else None, verdict, sigma))
+        outcome = "better" if (a > b) == metric.higher_is_better else "worse"
+        found.append(Step(positions[edges[i]], b, a, a / b if b != 0 else None, outcome, sigma))
     return found
 
 

@@ -90,7 +90,7 @@ def combine(entries: Sequence[BaselineEntry], current_version: str | None) -> Ba
 
 
 def window_baseline(history: History, results: Results, size: int = DEFAULT_WINDOW) -> Window:
-    """The baseline of the window for ``results`` (see the module docstring)."""
+    """The baseline of the window for ``results`` (what each case is held to: docs/architecture.md, "Module notes")."""
     machine = machine_of(results.header)
     suite = str((results.header.get("suite") or {}).get("name", ""))
     runs = window_runs(history, results, size)

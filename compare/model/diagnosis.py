@@ -56,7 +56,7 @@ def differs(engine: LinkInertia, file: LinkInertia, scale: Scales) -> tuple[bool
     mass = abs(engine.mass - file.mass) > RELATIVE * scale.mass
     com = engine.mass > 0 and file.mass > 0 and np.linalg.norm(engine.com - file.com) > RELATIVE * scale.length
     inertia = np.abs(engine.inertia - file.inertia).max() > RELATIVE * scale.inertia
-    return mass, com, inertia
+    return bool(mass), bool(com), bool(inertia)
 
 
 def moments(inertia: np.ndarray) -> str:

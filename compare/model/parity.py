@@ -192,7 +192,8 @@ def _one(name, source, model, sample, expected, balance_inertia) -> tuple[Engine
         return EngineParity(name, version, True, False, message=f"failed: {type(exc).__name__}: {exc}",
                             options=loaded.options, notes=loaded.notes), []
     agrees = all(d <= TOLERANCE for d in differences.values())
-    return EngineParity(name, version, True, agrees, **differences, options=loaded.options, notes=loaded.notes,
+    return EngineParity(name, version, True, agrees, differences["mass_matrix"], differences["bias"],
+                        differences["forward"], options=loaded.options, notes=loaded.notes,
                         diagnosis=tuple(sentences({name: findings}))), findings
 
 

@@ -24,7 +24,7 @@ REFERENCE_MARGIN = 10.0
 
 @dataclass(frozen=True)
 class Consistency:
-    """consistent : True, False or None (see the module docstring); reason : one line saying why.
+    """consistent : True, False or None (docs/architecture.md, "Module notes"); reason : one line saying why.
 
     plateau : m, the error the variant stopped at (None: still falling, or not judged).
     """

@@ -1,12 +1,13 @@
 """Stepping cost you can reproduce: per case its CPU times (min, spread), per variant a model fitted over its sweep.
 
 Per case i: T_i = the least CPU time (s) over its repeats of the engine's run, n_i its steps. Per variant
-the model T_i = a + c·n_i is fitted by Theil–Sen (scipy.stats.theilslopes: the median of the pairwise
-slopes, with its 95 % interval), so one disturbed case cannot move it: a (s) is what a run costs whatever
-its length (building the model), c (s/step) the per-step cost. A case's cost per simulated second is then
-steps × per-step cost / simulated time = c/dt for a fixed step: monotone in dt by construction, with the
-interval [c_lo, c_hi] carried along. With fewer than MIN_FIT cases timed, c is the median of T_i/n_i (an
-upper bound: it carries a) and its interval spans every repeat's T/n.
+the model T_i = a + c·n_i is fitted by Theil–Sen (the median of the pairwise slopes, as
+scipy.stats.theilslopes), so one disturbed case cannot move it: a (s) is what a run costs whatever its
+length, c (s/step) the per-step cost. A case's cost per simulated second is then steps × c / simulated
+time = c/dt for a fixed step: monotone in dt by construction. c's interval is what a rerun needs: at
+least a factor RESOLUTION either side (run-to-run noise of CPU time on a shared machine), wider where
+leaving out one case moves the fit further. With fewer than MIN_FIT cases timed, c is the median of T_i/n_i (an upper
+bound: it carries a) and its interval spans every repeat's T/n, widened likewise.
 
 Records without CPU times (results of an older xval, hand-made records) fall back on their
 ``cost_per_simulated_second`` metric: then each case is its own model, c = that cost · dt.
@@ -17,24 +18,27 @@ from __future__ import annotations
 import math
 import statistics
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
 
 #: Fewest timed cases for the Theil–Sen fit (below it, per-case ratios).
 MIN_FIT = 3
-#: Confidence of the per-step cost's interval.
-CONFIDENCE = 0.95
+#: Least factor either side of a per-step cost its interval spans. One variant's per-step cost moved by up
+#: to 1.95× between six runs of the default suite on a shared 2-core machine (tests/fixtures/
+#: cost_samples.json; scripts/verdict_example.py prints it): intervals of c/1.7 to 1.7·c from any two such
+#: runs overlap (1.7² = 2.9 > 1.95). Theil–Sen's rank interval from one run was often narrower than that
+#: (and at times reached down to 0 s/step, from the scatter of runs a few steps long).
+RESOLUTION = 1.7
 
 
-def _positive(value: Any) -> bool:
+def _positive(value: Any) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
 
 
 def cpu_times(record: CaseRecord) -> list[float]:
     """s, the CPU time of each repeat of ``record``'s run (empty when not recorded)."""
-    values = getattr(record, "cpu_times", None) or record.extra.get("cpu_times") or []
-    return [float(v) for v in values if _positive(v)]
+    return [float(v) for v in record.cpu_times or () if _positive(v)]
 
 
 def steps(record: CaseRecord) -> int | None:
@@ -86,25 +90,41 @@ class CostModel:
         return self.per_step * rate, self.low * rate, self.high * rate
 
     def describe(self) -> str:
-        """``3.1e-06 s/step [2.9e-06, 3.3e-06]`` (the interval at CONFIDENCE)."""
+        """``3.1e-06 s/step [1.8e-06, 5.3e-06]``."""
         return f"{self.per_step:.2g} s/step [{self.low:.2g}, {self.high:.2g}]"
+
+
+def _theil_sen(costs: Sequence[CaseCost]) -> tuple[float, float]:
+    """(slope s/step, intercept s) of T = a + c·n over ``costs`` by Theil–Sen, as scipy.stats.theilslopes
+    gives them (slope: the median of the slopes between cases of different n; intercept: median T − slope ·
+    median n), without its per-call overhead (the jackknife calls this once per case)."""
+    slopes = [(b.cpu_min - a.cpu_min) / (b.steps - a.steps)
+              for k, a in enumerate(costs) for b in costs[k + 1:] if b.steps != a.steps]
+    slope = statistics.median(slopes)
+    return slope, statistics.median(c.cpu_min for c in costs) - slope * statistics.median(c.steps for c in costs)
+
+
+def _widened(per_step: float, low: float, high: float) -> tuple[float, float]:
+    """(low, high) s/step: [low, high] taken out to at least RESOLUTION either side of ``per_step``."""
+    return min(low, per_step / RESOLUTION), max(high, per_step * RESOLUTION)
 
 
 def fit(engine: str, records: Sequence[CaseRecord]) -> CostModel | None:
     """The CostModel of one variant from its case records (any order); None when no case was timed."""
-    timed = [(r, c) for r in records if (c := case_cost(r)) is not None]
-    if len(timed) >= MIN_FIT and len({c.steps for _, c in timed}) >= 2:
-        from scipy.stats import theilslopes
-
-        slope, intercept, low, high = theilslopes([c.cpu_min for _, c in timed], [c.steps for _, c in timed],
-                                                  alpha=CONFIDENCE)
+    costs = [c for r in records if (c := case_cost(r)) is not None]
+    if len(costs) >= MIN_FIT and len({c.steps for c in costs}) >= 2:
+        slope, intercept = _theil_sen(costs)
         if slope > 0:
-            return CostModel(engine, float(slope), float(max(low, 0.0)), float(high), float(max(intercept, 0.0)),
-                             len(timed), "fit")
-    if timed:
-        ratios = [c.cpu_min / c.steps for _, c in timed]
-        every = [t / c.steps for r, c in timed for t in cpu_times(r)]
-        return CostModel(engine, float(statistics.median(ratios)), min(every), max(every), 0.0, len(timed), "ratio")
+            # How far one case moves the fit: the fits leaving out each case in turn (with enough left to fit).
+            others = [costs[:k] + costs[k + 1:] for k in range(len(costs))] if len(costs) > MIN_FIT else []
+            slopes = [s for rest in others if len({c.steps for c in rest}) >= 2 and (s := _theil_sen(rest)[0]) > 0]
+            low, high = _widened(slope, min(slopes, default=slope), max(slopes, default=slope))
+            return CostModel(engine, slope, low, high, max(intercept, 0.0), len(costs), "fit")
+    if costs:
+        ratios = [c.cpu_min / c.steps for c in costs]
+        every = [t / c.steps for r in records if (c := case_cost(r)) is not None for t in cpu_times(r)]
+        per_step = float(statistics.median(ratios))
+        return CostModel(engine, per_step, *_widened(per_step, min(every), max(every)), 0.0, len(costs), "ratio")
     return None
 
 
@@ -116,10 +136,11 @@ def metric_cost(record: CaseRecord) -> float | None:
 
 def modelled(model: CostModel | None, record: CaseRecord) -> tuple[float, float, float] | None:
     """(cost, low, high) s/s of ``record`` under its variant's ``model``; the record's own metric when
-    the variant has no model (then low = high = cost); None without either."""
+    the variant has no model (a run without CPU times: one wall-clock sample, so its interval is at least
+    RESOLUTION either side, as a model's is); None without either."""
     if model is None:
         value = metric_cost(record)
-        return None if value is None else (value, value, value)
+        return None if value is None else (value, *_widened(value, value, value))
     duration = (record.scene or {}).get("duration")
     n = steps(record) if record.case.tolerance is not None else None
     return model.per_simulated_second(record.case.dt, n, duration if _positive(duration) else None)

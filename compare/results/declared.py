@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -114,7 +114,7 @@ _BUILT_IN = (
     Metric("position_error_linf", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9), shown=True, label="error/m",
            report=True, title="position error",
            description="max over samples of e(t) = max over particles ‖p − p_ref‖"),
-    Metric("position_error_l2", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
+    Metric("position_error_rms", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
            description="RMS over samples of e(t)"),
     Metric("position_error_final", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
            description="e(t) at the last sample (null for an incomplete run)"),
@@ -133,8 +133,10 @@ _BUILT_IN = (
     Metric("constraint_force_error_relative", "", "lower",
            description="constraint_force_error / (total mass · g)"),
     Metric("wall_time", "s", "lower", description="stepping loop wall time, median of repeats"),
-    Metric("cost_per_simulated_second", "s/s", "lower", shown=True, label="cost s/s", report=True, title="cost",
-           description="wall_time per simulated second"),
+    # Wall clock, as baselines and the history store keep it; the verdict and the report's "CPU cost" column
+    # use the CPU cost model (compare.results.cost) instead, which a busy neighbour does not stretch.
+    Metric("cost_per_simulated_second", "s/s", "lower", shown=True, label="wall s/s", title="wall-clock cost",
+           description="wall_time per simulated second (wall clock; the verdict uses the CPU cost model)"),
     Metric("steps_per_second", "1/s", "higher", description="steps per second of wall time"),
     Metric("observed_order", "", "higher", True, Tolerance(0.0, 0.25), per="variant", shown=True, label="order",
            description="slope of log error against log dt over the asymptotic range"),
@@ -158,6 +160,27 @@ METRICS: dict[str, Metric] = {m.name: m for m in _BUILT_IN}
 
 #: The timing metric (s of wall time per simulated s, median of repeats); gated by its own rule.
 TIMING_METRIC = "cost_per_simulated_second"
+
+#: Metric names earlier releases wrote, by the name that replaced them (the same quantity; a horizon
+#: metric's whole-run value is stored as ``<name>_whole_run``, compare.run.runner.HORIZON_METRICS).
+RENAMED = {
+    "position_error_l2": "position_error_rms",
+    "position_error_l2_whole_run": "position_error_rms_whole_run",
+}
+
+
+def current_name(name: str) -> str:
+    """The metric name that replaced ``name`` (:data:`RENAMED`), else ``name``."""
+    return RENAMED.get(name, name)
+
+
+def current_names(metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """``metrics`` with every name of :data:`RENAMED` under its current name.
+
+    The readers of stored metrics (a case record, a baseline entry, a history row) call it, so results,
+    baselines and histories written before a rename still compare with new runs.
+    """
+    return {current_name(name): value for name, value in metrics.items()}
 
 
 def register(metric: Metric) -> Metric:

@@ -19,7 +19,7 @@ from engines.scene.trajectory import Trajectory, max_constraint_error, total_ene
 def trajectory_columns(scene: Scene, forces: bool = False) -> list[str]:
     """``t``, then ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle, [``f{k}_x..z`` per constraint],
     then ``energy``, ``constraint_error``; a model scene's are compare.results.model_csv's."""
-    if getattr(scene, "is_model", False):
+    if scene.is_model:
         from compare.results.model_csv import model_columns
 
         return model_columns(scene)
@@ -33,7 +33,7 @@ def trajectory_table(scene: Scene, trajectory: Trajectory, forces: bool = False)
     trajectory has none); energy : J; constraint_error : m, the largest over
     constraints at that sample.
     """
-    if getattr(scene, "is_model", False):
+    if scene.is_model:
         from compare.results.model_csv import model_table
 
         return model_table(scene, trajectory)

@@ -1,4 +1,5 @@
-"""Writing files so that a reader never sees half of one, and refusing bad output paths up front.
+"""Writing files so that a reader never sees half of one, refusing bad output paths up front, and reading
+the files a user names with one error for each way that fails.
 
 Rules every output of xval follows (issue 21):
 
@@ -90,6 +91,25 @@ def check_writable(path: str | os.PathLike, flag: str = "--output", inputs: Iter
     return target
 
 
+def read_user_text(path: Path, where: str, fix: str, directory_fix: str | None = None) -> str:
+    """The UTF-8 text of a file the user named; UserError ``<where>: <what is wrong>; <fix>`` otherwise.
+
+    where : how the message names the file (``--baseline: PATH``); fix : what the user should do instead;
+    directory_fix : the fix when ``path`` is a directory, where ``fix`` would not do (default ``fix``).
+    """
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        problem = "no such file"
+    except UnicodeDecodeError as exc:
+        problem = f"not UTF-8 text (byte {exc.start})"
+    except IsADirectoryError:
+        problem, fix = "is a directory", directory_fix or fix
+    except OSError as exc:
+        problem = f"cannot read it ({exc.strerror})"
+    raise UserError(f"{where}: {problem}; {fix}")
+
+
 def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bool = True) -> None:
     """Write ``text`` (str, or bytes already encoded as UTF-8) to ``path`` so that no reader sees half
     of it (the rules in the module docstring).
@@ -108,7 +128,7 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
     """
     binary = isinstance(text, bytes)
     if str(path) == STDOUT:
-        if binary:
+        if isinstance(text, bytes):
             sys.stdout.flush()
             sys.stdout.buffer.write(text)
             sys.stdout.buffer.flush()

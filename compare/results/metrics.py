@@ -45,10 +45,10 @@ def position_error(positions: np.ndarray, reference_positions: np.ndarray) -> np
 
 @dataclass(frozen=True)
 class ErrorSummary:
-    """position error e(t) reduced: final (last sample), l2 (RMS over samples), linf (max), all m."""
+    """position error e(t) reduced: final (last sample), rms (root mean square over samples), linf (max), all m."""
 
     final: float
-    l2: float
+    rms: float
     linf: float
 
 
@@ -150,7 +150,7 @@ def stepping_cost(wall_times: Sequence[float], simulated_time: float, steps: int
 class CaseMetrics:
     """Every metric of one case (docs/metrics.md defines each).
 
-    position_error_final / _l2 / _linf : m (final is NaN for an incomplete run).
+    position_error_final / _rms / _linf : m (final is NaN for an incomplete run).
     divergence_time : s, or None when e(t) stays ≤ δ·L.
     energy_drift : max |E(t) − E(0)| / E*.
     constraint_error : m.
@@ -161,7 +161,7 @@ class CaseMetrics:
     """
 
     position_error_final: float
-    position_error_l2: float
+    position_error_rms: float
     position_error_linf: float
     divergence_time: float | None
     energy_drift: float
@@ -230,7 +230,7 @@ def case_metrics(
     constraint_errors = trajectory_constraint_error(scene, trajectory)
     metrics = CaseMetrics(
         position_error_final=summary.final if complete else math.nan,
-        position_error_l2=summary.l2,
+        position_error_rms=summary.rms,
         position_error_linf=summary.linf,
         divergence_time=divergence_time(trajectory.t, e, threshold, end_of_data),
         energy_drift=largest(drift),

@@ -19,6 +19,7 @@ from typing import Any, Iterable, Mapping
 
 from engines.errors import UserError
 
+from compare.results.declared import current_names
 from compare.results.series import SeriesView
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
@@ -263,7 +264,7 @@ class CaseRecord:
             case=key,
             status=status,
             message=str(data.get("message") or ""),
-            metrics=metrics,
+            metrics=current_names(metrics),  # the names an earlier release wrote read as today's
             run_info=reader.optional_mapping(data, "run_info"),
             wall_times=tuple(float(w) for w in reader.sequence(data, "wall_times", default=())),
             elapsed=float(data.get("elapsed") or 0.0),
@@ -307,29 +308,27 @@ class _FieldReader:
     def _wrong(self, dotted: str, want: str, value: Any) -> RecordError:
         return RecordError(f"{self.where}: field {dotted} must be {want}, got {value!r}"[:300])
 
-    def mapping(self, data: Mapping[str, Any], dotted: str) -> dict[str, Any]:
-        value = self._get(data, dotted)
-        if not isinstance(value, dict):
-            raise self._wrong(dotted, "an object", value)
+    def _of_type(self, data: Mapping[str, Any], dotted: str, kind: type, want: str, optional: bool) -> Any:
+        """The field, checked to be a ``kind`` (``want`` names it in the error); None when ``optional`` and null."""
+        if not optional:
+            value = self._get(data, dotted)
+        elif (value := data.get(dotted.rsplit(".", 1)[-1])) is None:
+            return None
+        if not isinstance(value, kind):
+            raise self._wrong(dotted, want + (" or null" if optional else ""), value)
         return value
+
+    def mapping(self, data: Mapping[str, Any], dotted: str) -> dict[str, Any]:
+        return self._of_type(data, dotted, dict, "an object", optional=False)
 
     def optional_mapping(self, data: Mapping[str, Any], dotted: str) -> dict[str, Any] | None:
-        value = data.get(dotted.rsplit(".", 1)[-1])
-        if value is not None and not isinstance(value, dict):
-            raise self._wrong(dotted, "an object or null", value)
-        return value
+        return self._of_type(data, dotted, dict, "an object", optional=True)
 
     def text(self, data: Mapping[str, Any], dotted: str) -> str:
-        value = self._get(data, dotted)
-        if not isinstance(value, str):
-            raise self._wrong(dotted, "a string", value)
-        return value
+        return self._of_type(data, dotted, str, "a string", optional=False)
 
     def optional_text(self, data: Mapping[str, Any], dotted: str) -> str | None:
-        value = data.get(dotted.rsplit(".", 1)[-1])
-        if value is not None and not isinstance(value, str):
-            raise self._wrong(dotted, "a string or null", value)
-        return value
+        return self._of_type(data, dotted, str, "a string", optional=True)
 
     def number(self, data: Mapping[str, Any], dotted: str) -> float:
         value = self._get(data, dotted)

@@ -28,7 +28,7 @@ from compare.results.metrics import DEFAULT_DELTA, case_metrics
 #: Metric names of a score, as ``xval show --format json`` names them (force errors only with force columns);
 #: any declared metric with a ``compute`` function (compare.results.declared) follows them.
 SCORE_METRICS = (
-    "position_error_final", "position_error_l2", "position_error_linf", "divergence_time",
+    "position_error_final", "position_error_rms", "position_error_linf", "divergence_time",
     "energy_drift", "constraint_error", "constraint_force_error", "constraint_force_error_relative",
 )
 #: |t[0]| accepted as "the first row is t = 0", relative to the file's last time.
@@ -57,7 +57,7 @@ def load(path: str | Path, scene: Scene) -> Loaded:
         raise UserError(f"{where}: cannot read it ({exc.strerror})") from None
     try:
         table = protocol.read_csv(text, where)
-        if getattr(scene, "is_model", False):
+        if scene.is_model:
             return _load_model_run(where, table, scene)
         state = protocol.match_columns(table, scene, where)
     except protocol.ProtocolError as exc:

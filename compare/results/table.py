@@ -116,8 +116,8 @@ def _reason(sweep: VariantSweep) -> str:
 
 def table_columns() -> tuple[str, ...]:
     """Headings of the short table: engine, statuses, finest ok dt, the shown metrics, the per-step CPU cost
-    with its 95 % interval (compare.results.cost), the verdict."""
-    return ("engine", "status", "dt", *(m.heading for m in declared.shown()), "s/step [95 %]", "consistent")
+    with its interval (compare.results.cost), the verdict."""
+    return ("engine", "status", "dt", *(m.heading for m in declared.shown()), "s/step [interval]", "consistent")
 
 
 def _verdict(sweep: VariantSweep) -> str:

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Iterable, Sequence
+from typing import Iterable, Sequence, TypeGuard
 
-from compare.results.cost import CostModel, modelled
+from compare.results.cost import CostModel, modelled, steps
 from compare.results.record import PROBLEMS, CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
@@ -44,7 +44,7 @@ def families(sweeps: Iterable[VariantSweep]) -> list[str]:
     return list(seen)
 
 
-def _finite_positive(value: object) -> bool:
+def _finite_positive(value: object) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and value > 0
 
 
@@ -53,7 +53,8 @@ class Point:
     """One ok case on the error–cost plane: variant label, dt (s), cost (s/s), max position error (m), case id.
 
     cost is the variant's cost model at this dt (compare.results.cost), in [cost_low, cost_high] s/s;
-    error_bar : m, the reference's own error bar (0 when unknown).
+    error_bar : m, the reference's own error bar (0 when unknown); rate : steps per simulated second
+    (1/dt, or an error-controlled run's own steps / duration): what the cost is c × rate of.
     """
 
     engine: str
@@ -66,6 +67,7 @@ class Point:
     cost_low: float | None = None
     cost_high: float | None = None
     error_bar: float = 0.0
+    rate: float = 0.0
 
     @property
     def family(self) -> str:
@@ -92,8 +94,11 @@ def point(record: CaseRecord, model: CostModel | None = None) -> Point | None:
     if cost is None or not (_finite_positive(cost[0]) and _finite_positive(error)):
         return None
     bar = (record.reference or {}).get("reference_error")
+    duration, n = (record.scene or {}).get("duration"), steps(record)
+    rate = n / duration if record.case.tolerance is not None and n and _finite_positive(duration) \
+        else 1.0 / record.case.dt
     return Point(record.case.engine, record.case.dt, float(cost[0]), float(error), record.case.id, record.case.tolerance,
-                 float(cost[1]), float(cost[2]), float(bar) if _finite_positive(bar) else 0.0)
+                 float(cost[1]), float(cost[2]), float(bar) if _finite_positive(bar) else 0.0, float(rate))
 
 
 def points(sweep: VariantSweep) -> list[Point]:
@@ -125,7 +130,8 @@ class Reach:
     interpolation's). how : "interpolated" (between ``dts``, the bracketing time steps, s), "at most"
     (its cheapest ok run, at ``dts[0]``, is already below), "not reached" or "no ok run".
     best_error : m, its lowest error over its ok runs; plateau : m, where its error stopped falling
-    (compare.results.consistency), None while it still falls.
+    (compare.results.consistency), None while it still falls. steps : steps per simulated second it takes
+    to get there (interpolated like the cost; no timing in it), None when not reached.
     """
 
     engine: str
@@ -137,6 +143,7 @@ class Reach:
     low: float | None = None
     high: float | None = None
     plateau: float | None = None
+    steps: float | None = None
 
     @property
     def reached(self) -> bool:
@@ -167,6 +174,14 @@ def _log_crossing(coarse: Point, fine: Point, target: float, slope: float | None
     return min(max(value, math.log(coarse.cost)), math.log(fine.cost))
 
 
+def _rate_at(coarse: Point, fine: Point, target: float) -> float | None:
+    """Steps per simulated second where the segment coarse–fine reaches ``target`` (m), linear in log–log."""
+    if not (coarse.rate > 0 and fine.rate > 0) or coarse.error == fine.error:
+        return None
+    share = (math.log(target) - math.log(coarse.error)) / (math.log(fine.error) - math.log(coarse.error))
+    return math.exp(math.log(coarse.rate) + min(max(share, 0.0), 1.0) * (math.log(fine.rate) - math.log(coarse.rate)))
+
+
 def _slope(a: Point, b: Point) -> float | None:
     """d log cost / d log error between two points, None when undefined or not falling."""
     if a.error <= 0 or b.error <= 0 or a.error == b.error:
@@ -190,7 +205,8 @@ def cost_to_reach(sweep: VariantSweep, target: float) -> Reach:
     cheapest = min(curve, key=lambda p: p.cost)
     if cheapest.error <= target:
         low, high = cheapest.interval
-        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,), best, low, high, plateau)
+        return Reach(sweep.engine, target, cheapest.cost, "at most", (cheapest.dt,), best, low, high, plateau,
+                     cheapest.rate or None)
     for k, (coarse, fine) in enumerate(zip(curve, curve[1:])):  # dt order: coarse first
         if coarse.error > target >= fine.error:
             middle = _log_crossing(coarse, fine, target)
@@ -203,7 +219,8 @@ def cost_to_reach(sweep: VariantSweep, target: float) -> Reach:
             cost = math.exp(middle)
             ratio_low, ratio_high = coarse.interval[0] / coarse.cost, coarse.interval[1] / coarse.cost
             return Reach(sweep.engine, target, cost, "interpolated", (coarse.dt, fine.dt), best,
-                         math.exp(min(guesses)) * ratio_low, math.exp(max(guesses)) * ratio_high, plateau)
+                         math.exp(min(guesses)) * ratio_low, math.exp(max(guesses)) * ratio_high, plateau,
+                         _rate_at(coarse, fine, target))
     return Reach(sweep.engine, target, None, "not reached", best_error=best, plateau=plateau)
 
 
@@ -226,8 +243,16 @@ def _same_error(a: Point, b: Point) -> bool:
     return abs(a.error - b.error) <= a.error_bar + b.error_bar
 
 
+def _fits(p: Point, budget: float) -> bool:
+    """Whether ``p`` may cost no more than ``budget`` (s/s): the low end of its cost interval is within it, so
+    a rerun may put it either side. Deciding on the cost itself let a run 1 % under the budget in one run
+    and over it in the next change a family's pick; its interval spans that noise."""
+    return p.interval[0] <= budget
+
+
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
-    """(budget s/s, per family in suite order its most accurate run costing ≤ budget); see the module docstring.
+    """(budget s/s, per family in suite order its most accurate run that may cost ≤ budget (:func:`_fits`));
+    see docs/architecture.md, "Module notes".
 
     A family with no ok run gets ``Best(family, None)``.
     """
@@ -242,7 +267,7 @@ def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, li
     budget = common_top if every_family <= common_top else every_family
     result = []
     for name, ps in by_family.items():
-        within = [p for p in ps if p.cost <= budget]
+        within = [p for p in ps if _fits(p, budget)]
         if within:
             winner = min(within, key=lambda p: (p.error, p.cost))
             ties = sorted({p.engine for p in within if p.engine != winner.engine and _same_error(p, winner)})
@@ -256,7 +281,7 @@ def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, li
 class EqualCost:
     """Two families compared over the cost range where both have runs ([low, high] s/s; None: no overlap).
 
-    focus / other : each side's most accurate run costing ≤ high. ratio : other error / focus error
+    focus / other : each side's most accurate run that may cost ≤ high (:func:`_fits`). ratio : other error / focus error
     (> 1: the focus is more accurate); tie : the errors agree within the reference's error bars.
     """
 
@@ -276,8 +301,8 @@ def equal_cost(focus_points: Sequence[Point], other_points: Sequence[Point]) -> 
     high = min(max(p.cost for p in focus_points), max(p.cost for p in other_points))
     if low > high:
         return EqualCost(None, None, None, None, None, False)
-    mine = min((p for p in focus_points if p.cost <= high), key=lambda p: (p.error, p.cost))
-    theirs = min((p for p in other_points if p.cost <= high), key=lambda p: (p.error, p.cost))
+    mine = min((p for p in focus_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
+    theirs = min((p for p in other_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
     return EqualCost(low, high, mine, theirs, theirs.error / mine.error, _same_error(mine, theirs))
 
 
@@ -285,8 +310,8 @@ def equal_cost(focus_points: Sequence[Point], other_points: Sequence[Point]) -> 
 class Comparison:
     """The focus family's best variant against the best of every other family, on cost to reach ``target`` (m).
 
-    focus / other : the cheapest Reach of each side (None: that side has no variant that ran);
-    focus_ties / other_ties : that side's variants whose cost interval overlaps the cheapest's.
+    focus / other : the Reach each side is named by (:func:`leader`; None: that side has no variant that ran);
+    focus_ties / other_ties : the variants tied with it.
     ratio : other cost / focus cost (> 1: the focus is cheaper) in [ratio_low, ratio_high], None unless
     both reached the target; tie : that interval holds 1. at_equal_cost : the two sides over their
     shared cost range. plateaus : m, per variant label the error it stops at (compare.results.consistency).
@@ -362,19 +387,42 @@ def _names(first: str, ties: Sequence[str]) -> str:
     return first if not ties else f"{first}, tied with {', '.join(ties)}"
 
 
-def _cheapest(reaches: list[Reach]) -> tuple[Reach | None, tuple[str, ...]]:
-    """The cheapest Reach that reached and those whose interval overlaps its own (ties); if none reached,
-    the one that came closest (lowest error); (None, ()) for []."""
+def cheapest_tie(reached: Sequence[Reach]) -> list[Reach]:
+    """The cheapest of ``reached`` (each with a cost) and every Reach linked to it by overlapping cost intervals,
+    directly or through others (a chain), in the order given.
+
+    Sorted by the low ends, the intervals fall into runs that each overlap the one before; the first run holds
+    the cheapest (its interval reaches down to at least the cheapest's). Linking through the chain makes the
+    tie the same whichever member noise makes the cheapest.
+    """
+    ordered = sorted(reached, key=lambda r: r.interval[0])  # type: ignore[index]
+    top = ordered[0].interval[1]  # type: ignore[index]
+    linked = {ordered[0].engine}
+    for reach in ordered[1:]:
+        low, high = reach.interval  # type: ignore[misc]
+        if low > top:
+            break
+        linked.add(reach.engine)
+        top = max(top, high)
+    return [r for r in reached if r.engine in linked]
+
+
+def leader(reaches: Sequence[Reach]) -> tuple[Reach | None, tuple[str, ...]]:
+    """(the Reach a group of variants is named by, the variants tied with it); (None, ()) for [].
+
+    Among those that reached: the cheapest's tie (:func:`cheapest_tie`), named by its member that needs the
+    fewest steps (then by name): nothing in that choice is timing noise. If none reached, the one that came
+    closest (lowest error, then name), tied with none.
+    """
     if not reaches:
         return None, ()
     reached = [r for r in reaches if r.cost is not None]
     if reached:
-        best = min(reached, key=lambda r: r.cost)  # type: ignore[arg-type,return-value]
-        top = best.interval[1]  # type: ignore[index]
-        ties = tuple(r.engine for r in reached if r is not best and r.interval[0] <= top)  # type: ignore[index]
-        return best, ties
+        tie = cheapest_tie(reached)
+        named = min(tie, key=lambda r: (r.steps if r.steps is not None else math.inf, r.engine))
+        return named, tuple(r.engine for r in tie if r is not named)
     tried = [r for r in reaches if r.best_error is not None]
-    return (min(tried, key=lambda r: r.best_error) if tried else reaches[0]), ()  # type: ignore[arg-type,return-value]
+    return (min(tried, key=lambda r: (r.best_error, r.engine)) if tried else reaches[0]), ()  # type: ignore[arg-type,return-value]
 
 
 def focus_comparison(sweeps: Sequence[VariantSweep], focus: str, target: float) -> Comparison:
@@ -384,8 +432,8 @@ def focus_comparison(sweeps: Sequence[VariantSweep], focus: str, target: float) 
 
 def _comparison(sweeps: Sequence[VariantSweep], reaches: Sequence[Reach], focus: str, target: float) -> Comparison:
     """focus_comparison from each competitor's Reach of ``target``."""
-    best_mine, mine_ties = _cheapest([r for r in reaches if family(r.engine) == focus])
-    best_theirs, their_ties = _cheapest([r for r in reaches if family(r.engine) != focus])
+    best_mine, mine_ties = leader([r for r in reaches if family(r.engine) == focus])
+    best_theirs, their_ties = leader([r for r in reaches if family(r.engine) != focus])
     ratio = low = high = None
     if best_mine is not None and best_theirs is not None and best_mine.cost and best_theirs.cost:
         ratio = best_theirs.cost / best_mine.cost
@@ -449,7 +497,7 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
 
 @dataclass(frozen=True)
 class SceneVerdict:
-    """Everything the verdict says about one scene (see the module docstring for each quantity).
+    """Everything the verdict says about one scene (each quantity: docs/architecture.md, "Module notes").
 
     length : L, m. target : TARGET_FRACTION · L, m. reaches : per competing variant, suite order.
     budget : s/s, the equal-cost budget; best : per family its most accurate run within it.
@@ -470,7 +518,7 @@ class SceneVerdict:
 
 @dataclass(frozen=True)
 class Winner:
-    """A family's cheapest variant to reach the target (or, if none does, the closest), and its ties."""
+    """A family's variant named for reaching the target most cheaply (:func:`leader`), and those tied with it."""
 
     family: str
     reach: Reach
@@ -484,7 +532,7 @@ def family_winners(reaches: Sequence[Reach]) -> list[Winner]:
         names.setdefault(family(reach.engine), None)
     found = []
     for name in names:
-        best, ties = _cheapest([r for r in reaches if family(r.engine) == name])
+        best, ties = leader([r for r in reaches if family(r.engine) == name])
         if best is not None:
             found.append(Winner(name, best, ties))
     return found

@@ -49,13 +49,14 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
 def _rankings(verdict: SceneVerdict) -> list[str]:
     lines = []
     if verdict.winners:
-        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s, 95 % interval):")
+        lines.append(f"  cheapest to reach {verdict.target:.2g} m, per family (cost per simulated s with its interval; "
+                     "a tie goes by its member with the fewest steps):")
         width = max(len(w.reach.engine) for w in verdict.winners)
         for winner in verdict.winners:
             lines.append(f"    {winner.reach.engine:<{width}}  {winner.reach.describe()}"
                          + (f"; tie: {', '.join(winner.ties)}" if winner.ties else ""))
     if verdict.budget is not None:
-        lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s):")
+        lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s, within a cost's interval):")
         width = max((len(b.point.engine) for b in verdict.best if b.point is not None), default=0)
         for best in verdict.best:
             if best.point is None:
@@ -83,11 +84,12 @@ def _point(p: Point) -> dict[str, Any]:
 
 def _reach(r: Reach) -> dict[str, Any]:
     return {"engine": r.engine, "cost": r.cost, "cost_interval": list(r.interval) if r.interval else None,
-            "how": r.how, "dts": list(r.dts), "best_error": r.best_error, "plateau": r.plateau}
+            "how": r.how, "dts": list(r.dts), "best_error": r.best_error, "plateau": r.plateau,
+            "steps_per_simulated_second": r.steps}
 
 
 def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
-    """One scene's verdict as JSON-ready data (see the module docstring)."""
+    """One scene's verdict as JSON-ready data (its fields: docs/architecture.md, "Module notes")."""
     comparison = verdict.comparison
     same = comparison.at_equal_cost if comparison is not None else None
     return {

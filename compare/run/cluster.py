@@ -178,7 +178,8 @@ def _task_name(fn: Callable[..., Any], args: tuple[Any, ...]) -> str:
 
 
 class DaskExecutor(cf.Executor):
-    """A concurrent.futures Executor whose tasks run on a Dask cluster (see the module docstring for why not ``get_executor``).
+    """A concurrent.futures Executor whose tasks run on a Dask cluster (why not ``get_executor``:
+    docs/architecture.md, "Module notes").
 
     At most one task per worker thread is on the cluster at a time; the rest
     wait here. Dask would otherwise hand a worker several tasks at once (it

@@ -37,10 +37,10 @@ class _Job:
     task: CaseTask | ReferenceTask
     future: cf.Future
     started: float = 0.0
-    _pickled: bytes | None = None
+    _pickled: memoryview | None = None
 
     @property
-    def pickled(self) -> bytes:
+    def pickled(self) -> memoryview:
         """The task as it travels through a pipe (pickled once)."""
         if self._pickled is None:
             self._pickled = ForkingPickler.dumps(self.task)
@@ -132,7 +132,8 @@ class HostPool:
                 if not self.queue or len(slot.jobs) != place:
                     continue
                 if place > 0 and len(self.queue[0].pickled) > PIPELINED_BYTES:
-                    return  # it waits for an idle host (module docstring), and the tasks behind it too
+                    # It waits for an idle host (docs/architecture.md, "Module notes"), and the tasks behind it too.
+                    return
                 job = self.queue.popleft()
                 if place == 0:
                     slot.host = send(slot.host, job.task)  # a new host when it has none, or it died

@@ -687,7 +687,7 @@ def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
 #: Metrics judged within the reference's horizon (when it ends inside the run); the whole run's values
 #: stay in the record as ``<name>_whole_run``.
 HORIZON_METRICS = (
-    "position_error_final", "position_error_l2", "position_error_linf", "divergence_time",
+    "position_error_final", "position_error_rms", "position_error_linf", "divergence_time",
     "constraint_force_error", "constraint_force_error_relative",
 )
 

@@ -110,7 +110,8 @@ def loss_rate(scene: Scene, t: np.ndarray, positions: np.ndarray, velocities: np
 
 
 def extrapolate(dts: Sequence[float], rates: Sequence[float]) -> tuple[float, float]:
-    """(r₀, σ) in E*/s: rate(dt) = r₀ + c·dt at dt → 0; needs ≥ 3 points (see the module docstring)."""
+    """(r₀, σ) in E*/s: rate(dt) = r₀ + c·dt at dt → 0; needs ≥ 3 points (σ:
+    docs/architecture.md, "Module notes")."""
     x, y = np.asarray(dts, float), np.asarray(rates, float)
     if len(x) < 3:
         raise ValueError("extrapolate needs at least 3 time steps")
@@ -146,14 +147,14 @@ def measure(
         status, message = result.info.status, result.info.message
         rate = loss_rate(scene, result.t, result.positions, result.velocities) if status == "ok" else None
         points.append(RatePoint(dt, status, rate, message))
-    ok = [p for p in points if p.rate is not None]
+    ok = [(p.dt, p.rate) for p in points if p.rate is not None]
     common = dict(engine=engine, scene=scene.name, duration=scene.duration, options=dict(options), points=tuple(points))
     if len(ok) < 3:
         bad = [f"dt={p.dt:g}: {p.status}" + (f" ({p.message})" if p.message else "") for p in points if p.rate is None]
         return Dissipation(rate=None, uncertainty=None, hidden_dissipation=None,
                            reason=f"only {len(ok)} of {len(points)} runs ended ok ({'; '.join(bad)}); "
                                   "an extrapolation needs 3: try smaller --dt", **common)
-    rate, sigma = extrapolate([p.dt for p in ok], [p.rate for p in ok])
+    rate, sigma = extrapolate([dt for dt, _ in ok], [r for _, r in ok])
     return Dissipation(rate=rate, uncertainty=sigma, hidden_dissipation=hidden(rate, sigma), **common)
 
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from compare.results.store import now
 from compare.run.runner import default_jobs
-from compare.stability.probe import check_output, document_head, load_document, run_probe, write_document
+from compare.stability.trial import check_output, document_head, load_document, run_trial, write_document
 from compare.suite.plans import GainMapPlan
 from compare.suite.reader import EngineSpec, Suite
 
@@ -86,9 +86,9 @@ def run_gainmap(
     def one(cell: tuple[int, int, int]):
         k, a, b = cell
         engine = _cell_engine(plan.engines[k], plan.x, plan.x_values[a], plan.y, plan.y_values[b])
-        return cell, run_probe(plan.scene, engine, plan.dt, suite, timeout, plan.sample_interval)
+        return cell, run_trial(plan.scene, engine, plan.dt, suite, timeout, plan.sample_interval)
 
-    maps = {}
+    maps: dict[str, dict[str, Any]] = {}
     for engine in plan.engines:
         rho = [[_rho(engine, plan, xv, yv) for xv in plan.x_values] for yv in plan.y_values]
         maps[engine.label] = {
@@ -101,12 +101,12 @@ def run_gainmap(
         }
     done = 0
     with cf.ThreadPoolExecutor(max_workers=jobs or default_jobs()) as pool:
-        for (k, a, b), probe in pool.map(one, cells):
+        for (k, a, b), trial in pool.map(one, cells):
             cell = maps[plan.engines[k].label]
-            cell["status"][b][a] = probe.status
-            cell["constraint_error"][b][a] = probe.constraint_error
-            cell["energy_drift"][b][a] = probe.energy_drift
-            cell["message"][b][a] = probe.message
+            cell["status"][b][a] = trial.status
+            cell["constraint_error"][b][a] = trial.constraint_error
+            cell["energy_drift"][b][a] = trial.energy_drift
+            cell["message"][b][a] = trial.message
             done += 1
             if on_cell is not None:
                 on_cell(done, len(cells))

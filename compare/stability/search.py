@@ -1,7 +1,7 @@
 """Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
 
 Criterion (the same one ``xval run`` applies to every case, see
-:func:`compare.results.metrics.apply_bounds`): a probe at time step dt is *stable*
+:func:`compare.results.metrics.apply_bounds`): a trial at time step dt is *stable*
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
@@ -24,8 +24,8 @@ from typing import Any, Callable
 from compare.results.metrics import Bounds
 from compare.results.store import jsonable, now
 from compare.run.runner import default_jobs, skip_reason
-from compare.stability.probe import (
-    Probe, check_output, document_head, load_document, run_probe, write_document,
+from compare.stability.trial import (
+    Trial, check_output, document_head, load_document, run_trial, write_document,
 )
 from compare.suite.plans import SearchSettings, StabilityPlan
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
@@ -33,7 +33,7 @@ from compare.suite.reader import EngineSpec, SceneSpec, Suite
 #: File the search writes in its output directory, and its format.
 FILE_NAME = "stability.json"
 SCHEMA = "xval-stability"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 #: Verdicts of one pair.
 BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED = (
     "bounded", "stable-at-largest", "unstable-at-smallest", "skipped",
@@ -57,7 +57,7 @@ class PairResult:
     largest_stable_dt : s, the largest dt found stable (None when none was).
     smallest_unstable_dt : s, the smallest dt found unstable above it (None when none was).
     analytic_dt : s, the linear theory's limit where one exists (ours/baumgarte), else None.
-    probes : in the order they ran.
+    trials : the runs it made, in the order they ran.
     """
 
     scene_id: str
@@ -67,30 +67,31 @@ class PairResult:
     smallest_unstable_dt: float | None = None
     reason: str = ""
     analytic_dt: float | None = None
-    probes: tuple[Probe, ...] = ()
+    trials: tuple[Trial, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return jsonable(asdict(self))
 
 
-# -- the search itself (pure: the probe is a function of dt) ---------------------------------
+# -- the search itself (pure: the trial is a function of dt) ---------------------------------
 
 
-def search(probe: Callable[[float], Probe], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Probe]]:
-    """(verdict, largest stable dt, smallest unstable dt, probes) for one pair; see the module docstring."""
-    probes: list[Probe] = []
+def search(trial: Callable[[float], Trial], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Trial]]:
+    """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; the search:
+    docs/architecture.md, "Module notes"."""
+    trials: list[Trial] = []
 
     def stable(dt: float) -> bool:
-        result = probe(dt)
-        probes.append(result)
+        result = trial(dt)
+        trials.append(result)
         return result.stable
 
     if stable(settings.dt_max):
-        return STABLE_AT_LARGEST, settings.dt_max, None, probes
+        return STABLE_AT_LARGEST, settings.dt_max, None, trials
     hi, lo = settings.dt_max, None
     while lo is None:
         if hi <= settings.dt_min * (1 + 1e-12):
-            return UNSTABLE_AT_SMALLEST, None, hi, probes
+            return UNSTABLE_AT_SMALLEST, None, hi, trials
         dt = max(hi / settings.bracket_factor, settings.dt_min)
         if stable(dt):
             lo = dt
@@ -102,7 +103,7 @@ def search(probe: Callable[[float], Probe], settings: SearchSettings) -> tuple[s
             lo = mid
         else:
             hi = mid
-    return BOUNDED, lo, hi, probes
+    return BOUNDED, lo, hi, trials
 
 
 # -- the analytic limit where the theory covers the variant ---------------------------------------
@@ -160,13 +161,13 @@ def run_stability(
         reason = skip_reason(scene.scene, engine)
         if reason is not None:
             return PairResult(scene.id, engine.label, SKIPPED, reason=reason)
-        verdict, lo, hi, probes = search(
-            lambda dt: run_probe(scene, engine, dt, suite, timeout, stability.settings.sample_interval),
+        verdict, lo, hi, trials = search(
+            lambda dt: run_trial(scene, engine, dt, suite, timeout, stability.settings.sample_interval),
             stability.settings,
         )
-        last_unstable = next((p for p in reversed(probes) if not p.stable), None)
+        last_unstable = next((t for t in reversed(trials) if not t.stable), None)
         why = "" if last_unstable is None else f"at dt = {last_unstable.dt:.4g} s: {last_unstable.status} ({last_unstable.message})"
-        return PairResult(scene.id, engine.label, verdict, lo, hi, why, analytic_dt(engine), tuple(probes))
+        return PairResult(scene.id, engine.label, verdict, lo, hi, why, analytic_dt(engine), tuple(trials))
 
     save()
     pairs = [(s, e) for s in stability.scenes for e in stability.engines]
@@ -191,4 +192,11 @@ def run_stability(
 
 def load_stability(path: str | Path) -> dict[str, Any] | None:
     """The stability document in results directory ``path`` (None when it has none); UserError for another version."""
-    return load_document(path, FILE_NAME, SCHEMA, SCHEMA_VERSION)
+    return load_document(path, FILE_NAME, SCHEMA, SCHEMA_VERSION, {1: _from_version_1})
+
+
+def _from_version_1(document: dict[str, Any]) -> dict[str, Any]:
+    """Version 1 named each pair's runs ``probes`` (a word ``xval probe`` uses for something else); 2 ``trials``."""
+    results = [{("trials" if key == "probes" else key): value for key, value in result.items()}
+               for result in document.get("results") or []]
+    return {**document, "schema_version": 2, "results": results}

@@ -30,8 +30,8 @@ VERDICT_KEYS = ("tolerance",)
 class SearchSettings:
     """Where and how finely the stability search looks.
 
-    dt_max, dt_min : s, the largest and smallest time step probed.
-    bracket_factor : ratio between successive probes while stepping down (> 1).
+    dt_max, dt_min : s, the largest and smallest time step tried.
+    bracket_factor : ratio between successive trials while stepping down (> 1).
     resolution : the search stops when (smallest unstable dt) / (largest stable dt) ≤ resolution (> 1).
     sample_interval : s between the samples the bounds are checked on (None: the suite's).
     """

@@ -27,6 +27,8 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
+from compare.results.declared import current_name
+from compare.results.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
@@ -169,16 +171,7 @@ def load_engine(engine_id: str) -> tuple[Engine, str | None]:
 def load_suite(path: str | Path) -> Suite:
     """Read and validate the suite at ``path``; UserError naming the file, key and fix."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such suite file; pass the path of a .toml suite such as suites/smoke.toml") from None
-    except UnicodeDecodeError as exc:
-        raise UserError(f"{path}: not UTF-8 text (byte {exc.start}); save the suite as UTF-8") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a directory; pass the path of a .toml suite file") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read the suite file ({exc.strerror})") from None
+    text = read_user_text(path, str(path), "pass the path of a suite: a UTF-8 .toml file such as suites/smoke.toml")
     return parse_suite(text, str(path))
 
 
@@ -342,7 +335,10 @@ class _Reader:
         )
         # [tolerances] ends up in ``gate``: its keys checked here (with line numbers), its values by gate_settings,
         # by the same rule as [gate]'s (a number >= 0; 0 asks for no change at all).
-        self.table("tolerances", data.get("tolerances", {}), (*RULES, TIMING_METRIC))
+        tolerances = data.get("tolerances", {})
+        if isinstance(tolerances, dict):  # a metric's earlier name reads as today's
+            tolerances = {current_name(name): value for name, value in tolerances.items()}
+        self.table("tolerances", tolerances, (*RULES, TIMING_METRIC))
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)

@@ -38,8 +38,6 @@ class _Rules(Mapping[str, Metric]):
 
 #: Gated accuracy metrics by name (live view of the declarations).
 RULES: Mapping[str, Metric] = _Rules()
-#: The old name of a gated metric's declaration.
-MetricRule = Metric
 
 #: A slowdown must exceed this factor (and the repeats' spread) to be worse.
 #: 1.5: shared CI machines move single timings by 10-40 %; a real
@@ -84,9 +82,14 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
         if not isinstance(tolerances, dict):
             raise make_error("tolerances", f"must be a table of metric = rtol, got {tolerances!r}")
         for name, value in tolerances.items():
+            name = declared.current_name(name)  # a suite written before a rename still reads
             if name == TIMING_METRIC:
-                # A relative tolerance on cost is the slowdown it forgives.
-                factor = 1.0 + _non_negative(make_error, f"tolerances.{name}", value)
+                # A relative tolerance on cost is the slowdown it forgives: the factor 1 + value, which must
+                # be > 1 as [gate] timing_factor must (timing is noisy; 0 would fail every rerun).
+                if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+                    raise make_error(f"tolerances.{name}", f"must be a number > 0 (the slowdown forgiven: 0.5 is a "
+                                                           f"factor 1.5), got {value!r}; or write [gate] timing_factor = 1.5")
+                factor = 1.0 + float(value)
                 continue
             if name not in RULES:
                 raise make_error(f"tolerances.{name}", f"unknown metric; gated metrics are: {', '.join(RULES)}")
@@ -97,6 +100,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
         raise make_error("gate", "must be a table, e.g. [gate] with timing_factor = 1.5")
     for name, value in gate.items():
         key = f"gate.{name}"
+        name = declared.current_name(name)  # a suite written before a rename still reads
         if name == "timing_factor":
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 1 or not math.isfinite(value):
                 raise make_error(key, f"must be a number > 1 (a slowdown factor), got {value!r}; write e.g. timing_factor = 1.5")

@@ -103,8 +103,6 @@ class DartEngine(Engine):
         import dartpy  # noqa: F401
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):
-            return  # a model's joints are 1-degree-of-freedom (engines.model): both variants step them
         refuse_ellipse(scene, "dart: no DART joint moves a point on an ellipse (a revolute joint moves it on "
                               "a circle, a prismatic joint on a line)")
         refuse_constraint_kinds(scene, (Pin, Rod, Line), "dart")
@@ -179,8 +177,6 @@ class DartEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         model = self.build(scene, settings)
         dt = schedule.dt
         if settings["integrator"] == "world":

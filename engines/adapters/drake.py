@@ -9,7 +9,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.util
 import time
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, cast
 
 import numpy as np
 
@@ -129,21 +129,7 @@ class DrakeEngine(Engine):
         return settings["plant"] == "continuous" and settings["error_control"]
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if settings[TOLERANCE_OPTION] <= 0:
-            raise UserError(f"drake: option accuracy must be positive, got {settings[TOLERANCE_OPTION]}")
-        if settings["inertia_ratio"] < 0:
-            raise UserError(f"drake: option inertia_ratio must be ≥ 0, got {settings['inertia_ratio']}")
-        if (settings["plant"] == "continuous" and settings["error_control"]
-                and settings["integrator"] not in ERROR_CONTROLLED):
-            raise UserError(
-                f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
-                f"or choose one of {', '.join(ERROR_CONTROLLED)}"
-            )
-        if getattr(scene, "is_model", False):
-            if settings["plant"] == "discrete":
-                raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
-                                  "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
-            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
+        self._check_options(settings)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         tree = read_tree(scene)
         if tree.loose:
@@ -160,6 +146,25 @@ class DrakeEngine(Engine):
             raise Unsupported(
                 "drake: a 3-D scene is built with a ball joint per particle, and only one-particle 3-D scenes "
                 "keep the roll-pitch-yaw ball joint away from its singular pitch"
+            )
+
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        if settings["plant"] == "discrete":
+            raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
+                              "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
+        if settings[TOLERANCE_OPTION] <= 0:
+            raise UserError(f"drake: option accuracy must be positive, got {settings[TOLERANCE_OPTION]}")
+        if settings["inertia_ratio"] < 0:
+            raise UserError(f"drake: option inertia_ratio must be ≥ 0, got {settings['inertia_ratio']}")
+        if (settings["plant"] == "continuous" and settings["error_control"]
+                and settings["integrator"] not in ERROR_CONTROLLED):
+            raise UserError(
+                f"drake: integrator {settings['integrator']} has no error estimate; set error_control = false "
+                f"or choose one of {', '.join(ERROR_CONTROLLED)}"
             )
 
     # -- building ----------------------------------------------------------------------
@@ -184,7 +189,8 @@ class DrakeEngine(Engine):
         if time_step > 0:
             plant.set_discrete_contact_approximation(DiscreteContactApproximation.kSap)
         plant.mutable_gravity_field().set_gravity_vector(np.asarray(scene.gravity, dtype=float))
-        bodies, joints = {}, {}
+        bodies: dict[int, Any] = {}
+        joints: dict[int, Any] = {}
         for i in tree.order:
             arm = q[i] - tree.pivot[i]
             spatial = SpatialInertia.MakeFromCentralInertia(
@@ -194,14 +200,16 @@ class DrakeEngine(Engine):
             parent = plant.world_body() if tree.parent[i] == -1 else bodies[tree.parent[i]]
             # The parent's frame sits at its own pivot: this body's pivot is at (pivot − parent's pivot).
             offset = tree.pivot[i] - (0.0 if tree.parent[i] == -1 else tree.pivot[tree.parent[i]])
+            joint: RevoluteJoint | BallRpyJoint
             if scene.is_planar:
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
-                joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), [0.0, 1.0, 0.0], damping=0.0)
+                joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), np.array([0.0, 1.0, 0.0]), damping=0.0)
             else:
-                # x of the child's joint frame along the arm, so pitch ±90° is the arm vertical (module docstring).
+                # x of the child's joint frame along the arm, so pitch ±90° is the arm vertical
+                # (docs/engines.md, "Adapter notes").
                 R_BM = _frame_with_x_along(arm)
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
-                on_child = plant.AddFrame(_fixed_frame(f"arm{i}", body.body_frame(), RigidTransform(R_BM, [0, 0, 0])))
+                on_child = plant.AddFrame(_fixed_frame(f"arm{i}", body.body_frame(), RigidTransform(R_BM, np.zeros(3))))
                 joint = BallRpyJoint(f"j{i}", on_parent, on_child, damping=0.0)
             joints[i] = plant.AddJoint(joint)
             bodies[i] = body
@@ -211,11 +219,13 @@ class DrakeEngine(Engine):
 
     # -- running -----------------------------------------------------------------------
 
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        # The model layer's Drake stepper integrates with the variant's scheme (SCHEMES).
+        return super()._run_model(scene, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})  # type: ignore[attr-defined]  # a ModelScene (is_model)
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
         plant = model.plant
@@ -371,7 +381,7 @@ class DrakeModel:
         port = plant.get_reaction_forces_output_port()
         for s, x in enumerate(states):
             plant.SetPositionsAndVelocities(context, x)
-            reactions = port.Eval(context)
+            reactions = cast("list[Any]", port.Eval(context))  # Eval is typed object: here a SpatialForce per joint
             for i in tree.order:
                 body = self.bodies[i]
                 X_WB = body.EvalPoseInWorld(context)

@@ -40,7 +40,7 @@ mujoco.mj_defaultSolRefImp(_ref, _imp)
 MUJOCO_SOLREF: tuple[float, ...] = tuple(float(x) for x in _ref)
 MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
 
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; module docstring).
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
 HINGE_INERTIA_RATIO = 1e-12
 CONNECT_INERTIA_RATIO = 1e-9
 #: kg·m²: the least inertia MuJoCo compiles ("mass and inertia of moving bodies must be larger than
@@ -414,12 +414,12 @@ class MuJoCoEngine(Engine):
     def version(self) -> str:
         return mujoco.mj_versionString()
 
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        if settings["formulation"] != "hinge":
+            raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
+                              "build particle scenes from free bodies, use mujoco/hinge*")
+
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):
-            if settings["formulation"] != "hinge":
-                raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
-                                  "build particle scenes from free bodies, use mujoco/hinge*")
-            return
         if len(settings["solref"]) != 2 or not all(x > 0 for x in settings["solref"]):
             raise UserError(
                 f"mujoco: option solref must be two positive numbers (timeconst s, dampratio), "
@@ -458,8 +458,6 @@ class MuJoCoEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         xml, inertia = self.mjcf(scene, schedule.dt, settings)
         model, data = _model_and_data(xml, schedule.dt)
         hinge = settings["formulation"] == "hinge"

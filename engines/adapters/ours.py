@@ -88,7 +88,7 @@ class OursEngine(Engine):
         name: f"{ours.METHODS[v['method']].doc} Integrator: {ours.INTEGRATORS[v['integrator']].doc}"
         for name, v in variants.items()
     }
-    overrides: Mapping[str, Any] = {}
+    overrides = {}
 
     def version(self) -> str:
         return ours.__version__
@@ -101,7 +101,7 @@ class OursEngine(Engine):
         """
         _ensure_compiled()
         for scene in scenes:
-            if getattr(scene, "is_model", False):  # rigid bodies: compiled when their run is set up
+            if scene.is_model:  # rigid bodies: compiled when their run is set up
                 continue
             try:
                 system, q0, v0, _ = _to_system(scene)
@@ -111,16 +111,17 @@ class OursEngine(Engine):
             except (Unsupported, ours.OursError):
                 continue
 
-    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        if getattr(scene, "is_model", False):  # a model file: ours' rigid bodies (engines/model/ours.py)
-            from ours.rigid.method import resolve as rigid_pair
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        """A model file: ours' rigid bodies (engines/model/ours.py) with the variant's method and integrator."""
+        from ours.rigid.method import resolve as rigid_pair
 
-            try:
-                rigid_pair(settings["method"], settings["integrator"])
-            except ours.OursError as exc:
-                raise Unsupported(f"ours: {exc}") from None
-            scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
-            return
+        try:
+            rigid_pair(settings["method"], settings["integrator"])
+        except ours.OursError as exc:
+            raise Unsupported(f"ours: {exc}") from None
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         try:
             ours.resolve_pair(settings["method"], settings["integrator"])
         except ours.InvalidPair as exc:
@@ -168,8 +169,6 @@ class OursEngine(Engine):
         return None if gains is None else largest_stable_dt(*gains)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own loop (engines/model/stepping.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone
         result = ours.simulate(

@@ -7,13 +7,11 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import functools
 import os
-import sys
 import threading
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -22,61 +20,9 @@ from engines.errors import Unsupported, UserError
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Scene
 from engines.scene.tree import ROOT, read_tree
+from engines.stdio import quiet_output
 
-# -- keeping PyBullet's prints out of the caller's output -------------------------------
-
-_LIBC = ctypes.CDLL(None)
-_quiet_lock = threading.Lock()
-_quiet_depth = 0
-_saved_fds: dict[int, int] = {}
-
-
-def _flush_all() -> None:
-    """Flush Python's streams and C's stdio (fflush(NULL)) so text goes where fd 1 and 2 point now."""
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
-    _LIBC.fflush(None)
-
-
-@contextlib.contextmanager
-def quiet_output() -> Iterator[None]:
-    """Point file descriptors 1 and 2 at /dev/null for the duration; nested and concurrent uses share one redirection.
-
-    PyBullet writes to both (``pybullet build time`` to stderr on import,
-    ``switched solver`` to stdout). Everything already written through
-    Python or C stdio is flushed on entry, so the caller's pending text
-    reaches the real streams first; C's stdio is flushed again before the
-    descriptors are restored, so PyBullet's buffered text goes to /dev/null
-    rather than out later. A descriptor that is not open is left alone.
-    """
-    global _quiet_depth
-    with _quiet_lock:
-        if _quiet_depth == 0:
-            _flush_all()
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            try:
-                for fd in (1, 2):
-                    try:
-                        _saved_fds[fd] = os.dup(fd)
-                    except OSError:
-                        continue
-                    os.dup2(devnull, fd)
-            finally:
-                os.close(devnull)
-        _quiet_depth += 1
-    try:
-        yield
-    finally:
-        with _quiet_lock:
-            _quiet_depth -= 1
-            if _quiet_depth == 0:
-                _flush_all()
-                for fd, saved in _saved_fds.items():
-                    os.dup2(saved, fd)
-                    os.close(saved)
-                _saved_fds.clear()
-
+# -- keeping PyBullet's prints out of the caller's output (engines/stdio.py) -------------------
 
 with quiet_output():
     import pybullet as _pb  # prints "pybullet build time: ..." at import
@@ -102,7 +48,7 @@ SOLVERS = {
 #: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
 KEEPABLE = ("damping", "motors", "sleeping")
 
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; see the module docstring).
+#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
 MULTIBODY_INERTIA_RATIO = 1e-9
 P2P_INERTIA_RATIO = 1e-4
 
@@ -149,8 +95,8 @@ def _tree_sizes(links: list[Link]) -> dict[int, int]:
     sizes: dict[int, int] = {}
     for particle in parent:
         root = particle
-        while parent[root] is not None:
-            root = parent[root]
+        while (up := parent[root]) is not None:
+            root = up
         sizes[root] = sizes.get(root, 0) + 1
     return sizes
 
@@ -324,6 +270,25 @@ class PyBulletEngine(Engine):
         return _pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
+        if settings["formulation"] == "multibody":
+            largest = max(_tree_sizes(links).values(), default=0)
+            if largest > MAX_MULTIBODY_LINKS:
+                raise Unsupported(
+                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
+                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
+                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
+                )
+
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        self._check_options(settings)
+        if settings["formulation"] != "multibody":
+            raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
+                              "build particle scenes from separate bodies, use pybullet/multibody")
+        scene.refuse_kept_dynamics(self.name)
+
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
         # A bad option value is the user's mistake (UserError), not a scene PyBullet cannot express
         # (Unsupported): a suite would record the latter as a skipped case and run on.
         if not 0.0 <= settings["erp"] <= 1.0:
@@ -340,24 +305,8 @@ class PyBulletEngine(Engine):
                 f"pybullet: option keep_defaults names {', '.join(sorted(unknown))}; "
                 f"use a comma-separated subset of {', '.join(KEEPABLE)}"
             )
-        if getattr(scene, "is_model", False):
-            if settings["formulation"] != "multibody":
-                raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
-                                  "build particle scenes from separate bodies, use pybullet/multibody")
-            return scene.refuse_kept_dynamics(self.name)  # type: ignore[attr-defined]  # a ModelScene (is_model)
-        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
-        if settings["formulation"] == "multibody":
-            largest = max(_tree_sizes(links).values(), default=0)
-            if largest > MAX_MULTIBODY_LINKS:
-                raise Unsupported(
-                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
-                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
-                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
-                )
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        if getattr(scene, "is_model", False):  # a model file: its own import and loop (engines/model/steppers.py)
-            return scene.run_in(self.name, schedule, settings)  # type: ignore[attr-defined]  # a ModelScene (is_model)
         with quiet_output():
             client = _clients.take()
             try:
@@ -482,6 +431,13 @@ class _Run:
             physicsClientId=c,
         )
 
+    def _point_mass(self, body: int, link: int, particle: int, **dynamics: Any) -> None:
+        """Give ``link`` of ``body`` the mass m of ``particle`` and the central inertia ``self.inertia`` · m per axis."""
+        m = float(self.scene.masses[particle])
+        # The mass goes with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass.
+        _pb.changeDynamics(body, link, mass=m, localInertiaDiagonal=[self.inertia * m] * 3, physicsClientId=self.client,
+                           **dynamics)
+
     def _build_multibody(self) -> None:
         """One multibody per Pin; every particle a link with its joint at its parent."""
         pb, c = _pb, self.client
@@ -533,10 +489,7 @@ class _Run:
             for j, link in enumerate(members):
                 i = link.particle
                 self.handles[i] = (body, j)
-                pb.changeDynamics(
-                    body, j, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                    jointDamping=0.0, **self.damping, physicsClientId=c,
-                )
+                self._point_mass(body, j, i, jointDamping=0.0, **self.damping)
                 if link.slide is not None:  # a prismatic joint: the speed along the line; no turning
                     omega[i] = np.zeros(3)
                     if not self.keep_motors:
@@ -573,18 +526,13 @@ class _Run:
         pb, c = _pb, self.client
         q = self.scene.initial_positions
         v = self.scene.initial_velocities
-        masses = self.scene.masses
         self.bodies = [-1] * self.n_particles
         for i in range(self.n_particles):
             body = pb.createMultiBody(
-                baseMass=float(masses[i]), baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
+                baseMass=float(self.scene.masses[i]), baseCollisionShapeIndex=-1, baseVisualShapeIndex=-1,
                 basePosition=list(q[i]), physicsClientId=c,
             )
-            # Mass passed with the inertia: localInertiaDiagonal alone zeroed a rigid body's mass (ENGINE_NOTES).
-            pb.changeDynamics(
-                body, -1, mass=float(masses[i]), localInertiaDiagonal=[self.inertia * masses[i]] * 3,
-                **self.damping, **self.activation, physicsClientId=c,
-            )
+            self._point_mass(body, -1, i, **self.damping, **self.activation)
             self.bodies[i] = body
         omega = {}
         self.constraint_ids = [-1] * self.n_constraints

@@ -174,7 +174,7 @@ class _Model:
             body.velocity = (particle.velocity[0], particle.velocity[2])
             self.bodies.append(body)
         space.add(*self.bodies)
-        self.joints: list[pymunk.PinJoint] = []
+        self.joints: list[pymunk.Constraint] = []
         # ends[k] = (index of the joint's body a or None for static, index of body b)
         self.ends: list[tuple[int | None, int]] = []
         #: +1 when the constraint's first particle is the joint's body b (Pin), −1 when it is body a (Rod).
@@ -184,6 +184,7 @@ class _Model:
         reach = GROOVE_LENGTHS * scene.characteristic_length
         for k, c in enumerate(scene.constraints):
             self.normals.append(None)
+            joint: pymunk.Constraint
             if isinstance(c, Line):
                 u = np.array([c.unit[0], c.unit[2]])
                 point = np.array([c.point[0], c.point[2]])

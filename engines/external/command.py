@@ -23,7 +23,7 @@ from typing import Any, Iterator, Mapping
 
 from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE, Engine, RawRun, Schedule
-from engines.errors import Unsupported, UserError
+from engines.errors import UserError
 from engines.scene.scene import Scene
 from engines.scene.trajectory import Trajectory
 
@@ -173,7 +173,7 @@ class CommandEngine(Engine):
     """An outside program as an engine; see the module docstring."""
 
     name = NAME
-    options: Mapping[str, Any] = {}
+    options = {}
     #: Nothing to warm up in xval's process: every run starts the program afresh (its start-up is
     #: outside the stepping time it reports, or inside the process time it is timed by).
     needs_warm_up = False
@@ -205,12 +205,11 @@ class CommandEngine(Engine):
         settings.update(options or {})
         return settings
 
-    def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
-        missing = scene.requires - self.capabilities
+    def _lacking(self, scene: Scene, missing: frozenset[str]) -> str:
         if "3d" in missing:
-            raise Unsupported(f"{self.spec.engine_id} declares no '3d' capability and cannot express the 3-D "
-                              f"scene {scene.name!r}; add \"3d\" to its capabilities if the program handles it")
-        self.resolve(variant, options)
+            return (f"{self.spec.engine_id} declares no '3d' capability and cannot express the 3-D scene "
+                    f"{scene.name!r}; add \"3d\" to its capabilities if the program handles it")
+        return super()._lacking(scene, missing)
 
     def simulate(self, scene: Scene, dt: float, *, variant: str | None = None,
                  options: Mapping[str, Any] | None = None, sample_interval: float | None = None) -> Trajectory:

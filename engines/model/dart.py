@@ -21,7 +21,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.adapters.pybullet import quiet_output
+from engines.stdio import quiet_output
 
 NAME = "dart"
 

@@ -87,7 +87,7 @@ def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_ev
     result = simulate(model.mechanism, initial_state(model.mechanism, q0, v0), dt, n_steps, sample_every, **options)
     q, v = joint_coordinates(model.mechanism, result.y)
     start = np.array([float(q0.get(name, 0.0)) for name in model.joint_names])
-    turns = np.round((start - q[0]) / (2 * np.pi)) if len(q) else 0.0
+    turns = np.round((start - q[0]) / (2 * np.pi)) if len(q) else np.zeros(len(start))
     revolute = np.array([j.kind == "revolute" for j in model.mechanism.joints], dtype=bool)
     if len(q):
         q[:, revolute] += 2 * np.pi * turns[revolute]

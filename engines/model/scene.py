@@ -40,12 +40,12 @@ def describe(source: ModelSource) -> ModelDescription:
     alike: the tree's dynamics, no coupling), so the Panda's second finger is a joint of its own.
     """
     if source.format == "urdf":
-        from engines.model.urdf import read
+        from engines.model.urdf import read as read_urdf
 
-        return read(source, mimic_independent=True)
-    from engines.model.mjcf import read
+        return read_urdf(source, mimic_independent=True)
+    from engines.model.mjcf import read as read_mjcf
 
-    return read(source)
+    return read_mjcf(source)
 
 
 @dataclass(frozen=True, eq=False)

@@ -155,7 +155,8 @@ class PyBulletStepper:
 
     def __init__(self, scene: Any, dt: float) -> None:
         from engines.model import pybullet as importer
-        from engines.adapters.pybullet import _pb as pb, quiet_output
+        from engines.adapters.pybullet import _pb as pb
+        from engines.stdio import quiet_output
 
         self.pb, self.quiet = pb, quiet_output
         loaded = self.loaded = importer.load(_without_limits(scene.source), scene.description)

@@ -27,6 +27,13 @@ def _embed(xz: np.ndarray) -> np.ndarray:
     return out
 
 
+def empty_samples(scene: Scene, n_samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zeroed positions, velocities (n_samples, P, 3) and constraint forces (n_samples, C, 3)."""
+    positions = np.zeros((n_samples, len(scene.particles), 3))
+    return positions, np.zeros_like(positions), np.zeros((n_samples, len(scene.constraints), 3))
+
+
+
 # -- slider-pendulum ------------------------------------------------------------------
 
 
@@ -92,9 +99,7 @@ class SliderPendulum:
         a_p = a_s + l * tdd[:, None] * e - l * (td**2)[:, None] * n
         on_bob = self.bob_mass * (a_p - self.gravity)  # the rod's force on the bob
         on_line = self.slider_mass * (a_s - self.gravity) + on_bob  # the rail's force on the slider
-        positions = np.zeros((len(states), len(scene.particles), 3))
-        velocities = np.zeros_like(positions)
-        forces = np.zeros((len(states), len(scene.constraints), 3))
+        positions, velocities, forces = empty_samples(scene, len(states))
         positions[:, self.slider], positions[:, self.bob] = _embed(q_s), _embed(q_p)
         velocities[:, self.slider], velocities[:, self.bob] = _embed(v_s), _embed(v_p)
         forces[:, self.line_index] = _embed(on_line)
@@ -143,27 +148,49 @@ def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class FourBar:
-    """Crank tip ``crank`` (mass m0) at a from ``crank_pivot``; rocker tip ``rocker`` (mass m1) at c from
-    ``rocker_pivot``; coupler b between the tips; ``branch`` ±1 the side of the line from the crank tip to
-    the rocker pivot the rocker tip lies on (+1 left). Vectors are (x, z). State [φ, φ̇] rad, rad/s.
+class Linkage:
+    """A four-bar's geometry: tip ``first`` (mass m0) pinned by constraint ``first_pin`` at a from
+    ``first_pivot``, tip ``second`` (mass m1) pinned by ``second_pin`` at c from ``second_pivot``, the
+    coupler (constraint ``rod_index``, b long) between the tips. Vectors are (x, z) m; gravity m/s².
     """
 
-    crank: int
-    rocker: int
-    crank_pin: int
-    rocker_pin: int
+    first: int
+    second: int
+    first_pin: int
+    second_pin: int
     rod_index: int
-    rod_first_is_crank: bool
-    crank_pivot: np.ndarray
-    rocker_pivot: np.ndarray
+    rod_first_is_first: bool
+    first_pivot: np.ndarray
+    second_pivot: np.ndarray
     a: float
     b: float
     c: float
     m0: float
     m1: float
-    branch: float
     gravity: np.ndarray
+
+    @classmethod
+    def read(cls, scene: Scene, first_pin: int, second_pin: int, rod_index: int, **extra):
+        """The linkage of ``scene`` with these constraints, and the fields of a subclass (``extra``)."""
+        first, second, rod = (scene.constraints[k] for k in (first_pin, second_pin, rod_index))
+        return cls(
+            first=first.particle, second=second.particle, first_pin=first_pin, second_pin=second_pin,
+            rod_index=rod_index, rod_first_is_first=rod.a == first.particle,
+            first_pivot=_xz(first.anchor), second_pivot=_xz(second.anchor),
+            a=first.length, b=rod.length, c=second.length,
+            m0=scene.particles[first.particle].mass, m1=scene.particles[second.particle].mass,
+            gravity=_xz(scene.gravity), **extra,
+        )
+
+
+@dataclass(frozen=True)
+class FourBar(Linkage):
+    """A Grashof crank's linkage in its crank angle: ``first`` is the crank tip, ``second`` the rocker
+    tip; ``branch`` ±1 the side of the line from the crank tip to the rocker pivot the rocker tip lies
+    on (+1 left). State [φ, φ̇] rad, rad/s.
+    """
+
+    branch: float = 1.0
 
     def _rates(self, phi: float) -> tuple[np.ndarray, np.ndarray, float, float]:
         """Crank and rocker tips (2,) m, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
@@ -174,8 +201,8 @@ class FourBar:
         """(x0, z0, x1, z1, k, h): the closure and the rates in scalars (the right-hand side is called
         ~10⁴ times per solve, and numpy's per-call cost on 2-vectors is ~10× the arithmetic here)."""
         a, b, c = self.a, self.b, self.c
-        ax, az = self.crank_pivot
-        bx, bz = self.rocker_pivot
+        ax, az = self.first_pivot
+        bx, bz = self.second_pivot
         s, co = math.sin(phi), math.cos(phi)
         x0, z0 = ax + a * s, az - a * co
         dx, dz = bx - x0, bz - z0
@@ -201,31 +228,28 @@ class FourBar:
         a, c, m0, m1 = self.a, self.c, self.m0, self.m1
         gx, gz = self.gravity
         g_phi = gx * math.cos(phi) + gz * math.sin(phi)  # g·e_φ
-        g_psi = (-gx * (z1 - self.rocker_pivot[1]) + gz * (x1 - self.rocker_pivot[0])) / c  # g·e_ψ
+        g_psi = (-gx * (z1 - self.second_pivot[1]) + gz * (x1 - self.second_pivot[0])) / c  # g·e_ψ
         force = m0 * a * g_phi + m1 * c * k * g_psi - m1 * c * c * k * h * phi_dot * phi_dot
         return force / (m0 * a * a + m1 * c * c * k * k)
 
     def initial_state(self, scene: Scene) -> np.ndarray:
         q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
-        d = q[self.crank] - self.crank_pivot
+        d = q[self.first] - self.first_pivot
         phi = math.atan2(d[0], -d[1])
-        phi_dot = float(d[0] * v[self.crank][1] - d[1] * v[self.crank][0]) / self.a**2
+        phi_dot = float(d[0] * v[self.first][1] - d[1] * v[self.first][0]) / self.a**2
         return np.array([phi, phi_dot])
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         return np.array([y[1], self.angular_acceleration(y[0], y[1])])
 
     def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n_samples = len(states)
-        positions = np.zeros((n_samples, len(scene.particles), 3))
-        velocities = np.zeros_like(positions)
-        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        positions, velocities, forces = empty_samples(scene, len(states))
         g = self.gravity
         for i, (phi, phi_dot) in enumerate(states):
             p0, p1, k, h = self._rates(phi)
             phi_ddot = self.angular_acceleration(phi, phi_dot)
-            u_phi = (p0 - self.crank_pivot) / self.a
-            u_psi = (p1 - self.rocker_pivot) / self.c
+            u_phi = (p0 - self.first_pivot) / self.a
+            u_psi = (p1 - self.second_pivot) / self.c
             e_phi, e_psi = np.array([-u_phi[1], u_phi[0]]), np.array([-u_psi[1], u_psi[0]])
             psi_dot, psi_ddot = k * phi_dot, k * phi_ddot + h * phi_dot**2
             v0, v1 = self.a * phi_dot * e_phi, self.c * psi_dot * e_psi
@@ -237,16 +261,16 @@ class FourBar:
             system[:2, 2], system[2:, 2] = w, -w
             rhs = np.concatenate([self.m0 * (a0 - g), self.m1 * (a1 - g)])
             lam = np.linalg.lstsq(system, rhs, rcond=None)[0]
-            positions[i, self.crank], positions[i, self.rocker] = _embed(p0), _embed(p1)
-            velocities[i, self.crank], velocities[i, self.rocker] = _embed(v0), _embed(v1)
-            forces[i, self.crank_pin] = _embed(lam[0] * u_phi)
-            forces[i, self.rocker_pin] = _embed(lam[1] * u_psi)
-            forces[i, self.rod_index] = _embed(lam[2] * w if self.rod_first_is_crank else -lam[2] * w)
+            positions[i, self.first], positions[i, self.second] = _embed(p0), _embed(p1)
+            velocities[i, self.first], velocities[i, self.second] = _embed(v0), _embed(v1)
+            forces[i, self.first_pin] = _embed(lam[0] * u_phi)
+            forces[i, self.second_pin] = _embed(lam[1] * u_psi)
+            forces[i, self.rod_index] = _embed(lam[2] * w if self.rod_first_is_first else -lam[2] * w)
         return positions, velocities, forces
 
 
 @dataclass(frozen=True)
-class LoopFourBar:
+class LoopFourBar(Linkage):
     """The four-bar in maximal coordinates, for any linkage that closes, Grashof or not: state
     [p0, p1, v0, v1] (x, z) m and m/s of the tips ``first`` and ``second`` (masses m0, m1), pinned at a
     from ``first_pivot`` and c from ``second_pivot``, a coupler b between them.
@@ -259,20 +283,7 @@ class LoopFourBar:
     points, where the crank angle is singular, are ordinary points here.
     """
 
-    first: int
-    second: int
-    pins: tuple[int, int]
-    rod_index: int
-    rod_first_is_first: bool
-    first_pivot: np.ndarray
-    second_pivot: np.ndarray
-    a: float
-    b: float
-    c: float
-    m0: float
-    m1: float
-    gravity: np.ndarray
-    omega: float
+    omega: float = 1.0
 
     def initial_state(self, scene: Scene) -> np.ndarray:
         q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
@@ -297,17 +308,14 @@ class LoopFourBar:
         return np.concatenate([y[4:8], self._forces(y)[0]])
 
     def evaluate(self, scene: Scene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n_samples = len(states)
-        positions = np.zeros((n_samples, len(scene.particles), 3))
-        velocities = np.zeros_like(positions)
-        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        positions, velocities, forces = empty_samples(scene, len(states))
         for i, y in enumerate(states):
             _, lam, r0, w, r1 = self._forces(np.asarray(y, dtype=float))
             positions[i, self.first], positions[i, self.second] = _embed(y[0:2]), _embed(y[2:4])
             velocities[i, self.first], velocities[i, self.second] = _embed(y[4:6]), _embed(y[6:8])
             # Each constraint's force on its (first) particle: λ times its gradient there.
-            forces[i, self.pins[0]] = _embed(lam[0] * r0)
-            forces[i, self.pins[1]] = _embed(lam[2] * r1)
+            forces[i, self.first_pin] = _embed(lam[0] * r0)
+            forces[i, self.second_pin] = _embed(lam[2] * r1)
             forces[i, self.rod_index] = _embed(-lam[1] * w if self.rod_first_is_first else lam[1] * w)
         return positions, velocities, forces
 
@@ -336,44 +344,12 @@ def four_bar(scene: Scene) -> FourBar | LoopFourBar | None:
         q = _xz(scene.initial_positions)
         p0, p1 = q[crank.particle], q[rocker.particle]
         side = float(_cross(_xz(rocker.anchor) - p0, p1 - p0))
-        return FourBar(
-            crank=crank.particle,
-            rocker=rocker.particle,
-            crank_pin=crank_pin,
-            rocker_pin=rocker_pin,
-            rod_index=rods[0],
-            rod_first_is_crank=rod.a == crank.particle,
-            crank_pivot=_xz(crank.anchor),
-            rocker_pivot=_xz(rocker.anchor),
-            a=crank.length,
-            b=rod.length,
-            c=rocker.length,
-            m0=scene.particles[crank.particle].mass,
-            m1=scene.particles[rocker.particle].mass,
-            branch=1.0 if side >= 0.0 else -1.0,
-            gravity=_xz(scene.gravity),
-        )
+        return FourBar.read(scene, crank_pin, rocker_pin, rods[0], branch=1.0 if side >= 0.0 else -1.0)
     # No Grashof crank: the crank angle meets a dead point, so the loop is integrated in maximal coordinates.
-    first, second = scene.constraints[pins[0]], scene.constraints[pins[1]]
     length = first.length + rod.length + second.length
     g = float(np.linalg.norm(scene.gravity))
-    return LoopFourBar(
-        first=first.particle,
-        second=second.particle,
-        pins=(pins[0], pins[1]),
-        rod_index=rods[0],
-        rod_first_is_first=rod.a == first.particle,
-        first_pivot=_xz(first.anchor),
-        second_pivot=_xz(second.anchor),
-        a=first.length,
-        b=rod.length,
-        c=second.length,
-        m0=scene.particles[first.particle].mass,
-        m1=scene.particles[second.particle].mass,
-        gravity=_xz(scene.gravity),
-        # The stabilization's rate: the pendulum frequency √(g/L) of the linkage (1/s without gravity).
-        omega=math.sqrt(g / length) if g > 0 else 1.0,
-    )
+    # The stabilization's rate: the pendulum frequency √(g/L) of the linkage (1/s without gravity).
+    return LoopFourBar.read(scene, pins[0], pins[1], rods[0], omega=math.sqrt(g / length) if g > 0 else 1.0)
 
 
 # -- bead on an ellipse ---------------------------------------------------------------------

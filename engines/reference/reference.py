@@ -16,16 +16,19 @@ import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 import scipy
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
-from engines.reference.mechanisms import Mechanism, mechanism_model
+from engines.reference.mechanisms import Mechanism, empty_samples, mechanism_model
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.tree import read_tree
+
+if TYPE_CHECKING:  # imported on use: only model-file scenes need Pinocchio
+    from engines.model.dynamics import ModelDynamics
 
 DEFAULT_RTOL = 1e-12
 DEFAULT_ATOL = 1e-12
@@ -112,10 +115,7 @@ class ChainModel:
         own = self.masses[None, :, None] * (a - self.gravity)
         f = np.cumsum(own[:, ::-1], axis=1)[:, ::-1]
 
-        n_samples = len(states)
-        positions = np.zeros((n_samples, len(scene.particles), 3))
-        velocities = np.zeros_like(positions)
-        forces = np.zeros((n_samples, len(scene.constraints), 3))
+        positions, velocities, forces = empty_samples(scene, len(states))
         for k, p in enumerate(self.order):
             positions[:, p, 0], positions[:, p, 2] = q[:, k, 0], q[:, k, 1]
             velocities[:, p, 0], velocities[:, p, 2] = v[:, k, 0], v[:, k, 1]
@@ -227,13 +227,13 @@ def spherical_pin(scene: Scene) -> SphericalPin:
 # -- solving -------------------------------------------------------------------
 
 
-def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism:
+def model_for(scene: Scene) -> ChainModel | SphericalPin | Mechanism | ModelDynamics:
     """The reduced-coordinate model of ``scene``; Unsupported when the reference cannot express it.
 
     Mechanisms (slider-pendulum, four-bar, bead on an ellipse) are read by
     :mod:`engines.reference.mechanisms`; everything else is a chain or a spherical pin.
     """
-    if getattr(scene, "is_model", False):  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
+    if scene.is_model:  # a model file: Pinocchio's ABA (engines/model/dynamics.py)
         from engines.model.dynamics import ModelDynamics
 
         return ModelDynamics(scene)
@@ -261,6 +261,8 @@ class DenseOutput:
     """
 
     __slots__ = ("_ode", "_pickled")
+    _ode: Any  # scipy's OdeSolution, or None while only its pickle is held
+    _pickled: bytes | None
 
     def __init__(self, ode: Any) -> None:
         self._ode, self._pickled = ode, None
@@ -628,10 +630,19 @@ class ReferenceEngine(Engine):
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
+    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+        model_for(scene)
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return self._solved(scene, schedule, settings, model=False)
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        """A model file: Pinocchio's ABA (model_for) solved the same way; its joint states, no constraint forces."""
+        return self._solved(scene, schedule, settings, model=True)
+
+    def _solved(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
         solution = solve(scene, settings["rtol"], settings["atol"])
         positions, velocities, forces = solution.at(schedule.times)
-        model = getattr(scene, "is_model", False)
         return RawRun(
             positions,
             velocities,

@@ -102,7 +102,7 @@ def _planar_chain(name: str, masses, lengths, thetas, omegas, g, duration, param
         d, t = _direction(theta), _tangent(theta)
         position = [position[i] + length * d[i] for i in range(3)]
         velocity = [velocity[i] + length * omega * t[i] for i in range(3)]
-        particles.append(Particle(m, tuple(position), tuple(velocity)))
+        particles.append(Particle(m, (position[0], position[1], position[2]), (velocity[0], velocity[1], velocity[2])))
         constraints.append(Pin(0, (0.0, 0.0, 0.0), length) if k == 0 else Rod(k - 1, k, length))
     return Scene(name, tuple(particles), tuple(constraints), (0.0, 0.0, -g), duration, parameters or {})
 

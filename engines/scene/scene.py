@@ -14,7 +14,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -43,7 +43,7 @@ def _vector(value: Any, field_name: str) -> Vector:
         raise SceneError(
             f"{field_name}: components must lie in [-{largest:g}, {largest:g}] {unit}, got {components}"
         )
-    return components  # type: ignore[return-value]
+    return components
 
 
 #: Field name -> (largest |component|, unit); any other vector is a position (m).
@@ -312,6 +312,9 @@ class Scene:
     duration: float = 10.0
     parameters: Mapping[str, Any] = field(default_factory=dict)
     requires: frozenset[str] = field(init=False)
+    #: False: particles and constraints. A model file (engines.model.scene.ModelScene) says True, and
+    #: Engine.check / Engine.simulate route it to the adapter's _check_model / _run_model.
+    is_model: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "particles", tuple(self.particles))

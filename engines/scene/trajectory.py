@@ -131,7 +131,7 @@ def total_energy(scene: Scene, positions: np.ndarray, velocities: np.ndarray) ->
 def trajectory_energy(scene: Any, trajectory: Trajectory) -> np.ndarray:
     """(n_samples,) J: a catalog scene's point-mass energy (:func:`total_energy`), or a model scene's from its
     joint states (``scene.energy``: rotational kinetic energy included; NaN without joint states)."""
-    if not getattr(scene, "is_model", False):
+    if not scene.is_model:
         return total_energy(scene, trajectory.positions, trajectory.velocities)
     states = trajectory.joint_states
     if states is None:

@@ -108,7 +108,7 @@ class Mechanism:
         n = len(self.bodies)
         if n == 0:
             raise ModelError("bodies: a mechanism needs at least one body")
-        inbound = {}
+        inbound: dict[int, Joint] = {}
         for joint in self.joints:
             if not (0 <= joint.child < n) or not (-1 <= joint.parent < n) or joint.parent == joint.child:
                 raise ModelError(f"joint {joint.name}: parent {joint.parent} / child {joint.child} must be body indices "

@@ -103,8 +103,8 @@ def quaternion(R: np.ndarray) -> np.ndarray:
         q[1 + a] = s / 4.0
         q[1 + b] = (R[b, a] + R[a, b]) / s
         q[1 + c] = (R[c, a] + R[a, c]) / s
-    q = np.array(q)
-    return q / np.linalg.norm(q)
+    unit = np.array(q)
+    return unit / np.linalg.norm(unit)
 
 
 def rotation_of(Q: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""One probe (a run at one dt, judged by the suite's bounds) and the output files of the stability stage.
+"""One trial (a run at one dt, judged by the suite's bounds) and the output files of the stability stage.
 
 Shared by the stability search (:mod:`compare.stability.search`) and the gain
 map (:mod:`compare.stability.gainmap`); neither imports the other.
@@ -10,7 +10,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from compare.suite.reader import EngineSpec, SceneSpec, Suite
 
 
 @dataclass(frozen=True)
-class Probe:
+class Trial:
     """One run at one dt: status after the bounds, why, energy drift (E*), constraint error (m), elapsed (s)."""
 
     dt: float
@@ -42,11 +42,11 @@ class Probe:
         return self.status == "ok"
 
 
-# -- one probe through the runner's isolation -------------------------------------------------
+# -- one trial through the runner's isolation -------------------------------------------------
 
 
-def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
-              sample_interval: float | None = None) -> Probe:
+def run_trial(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
+              sample_interval: float | None = None) -> Trial:
     """Simulate one (scene, variant) at ``dt`` (s) in a case host and classify it by the suite's bounds.
 
     sample_interval : s between samples (None: the suite's).
@@ -69,11 +69,11 @@ def run_probe(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite
     return classify(scene, outcome, dt, sample_interval, suite.bounds)
 
 
-def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Probe:
-    """The Probe of a finished case: the engine's status, then the suite's bounds (as ``xval run`` does)."""
+def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Trial:
+    """The Trial of a finished case: the engine's status, then the suite's bounds (as ``xval run`` does)."""
     trajectory = outcome.trajectory
     if trajectory is None:
-        return Probe(dt, outcome.status, outcome.message, elapsed=outcome.elapsed)
+        return Trial(dt, outcome.status, outcome.message, elapsed=outcome.elapsed)
     status, message = trajectory.info.status, trajectory.info.message
     scheduled = Schedule.make(scene.duration, dt, sample_interval).times
     # Position metrics need the reference, which the criterion does not use: compare against NaN.
@@ -81,7 +81,7 @@ def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bou
     metrics, _ = case_metrics(scene, trajectory, no_reference, None, scheduled_times=scheduled,
                               wall_times=outcome.wall_times)
     status, message = apply_bounds(status, message, metrics, bounds, scene)
-    return Probe(dt, status, message, _finite_or_none(metrics.energy_drift),
+    return Trial(dt, status, message, _finite_or_none(metrics.energy_drift),
                  _finite_or_none(metrics.constraint_error), outcome.elapsed)
 
 
@@ -96,7 +96,7 @@ RERUN = "xval stability SUITE --output DIR --force"
 
 
 def document_head(suite: Suite, schema: str, version: int) -> dict[str, Any]:
-    """The fields both output files open with: format, suite, xval version and the bounds the probes were judged by."""
+    """The fields both output files open with: format, suite, xval version and the bounds the trials were judged by."""
     return {
         "schema": schema,
         "schema_version": version,
@@ -111,8 +111,13 @@ def write_document(target: Path, document: dict[str, Any], indent: int | None = 
     atomic_write_text(target, json.dumps(jsonable(document), indent=indent, allow_nan=False) + "\n")
 
 
-def load_document(directory: str | Path, name: str, schema: str, version: int) -> dict[str, Any] | None:
-    """``directory/name`` as written by this module or gainmap; None when absent, UserError naming RERUN when unreadable."""
+def load_document(directory: str | Path, name: str, schema: str, version: int,
+                  upgrades: Mapping[int, Callable[[dict[str, Any]], dict[str, Any]]] | None = None,
+                  ) -> dict[str, Any] | None:
+    """``directory/name`` as written by this module or gainmap; None when absent, UserError naming RERUN when unreadable.
+
+    upgrades : older version -> the function that turns such a document into one of ``version``.
+    """
     file = Path(directory) / name
     if not file.exists():
         return None
@@ -120,6 +125,8 @@ def load_document(directory: str | Path, name: str, schema: str, version: int) -
         data = json.loads(file.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise UserError(f"{file}: cannot read it ({exc}); rerun {RERUN}") from None
+    if isinstance(data, dict) and data.get("schema") == schema and data.get("schema_version") in (upgrades or {}):
+        data = (upgrades or {})[data["schema_version"]](data)
     if not isinstance(data, dict) or data.get("schema") != schema or data.get("schema_version") != version:
         found = data.get("schema_version") if isinstance(data, dict) else None
         raise UserError(f"{file}: {schema} version {found!r}, but this xval reads version {version}; rerun {RERUN}")
