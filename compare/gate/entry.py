@@ -123,10 +123,6 @@ class BaselineEntry:
     def key(self) -> str:
         return case_key(self.scene_id, self.scene_hash, self.engine, self.variant, self.options, self.dt)
 
-    @property
-    def name(self) -> str:
-        return case_name(self.scene_id, self.engine, self.dt)
-
     def metric(self, name: str) -> Any:
         """The value of gated metric ``name``, None when absent."""
         return (self.metrics or {}).get(name)

@@ -94,11 +94,12 @@ def window_baseline(history: History, results: Results, size: int = DEFAULT_WIND
     machine = machine_of(results.header)
     suite = str((results.header.get("suite") or {}).get("name", ""))
     runs = window_runs(history, results, size)
+    stored = [history.cases([run.id]) for run in runs]  # oldest first; each run's cases read once
     per_key: dict[str, list[BaselineEntry]] = {}
-    for run in runs:  # oldest first
-        for case in history.cases([run.id]):
+    for run_cases in stored:
+        for case in run_cases:
             per_key.setdefault(case.case_key, []).append(case.entry)
-    latest_keys = {c.case_key for c in history.cases([runs[-1].id])} if runs else set()
+    latest_keys = {c.case_key for c in stored[-1]} if stored else set()
     current_versions = _current_versions(results)
     cases = {}
     for key, entries in per_key.items():

@@ -111,7 +111,8 @@ def _widened(per_step: float, low: float, high: float) -> tuple[float, float]:
 
 def fit(engine: str, records: Sequence[CaseRecord]) -> CostModel | None:
     """The CostModel of one variant from its case records (any order); None when no case was timed."""
-    costs = [c for r in records if (c := case_cost(r)) is not None]
+    timed = [(r, c) for r in records if (c := case_cost(r)) is not None]
+    costs = [c for _, c in timed]
     if len(costs) >= MIN_FIT and len({c.steps for c in costs}) >= 2:
         slope, intercept = _theil_sen(costs)
         if slope > 0:
@@ -122,7 +123,7 @@ def fit(engine: str, records: Sequence[CaseRecord]) -> CostModel | None:
             return CostModel(engine, slope, low, high, max(intercept, 0.0), len(costs), "fit")
     if costs:
         ratios = [c.cpu_min / c.steps for c in costs]
-        every = [t / c.steps for r in records if (c := case_cost(r)) is not None for t in cpu_times(r)]
+        every = [t / c.steps for r, c in timed for t in cpu_times(r)]
         per_step = float(statistics.median(ratios))
         return CostModel(engine, per_step, *_widened(per_step, min(every), max(every)), 0.0, len(costs), "ratio")
     return None
