@@ -81,24 +81,25 @@ def test_forks_without_jax():
 """
 
 
+def guarded_pytest(directory: Path, *targets: str) -> subprocess.CompletedProcess:
+    """pytest with tests/fork_guard.py on ``targets`` in ``directory``, in a fresh process (300 s: JAX imports)."""
+    return subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
+                           *targets], cwd=directory, env={**os.environ, "PYTHONPATH": str(ROOT / "tests")},
+                          capture_output=True, text=True, timeout=300)
+
+
 def test_the_test_processes_guard_fails_a_test_that_imports_jax_or_forks_with_it(tmp_path):
     # tests/fork_guard.py, loaded in every pytest run: the first test leaves JAX in the process, the second
-    # forks with it loaded; both fail, naming why. (The third runs alone, in a process without JAX.)
+    # forks with it loaded; both fail, naming why. A fixture importing JAX fails its test's setup. (The last
+    # runs alone, in a process without JAX.)
     (tmp_path / "test_guarded.py").write_text(GUARDED)
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
-    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
-                           "test_guarded.py::test_imports_jax", "test_guarded.py::test_forks_with_jax_loaded"],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    done = guarded_pytest(tmp_path, "test_guarded.py::test_imports_jax", "test_guarded.py::test_forks_with_jax_loaded")
     assert "2 failed" in done.stdout, done.stdout[-3000:]
     assert "this test's call imported JAX into the test process" in done.stdout
     assert "forked the test process 1 time(s) with JAX imported" in done.stdout
-    fixture = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
-                              "test_guarded.py::test_given_jax_by_a_fixture"],
-                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    fixture = guarded_pytest(tmp_path, "test_guarded.py::test_given_jax_by_a_fixture")
     assert "this test's setup imported JAX into the test process" in fixture.stdout, fixture.stdout[-3000:]
-    alone = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
-                            "test_guarded.py::test_forks_without_jax"],
-                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    alone = guarded_pytest(tmp_path, "test_guarded.py::test_forks_without_jax")
     assert "1 passed" in alone.stdout, alone.stdout[-3000:]
 
 
@@ -108,10 +109,7 @@ def test_the_guard_fails_the_module_that_imports_jax_at_collection_not_the_tests
     (tmp_path / "test_guarded.py").write_text(GUARDED)
     (tmp_path / "test_importer.py").write_text("import pytest\n\npytest.importorskip('jax')\n\n\n"
                                                "def test_nothing():\n    pass\n")
-    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
-                           "test_importer.py", "test_guarded.py::test_forks_without_jax"],
-                          cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT / "tests")}, capture_output=True,
-                          text=True, timeout=300)
+    done = guarded_pytest(tmp_path, "test_importer.py", "test_guarded.py::test_forks_without_jax")
     assert done.returncode == 2, done.stdout[-3000:]  # interrupted: errors during collection
     assert "collecting test_importer.py imported JAX into the test process" in done.stdout, done.stdout[-3000:]
     assert "1 error" in done.stdout and "passed" not in done.stdout and "failed" not in done.stdout
