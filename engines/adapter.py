@@ -6,7 +6,8 @@ An adapter subclasses :class:`Engine` and fills in:
   ``options`` (typed :class:`Option` records with defaults), ``variants``
   (named option presets; the first is the default), ``overrides`` (engine
   defaults the adapter changes, recorded in every RunInfo);
-- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities;
+- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities
+  (``_check_options(settings)`` for option values, checked for every scene);
 - ``_run(scene, schedule, settings) -> RawRun``: build the model, step it
   ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
   and time only the stepping loop.
@@ -263,6 +264,10 @@ class Engine:
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         raise NotImplementedError
 
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
+        """Raise UserError for an option value the engine cannot take; run before ``_check`` and
+        ``_check_model`` alike, so a bad value is refused whatever the scene."""
+
     # -- model files (only for an engine with the "model" capability) ------------------------------
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
@@ -320,6 +325,7 @@ class Engine:
         if missing:
             raise Unsupported(self._lacking(scene, missing))
         settings = self.resolve(variant, options)
+        self._check_options(settings)
         if scene.is_model:  # the one place a model file is told from a catalog scene: adapters never test for it
             self._check_model(scene, settings)
         else:

@@ -49,6 +49,18 @@ def test_an_mjx_run_never_imports_jax_where_hosts_are_forked(tmp_path):
 GUARDED = """
 import os
 
+import pytest
+
+
+@pytest.fixture
+def jax_module():
+    import jax
+    return jax
+
+
+def test_given_jax_by_a_fixture(jax_module):
+    pass
+
 
 def test_imports_jax():
     import jax  # noqa: F401
@@ -78,9 +90,28 @@ def test_the_test_processes_guard_fails_a_test_that_imports_jax_or_forks_with_it
                            "test_guarded.py::test_imports_jax", "test_guarded.py::test_forks_with_jax_loaded"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert "2 failed" in done.stdout, done.stdout[-3000:]
-    assert "this test imported JAX into the test process" in done.stdout
-    assert "forked 1 time(s) with JAX imported" in done.stdout
+    assert "this test's call imported JAX into the test process" in done.stdout
+    assert "forked the test process 1 time(s) with JAX imported" in done.stdout
+    fixture = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
+                              "test_guarded.py::test_given_jax_by_a_fixture"],
+                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert "this test's setup imported JAX into the test process" in fixture.stdout, fixture.stdout[-3000:]
     alone = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
                             "test_guarded.py::test_forks_without_jax"],
                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert "1 passed" in alone.stdout, alone.stdout[-3000:]
+
+
+def test_the_guard_fails_the_module_that_imports_jax_at_collection_not_the_tests_after_it(tmp_path):
+    # A module-level importorskip of mujoco.mjx loads JAX while collecting; the guard names that module, and
+    # pytest stops before any test (which would otherwise fork with JAX loaded and be blamed).
+    (tmp_path / "test_guarded.py").write_text(GUARDED)
+    (tmp_path / "test_importer.py").write_text("import pytest\n\npytest.importorskip('jax')\n\n\n"
+                                               "def test_nothing():\n    pass\n")
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "fork_guard", "-p", "no:cacheprovider",
+                           "test_importer.py", "test_guarded.py::test_forks_without_jax"],
+                          cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT / "tests")}, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 2, done.stdout[-3000:]  # interrupted: errors during collection
+    assert "collecting test_importer.py imported JAX into the test process" in done.stdout, done.stdout[-3000:]
+    assert "1 error" in done.stdout and "passed" not in done.stdout and "failed" not in done.stdout

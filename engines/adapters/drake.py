@@ -129,7 +129,6 @@ class DrakeEngine(Engine):
         return settings["plant"] == "continuous" and settings["error_control"]
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        self._check_options(settings)
         refuse_constraint_kinds(scene, (Pin, Rod), "drake")  # it builds them as revolute (or ball) joints
         tree = read_tree(scene)
         if tree.loose:
@@ -149,7 +148,6 @@ class DrakeEngine(Engine):
             )
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
-        self._check_options(settings)
         if settings["plant"] == "discrete":
             raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
                               "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")

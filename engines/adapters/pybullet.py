@@ -270,7 +270,6 @@ class PyBulletEngine(Engine):
         return _pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        self._check_options(settings)
         links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
         if settings["formulation"] == "multibody":
             largest = max(_tree_sizes(links).values(), default=0)
@@ -282,7 +281,6 @@ class PyBulletEngine(Engine):
                 )
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
-        self._check_options(settings)
         if settings["formulation"] != "multibody":
             raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                               "build particle scenes from separate bodies, use pybullet/multibody")
