@@ -29,10 +29,10 @@ XVAL_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), str(ROOT)])}
 T = TypeVar("T")
 
 
-def run_xval(*args: object, timeout: float = 120, **options) -> subprocess.CompletedProcess:
-    """``xval ARGS...`` in a process of its own, from the repository root with :data:`XVAL_ENV`: its exit
-    code and output as text (``options`` go to subprocess.run)."""
-    return subprocess.run(XVAL + [str(a) for a in args], cwd=ROOT, env=XVAL_ENV, capture_output=True, text=True,
+def run_xval(*args: object, timeout: float = 120, cwd: Path = ROOT, **options) -> subprocess.CompletedProcess:
+    """``xval ARGS...`` in a process of its own, from ``cwd`` (the repository root unless given) with
+    :data:`XVAL_ENV`: its exit code and output as text (``options`` go to subprocess.run)."""
+    return subprocess.run(XVAL + [str(a) for a in args], cwd=cwd, env=XVAL_ENV, capture_output=True, text=True,
                           timeout=timeout, **options)
 
 

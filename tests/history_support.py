@@ -15,7 +15,6 @@ import datetime as _dt
 import json
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any, Callable
 
@@ -26,6 +25,7 @@ from compare.results.record import CaseRecord
 from compare.results.store import Results, load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
+from conftest import XVAL, XVAL_ENV
 from cli_support import run_cli as xval  # noqa: F401 (tests import it from here)
 
 TESTS = Path(__file__).resolve().parent
@@ -109,7 +109,5 @@ def write_results(results: Results, target: Path) -> Path:
 
 def xval_process(*argv: Any, cwd: Path | None = None) -> subprocess.Popen:
     """The CLI in its own process (stdout and stderr captured)."""
-    return subprocess.Popen(
-        [sys.executable, "-c", "from compare.cli import main; main()", *map(str, argv)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
-    )
+    return subprocess.Popen(XVAL + [str(a) for a in argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=cwd, env=XVAL_ENV)

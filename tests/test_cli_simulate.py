@@ -1,14 +1,13 @@
 """``xval scenes`` / ``xval simulate``: the CSV it writes and its one-line errors (exit 2, no traceback)."""
 
 import csv
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from compare.cli import main
 from engines.scene import catalog
+from conftest import run_xval
 
 
 def run(capsys, *argv):
@@ -96,9 +95,7 @@ def test_scenes_lists_parameters_with_defaults_and_units(capsys):
 
 
 def test_console_script_errors_without_traceback(tmp_path):
-    xval = [sys.executable, "-c", "from compare.cli import main; main()"]
-    result = subprocess.run(xval + ["simulate", "bead", "--dt", "abc", "--output", str(tmp_path / "x.csv")],
-                            capture_output=True, text=True)
+    result = run_xval("simulate", "bead", "--dt", "abc", "--output", tmp_path / "x.csv")
     assert result.returncode == 2
     assert result.stderr == "xval: error: dt must be a number of seconds, got 'abc'\n"
     assert "Traceback" not in result.stderr

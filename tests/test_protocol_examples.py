@@ -20,7 +20,7 @@ from engines.scene import catalog
 
 from engines.external import command
 from engines.reference.reference import solve
-from conftest import ROOT, XVAL, XVAL_ENV
+from conftest import ROOT, run_xval
 
 CPP = ROOT / "examples" / "cpp"
 PYTHON_BEAD = ROOT / "examples" / "python" / "bead.py"
@@ -35,10 +35,6 @@ def cpp_build(tmp_path_factory) -> Path:
     made = subprocess.run(["make", "-C", str(CPP), f"BUILD={build}"], capture_output=True, text=True)
     assert made.returncode == 0, made.stdout + made.stderr
     return build
-
-
-def xval(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([*XVAL, *args], capture_output=True, text=True, cwd=cwd, env=XVAL_ENV)
 
 
 def max_error(engine: command.CommandEngine, scene, dt: float, reference):
@@ -140,9 +136,10 @@ capabilities = ["constraint-forces"]
 """)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    ran = xval("run", "../project/suite.toml", "--output", "results", "--jobs", "1", cwd=elsewhere)
+    ran = run_xval("run", "../project/suite.toml", "--output", "results", "--jobs", "1", cwd=elsewhere,
+                   timeout=300)
     assert ran.returncode == 0, ran.stdout + ran.stderr
-    shown = xval("show", "results", "--format", "json", cwd=elsewhere)
+    shown = run_xval("show", "results", "--format", "json", cwd=elsewhere)
     rows = {(r["scene"], r["engine"], r["dt"]): r for r in json.loads(shown.stdout)}
     assert len(rows) == 8
     for dt in (1e-2, 5e-3):
@@ -160,11 +157,11 @@ capabilities = ["constraint-forces"]
 
 def test_simulate_command_writes_what_score_grades(cpp_build, tmp_path):
     shutil.copy(cpp_build / "double_pendulum", tmp_path / "double_pendulum")
-    made = xval("simulate", "double-pendulum", "--command", "./double_pendulum", "--dt", "2.5e-3", "--duration", "2",
+    made = run_xval("simulate", "double-pendulum", "--command", "./double_pendulum", "--dt", "2.5e-3", "--duration", "2",
                 "--forces", "--output", "dp.csv", cwd=tmp_path)
     assert made.returncode == 0, made.stderr
     assert made.stdout.startswith("command/double_pendulum on double-pendulum: ok, 201 samples to ")
-    scored = xval("score", "double-pendulum", "dp.csv", "--param", "duration=2", "--format", "json", cwd=tmp_path)
+    scored = run_xval("score", "double-pendulum", "dp.csv", "--param", "duration=2", "--format", "json", cwd=tmp_path)
     (row,) = json.loads(scored.stdout)
     assert row["status"] == "ok" and 1e-10 < row["position_error_linf"] < 1e-7
     assert row["constraint_force_error"] < 1e-4
@@ -177,7 +174,7 @@ def test_simulate_command_writes_what_score_grades(cpp_build, tmp_path):
     ("./nosuch --fast", "cannot start {cwd}/nosuch --fast: '{cwd}/nosuch' not found in {cwd}"),
 ])
 def test_simulate_command_that_fails_is_one_line_and_exit_1(program, message, tmp_path):
-    ran = xval("simulate", "bead", "--command", program, "--dt", "1e-2", "--output", "out.csv", cwd=tmp_path)
+    ran = run_xval("simulate", "bead", "--command", program, "--dt", "1e-2", "--output", "out.csv", cwd=tmp_path)
     assert ran.returncode == 1 and ran.stdout.count("\n") == 1 and "Traceback" not in ran.stdout + ran.stderr
     assert ": failed, 0 samples to " in ran.stdout and message.format(cwd=tmp_path) in ran.stdout
 
