@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -17,14 +16,6 @@ from compare.cli import history_option
 from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
 from compare.results.store import load_results
-from compare.suite.tolerance import GateSettings
-from compare.suite.reader import load_run_settings
-
-
-def settings_of(directory: Path) -> GateSettings:
-    """The [gate] (and legacy [tolerances]) settings of the suite stored with the results
-    (read by the suite reader without loading any engine)."""
-    return load_run_settings(directory / "suite.toml").gate
 
 
 @click.command("gate")
@@ -62,7 +53,7 @@ def command(directory, baseline_path, history, window, junit, summary, timing) -
     current = build_baseline(results, then="gate it")
     if history is not None:
         baseline, baseline_path, heading = history_baseline(history, results, window or DEFAULT_WINDOW)
-    report = gate_results(baseline, current, settings_of(Path(directory)), baseline_path, timing=timing)
+    report = gate_results(baseline, current, results.settings.gate, baseline_path, timing=timing)
     if history is None:
         heading = (f"baseline {baseline_path}: suite {baseline.suite.get('name')}, {len(baseline.cases)} cases, "
                    f"made {baseline.created} from commit {baseline.results.get('git_commit')}")

@@ -23,7 +23,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Mapping
 
 import numpy as np
 import orjson
@@ -32,6 +32,9 @@ from engines.errors import UserError
 
 from compare.results.files import atomic_write_text
 from compare.results.record import SCHEMA_VERSION, CaseRecord, check_schema, status_counts
+
+if TYPE_CHECKING:  # imported where used: reading a suite loads the engine registry
+    from compare.suite.reader import RunSettings
 
 
 def now() -> str:
@@ -214,11 +217,17 @@ class Results:
         return groups
 
     @functools.cached_property
-    def verdict_tolerance(self) -> float:
-        """The consistency tolerance (fraction of L) of the suite that made these results."""
+    def settings(self) -> RunSettings:
+        """The compare.suite.reader.RunSettings (δ, bounds, [gate], verdict tolerance) of the suite.toml kept
+        with these results, read once."""
         from compare.suite.reader import load_run_settings  # here: only readers that judge need the suite
 
-        return load_run_settings(self.path / "suite.toml").verdict_tolerance
+        return load_run_settings(self.path / "suite.toml")
+
+    @property
+    def verdict_tolerance(self) -> float:
+        """The consistency tolerance (fraction of L) of the suite that made these results."""
+        return self.settings.verdict_tolerance
 
     def sweeps(self):
         """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep)."""

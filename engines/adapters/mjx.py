@@ -123,9 +123,11 @@ class MJXEngine(Engine):
     def version(self) -> str:
         return f"{mjx_version()}, mujoco {mujoco.mj_versionString()}"
 
-    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
         if settings["inertia_ratio"] <= 0:
             raise UserError(f"mjx: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         MUJOCO.check(scene, "hinge", _mujoco_options(settings))
         tree = constraint_tree(scene)
         depth = max(_depth(tree.parent, i) for i in range(len(tree.parent)))

@@ -80,7 +80,18 @@ class PymunkEngine(Engine):
         refuse_ellipse(scene, "pymunk has no joint that holds a body on an ellipse (only circles, via PinJoint, "
                               "and straight segments, via GrooveJoint)")
         refuse_constraint_kinds(scene, (Pin, Rod, Line), "pymunk")
-        _check_settings(settings)
+
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
+        """Refuse option values pymunk would accept but that mean nothing (or trip an assert in C)."""
+        if not 0.0 <= settings["error_bias"] <= 1.0:
+            raise UserError(f"pymunk: option error_bias must be in [0, 1], got {settings['error_bias']!r}")
+        if settings["iterations"] < 1:
+            raise UserError(f"pymunk: option iterations must be at least 1, got {settings['iterations']!r}")
+        max_bias = settings["max_bias"]
+        if max_bias is not None and not (isinstance(max_bias, (int, float)) and max_bias >= 0):
+            raise UserError(f"pymunk: option max_bias must be a number >= 0 (m/s), got {max_bias!r}")
+        if not 0.0 < settings["damping"] <= 1.0:
+            raise UserError(f"pymunk: option damping must be in (0, 1] (1 = none), got {settings['damping']!r}")
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         """Step ``schedule.n_steps`` times; record positions (m), velocities (m/s), forces (N) at the sample steps.
@@ -134,19 +145,6 @@ class PymunkEngine(Engine):
                 "force_t0": "the force at t = 0 is the one of the first step",
             },
         )
-
-
-def _check_settings(settings: Mapping[str, Any]) -> None:
-    """Refuse option values pymunk would accept but that mean nothing (or trip an assert in C)."""
-    if not 0.0 <= settings["error_bias"] <= 1.0:
-        raise UserError(f"pymunk: option error_bias must be in [0, 1], got {settings['error_bias']!r}")
-    if settings["iterations"] < 1:
-        raise UserError(f"pymunk: option iterations must be at least 1, got {settings['iterations']!r}")
-    max_bias = settings["max_bias"]
-    if max_bias is not None and not (isinstance(max_bias, (int, float)) and max_bias >= 0):
-        raise UserError(f"pymunk: option max_bias must be a number >= 0 (m/s), got {max_bias!r}")
-    if not 0.0 < settings["damping"] <= 1.0:
-        raise UserError(f"pymunk: option damping must be in (0, 1] (1 = none), got {settings['damping']!r}")
 
 
 def _to_scene(xy: np.ndarray) -> np.ndarray:
