@@ -326,7 +326,7 @@ class Engine:
             raise Unsupported(self._lacking(scene, missing))
         settings = self.resolve(variant, options)
         self._check_options(settings)
-        if scene.is_model:  # the one place a model file is told from a catalog scene: adapters never test for it
+        if scene.is_model:  # here and in simulate, never in an adapter's _check/_run (ours' warm-up aside)
             self._check_model(scene, settings)
         else:
             self._check(scene, settings)
