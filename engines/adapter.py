@@ -6,11 +6,10 @@ An adapter subclasses :class:`Engine` and fills in:
   ``options`` (typed :class:`Option` records with defaults), ``variants``
   (named option presets; the first is the default), ``overrides`` (engine
   defaults the adapter changes, recorded in every RunInfo);
-- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities
-  (``_check_options(settings)`` for option values, checked for every scene);
-- ``_run(scene, schedule, settings) -> RawRun``: build the model, step it
-  ``schedule.n_steps`` times, record the state at ``schedule.sample_steps``,
-  and time only the stepping loop.
+- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities,
+  ``_check_options(settings)`` for option values (run for every scene);
+- ``_run(scene, schedule, settings) -> RawRun``: build the model, step it ``schedule.n_steps``
+  times, record the state at ``schedule.sample_steps``, time only the stepping loop.
 
 Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
