@@ -9,8 +9,11 @@ solves everything (MJX's stepping loops into ``<cache>/jax``, ours' kernels,
 the references), the second finds them kept. For each run it prints the wall
 time, the CPU time of the process tree, and the MJX cases' summed
 ``jit_compile_time`` (seconds spent compiling or loading a compiled loop from
-the cache) and how many MJX cases compiled more than 0.5 s, with the load
-average before and after.
+the cache) and how many MJX cases compiled more than 0.5 s, the files the run
+wrote into the cache directory by folder (``jax`` compiled loops, ``numba``
+kernels, ``reference`` solutions, ``ours``: JAX keeps every compile there, so
+a run that writes none compiled and solved nothing), with the load average
+before and after.
 
 ``--keep DIR`` writes the second run's results directory to DIR (which must not exist) and
 keeps it; both runs' results are otherwise deleted at the end.
@@ -103,6 +106,17 @@ def _reduced(suite: Path, target: Path) -> Path:
     return target
 
 
+def _written(cache: Path, since: float) -> str:
+    """Files under ``cache`` modified at or after ``since`` (epoch s), counted by top-level folder."""
+    counts: dict[str, int] = {}
+    for path in cache.rglob("*"):
+        if path.is_file() and path.stat().st_mtime >= since:
+            folder = path.relative_to(cache).parts[0]
+            counts[folder] = counts.get(folder, 0) + 1
+    detail = ", ".join(f"{folder} {n}" for folder, n in sorted(counts.items()))
+    return f"{sum(counts.values())} files written to the cache" + (f" ({detail})" if detail else "")
+
+
 def _load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -140,6 +154,7 @@ def main() -> None:
             output = args.keep if run == 2 and args.keep is not None else Path(out) / f"run{run}"
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             load = _load()
+            since = time.time()
             start = time.perf_counter()
             done = subprocess.run([str(xval), "run", args.suite, "--jobs", str(args.jobs), "--output", str(output)],
                                   env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -152,6 +167,7 @@ def main() -> None:
             print(f"run {run}: exit {done.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s; MJX cases {cases}, "
                   f"jit_compile_time summed {compile_s:.1f} s, {slow} over 0.5 s; "
                   f"load before {load}, after {_load()}")
+            print(f"  {_written(cache, since)}")
             print(f"  its last line: {lines[-1] if lines else '(nothing printed)'}")
             print("\n".join(engine_table(output)))
     print(f"second run / first run, wall: {walls[1] / walls[0]:.2f} (first {walls[0] / walls[1]:.2f}x slower)")
