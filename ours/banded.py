@@ -34,24 +34,18 @@ def _has_nrt_switch() -> bool:
 #: passed as a dict: numba's type stubs leave the underscored option out. Without
 #: it (another numba), the same results: the compiled code allocates nothing either way.
 _NO_RUNTIME: dict[str, Any] = {"_nrt": False} if _has_nrt_switch() else {}
-compiled = njit(cache=True, **_NO_RUNTIME)
+#: No C-callable wrapper (numba builds one per function for calls through a function pointer, which
+#: ours never makes; building them was about 15% of a cold compile), and ``forceinline`` given
+#: explicitly: left unset, a function would inherit it from whichever caller compiled it first.
+_OPTIONS: dict[str, Any] = {"cache": True, "no_cfunc_wrapper": True, **_NO_RUNTIME}
+compiled = njit(forceinline=False, **_OPTIONS)
 #: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
 #: per-constraint functions called inside the step, where a call would copy every array argument).
-inlined = njit(cache=True, inline="always", **_NO_RUNTIME)
-
-
-def inlined_into(*callers: str):
-    """``compiled``, but numba pastes the function's body into calls made (directly, or through a body
-    it pasted) by the functions named in ``callers``, and calls it elsewhere.
-
-    For a function the step calls many times and the rest of the kernel rarely: every paste is typed
-    again, which costs compile time, so only the hot callers get one."""
-
-    def in_a_hot_caller(expr, caller, callee) -> bool:  # numba's inlining cost model (untyped IR)
-        return caller.func_id.func_name in callers
-
-    in_a_hot_caller.__qualname__ = f"inlined_into{callers}"
-    return njit(cache=True, inline=in_a_hot_caller, **_NO_RUNTIME)
+inlined = njit(inline="always", forceinline=False, **_OPTIONS)
+#: ``llvm_inlined``: compiled (typed) once, and LLVM pastes the machine-level body into every
+#: caller (``alwaysinline``): no call copying every field of every array argument, for the price of
+#: optimising each paste, which costs far less than ``inlined``'s typing of each paste again.
+llvm_inlined = njit(forceinline=True, **_OPTIONS)
 
 
 @compiled

@@ -13,17 +13,15 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, inlined_into, solve_banded
+from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
-#: The functions of an explicit step (Runge–Kutta, symplectic Euler): the bodies of the functions
-#: they call per stage are pasted into them (``ours.banded.inlined_into``). A call between compiled
-#: functions copies every field of every array argument (``model`` alone is 11 arrays) onto the
-#: stack; pasted, the double pendulum's RK4 step costs about half as much, for about a quarter more
-#: compile time, once per kernel (``bench/bench_ours.py``; the figures are in docs/ours.md).
-_STEP = ("run", "rk_step", "acceleration", "multipliers")
-in_the_step = inlined_into(*_STEP)
+# The functions a step calls per stage (``acceleration``, ``multipliers``, ``constraint_value``,
+# ``constraint_rate``) are ``llvm_inlined``: a call between compiled functions copies every field of
+# every array argument (``model`` alone is 11 arrays) onto the stack; pasted, the double pendulum's
+# RK4 step costs about half as much (``bench/bench_ours.py``; the figures are in docs/ours.md).
+
 
 # ---- SIZES (ours.specialize replaces this block with constants) ----
 
@@ -91,7 +89,7 @@ _EXPLICIT_RK, _SYMPLECTIC_EULER, _RATTLE = 0, 1, 2
 #     gₐ = dₐ / sₐ², J̇q̇ = Σₐ vₐ² / sₐ², scale 1.
 
 
-@in_the_step
+@llvm_inlined
 def constraint_value(k, q, ends, anchor, kind, param, G):
     """C_k (the constraint's own unit) at q; writes g = ∂C_k/∂d into G[k] (dim,).
 
@@ -122,7 +120,7 @@ def constraint_value(k, q, ends, anchor, kind, param, G):
     return np.nan
 
 
-@in_the_step
+@llvm_inlined
 def constraint_rate(k, v, ends, kind, param, G):
     """(J̇q̇, Ċ) of constraint k with g = G[k] already set by :func:`constraint_value`.
 
@@ -234,7 +232,7 @@ def add_constraint_term(x, scale, inverse_mass, ends, G, lam):
                 x[j, a] -= sj * G[k, a]
 
 
-@in_the_step
+@llvm_inlined
 def multipliers(q, v, model, k_s, k_d, G, band, lam):
     """λ from J W Jᵀ λ = −J̇q̇ − J W f − k_s C − k_d Ċ; False when the matrix is singular.
 
@@ -255,7 +253,7 @@ def multipliers(q, v, model, k_s, k_d, G, band, lam):
     return solve_jwjt(G, model, band, lam)
 
 
-@in_the_step
+@llvm_inlined
 def acceleration(q, v, model, k_s, k_d, G, band, lam, acc):
     """acc = W (f + Jᵀλ), m/s²; False when J W Jᵀ is singular."""
     inverse_mass, force = model[0], model[1]
