@@ -17,10 +17,11 @@ from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
-# The functions a step calls per stage (``acceleration``, ``multipliers``, ``constraint_value``,
-# ``constraint_rate``) are ``llvm_inlined``: a call between compiled functions copies every field of
-# every array argument (``model`` alone is 11 arrays) onto the stack; pasted, the double pendulum's
-# RK4 step costs about half as much (``bench/bench_ours.py``; the figures are in docs/ours.md).
+# The functions a step calls per stage or per iteration (``acceleration``, ``multipliers``,
+# ``constraint_value``, ``constraint_rate``; ``rattle_step``, ``violations``, ``project_velocities``)
+# are ``llvm_inlined``: a call between compiled functions copies every field of every array argument
+# (``model`` alone is 11 arrays) onto the stack; pasted, the double pendulum's RK4 step costs about
+# half as much and its RATTLE step about a third (``bench/bench_ours.py``; figures in docs/ours.md).
 
 
 # ---- SIZES (ours.specialize replaces this block with constants) ----
@@ -266,7 +267,7 @@ def acceleration(q, v, model, k_s, k_d, G, band, lam, acc):
     return ok
 
 
-@compiled
+@llvm_inlined
 def violations(q, model, G, out):
     """out[k] = C_k at q (G receives the gradients); returns max_k |C_k| / scale_k (≈ relative length error)."""
     ends, scale = model[2], model[6]
@@ -278,7 +279,7 @@ def violations(q, model, G, out):
     return worst
 
 
-@compiled
+@llvm_inlined
 def project_velocities(q, v, model, G, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
     inverse_mass, ends = model[0], model[2]
@@ -307,7 +308,7 @@ def project_positions(q, model, tolerance, max_iterations, G, band, delta):
     return NOT_CONVERGED
 
 
-@compiled
+@llvm_inlined
 def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     """One RATTLE step (order 2, symplectic) in place; returns OK, SINGULAR or NOT_CONVERGED.
 
