@@ -1,17 +1,18 @@
 """Per-step cost of each engine's own stepper on the KUKA iiwa model scene, against MuJoCo's in the same run.
 
-    .venv/bin/python bench/bench_models.py [--steps 2000] [--repeats 5]
+    .venv/bin/python bench/bench_models.py [--steps 2000] [--repeats 10]
 
 The scene is suites/models.toml's kuka-iiwa (joint 2 at 30°, joint 4 at −45°), stepped --steps times at
 dt 1e-3 s by each variant's ``Engine.simulate``: the model scenes' one loop (engines/model/stepping.py) over
 the engine's stepper (engines/model/steppers.py), sampled as the suite samples. The time is what that loop
-counts as stepping (thread CPU of ``advance``: no loading, building or reading of samples), least of
---repeats after a warm-up, per step. Rows pair like with like: first order against mujoco/hinge (Euler),
-RK4 against mujoco/hinge-rk4; Drake's fixed-step RK2 (2nd order, two evaluations a step) is listed against
-RK4 for what it is. A row is what xval runs, binding included: PyBullet and DART's World take a Python call
-a step, DART's RK4 is Python around four forward-dynamics calls; MuJoCo, Drake and ours take a sample's steps
-in one call. Pinocchio has no stepper (the reference integrates its ABA with DOP853), so no row. Every
-engine must be installed (``make .venv/.installed-stamp``): a missing one ends the bench with an error.
+counts as stepping (thread CPU of ``advance``: no loading, building or reading of samples), per step, least
+of --repeats runs taken in turns round the engines, after a warm-up. Rows pair like with like: first order
+against mujoco/hinge (Euler), RK4 against mujoco/hinge-rk4; Drake's fixed-step RK2 (2nd order, two
+evaluations a step) is listed against RK4 for what it is. A row is what xval runs, binding included:
+PyBullet and DART's World take a Python call a step, DART's RK4 is Python around four forward-dynamics
+calls; MuJoCo, Drake (its plant is C++) and ours take a sample's steps in one call. Pinocchio has no stepper
+(the reference integrates its ABA with DOP853): no row. Every engine must be installed (``make
+.venv/.installed-stamp``): a missing one ends the bench with an error.
 """
 
 from __future__ import annotations
@@ -53,28 +54,42 @@ def load_average() -> str:
     return f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
 
 
-def stepping_seconds(engine_id: str, scene, sample_interval: float, repeats: int) -> tuple[float, int]:
-    """(least thread CPU s of the stepping over ``repeats`` runs of ``scene``, steps a run took), after one
-    short uncounted run (numba loading ours' kernels, each engine's first calls). SystemExit when the engine
-    is not installed or a run is not ok: every row must be measured."""
+def engine_of(engine_id: str):
+    """(adapter, variant) of ``engine_id``; SystemExit naming it when it cannot load (every row must be measured)."""
     try:
-        engine, variant = load_engine(engine_id)
+        return load_engine(engine_id)
     except UserError as exc:
         raise SystemExit(f"bench_models: {exc}; this bench needs every engine (make .venv/.installed-stamp)") from None
-    engine.simulate(scene.with_duration(sample_interval), DT, variant=variant, sample_interval=sample_interval)
-    best, steps = math.inf, 0
+
+
+def stepping(engine, variant: str | None, scene, sample_interval: float) -> tuple[float, int]:
+    """(thread CPU s of the stepping, steps taken) of one run of ``scene``; SystemExit when it is not ok."""
+    info = engine.simulate(scene, DT, variant=variant, sample_interval=sample_interval).info
+    if info.status != "ok":
+        raise SystemExit(f"bench_models: {info.variant} on {scene.name}: {info.status} ({info.message})")
+    return info.cpu_time, info.steps
+
+
+def least_per_step(scene, sample_interval: float, repeats: int) -> dict[str, float]:
+    """s per step of each row's variant: the least of ``repeats`` runs, after one short uncounted run (numba
+    loading ours' kernels, each engine's first calls). The runs go round the engines, so every engine's
+    least comes from the same stretches of a shared machine's time."""
+    engines = {engine_id: engine_of(engine_id) for _, engine_id, *_ in ROWS}
+    for engine, variant in engines.values():
+        stepping(engine, variant, scene.with_duration(sample_interval), sample_interval)
+    best = dict.fromkeys(engines, math.inf)
     for _ in range(repeats):
-        info = engine.simulate(scene, DT, variant=variant, sample_interval=sample_interval).info
-        if info.status != "ok":
-            raise SystemExit(f"bench_models: {engine_id} on {scene.name}: {info.status} ({info.message})")
-        best, steps = min(best, info.cpu_time), info.steps
-    return best, steps
+        for engine_id, (engine, variant) in engines.items():
+            seconds, steps = stepping(engine, variant, scene, sample_interval)
+            best[engine_id] = min(best[engine_id], seconds / steps)
+    return best
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="steps of dt 1e-3 s a run (default 2000: 2 s)")
-    parser.add_argument("--repeats", type=int, default=5, help="runs per engine; the least is kept (default 5)")
+    parser.add_argument("--repeats", type=int, default=10,
+                        help="runs per engine, taken in turns; the least is kept (default 10)")
     args = parser.parse_args()
     if args.steps < 1 or args.repeats < 1:
         parser.exit(2, "bench_models: --steps and --repeats must be at least 1\n")
@@ -83,19 +98,14 @@ def main() -> None:
     scene = spec.scene.with_duration(args.steps * DT)
     q0 = ", ".join(f"{joint} {angle}°" for joint, angle in spec.parameters["q0"].items())
     print(f"{SCENE} ({scene.model}, {len(scene.joint_names)} joints, q0 {q0}): {args.steps} steps of dt {DT:g} s "
-          f"sampled every {suite.sample_interval:g} s; thread CPU of the stepping, least of {args.repeats} after a "
-          f"warm-up; {load_average()}")
-    seconds = {}
-    for _, engine_id, *_ in ROWS:
-        seconds[engine_id] = stepping_seconds(engine_id, scene, suite.sample_interval, args.repeats)
+          f"sampled every {suite.sample_interval:g} s; thread CPU of the stepping, least of {args.repeats} runs taken "
+          f"in turns, after a warm-up; {load_average()}")
+    per_step = least_per_step(scene, suite.sample_interval, args.repeats)
     print("| class | variant | evaluations a step | how it steps | µs per step | / peer | peer |")
     print("|---|---|---|---|---|---|---|")
     for kind, engine_id, evaluations, how in ROWS:
-        cost, steps = seconds[engine_id]
-        peer_cost, peer_steps = seconds[PEERS[kind]]
-        per_step = cost / steps
-        print(f"| {kind} | {engine_id} | {evaluations} | {how} | {per_step * 1e6:.2f} | "
-              f"{per_step / (peer_cost / peer_steps):.2f} | {PEERS[kind]} |")
+        print(f"| {kind} | {engine_id} | {evaluations} | {how} | {per_step[engine_id] * 1e6:.2f} | "
+              f"{per_step[engine_id] / per_step[PEERS[kind]]:.2f} | {PEERS[kind]} |")
     print(f"at the end: {load_average()}")
 
 

@@ -43,4 +43,4 @@ def test_a_short_run_prints_a_row_for_every_engine_against_its_peer():
 def test_an_engine_it_cannot_load_ends_the_bench_naming_it():
     bench = bench_module()
     with pytest.raises(SystemExit, match=r"bench_models: .*nosuch.*needs every engine"):
-        bench.stepping_seconds("nosuch/variant", None, 0.01, 1)
+        bench.engine_of("nosuch/variant")
