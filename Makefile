@@ -59,10 +59,12 @@ test: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -q -rs
 
 # ours against its yardsticks and peers: one table, and results/bench/bench_ours.json; then ours' rigid
-# bodies: N-scaling on chains and the KUKA against MuJoCo (results/bench/bench_rigid.json).
+# bodies: N-scaling on chains and the KUKA against MuJoCo (results/bench/bench_rigid.json); then every
+# engine's own stepper on the KUKA model scene, per step against MuJoCo's (a table; every engine installed).
 bench: $(STAMP)
 	$(PY) bench/bench_ours.py
 	$(PY) bench/bench_rigid.py
+	$(PY) bench/bench_models.py
 
 bench-all: $(STAMP)
 	@# bench_file_create last: the files it deletes would make the next script's record files dearer (bench/README.md)
