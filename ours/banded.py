@@ -34,9 +34,9 @@ def _has_nrt_switch() -> bool:
 #: passed as a dict: numba's type stubs leave the underscored option out. Without
 #: it (another numba), the same results: the compiled code allocates nothing either way.
 _NO_RUNTIME: dict[str, Any] = {"_nrt": False} if _has_nrt_switch() else {}
-#: No C-callable wrapper (numba builds one per function for calls through a function pointer, which
-#: ours never makes; building them was about 15% of a cold compile), and ``forceinline`` given
-#: explicitly: left unset, a function would inherit it from whichever caller compiled it first.
+#: No C-callable wrapper (numba builds one per function, for calls through a function pointer, which
+#: ours never makes: a sizeable part of a cold compile), and ``forceinline`` given explicitly: left
+#: unset, a function would inherit it from whichever caller compiled it first.
 _OPTIONS: dict[str, Any] = {"cache": True, "no_cfunc_wrapper": True, **_NO_RUNTIME}
 compiled = njit(forceinline=False, **_OPTIONS)
 #: ``inlined``: the same, but numba pastes the function's body into each caller (for the small
