@@ -3,9 +3,9 @@
 Sections (each row gives µs per step and its ratio to the row's peer):
 
 1. compile — cold (fresh process, empty cache directory) and warm (fresh process,
-   same directory) for what the default suite compiles: ours' kernels for the
-   bead and the double pendulum, the Lagrangian loop, the reference's
-   right-hand side. Seconds of wall time and of CPU time (the machine is shared).
+   same directory) for what the default suite compiles: what ``xval run``
+   preloads for its scenes (ours' kernels, the Lagrangian loop, the reference's
+   right-hand side and scipy). Seconds of wall time and of CPU time.
 2. yardstick — the double pendulum (dt 1e-4 s, 2 s) stepped by ours and by the
    hand-fused kernels of the same arithmetic (``bench/fused.py`` in numba,
    ``bench/fused.c`` with gcc -O3 when a compiler is present), and by the C
@@ -66,24 +66,21 @@ SKIPPED: list[dict] = []
 RATTLE_TARGET = 3.0
 
 _COMPILE = r"""
-import json, time, numpy as np
+import json, time
 w, c = time.perf_counter(), time.process_time()
-import ours
-from engines.scene import catalog
-from engines.adapters.ours import _to_system
-for name in ("bead", "double-pendulum"):
-    system, q0, v0, _ = _to_system(catalog.build(name))
-    for method in ("baumgarte", "lagrangian"):
-        ours.simulate(system, q0, v0, 1e-3, 1, method=method)
-        ours.multipliers(system, q0, v0)
-from engines.reference.kernels import chain_rhs
-chain_rhs(np.zeros(4), np.eye(2), np.ones(2), 0.0, -9.81)
+from compare.suite.reader import load_suite
+from engines.adapters.ours import ENGINE
+from engines.reference.reference import ENGINE as REFERENCE
+scenes = [spec.scene for spec in load_suite("suites/default.toml").scenes]
+ENGINE.preload(scenes)
+REFERENCE.preload(scenes)
 print(json.dumps({"wall": time.perf_counter() - w, "cpu": time.process_time() - c}))
 """
 
 
 def compile_seconds(cache: str) -> dict[str, float]:
-    """Wall and CPU seconds to import and compile (or load) the default suite's kernels in a fresh process."""
+    """Wall and CPU seconds to import and compile (or load) the default suite's kernels in a fresh process: what
+    ``xval run`` preloads before its workers fork (ours' and the reference's ``preload`` of its scenes)."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["XVAL_CACHE_DIR"] = cache
     out = subprocess.run([sys.executable, "-c", _COMPILE], env=env, cwd=ROOT, capture_output=True, text=True,
