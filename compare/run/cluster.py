@@ -360,8 +360,9 @@ def connect(
     if spec.address is not None and jobs is not None:
         raise UserError("--jobs sets the local pool's processes; with --scheduler ADDRESS the workers' threads decide")
     with contextlib.ExitStack() as stack:
-        # The client logs a traceback when its scheduler goes away; SchedulerLost says it in one line.
-        stack.enter_context(_quiet("distributed.client"))
+        # The client, and its batched sender ("Batched Comm Closed", at info level with the traceback), log
+        # one when the scheduler goes away; SchedulerLost says it in one line.
+        stack.enter_context(_quiet("distributed.client", "distributed.batched"))
         if spec.address is None:
             local = stack.enter_context(start_local_cluster(spec.workers or jobs or default_jobs()))
             address = local.scheduler_address
@@ -383,15 +384,17 @@ def connect(
 
 
 @contextlib.contextmanager
-def _quiet(logger_name: str) -> Iterator[None]:
-    """Only critical messages from ``logger_name`` while the block runs."""
-    logger = logging.getLogger(logger_name)
-    level = logger.level
-    logger.setLevel(logging.CRITICAL)
+def _quiet(*logger_names: str) -> Iterator[None]:
+    """Only critical messages from the loggers ``logger_names`` while the block runs."""
+    loggers = [logging.getLogger(name) for name in logger_names]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL)
     try:
         yield
     finally:
-        logger.setLevel(level)
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
 
 
 def _close(client: Any) -> None:
