@@ -25,8 +25,8 @@ from compare.results.declared import METRICS, TIMING_METRIC  # noqa: E402
 
 RUNS = 12
 TRIALS = 2000
-#: (noise, step factor) per row of the table.
-ROWS_MEASURED = ((0.05, 1.3), (0.10, 1.5), (0.20, 2.0))
+#: (log-normal noise, step factor) of each row of the printed table (quoted.py's ROWS are something else: doc table rows).
+NOISE_AND_STEP = ((0.05, 1.3), (0.10, 1.5), (0.20, 2.0))
 SLOW: set[str] = set()
 
 
@@ -36,7 +36,7 @@ def figures(quick: bool = False) -> dict[str, float]:
     rng = np.random.default_rng(20261201)
     metric = METRICS[TIMING_METRIC]
     f: dict[str, float] = {}
-    for noise, factor in ROWS_MEASURED:
+    for noise, factor in NOISE_AND_STEP:
         false_alarms = found = 0
         step = np.r_[np.ones(RUNS // 2), factor * np.ones(RUNS - RUNS // 2)]
         for _ in range(TRIALS):
@@ -57,7 +57,7 @@ def main() -> None:
     f = figures()
     print(f"step rule: SIGMAS = {SIGMAS:g}, {RUNS} runs per series, {TRIALS} series per row")
     print(f"{'noise':>6} {'step':>5} {'false alarms':>13} {'found':>7}")
-    for noise, factor in ROWS_MEASURED:
+    for noise, factor in NOISE_AND_STEP:
         print(f"{noise:>6.0%} {factor:>4.1f}× {f[f'false_alarms_{noise:.0%}']:>13.1%} {f[f'found_{noise:.0%}']:>7.1%}")
     report(f, QUOTES, ROWS)
 
