@@ -1,4 +1,4 @@
-"""bench/bench_models.py runs: a row per engine variant, each ratio against its class's MuJoCo peer, and an
+"""bench/bench_models.py runs: a row per engine variant, each ratio its cost over its class's MuJoCo peer's, and an
 engine it cannot load is an error naming it. Behaviour only: the speeds it prints are not asserted."""
 
 from __future__ import annotations
@@ -35,6 +35,8 @@ def test_a_short_run_prints_a_row_for_every_engine_against_its_peer():
         cost, ratio, peer = float(rows[engine_id][4]), float(rows[engine_id][5]), rows[engine_id][6]
         assert math.isfinite(cost) and cost > 0
         assert peer == bench.PEERS[kind] and peer.startswith("mujoco/")
+        # The ratio is this row's cost over its peer's, as both are printed (to 0.01 µs and 0.01).
+        assert ratio == pytest.approx(cost / float(rows[peer][4]), rel=5e-3, abs=6e-3), (engine_id, rows[engine_id])
         if engine_id == peer:
             assert ratio == 1.0
     assert re.search(r"10 steps of dt 0\.001 s .* load average \d+\.\d on \d+ CPUs", out)

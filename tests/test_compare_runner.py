@@ -10,7 +10,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -41,12 +40,10 @@ def by_engine(path: Path) -> dict[str, dict]:
 def test_misbehaving_cases_are_isolated_and_the_others_complete(tmp_path):
     modes = ["exact", "raise", "nan", "sleep", "kill", "exit", "drift"]
     suite = parse_suite(suite_text([f"compare_engines:MISBEHAVING/{m}" for m in modes] + ["mujoco/hinge"]))
-    start = time.perf_counter()
     # A timeout of 20 s: only the sleeper (an hour) reaches it, even on a loaded machine (3 s once timed out
-    # the exact case's cold start at a load average of 12).
+    # the exact case's cold start at a load average of 12). Its status below says it was killed there; a run
+    # that waited for it would hang, which pytest-timeout (300 s, pyproject.toml) fails: no wall-clock bound.
     summary = run_suite(suite, tmp_path / "r", jobs=2, timeout=20)
-    # A run well under the hour was cut at its timeout (600 s: a loaded machine's slowness, never the hour).
-    assert time.perf_counter() - start < 600
     records = by_engine(tmp_path / "r")
     status = {k.split("/")[-1]: (r.status, r.message) for k, r in records.items()}
     assert status["exact"] == ("ok", "")

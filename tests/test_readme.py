@@ -13,7 +13,7 @@ has every engine), and PYTHONPATH puts the clone's own code before that environm
 
 Not run here: the set-up commands README opens with, which .ci/run runs on every CI build
 (test_the_set_up_commands_left_out_here_are_run_by_ci checks that): ``make test`` (this test suite)
-and ``make demo`` (suites/default.toml, 462 cases: minutes on 2 cores).
+and ``make demo`` (suites/default.toml, 1155 cases since the mechanisms joined it: minutes on 2 cores).
 """
 
 from __future__ import annotations
