@@ -23,6 +23,7 @@ from typing import Any
 from compare.results.store import load_results
 from compare.results.record import PROBLEMS, CaseRecord, status_counts
 from compare.results.sweep import VariantSweep, sweeps
+from compare.suite.reader import RunSettings
 
 
 
@@ -64,13 +65,15 @@ class SceneResults:
 
 @dataclass(frozen=True)
 class ReportData:
-    """Everything the report shows, arranged; ``header`` is run.json as stored."""
+    """Everything the report shows, arranged; ``header`` is run.json as stored; ``settings`` the δ, bounds
+    and verdict tolerance of the suite.toml stored with the results (compare.results.store.Results.settings)."""
 
     path: Path
     header: dict[str, Any]
     scenes: list[SceneResults]
     counts: dict[str, int]
     problems: list[CaseRecord] = field(default_factory=list)
+    settings: RunSettings = field(default_factory=RunSettings)
 
     @property
     def n_cases(self) -> int:
@@ -104,11 +107,12 @@ def _skip_reason(sweep: VariantSweep) -> str:
 
 
 def arrange(path: Path, header: dict[str, Any], records: list[CaseRecord], dt: float | None = None,
-            tolerance: float | None = None) -> ReportData:
+            settings: RunSettings | None = None) -> ReportData:
     """Group ``records`` by scene (suite order) and variant; ``dt`` (s) is the requested chosen dt, if any;
-    tolerance : the consistency verdict's tolerance (fraction of L; None: the default δ)."""
+    settings : the suite's, whose verdict tolerance judges consistency (None: the defaults)."""
+    settings = settings or RunSettings()
     by_scene: dict[str, list[VariantSweep]] = {}
-    for sweep in sweeps(records, tolerance):
+    for sweep in sweeps(records, settings.verdict_tolerance):
         by_scene.setdefault(sweep.scene_id, []).append(sweep)
     scenes = []
     for scene_id, scene_sweeps in by_scene.items():
@@ -130,10 +134,10 @@ def arrange(path: Path, header: dict[str, Any], records: list[CaseRecord], dt: f
             )
         )
     problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r.status in PROBLEMS]
-    return ReportData(path, header, scenes, status_counts(records), problems)
+    return ReportData(path, header, scenes, status_counts(records), problems, settings)
 
 
 def load_report_data(directory: str | Path, dt: float | None = None) -> ReportData:
     """Read the results in ``directory`` (UserError when it is not a results directory) and arrange them."""
     stored = load_results(directory)
-    return arrange(stored.path, stored.header, stored.records, dt, stored.verdict_tolerance)
+    return arrange(stored.path, stored.header, stored.records, dt, stored.settings)

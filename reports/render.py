@@ -32,7 +32,7 @@ from engines.errors import UserError
 
 from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
-from compare.suite.reader import RunSettings, load_run_settings
+from compare.suite.reader import RunSettings
 
 from reports.parity import parity_view
 from reports.animation import animation_data
@@ -64,13 +64,8 @@ def environment() -> jinja2.Environment:
     return env
 
 
-def suite_settings(directory: Path) -> dict[str, Any]:
-    """δ, the status bounds and the verdict tolerance the run used, from the stored suite.toml (read without
-    loading engines; the defaults when it is unreadable)."""
-    try:
-        settings = load_run_settings(directory / "suite.toml")
-    except UserError:
-        settings = RunSettings()
+def suite_settings(settings: RunSettings) -> dict[str, Any]:
+    """δ, the status bounds and the verdict tolerance the run used (ReportData.settings), as the page names them."""
     return {"delta": settings.delta, "energy_bound": settings.bounds.energy_drift,
             "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
@@ -81,7 +76,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
     focus : the engine family the verdict compares with the others (default: the suite's first).
     """
     focus = check_focus(data, focus)
-    settings = suite_settings(data.path)
+    settings = suite_settings(data.settings)
     palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
     verdicts = verdict_views(data, palette, focus)
     named = {view.number: view.named for view in verdicts}  # each scene's verdict, computed once, colours its plots

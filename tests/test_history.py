@@ -134,6 +134,26 @@ def test_a_run_directory_added_twice_is_recorded_once(base, tmp_path, capsys):
         assert len(opened.runs()) == 2 and len(opened.cases()) == 12
 
 
+def test_a_run_added_by_run_history_is_stored_as_history_add_stores_its_directory(tmp_path, capsys):
+    """``xval run --history`` and ``xval history add DIR`` store the same run the same way: the same run key
+    (so either refuses the other's run as a duplicate), header and source, and per case the same entry,
+    metrics and whole record. Only when it was added, and its origin (the suite's git tree for ``run``,
+    run.json's for ``add``), may differ."""
+    directory, by_run, by_add = tmp_path / "run", tmp_path / "run.sqlite", tmp_path / "add.sqlite"
+    code, out, err = xval(capsys, "run", SUITE, "--output", directory, "--jobs", "1", "--quiet", "--history", by_run)
+    assert code == 0 and "run 1 added: suite gate-test, 6 cases" in out, out + err
+    code, out, err = xval(capsys, "history", "add", directory, "--history", by_add)
+    assert code == 0 and "run 1 added: suite gate-test, 6 cases" in out, out + err
+    (run_row,), cases = dump(by_run, 1)
+    (add_row,), added_cases = dump(by_add, 1)
+    origin_and_added = {4, 5, 6, 9}  # commit_sha, dirty, commit_date, added (columns of xval_runs)
+    assert [v for i, v in enumerate(run_row) if i not in origin_and_added] == \
+        [v for i, v in enumerate(add_row) if i not in origin_and_added]
+    assert len(cases) == 6 and cases == added_cases  # entry, metrics and the compressed record, byte for byte
+    code, _, err = xval(capsys, "history", "add", directory, "--history", by_run)
+    assert code == 2 and "already in the history" in err
+
+
 def test_an_unfinished_run_is_refused(base, tmp_path, capsys):
     directory = shutil.copytree(base.path, tmp_path / "unfinished")
     header = json.loads((directory / "run.json").read_text())

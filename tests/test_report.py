@@ -153,6 +153,19 @@ def test_how_to_read_states_every_metric_and_its_unit(small_results):
         assert term in section
 
 
+def test_how_to_read_states_the_settings_of_the_suite_stored_with_the_results(small_results, tmp_path):
+    """δ, the status bounds and the verdict tolerance the page states are DIR/suite.toml's, not the defaults
+    (the test above would pass on defaults: the small suite sets none of them)."""
+    results = copy_results(small_results, tmp_path / "settings")
+    suite = results / "suite.toml"
+    suite.write_text("delta = 0.05\n" + suite.read_text()
+                     + "\n[bounds]\nenergy_drift = 0.25\nconstraint_error = 0.125\n\n[verdict]\ntolerance = 3e-05\n")
+    html = render(load_report_data(results))
+    section = html[html.index('id="how-to-read"'):]
+    for term in ("δ = 0.05;", "above 0.25 E*", "above 0.125 L", "(3e-05·L)"):
+        assert term in section, term
+
+
 def test_status_element_announces_plots_and_traces(small_page):
     plots = small_page.plots
     assert small_page.status["data-plots"] == str(len(plots)) == "12"

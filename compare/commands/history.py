@@ -18,7 +18,7 @@ from compare.cli import history_option
 from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE
 from compare.history.origin import given_origin, recorded_origin, tree_origin
 from compare.history.store import AlreadyRecorded, History, StoredRun, baseline_of
-from compare.results.store import load_results
+from compare.results.store import Results, load_results
 
 HISTORY_HELP = (f"The history: a SQLite file, or a postgresql:// URL (default: ${LOCATION_VARIABLE}, "
                 f"else {DEFAULT_LOCATION}).")
@@ -51,22 +51,26 @@ def describe(run: StoredRun, cases: int, location: str) -> str:
             f"commit {run.origin.short}{dirty}, machine {run.machine.fingerprint[:8]} ({run.machine.name})")
 
 
-def add_directory(directory: str | Path, location: str | None, commit: str | None = None,
-                  suite_path: str | Path | None = None) -> str:
-    """Append the finished run in ``directory``; returns the line to print.
+def add_directory(directory: str | Path, location: str | None, commit: str | None = None) -> str:
+    """Append the finished run in ``directory`` (read from its files); returns the line to print."""
+    return add_results(load_results(directory), location, commit)
+
+
+def add_results(results: Results, location: str | None, commit: str | None = None,
+                suite_path: str | Path | None = None) -> str:
+    """Append the finished run ``results`` (read back, or held by ``xval run``); returns the line to print.
 
     The commit: ``commit`` when given; else that of the git working tree holding
     ``suite_path`` (``xval run --history`` passes the suite it just ran); else
     the one run.json recorded (see compare.history.origin).
     """
-    results = load_results(directory)
     document = baseline_of(results)  # an unfinished run is refused before the history is touched
     if commit:
         origin = given_origin(commit)
     else:
         origin = (tree_origin(Path(suite_path).resolve()) if suite_path else None) or recorded_origin(results.header)
     with History.open(location, create=True) as history:
-        run = history.add(results, origin, source=str(Path(directory).resolve()), document=document)
+        run = history.add(results, origin, source=str(results.path.resolve()), document=document)
         return describe(run, len(results.records), history.name)
 
 

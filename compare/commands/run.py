@@ -15,7 +15,6 @@ from engines.errors import UserError  # noqa: E402
 from compare.cli import MemorySize, history_option, jobs_option, output_path, timeout_option  # noqa: E402
 from compare.run.isolation import DEFAULT_MEMORY_LIMIT  # noqa: E402
 
-from compare.results.sweep import sweeps  # noqa: E402
 from compare.results.table import scene_tables  # noqa: E402
 from compare.results.verdict import scene_verdicts  # noqa: E402
 from compare.results.verdict_format import format_verdicts  # noqa: E402
@@ -62,10 +61,12 @@ def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, 
     # (why: compare/run/startup.py); back on in any case once the run is over.
     startup.defer_collection()
     try:
-        suite, summary = _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode)
+        summary = _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode)
     finally:
         startup.resume_collection()
-    variant_sweeps = sweeps(summary.records, suite.verdict_tolerance)
+    # The run's records as the results directory holds them, judged once: for the verdict and the history.
+    results = summary.results()
+    variant_sweeps = results.sweeps()
     if verbose:
         click.echo(scene_tables(variant_sweeps), nl=False)
         click.echo()
@@ -78,23 +79,23 @@ def command(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, 
     if not quiet and not verbose:
         click.echo(f"tables: xval show {summary.path}; report: xval report {summary.path}")
     if history is not None:
-        from compare.commands.history import add_directory
+        from compare.commands.history import add_results
 
-        click.echo(add_directory(summary.path, history, suite_path=suite_path))
+        click.echo(add_results(results, history, suite_path=suite_path))
 
 
 def _run(suite_path, output, jobs, resume, timeout, memory_limit, scheduler, mode):
-    """The suite and its run's RunSummary, run here or on a Dask cluster."""
+    """The RunSummary of the suite's run, run here or on a Dask cluster."""
     suite = load_suite(suite_path)
     if scheduler is None:
-        return suite, run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout,
-                                progress=progress_for(sys.stderr, mode), memory_limit=memory_limit)
+        return run_suite(suite, output, jobs=jobs, resume=resume, timeout=timeout,
+                         progress=progress_for(sys.stderr, mode), memory_limit=memory_limit)
     from compare.run.cluster import SchedulerLost, run_on_cluster  # dask is imported only when asked for
 
     try:
-        return suite, run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
-                                     memory_limit=memory_limit, progress=progress_for(sys.stderr, mode),
-                                     warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
+        return run_on_cluster(suite, output, scheduler, jobs=jobs, resume=resume, timeout=timeout,
+                              memory_limit=memory_limit, progress=progress_for(sys.stderr, mode),
+                              warn=lambda line: click.echo(f"xval: warning: {line}", err=True))
     except SchedulerLost as exc:
         click.echo(f"xval: error: {exc}; the finished cases are in {output}: run again with --resume", err=True)
         sys.exit(1)

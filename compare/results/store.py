@@ -145,11 +145,13 @@ class ResultsDir:
         atomic_write_text(target, document, durable=False)
         return target
 
-    def finish(self, counts: dict[str, int]) -> None:
+    def finish(self, counts: dict[str, int]) -> dict[str, Any]:
+        """Mark the run finished with its status ``counts``; returns run.json as written."""
         header = self.header()
         header["finished"] = now()
         header["counts"] = counts
         self.write_header(header)
+        return header
 
 
 def read_json(path: Path) -> dict[str, Any]:
@@ -230,7 +232,12 @@ class Results:
         return self.settings.verdict_tolerance
 
     def sweeps(self):
-        """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep)."""
+        """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep),
+        judged once (``xval run --history`` prints them and stores the baseline made of them)."""
+        return self._sweeps
+
+    @functools.cached_property
+    def _sweeps(self):
         from compare.results.sweep import sweeps
 
         return sweeps(self.records, self.verdict_tolerance)

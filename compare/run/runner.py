@@ -43,7 +43,7 @@ from compare.run.progress import NullProgress, Progress
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.record import CaseKey, CaseRecord, Characteristic, Status, status_counts
 from compare.results.series import SeriesView, downsample_indices, round_each
-from compare.results.store import ResultsDir, jsonable, now
+from compare.results.store import Results, ResultsDir, jsonable, now
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
@@ -124,8 +124,8 @@ def solve_reference(task: ReferenceTask) -> Any:
 @dataclass(frozen=True)
 class RunSummary:
     """What a run did: where results are, status counts, cases run now / resumed, wall time (s),
-    and every case record in ``path`` (an earlier run's, read as the run started, and this run's, kept
-    as they were written), for the counts and the tables."""
+    every case record in ``path`` (an earlier run's, read as the run started, and this run's, kept
+    as they were written), for the counts and the tables, and run.json as the run finished it."""
 
     path: Path
     counts: dict[str, int]
@@ -133,6 +133,12 @@ class RunSummary:
     already_done: int
     wall_time: float
     records: list[CaseRecord]
+    header: dict[str, Any]
+
+    def results(self) -> Results:
+        """The results directory as :func:`compare.results.store.load_results` would read it back, without
+        reading it: the records are those the run holds."""
+        return Results(self.path, self.header, self.records)
 
 
 def default_jobs() -> int:
@@ -241,8 +247,9 @@ def _run_suite(
             gc.unfreeze()  # what preload_engines froze is collectable again (a program running many suites)
     records = writer.records()
     counts = status_counts(records)
-    results.finish(counts)
-    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records)
+    header = results.finish(counts)
+    return RunSummary(results.path, counts, len(todo), len(cases) - len(todo), time.perf_counter() - started, records,
+                      header)
 
 
 def compare_version() -> str:

@@ -98,11 +98,10 @@ class OursStepper:
     """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
     start from the scene's joint state, step with the variant's method and integrator. Revolute angles
     are read continuously from sample to sample (ours' rows fix them only modulo 2π). Its joints are
-    constraint rows, so they can come apart: :meth:`constraint_violation` says by how much."""
+    constraint rows, so they can come apart: :meth:`constraint_violations` says by how much at each state read."""
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self._length: float | None = None  # m, the scene's L: read by the first constraint_violation()
         self.model = translate(scene.description)
         names = self.model.joint_names
         q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
@@ -111,6 +110,8 @@ class OursStepper:
         self.run = Stepping(mech, initial_state(mech, q0, v0), dt, method=method, integrator=integrator, **options)
         self._last = np.array([q0[n] for n in names])
         self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
+        #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
+        self._read: list[np.ndarray] = []
         self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.model.ours",
                          "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
                                                                      self.model.carriers.items() if b >= 0 and
@@ -123,21 +124,22 @@ class OursStepper:
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         if self.run.status != "ok":
+            self._read.append(np.full(len(self.run.y), np.nan))
             nan = np.full(len(self._last), np.nan)
             return nan, nan.copy()
+        self._read.append(self.run.y.copy())
         q, v = joint_coordinates(self.model.mechanism, self.run.y)
         turns = np.round((self._last - q) / (2 * np.pi))
         q[self._revolute] += 2 * np.pi * turns[self._revolute]
         self._last = q.copy()
         return q, v
 
-    def constraint_violation(self) -> float:
-        """m: the largest joint violation at the current state (NaN once stepping failed): the anchor gaps and
-        prismatic slides off their axes (m), and each misalignment of a joint's axes θ as L·sin θ (m), the
-        displacement it makes at the scene's characteristic length L (the arm's reach). docs/metrics.md."""
-        if self.run.status != "ok":
-            return float("nan")
-        if self._length is None:
-            self._length = float(self.scene.characteristic_length)
-        distance, sine = joint_errors(self.model.mechanism, self.run.y)
-        return max(float(distance[0]), self._length * float(sine[0]))
+    def constraint_violations(self) -> np.ndarray:
+        """(n,) m: at each state :meth:`state` returned, in order, the largest joint violation (NaN once stepping
+        failed): the anchor gaps and prismatic slides off their axes (m), and each misalignment of a joint's
+        axes θ as L·sin θ (m), the displacement it makes at the scene's characteristic length L (the arm's
+        reach). docs/metrics.md. Read once, after the run, like the link frames (engines.model.stepping)."""
+        if not self._read:
+            return np.zeros(0)
+        distance, sine = joint_errors(self.model.mechanism, np.array(self._read))
+        return np.maximum(distance, float(self.scene.characteristic_length) * sine)

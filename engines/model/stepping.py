@@ -36,8 +36,9 @@ class Stepper(Protocol):
         """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
 
     # Optional, for an engine whose joints can come apart (maximal coordinates, ours):
-    # ``constraint_violation() -> float``, m: the largest joint violation at the current state
-    # (RawRun.constraint_violation). A reduced-coordinate engine has none: its joints hold by construction.
+    # ``constraint_violations() -> (n,)``, m: the largest joint violation at each state ``state`` returned,
+    # read once after the run (RawRun.constraint_violation). A reduced-coordinate engine has none: its
+    # joints hold by construction.
 
 
 def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
@@ -46,17 +47,8 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v;
     ``constraint_violation`` (n,) m the stepper's joint violation, when it measures one."""
     recorder = Recorder(scene, schedule)
-    measure = getattr(stepper, "constraint_violation", None)
-    violations: list[float] = []
-
-    def read() -> tuple[np.ndarray, np.ndarray]:
-        # Read once per recorded sample, outside the timed stepping, so it stays in step with the samples.
-        if measure is not None:
-            violations.append(measure())
-        return stepper.state()
-
-    recorder.record(0, *read())
-    recorder.run(stepper.advance, read)
+    recorder.record(0, *stepper.state())
+    recorder.run(stepper.advance, stepper.state)
     q, v = recorder.samples()
     states = np.concatenate([q, v], axis=1)
     positions = np.full((len(states), len(scene.frames), 3), np.nan)
@@ -68,8 +60,8 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     # An error-controlled integrator takes steps of its own choosing: the stepper counts them.
     taken = stepper.steps_taken() if hasattr(stepper, "steps_taken") else None
     raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings, steps=taken)
-    return replace(raw, joint_states=states,
-                   constraint_violation=np.array(violations, dtype=float) if measure is not None else None)
+    violation = stepper.constraint_violations() if hasattr(stepper, "constraint_violations") else None
+    return replace(raw, joint_states=states, constraint_violation=violation)
 
 
 def file_values(scene: Any) -> dict[str, dict[str, float]]:

@@ -33,7 +33,6 @@ def empty_samples(scene: Scene, n_samples: int) -> tuple[np.ndarray, np.ndarray,
     return positions, np.zeros_like(positions), np.zeros((n_samples, len(scene.constraints), 3))
 
 
-
 # -- slider-pendulum ------------------------------------------------------------------
 
 
@@ -190,7 +189,7 @@ class FourBar(Linkage):
     on (+1 left). State [φ, φ̇] rad, rad/s.
     """
 
-    branch: float = 1.0
+    branch: float
 
     def _rates(self, phi: float) -> tuple[np.ndarray, np.ndarray, float, float]:
         """Crank and rocker tips (2,) m, k = dψ/dφ and h (ψ̈ = k φ̈ + h φ̇²) at crank angle φ."""
@@ -283,7 +282,8 @@ class LoopFourBar(Linkage):
     points, where the crank angle is singular, are ordinary points here.
     """
 
-    omega: float = 1.0
+    #: 1/s: the stabilization's rate ω (four_bar sets the linkage's pendulum frequency).
+    omega: float
 
     def initial_state(self, scene: Scene) -> np.ndarray:
         q, v = _xz(scene.initial_positions), _xz(scene.initial_velocities)
