@@ -273,8 +273,8 @@ class Engine:
         """Raise Unsupported for a model scene (engines.model.scene.ModelScene) these settings cannot load."""
 
     def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        """The RawRun of a model scene: the model layer imports the file into this engine and steps it
-        (engines/model/steppers.py). Override it only to hand the stepper settings of the engine's own."""
+        """The RawRun of a model scene: the model layer imports the file into this engine and steps it with
+        the engine's stepper (engines/model/steppers.py), which reads what it needs from ``settings``."""
         return scene.run_in(self.name, schedule, settings)
 
     # -- optional: what only the engine knows ---------------------------------------

@@ -217,10 +217,6 @@ class DrakeEngine(Engine):
 
     # -- running -----------------------------------------------------------------------
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        # The model layer's Drake stepper integrates with the variant's scheme (SCHEMES).
-        return super()._run_model(scene, schedule, {**settings, "scheme": SCHEMES[settings["integrator"]]})
-
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 

@@ -270,15 +270,16 @@ class PyBulletEngine(Engine):
         return _pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        links = forest(scene) if settings["formulation"] == "multibody" else grow(scene)[0]
-        if settings["formulation"] == "multibody":
-            largest = max(_tree_sizes(links).values(), default=0)
-            if largest > MAX_MULTIBODY_LINKS:
-                raise Unsupported(
-                    f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
-                    f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
-                    f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
-                )
+        if settings["formulation"] != "multibody":
+            grow(scene)  # p2p: Unsupported for an ellipse, a Line closing a loop, a particle tied to nothing
+            return
+        largest = max(_tree_sizes(forest(scene)).values(), default=0)
+        if largest > MAX_MULTIBODY_LINKS:
+            raise Unsupported(
+                f"pybullet/multibody: PyBullet {self.version()} builds at most {MAX_MULTIBODY_LINKS} links into "
+                f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
+                f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
+            )
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":

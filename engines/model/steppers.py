@@ -203,7 +203,10 @@ def stepper(engine: str, scene: Any, dt: float, settings: dict[str, Any]) -> Any
     if engine == "dart":
         return DartStepper(scene, dt, settings["integrator"])
     if engine == "drake":
-        return DrakeStepper(scene, dt, settings["scheme"], not settings["error_control"], settings["accuracy"])
+        from engines.adapters.drake import SCHEMES  # the variant's integrator by Drake's own name
+
+        return DrakeStepper(scene, dt, SCHEMES[settings["integrator"]], not settings["error_control"],
+                            settings["accuracy"])
     if engine == "pybullet":
         return PyBulletStepper(scene, dt)
     if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/model/ours.py)
