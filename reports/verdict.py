@@ -98,12 +98,15 @@ class LegendEntry:
 
 @dataclass(frozen=True)
 class ParetoPlot:
-    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries); muted : some
-    variants are grey (the page then offers "all variants in colour")."""
+    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries)."""
 
     svg: Markup
     legend: list[tuple[str, list[LegendEntry]]]
-    muted: bool = False
+
+    @property
+    def muted(self) -> bool:
+        """Whether some variants are grey (the page then offers "all variants in colour")."""
+        return any(entry.muted for _, entries in self.legend for entry in entries)
 
 
 def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette: Palette,
@@ -138,7 +141,7 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}")
-    return ParetoPlot(svg, list(groups.items()), mute)
+    return ParetoPlot(svg, list(groups.items()))
 
 
 def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> str:
