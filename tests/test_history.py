@@ -8,6 +8,7 @@ the concurrency test, which are real ``xval run --history`` processes.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import multiprocessing
 import re
@@ -63,7 +64,10 @@ def test_a_stored_run_reads_back_whole(base, tmp_path):
             assert stored[key].entry == document.cases[key]
             assert history.record(run.id, key).to_json() == record.to_json()  # series and all
             assert stored[key].metrics["position_error_linf"] == record.metrics["position_error_linf"]
-        assert history.baseline_document(run).cases == document.cases
+        stored_baseline = history.baseline_document(run)
+        assert stored_baseline.cases == document.cases
+        # Where it came from, as the baseline of the directory says it (only when it was made differs).
+        assert dataclasses.replace(stored_baseline, created=None) == dataclasses.replace(document, created=None)
 
 
 def test_a_history_of_the_old_metric_name_reads_it_as_the_new_one_and_gates_on_it(base, tmp_path, capsys):

@@ -61,6 +61,26 @@ class Baseline:
         return jsonable(document)
 
     @classmethod
+    def of_run(cls, header: Mapping[str, Any], cases: Mapping[str, BaselineEntry], created: str | None,
+               window: tuple[int, ...] | None = None) -> "Baseline":
+        """A baseline of ``cases`` that says it came from the run whose run.json is ``header``: a results
+        directory's (build_baseline) or a stored run's (compare.history.store.StoredRun.as_baseline)."""
+        environment = header.get("environment") or {}
+        return cls(
+            suite={k: (header.get("suite") or {}).get(k) for k in ("name", "fingerprint", "path")},
+            cases=cases,
+            created=created,
+            results={
+                "started": header.get("started"),
+                "git_commit": environment.get("git_commit"),
+                "xval_version": header.get("xval_version"),
+            },
+            machine={k: environment.get(k) for k in MACHINE_FIELDS},
+            engines=environment.get("engines", {}),
+            window=window,
+        )
+
+    @classmethod
     def from_json(cls, document: dict[str, Any], where: str) -> "Baseline":
         """Type a baseline document whose kind and version were checked; EntryError naming a damaged entry."""
         window = document.get("window")
@@ -95,19 +115,7 @@ def build_baseline(results: Results, then: str = "make the baseline") -> Baselin
             f"{results.path}: the run is unfinished; finish it first "
             f"(xval run SUITE --output {results.path} --resume), then {then}"
         )
-    environment = header.get("environment") or {}
-    return Baseline(
-        suite={k: header["suite"].get(k) for k in ("name", "fingerprint", "path")},
-        cases=entries(results),
-        created=now(),
-        results={
-            "started": header.get("started"),
-            "git_commit": environment.get("git_commit"),
-            "xval_version": header.get("xval_version"),
-        },
-        machine={k: environment.get(k) for k in MACHINE_FIELDS},
-        engines=environment.get("engines", {}),
-    )
+    return Baseline.of_run(header, entries(results), now())
 
 
 def write_baseline(baseline: Baseline, path: str | Path) -> None:

@@ -313,14 +313,8 @@ class StoredRun:
         return (_utc(self.origin.date) or started, started, self.id)
 
     def as_baseline(self, cases: Mapping[str, BaselineEntry], window: tuple[int, ...] | None = None) -> Baseline:
-        """A baseline of ``cases`` that says it came from this run (as compare.gate.baseline.build_baseline would)."""
-        environment = self.header.get("environment") or {}
-        suite = self.header.get("suite") or {}
-        return Baseline(
-            suite={k: suite.get(k) for k in ("name", "fingerprint", "path")}, cases=cases, created=self.added,
-            results={"started": self.started, "git_commit": environment.get("git_commit")},
-            machine=dict(self.machine.fields), engines=self.engines, window=window,
-        )
+        """A baseline of ``cases`` that says it came from this run, made when the run was added."""
+        return Baseline.of_run(self.header, cases, self.added, window)
 
 
 @dataclass(frozen=True)
