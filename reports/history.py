@@ -26,7 +26,7 @@ from markupsafe import Markup
 
 from compare.cli import history_option
 from compare.history.store import History, StoredRun
-from compare.history.trend import Series, build_series, trend_metrics
+from compare.history.trend import Series, build_series, run_groups, trend_metrics
 from compare.results.files import atomic_write_text, check_writable
 
 from reports.figures import Plot, plot_text
@@ -117,14 +117,12 @@ def _variant_figure(number: int, scene: str, engine: str, series: Sequence[Serie
 
 def page_context(history: History, suite: str | None = None, last: int | None = None) -> dict[str, Any]:
     """Everything the template lays out."""
-    all_series = build_series(history, suite=suite, last=last)
     runs_all = history.runs(suite=suite)
-    # Grouped as build_series groups them (by the machine's fingerprint): a point's x is its run's place
+    # One section per group of build_series (by the machine's fingerprint): a point's x is its run's place
     # in its group's window, and the hover names the run at that place in this section's window. Two
     # machines can share a name (fields that differ only where the name shows nothing).
-    groups: dict[tuple[str, str], list[StoredRun]] = {}
-    for run in runs_all:
-        groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
+    groups = run_groups(runs_all, last)
+    all_series = build_series(history, groups=groups)
     name_of = {fingerprint: runs[0].machine.name for (fingerprint, _), runs in groups.items()}
     alike = Counter(name_of.values())
     sections: list[dict[str, Any]] = []
@@ -132,10 +130,8 @@ def page_context(history: History, suite: str | None = None, last: int | None = 
     step_rows = []
     packs: dict[str, Markup] = {}
     for (fingerprint, suite_name), runs in groups.items():
-        runs = runs[-last:] if last else runs
         machine = name_of[fingerprint] + (f" (fingerprint {fingerprint})" if alike[name_of[fingerprint]] > 1 else "")
-        ids = {run.id for run in runs}
-        mine = [s for s in all_series if s.suite == suite_name and s.points[0].run_id in ids]
+        mine = [s for s in all_series if (s.fingerprint, s.suite) == (fingerprint, suite_name)]
         variants: dict[tuple[str, str], list[Series]] = {}
         for s in mine:
             variants.setdefault((s.scene_id, s.engine), []).append(s)

@@ -139,7 +139,8 @@ class Point:
 @dataclass(frozen=True)
 class Series:
     """One metric of one case (scene × variant × dt) on one machine, across runs; ``steps`` by :func:`steps`;
-    position : the case's (scene, engine, dt) indices in the suite, for ordering."""
+    position : the case's (scene, engine, dt) indices in the suite, for ordering; fingerprint : the machine's
+    (its runs' group in :func:`run_groups`; ``machine`` is its name, which two machines may share)."""
 
     machine: str
     suite: str
@@ -150,25 +151,33 @@ class Series:
     points: tuple[Point, ...]
     steps: tuple[Step, ...]
     position: tuple[int, ...] = ()
+    fingerprint: str = ""
 
     @property
     def has_values(self) -> bool:
         return any(p.value is not None for p in self.points)
 
 
+def run_groups(runs: Sequence[Any], last: int | None = None) -> dict[tuple[str, str], list[Any]]:
+    """Stored runs (compare.history.store.StoredRun, in history order) by (machine fingerprint, suite name):
+    the runs a trend follows; the last ``last`` of each group when given."""
+    groups: dict[tuple[str, str], list[Any]] = {}
+    for run in runs:
+        groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
+    return {key: members[-last:] if last else members for key, members in groups.items()}
+
+
 def build_series(history: Any, suite: str | None = None, metrics: Sequence[Metric] | None = None,
-                 last: int | None = None) -> list[Series]:
+                 last: int | None = None, groups: Mapping[tuple[str, str], Sequence[Any]] | None = None) -> list[Series]:
     """Every series of the history (compare.history.store.History), machines and suites kept apart.
 
-    last : only the last N runs of each machine × suite.
+    last : only the last N runs of each machine × suite. groups : :func:`run_groups` of the history's runs
+    (of ``suite``, the last ``last``), when the caller made them already.
     """
     metrics = list(metrics or trend_metrics())
-    groups: dict[tuple[str, str], list[Any]] = {}
-    for run in history.runs(suite=suite):
-        groups.setdefault((run.machine.fingerprint, run.suite_name), []).append(run)
+    groups = run_groups(history.runs(suite=suite), last) if groups is None else groups
     out: list[Series] = []
-    for (_machine, suite_name), runs in groups.items():
-        runs = runs[-last:] if last else runs
+    for (fingerprint, suite_name), runs in groups.items():
         order = {run.id: i for i, run in enumerate(runs)}
         by_run = {run.id: run for run in runs}
         cells: dict[tuple[str, str, float], dict[int, Any]] = {}
@@ -185,7 +194,7 @@ def build_series(history: Any, suite: str | None = None, metrics: Sequence[Metri
                     for c in ordered
                 )
                 series = Series(by_run[ordered[0].run_id].machine.name, suite_name, scene_id, engine, dt, metric,
-                                points, (), ordered[-1].entry.position)
+                                points, (), ordered[-1].entry.position, fingerprint)
                 if not series.has_values:
                     continue
                 found = steps([p.value for p in points], metric)
