@@ -33,7 +33,6 @@ is still compiled, in a fraction of its stepping.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import resource
@@ -44,49 +43,36 @@ import tempfile
 import time
 from pathlib import Path
 
+from compare.results.record import CaseRecord
+from compare.results.store import load_results
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _mjx_compiles(output: Path) -> tuple[float, int, int]:
-    """(summed jit_compile_time s, MJX cases, cases over 0.5 s) from a run's case records."""
-    total, cases, slow = 0.0, 0, 0
-    for path in output.rglob("*.json"):
-        text = path.read_text(encoding="utf-8", errors="replace")
-        if "jit_compile_time" not in text:
-            continue
-        seconds = _find(json.loads(text), "jit_compile_time")
-        if seconds is None:
-            continue
-        total, cases, slow = total + seconds, cases + 1, slow + (seconds > 0.5)
-    return total, cases, slow
+def _jit_compile_time(record: CaseRecord) -> float | None:
+    """s: the case's ``jit_compile_time`` (MJX records it in its run's settings), None where it has none."""
+    seconds = ((record.run_info or {}).get("settings") or {}).get("jit_compile_time")
+    return None if seconds is None else float(seconds)
 
 
-def _find(value, key):
-    if isinstance(value, dict):
-        if key in value and isinstance(value[key], (int, float)):
-            return float(value[key])
-        value = list(value.values())
-    if isinstance(value, list):
-        for item in value:
-            found = _find(item, key)
-            if found is not None:
-                return found
-    return None
+def _mjx_compiles(records: list[CaseRecord]) -> tuple[float, int, int]:
+    """(summed jit_compile_time s, MJX cases, cases over 0.5 s) of a run's case records: the cases that record
+    a compile time (MJX's cases that ran; a skipped one records none)."""
+    compiles = [seconds for seconds in map(_jit_compile_time, records) if seconds is not None]
+    return sum(compiles), len(compiles), sum(seconds > 0.5 for seconds in compiles)
 
 
-def engine_table(output: Path) -> list[str]:
-    """Lines: per engine of a results directory, cases, timeouts and summed seconds (see the module notes)."""
+def engine_table(records: list[CaseRecord]) -> list[str]:
+    """Lines: per engine of a run's case records, cases, timeouts and summed seconds (see the module notes)."""
     rows: dict[str, list[float]] = {}
-    for path in sorted((output / "cases").glob("*.json")):
-        record = json.loads(path.read_text(encoding="utf-8"))
-        info = record.get("run_info") or {}
-        row = rows.setdefault(record["case"]["engine"].split("/")[0], [0, 0, 0.0, 0.0, 0.0, 0.0])
+    for record in records:
+        row = rows.setdefault(record.case.engine.split("/")[0], [0, 0, 0.0, 0.0, 0.0, 0.0])
         row[0] += 1
-        row[1] += record["status"] == "timeout"
-        row[2] += record.get("elapsed") or 0.0
-        row[3] += info.get("wall_time") or 0.0
-        row[4] += sum(record.get("cpu_times") or ())
-        row[5] += (info.get("settings") or {}).get("jit_compile_time") or 0.0
+        row[1] += record.status == "timeout"
+        row[2] += record.elapsed or 0.0
+        row[3] += (record.run_info or {}).get("wall_time") or 0.0
+        row[4] += sum(t for t in record.cpu_times or () if t is not None)
+        row[5] += _jit_compile_time(record) or 0.0
     lines = [f"  {'engine':<10} {'cases':>5} {'timeouts':>8} {'elapsed s':>10} {'stepping s':>10} "
              f"{'stepping CPU s':>14} {'jit compile s':>13}"]
     for engine, (cases, timeouts, elapsed, wall, cpu, jit) in sorted(rows.items(), key=lambda item: -item[1][2]):
@@ -134,7 +120,7 @@ def main() -> None:
     if args.summarize:
         for output in args.summarize:
             print(f"{output}:")
-            print("\n".join(engine_table(output)))
+            print("\n".join(engine_table(load_results(output).records)))
         return
     if args.keep is not None and args.keep.exists():
         parser.error(f"--keep: {args.keep} exists; name a new directory")
@@ -162,14 +148,15 @@ def main() -> None:
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
             lines = [line for line in done.stdout.splitlines() if line.strip()]
-            compile_s, cases, slow = _mjx_compiles(output)
+            records = load_results(output).records
+            compile_s, cases, slow = _mjx_compiles(records)
             walls.append(wall)
             print(f"run {run}: exit {done.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s; MJX cases {cases}, "
                   f"jit_compile_time summed {compile_s:.1f} s, {slow} over 0.5 s; "
                   f"load before {load}, after {_load()}")
             print(f"  {_written(cache, since)}")
             print(f"  its last line: {lines[-1] if lines else '(nothing printed)'}")
-            print("\n".join(engine_table(output)))
+            print("\n".join(engine_table(records)))
     print(f"second run / first run, wall: {walls[1] / walls[0]:.2f} (first {walls[0] / walls[1]:.2f}x slower)")
 
 
