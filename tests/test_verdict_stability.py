@@ -204,3 +204,21 @@ def test_a_run_without_cpu_times_gets_the_same_resolution_as_a_modelled_one():
         cost, low, high = modelled(None, record)
         assert cost == record.metrics["cost_per_simulated_second"]
         assert low == pytest.approx(cost / RESOLUTION) and high == pytest.approx(cost * RESOLUTION)
+
+
+def test_a_points_cost_and_steps_go_by_the_runs_own_steps_on_the_tolerance_axis_and_by_dt_otherwise():
+    """The cost model's rate (steps per simulated second) and a Point's are one rule: 1/dt for a fixed step,
+    the run's own steps / duration for an error-controlled run (dt is then only its largest step)."""
+    from compare.results.cost import CostModel, modelled
+    from compare.results.verdict import point
+
+    model = CostModel("a/x", 1e-6, 5e-7, 2e-6, 0.0, 3, "fit")
+    row = {"scene": "bead", "engine": "a/x", "dt": 0.01, "error": 1e-3, "steps": 700, "length": 1.0,
+           "reference_error": 0.0}
+    fixed = record(row, [1e-3])
+    adaptive = CaseRecord.from_json({**fixed.to_json(), "case": {**fixed.to_json()["case"], "tolerance": 1e-6}})
+    for case, rate in ((fixed, 100.0), (adaptive, 350.0)):  # 1 / 0.01 s; 700 steps / 2 s
+        assert modelled(model, case) == pytest.approx((1e-6 * rate, 5e-7 * rate, 2e-6 * rate), rel=1e-12)
+        found = point(case, model)
+        assert found is not None and found.rate == pytest.approx(rate, rel=1e-12)
+        assert found.cost == pytest.approx(1e-6 * rate, rel=1e-12)

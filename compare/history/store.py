@@ -347,13 +347,22 @@ def baseline_of(results: Results) -> Baseline:
     return build_baseline(results, then="add it to the history")
 
 
-def run_key(results: Results) -> str:
-    """SHA-256 of run.json (less the fields a no-op --resume rewrites) and every case record (sorted by case id)."""
+def run_key(results: Results, documents: Mapping[str, bytes] | None = None) -> str:
+    """SHA-256 of run.json (less the fields a no-op --resume rewrites) and every case record (sorted by case id).
+
+    documents : each record's canonical JSON (:func:`canonical_records`) when the caller made them already.
+    """
+    documents = canonical_records(results) if documents is None else documents
     digest = hashlib.sha256()
     digest.update(_canonical({k: v for k, v in results.header.items() if k not in _VOLATILE}))
-    for record in sorted(results.records, key=lambda r: r.case.id):
-        digest.update(_canonical(record.to_json()))
+    for case_id in sorted(documents):
+        digest.update(documents[case_id])
     return digest.hexdigest()
+
+
+def canonical_records(results: Results) -> dict[str, bytes]:
+    """Case id -> the record's canonical JSON: what the run key hashes and the history stores (compressed)."""
+    return {record.case.id: _canonical(record.to_json()) for record in results.records}
 
 
 def _canonical(value: Any) -> bytes:
@@ -484,7 +493,8 @@ class History:
         document : ``baseline_of(results)`` when the caller made it already.
         """
         document = document if document is not None else baseline_of(results)
-        key = run_key(results)
+        records = canonical_records(results)  # each record serialised once: for the run key and to store
+        key = run_key(results, records)
         header = results.header
         machine = machine_of(header)
         suite = header.get("suite") or {}
@@ -504,7 +514,7 @@ class History:
                 "case_key": k, "scene_id": record.case.scene_id, "engine": record.case.engine, "dt": record.case.dt,
                 "status": record.status.value, "entry": json.dumps(entry.to_json(), sort_keys=True),
                 "metrics": json.dumps(metrics, sort_keys=True),
-                "record": zlib.compress(_canonical(record.to_json()), 6),
+                "record": zlib.compress(records[record.case.id], 6),
             })
         try:
             with self.backend.transaction():

@@ -47,6 +47,15 @@ def steps(record: CaseRecord) -> int | None:
     return int(value) if _positive(value) else None
 
 
+def step_rate(record: CaseRecord) -> float:
+    """Steps per simulated second of ``record``'s run: 1/dt, or on the tolerance axis (an error-controlled
+    run, whose dt is only its largest step) its own steps / the scene's duration where both are known."""
+    duration, n = (record.scene or {}).get("duration"), steps(record)
+    if record.case.tolerance is not None and n and _positive(duration):
+        return n / duration
+    return 1.0 / record.case.dt
+
+
 @dataclass(frozen=True)
 class CaseCost:
     """One case's timing: least CPU time over repeats (s), spread = max/min − 1, repeats, steps."""
@@ -82,11 +91,8 @@ class CostModel:
     cases: int
     how: str
 
-    def per_simulated_second(self, dt: float, n_steps: int | None = None,
-                             duration: float | None = None) -> tuple[float, float, float]:
-        """(cost, low, high) in s/s at time step ``dt`` (s): per-step cost × steps per simulated second
-        (``n_steps`` / ``duration`` when given: an error-controlled run's own steps)."""
-        rate = n_steps / duration if n_steps and duration else 1.0 / dt
+    def per_simulated_second(self, rate: float) -> tuple[float, float, float]:
+        """(cost, low, high) in s/s at ``rate`` steps per simulated second (:func:`step_rate`)."""
         return self.per_step * rate, self.low * rate, self.high * rate
 
     def describe(self) -> str:
@@ -142,6 +148,4 @@ def modelled(model: CostModel | None, record: CaseRecord) -> tuple[float, float,
     if model is None:
         value = metric_cost(record)
         return None if value is None else (value, *_widened(value, value, value))
-    duration = (record.scene or {}).get("duration")
-    n = steps(record) if record.case.tolerance is not None else None
-    return model.per_simulated_second(record.case.dt, n, duration if _positive(duration) else None)
+    return model.per_simulated_second(step_rate(record))

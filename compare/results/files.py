@@ -126,7 +126,6 @@ def atomic_write_text(path: str | os.PathLike, text: str | bytes, *, durable: bo
         visible part of the run's own CPU), since a damaged record is not
         counted as done and ``--resume`` runs its case again.
     """
-    binary = isinstance(text, bytes)
     if str(path) == STDOUT:
         if isinstance(text, bytes):
             sys.stdout.flush()

@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence, TypeGuard
 
-from compare.results.cost import CostModel, modelled, steps
+from compare.results.cost import CostModel, modelled, step_rate
 from compare.results.record import PROBLEMS, CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 
@@ -94,11 +94,8 @@ def point(record: CaseRecord, model: CostModel | None = None) -> Point | None:
     if cost is None or not (_finite_positive(cost[0]) and _finite_positive(error)):
         return None
     bar = (record.reference or {}).get("reference_error")
-    duration, n = (record.scene or {}).get("duration"), steps(record)
-    rate = n / duration if record.case.tolerance is not None and n and _finite_positive(duration) \
-        else 1.0 / record.case.dt
     return Point(record.case.engine, record.case.dt, float(cost[0]), float(error), record.case.id, record.case.tolerance,
-                 float(cost[1]), float(cost[2]), float(bar) if _finite_positive(bar) else 0.0, float(rate))
+                 float(cost[1]), float(cost[2]), float(bar) if _finite_positive(bar) else 0.0, float(step_rate(record)))
 
 
 def points(sweep: VariantSweep) -> list[Point]:
