@@ -42,7 +42,13 @@ def test_a_short_run_prints_a_row_for_every_engine_against_its_peer():
     assert re.search(r"10 steps of dt 0\.001 s .* load average \d+\.\d on \d+ CPUs", out)
 
 
-def test_an_engine_it_cannot_load_ends_the_bench_naming_it():
+def test_an_engine_it_cannot_load_ends_the_bench_naming_it(tmp_path, monkeypatch):
     bench = bench_module()
     with pytest.raises(SystemExit, match=r"bench_models: .*nosuch.*needs every engine"):
         bench.engine_of("nosuch/variant")
+    # An engine whose library is not installed (its module's import fails): EngineUnavailable, the same end.
+    (tmp_path / "uninstalled_engine.py").write_text("import no_such_engine_library  # noqa: F401\nENGINE = None\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(SystemExit, match=r"bench_models: engine 'uninstalled_engine:ENGINE' is unavailable: importing "
+                                         r"uninstalled_engine failed: .*no_such_engine_library.*needs every engine"):
+        bench.engine_of("uninstalled_engine:ENGINE/variant")

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
+from engines.model.scene import model_scene
 from engines.scene import catalog
 from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
@@ -20,6 +22,8 @@ from engines.adapters.mujoco import ENGINE, MUJOCO_SOLIMP, MUJOCO_SOLREF, STIFF
 from engines.reference.reference import solve
 from engines.scene.scene import Particle, Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy
+
+ROOT = Path(__file__).resolve().parent.parent
 
 VARIANTS = list(ENGINE.variants)
 G = 9.81
@@ -277,6 +281,18 @@ def test_bad_solref_names_the_option():
         ENGINE.simulate(scene, 1e-3, variant="connect", options={"solref": "0.02,1,3"})
     with pytest.raises(UserError, match="integrator must be one of"):
         ENGINE.simulate(scene, 1e-3, options={"integrator": "verlet"})
+
+
+def test_a_bad_option_value_is_refused_on_a_model_file_too():
+    """Option values are checked whatever the scene (Engine._check_options): a model file, which only
+    the hinge variants load, gets the same error as the bead, not a run that ignores the value."""
+    model = model_scene("dp", str(ROOT / "models" / "double_pendulum.urdf"), q0={"shoulder": 30}, duration=0.1)
+    for scene in (catalog.build("bead", {"duration": 0.1}), model):
+        with pytest.raises(UserError, match=r"mujoco: option inertia_ratio must be positive, got -1\.0"):
+            ENGINE.check(scene, "hinge", {"inertia_ratio": -1.0})
+        with pytest.raises(UserError, match="mujoco: option solref must be two positive numbers"):
+            ENGINE.check(scene, "hinge", {"solref": "0.02,1,3"})
+    ENGINE.check(model, "hinge")
 
 
 @pytest.mark.parametrize("name", ["double-pendulum", "four-bar", "slider-pendulum", "spherical-pendulum"])

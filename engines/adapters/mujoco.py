@@ -419,7 +419,7 @@ class MuJoCoEngine(Engine):
             raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
                               "build particle scenes from free bodies, use mujoco/hinge*")
 
-    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
+    def _check_options(self, settings: Mapping[str, Any]) -> None:
         if len(settings["solref"]) != 2 or not all(x > 0 for x in settings["solref"]):
             raise UserError(
                 f"mujoco: option solref must be two positive numbers (timeconst s, dampratio), "
@@ -434,6 +434,8 @@ class MuJoCoEngine(Engine):
             raise UserError(f"mujoco: option timeconst_steps must be ≥ 0, got {settings['timeconst_steps']}")
         if settings["inertia_ratio"] <= 0:
             raise UserError(f"mujoco: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
+
+    def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] == "hinge":
             constraint_tree(scene)
         else:

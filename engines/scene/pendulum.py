@@ -103,13 +103,12 @@ def planar_chain(scene: Scene) -> PlanarChain:
     first = scene.constraints[0]
     if not (isinstance(first, Pin) and first.particle == 0):
         raise Unsupported(f"{scene.name!r}: constraints[0] must be a pin on particle 0 to be a chain")
-    rods = []
+    lengths = [first.length]
     for k, c in enumerate(scene.constraints[1:], start=1):
         if not (isinstance(c, Rod) and {c.a, c.b} == {k - 1, k}):
             raise Unsupported(f"{scene.name!r}: constraints[{k}] must be a rod between particles {k - 1} and {k}")
-        rods.append(c)
-    lengths = np.array([first.length] + [c.length for c in rods])
-    return PlanarChain(np.asarray(first.anchor, dtype=np.float64), lengths, scene.masses)
+        lengths.append(c.length)
+    return PlanarChain(np.asarray(first.anchor, dtype=np.float64), np.array(lengths), scene.masses)
 
 
 def force_array(n_constraints: int, reported: Mapping[int, np.ndarray] | None = None) -> np.ndarray:

@@ -65,7 +65,8 @@ _PACKED: "weakref.WeakKeyDictionary[Mechanism, tuple]" = weakref.WeakKeyDictiona
 
 def packed(mech: Mechanism) -> tuple:
     """:func:`pack` of ``mech``, made once per Mechanism (records are frozen) for the readers of states
-    (:func:`joint_coordinates`, :func:`joint_errors`), which run once per sample; read-only."""
+    (:func:`joint_coordinates`, read once per sample by a caller that samples as it goes, and
+    :func:`joint_errors`); read-only."""
     model = _PACKED.get(mech)
     if model is None:
         model = _PACKED[mech] = pack(mech)
