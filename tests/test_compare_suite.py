@@ -109,6 +109,21 @@ def test_unknown_tolerance_metric():
         "observed_order, momentum_drift, cost_per_simulated_second")
 
 
+def test_a_results_suite_toml_refuses_an_unknown_tolerance_as_the_suite_reader_does(tmp_path):
+    """xval gate reads [tolerances] from a results directory's suite.toml (load_run_settings): one check, so
+    the same line-numbered message as reading the suite itself."""
+    from compare.suite.reader import load_run_settings
+
+    text = GOOD + "\n[tolerances]\nspeed = 1.0\n"
+    (tmp_path / "s.toml").write_text(text)
+    with pytest.raises(UserError) as stored:
+        load_run_settings(tmp_path / "s.toml")
+    with pytest.raises(UserError) as read:
+        parse_suite(text, str(tmp_path / "s.toml"))
+    assert str(stored.value) == str(read.value)
+    assert str(stored.value).startswith(f"{tmp_path / 's.toml'}:13: tolerances.speed: unknown key; valid keys are: ")
+
+
 def test_tolerances_and_gate_validate_a_tolerance_alike():
     # [tolerances] and [gate] both set relative tolerances: the same rule (a number >= 0) for both,
     # each message naming the key (and, for the suite file, the line).

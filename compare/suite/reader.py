@@ -27,12 +27,11 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
-from compare.results.declared import current_name
 from compare.results.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings, gate_settings
+from compare.suite.tolerance import GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
@@ -333,12 +332,8 @@ class _Reader:
             self.number("bounds.energy_drift", bounds_table.get("energy_drift", Bounds.energy_drift)),
             self.number("bounds.constraint_error", bounds_table.get("constraint_error", Bounds.constraint_error)),
         )
-        # [tolerances] ends up in ``gate``: its keys checked here (with line numbers), its values by gate_settings,
-        # by the same rule as [gate]'s (a number >= 0; 0 asks for no change at all).
-        tolerances = data.get("tolerances", {})
-        if isinstance(tolerances, dict):  # a metric's earlier name reads as today's
-            tolerances = {current_name(name): value for name, value in tolerances.items()}
-        self.table("tolerances", tolerances, (*RULES, TIMING_METRIC))
+        # [tolerances] and [gate] end up in ``gate``: keys (a metric's earlier name read as today's) and values
+        # are checked by gate_settings, which names the line through self.error (as for a results' suite.toml).
         gate = gate_settings(data.get("gate"), data.get("tolerances"), self.error)
         dts = self.dts(data["dt"])
         scenes = self.scenes(data["scenes"], duration)

@@ -92,7 +92,7 @@ def gate_settings(gate: Any, tolerances: Any, make_error: ErrorMaker) -> GateSet
                 factor = 1.0 + float(value)
                 continue
             if name not in RULES:
-                raise make_error(f"tolerances.{name}", f"unknown metric; gated metrics are: {', '.join(RULES)}")
+                raise make_error(f"tolerances.{name}", f"unknown key; valid keys are: {', '.join((*RULES, TIMING_METRIC))}")
             chosen[name] = replace(chosen[name], rtol=_non_negative(make_error, f"tolerances.{name}", value))
     if gate is None:
         return GateSettings(chosen, factor)
