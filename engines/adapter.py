@@ -28,7 +28,7 @@ import numpy as np
 
 from engines.errors import Unsupported, UserError
 from engines.scene.scene import Ellipse, Scene
-from engines.scene.trajectory import RunInfo, Trajectory
+from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
@@ -382,7 +382,7 @@ class Engine:
             except (Exception, SystemExit) as exc:
                 empty = np.empty((0, n_particles, 3))
                 cause = blow_up_cause(exc)
-                status, message = ("unstable", cause) if cause else ("failed", first_line(exc))
+                status, message = (Status.UNSTABLE, cause) if cause else (Status.FAILED, first_line(exc))
                 message = join_messages(message, warning_note(heard))
                 return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status=status, message=message))
         trajectory = _finish(schedule, raw, info, n_constraints)
@@ -559,15 +559,15 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
     if raw.constraint_violation is not None:
         # A joint gap that overflowed is a state gone non-finite, though the joint coordinates read finite.
         finite &= np.isfinite(raw.constraint_violation)
-    status, message = "ok", raw.message
+    status, message = Status.OK, raw.message
     if not finite.all():
         first_bad = int(np.argmin(finite))
-        status = "unstable"
+        status = Status.UNSTABLE
         message = f"non-finite state at t = {t[first_bad]:.6g} s" + (f"; {raw.message}" if raw.message else "")
         n = first_bad
     elif n < len(schedule.times):
         # The adapter stopped stepping early (it saw the state run away).
-        status = "unstable"
+        status = Status.UNSTABLE
         message = raw.message or f"stepping stopped at t = {t[-1] if n else 0:.6g} s"
     # Shapes were checked by check_raw_run; forces that go non-finite alone do not make a run unstable.
     forces = None if raw.forces is None else raw.forces[:n]

@@ -7,9 +7,8 @@ a file. Shapes: ``t (n,) s``, ``positions (n, P, 3) m``, ``velocities
 its first particle). Engine and reference are compared at the same sample
 times: the engine's own ``Trajectory.t``.
 
-The status rule for ``unstable`` (besides the non-finite state the adapter
-already flags) lives here too, in :func:`apply_bounds`, so it is a pure
-function with its own tests.
+The bounds an ``ok`` run must stay within (:class:`Bounds`) are declared here; the status they
+give is decided in :func:`compare.results.measure.decide_status`.
 """
 
 from __future__ import annotations
@@ -262,41 +261,6 @@ class Bounds:
 
     energy_drift: float = 1.0
     constraint_error: float = 0.1
-
-
-def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds, scene: Scene) -> tuple[str, str]:
-    """The case's final (status, message).
-
-    Rules, in order: a status other than ``ok`` (``unstable`` from a
-    non-finite state, ``failed``, ``timeout``) is kept; an ``ok`` run whose
-    energy drift exceeds ``bounds.energy_drift`` (E*) or whose constraint
-    error exceeds ``bounds.constraint_error`` · L becomes ``unstable`` with a
-    message naming the metric, its value and the bound. Equal to the bound is
-    still ``ok``; a NaN metric is treated as past the bound.
-    """
-    if status != "ok":
-        return status, message
-    reasons = []
-    if not metrics.energy_drift <= bounds.energy_drift:
-        drift, bound = distinct(metrics.energy_drift, bounds.energy_drift)
-        reasons.append(f"energy drift {drift} E* exceeds the bound {bound} E*")
-    limit = bounds.constraint_error * scene.characteristic_length
-    if not metrics.constraint_error <= limit:
-        error, shown_limit = distinct(metrics.constraint_error, limit)
-        reasons.append(f"constraint error {error} m exceeds the bound {bounds.constraint_error:g} L = {shown_limit} m")
-    if reasons:
-        return "unstable", "; ".join(reasons)
-    return status, message
-
-
-def distinct(value: float, bound: float) -> tuple[str, str]:
-    """``value`` and ``bound`` printed with 3 significant digits, or more until they differ (up to 17), so a
-    value just past its bound never reads "1 exceeds the bound 1"."""
-    for digits in range(3, 18):
-        shown = f"{value:.{digits}g}", f"{bound:.{digits}g}"
-        if shown[0] != shown[1]:
-            return shown
-    return shown
 
 
 # -- across a dt sweep ---------------------------------------------------------------

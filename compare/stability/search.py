@@ -1,7 +1,7 @@
 """Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
 
 Criterion (the same one ``xval run`` applies to every case, see
-:func:`compare.results.metrics.apply_bounds`): a trial at time step dt is *stable*
+:func:`compare.results.measure.decide_status`): a trial at time step dt is *stable*
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else

@@ -7,6 +7,7 @@ compute them the same way for every engine.
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
@@ -14,7 +15,28 @@ import numpy as np
 
 from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
-STATUSES = ("ok", "unstable", "failed", "skipped", "timeout")
+
+
+class Status(str, enum.Enum):
+    """How a run, and the case around it, ended (the JSON spelling is the value): one enum from an
+    engine's RunInfo up to the case record (compare.results.record).
+
+    ok : ran to the end inside the bounds (did not blow up; see the record's ``consistent`` for "is right").
+    unstable : a non-finite state, or energy drift / constraint error past the suite's bounds.
+    failed : the engine raised or its process died.
+    timeout : ran past the case timeout and was killed.
+    skipped : left out (the engine cannot express the scene, or is not installed); message says why.
+    """
+
+    OK = "ok"
+    UNSTABLE = "unstable"
+    FAILED = "failed"
+    TIMEOUT = "timeout"
+    SKIPPED = "skipped"
+
+    def __str__(self) -> str:  # f"{status}" gives "ok", as the JSON does
+        return self.value
+
 
 
 @dataclass(frozen=True)
@@ -28,7 +50,7 @@ class RunInfo:
     cpu_time : s, this thread's CPU time of the run (the adapter's stepping loop's when it measures it),
         see engines.adapter.loop_cpu_time;
         what the timing gate compares, since a busy neighbour stretches wall time, not CPU time.
-    status : one of ``STATUSES``; message : why, when not ok.
+    status : how the run ended (a string given is read as its :class:`Status`); message : why, when not ok.
     settings : every option used, and every engine default overridden.
     """
 
@@ -38,10 +60,14 @@ class RunInfo:
     dt: float
     steps: int = 0
     wall_time: float = 0.0
-    status: str = "ok"
+    status: Status = Status.OK
     message: str = ""
+    #: Free-form: every engine's own option names and values.
     settings: Mapping[str, Any] = field(default_factory=dict)
     cpu_time: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", Status(self.status))
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -51,7 +77,7 @@ class RunInfo:
             "dt": self.dt,
             "steps": self.steps,
             "wall_time": self.wall_time,
-            "status": self.status,
+            "status": self.status.value,
             "message": self.message,
             "settings": dict(self.settings),
             "cpu_time": self.cpu_time,
