@@ -11,6 +11,12 @@ An adapter subclasses :class:`Engine` and fills in:
 - ``_run(scene, schedule, settings) -> RawRun``: build the model, step it ``schedule.n_steps``
   times, record the state at ``schedule.sample_steps``, time only the stepping loop.
 
+and may override the hooks the harness calls on every engine, each declared here with its default:
+``_check_model`` / ``_run_model`` (model files), ``preload(scenes)`` (load once before case hosts
+fork), ``needs_warm_up``, ``tolerance_options`` / ``tolerance_capable(settings)`` (a suite's
+tolerance axis), ``program()`` (an outside program's argv and version), ``spectral_radius`` /
+``largest_stable_dt`` (the engine's own stability theory). Nothing else is looked up on an engine.
+
 Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 
@@ -22,12 +28,12 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Iterable, Mapping
+from typing import Any, ClassVar, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene.scene import Ellipse, Scene
+from engines.scene.scene import Ellipse, Scene, SceneLike
 from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 #: Default interval between stored samples, s.
@@ -269,13 +275,38 @@ class Engine:
 
     # -- model files (only for an engine with the "model" capability) ------------------------------
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: SceneLike, settings: Mapping[str, Any]) -> None:
         """Raise Unsupported for a model scene (engines.model.scene.ModelScene) these settings cannot load."""
 
     def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         """The RawRun of a model scene: the model layer imports the file into this engine and steps it with
         the engine's stepper (engines/model/steppers.py), which reads what it needs from ``settings``."""
         return scene.run_in(self.name, schedule, settings)
+
+    # -- optional: what the harness asks every engine, each with its default ----------------------
+
+    #: The options a suite's tolerance sets, for an engine with the "tolerance" capability
+    #: (compare/suite/tolerance_axis.py): Drake's ``("accuracy",)``, the reference's ``("rtol", "atol")``.
+    tolerance_options: ClassVar[tuple[str, ...]] = ()
+    #: Whether a case host runs each variant for two steps before its first case (so one-off costs, a
+    #: library's start-up or compiled kernels, stay out of that case's stepping time): a program started
+    #: afresh for every run has none.
+    needs_warm_up: ClassVar[bool] = True
+
+    def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
+        """Whether these resolved settings are error-controlled (a tolerance, not dt, sets the error), so a
+        suite's tolerance axis sweeps them; default False (a fixed-step variant)."""
+        return False
+
+    def preload(self, scenes: Sequence[SceneLike]) -> None:
+        """Load once, in the process that will fork the case hosts, what runs of ``scenes`` will need
+        (compiled kernels, a solver library), so the hosts inherit it; default: nothing. An error here
+        is ignored by the runner (the cases report their own)."""
+
+    def program(self) -> tuple[list[str], str] | None:
+        """(argv, version) of the outside program this engine runs (a command engine, docs/protocol.md),
+        which a suite's fingerprint includes; None (the default) for an engine in this process."""
+        return None
 
     # -- optional: what only the engine knows ---------------------------------------
 
@@ -440,7 +471,7 @@ def api_version_problem(engine: "Engine", who: str) -> str | None:
 
     who : how to name the adapter in the message (``plugin 'my-solver' (my_solver.adapter:ENGINE)``).
     """
-    declared = getattr(engine, "api_version", None)
+    declared = engine.api_version
     if declared in SUPPORTED_API_VERSIONS:
         return None
     speaks = ", ".join(map(str, SUPPORTED_API_VERSIONS))

@@ -22,6 +22,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from engines.scene.scene import SceneLike
+
 #: Relative tolerance shared by the accuracy metrics. 10 %: far above the
 #: cross-machine round-off of a deterministic run (~1e-12 relative on these
 #: short scenes, up to ~1e-6 where a chaotic scene amplifies it), far below
@@ -46,7 +48,7 @@ class MetricInputs:
     reference_positions : (n, P, 3) m at the trajectory's times; position_error : (n,) m.
     """
 
-    scene: Any
+    scene: SceneLike
     trajectory: Any
     reference_positions: np.ndarray
     position_error: np.ndarray

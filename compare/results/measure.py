@@ -18,7 +18,7 @@ from typing import Any, NamedTuple, Protocol, Sequence
 import numpy as np
 
 from engines.adapter import join_messages, scheduled_times, warning_note
-from engines.scene.scene import Scene
+from engines.scene.scene import SceneLike
 from engines.scene.trajectory import Status, Trajectory
 
 from compare.results.declared import MetricInputs, computed_extras
@@ -88,7 +88,7 @@ class SceneFields:
     characteristic: Characteristic
 
     @classmethod
-    def of(cls, scene: Scene) -> "SceneFields":
+    def of(cls, scene: SceneLike) -> "SceneFields":
         return cls(jsonable(scene.to_dict()), scene.content_hash,
                    Characteristic(scene.characteristic_length, scene.characteristic_energy))
 
@@ -141,7 +141,7 @@ def decide_status(
     return CaseStatus(status, join_messages(message, *notes))
 
 
-def bounds_exceeded(metrics: CaseMetrics, bounds: Bounds, scene: Scene) -> list[str]:
+def bounds_exceeded(metrics: CaseMetrics, bounds: Bounds, scene: SceneLike) -> list[str]:
     """One reason per bound the run went past: energy drift over ``bounds.energy_drift`` (E*), constraint
     error over ``bounds.constraint_error`` · L. Equal to the bound is within it; a NaN metric is past it."""
     reasons = []
@@ -155,7 +155,7 @@ def bounds_exceeded(metrics: CaseMetrics, bounds: Bounds, scene: Scene) -> list[
     return reasons
 
 
-def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds, scene: Scene) -> CaseStatus:
+def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds, scene: SceneLike) -> CaseStatus:
     """The (status, message) of a finished run of ``status`` once the suite's bounds are applied
     (:func:`decide_status`, rules 4, 6 and 7): a status other than ``ok`` is kept; an ``ok`` run past a
     bound becomes ``unstable`` with a message naming the metric, its value and the bound."""
@@ -177,7 +177,7 @@ def distinct(value: float, bound: float) -> tuple[str, str]:
 
 def measure(
     case: CaseKey,
-    scene: Scene,
+    scene: SceneLike,
     outcome: CaseOutcome | None,
     reference: SampledReference | Exception | None,
     settings: MeasureSettings,
@@ -216,7 +216,7 @@ def _timing(outcome: CaseOutcome) -> dict[str, Any]:
     }
 
 
-def _measured(record: CaseRecord, scene: Scene, outcome: CaseOutcome, host: CaseStatus,
+def _measured(record: CaseRecord, scene: SceneLike, outcome: CaseOutcome, host: CaseStatus,
               reference: SampledReference | Exception | None, settings: MeasureSettings) -> CaseRecord:
     """``record`` with what the trajectory of ``outcome`` gives: run info, reference, metrics, status, series."""
     trajectory = outcome.trajectory
@@ -266,7 +266,7 @@ def _measured(record: CaseRecord, scene: Scene, outcome: CaseOutcome, host: Case
     )
 
 
-def _reference_fields(reference: SampledReference, scene: Scene) -> tuple[ReferenceFields, float | None]:
+def _reference_fields(reference: SampledReference, scene: SceneLike) -> tuple[ReferenceFields, float | None]:
     """The record's ``reference`` fields, and the reference's horizon (s; None: it holds over the whole run)."""
     solution = reference.solution
     solved: ReferenceFields = {"rtol": solution.rtol, "atol": solution.atol, "steps": solution.n_steps,
@@ -277,9 +277,10 @@ def _reference_fields(reference: SampledReference, scene: Scene) -> tuple[Refere
 
     bound = reference.bound
     # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
-    solved.update(reference_error=bound.reference_error, tight_rtol=bound.tight_rtol,
-                  horizon_threshold=bound.threshold,
-                  lyapunov_exponent=growth_rate(bound.t, bound.difference, scene.characteristic_length))
+    solved["reference_error"] = bound.reference_error
+    solved["tight_rtol"] = bound.tight_rtol
+    solved["horizon_threshold"] = bound.threshold
+    solved["lyapunov_exponent"] = growth_rate(bound.t, bound.difference, scene.characteristic_length)
     return solved, bound.reference_horizon
 
 
@@ -315,7 +316,7 @@ HORIZON_METRICS = (
 )
 
 
-def within_horizon(scene: Scene, trajectory: Trajectory, ref_positions: np.ndarray, ref_forces: np.ndarray | None,
+def within_horizon(scene: SceneLike, trajectory: Trajectory, ref_positions: np.ndarray, ref_forces: np.ndarray | None,
                    scheduled: np.ndarray, horizon: float, wall_times: Any, delta: float,
                    whole: dict[str, Any]) -> dict[str, Any]:
     """HORIZON_METRICS over the samples at t ≤ ``horizon`` (s), and the whole run's as ``<name>_whole_run``."""

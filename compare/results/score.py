@@ -19,6 +19,7 @@ from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE
 from engines.errors import UserError
 from engines.reference.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
+from engines.model.scene import ModelScene
 from engines.scene.scene import Scene
 from engines.scene.trajectory import RunInfo, Trajectory
 
@@ -68,7 +69,7 @@ def load(path: str | Path, scene: Scene) -> Loaded:
     return loaded
 
 
-def _load_model_run(where: str, table: protocol.Table, scene: Any) -> Loaded:
+def _load_model_run(where: str, table: protocol.Table, scene: ModelScene) -> Loaded:
     """A model run's file: its joint columns, and the link frames computed from them (rows up to the
     first non-finite one); UserError when row 0 is not the scene's (q0, v0)."""
     from compare.results.model_csv import joint_states

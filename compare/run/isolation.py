@@ -176,12 +176,15 @@ def warm_up(task: CaseTask) -> None:
     ~0.5 s; MuJoCo and PyBullet initialize their libraries) then stay out of
     the case's stepping time. Errors are ignored here: the case reports them.
     """
-    if task.engine_id in _WARM or task.command is not None:  # a program starts afresh in every run
+    if task.engine_id in _WARM:
         return
     _WARM.add(task.engine_id)
     try:
+        engine = _engine_for(task)
+        if not engine.needs_warm_up:  # a program started afresh in every run
+            return
         scene = task.scene.with_duration(min(task.scene.duration, 2 * task.dt))
-        _engine_for(task).simulate(scene, task.dt, variant=task.variant, options=task.options)
+        engine.simulate(scene, task.dt, variant=task.variant, options=task.options)
     except Exception:
         pass
 

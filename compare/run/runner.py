@@ -482,7 +482,7 @@ _preloaded: set[int] = set()
 def preload_engines(suite: Suite, cases) -> None:
     """Let each engine of these cases (and the reference, unless every scene's is kept) load what it
     will need once, here, before the pool forks: workers and case hosts inherit it instead of each importing and loading it again
-    (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
+    (numba's kernels, scipy's integrators): Engine.preload, which does nothing by default; a preload
     that fails is ignored (the cases report their own errors)."""
     from engines.reference.reference import ENGINE as REFERENCE, is_kept
 
@@ -493,12 +493,11 @@ def preload_engines(suite: Suite, cases) -> None:
     if not all(is_kept(scene, suite.rtol, suite.atol) for scene in scenes):
         engines.setdefault(id(REFERENCE), REFERENCE)
     for key, engine in engines.items():
-        preload = getattr(engine, "preload", None)
-        if key in _preloaded or preload is None:
+        if key in _preloaded:
             continue
         _preloaded.add(key)
         try:
-            preload(scenes)
+            engine.preload(scenes)
         except Exception:  # noqa: BLE001 - a preload is an optimisation, never a failure
             continue
     # What is loaded now (modules, numba's kernels, engine libraries' objects) lives as long as the

@@ -147,8 +147,8 @@ class Suite:
 
 def _program_of(engine: EngineSpec) -> list[Any]:
     """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
-    spec = getattr(engine.engine, "spec", None)
-    return [] if spec is None else [list(spec.argv), spec.version]
+    program = None if engine.engine is None else engine.engine.program()
+    return [] if program is None else [list(program[0]), program[1]]
 
 
 # -- engine ids ------------------------------------------------------------------

@@ -188,6 +188,10 @@ class CommandEngine(Engine):
     def version(self) -> str:
         return self.spec.version or "unversioned"
 
+    def program(self) -> tuple[list[str], str]:
+        """(argv, version) of the program, as the spec gives them (the version may be empty)."""
+        return list(self.spec.argv), self.spec.version
+
     #: The option a suite's tolerance axis sets (compare/suite/tolerance_axis.py), for a program that
     #: declares the capability "tolerance"; it reaches the program as ``options.tolerance``.
     tolerance_options = ("tolerance",)

@@ -24,7 +24,7 @@ import scipy
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
 from engines.reference.mechanisms import Mechanism, empty_samples, mechanism_model
-from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene, SceneLike
 from engines.scene.tree import read_tree
 
 if TYPE_CHECKING:  # imported on use: only model-file scenes need Pinocchio
@@ -630,17 +630,17 @@ class ReferenceEngine(Engine):
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: SceneLike, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return self._solved(scene, schedule, settings, model=False)
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: SceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         """A model file: Pinocchio's ABA (model_for) solved the same way; its joint states, no constraint forces."""
         return self._solved(scene, schedule, settings, model=True)
 
-    def _solved(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
+    def _solved(self, scene: SceneLike, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
         solution = solve(scene, settings["rtol"], settings["atol"])
         positions, velocities, forces = solution.at(schedule.times)
         return RawRun(

@@ -13,7 +13,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene, SceneLike
 
 
 
@@ -154,19 +154,20 @@ def total_energy(scene: Scene, positions: np.ndarray, velocities: np.ndarray) ->
     return kinetic_energy(scene, velocities) + potential_energy(scene, positions)
 
 
-def trajectory_energy(scene: Any, trajectory: Trajectory) -> np.ndarray:
+def trajectory_energy(scene: SceneLike, trajectory: Trajectory) -> np.ndarray:
     """(n_samples,) J: a catalog scene's point-mass energy (:func:`total_energy`), or a model scene's from its
     joint states (``scene.energy``: rotational kinetic energy included; NaN without joint states)."""
-    if not scene.is_model:
+    if isinstance(scene, Scene):
         return total_energy(scene, trajectory.positions, trajectory.velocities)
+    model: Any = scene  # an engines.model.scene.ModelScene (a layer above this one)
     states = trajectory.joint_states
     if states is None:
         return np.full(trajectory.n_samples, np.nan)
     nq = states.shape[1] // 2
-    return scene.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
+    return model.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
 
 
-def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def constraint_vectors(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples, n_constraints, 3) m: first particle minus the other end (anchor or particle b).
 
     Distance kinds (Pin, Rod) only; a Line or Ellipse has no other end, so its rows are NaN.
@@ -180,7 +181,7 @@ def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return out
 
 
-def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def constraint_errors(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples, n_constraints) m: the distance form whatever a solver uses inside.
 
     |‖a − b‖ − l| for a Pin or Rod; the particle's Euclidean distance from
@@ -195,14 +196,14 @@ def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return out
 
 
-def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def max_constraint_error(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples,) m: the largest constraint error at each sample (0 with no constraints)."""
     if not scene.constraints:
         return np.zeros(positions.shape[0])
     return constraint_errors(scene, positions).max(axis=1)
 
 
-def trajectory_constraint_error(scene: Any, trajectory: Trajectory) -> np.ndarray:
+def trajectory_constraint_error(scene: SceneLike, trajectory: Trajectory) -> np.ndarray:
     """(n_samples,) m: the largest constraint error at each sample: the distance form of the scene's
     constraints (:func:`max_constraint_error`) or the engine's reported ``constraint_violation``,
     whichever is larger (a NaN in either stays NaN)."""
