@@ -124,6 +124,29 @@ def test_no_import_cycles_between_modules():
     assert find_cycles(module_graph()) == []
 
 
+def folder_of(module: str) -> str:
+    """The part of the house ``module`` belongs to: its folder under a package (``compare.results``,
+    ``engines.scene``), or itself when it sits at a package's top (``engines.adapter``, ``compare.cli``)."""
+    return ".".join(module.split(".")[:2])
+
+
+def folder_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Folder -> the folders its modules import (imports inside functions included, as in module_graph)."""
+    folders: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        here = folder_of(module)
+        folders.setdefault(here, set()).update(folder_of(t) for t in targets if folder_of(t) != here)
+    return folders
+
+
+def test_no_import_cycles_between_folders():
+    """No circle between folders, imports inside functions included: an import deferred into a function is
+    for cost (a heavy optional library), never a way round a circle (results <-> suite once was one)."""
+    assert find_cycles(folder_graph(module_graph())) == []
+    planted = {"compare.results.store": {"compare.suite.reader"}, "compare.suite.reader": {"compare.results.files"}}
+    assert find_cycles(folder_graph(planted)) == ["compare.results -> compare.suite -> compare.results"]
+
+
 def test_the_checker_resolves_imports_and_finds_a_planted_cycle():
     assert "compare.results.consistency" in imports_of(ROOT / "compare" / "results" / "sweep.py")
     assert find_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a -> b -> c -> a"]
@@ -216,10 +239,11 @@ def test_a_model_import_uses_only_its_own_engine_s_adapter():
     assert wrong == []
 
 
-#: The stages of compare/, lowest first; a stage imports only its own and lower ones. The suite and the
-#: record are the vocabulary every stage speaks (the runner builds records, a results directory keeps
-#: its suite), so they share the lowest rank; run, then what reads runs back.
-STAGES = {"suite": 0, "results": 0, "run": 1, "gate": 2, "stability": 2, "history": 2}
+#: The stages of compare/, lowest first; a stage imports only its own and lower ones (imports inside
+#: functions included). The record and its metrics are the vocabulary every stage speaks; the suite names
+#: metrics and bounds in that vocabulary; run measures cases into records, and reads a finished run back
+#: with the suite kept beside it (compare.run.results); then what reads runs back.
+STAGES = {"results": 0, "suite": 1, "run": 2, "gate": 3, "stability": 3, "history": 3}
 
 
 def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():

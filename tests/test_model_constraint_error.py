@@ -12,7 +12,7 @@ import pytest
 
 from compare.results.measure import apply_bounds, truncate as _truncate
 from compare.results.metrics import Bounds, case_metrics
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from engines.adapter import Schedule

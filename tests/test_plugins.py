@@ -17,7 +17,7 @@ import pytest
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.gate.gate import gate_results
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
 from compare.suite.tolerance import GateSettings

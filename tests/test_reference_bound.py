@@ -87,7 +87,7 @@ def test_momentum_drift_is_a_declared_gated_metric_computed_for_each_case():
 
 
 def test_a_run_records_the_reference_horizon_and_error(tmp_path):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
 

@@ -16,7 +16,7 @@ import subprocess
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.gate.gate import gate_results
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.suite.tolerance import GateSettings
 from conftest import ROOT, XVAL
 

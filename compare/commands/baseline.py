@@ -8,7 +8,7 @@ from compare.cli import output_path
 
 from compare.gate.baseline import build_baseline, write_baseline
 from compare.results.files import check_writable, results_inputs
-from compare.results.store import load_results
+from compare.run.results import load_results
 
 
 @click.command("baseline")

@@ -15,7 +15,7 @@ from compare.gate.report import format_table, to_markdown
 from compare.cli import history_option
 from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
-from compare.results.store import load_results
+from compare.run.results import load_results
 
 
 @click.command("gate")

@@ -19,7 +19,7 @@ from compare.results.record import Status
 from compare.suite.tolerance import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
-from compare.results.store import Results
+from compare.run.results import Results
 
 #: Runs in the window when --window is not given.
 DEFAULT_WINDOW = 5

@@ -37,7 +37,8 @@ from compare.results.files import remove_stale_temporaries
 from compare.results.measure import CaseOutcome, SampledReference, SceneFields, measure
 from compare.run.progress import NullProgress, Progress
 from compare.results.record import CaseKey, CaseRecord, Status, status_counts
-from compare.results.store import Results, ResultsDir, jsonable
+from compare.results.store import ResultsDir, jsonable
+from compare.run.results import Results
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 from compare.suite.tolerance_axis import tolerance_options, with_tolerance
 
@@ -130,7 +131,7 @@ class RunSummary:
     header: dict[str, Any]
 
     def results(self) -> Results:
-        """The results directory as :func:`compare.results.store.load_results` would read it back, without
+        """The results directory as :func:`compare.run.results.load_results` would read it back, without
         reading it: the records are those the run holds."""
         return Results(self.path, self.header, self.records)
 
