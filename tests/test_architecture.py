@@ -143,7 +143,7 @@ def test_no_import_cycles_between_folders():
     """No circle between folders, imports inside functions included: an import deferred into a function is
     for cost (a heavy optional library), never a way round a circle (results <-> suite once was one)."""
     assert find_cycles(folder_graph(module_graph())) == []
-    planted = {"compare.results.store": {"compare.suite.reader"}, "compare.suite.reader": {"compare.results.files"}}
+    planted = {"compare.results.store": {"compare.suite.reader"}, "compare.suite.reader": {"compare.results.metrics"}}
     assert find_cycles(folder_graph(planted)) == ["compare.results -> compare.suite -> compare.results"]
 
 
@@ -194,12 +194,12 @@ def test_model_scenes_reach_adapters_through_one_dispatch():
 
 
 #: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
-#: same rank). The errors, the file helpers, the silencing of C libraries' prints (stdio) and the scene
-#: language are what every engine speaks; the engine protocol (adapter) and the one stepping loop on it
-#: (recorder) are built on them; each adapter of an engine library, and each kind of engine from outside
+#: same rank). The errors, the silencing of C libraries' prints (stdio), the file helpers (which raise
+#: those errors) and the scene language are what every engine speaks; the engine protocol (adapter) and
+#: the one stepping loop on it (recorder) are built on them; each adapter of an engine library, and each kind of engine from outside
 #: xval (processes, plugins), on those; the robot models import files through the adapters' libraries;
 #: the reference integrates scenes and models; the registry names them all.
-ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
+ENGINE_PARTS = {"errors": 0, "stdio": 0, "files": 1, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
                 "model": 5, "reference": 6, "registry": 7}
 
 
@@ -262,8 +262,8 @@ def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():
 
 
 #: Modules of compare/ and reports/ that may name a results directory's cases/ folder: the store reads and
-#: writes it (into and from CaseRecords); files.py names it only to keep every output off a run's inputs.
-CASES_FOLDER_NAMED_BY = {"compare.results.store", "compare.results.files"}
+#: writes it (into and from CaseRecords), and names it to keep every output off a run's inputs (results_inputs).
+CASES_FOLDER_NAMED_BY = {"compare.results.store"}
 
 
 def names_the_cases_folder(tree: ast.AST) -> bool:

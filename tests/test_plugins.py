@@ -20,7 +20,7 @@ from compare.gate.gate import gate_results
 from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
-from compare.suite.tolerance import GateSettings
+from compare.suite.gate_rules import GateSettings
 from engines.scene import catalog
 from engines import registry
 from engines.adapter import API_VERSION, api_version_problem

@@ -16,7 +16,7 @@ from typing import Any, Sequence
 from compare.gate.baseline import Baseline
 from compare.gate.entry import BaselineEntry, Timing, engine_version, record_key
 from compare.results.record import Status
-from compare.suite.tolerance import RULES
+from compare.suite.gate_rules import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
 from compare.run.results import Results

@@ -20,6 +20,7 @@ import functools
 import hashlib
 import json
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +31,7 @@ import orjson
 
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text
+from engines.files import atomic_write_text
 from compare.results.record import SCHEMA_VERSION, CaseRecord, check_schema, status_counts
 
 
@@ -198,3 +199,10 @@ def read_run(path: str | Path) -> tuple[Path, dict[str, Any], list[CaseRecord]]:
     header = read_json(run_file)
     check_schema(header, run_file)
     return path, header, list(iter_records(path / "cases"))
+
+
+def results_inputs(directory: str | os.PathLike) -> list[Path]:
+    """The files of a results directory a command reads (run.json, suite.toml, every case file):
+    what an output must never replace. Other files in the directory (report.html) may be written."""
+    root = Path(directory)
+    return [root / "run.json", root / "suite.toml", root / "cases"]

@@ -33,7 +33,7 @@ from compare.run.lock import RunLock
 from compare.run import startup
 from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseTask, ReferenceTask, die_with_parent, execute,
                                    execute_reference)
-from compare.results.files import remove_stale_temporaries
+from engines.files import remove_stale_temporaries
 from compare.results.measure import CaseOutcome, SampledReference, SceneFields, measure
 from compare.run.progress import NullProgress, Progress
 from compare.results.record import CaseKey, CaseRecord, Status, status_counts

@@ -18,7 +18,7 @@ from engines.adapter import Schedule
 from engines.external.command import spec_of
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text
+from engines.files import atomic_write_text
 from compare.results.measure import CaseOutcome, CaseStatus, bounds_exceeded, decide_status
 from compare.results.metrics import Bounds, case_metrics
 from compare.results.store import jsonable

@@ -27,11 +27,11 @@ from engines.scene import catalog
 from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
-from compare.results.files import read_user_text
+from engines.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.suite.tolerance import GateSettings, gate_settings
+from compare.suite.gate_rules import GateSettings, gate_settings
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.

@@ -519,7 +519,7 @@ def _keep(path: Path, solved: tuple[ReferenceSolution, ReferenceBound]) -> None:
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
     if len(data) > _LARGEST_KEPT:
         return
-    from engines.files import atomic_write
+    from ours.files import atomic_write
 
     with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -532,7 +532,7 @@ def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
 
 
 def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
-    from engines.files import cache_dir  # the one user cache directory of xval
+    from ours.files import cache_dir  # the one user cache directory of xval
 
     key = hashlib.sha256()
     for part in (scene.content_hash, repr(float(rtol)), repr(float(atol)), _code_digest()):
