@@ -349,7 +349,7 @@ class Engine:
             settings[key] = self.options[key].parse(raw, self.name)
         return settings
 
-    def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
+    def check(self, scene: SceneLike, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
         """Raise Unsupported with the reason when this engine (variant) cannot express ``scene``."""
         missing = scene.requires - self.capabilities
         if missing:
@@ -361,7 +361,7 @@ class Engine:
         else:
             self._check(scene, settings)
 
-    def _lacking(self, scene: Scene, missing: frozenset[str]) -> str:
+    def _lacking(self, scene: SceneLike, missing: frozenset[str]) -> str:
         """Why this engine cannot express ``scene``, which needs the capabilities ``missing``."""
         if "model" in missing:
             return (f"{self.name} does not load model files (URDF, MJCF): it runs the catalog's scenes only, and "
@@ -372,7 +372,7 @@ class Engine:
 
     def simulate(
         self,
-        scene: Scene,
+        scene: SceneLike,
         dt: float,
         *,
         variant: str | None = None,

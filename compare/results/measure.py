@@ -118,7 +118,8 @@ def decide_status(
        died, lost with its executor): kept with its message.
     3. no ``run`` (the engine's own status and message) although the host said ok: ``failed``.
     4. the engine's status when not ok (``unstable``: a non-finite state, stepping stopped early;
-       ``failed``: it raised): kept with its message.
+       ``failed``: it raised; a command engine's program may also answer ``timeout`` or ``skipped``):
+       kept with its message.
     5. an ok run whose trajectory is not ``finite``: ``unstable``.
     6. an ok run past the suite's bounds (``exceeded``: one reason each, bounds_exceeded):
        ``unstable``, the reasons replacing the engine's message.

@@ -20,7 +20,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from engines.scene.scene import Scene
+from engines.scene.scene import Scene, SceneLike
 from engines.scene.trajectory import (
     Trajectory, max_constraint_error, total_energy, trajectory_constraint_error, trajectory_energy,
 )
@@ -197,7 +197,7 @@ class Series:
 
 
 def case_metrics(
-    scene: Scene,
+    scene: SceneLike,
     trajectory: Trajectory,
     reference_positions: np.ndarray,
     reference_forces: np.ndarray | None,

@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from engines.adapter import Engine, scheduled_times
-from engines.scene.scene import Scene
+from engines.scene.scene import SceneLike
 from engines.scene.trajectory import Status, Trajectory
 
 from compare.results.measure import CaseOutcome
@@ -42,7 +42,7 @@ class CaseTask:
     engine_id: str
     variant: str | None
     options: Mapping[str, Any]
-    scene: Scene
+    scene: SceneLike
     dt: float
     sample_interval: float
     repeats: int = 1
@@ -66,7 +66,7 @@ class ReferenceTask:
     """
 
     scene_id: str
-    scene: Scene
+    scene: SceneLike
     rtol: float
     atol: float
     timeout: float = 120.0

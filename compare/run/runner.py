@@ -25,7 +25,7 @@ from typing import Any, Iterable
 from engines.scene.limits import check_case_size
 from engines.external.command import spec_of
 from engines.errors import Unsupported
-from engines.scene.scene import Scene
+from engines.scene.scene import SceneLike
 
 from compare.run.environment import environment
 from compare.run.hosts import HostPool
@@ -98,7 +98,7 @@ def plan(suite: Suite) -> list[Case]:
     return cases
 
 
-def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
+def skip_reason(scene: SceneLike, engine: EngineSpec) -> str | None:
     """Why ``engine`` cannot run ``scene`` (unavailable here, or cannot express it), or None."""
     if engine.engine is None:
         return engine.unavailable
