@@ -1,9 +1,10 @@
 """Running a suite: cases through case hosts or a concurrent.futures.Executor, one record written per
 finished case.
 
-The runner plans the cases, solves each scene's reference once, dispatches the cases to case hosts
-(compare.run.isolation) or an executor, and turns each answer into a CaseRecord written as it
-finishes, so an interrupted run resumes without redoing finished cases.
+The runner takes the suite's cases (compare.run.plan), solves each scene's reference once, dispatches
+the cases to case hosts (compare.run.isolation) or an executor, and writes each case's record as it
+finishes (measured by compare.results.measure), so an interrupted run resumes without redoing finished
+cases.
 
 Details: docs/architecture.md, "Module notes", ``compare/run/runner.py``.
 """
@@ -17,15 +18,12 @@ import multiprocessing
 import os
 import time
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
 
-from engines.scene.limits import check_case_size
 from engines.external.command import spec_of
-from engines.errors import Unsupported
-from engines.scene.scene import SceneLike
 
 from compare.run.environment import environment
 from compare.run.hosts import HostPool
@@ -36,11 +34,11 @@ from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseTask, ReferenceTask
 from engines.files import remove_stale_temporaries
 from compare.results.measure import CaseOutcome, SampledReference, SceneFields, measure
 from compare.run.progress import NullProgress, Progress
-from compare.results.record import CaseKey, CaseRecord, Status, status_counts
-from compare.results.store import ResultsDir, jsonable
+from compare.results.record import CaseRecord, Status, status_counts
+from compare.results.store import ResultsDir
+from compare.run.plan import Case, check_sizes, key_of, plan, skip_reason
 from compare.run.results import Results
-from compare.suite.reader import EngineSpec, SceneSpec, Suite
-from compare.suite.tolerance_axis import tolerance_options, with_tolerance
+from compare.suite.reader import Suite
 
 #: Runs of a case whose executor breaks under it: once among others, then once alone
 #: (the Dask executor's allowed-failures follows this).
@@ -55,58 +53,6 @@ class RunStopped(Exception):
     Unlike a case that failed, it stops the run: cases not yet finished get no
     record (so ``--resume`` runs them later), finished ones stay on disk.
     """
-
-
-@dataclass(frozen=True)
-class Case:
-    """One scene × engine variant × dt of a suite; ``position`` is its (scene, engine, dt) index in the suite."""
-
-    scene: SceneSpec
-    engine: EngineSpec
-    dt: float
-    position: tuple[int, int, int] = (0, 0, 0)
-    #: On the tolerance axis: the tolerance (already in ``engine.options``); dt is then the largest step.
-    tolerance: float | None = None
-
-    @property
-    def id(self) -> str:
-        return case_id(self.scene.id, self.engine.label, self.dt, self.tolerance)
-
-
-def case_id(scene_id: str, engine_label: str, dt: float, tolerance: float | None = None) -> str:
-    """``bead|mujoco/hinge-rk4|dt=0.001`` (``…|dt=0.01|tol=1e-06`` on the tolerance axis):
-    stable across runs, the key ``--resume`` matches on."""
-    tail = "" if tolerance is None else f"|tol={tolerance:.12g}"
-    return f"{scene_id}|{engine_label}|dt={dt:.12g}{tail}"
-
-
-def plan(suite: Suite) -> list[Case]:
-    """Every case of the suite, scene-major, in the suite's order.
-
-    A variant that takes a tolerance gets one case per suite tolerance instead of one per dt
-    (compare/suite/tolerance_axis.py), when the suite sweeps one.
-    """
-    cases = []
-    for i, s in enumerate(suite.scenes):
-        for j, e in enumerate(suite.engines):
-            names = tolerance_options(e.engine, e.variant, e.options) if suite.tolerances else ()
-            if names:
-                cases += [Case(s, replace(e, options=with_tolerance(e.options, names, tol)), suite.sample_interval,
-                               (i, j, k), tol) for k, tol in enumerate(suite.tolerances)]
-            else:
-                cases += [Case(s, e, dt, (i, j, k)) for k, dt in enumerate(suite.dts)]
-    return cases
-
-
-def skip_reason(scene: SceneLike, engine: EngineSpec) -> str | None:
-    """Why ``engine`` cannot run ``scene`` (unavailable here, or cannot express it), or None."""
-    if engine.engine is None:
-        return engine.unavailable
-    try:
-        engine.engine.check(scene, engine.variant, engine.options)
-    except Unsupported as exc:
-        return str(exc)
-    return None
 
 
 def solve_reference(task: ReferenceTask) -> Any:
@@ -154,14 +100,6 @@ def run_suite(suite: Suite, output: str | Path, **options: Any) -> RunSummary:
     check_sizes(suite)
     with RunLock(output):
         return _run_suite(suite, output, **options)
-
-
-def check_sizes(suite: Suite) -> None:
-    """UserError naming the scene and dt of the first case too big to run (engines/scene/limits.py)."""
-    for spec in suite.scenes:
-        for dt in suite.dts:
-            check_case_size(len(spec.scene.particles), spec.scene.duration, dt, suite.sample_interval,
-                            where=f"{suite.path}: scene {spec.id!r}")
 
 
 def _run_suite(
@@ -537,12 +475,3 @@ class _Writer:
     def records(self) -> list[CaseRecord]:
         """Every record in the results directory, in file order (an earlier run's and this run's)."""
         return [self.written[f] for f in sorted(self.written)]
-
-
-def key_of(case: Case) -> CaseKey:
-    """The record's key of ``case`` (JSON-ready options)."""
-    return CaseKey(
-        id=case.id, scene_id=case.scene.id, scene_name=case.scene.name, engine=case.engine.label,
-        engine_id=case.engine.id, variant=case.engine.variant, options=jsonable(dict(case.engine.options)),
-        dt=float(case.dt), position=tuple(int(i) for i in case.position), tolerance=case.tolerance,
-    )

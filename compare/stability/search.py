@@ -23,7 +23,8 @@ from typing import Any, Callable
 
 from compare.results.metrics import Bounds
 from compare.results.store import jsonable, now
-from compare.run.runner import default_jobs, skip_reason
+from compare.run.plan import skip_reason
+from compare.run.runner import default_jobs
 from compare.stability.trial import (
     Trial, check_output, document_head, load_document, run_trial, write_document,
 )
