@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 import ours  # noqa: E402
 from engines.scene import catalog  # noqa: E402
 from engines.adapter import Schedule  # noqa: E402
-from engines.adapters.ours import ENGINE, _to_system  # noqa: E402
+from engines.ours.adapter import ENGINE, _to_system  # noqa: E402
 
 SCENES = {
     "bead": ("bead", {"theta0": 60}),

@@ -14,7 +14,7 @@ those: ``discrete mjx accuracy ours compile``). Prints five Markdown tables:
 4. Drake's error-controlled integrators on the double pendulum (2 s): error and steps
    against the accuracy setting, 1e-4 to 1e-10 (dt = 1e-2, the largest step).
 5. MJX's jit compile time of one step on chains of 2, 4 and 8 links (why deeper trees are
-   left out, engines/adapters/mjx.py).
+   left out, engines/mjx/adapter.py).
 
 Errors are max over samples of the largest particle distance from the reference (DOP853,
 rtol = atol = 1e-12), in metres. Costs are ratios measured in this run, never absolutes.
@@ -27,10 +27,10 @@ import sys
 import numpy as np
 
 from engines.scene import catalog
-from engines.adapters.drake import ENGINE as DRAKE
-from engines.adapters.mjx import ENGINE as MJX
-from engines.adapters.mujoco import ENGINE as MUJOCO
-from engines.adapters.ours import ENGINE as OURS
+from engines.drake.adapter import ENGINE as DRAKE
+from engines.mjx.adapter import ENGINE as MJX
+from engines.mujoco.adapter import ENGINE as MUJOCO
+from engines.ours.adapter import ENGINE as OURS
 from engines.reference.reference import solve
 
 SCENES = {
@@ -152,7 +152,7 @@ def mjx_compile_time() -> None:
 
     import mujoco
 
-    from engines.adapters.mjx import _jax
+    from engines.mjx.adapter import _jax
 
     jax, mjx = _jax()  # imported as the adapter does (quiet about the absent warp)
 

@@ -140,14 +140,14 @@ def builtin_adapters() -> dict[str, str]:
 
 
 #: Adapter -> the other adapters it may import: MJX runs MuJoCo's own model (its MJCF, its reading of samples).
-ADAPTER_USES = {"engines.adapters.mjx": {"engines.adapters.mujoco"}}
+ADAPTER_USES = {"engines.mjx.adapter": {"engines.mujoco.adapter"}}
 
 
 def test_no_engine_adapter_imports_another():
     """Shared structure (the tree of joints, the recorder) lives in neutral modules, so that an engine
     loads without another engine's library (Drake without MuJoCo)."""
     adapters = set(builtin_adapters().values())
-    assert {"engines.adapters.mujoco", "engines.adapters.drake", "engines.adapters.mjx"} <= adapters
+    assert {"engines.mujoco.adapter", "engines.drake.adapter", "engines.mjx.adapter"} <= adapters
     # Every built-in is an adapter of engines/adapters/ or the reference; a new folder of them would
     # otherwise go unchecked by the layers below.
     assert sorted(m for m in adapters if m.rpartition(".")[0] not in ("engines.adapters", "engines.reference")) == []

@@ -19,10 +19,11 @@ PACKAGES = {"mujoco": "mujoco", "pybullet": "pybullet", "drake": "drake", "dart"
 
 
 def importer(name: str) -> ModuleType:
-    """The module engines/model/<name>.py; UserError for an unknown name, Refused when its library is missing."""
+    """The module engines/<name>/model.py (Pinocchio's: engines/model/pinocchio.py); UserError for an unknown
+    name, Refused when its library is missing."""
     if name not in PACKAGES:
         raise UserError(f"unknown model engine {name!r}; choose from {', '.join((*ENGINES, REFERENCE))}")
     try:
-        return importlib.import_module(f"engines.model.{name}")
+        return importlib.import_module("engines.model.pinocchio" if name == REFERENCE else f"engines.{name}.model")
     except ImportError as exc:
         raise Refused(f"not installed ({exc}); pip install {PACKAGES[name]}") from None

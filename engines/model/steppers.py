@@ -38,12 +38,12 @@ def _kept_damping(scene: Any) -> np.ndarray:
 
 
 class MujocoStepper:
-    """MuJoCo: the compiled file (engines.model.mujoco), ``mj_step`` with the variant's integrator."""
+    """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
 
     def __init__(self, scene: Any, dt: float, integrator: str) -> None:
         import mujoco
 
-        from engines.model import mujoco as importer
+        from engines.mujoco import model as importer
 
         self.mujoco = mujoco
         loaded = importer.load(scene.source, scene.description)
@@ -68,13 +68,13 @@ class MujocoStepper:
 
 
 class DartStepper:
-    """DART: the file's Skeleton (engines.model.dart) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
+    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
 
     def __init__(self, scene: Any, dt: float, integrator: str) -> None:
         import dartpy as dart
 
-        from engines.adapters.dart import rk4_stepper as rk4_step
-        from engines.model import dart as importer
+        from engines.dart.adapter import rk4_stepper as rk4_step
+        from engines.dart import model as importer
 
         loaded = importer.load(scene.source, scene.description)
         skeleton = self.skeleton = loaded.skeleton
@@ -111,13 +111,13 @@ class DartStepper:
 
 
 class DrakeStepper:
-    """Drake: the file's continuous MultibodyPlant (engines.model.drake) under a Simulator with the variant's
+    """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
     integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
 
     def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
         from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 
-        from engines.model import drake as importer
+        from engines.drake import model as importer
 
         loaded = importer.load(scene.source, scene.description)
         plant = self.plant = loaded.plant
@@ -138,7 +138,7 @@ class DrakeStepper:
                          "fixed_step_mode": fixed, "target_accuracy": None if fixed else accuracy}
 
     def advance(self, steps: int) -> None:
-        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/adapters/drake.py)
+        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/drake/adapter.py)
             self.time += self.dt
         self.simulator.AdvanceTo(self.time)
 
@@ -151,11 +151,11 @@ class DrakeStepper:
 
 
 class PyBulletStepper:
-    """PyBullet: the file's multibody (engines.model.pybullet), ``stepSimulation`` at fixedTimeStep dt."""
+    """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
 
     def __init__(self, scene: Any, dt: float) -> None:
-        from engines.model import pybullet as importer
-        from engines.adapters.pybullet import _pb as pb
+        from engines.pybullet import model as importer
+        from engines.pybullet.adapter import _pb as pb
         from engines.stdio import quiet_output
 
         self.pb, self.quiet = pb, quiet_output
@@ -203,14 +203,14 @@ def stepper(engine: str, scene: Any, dt: float, settings: dict[str, Any]) -> Any
     if engine == "dart":
         return DartStepper(scene, dt, settings["integrator"])
     if engine == "drake":
-        from engines.adapters.drake import SCHEMES  # the variant's integrator by Drake's own name
+        from engines.drake.adapter import SCHEMES  # the variant's integrator by Drake's own name
 
         return DrakeStepper(scene, dt, SCHEMES[settings["integrator"]], not settings["error_control"],
                             settings["accuracy"])
     if engine == "pybullet":
         return PyBulletStepper(scene, dt)
-    if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/model/ours.py)
-        from engines.model.ours import OursStepper
+    if engine == "ours":  # ours' rigid bodies in maximal coordinates, from the description (engines/ours/model.py)
+        from engines.ours.model import OursStepper
 
         return OursStepper(scene, dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
                            k_d=settings["k_d"], tolerance=settings["tolerance"],

@@ -1,7 +1,7 @@
 """MuJoCo adapter: the scenes as a MuJoCo user would build them, in two formulations.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/mujoco.py``.
+``engines/mujoco/adapter.py``.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.adapters.mujoco import mujoco  # imported with no OpenGL backend (engines/adapters/mujoco.py says why)
+from engines.mujoco.adapter import mujoco  # imported with no OpenGL backend (engines/mujoco/adapter.py says why)
 
 NAME = "mujoco"
 

@@ -4,7 +4,7 @@ Variants are ``<method>-<integrator>`` (``baumgarte-rk4``, ``plain-euler``,
 ``projection-symplectic-euler``, ``lagrangian-rk4``, …) plus ``rattle``, which
 is its own integrator; every pair ``ours.valid_pairs()`` accepts has one.
 
-Details: docs/engines.md, "Adapter notes", ``engines/adapters/ours.py``.
+Details: docs/engines.md, "Adapter notes", ``engines/ours/adapter.py``.
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ class OursEngine(Engine):
                 continue
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
-        """A model file: ours' rigid bodies (engines/model/ours.py) with the variant's method and integrator."""
+        """A model file: ours' rigid bodies (engines/ours/model.py) with the variant's method and integrator."""
         from ours.rigid.method import resolve as rigid_pair
 
         try:

@@ -1,7 +1,7 @@
 """pymunk (Chipmunk2D / Munk2D) adapter: planar scenes as point masses joined by ``PinJoint``s.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/pymunk.py``.
+``engines/pymunk/adapter.py``.
 """
 
 from __future__ import annotations

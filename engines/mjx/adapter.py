@@ -1,7 +1,7 @@
 """MuJoCo MJX adapter: the MuJoCo adapter's hinge model, stepped by MJX (MuJoCo in JAX) on the CPU.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/mjx.py``.
+``engines/mjx/adapter.py``.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import numpy as np
 from ours.files import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.adapters.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
-from engines.adapters.mujoco import mujoco
-from engines.adapters.mujoco import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
+from engines.mujoco.adapter import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
+from engines.mujoco.adapter import mujoco
+from engines.mujoco.adapter import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
 from engines.scene.scene import Scene
 
 if importlib.util.find_spec("jax") is None:

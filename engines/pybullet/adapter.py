@@ -1,7 +1,7 @@
 """PyBullet adapter: point-mass scenes as one multibody, or as separate bodies joined by point-to-point constraints.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/pybullet.py``.
+``engines/pybullet/adapter.py``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Drake adapter: a MultibodyPlant per scene, stepped by Drake's own integrators or its discrete plant.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/drake.py``.
+``engines/drake/adapter.py``.
 """
 
 from __future__ import annotations
