@@ -19,7 +19,9 @@ from typing import Any
 from engines.adapter import Engine, api_version_problem, parse_engine_id
 from engines.errors import UserError
 
-#: Built-in adapters: engine name -> module defining ``ENGINE``.
+#: Built-in adapters: engine name -> module defining ``ENGINE``. Each engine lives in a folder of its own,
+#: engines/<engine>/ (its adapter, its model import, the one import of its library); adding one is that
+#: folder and a line here (docs/plugins.md).
 BUILTIN: dict[str, str] = {
     "reference": "engines.reference.reference",
     "ours": "engines.ours.adapter",
@@ -45,6 +47,9 @@ DISTRIBUTION: dict[str, str] = {
     "mjx": "mujoco-mjx",
     "dart": "dartpy",
 }
+
+#: Built-ins whose import of model files ``xval model check`` compares with Pinocchio's (``Engine.model_import``).
+MODEL_CHECK: tuple[str, ...] = ("mujoco", "pybullet", "drake", "dart")
 
 #: The entry-point group installed packages register engines under.
 ENTRY_POINT_GROUP = "xval.engines"

@@ -152,9 +152,9 @@ def mjx_compile_time() -> None:
 
     import mujoco
 
-    from engines.mjx.adapter import _jax
+    from engines.mjx.library import jax_mjx
 
-    jax, mjx = _jax()  # imported as the adapter does (quiet about the absent warp)
+    jax, mjx = jax_mjx()  # imported as the adapter does (quiet about the absent warp)
 
     print("\n### MJX jit compile of one step against the depth of the body tree (chain, float64, Euler)\n")
     print("| links | compile CPU (s) | compile wall (s) |")

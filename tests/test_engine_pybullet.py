@@ -199,7 +199,7 @@ def test_a_bad_option_value_is_a_user_error_naming_the_option(options, message):
 
 
 def test_the_iterations_default_is_what_a_fresh_client_reports():
-    from engines.pybullet.adapter import _pb
+    from engines.pybullet.library import pb as _pb
     from engines.stdio import quiet_output
 
     with quiet_output():

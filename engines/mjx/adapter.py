@@ -6,30 +6,22 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import importlib.metadata
-import importlib.util
-import io
 import math
-import os
 import time
 from typing import Any, Mapping
 
 import numpy as np
 
-from ours.files import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.mujoco.adapter import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
-from engines.mujoco.adapter import mujoco
-from engines.mujoco.adapter import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
-from engines.scene.scene import Scene
+from engines.mjx import library
 
-if importlib.util.find_spec("jax") is None:
-    raise ImportError("No module named 'jax' (MJX runs on JAX)")
-if importlib.util.find_spec("mujoco.mjx") is None:
-    raise ImportError("No module named 'mujoco.mjx' (the mujoco-mjx package)")
+# MuJoCo's model builder and its reading of samples, through the public names of MuJoCo's home (MJX steps
+# MuJoCo's own model); its library through MuJoCo's one import of it.
+from engines.mujoco.adapter import ENGINE as MUJOCO
+from engines.mujoco.adapter import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
+from engines.mujoco.library import mujoco
+from engines.scene.scene import Scene
 
 #: MJX's integrators that this adapter offers (MJX has no 'implicit').
 MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
@@ -43,38 +35,6 @@ MAX_DEPTH = 8
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
 _compiled: dict[tuple, Any] = {}
 _last_trace_x64: list[bool] = []
-
-
-@functools.cache
-def _jax():
-    """(jax, mjx), imported on first use: `xval engines` lists this engine without paying for JAX's import."""
-    os.environ.setdefault("JAX_PLATFORMS", "cpu")
-    import jax
-
-    _persistent_cache(jax)
-
-    with contextlib.redirect_stdout(io.StringIO()):  # "Failed to import warp: ..." without warp-lang
-        from mujoco import mjx
-    return jax, mjx
-
-
-def _persistent_cache(jax) -> None:
-    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.files``),
-    so a later process loads a stepping loop instead of compiling it again (3.7-11.9 s of CPU each).
-
-    Every compile is kept, however quick (JAX's default keeps only those over 1 s). An explicit
-    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Called by :func:`_jax`, once per process, before
-    the first compile.
-    """
-    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
-        jax.config.update("jax_compilation_cache_dir", str(cache_dir() / "jax"))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-
-
-def mjx_version() -> str:
-    """``mujoco-mjx X, jax Y`` from the installed distributions' metadata."""
-    return f"mujoco-mjx {importlib.metadata.version('mujoco-mjx')}, jax {importlib.metadata.version('jax')}"
 
 
 class MJXEngine(Engine):
@@ -121,7 +81,7 @@ class MJXEngine(Engine):
     }
 
     def version(self) -> str:
-        return f"{mjx_version()}, mujoco {mujoco.mj_versionString()}"
+        return f"{library.version()}, mujoco {mujoco.mj_versionString()}"
 
     def _check_options(self, settings: Mapping[str, Any]) -> None:
         if settings["inertia_ratio"] <= 0:
@@ -143,7 +103,7 @@ class MJXEngine(Engine):
         return MUJOCO.build(scene, dt, _mujoco_settings(settings))
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        jax, mjx = _jax()
+        jax, mjx = library.jax_mjx()
         model, xml, inertia = self.build(scene, schedule.dt, settings)
         data = mujoco.MjData(model)
         data.qvel[:] = hinge_velocities(scene, model)
@@ -216,9 +176,7 @@ def _depth(parent: tuple[int, ...], i: int) -> int:
 
 def _advance(m, d, n):
     """``n`` MJX steps of ``d`` under model ``m`` (a fori_loop with a traced count: one compile for any n)."""
-    import jax
-    from mujoco import mjx
-
+    jax, mjx = library.jax_mjx()
     return jax.lax.fori_loop(0, n, lambda _, x: mjx.step(m, x), d)
 
 

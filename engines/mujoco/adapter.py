@@ -6,30 +6,19 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 
 from __future__ import annotations
 
-import os
 import re
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-# xval never renders with MuJoCo. With MUJOCO_GL unset, importing mujoco loads an OpenGL backend
-# (GLFW, whose binding starts a Python process to probe its library) in every run; "disable" skips
-# it. Set for the import only, and only when the user has not chosen a backend, so outside programs
-# xval starts see the environment they were given.
-_GL_UNSET = "MUJOCO_GL" not in os.environ
-if _GL_UNSET:
-    os.environ["MUJOCO_GL"] = "disable"
-try:
-    import mujoco
-    from mujoco import rollout as mj_rollout
-finally:
-    if _GL_UNSET:
-        del os.environ["MUJOCO_GL"]
-import numpy as np  # noqa: E402 (after the guarded import above)
+import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, ModelImport, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
+from engines.mujoco import model
+from engines.mujoco.library import mj_rollout, mujoco
 from engines.recorder import Recorder
 from engines.scene.scene import Ellipse, Line, Pin, Scene
 from engines.scene.tree import Tree, read_tree
@@ -413,6 +402,12 @@ class MuJoCoEngine(Engine):
 
     def version(self) -> str:
         return mujoco.mj_versionString()
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.MujocoStepper(scene, schedule.dt, settings["integrator"]))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load, frozenset({"balance_inertia"}), model.compiler_options)
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "hinge":

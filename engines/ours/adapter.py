@@ -16,6 +16,8 @@ import numpy as np
 import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
+from engines.ours.model import OursStepper
 from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
@@ -110,6 +112,11 @@ class OursEngine(Engine):
                     ours.simulate(system, q0, v0, 1e-3, 1, method="lagrangian")
             except (Unsupported, ours.OursError):
                 continue
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, OursStepper(scene, schedule.dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
+                                                      k_d=settings["k_d"], tolerance=settings["tolerance"],
+                                                      max_iterations=settings["max_iterations"]))
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         """A model file: ours' rigid bodies (engines/ours/model.py) with the variant's method and integrator."""

@@ -7,7 +7,6 @@ Details (what is built, which defaults are overridden and why): docs/engines.md,
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import threading
 from dataclasses import dataclass
@@ -15,17 +14,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, ModelImport, Option, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
+from engines.pybullet import model
+from engines.pybullet.library import pb as _pb
+from engines.pybullet.library import version as pybullet_version
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Scene
 from engines.scene.tree import ROOT, read_tree
 from engines.stdio import quiet_output
-
-# -- keeping PyBullet's prints out of the caller's output (engines/stdio.py) -------------------
-
-with quiet_output():
-    import pybullet as _pb  # prints "pybullet build time: ..." at import
 
 # -- PyBullet's own defaults (documented values; the library does not report them) ----------
 
@@ -267,7 +265,7 @@ class PyBulletEngine(Engine):
     }
 
     def version(self) -> str:
-        return _pybullet_version()
+        return pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":
@@ -280,6 +278,12 @@ class PyBulletEngine(Engine):
                 f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
                 f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
             )
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.PyBulletStepper(scene, schedule.dt))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load)
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":
@@ -315,18 +319,6 @@ class PyBulletEngine(Engine):
                 raise
             _clients.give_back(client)
             return raw
-
-
-@functools.lru_cache(maxsize=1)
-def _pybullet_version() -> str:
-    """The installed pybullet's version (read from its metadata once: each read scans the installed
-    distributions, and every run records it)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("pybullet")
-    except PackageNotFoundError:
-        return f"api {_pb.getAPIVersion()}"
 
 
 def _empty(client: int) -> None:

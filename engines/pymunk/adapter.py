@@ -10,10 +10,10 @@ import math
 from typing import Any, Mapping
 
 import numpy as np
-import pymunk
 
 from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
 from engines.errors import UserError
+from engines.pymunk.library import pymunk
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Rod, Scene
 
