@@ -6,8 +6,8 @@ every time step of the default suite (1e-1 … 1e-4 s, two per decade), for 2 s
 with a sample every 0.25 s (``OURS_EQ_SAMPLE``), and stores positions, velocities, multipliers,
 steps taken and the status.
 
-    .venv/bin/python scripts/ours_equivalence.py save bench/data/ours_trajectories.npz
-    .venv/bin/python scripts/ours_equivalence.py check bench/data/ours_trajectories.npz
+    .venv/bin/python scripts/ours_equivalence.py save tests/golden/ours_trajectories.npz
+    .venv/bin/python scripts/ours_equivalence.py check tests/golden/ours_trajectories.npz
 
 ``check`` prints the largest relative difference per quantity (max |new − old| /
 max |old| over a run, NaN where both are NaN counting as equal) and exits 1
