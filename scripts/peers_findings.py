@@ -161,7 +161,7 @@ def mjx_compile_time() -> None:
     print("|---|---|---|")
     for n in (2, 4, 8):
         scene = catalog.build("chain", {"n": n, "duration": 1})
-        model, _, _ = MJX.build(scene, 1e-3, MJX.resolve("hinge"))
+        model = MJX.build(scene, 1e-3, MJX.resolve("hinge")).model
         with jax.enable_x64(True):
             jax.clear_caches()
             mx, dx = mjx.put_model(model, impl="jax"), mjx.put_data(model, mujoco.MjData(model), impl="jax")

@@ -144,12 +144,10 @@ def builtin_adapters() -> dict[str, str]:
 #: model check and every comparison use), so it has no home and its name is not one the checks below look for.
 HOMES = ("mujoco", "mjx", "pybullet", "pymunk", "drake", "dart", "ours")
 #: Home -> what it may import from other homes: MJX steps MuJoCo's own model, built by MuJoCo's public builder
-#: (its ENGINE's check/build/resolve and the public helpers named here), with MuJoCo's one import of the library.
-HOME_USES = {"mjx": {"engines.mujoco.adapter.ENGINE", "engines.mujoco.adapter.HINGE_INERTIA_RATIO",
-                     "engines.mujoco.adapter.constraint_tree", "engines.mujoco.adapter.hinge_velocities",
-                     "engines.mujoco.adapter.read_samples", "engines.mujoco.adapter.without_timestep",
-                     "engines.mujoco.library.mujoco", "engines.mujoco.adapter", "engines.mujoco.library",
-                     "engines.mujoco"}}
+#: (engines/mujoco/builder.py), with MuJoCo's one import of the library.
+HOME_USES = {"mjx": {"engines.mujoco.builder", "engines.mujoco.library", "engines.mujoco.library.mujoco",
+                     *(f"engines.mujoco.builder.{name}" for name in ("HINGE_INERTIA_RATIO", "HingeModel", "check_hinge",
+                                                                     "hinge_model", "read_hinge_samples", "tree_depth"))}}
 #: Each home's engine library (top-level import names): imported only by that home's library.py.
 LIBRARIES = {"mujoco": {"mujoco"}, "mjx": {"jax", "mujoco.mjx"}, "pybullet": {"pybullet"}, "pymunk": {"pymunk"},
              "drake": {"pydrake"}, "dart": {"dartpy"}}

@@ -16,10 +16,15 @@ from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.mjx import library
 
-# MuJoCo's model builder and its reading of samples, through the public names of MuJoCo's home (MJX steps
-# MuJoCo's own model); its library through MuJoCo's one import of it.
-from engines.mujoco.adapter import ENGINE as MUJOCO
-from engines.mujoco.adapter import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
+# MJX steps MuJoCo's own model: built and read by MuJoCo's public builder, with MuJoCo's one import of it.
+from engines.mujoco.builder import (
+    HINGE_INERTIA_RATIO,
+    HingeModel,
+    check_hinge,
+    hinge_model,
+    read_hinge_samples,
+    tree_depth,
+)
 from engines.mujoco.library import mujoco
 from engines.scene.scene import Scene
 
@@ -88,30 +93,29 @@ class MJXEngine(Engine):
             raise UserError(f"mjx: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        MUJOCO.check(scene, "hinge", _mujoco_options(settings))
-        tree = constraint_tree(scene)
-        depth = max(_depth(tree.parent, i) for i in range(len(tree.parent)))
+        check_hinge(scene, settings["integrator"], settings["inertia_ratio"])
+        depth = tree_depth(scene)
         if depth > settings["max_depth"]:
             raise Unsupported(
                 f"mjx: the body tree is {depth} deep and MJX's jit compile on the CPU grows steeply with depth "
                 f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
             )
 
-    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
-        """(compiled MuJoCo model, MJCF text, (n,) kg·m² inertia of each particle body): the MuJoCo adapter's
-        hinge model with this integrator and inertia."""
-        return MUJOCO.build(scene, dt, _mujoco_settings(settings))
+    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> HingeModel:
+        """The MuJoCo adapter's hinge model with this integrator and inertia."""
+        return hinge_model(scene, dt, settings["integrator"], settings["inertia_ratio"])
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         jax, mjx = library.jax_mjx()
-        model, xml, inertia = self.build(scene, schedule.dt, settings)
+        hinge = self.build(scene, schedule.dt, settings)
+        model, inertia = hinge.model, hinge.inertia
         data = mujoco.MjData(model)
-        data.qvel[:] = hinge_velocities(scene, model)
+        data.qvel[:] = hinge.qvel
         mujoco.mj_forward(model, data)
         x64 = settings["precision"] == "float64"
         strides = np.diff(schedule.sample_steps).astype(np.int32)
         # The compiled loop depends on the model's structure, not on dt (an array in MJX's model).
-        key = (without_timestep(xml), x64)
+        key = (hinge.structure, x64)
         record: dict[str, Any] = {}
         with jax.enable_x64(x64):
             mx = mjx.put_model(model, impl="jax")
@@ -140,7 +144,7 @@ class MJXEngine(Engine):
         finite = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
         n = len(qpos) if finite.all() else int(np.argmin(finite)) + 1
         states = _full_states(model, qpos[:n], qvel[:n], schedule.times[:n])
-        positions, velocities, forces = read_samples(scene, model, mujoco.MjData(model), states, hinge=True)
+        positions, velocities, forces = read_hinge_samples(scene, model, states)
         record["point_mass_inertia"] = [float(x) for x in inertia]  # the model's, MuJoCo's floor included
         taken = int(schedule.sample_steps[-1] if n == len(qpos) else schedule.sample_steps[n])
         record["precision_floor"] = precision_floor(record["dtype"], taken, scene.characteristic_length)
@@ -155,23 +159,6 @@ def precision_floor(dtype: str, steps: int, length: float) -> float:
     0.15 (bead) to 0.63 (double pendulum) of it over 2 s at dt 1e-4 s; compare.results.consistency does
     not call a plateau under it inconsistent."""
     return float(np.finfo(np.dtype(dtype)).eps) * math.sqrt(max(steps, 1)) * length
-
-
-def _mujoco_options(settings: Mapping[str, Any]) -> dict[str, Any]:
-    return {"integrator": settings["integrator"], "inertia_ratio": settings["inertia_ratio"]}
-
-
-def _mujoco_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
-    """The MuJoCo adapter's settings for mujoco/hinge with this integrator and point-mass inertia."""
-    return MUJOCO.resolve("hinge", _mujoco_options(settings))
-
-
-def _depth(parent: tuple[int, ...], i: int) -> int:
-    """Bodies from the world down to particle ``i`` (1 for a particle hung from a Pin)."""
-    depth = 1
-    while parent[i] >= 0:
-        i, depth = parent[i], depth + 1
-    return depth
 
 
 def _advance(m, d, n):
