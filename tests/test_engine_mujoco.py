@@ -18,7 +18,8 @@ from engines.model.scene import model_scene
 from engines.scene import catalog
 from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
-from engines.mujoco.adapter import ENGINE, MUJOCO_SOLIMP, MUJOCO_SOLREF, STIFF
+from engines.mujoco.adapter import ENGINE
+from engines.mujoco.options import MUJOCO_SOLIMP, MUJOCO_SOLREF, STIFF
 from engines.reference.reference import solve
 from engines.scene.scene import Particle, Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy

@@ -18,7 +18,8 @@ from engines.scene import catalog
 
 from engines.reference import closed_form
 from engines.errors import Unsupported, UserError
-from engines.pybullet.adapter import ENGINE, PYBULLET_ITERATIONS, forest
+from engines.pybullet.adapter import ENGINE, forest
+from engines.pybullet.options import PYBULLET_ITERATIONS
 from engines.scene.scene import Particle, Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy
 

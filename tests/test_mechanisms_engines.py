@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 from engines import registry
 from engines.scene import catalog
 from engines.errors import Unsupported
-from engines.mujoco.adapter import STIFF
+from engines.mujoco.options import STIFF
 from engines.reference.reference import solve
 from engines.scene.scene import Line, Particle, Rod, Scene
 from engines.scene.trajectory import free_direction, linear_momentum_drift
