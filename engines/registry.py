@@ -114,6 +114,7 @@ MOVED = {
     **{f"engines.{n}": f"engines.scene.{n}" for n in ("limits", "catalog", "trajectory", "pendulum", "tree")},
     "engines.reference_mechanisms": "engines.reference.mechanisms",
     "engines.closed_form": "engines.reference.closed_form",
+    "engines.adapters": "engines.<engine>.adapter (each engine's home)",
     **{f"engines.adapters.{n}": f"engines.{n}.adapter"
        for n in ("mujoco", "pybullet", "pymunk", "drake", "dart", "mjx", "ours")},
     **{f"engines.model.{n}": f"engines.{n}.model" for n in ("mujoco", "pybullet", "drake", "dart", "ours")},
