@@ -19,15 +19,8 @@ from engines.errors import Unsupported, UserError
 from engines.model.stepping import run_model
 from engines.mujoco import model
 from engines.mujoco.library import mj_rollout, mujoco
-from engines.mujoco.options import (
-    MIN_INERTIA,
-    MUJOCO_SOLIMP,
-    MUJOCO_SOLREF,
-    OPTIONS,
-    OVERRIDES,
-    VARIANT_DOCS,
-    VARIANTS,
-)
+from engines.mujoco import options as tables
+from engines.mujoco.options import MIN_INERTIA, MUJOCO_SOLIMP, MUJOCO_SOLREF
 from engines.recorder import Recorder
 from engines.scene.scene import Ellipse, Line, Pin, Scene
 from engines.scene.tree import Tree, read_tree
@@ -327,10 +320,8 @@ class MuJoCoEngine(Engine):
 
     name = "mujoco"
     capabilities = frozenset({"3d", "constraint-forces", "model"})
-    options = OPTIONS
-    variants = VARIANTS
-    variant_docs = VARIANT_DOCS
-    overrides = OVERRIDES
+    # The option tables (engines/mujoco/options.py).
+    options, variants, variant_docs, overrides = tables.OPTIONS, tables.VARIANTS, tables.VARIANT_DOCS, tables.OVERRIDES
 
     def version(self) -> str:
         return mujoco.mj_versionString()

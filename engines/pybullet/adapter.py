@@ -20,14 +20,8 @@ from engines.model.stepping import run_model
 from engines.pybullet import model
 from engines.pybullet.library import pb as _pb
 from engines.pybullet.library import version as pybullet_version
-from engines.pybullet.options import (
-    KEEPABLE,
-    OPTIONS,
-    OVERRIDES,
-    SOLVERS,
-    VARIANT_DOCS,
-    VARIANTS,
-)
+from engines.pybullet import options as tables
+from engines.pybullet.options import KEEPABLE, SOLVERS
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Scene
 from engines.scene.tree import ROOT, read_tree
@@ -176,10 +170,8 @@ class PyBulletEngine(Engine):
 
     name = "pybullet"
     capabilities = frozenset({"3d", "constraint-forces", "model"})
-    options = OPTIONS
-    variants = VARIANTS
-    variant_docs = VARIANT_DOCS
-    overrides = OVERRIDES
+    # The option tables (engines/pybullet/options.py).
+    options, variants, variant_docs, overrides = tables.OPTIONS, tables.VARIANTS, tables.VARIANT_DOCS, tables.OVERRIDES
 
     def version(self) -> str:
         return pybullet_version()
