@@ -17,7 +17,6 @@ import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.model.stepping import run_model
-from engines.ours.model import OursStepper
 from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
@@ -114,6 +113,8 @@ class OursEngine(Engine):
                 continue
 
     def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        from engines.ours.model import OursStepper  # for cost: ours' rigid bodies load only for a model scene
+
         return run_model(scene, schedule, OursStepper(scene, schedule.dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
                                                       k_d=settings["k_d"], tolerance=settings["tolerance"],
                                                       max_iterations=settings["max_iterations"]))
