@@ -12,10 +12,11 @@ An adapter subclasses :class:`Engine` and fills in:
   times, record the state at ``schedule.sample_steps``, time only the stepping loop.
 
 and may override the hooks the harness calls on every engine, each declared here with its default:
-``_check_model`` / ``_run_model`` (model files), ``preload(scenes)`` (load once before case hosts
-fork), ``needs_warm_up``, ``tolerance_options`` / ``tolerance_capable(settings)`` (a suite's
-tolerance axis), ``program()`` (an outside program's argv and version), ``spectral_radius`` /
-``largest_stable_dt`` (the engine's own stability theory). Nothing else is looked up on an engine.
+``_check_model`` / ``_run_model`` (model files), ``model_import()`` (what ``xval model check``
+compares), ``preload(scenes)`` (load once before case hosts fork), ``needs_warm_up``,
+``tolerance_options`` / ``tolerance_capable(settings)`` (a suite's tolerance axis), ``program()`` (an
+outside program's argv and version), ``spectral_radius`` / ``largest_stable_dt`` (the engine's own
+stability theory). Nothing else is looked up on an engine.
 
 Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
@@ -28,12 +29,12 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Iterable, Mapping, Sequence
+from typing import Any, Callable, ClassVar, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene.scene import Ellipse, Scene, SceneLike
+from engines.scene.scene import Ellipse, Scene, SceneLike, ModelSceneLike
 from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 #: Default interval between stored samples, s.
@@ -165,6 +166,22 @@ class Schedule:
 
 
 @functools.lru_cache(maxsize=256)
+@dataclass(frozen=True)
+class ModelImport:
+    """An engine's import of a model file, as ``xval model check`` uses it (engines/<engine>/model.py).
+
+    load : ``load(source, description, **options)`` -> the loaded model (engines.model.loaded.LoadedModel).
+    options : the keyword options ``load`` takes that ``xval model check`` may pass (MuJoCo's
+        ``balance_inertia``); the others are not given them.
+    stated : ``stated(**options)`` -> the import settings a file was given, shown when the engine refused it.
+    """
+
+    version: Callable[[], str]
+    load: Callable[..., Any]
+    options: frozenset[str] = frozenset()
+    stated: Callable[..., dict[str, str]] = lambda **_: {}
+
+
 def refuse_ellipse(scene: Scene, why: str) -> None:
     """Raise Unsupported for the first Ellipse of ``scene``: ``why`` (the engine's reason), then its index."""
     for k, c in enumerate(scene.constraints):
@@ -275,13 +292,18 @@ class Engine:
 
     # -- model files (only for an engine with the "model" capability) ------------------------------
 
-    def _check_model(self, scene: SceneLike, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         """Raise Unsupported for a model scene (engines.model.scene.ModelScene) these settings cannot load."""
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        """The RawRun of a model scene: the model layer imports the file into this engine and steps it with
-        the engine's stepper (engines/model/steppers.py), which reads what it needs from ``settings``."""
-        return scene.run_in(self.name, schedule, settings)
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        """The RawRun of a model scene: the engine's home imports the file (engines/<engine>/model.py), builds
+        its stepper from ``settings`` and hands it to ``engines.model.stepping.run_model``, the one loop."""
+        raise NotImplementedError(f"{self.name} declares the 'model' capability but does not run model scenes")
+
+    def model_import(self) -> "ModelImport | None":
+        """This engine's import of model files as ``xval model check`` compares it with Pinocchio's, or None
+        (the default: the engine is not compared)."""
+        return None
 
     # -- optional: what the harness asks every engine, each with its default ----------------------
 

@@ -19,7 +19,7 @@ from typing import Any
 from engines.adapter import Engine
 
 
-#: The capability an engine declares to take part (engines.adapters.drake.DrakeEngine).
+#: The capability an engine declares to take part (engines.drake.adapter.DrakeEngine).
 CAPABILITY = "tolerance"
 
 

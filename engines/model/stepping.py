@@ -1,7 +1,7 @@
 """Stepping a model scene in an engine: one loop for every engine, each engine's own step.
 
 An engine adapter that runs model scenes builds a :class:`Stepper` from the
-engine's import of the file (``engines.model.<engine>.load``), with its
+engine's import of the file (``engines/<engine>/model.py``), with its
 integrator and time step, and hands it to :func:`run_model`. The loop
 advances to each sample step (only that is timed), reads the joint state
 (q, v) in the model's joint order, and afterwards turns every sample into
@@ -19,6 +19,7 @@ import numpy as np
 
 from engines.adapter import RawRun, Schedule
 from engines.recorder import Recorder
+from engines.model.scene import ModelScene
 
 
 class Stepper(Protocol):
@@ -41,7 +42,7 @@ class Stepper(Protocol):
     # joints hold by construction.
 
 
-def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
+def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun:
     """Step ``scene`` (an engines.model.scene.ModelScene) to every sample of ``schedule`` through the one
     Recorder loop (it stops at a non-finite state).
     Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v;
@@ -64,8 +65,27 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
     return replace(raw, joint_states=states, constraint_violation=violation)
 
 
-def file_values(scene: Any) -> dict[str, dict[str, float]]:
+def file_values(scene: ModelScene) -> dict[str, dict[str, float]]:
     """The file's joint damping and friction by joint (what ``keep`` leaves in place), for the record."""
     return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
             if j.damping or j.friction}
 
+
+def common_settings(scene: ModelScene, loaded: Any) -> dict[str, Any]:
+    """Settings every model run records: the import's options and notes, and what the file's joint
+    damping and friction were (set to 0, or the damping kept; contacts and joint limits are off)."""
+    return {
+        "model": scene.model,
+        "import_options": dict(loaded.options),
+        "import_notes": list(loaded.notes),
+        "file_damping_friction": file_values(scene),
+        "file_dynamics": ("keep: the file's joint damping kept (no friction in the file)" if scene.file_dynamics == "keep"
+                          else "neutral: joint damping, friction and armature set to 0"),
+        "contacts": "off", "joint_limits": "off",
+    }
+
+
+def kept_damping(scene: ModelScene) -> np.ndarray:
+    """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
+    keep = scene.file_dynamics == "keep"
+    return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])

@@ -333,6 +333,18 @@ class SceneLike(Protocol):
     def with_duration(self, duration: float) -> "SceneLike": ...
 
 
+class ModelSceneLike(SceneLike, Protocol):
+    """A model scene (engines.model.scene.ModelScene) as an engine's ``_check_model`` / ``_run_model`` get it.
+
+    file_dynamics : "neutral" (damping, friction, armature 0) or "keep" (the file's).
+    """
+
+    @property
+    def file_dynamics(self) -> str: ...
+    def refuse_kept_dynamics(self, engine: str) -> None:
+        """Unsupported when the scene keeps the file's joint damping, which ``engine``'s import cannot."""
+
+
 @dataclass(frozen=True, eq=False)
 class Scene:
     """A physical system every engine is asked to simulate.
