@@ -23,7 +23,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.stdio import quiet_output
 from engines.model.scene import ModelScene
 
@@ -116,7 +116,7 @@ class DartModel(LoadedModel):
         return found
 
 
-class DartStepper:
+class DartStepper(Stepper):
     """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
 
     def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:

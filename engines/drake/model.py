@@ -23,7 +23,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
 from engines.model.scene import ModelScene
 
 NAME = "drake"
@@ -142,7 +142,7 @@ class DrakeModel(LoadedModel):
         return found
 
 
-class DrakeStepper:
+class DrakeStepper(Stepper):
     """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
     integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
 

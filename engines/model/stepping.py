@@ -1,6 +1,6 @@
 """Stepping a model scene in an engine: one loop for every engine, each engine's own step.
 
-An engine adapter that runs model scenes builds a :class:`Stepper` from the
+An engine adapter that runs model scenes builds a :class:`Stepper` (a subclass of it) from the
 engine's import of the file (``engines/<engine>/model.py``), with its
 integrator and time step, and hands it to :func:`run_model`. The loop
 advances to each sample step (only that is timed), reads the joint state
@@ -13,7 +13,7 @@ every override goes into the run's settings.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -22,8 +22,9 @@ from engines.recorder import Recorder
 from engines.model.scene import ModelScene
 
 
-class Stepper(Protocol):
-    """An engine's model, ready to step at the schedule's dt from the scene's initial state.
+class Stepper:
+    """An engine's model, ready to step at the schedule's dt from the scene's initial state: the base of each
+    engine's stepper (engines/<engine>/model.py), which implements ``advance`` and ``state``.
 
     settings : what the run must record (import options, overrides, integrator).
     """
@@ -32,14 +33,22 @@ class Stepper(Protocol):
 
     def advance(self, steps: int) -> None:
         """Take ``steps`` steps of dt."""
+        raise NotImplementedError
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
+        raise NotImplementedError
 
-    # Optional, for an engine whose joints can come apart (maximal coordinates, ours):
-    # ``constraint_violations() -> (n,)``, m: the largest joint violation at each state ``state`` returned,
-    # read once after the run (RawRun.constraint_violation). A reduced-coordinate engine has none: its
-    # joints hold by construction.
+    def steps_taken(self) -> int | None:
+        """Steps taken so far, for an integrator that chooses its own (error-controlled); None (the default):
+        the schedule's count."""
+        return None
+
+    def constraint_violations(self) -> np.ndarray | None:
+        """(n,) m: the largest joint violation at each state ``state`` returned, read once after the run
+        (RawRun.constraint_violation), for an engine whose joints can come apart (maximal coordinates,
+        ours); None (the default): a reduced-coordinate engine's joints hold by construction."""
+        return None
 
 
 def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun:
@@ -59,9 +68,9 @@ def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun
         good = np.flatnonzero(finite)
         positions[good], velocities[good] = scene.frame_states(q[good], v[good])
     # An error-controlled integrator takes steps of its own choosing: the stepper counts them.
-    taken = stepper.steps_taken() if hasattr(stepper, "steps_taken") else None
+    taken = stepper.steps_taken()
     raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings, steps=taken)
-    violation = stepper.constraint_violations() if hasattr(stepper, "constraint_violations") else None
+    violation = stepper.constraint_violations()
     return replace(raw, joint_states=states, constraint_violation=violation)
 
 

@@ -20,7 +20,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.mujoco.library import mujoco
 from engines.model.scene import ModelScene
 
@@ -121,7 +121,7 @@ class MujocoModel(LoadedModel):
         return found
 
 
-class MujocoStepper:
+class MujocoStepper(Stepper):
     """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
 
     def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:

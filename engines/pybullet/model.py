@@ -25,7 +25,7 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
 from engines.pybullet.library import pb
 from engines.pybullet.library import version as _pybullet_version
 from engines.stdio import quiet_output
@@ -139,7 +139,7 @@ class PyBulletModel(LoadedModel):
             pass
 
 
-class PyBulletStepper:
+class PyBulletStepper(Stepper):
     """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
 
     def __init__(self, scene: ModelScene, dt: float) -> None:
