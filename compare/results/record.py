@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping, TypedDict, Union
 from engines.errors import UserError
 from engines.scene.trajectory import Status  # the one status enum, from an engine's RunInfo up to the record
 
-from compare.results.declared import current_names
+from compare.results.declared import METRICS, current_names
 from compare.results.series import SeriesView
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
@@ -189,8 +189,6 @@ class CaseRecord:
 
     def metric(self, name: str) -> Any:
         """The value of declared metric ``name`` (None when this case has none); KeyError for an undeclared name."""
-        from compare.results.declared import METRICS
-
         if name not in METRICS and name not in ("n_samples", "complete"):
             raise KeyError(f"{name!r} is not a declared metric (compare/results/declared.py)")
         return self.metrics.get(name)
