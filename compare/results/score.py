@@ -21,7 +21,7 @@ from engines.errors import UserError
 from engines.reference.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
 from engines.model.scene import ModelScene
 from engines.scene.scene import Scene
-from engines.scene.trajectory import RunInfo, Trajectory
+from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 from compare.results import declared
 from compare.results.metrics import DEFAULT_DELTA, case_metrics
@@ -156,14 +156,14 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
                                                               series.position_error))
     values = {**metrics.to_dict(), **computed}
     extra = [name for name in computed if name not in SCORE_METRICS]
-    status, message = "ok", ""
+    status, message = Status.OK, ""
     if first_bad is not None:
-        status = "unstable"
+        status = Status.UNSTABLE
         message = f"non-finite state at t = {state.t[first_bad]:.6g} s (line {int(item.lines[first_bad])})"
     return {
         "file": item.path,
         "scene": scene.name,
-        "status": status,
+        "status": status.value,
         "message": message,
         "n_samples": int(n),
         "t_end": float(state.t[-1]),
