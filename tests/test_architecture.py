@@ -478,3 +478,38 @@ def test_baseline_entries_are_typed_and_made_from_case_records_in_one_place():
             if key in CASE_FIELDS:
                 keyed.append(f"{module}:{node.lineno} [{key!r}]")
     assert keyed == []
+
+
+def engine_hook_names() -> set[str]:
+    """Names an engine class defines: the base Engine's and every built-in adapter's methods and attributes."""
+    names: set[str] = set()
+    for path in [ROOT / "engines" / "adapter.py", ROOT / "engines" / "external" / "command.py",
+                 ROOT / "engines" / "reference" / "reference.py", *(ROOT / "engines" / h / "adapter.py" for h in HOMES)]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef) and (node.name == "Engine" or any(
+                    isinstance(b, ast.Name) and b.id.endswith("Engine") for b in node.bases)):
+                for item in node.body:
+                    if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        names.add(item.name)
+                    elif isinstance(item, ast.AnnAssign) and isinstance(item.target, ast.Name):
+                        names.add(item.target.id)
+                    elif isinstance(item, ast.Assign):
+                        names.update(t.id for t in item.targets if isinstance(t, ast.Name))
+    # "name" is everything's (a task's too, which the cluster's progress reads with getattr).
+    return names - {"__init__", "name"}
+
+
+def test_every_engine_hook_is_declared_never_looked_up_by_name():
+    """The harness calls what Engine declares (with its default); getattr/hasattr with an engine hook's name
+    outside the engines' own classes would mean a hook an engine may or may not have."""
+    hooks = engine_hook_names()
+    assert {"preload", "tolerance_options", "tolerance_capable", "program", "needs_warm_up"} <= hooks
+    found = []
+    for module, path in project_modules().items():
+        if home_of(module) is not None:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and node.args[1].value in hooks):
+                found.append(f"{module}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
+    assert found == []
