@@ -204,7 +204,7 @@ def measure(
     host = CaseStatus(outcome.status, outcome.message or "")
     if outcome.trajectory is None:
         return replace(record, **decide_status(host=host)._asdict())
-    return _measured(record, scene, outcome, host, reference, settings)
+    return _measured(record, scene, outcome, outcome.trajectory, host, reference, settings)
 
 
 def _timing(outcome: CaseOutcome) -> dict[str, Any]:
@@ -217,11 +217,9 @@ def _timing(outcome: CaseOutcome) -> dict[str, Any]:
     }
 
 
-def _measured(record: CaseRecord, scene: SceneLike, outcome: CaseOutcome, host: CaseStatus,
+def _measured(record: CaseRecord, scene: SceneLike, outcome: CaseOutcome, trajectory: Trajectory, host: CaseStatus,
               reference: SampledReference | Exception | None, settings: MeasureSettings) -> CaseRecord:
-    """``record`` with what the trajectory of ``outcome`` gives: run info, reference, metrics, status, series."""
-    trajectory = outcome.trajectory
-    assert trajectory is not None
+    """``record`` with what ``trajectory`` (``outcome``'s) gives: run info, reference, metrics, status, series."""
     info = trajectory.info
     finite = np.isfinite(trajectory.positions).all(axis=(1, 2)) & np.isfinite(trajectory.velocities).all(axis=(1, 2))
     if not finite.all():
