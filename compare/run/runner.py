@@ -625,14 +625,15 @@ def _measured(record: CaseRecord, case: Case, outcome: CaseOutcome, reference: A
         solved = {"rtol": solution.rtol, "atol": solution.atol, "steps": solution.n_steps,
                   "wall_time": solution.wall_time}
         if reference.bound is not None:
-            from engines.reference.reference import growth_rate  # loaded already: it made ``reference``
-
-            # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
+            # The reference's own error bar (m) and horizon (s; None: it holds over the whole run), the
+            # horizon's interval and the Lyapunov estimate with its interval (a chaotic scene's; else None).
+            rate, interval = reference.bound.lyapunov, reference.bound.horizon_interval
             solved.update(reference_error=reference.bound.reference_error,
                           tight_rtol=reference.bound.tight_rtol,
                           horizon_threshold=reference.bound.threshold,
-                          lyapunov_exponent=growth_rate(reference.bound.t, reference.bound.difference,
-                                                        scene.characteristic_length))
+                          reference_horizon_interval=None if interval is None else list(interval),
+                          lyapunov_exponent=None if rate is None else rate.value,
+                          lyapunov_interval=None if rate is None else rate.interval)
             horizon = reference.bound.reference_horizon
     # A state that ran away (finite, but 1e200 m/s) overflows numpy in the energy: a warning in the case's
     # message, not a line on the terminal.
