@@ -152,6 +152,13 @@ def test_show_json_carries_the_chaotic_estimates_with_their_intervals(tmp_path):
     assert low <= dp["reference_horizon"] <= high and low < high  # measured 7.29 [5.83, 8.8] s
     assert bead["lyapunov_exponent"] is None and bead["lyapunov_interval"] is None
     assert bead["reference_horizon"] is None and bead["reference_horizon_interval"] is None
+    # So does the verdict's document, per scene.
+    verdict = run_xval("verdict", tmp_path / "run", "--format", "json")
+    assert verdict.returncode == 0, verdict.stderr
+    scenes = {scene["scene"]: scene["reference"] for scene in json.loads(verdict.stdout)["scenes"]}
+    assert scenes["dp"]["lyapunov_interval"] == dp["lyapunov_interval"]
+    assert scenes["dp"]["reference_horizon_interval"] == dp["reference_horizon_interval"]
+    assert scenes["bead"]["lyapunov_interval"] is None
     # The text table's scene line says the estimate with its interval.
     text = run_xval("show", tmp_path / "run").stdout
     assert re.search(r"scene dp \(reference error \S+ m, horizon [\d.]+ \[[\d.]+, [\d.]+\] s, "

@@ -178,12 +178,19 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-def _reference_line(records: Iterable[CaseRecord]) -> str:
-    """`` (reference error 3e-12 m, horizon none, Lyapunov -)`` from the first record that has a reference."""
+def scene_reference(records: Iterable[CaseRecord]) -> dict[str, Any] | None:
+    """:data:`REFERENCE_FIELDS` of a scene: those of its first record that has a reference (None: none has)."""
     for record in records:
         values = reference_values(record)
-        if values["reference_error"] is None:
-            continue
+        if values["reference_error"] is not None:
+            return values
+    return None
+
+
+def _reference_line(records: Iterable[CaseRecord]) -> str:
+    """`` (reference error 3e-12 m, horizon none, Lyapunov -)`` from the first record that has a reference."""
+    values = scene_reference(records)
+    if values is not None:
         horizon = values["reference_horizon"]
         return (f" (reference error {values['reference_error']:.2g} m, horizon "
                 f"{'none' if horizon is None else estimate_text(horizon, values['reference_horizon_interval'], 's', 3)}"
