@@ -245,4 +245,4 @@ def report(figures: Mapping[str, float], quotes: Iterable[Quote], rows: Iterable
     for key in sorted(figures):
         print(f"{key} = {figures[key]:.4g}")
     found = problems(figures, quotes, rows)
-    print("\n" + ("\n".join(found) if found else "every quoted figure is what this run measured, to the digits shown"))
+    print("\n" + ("\n".join(found) if found else "every quoted figure is what this run measured, within its tolerance"))

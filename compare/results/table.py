@@ -148,7 +148,7 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     references: dict[str, str] = {}
     for sweep in variant_sweeps:
         finest = sweep.finest_ok
-        if sweep.scene_id not in references:
+        if not references.get(sweep.scene_id):  # a sweep skipped throughout has no reference
             references[sweep.scene_id] = _reference_line(sweep.records)
         values = []
         for metric in declared.shown():
