@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Quote, Row, report  # noqa: E402
 
 from engines.scene import catalog  # noqa: E402
-from engines.reference.ensemble import lyapunov_ensemble  # noqa: E402
+from engines.reference.reference import lyapunov_ensemble  # noqa: E402
 from engines.reference.reference import bound, solve  # noqa: E402
 from quoted import Tolerance  # noqa: E402
 

@@ -1,23 +1,18 @@
-"""The chaotic estimates as estimates: the Lyapunov exponent and the reference horizon from ensembles.
+"""The chaotic estimates as estimates: an ensemble's design and its :class:`Estimate`.
 
 One Benettin run over one orbit gives an estimate that moves by ±15 % with anything that changes
 round-off (the separation, the renormalisation interval, the machine). So the exponent here is
 the median of an ensemble of Benettin runs that differ in separation, direction, renormalisation
-interval and start time, and its interval is the range of the members. The reference horizon's
-interval (engines.reference.reference.bound) is where it falls when the reference's own error is
-halved or doubled. docs/metrics.md describes both.
+interval and start time (engines.reference.reference.lyapunov_ensemble runs them), and its interval
+is the range of the members. The reference horizon's interval (engines.reference.reference.bound)
+is where it falls when the reference's own error is halved or doubled. docs/metrics.md describes both.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from engines.reference.reference import ReferenceSolution
-    from engines.scene.scene import Scene
 
 #: Benettin's separations (relative to |y|), renormalisation intervals (s) and start times (fractions of
 #: the scene's duration, on the reference's own orbit) the members take in turn; each has its own direction.
@@ -53,25 +48,3 @@ def members() -> list[tuple[float, float, float, int]]:
     return [(SEPARATIONS[k % len(SEPARATIONS)], INTERVALS[(k + k // len(SEPARATIONS)) % len(INTERVALS)],
              STARTS[k // len(SEPARATIONS)], k)
             for k in range(len(SEPARATIONS) * len(STARTS))]
-
-
-def lyapunov_ensemble(scene: Scene, solution: ReferenceSolution | None = None,
-                      duration: float | None = None) -> Estimate:
-    """The largest Lyapunov exponent (1/s) of ``scene`` from the ensemble of :func:`members`.
-
-    Each member is Benettin's estimate (engines.reference.reference.lyapunov_exponent) over ``duration``
-    s (default the scene's) from the state the reference ``solution`` (solved here when None) reaches at
-    its start time, along a direction drawn from its seed.
-    """
-    from engines.reference.reference import lyapunov_exponent, solve
-
-    duration = scene.duration if duration is None else float(duration)
-    if solution is None:
-        solution = solve(scene)
-    out = []
-    for separation, interval, start, seed in members():
-        y0 = np.asarray(solution.ode(np.array([start * scene.duration])), dtype=float).reshape(-1)
-        direction = np.random.default_rng(seed).standard_normal(len(y0))
-        out.append(lyapunov_exponent(scene, duration, interval, separation, start=y0,
-                                     direction=direction / np.linalg.norm(direction)))
-    return Estimate.of(out)

@@ -23,7 +23,7 @@ import scipy
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
-from engines.reference.ensemble import Estimate, lyapunov_ensemble
+from engines.reference.ensemble import Estimate, members
 from engines.reference.mechanisms import Mechanism, empty_samples, mechanism_model
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.tree import read_tree
@@ -622,6 +622,26 @@ def lyapunov_exponent(
         z = y + (z - y) * (d0 / gap)
         elapsed += step
     return total / elapsed
+
+
+def lyapunov_ensemble(scene: Scene, solution: ReferenceSolution | None = None,
+                      duration: float | None = None) -> Estimate:
+    """The largest Lyapunov exponent (1/s) of ``scene`` from the ensemble of :func:`members`.
+
+    Each member is Benettin's estimate (:func:`lyapunov_exponent`) over ``duration``
+    s (default the scene's) from the state the reference ``solution`` (solved here when None) reaches at
+    its start time, along a direction drawn from its seed.
+    """
+    duration = scene.duration if duration is None else float(duration)
+    if solution is None:
+        solution = solve(scene)
+    out = []
+    for separation, interval, start, seed in members():
+        y0 = np.asarray(solution.ode(np.array([start * scene.duration])), dtype=float).reshape(-1)
+        direction = np.random.default_rng(seed).standard_normal(len(y0))
+        out.append(lyapunov_exponent(scene, duration, interval, separation, start=y0,
+                                     direction=direction / np.linalg.norm(direction)))
+    return Estimate.of(out)
 
 
 class ReferenceEngine(Engine):
