@@ -11,7 +11,6 @@ with, and what PyBullet's former default (1e-4) cost the multibody variant.
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -43,13 +42,7 @@ SPREAD = range(-3, 4)
 def _ulps_apart(parameters, name: str) -> list[float]:
     """Parameter ``name``'s default moved by each of SPREAD ulps."""
     default = next(p.default for p in parameters if p.name == name)
-    out = []
-    for k in SPREAD:
-        value = float(default)
-        for _ in range(abs(k)):
-            value = math.nextafter(value, math.copysign(math.inf, k))
-        out.append(value)
-    return out
+    return [catalog.moved_by_ulps(default, k) for k in SPREAD]
 
 
 QUOTES, ROWS = load_quotes(__file__), []  # what docs quote from this script

@@ -374,12 +374,17 @@ def _perturbed(entry: SceneBuilder, values: dict[str, Any]) -> dict[str, Any]:
         raise SceneError(f"{ROUNDOFF_ULPS} must be an integer number of ulps, got {raw!r}") from None
     if not ulps:
         return values
-    out = dict(values)
-    for p in entry.parameters:
-        if p.unit in _STATE_UNITS and not p.integer and out[p.name]:
-            for _ in range(abs(ulps)):
-                out[p.name] = math.nextafter(out[p.name], math.copysign(math.inf, ulps))
-    return out
+    known = {p.name: p for p in entry.parameters}
+    return {name: moved_by_ulps(value, ulps) if known[name].unit in _STATE_UNITS and not known[name].integer and value
+            else value for name, value in values.items()}
+
+
+def moved_by_ulps(value: float, ulps: int) -> float:
+    """``value`` moved by ``ulps`` units in its last place (up for ulps > 0, down for ulps < 0)."""
+    value = float(value)
+    for _ in range(abs(ulps)):
+        value = math.nextafter(value, math.copysign(math.inf, ulps))
+    return value
 
 
 def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
