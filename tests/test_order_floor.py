@@ -43,7 +43,7 @@ def test_ours_rk4_variants_on_the_compound_double_pendulum_have_order_4(tmp_path
     from compare.results.sweep import sweeps
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
-    from engines.adapters.ours import ENGINE as OURS
+    from engines.ours.adapter import ENGINE as OURS
 
     rk4 = [name for name in OURS.variants if name.endswith("-rk4")]
     suite = parse_suite(
