@@ -401,7 +401,8 @@ def reference_horizon(t: np.ndarray, difference: np.ndarray, threshold: float) -
     return float(t[above[0]]) if len(above) else None
 
 
-#: The cheap Lyapunov estimate (growth_rate) fits ln d(t) between these fractions of L: above the
+#: The cheap Lyapunov estimate (growth_rate; it decides whether a scene is chaotic, and so gets the
+#: ensemble's estimate, lyapunov_ensemble) fits ln d(t) between these fractions of L: above the
 #: round-off of two solves at rtol ~1e-12 and below where the difference saturates ...
 GROWTH_BAND = (1e-13, 1e-3)
 #: ... and only when d grows by at least this factor over the fit: a regular scene's two solves drift apart
