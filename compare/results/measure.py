@@ -272,14 +272,16 @@ def _reference_fields(reference: SampledReference, scene: SceneLike) -> tuple[Re
                                "wall_time": solution.wall_time}
     if reference.bound is None:
         return solved, None
-    from engines.reference.reference import growth_rate  # loaded already (it made ``reference``); scipy-heavy
-
     bound = reference.bound
-    # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
+    # The reference's own error bar (m) and horizon (s; None: it holds over the whole run), the horizon's
+    # interval and the Lyapunov estimate with its interval (a chaotic scene's; else None).
+    rate, interval = bound.lyapunov, bound.horizon_interval
     solved["reference_error"] = bound.reference_error
     solved["tight_rtol"] = bound.tight_rtol
     solved["horizon_threshold"] = bound.threshold
-    solved["lyapunov_exponent"] = growth_rate(bound.t, bound.difference, scene.characteristic_length)
+    solved["reference_horizon_interval"] = None if interval is None else list(interval)
+    solved["lyapunov_exponent"] = None if rate is None else rate.value
+    solved["lyapunov_interval"] = None if rate is None else list(rate.interval)
     return solved, bound.reference_horizon
 
 

@@ -78,8 +78,9 @@ class ReferenceFields(TypedDict, total=False):
     """A record's ``reference``: how the scene's reference was solved, and its own error bar.
 
     rtol, atol : the solve's tolerances; steps : its steps; wall_time : s. With a bound (the
-    tighter second solve): reference_error (m), tight_rtol, horizon_threshold (m), lyapunov_exponent
-    (1/s, None when no growth was fitted).
+    tighter second solve): reference_error (m), tight_rtol, horizon_threshold (m),
+    reference_horizon_interval ([low, high] s), lyapunov_exponent (1/s, the ensemble's median; None when
+    the scene is not chaotic) and lyapunov_interval ([low, high] 1/s).
     """
 
     rtol: float
@@ -89,7 +90,9 @@ class ReferenceFields(TypedDict, total=False):
     reference_error: float
     tight_rtol: float
     horizon_threshold: float
+    reference_horizon_interval: list[float] | None
     lyapunov_exponent: float | None
+    lyapunov_interval: list[float] | None
 
 
 @dataclass(frozen=True)
