@@ -32,6 +32,9 @@ class ModelSource:
     format: str
     text: str
     notes: tuple[str, ...] = ()
+    #: False: a <limit> with lower above upper (no limit) reaches the engines as ±NO_LIMIT (Drake refuses
+    #: lower > upper); True: as it is (PyBullet's stepper empties every range so that PyBullet makes no limit).
+    keep_empty_ranges: bool = False
 
     @property
     def root(self) -> ET.Element:
@@ -44,6 +47,7 @@ class ModelSource:
         root = self.root
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
+        widened = [] if self.keep_empty_ranges else _widen_empty_ranges(root)
         for parent in root.iter():
             for child in list(parent):
                 if child.tag in ("visual", "collision") or (drop_mimic and child.tag == "mimic"):
@@ -51,6 +55,9 @@ class ModelSource:
                     missing.update(self._missing_meshes(child))
                     parent.remove(child)
         notes = list(self.notes)
+        if widened:
+            notes.append(f"{', '.join(widened)}: lower above upper (no limit, PyBullet's convention) given to every "
+                         f"engine as lower {-NO_LIMIT:g}, upper {NO_LIMIT:g} (Drake refuses lower > upper)")
         if dropped["visual"] or dropped["collision"]:
             note = (f"dynamics need no geometry: {dropped['visual']} <visual> and {dropped['collision']} "
                     f"<collision> elements removed before import")
@@ -77,6 +84,26 @@ class ModelSource:
             if local and not any(t and (self.path.parent / t).is_file() for t in tries):
                 names.add(name)
         return names
+
+
+#: rad or m: the range a ``<limit>`` with lower above upper (no limit) is given to the engines as.
+NO_LIMIT = 1e6
+
+
+def _widen_empty_ranges(root: ET.Element) -> list[str]:
+    """Give every joint whose <limit> has lower above upper the range ±NO_LIMIT; the joints' names."""
+    widened = []
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        try:
+            empty = limit is not None and float(limit.get("lower", "0")) > float(limit.get("upper", "0"))
+        except ValueError:  # the description has already refused a non-numeric limit
+            empty = False
+        if empty and limit is not None:
+            limit.set("lower", f"{-NO_LIMIT:g}")
+            limit.set("upper", f"{NO_LIMIT:g}")
+            widened.append(f"joint {joint.get('name', '?')}")
+    return widened
 
 
 def unexpanded_xacro(model: str) -> ModelError:

@@ -93,6 +93,9 @@ def _numbers(element: ET.Element | None, attribute: str, default: tuple[float, .
         values = tuple(float(v) for v in text.split())
     except ValueError:
         values = ()
+    if not values and ("$(" in text or "${" in text):
+        raise ModelError(f"{where}: {element.tag} {attribute}={text!r} is an unexpanded xacro substitution; "
+                         f"expand the file with xacro first")
     if len(values) != len(default) or not all(math.isfinite(v) for v in values):
         raise ModelError(f"{where}: {element.tag} {attribute}={text!r} is not {len(default)} finite numbers; fix it")
     return values
