@@ -2,20 +2,16 @@
 
 A :class:`ModelDescription` is a tree of :class:`Body` records joined by
 :class:`Joint` records, the root welded to the world (fixed base), gravity
-along −z. Bodies and joints are kept in depth-first order from the root,
-children in file order (Pinocchio's and MuJoCo's order); the moving joints
-in that order are the model's coordinates q (a continuous joint is one
-angle, never Pinocchio's (cos, sin)). SI units: kg, m, kg·m², rad.
+along −z, in depth-first order from the root (children in file order); the
+moving joints in that order are the coordinates q (a continuous joint is
+one angle). SI units: kg, m, kg·m², rad.
 
-Refused with a :class:`ModelError` naming the link or joint and the fix:
-on a link that moves, a negative or non-finite mass or an inertia that is
-not symmetric positive semidefinite (within PSD_TOLERANCE of the model's
-largest principal moment); a joint type other than revolute / continuous /
-prismatic / fixed, a floating base, loops and several roots, mimic joints
-(unless the reader was told to treat them as independent joints). Accepted
-with a note: such mass properties on a link welded to the root (it cannot
-move, so it cannot change the fixed-base dynamics), and an inertia negative
-within the tolerance.
+Refused with a :class:`ModelError` naming the link or joint and the fix: on
+a link that moves, a negative mass or an inertia not positive semidefinite
+(within PSD_TOLERANCE of the model's largest moment); joint types other than
+revolute / continuous / prismatic / fixed; loops, several roots; mimic joints
+unless read as independent. Accepted with a note: such mass properties on a
+link welded to the root (it cannot move), a moment negative within tolerance.
 """
 
 from __future__ import annotations
