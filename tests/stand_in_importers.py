@@ -8,6 +8,7 @@ import ctypes
 import os
 import time
 
+from engines.adapter import ModelImport
 from engines.model import pinocchio
 
 
@@ -40,9 +41,6 @@ def printing(source, description, **options):
     return pinocchio.load(source, description)
 
 
-class StandIn:
-    """An importer module's shape (``version``, ``load``) around one of the functions above."""
-
-    def __init__(self, load) -> None:
-        self.load = load
-        self.version = version
+def stand_in(load) -> ModelImport:
+    """The model import (engines.adapter.ModelImport) of one of the functions above."""
+    return ModelImport(version, load)

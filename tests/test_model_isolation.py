@@ -22,7 +22,7 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures" / "models"
 @pytest.fixture
 def stand_ins(monkeypatch):
     """The stand-in importers as engines named ``segfault``, ``abort``, ``hang`` and ``printing``."""
-    extra = {name: stand_in.StandIn(getattr(stand_in, name)) for name in ("segfault", "abort", "hang", "printing")}
+    extra = {name: stand_in.stand_in(getattr(stand_in, name)) for name in ("segfault", "abort", "hang", "printing")}
     monkeypatch.setattr(parity, "ENGINES", (*ENGINES, *extra))
     monkeypatch.setattr(parity, "importer", lambda name: extra[name] if name in extra else importer(name))
     return tuple(extra)

@@ -25,6 +25,7 @@ import numpy as np
 from compare.model import isolation
 from compare.model.diagnosis import Finding, diagnose, sentences, unexplained
 from compare.model.tolerance import TOLERANCE, amplification
+from engines.adapter import ModelImport
 from engines.model import source as sources
 from engines.model import urdf
 from engines.model.description import ModelDescription, ModelError
@@ -273,7 +274,7 @@ def _one(name, source, model, sample, expected, balance_inertia,
         module = importer(name)
         version = module.version()
         isolation.report("version", version)
-        options = {"balance_inertia": balance_inertia} if name == "mujoco" else {}
+        options = _options_for(module, balance_inertia)
         loaded = module.load(source, model, **options)
     except Refused as exc:
         return EngineParity(name, _version_of(name), False, False, message=str(exc),
@@ -310,11 +311,18 @@ def _largest_at(values: list[np.ndarray], reference: list[np.ndarray]) -> int:
     return int(index[1])
 
 
+def _options_for(module: ModelImport, balance_inertia: bool) -> dict[str, bool]:
+    """The options of ``xval model check`` that this engine's import declares it takes (MuJoCo's balance_inertia)."""
+    return {k: v for k, v in {"balance_inertia": balance_inertia}.items() if k in module.options}
+
+
 def _stated_options(name: str, balance_inertia: bool) -> dict[str, str]:
     """The import options an engine that refused the file was given (MuJoCo's compiler settings)."""
-    if name == "mujoco":
-        return importer(name).compiler_options(balance_inertia)
-    return {}
+    try:
+        module = importer(name)
+    except Refused:
+        return {}
+    return module.stated(**_options_for(module, balance_inertia))
 
 
 def _version_of(name: str) -> str:
