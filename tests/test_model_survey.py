@@ -68,3 +68,15 @@ def test_a_path_that_is_not_there_is_one_line_and_exit_2(capsys, tmp_path):
     assert (code, out) == (2, "")
     assert err == (f"xval: error: model survey: {tmp_path / 'nowhere'}: no such file or folder; give model files or "
                    f"folders holding them\n")
+
+
+def test_the_survey_on_a_dask_cluster_gives_the_same_rows(capsys):
+    """--scheduler local:1: a Dask worker checks each file (each engine still in a child of its own), and DART's
+    segfault on the acrobot is its row there too."""
+    models = [str(FIXTURES / "acrobot.xml"), str(FIXTURES / "same_name.urdf")]
+    code, out, err = run_cli(capsys, "model", "survey", *models, "--scheduler", "local:1", "--states", "5",
+                             "--format", "json", "--quiet")
+    rows = json.loads(out)["files"]
+    assert code == 1
+    assert [(r["model"], r["outcome"], r["engines"]) for r in rows] == [
+        (models[0], "crashed", ["dart"]), (models[1], "agrees", [])]

@@ -96,11 +96,14 @@ def survey_one(model: str, states: int, seed: int, timeout: float) -> SurveyRow:
 
 
 def _prepare_worker() -> None:
-    """Import every model engine once in this worker (quietly), so the children forked per file inherit them."""
+    """Import every model engine once in this worker (quietly), so the children forked per file inherit them.
+    The worker's stdout is pointed at its stderr: the xval process's stdout carries only the table or JSON."""
     from engines.model.importers import ENGINES, REFERENCE, importer
     from engines.model.loaded import Refused
-    from engines.stdio import quiet_output
+    from engines.stdio import flush_all, quiet_output
 
+    flush_all()
+    os.dup2(2, 1)
     with quiet_output():
         for name in (*ENGINES, REFERENCE):
             try:
