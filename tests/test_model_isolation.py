@@ -101,3 +101,15 @@ def test_a_child_s_answer_its_exception_and_its_working_folder(tmp_path):
     assert isinstance(outcome.error, ValueError) and outcome.failure == ""
     outcome = isolation.run(lambda: (Path("left.txt").write_text("x"), str(Path.cwd()))[1])
     assert outcome.value != str(Path.cwd()) and not Path(outcome.value).exists()  # its folder is gone
+
+
+def test_pybullet_s_warnings_on_file_descriptor_1_are_its_notes_and_stdout_stays_json(capfd):
+    """spirit40newer.urdf has links without <inertial>: PyBullet's C code prints b3Warning lines on fd 1.
+    capfd reads this process's file descriptors, so a line that leaked would break the JSON."""
+    code, out, err = run_cli(capfd, "model", "check", "pybullet_data:quadruped/spirit40newer.urdf", "--engine",
+                             "pybullet", "--states", "3", "--format", "json")
+    report = json.loads(out)
+    (row,) = report["engines"]
+    assert err == "" and code == 1  # it gives those links 1 kg: it disagrees
+    assert any(n.startswith("pybullet printed: b3Warning[examples/Importers/ImportURDFDemo/BulletUrdfImporter.cpp")
+               for n in row["notes"])

@@ -15,9 +15,11 @@ within ``timeout`` s (the group is then killed) is the outcome's ``failure``.
 
 from __future__ import annotations
 
+import contextlib
 import faulthandler
 import os
 import pickle
+import re
 import select
 import shutil
 import signal
@@ -34,6 +36,8 @@ DEFAULT_TIMEOUT = 60.0
 #: Lines of printed output kept per child (the rest are counted).
 KEPT_LINES = 20
 _HEADER = struct.Struct("!Q")
+#: Terminal colour and cursor sequences (DART colours its errors): dropped from the printed lines.
+_ESCAPE = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 #: The pipe to the parent, in a child that :func:`run` started; None elsewhere.
 _channel: int | None = None
 
@@ -45,7 +49,7 @@ class Outcome:
     value : the function's return value (None when it raised or failed). error : the exception it raised.
     failure : "" when the child answered, else "crashed (SIGSEGV)", "timed out after 60 s", "exited with
     code 3 without an answer". reported : what the child said with :func:`report` (its last ``stage``).
-    printed : the lines it wrote on fds 1 and 2 (at most KEPT_LINES, then a count of the rest).
+    printed : the distinct lines it wrote on fds 1 and 2 (at most KEPT_LINES, then a count of the rest).
     """
 
     value: Any = None
@@ -65,8 +69,11 @@ def report(key: str, value: str) -> None:
         _send(_channel, ("report", key, value))
 
 
-def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT) -> Outcome:
-    """``fn(*args)`` in a forked child (the arguments are inherited, not pickled; the answer is pickled)."""
+def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT,
+        prepare: Callable[[], Any] | None = None) -> Outcome:
+    """``fn(*args)`` in a forked child (the arguments are inherited, not pickled; the answer is pickled).
+    prepare : called first, its prints dropped (importing an engine's library: its banner is not about the file);
+    what it raises is ignored (``fn`` meets it again and answers for it)."""
     workdir = tempfile.mkdtemp(prefix="xval-model-")
     printed_path = os.path.join(workdir, ".printed")
     read_end, write_end = os.pipe()
@@ -74,7 +81,7 @@ def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT) ->
     pid = os.fork()
     if pid == 0:  # pragma: no cover - the child: measured through its answers
         os.close(read_end)
-        _child(fn, args, workdir, printed_path, write_end)
+        _child(fn, args, workdir, printed_path, write_end, prepare)
     os.close(write_end)
     try:
         os.setpgid(pid, pid)  # also done by the child: whichever runs first
@@ -87,7 +94,8 @@ def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT) ->
         shutil.rmtree(workdir, ignore_errors=True)
 
 
-def _child(fn: Callable[..., Any], args: tuple, workdir: str, printed_path: str, channel: int) -> None:
+def _child(fn: Callable[..., Any], args: tuple, workdir: str, printed_path: str, channel: int,
+           prepare: Callable[[], Any] | None) -> None:
     global _channel
     code = 0
     try:
@@ -96,6 +104,9 @@ def _child(fn: Callable[..., Any], args: tuple, workdir: str, printed_path: str,
 
         die_with_parent()
         os.chdir(workdir)
+        if prepare is not None:
+            with stdio.quiet_output(), contextlib.suppress(Exception):
+                prepare()
         stdio.capture_into(printed_path)
         if faulthandler.is_enabled():  # its dump goes where it was pointed (pytest: a copy of stderr): here instead
             faulthandler.enable(file=2)
@@ -198,8 +209,12 @@ def _printed(path: str) -> tuple[str, ...]:
             text = stream.read().decode("utf-8", "replace")
     except OSError:
         return ()
-    lines = [" ".join(line.split()) for line in text.splitlines()]
-    lines = [line for line in lines if line]
+    seen: dict[str, int] = {}
+    for line in text.splitlines():
+        line = " ".join(_ESCAPE.sub("", line).split())
+        if line:
+            seen[line] = seen.get(line, 0) + 1
+    lines = [line if count == 1 else f"{line} ({count} times)" for line, count in seen.items()]
     if len(lines) <= KEPT_LINES:
         return tuple(lines)
     return (*lines[:KEPT_LINES], f"… and {len(lines) - KEPT_LINES} more lines")

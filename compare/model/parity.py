@@ -177,7 +177,7 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     results, findings = [], {}
     for name in engines:
         outcome = isolation.run(_one, name, source, model, reference.sample, reference.expected, balance_inertia,
-                                reference.forward_tolerance, timeout=timeout)
+                                reference.forward_tolerance, timeout=timeout, prepare=lambda name=name: importer(name))
         result, findings[name] = _engine_answer(name, outcome)
         results.append(result)
     ref_entry = EngineParity(REFERENCE, reference.version, True, True, 0.0, 0.0, 0.0,

@@ -112,10 +112,6 @@ def _prepare_worker() -> None:
                 pass
 
 
-def _survey_in_worker(model: str, states: int, seed: int, timeout: float) -> SurveyRow:
-    return survey_one(model, states, seed, timeout)
-
-
 def survey(models: list[str], *, states: int, seed: int, timeout: float, jobs: int | None = None,
            scheduler: str | None = None, advance: Callable[[SurveyRow], None] = lambda row: None) -> list[SurveyRow]:
     """Every file's row, in the order of ``models``; ``advance`` is called as each file finishes."""
@@ -137,7 +133,7 @@ def survey(models: list[str], *, states: int, seed: int, timeout: float, jobs: i
 
 def _collect(executor: cf.Executor, models: list[str], states: int, seed: int, timeout: float,
              rows: dict[str, SurveyRow], advance: Callable[[SurveyRow], None]) -> None:
-    futures = {executor.submit(_survey_in_worker, os.path.abspath(m) if not m.startswith("pybullet_data:") else m,
+    futures = {executor.submit(survey_one, os.path.abspath(m) if not m.startswith("pybullet_data:") else m,
                                states, seed, timeout): m for m in models}
     for future in cf.as_completed(futures):
         model = futures[future]
