@@ -16,6 +16,7 @@ an engine that crashes, aborts or hangs is its own row, the others report.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -177,7 +178,7 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     results, findings = [], {}
     for name in engines:
         outcome = isolation.run(_one, name, source, model, reference.sample, reference.expected, balance_inertia,
-                                reference.forward_tolerance, timeout=timeout, prepare=lambda name=name: importer(name))
+                                reference.forward_tolerance, timeout=timeout, prepare=functools.partial(importer, name))
         result, findings[name] = _engine_answer(name, outcome)
         results.append(result)
     ref_entry = EngineParity(REFERENCE, reference.version, True, True, 0.0, 0.0, 0.0,
