@@ -28,7 +28,6 @@ from compare.model.diagnosis import Finding, diagnose, sentences, unexplained
 from compare.model.tolerance import TOLERANCE, amplification
 from engines.adapter import ModelImport
 from engines.model import source as sources
-from engines.model import urdf
 from engines.model.description import ModelDescription, ModelError
 from engines.model.importers import ENGINES, REFERENCE, importer
 from engines.model.loaded import LoadedModel, Refused
@@ -151,12 +150,10 @@ def relative_difference(values: list[np.ndarray], reference: list[np.ndarray], f
 
 def read_description(label: str) -> tuple[sources.ModelSource, ModelDescription]:
     """The source and its description (mimic joints as independent coordinates, said in the notes)."""
-    source = sources.resolve(label)
-    if source.format == "urdf":
-        return source, urdf.read(source, mimic_independent=True)
-    from engines.model import mjcf
+    from engines.model.scene import describe
 
-    return source, mjcf.read(source)
+    source = sources.resolve(label)
+    return source, describe(source)
 
 
 def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, seed: int = 0,
