@@ -113,3 +113,13 @@ def test_pybullet_s_warnings_on_file_descriptor_1_are_its_notes_and_stdout_stays
     assert err == "" and code == 1  # it gives those links 1 kg: it disagrees
     assert any(n.startswith("pybullet printed: b3Warning[examples/Importers/ImportURDFDemo/BulletUrdfImporter.cpp")
                for n in row["notes"])
+
+
+def test_a_reference_that_segfaults_leaves_nothing_to_compare_one_line_and_exit_1(monkeypatch, clean_folder, capsys):
+    real = parity.importer
+    monkeypatch.setattr(parity, "importer", lambda name: stand_in.stand_in(stand_in.segfault) if name == "pinocchio"
+                        else real(name))
+    code, out, err = run_cli(capsys, "model", "check", MODELS / "double_pendulum.urdf", "--states", "3")
+    assert (code, out) == (1, "")
+    assert err.startswith(f"xval: model {MODELS / 'double_pendulum.urdf'}: the reference (pinocchio) crashed (SIGSEGV)")
+    assert err.endswith("; nothing was compared\n") and err.count("\n") == 1

@@ -90,7 +90,8 @@ def survey_one(model: str, states: int, seed: int, timeout: float) -> SurveyRow:
     differing = [e for e in report.engines if not e.agrees]
     if not differing:
         return SurveyRow(model, "agrees", moving_joints=joints)
-    causes = [e.message or "; ".join(e.diagnosis) or "no diagnosis" for e in differing]
+    causes = [e.message or "; ".join(line.removeprefix(f"{e.engine}: ") for line in e.diagnosis) or "no diagnosis"
+              for e in differing]
     return SurveyRow(model, "disagrees", tuple(e.engine for e in differing),
                      "; ".join(f"{e.engine}: {cause}" for e, cause in zip(differing, causes)), joints)
 
