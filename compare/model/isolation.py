@@ -29,6 +29,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from compare.run.isolation import die_with_parent
 from engines import stdio
 
 #: s a child may take before it is killed (``--timeout``).
@@ -100,8 +101,6 @@ def _child(fn: Callable[..., Any], args: tuple, workdir: str, printed_path: str,
     code = 0
     try:
         os.setpgid(0, 0)
-        from compare.run.isolation import die_with_parent
-
         die_with_parent()
         os.chdir(workdir)
         if prepare is not None:
