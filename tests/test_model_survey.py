@@ -80,3 +80,11 @@ def test_the_survey_on_a_dask_cluster_gives_the_same_rows(capsys):
     assert code == 1
     assert [(r["model"], r["outcome"], r["engines"]) for r in rows] == [
         (models[0], "crashed", ["dart"]), (models[1], "agrees", [])]
+
+
+def test_pybullet_data_s_folders_are_reached_by_their_prefix():
+    from compare.model.survey import find_models
+
+    found = find_models(["pybullet_data:kuka_iiwa"])
+    assert found and all(f.endswith(".urdf") and "/kuka_iiwa/" in f for f in found)
+    assert any(f.endswith("/kuka_iiwa/model.urdf") for f in found)

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from engines.errors import UserError
+from engines.model.source import PREFIX
 
 #: File name endings a folder is searched for; a file qualifies when its root element is <robot> or <mujoco>.
 SUFFIXES = (".urdf", ".xml")
@@ -46,10 +47,16 @@ class SurveyRow:
 
 def find_models(paths: Iterable[str]) -> list[str]:
     """The model files among ``paths``: each file as given; each folder searched recursively for files ending in
-    SUFFIXES whose root element is URDF's <robot> or MJCF's <mujoco>. UserError for a path that does not exist."""
+    SUFFIXES whose root element is URDF's <robot> or MJCF's <mujoco>; ``pybullet_data:<path>`` a file or folder
+    under pybullet_data's. UserError for a path that does not exist."""
     found: list[str] = []
     for text in paths:
         path = Path(text)
+        if text.startswith(PREFIX):  # a file or folder PyBullet ships: pybullet_data: alone is all of them
+            import pybullet_data
+
+            path = Path(pybullet_data.getDataPath()) / text[len(PREFIX):]
+            text = str(path)
         if path.is_file():
             found.append(text)
         elif path.is_dir():
@@ -134,8 +141,7 @@ def survey(models: list[str], *, states: int, seed: int, timeout: float, jobs: i
 
 def _collect(executor: cf.Executor, models: list[str], states: int, seed: int, timeout: float,
              rows: dict[str, SurveyRow], advance: Callable[[SurveyRow], None]) -> None:
-    futures = {executor.submit(survey_one, os.path.abspath(m) if not m.startswith("pybullet_data:") else m,
-                               states, seed, timeout): m for m in models}
+    futures = {executor.submit(survey_one, os.path.abspath(m), states, seed, timeout): m for m in models}
     for future in cf.as_completed(futures):
         model = futures[future]
         try:
