@@ -90,6 +90,10 @@ def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT,
         pass
     try:
         return _wait(pid, read_end, timeout, printed_path)
+    except BaseException:  # Ctrl-C or SIGTERM while waiting: the child goes with us
+        _kill(pid)
+        _reap(pid, kill_after=0.0)
+        raise
     finally:
         os.close(read_end)
         shutil.rmtree(workdir, ignore_errors=True)
