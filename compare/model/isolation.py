@@ -92,7 +92,8 @@ def run(fn: Callable[..., Any], *args: Any, timeout: float = DEFAULT_TIMEOUT,
         return _wait(pid, read_end, timeout, printed_path)
     except BaseException:  # Ctrl-C or SIGTERM while waiting: the child goes with us
         _kill(pid)
-        _reap(pid, kill_after=0.0)
+        with contextlib.suppress(ChildProcessError):  # already reaped
+            _reap(pid, kill_after=0.0)
         raise
     finally:
         os.close(read_end)
