@@ -121,5 +121,5 @@ def test_a_reference_that_segfaults_leaves_nothing_to_compare_one_line_and_exit_
                         else real(name))
     code, out, err = run_cli(capsys, "model", "check", MODELS / "double_pendulum.urdf", "--states", "3")
     assert (code, out) == (1, "")
-    assert err.startswith(f"xval: model {MODELS / 'double_pendulum.urdf'}: the reference (pinocchio) crashed (SIGSEGV)")
+    assert err.startswith(f"xval: model {MODELS / 'double_pendulum.urdf'}: the model reference (pinocchio) crashed (SIGSEGV)")
     assert err.endswith("; nothing was compared\n") and err.count("\n") == 1

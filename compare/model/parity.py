@@ -36,7 +36,7 @@ QUANTITIES = ("mass_matrix", "bias", "forward")
 
 
 class CheckCrashed(Exception):
-    """Reading the file or the reference crashed or hung: nothing can be compared. ``part``: which one."""
+    """Reading the file or the model reference crashed or hung: nothing can be compared. ``part``: which one."""
 
     def __init__(self, part: str, failure: str) -> None:
         super().__init__(f"{part} {failure}")
@@ -78,7 +78,9 @@ class ParityReport:
     model: str
     name: str
     moving_joints: tuple[str, ...]
-    reference: EngineParity
+    #: Pinocchio's answers, what every engine is compared with: the model reference (not the DOP853
+    #: ``reference`` engine of the catalog's scenes).
+    model_reference: EngineParity
     states: int
     seed: int
     engines: tuple[EngineParity, ...]
@@ -93,8 +95,9 @@ class ParityReport:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "name": self.name, "moving_joints": list(self.moving_joints),
-                "reference": {"name": self.reference.engine, "version": self.reference.version,
-                              "options": self.reference.options, "diagnosis": list(self.reference.diagnosis)},
+                "reference": {"name": self.model_reference.engine, "version": self.model_reference.version,
+                              "options": self.model_reference.options,
+                              "diagnosis": list(self.model_reference.diagnosis)},
                 "states": self.states, "seed": self.seed, "tolerance": TOLERANCE,
                 "forward_tolerance": self.forward_tolerance if math.isfinite(self.forward_tolerance) else None,
                 "engines": [asdict(e) for e in self.engines], "notes": list(self.notes),
@@ -159,7 +162,7 @@ def read_description(label: str) -> tuple[sources.ModelSource, ModelDescription]
 def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, seed: int = 0,
           balance_inertia: bool = False, timeout: float = isolation.DEFAULT_TIMEOUT) -> ParityReport:
     """The parity report of model ``label``; UserError (ModelError) for bad input, before any engine runs;
-    CheckCrashed when reading the file or the reference crashed or hung. ``timeout`` : s per child process."""
+    CheckCrashed when reading the file or the model reference crashed or hung. ``timeout`` : s per child process."""
     for name in engines:
         if name not in ENGINES:
             raise ModelError(f"--engine: unknown engine {name!r}; choose from {', '.join(ENGINES)}")
@@ -170,23 +173,24 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     model, notes = _answer("reading the file", isolation.run(_describe, source, timeout=timeout))
     if model.nq == 0:
         raise ModelError(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
-    reference = _answer(f"the reference ({REFERENCE})",
-                        isolation.run(_reference, source, model, label, states, seed, timeout=timeout))
+    model_reference = _answer(f"the model reference ({REFERENCE})",
+                              isolation.run(_model_reference, source, model, label, states, seed, timeout=timeout))
     results, findings = [], {}
     for name in engines:
-        outcome = isolation.run(_one, name, source, model, reference.sample, reference.expected, balance_inertia,
-                                reference.forward_tolerance, timeout=timeout, prepare=functools.partial(importer, name))
+        outcome = isolation.run(_one, name, source, model, model_reference.sample, model_reference.expected,
+                                balance_inertia, model_reference.forward_tolerance, timeout=timeout,
+                                prepare=functools.partial(importer, name))
         result, findings[name] = _engine_answer(name, outcome)
         results.append(result)
-    ref_entry = EngineParity(REFERENCE, reference.version, True, True, 0.0, 0.0, 0.0,
-                             options=reference.options, notes=reference.notes,
-                             diagnosis=tuple(sentences({REFERENCE: reference.findings})))
+    reference_entry = EngineParity(REFERENCE, model_reference.version, True, True, 0.0, 0.0, 0.0,
+                                   options=model_reference.options, notes=model_reference.notes,
+                                   diagnosis=tuple(sentences({REFERENCE: model_reference.findings})))
     lines = sentences(findings)
     for result in results:  # every disagreement has a line: the cause, or where the largest difference is
         if result.loaded and not result.agrees and not result.failure and not findings[result.engine]:
             lines += list(result.diagnosis)
-    return ParityReport(label, model.name, tuple(j.name for j in model.moving_joints), ref_entry, states, seed,
-                        tuple(results), notes, tuple(lines), reference.forward_tolerance)
+    return ParityReport(label, model.name, tuple(j.name for j in model.moving_joints), reference_entry, states,
+                        seed, tuple(results), notes, tuple(lines), model_reference.forward_tolerance)
 
 
 def _describe(source: sources.ModelSource) -> tuple[ModelDescription, tuple[str, ...]]:
@@ -199,8 +203,8 @@ def _describe(source: sources.ModelSource) -> tuple[ModelDescription, tuple[str,
 
 
 @dataclass(frozen=True)
-class ReferencePart:
-    """What the reference's child sends back: its sample and values, and its own import against the file."""
+class ModelReferencePart:
+    """What the model reference's child sends back: its sample and values, its own import against the file."""
 
     version: str
     options: dict[str, str]
@@ -211,18 +215,18 @@ class ReferencePart:
     forward_tolerance: float
 
 
-def _reference(source, model: ModelDescription, label: str, count: int, seed: int) -> ReferencePart:
+def _model_reference(source, model: ModelDescription, label: str, count: int, seed: int) -> ModelReferencePart:
     module = importer(REFERENCE)
     try:
         reference = module.load(source, model)
     except Refused as exc:
-        raise ModelError(f"model {label}: the reference (pinocchio) cannot load it: {exc}") from None
+        raise ModelError(f"model {label}: the model reference (pinocchio) cannot load it: {exc}") from None
     _require_invertible(model, reference, label)
     sample = sample_states(model, reference, count, seed)
     expected = evaluate(reference, sample)
     bias_scale = _bias_scale(expected, sample)
     forward = TOLERANCE * amplification(expected["mass_matrix"], expected["forward"], bias_scale)
-    return ReferencePart(module.version(), reference.options, reference.notes,
+    return ModelReferencePart(module.version(), reference.options, reference.notes,
                          diagnose(model, reference.link_inertias(), _m_scale(expected)), sample, expected, forward)
 
 
