@@ -1,4 +1,4 @@
-"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF) into a Skeleton.
+"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF, the self-contained text in a temporary file) into a Skeleton.
 
 Import options: ``DartLoader.Options`` with mDefaultRootJointType = FIXED
 (DART gives a URDF a floating root otherwise) and its default
@@ -14,6 +14,7 @@ stiffness set to 0. M is ``getMassMatrix``, the bias
 from __future__ import annotations
 
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -40,8 +41,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "mjcf":
         try:
-            with quiet_output():
-                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(source.path.resolve().as_uri()))
+            with quiet_output(), source.engine_file() as path:
+                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(Path(path).as_uri()))
         except RuntimeError as exc:
             raise Refused(" ".join(str(exc).split())) from None
         if world is None or world.getNumSkeletons() != 1:

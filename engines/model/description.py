@@ -82,11 +82,13 @@ class Inertial:
 
 @dataclass(frozen=True)
 class Body:
-    """A rigid link. parent_joint : the joint whose child it is (None for the root)."""
+    """A rigid link. parent_joint : the joint whose child it is (None for the root). virtual : a massless
+    link the reader added between two joints of one MJCF body (no engine need have it; never compared)."""
 
     name: str
     parent_joint: str | None
     inertial: Inertial = field(default_factory=Inertial)
+    virtual: bool = False
 
 
 @dataclass(frozen=True)
@@ -199,12 +201,13 @@ class ModelDescription:
 
     @cached_property
     def moving_links(self) -> tuple[str, ...]:
-        """Links with a moving joint between them and the world (the others cannot change the dynamics)."""
+        """Links with a moving joint between them and the world (the others cannot change the dynamics),
+        the virtual ones left out."""
         moving: set[str] = set()
         for joint in self.joints:  # depth-first: a parent is settled before its children
             if joint.moving or joint.parent in moving:
                 moving.add(joint.child)
-        return tuple(b.name for b in self.bodies if b.name in moving)
+        return tuple(b.name for b in self.bodies if b.name in moving and not b.virtual)
 
 
 def _first_repeat(names: list[str]) -> str:

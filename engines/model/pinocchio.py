@@ -1,8 +1,12 @@
 """Pinocchio's import of a model file: the reference of the parity check.
 
 Import options: ``buildModelFromXML`` (URDF) or ``buildModelFromMJCF``
-(MJCF) with a fixed base (no root joint); links welded by fixed joints
-are merged into their joint's body (Pinocchio keeps them as frames).
+(MJCF, read from the self-contained text in a temporary file) with a fixed
+base (no root joint); links welded by fixed joints are merged into their
+joint's body (Pinocchio keeps them as frames). Several joints in one MJCF
+body are one composite joint (``Composite_<first>``) whose degrees of
+freedom are the body's joints in file order: each is matched by name to the
+description's chain.
 Armature, damping and friction set to 0; gravity (0, 0, −9.81). M is
 ``crba`` (upper triangle, mirrored), the bias ``rnea(q, v, 0)``, the forward
 dynamics ``aba``. A continuous joint is Pinocchio's (cos θ, sin θ): the
@@ -32,7 +36,8 @@ def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel"
         if source.format == "urdf":
             model = pin.buildModelFromXML(text)
         else:
-            model = pin.buildModelFromMJCF(str(source.path))
+            with source.engine_file() as path:
+                model = pin.buildModelFromMJCF(path)
     except (RuntimeError, ValueError) as exc:
         raise Refused(" ".join(str(exc).split())) from None
     options = {"builder": "buildModelFromXML" if source.format == "urdf" else "buildModelFromMJCF",
@@ -50,18 +55,32 @@ class PinocchioModel(LoadedModel):
         model.gravity.linear = np.array([0.0, 0.0, -GRAVITY])
         super().__init__(description, options, (*notes, "armature, damping and friction set to 0"))
         self.model, self.data = model, model.createData()
-        joints = list(model.names)[1:]
-        self.joint_ids = [int(k) + 1 for k in index_map(description, joints)]
-        if any(model.nvs[j] != 1 for j in range(1, model.njoints)):
-            raise Refused("only 1-degree-of-freedom joints are compared")
-        self.dof = np.array([model.idx_vs[j] for j in self.joint_ids])
-        self.circle = [model.nqs[j] == 2 for j in self.joint_ids]  # continuous: (cos, sin)
+        # One entry per degree of freedom: (its name, Pinocchio joint, index within it).
+        order = [j.name for j in description.moving_joints]
+        names, slots = [], []
+        for joint in range(1, model.njoints):
+            name = model.names[joint]
+            count = int(model.nvs[joint])
+            if count > 1 and name.startswith("Composite_") and name[len("Composite_"):] in order:
+                start = order.index(name[len("Composite_"):])
+                parts = order[start:start + count]
+            elif count == 1:
+                parts = [name]
+            else:
+                raise Refused(f"only 1-degree-of-freedom joints are compared; pinocchio's {name} has {count}")
+            names += parts
+            slots += [(joint, k) for k in range(len(parts))]
+        chosen = [slots[k] for k in index_map(description, names)]
+        self.joint_ids = [joint for joint, _ in chosen]
+        self.dof = np.array([model.idx_vs[joint] + k for joint, k in chosen])
+        # Where each coordinate sits in the configuration; continuous: (cos, sin), two numbers for one angle.
+        self.qslot = [model.idx_qs[joint] + k for joint, k in chosen]
+        self.circle = [model.nqs[joint] == 2 and model.nvs[joint] == 1 for joint, _ in chosen]
 
     def configuration(self, q) -> np.ndarray:
         """The description's q (nq,) as Pinocchio's configuration (model.nq,)."""
         config = pin.neutral(self.model)
-        for joint, angle, circle in zip(self.joint_ids, q, self.circle):
-            start = self.model.idx_qs[joint]
+        for start, angle, circle in zip(self.qslot, q, self.circle):
             if circle:
                 config[start:start + 2] = np.cos(angle), np.sin(angle)
             else:
@@ -87,9 +106,13 @@ class PinocchioModel(LoadedModel):
     def link_inertias(self):
         pin.forwardKinematics(self.model, self.data, self.configuration(np.zeros(len(self.dof))))
         found = {}
+        names = {joint: name for joint, name in zip(self.joint_ids, (j.name for j in self.description.moving_joints))}
         for joint in range(1, self.model.njoints):
-            # A joint's body is its child link with every link welded to it, in the joint frame.
+            # A joint's body is its child link with every link welded to it, in the joint frame (a composite
+            # joint's body is the child of its last part).
+            if joint not in names:
+                continue
             inertia, pose = self.model.inertias[joint], self.data.oMi[joint]
-            link = self.description.joint(self.model.names[joint]).child
+            link = self.description.joint(names[joint]).child
             found[link] = world_inertia(inertia.mass, inertia.lever, inertia.inertia, pose.rotation, pose.translation)
         return found

@@ -6,13 +6,22 @@ element: ``<robot>`` is URDF, ``<mujoco>`` MJCF. Dynamics need no meshes:
 :meth:`ModelSource.engine_text` drops every ``<visual>`` and ``<collision>``
 of a URDF (and, when asked, every ``<mimic>``) before an engine sees it, so
 missing mesh files cannot stop an import; the notes say what was dropped.
+An MJCF keeps its geoms (MuJoCo derives inertias from them) and is made
+self-contained instead (``engines.model.mjcf_text``: includes inlined, asset
+folders absolute), so it loads the same from a string or a temporary file.
+:meth:`ModelSource.engine_file` is that text in a temporary file, for the
+loaders that read only files.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 from engines.model.description import ModelError
 
@@ -34,9 +43,14 @@ class ModelSource:
         return ET.fromstring(self.text)
 
     def engine_text(self, drop_mimic: bool = False) -> tuple[str, tuple[str, ...]]:
-        """The text engines load (URDF without <visual>/<collision>, MJCF as it is) and notes saying what went."""
+        """The text engines load (URDF without <visual>/<collision>, MJCF self-contained) and notes saying
+        what changed."""
         if self.format != "urdf":
-            return self.text, ()
+            from engines.model.mjcf_text import flatten
+
+            text, count = flatten(self.text, self.path)
+            return text, ((f"{count} <include> element{'s' if count > 1 else ''} inlined (each file found relative "
+                           f"to the file that names it)",) if count else ())
         root = self.root
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
@@ -59,6 +73,18 @@ class ModelSource:
             notes.append(f"{count} <mimic> element{'s' if count > 1 else ''} removed: each mimic joint is an "
                          f"independent coordinate here (the tree's M, bias and accelerations, no coupling constraint)")
         return ET.tostring(root, encoding="unicode"), tuple(notes)
+
+    @contextlib.contextmanager
+    def engine_file(self, drop_mimic: bool = False) -> Iterator[str]:
+        """The path of a temporary file holding :meth:`engine_text` (removed on exit), for loaders that read
+        files only; its suffix is the format's (.urdf, .xml)."""
+        handle, name = tempfile.mkstemp(suffix=".urdf" if self.format == "urdf" else ".xml", prefix="xval-model-")
+        try:
+            with os.fdopen(handle, "w", encoding="utf-8") as stream:
+                stream.write(self.engine_text(drop_mimic)[0])
+            yield name
+        finally:
+            os.unlink(name)
 
     def _missing_meshes(self, element: ET.Element) -> set[str]:
         names = set()

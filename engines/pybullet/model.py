@@ -8,16 +8,23 @@ motor disabled. M is ``calculateMassMatrix``, the bias
 forward-dynamics call: the acceleration is measured from one step of
 dt = 1e-3 (its multibody step is semi-implicit Euler, v₁ = v₀ + dt·a(q₀, v₀)).
 Its prints (C-level stdout, stderr) are kept out of the caller's output.
+
+MJCF: ``loadMJCF`` on the self-contained text (includes inlined) returns one
+body per static worldbody geom besides the multibody: the multibody (the
+body with joints) is the model. It gives an MJCF root body a floating base
+even when MuJoCo welds it to the world: then M is the joints' block of its
+(6 + n)² matrix (base rows first, angular then linear), the bias the joints'
+rows of ``calculateInverseDynamics`` at the base's pose with the base at
+rest (q = base position, quaternion x y z w, joints; its base rows linear
+then angular), and the acceleration M⁻¹(τ − b), the fixed-base dynamics
+from PyBullet's own M and bias (a step would let the base fall).
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import replace
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -45,15 +52,13 @@ def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
         client = pb.connect(pb.DIRECT)
     try:
         with quiet_output():
-            if source.format == "urdf":
-                with _as_file(text) as path:
+            with source.engine_file(drop_mimic=description.mimic_independent) as path:
+                if source.format == "urdf":
                     body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
                                        physicsClientId=client)
-            else:  # an MJCF file is loaded as it is (its includes resolve from its own folder)
-                bodies = pb.loadMJCF(str(source.path), flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
-                body = bodies[0] if len(bodies) == 1 else -1
-        if body < 0:
-            raise Refused("pybullet could not load the file (loadMJCF gave no single multibody)")
+                else:
+                    body = _multibody(pb.loadMJCF(path, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client),
+                                      client)
     except (pb.error, Refused) as exc:
         pb.disconnect(client)
         raise Refused(str(exc)) from None
@@ -61,16 +66,13 @@ def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
     return PyBulletModel(client, body, description, options, notes)
 
 
-@contextlib.contextmanager
-def _as_file(text: str) -> Iterator[str]:
-    """loadURDF reads a file: the stripped text (no meshes left to resolve) in a temporary one, removed after."""
-    handle, name = tempfile.mkstemp(suffix=".urdf", prefix="xval-model-")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-        yield name
-    finally:
-        os.unlink(name)
+def _multibody(bodies, client: int) -> int:
+    """The one body of ``loadMJCF``'s answer that has joints (the others are static geoms); Refused otherwise."""
+    jointed = [b for b in bodies if pb.getNumJoints(b, physicsClientId=client) > 0]
+    if len(jointed) != 1:
+        raise Refused(f"pybullet could not load the file: loadMJCF gave {len(bodies)} bodies, "
+                      f"{len(jointed)} of them with joints (one multibody expected)")
+    return jointed[0]
 
 
 class PyBulletModel(LoadedModel):
@@ -90,6 +92,12 @@ class PyBulletModel(LoadedModel):
         names = [infos[k][1].decode() for k in self.movable]
         self.index = index_map(description, names)  # description order -> position among movable joints
         self.joints = [self.movable[k] for k in self.index]
+        size = len(pb.calculateMassMatrix(body, [0.0] * len(self.movable), **kw))
+        #: 6 when PyBullet gave the base a floating joint the description welds (an MJCF root), else 0.
+        self.base = size - len(self.movable)
+        if self.base:
+            self.notes = (*self.notes, "loadMJCF gave the root a floating base: M, bias and acceleration are "
+                          "the fixed-base ones (joints' block and rows, base at rest)")
         for link in range(-1, self.n_joints):
             pb.changeDynamics(body, link, linearDamping=0, angularDamping=0, jointDamping=0, **kw)
         pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
@@ -101,14 +109,23 @@ class PyBulletModel(LoadedModel):
 
     def mass_matrix(self, q):
         full = np.array(pb.calculateMassMatrix(self.body, self._full(q), physicsClientId=self.client))
-        return full[np.ix_(self.index, self.index)]
+        return full[np.ix_(self.base + self.index, self.base + self.index)]
 
     def bias(self, q, v):
-        zeros = [0.0] * len(self.movable)
-        tau = pb.calculateInverseDynamics(self.body, self._full(q), self._full(v), zeros, physicsClientId=self.client)
-        return np.array(tau)[self.index]
+        zeros = [0.0] * (self.base + len(self.movable))
+        if self.base:
+            position, orientation = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+            pose = [*position, *orientation]
+            tau = pb.calculateInverseDynamics(self.body, pose + self._full(q), [0.0] * self.base + self._full(v),
+                                              zeros, physicsClientId=self.client)
+        else:
+            tau = pb.calculateInverseDynamics(self.body, self._full(q), self._full(v), zeros,
+                                              physicsClientId=self.client)
+        return np.array(tau)[self.base + self.index]
 
     def forward(self, q, v, tau):
+        if self.base:
+            return np.linalg.solve(self.mass_matrix(q), np.asarray(tau) - self.bias(q, v))
         kw = {"physicsClientId": self.client}
         for joint, position, velocity in zip(self.joints, q, v):
             pb.resetJointState(self.body, joint, position, velocity, **kw)
