@@ -1,6 +1,7 @@
 """Dynamics parity: each engine's M(q), b(q, v) and a(q, v, tau) against Pinocchio's at sampled states.
 
-States: q uniform within each joint's limits (the inner 90 %: PyBullet's
+States: a floating base anywhere within 1 m of the origin in any orientation
+(xval's convention: engines/model/floating.py); q uniform within each joint's limits (the inner 90 %: PyBullet's
 limit constraints stay idle) or ±π for a joint without them (±1 m for a
 prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
 a* uniform in ±1 rad/s² (m/s²), so every joint's reference acceleration is
@@ -94,17 +95,21 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
             reach = math.pi if joint.type != "prismatic" else 1.0
             lower[k], upper[k] = -reach, reach
     q = rng.uniform(lower, upper, (count, model.nq))
-    v = rng.uniform(-1.0, 1.0, (count, model.nq))
-    target = rng.uniform(-1.0, 1.0, (count, model.nq))
+    if model.floating is not None:  # the base anywhere within 1 m, in any orientation (a uniform unit quaternion)
+        quaternions = rng.normal(size=(count, 4))
+        quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
+        q = np.concatenate([rng.uniform(-1.0, 1.0, (count, 3)), quaternions, q], axis=1)
+    v = rng.uniform(-1.0, 1.0, (count, model.nv))
+    target = rng.uniform(-1.0, 1.0, (count, model.nv))
     tau = np.array([reference.mass_matrix(qk) @ ak + reference.bias(qk, vk) for qk, vk, ak in zip(q, v, target)])
     return States(q, v, tau)
 
 
 def _require_invertible(model: ModelDescription, reference: LoadedModel, label: str) -> None:
     """ModelError naming the joints that move nothing with mass or inertia (M singular: no forward dynamics)."""
-    m = reference.mass_matrix(np.zeros(model.nq))
+    m = reference.mass_matrix(model.neutral())
     scale = max(float(np.abs(m).max()), 1e-300)
-    idle = [j.name for j, d in zip(model.moving_joints, np.diag(m)) if d <= 1e-12 * scale]
+    idle = [name for name, d in zip(model.dof_names, np.diag(m)) if d <= 1e-12 * scale]
     if idle:
         raise ModelError(f"model {label}: joint {', '.join(idle)} moves no mass or inertia (M is singular); "
                          f"give the links it moves an <inertial>")

@@ -106,7 +106,7 @@ class DartModel(LoadedModel):
         return np.array(self.skeleton.getAccelerations())[self.dof]
 
     def link_inertias(self):
-        self._set(np.zeros(len(self.dof)))
+        self._set(self.description.neutral())
         found = {}
         for k in range(self.skeleton.getNumBodyNodes()):
             node = self.skeleton.getBodyNode(k)

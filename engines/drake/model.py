@@ -129,7 +129,7 @@ class DrakeModel(LoadedModel):
     def link_inertias(self):
         BodyIndex = drake.BodyIndex
 
-        self._set(np.zeros(len(self.dof)))
+        self._set(self.description.neutral())
         found = {}
         for k in range(1, self.plant.num_bodies()):  # body 0 is the world
             body = self.plant.get_body(BodyIndex(k))

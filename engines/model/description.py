@@ -27,8 +27,9 @@ from engines.errors import UserError
 Vector = tuple[float, float, float]
 Matrix = tuple[Vector, Vector, Vector]
 
-#: Joint types a description holds; every other type is refused.
-JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+#: Joint types a description holds; every other type is refused. "floating" (six degrees of freedom) only
+#: between the world and the base.
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating")
 #: Joint types that add a coordinate.
 MOVING = ("revolute", "continuous", "prismatic")
 #: Smallest principal moment accepted, relative to the largest (round-off in a file's decimals).
@@ -129,9 +130,8 @@ class Joint:
 
     def check(self) -> None:
         if self.type not in JOINT_TYPES:
-            fix = ("the base is welded to the world; remove the floating joint" if self.type == "floating"
-                   else f"use one of {', '.join(JOINT_TYPES)}")
-            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; {fix}")
+            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; "
+                             f"use one of {', '.join(JOINT_TYPES)}")
         if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
             raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
         if self.moving:
@@ -146,7 +146,14 @@ class Joint:
 
 @dataclass(frozen=True)
 class ModelDescription:
-    """A fixed-base kinematic tree. bodies, joints : depth-first from ``root``."""
+    """A kinematic tree. bodies, joints : depth-first from ``root``.
+
+    A floating base is a joint of type "floating" from the root (the world: MuJoCo's ``world`` for an MJCF
+    free joint, a massless ``__world__`` added for a URDF read with a floating base) to the base link, the
+    first joint. Coordinates (Pinocchio's convention, the one inside xval): the configuration is (base
+    position (3,) m, base orientation quaternion x y z w, joint q) and the velocity (base linear velocity
+    (3,) m/s and angular velocity (3,) rad/s, both in the base frame, joint v); fixed base: joint q and v.
+    """
 
     name: str
     source: str
@@ -175,6 +182,44 @@ class ModelDescription:
         for body in self.bodies:
             body.inertial.check(body.name)
         _check_tree(self)
+        for k, joint in enumerate(self.joints):
+            if joint.type == "floating" and (k > 0 or joint.parent != self.root or self.body(self.root).inertial.mass):
+                raise ModelError(f"joint {joint.name}: a floating joint must join the world to the base; "
+                                 f"make it the root body's only joint (a free joint in a top-level body)")
+
+    @cached_property
+    def floating(self) -> Joint | None:
+        """The floating joint between the world and the base (None: the root is welded to the world)."""
+        return self.joints[0] if self.joints and self.joints[0].type == "floating" else None
+
+    @property
+    def base_dofs(self) -> int:
+        """6 with a floating base, else 0: the velocity entries before the joints'."""
+        return 6 if self.floating is not None else 0
+
+    @property
+    def nv(self) -> int:
+        """Velocity size: base_dofs + nq."""
+        return self.base_dofs + self.nq
+
+    @property
+    def nconfig(self) -> int:
+        """Configuration size: 7 (position, quaternion) with a floating base, + nq."""
+        return (7 if self.floating is not None else 0) + self.nq
+
+    @property
+    def dof_names(self) -> tuple[str, ...]:
+        """A name per velocity entry: the base's six (``BASE.vx`` … ``BASE.wz``), then the joints."""
+        base = () if self.floating is None else tuple(f"{self.floating.name}.{a}" for a in
+                                                      ("vx", "vy", "vz", "wx", "wy", "wz"))
+        return (*base, *(j.name for j in self.moving_joints))
+
+    def neutral(self) -> np.ndarray:
+        """(nconfig,) the zero configuration (the base at the origin, identity orientation)."""
+        q = np.zeros(self.nconfig)
+        if self.floating is not None:
+            q[6] = 1.0
+        return q
 
     @cached_property
     def moving_joints(self) -> tuple[Joint, ...]:
@@ -205,7 +250,7 @@ class ModelDescription:
         the virtual ones left out."""
         moving: set[str] = set()
         for joint in self.joints:  # depth-first: a parent is settled before its children
-            if joint.moving or joint.parent in moving:
+            if joint.moving or joint.type == "floating" or joint.parent in moving:
                 moving.add(joint.child)
         return tuple(b.name for b in self.bodies if b.name in moving and not b.virtual)
 

@@ -12,7 +12,8 @@ with several joints (a planar root: slide x, slide z, hinge y) becomes a
 chain: one massless link per joint but the last, named ``BODY/JOINT``
 (marked ``virtual``), the body itself the child of its last joint; MuJoCo
 applies a body's joints in that order, each in the frame the previous ones
-moved. Refused: ball and free joints.
+moved. A free joint is the floating base (type "floating", from the world;
+it has no anchor). Refused: ball joints.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from engines.model.description import Body, Inertial, Joint, Limits, ModelDescription, ModelError
 from engines.model.source import ModelSource
 
-KINDS = {2: "prismatic", 3: "revolute"}  # mjJNT_SLIDE, mjJNT_HINGE
+KINDS = {0: "floating", 2: "prismatic", 3: "revolute"}  # mjJNT_FREE, mjJNT_SLIDE, mjJNT_HINGE
 
 
 def read(source: ModelSource) -> ModelDescription:
@@ -41,10 +42,8 @@ def read(source: ModelSource) -> ModelDescription:
         ids = list(range(m.body_jntadr[k], m.body_jntadr[k] + count))
         for joint_id in ids:
             if m.jnt_type[joint_id] not in KINDS:
-                kind = {0: "free", 1: "ball"}.get(int(m.jnt_type[joint_id]), str(m.jnt_type[joint_id]))
-                fix = "the base is welded to the world; remove the freejoint" if kind == "free" else \
-                    "use hinge or slide joints"
-                raise ModelError(f"joint {m.joint(joint_id).name or names[k]}: type {kind!r} is not supported; {fix}")
+                raise ModelError(f"joint {m.joint(joint_id).name or names[k]}: type 'ball' is not supported; "
+                                 f"use hinge or slide joints")
         parent = m.body_parentid[k]
         rotation = _quat_matrix(m.body_quat[k])
         anchors = [np.asarray(m.jnt_pos[j], dtype=float) for j in ids] or [np.zeros(3)]
@@ -66,13 +65,16 @@ def read(source: ModelSource) -> ModelDescription:
         above = names[parent]
         for i, (joint_id, link) in enumerate(zip(ids, links)):
             hinge = m.jnt_type[joint_id] == 3
-            limited = bool(m.jnt_limited[joint_id])
-            kind = "prismatic" if not hinge else ("revolute" if limited else "continuous")
+            limited = bool(m.jnt_limited[joint_id]) and m.jnt_type[joint_id] != 0
+            kind = KINDS[int(m.jnt_type[joint_id])] if not hinge else ("revolute" if limited else "continuous")
             lo, hi = (float(x) for x in m.jnt_range[joint_id]) if limited else (None, None)
             name = m.joint(joint_id).name or f"{names[k]}_joint{i}"
-            joints.append(Joint(name, kind, above, link, tuple(m.jnt_axis[joint_id]), tuple(offsets[i]),
-                                _rpy(rotation) if i == 0 else (0.0, 0.0, 0.0), Limits(lo, hi),
-                                float(m.dof_damping[m.jnt_dofadr[joint_id]])))
+            if kind == "floating":  # the configuration is the base's pose in the world (MuJoCo's qpos, Pinocchio's q)
+                joints.append(Joint(name, kind, above, link))
+            else:
+                joints.append(Joint(name, kind, above, link, tuple(m.jnt_axis[joint_id]), tuple(offsets[i]),
+                                    _rpy(rotation) if i == 0 else (0.0, 0.0, 0.0), Limits(lo, hi),
+                                    float(m.dof_damping[m.jnt_dofadr[joint_id]])))
             last = link == names[k]
             bodies.append(Body(link, name, inertial if last else Inertial(), virtual=not last))
             above = link

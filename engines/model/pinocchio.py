@@ -58,9 +58,14 @@ class PinocchioModel(LoadedModel):
         # One entry per degree of freedom: (its name, Pinocchio joint, index within it).
         order = [j.name for j in description.moving_joints]
         names, slots = [], []
+        base: list[int] = []
         for joint in range(1, model.njoints):
             name = model.names[joint]
             count = int(model.nvs[joint])
+            if model.joints[joint].shortname() == "JointModelFreeFlyer" and description.floating is not None:
+                base = [int(model.idx_vs[joint]) + k for k in range(6)]
+                self.base_q = int(model.idx_qs[joint])
+                continue
             if count > 1 and name.startswith("Composite_") and name[len("Composite_"):] in order:
                 start = order.index(name[len("Composite_"):])
                 parts = order[start:start + count]
@@ -72,14 +77,22 @@ class PinocchioModel(LoadedModel):
             slots += [(joint, k) for k in range(len(parts))]
         chosen = [slots[k] for k in index_map(description, names)]
         self.joint_ids = [joint for joint, _ in chosen]
-        self.dof = np.array([model.idx_vs[joint] + k for joint, k in chosen])
+        if description.floating is not None and not base:
+            raise Refused("pinocchio's model has no free-flyer joint for the floating base")
+        #: Pinocchio's velocity index of each of xval's (the base's six first, when floating).
+        self.dof = np.array(base + [model.idx_vs[joint] + k for joint, k in chosen], dtype=int)
         # Where each coordinate sits in the configuration; continuous: (cos, sin), two numbers for one angle.
         self.qslot = [model.idx_qs[joint] + k for joint, k in chosen]
         self.circle = [model.nqs[joint] == 2 and model.nvs[joint] == 1 for joint, _ in chosen]
 
     def configuration(self, q) -> np.ndarray:
-        """The description's q (nq,) as Pinocchio's configuration (model.nq,)."""
+        """xval's configuration (nconfig,) as Pinocchio's (model.nq,): the base's pose as it is (the same
+        convention), each continuous joint's angle as (cos, sin)."""
         config = pin.neutral(self.model)
+        q = np.asarray(q, dtype=float)
+        if self.description.floating is not None:
+            config[self.base_q:self.base_q + 7] = np.concatenate([q[:3], q[3:7] / np.linalg.norm(q[3:7])])
+            q = q[7:]
         for start, angle, circle in zip(self.qslot, q, self.circle):
             if circle:
                 config[start:start + 2] = np.cos(angle), np.sin(angle)
@@ -104,9 +117,12 @@ class PinocchioModel(LoadedModel):
         return pin.aba(self.model, self.data, self.configuration(q), self._vector(v), self._vector(tau))[self.dof].copy()
 
     def link_inertias(self):
-        pin.forwardKinematics(self.model, self.data, self.configuration(np.zeros(len(self.dof))))
+        pin.forwardKinematics(self.model, self.data, self.configuration(self.description.neutral()))
         found = {}
         names = {joint: name for joint, name in zip(self.joint_ids, (j.name for j in self.description.moving_joints))}
+        if self.description.floating is not None:
+            names[next(j for j in range(1, self.model.njoints) if self.model.idx_vs[j] == self.dof[0])] = \
+                self.description.floating.name
         for joint in range(1, self.model.njoints):
             # A joint's body is its child link with every link welded to it, in the joint frame (a composite
             # joint's body is the child of its last part).
