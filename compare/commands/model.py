@@ -6,7 +6,7 @@ import json
 
 import click
 
-from compare.model.parity import QUANTITIES, TOLERANCE, ParityReport, check
+from compare.model.parity import BASES, QUANTITIES, TOLERANCE, ParityReport, check
 from engines.model.importers import ENGINES
 
 
@@ -24,8 +24,10 @@ def command() -> None:
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the sampled states.")
 @click.option("--balance-inertia", is_flag=True,
               help="Let MuJoCo balance inertias that violate A + B >= C (its balanceinertia) instead of refusing them.")
+@click.option("--base", type=click.Choice(BASES), default="fixed", show_default=True,
+              help="A URDF's root link welded to the world (fixed) or free (floating); an MJCF says its own.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table", show_default=True)
-def check_command(model, engines, states, seed, balance_inertia, output_format) -> None:
+def check_command(model, engines, states, seed, balance_inertia, base, output_format) -> None:
     """Compare each engine's M(q), bias b(q, v) and forward dynamics with Pinocchio's on MODEL.
 
     MODEL is a URDF or MJCF file, or pybullet_data:<path> for a model PyBullet
@@ -33,7 +35,8 @@ def check_command(model, engines, states, seed, balance_inertia, output_format) 
     engine agrees (relative difference <= 1e-6 in all three), 1 when one does
     not (or cannot load the file), 2 for bad input.
     """
-    report = check(model, tuple(engines) or ENGINES, states=states, seed=seed, balance_inertia=balance_inertia)
+    report = check(model, tuple(engines) or ENGINES, states=states, seed=seed, balance_inertia=balance_inertia,
+                   base=base)
     click.echo(json.dumps(report.to_dict(), indent=1, ensure_ascii=False) if output_format == "json" else render(report))
     raise click.exceptions.Exit(report.exit_code)
 

@@ -134,26 +134,33 @@ def relative_difference(values: list[np.ndarray], reference: list[np.ndarray], f
     return worst / scale if scale > 0 else worst
 
 
-def read_description(label: str) -> tuple[sources.ModelSource, ModelDescription]:
-    """The source and its description (mimic joints as independent coordinates, said in the notes)."""
+#: What ``--base`` takes: a URDF's root welded to the world (URDF's default) or joined by a floating joint.
+BASES = ("fixed", "floating")
+
+
+def read_description(label: str, base: str = "fixed") -> tuple[sources.ModelSource, ModelDescription]:
+    """The source and its description (mimic joints as independent coordinates, said in the notes); ``base``
+    applies to a URDF (an MJCF says its own: a free joint)."""
+    if base not in BASES:
+        raise ModelError(f"--base: must be one of {', '.join(BASES)}, got {base!r}")
     source = sources.resolve(label)
     if source.format == "urdf":
-        return source, urdf.read(source, mimic_independent=True)
+        return source, urdf.read(source, mimic_independent=True, floating=base == "floating")
     from engines.model import mjcf
 
     return source, mjcf.read(source)
 
 
 def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, seed: int = 0,
-          balance_inertia: bool = False) -> ParityReport:
+          balance_inertia: bool = False, base: str = "fixed") -> ParityReport:
     """The parity report of model ``label``; UserError (ModelError) for bad input, before any engine runs."""
     for name in engines:
         if name not in ENGINES:
             raise ModelError(f"--engine: unknown engine {name!r}; choose from {', '.join(ENGINES)}")
     if states < 1:
         raise ModelError(f"--states: must be at least 1, got {states}")
-    source, model = read_description(label)
-    if model.nq == 0:
+    source, model = read_description(label, base)
+    if model.nq == 0 and model.floating is None:
         raise ModelError(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
     try:
         reference = importer(REFERENCE).load(source, model)

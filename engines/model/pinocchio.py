@@ -2,7 +2,8 @@
 
 Import options: ``buildModelFromXML`` (URDF) or ``buildModelFromMJCF``
 (MJCF, read from the self-contained text in a temporary file) with a fixed
-base (no root joint); links welded by fixed joints are merged into their
+base (no root joint), or a ``JointModelFreeFlyer`` root joint for a URDF read
+with a floating base (an MJCF free joint is one already); links welded by fixed joints are merged into their
 joint's body (Pinocchio keeps them as frames). Several joints in one MJCF
 body are one composite joint (``Composite_<first>``) whose degrees of
 freedom are the body's joints in file order: each is matched by name to the
@@ -33,7 +34,9 @@ def version() -> str:
 def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel":
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     try:
-        if source.format == "urdf":
+        if source.format == "urdf" and description.floating is not None:
+            model = pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
+        elif source.format == "urdf":
             model = pin.buildModelFromXML(text)
         else:
             with source.engine_file() as path:
@@ -41,7 +44,7 @@ def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel"
     except (RuntimeError, ValueError) as exc:
         raise Refused(" ".join(str(exc).split())) from None
     options = {"builder": "buildModelFromXML" if source.format == "urdf" else "buildModelFromMJCF",
-               "root_joint": "none (fixed base)"}
+               "root_joint": "none (fixed base)" if description.floating is None else "JointModelFreeFlyer"}
     return PinocchioModel(model, description, options, notes)
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 
 import numpy as np
 
@@ -20,8 +21,15 @@ from engines.model.kinematics import rpy_matrix
 from engines.model.source import ModelSource
 
 
-def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescription:
-    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold."""
+#: The world body and the joint a floating base adds above a URDF's root link (names no URDF link takes).
+WORLD, FLOATING = "__world__", "__floating_base__"
+
+
+def read(source: ModelSource, mimic_independent: bool = False, floating: bool = False) -> ModelDescription:
+    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold.
+
+    floating : the root link joined to the world by a floating joint (``--base floating``); URDF's default,
+    and this one's, is the root welded to the world."""
     robot = source.root
     links = robot.findall("link")
     joints = [_joint(element) for element in robot.findall("joint")]
@@ -51,6 +59,11 @@ def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescripti
     ordered_links += [n for n in bodies if n not in ordered_links]
     ordered_joints += [j for j in joints if j not in ordered_joints]
     body_records = tuple(Body(n, parent_of[n].name if n in parent_of else None, bodies[n][1]) for n in ordered_links)
+    if floating and len(roots) == 1:
+        body_records = (Body(WORLD, None), *(replace(b, parent_joint=FLOATING) if b.name == root else b
+                                             for b in body_records))
+        ordered_joints.insert(0, Joint(FLOATING, "floating", WORLD, root))
+        root = WORLD
     return ModelDescription(name=robot.get("name", source.path.stem), source=source.label, format="urdf",
                             root=root, bodies=body_records, joints=tuple(ordered_joints),
                             mimic_independent=mimic_independent)

@@ -45,7 +45,14 @@ def load(source: ModelSource, description: ModelDescription, balance_inertia: bo
     if source.format == "urdf":
         text = _with_compiler(text, options)
     try:
-        model = mujoco.MjModel.from_xml_string(text)
+        if source.format == "urdf" and description.floating is not None:
+            # MuJoCo welds a URDF's root: a free joint added to it in the spec, before compiling.
+            spec = mujoco.MjSpec.from_string(text)
+            spec.worldbody.first_body().add_freejoint(name=description.floating.name)
+            model = spec.compile()
+            options = {**options, "floating_base": "a free joint added to the root body (MjSpec.add_freejoint)"}
+        else:
+            model = mujoco.MjModel.from_xml_string(text)
     except ValueError as exc:
         raise Refused(" ".join(str(exc).split())) from None
     return MujocoModel(model, description, options, notes)
