@@ -20,10 +20,11 @@ import numpy as np
 
 #: Engine base-velocity layouts, as functions of the base rotation R: u_base = block(R) (v, ω).
 #: mujoco: (R v, ω): linear in the world, angular in the body. drake: (R ω, R v): angular first, both in the
-#: world.
+#: world. dart (its FreeJoint, dartpy 6.20): as drake, (R ω, R v), though its documentation says the body frame.
 LAYOUTS = {
     "mujoco": lambda r: np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]]),
     "drake": lambda r: np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]]),
+    "dart": lambda r: np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]]),
 }
 
 
