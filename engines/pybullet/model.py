@@ -27,8 +27,10 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from engines.model.description import ModelDescription
+from engines.model.floating import rotation, skew
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -54,15 +56,15 @@ def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
         with quiet_output():
             with source.engine_file(drop_mimic=description.mimic_independent) as path:
                 if source.format == "urdf":
-                    body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
-                                       physicsClientId=client)
+                    body = pb.loadURDF(path, useFixedBase=description.floating is None,
+                                       flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
                 else:
                     body = _multibody(pb.loadMJCF(path, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client),
                                       client)
     except (pb.error, Refused) as exc:
         pb.disconnect(client)
         raise Refused(str(exc)) from None
-    options = {"useFixedBase": "True", "flags": "URDF_USE_INERTIA_FROM_FILE"}
+    options = {"useFixedBase": str(description.floating is None), "flags": "URDF_USE_INERTIA_FROM_FILE"}
     return PyBulletModel(client, body, description, options, notes)
 
 
@@ -93,35 +95,76 @@ class PyBulletModel(LoadedModel):
         self.index = index_map(description, names)  # description order -> position among movable joints
         self.joints = [self.movable[k] for k in self.index]
         size = len(pb.calculateMassMatrix(body, [0.0] * len(self.movable), **kw))
-        #: 6 when PyBullet gave the base a floating joint the description welds (an MJCF root), else 0.
+        #: 6 when PyBullet's base is floating (a floating base, or an MJCF root PyBullet floats), else 0.
         self.base = size - len(self.movable)
-        if self.base:
+        self.floating = description.floating is not None
+        if self.floating and not self.base:
+            raise Refused("pybullet's body has a fixed base for the floating base")
+        if self.base and not self.floating:
             self.notes = (*self.notes, "loadMJCF gave the root a floating base: M, bias and acceleration are "
                           "the fixed-base ones (joints' block and rows, base at rest)")
-        for link in range(-1, self.n_joints):
-            pb.changeDynamics(body, link, linearDamping=0, angularDamping=0, jointDamping=0, **kw)
-        pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
+        if self.floating:
+            self.notes = (*self.notes, "floating base: acceleration M⁻¹(τ − b) from PyBullet's own M and bias; "
+                          "calculateInverseDynamics given the base quaternion it reads as the pose (it takes "
+                          "extrinsic x-y-z angles as intrinsic X-Y-Z)")
+        #: PyBullet's velocity index of each of xval's (its base's six first).
+        self.selected = np.concatenate([np.arange(6 if self.floating else 0), self.base + self.index]).astype(int)
+        # PyBullet's base frame is the base link's inertial frame P (offset c, rotation Rc from the link frame B);
+        # its base velocity (angular, linear of P's origin), both in P's axes (measured, tests/test_floating_base.py).
+        info = pb.getDynamicsInfo(body, -1, **kw)
+        self.offset = np.array(info[3])
+        self.turn = np.array(pb.getMatrixFromQuaternion(info[4])).reshape(3, 3)
+        self.T = np.eye(len(self.selected))
+        if self.floating:
+            a = self.turn.T
+            self.T[:6, :6] = np.block([[np.zeros((3, 3)), a], [a, -a @ skew(self.offset)]])
 
     def _full(self, values) -> list[float]:
         full = np.zeros(len(self.movable))
         full[self.index] = values
         return full.tolist()
 
+    def _joints_of(self, q) -> np.ndarray:
+        return np.asarray(q, dtype=float)[7:] if self.floating else np.asarray(q, dtype=float)
+
+    def _pose(self, q) -> list[float]:
+        """PyBullet's base pose (P's position, quaternion x y z w) for xval's configuration q."""
+        if not self.floating:
+            position, orientation = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+            return [*position, *orientation]
+        r = rotation(q[3:7])
+        return [*(np.asarray(q[:3]) + r @ self.offset), *Rotation.from_matrix(r @ self.turn).as_quat()]
+
+    def _engine_mass(self, q) -> np.ndarray:
+        full = np.array(pb.calculateMassMatrix(self.body, self._full(self._joints_of(q)), physicsClientId=self.client))
+        return full[np.ix_(self.selected, self.selected)]
+
     def mass_matrix(self, q):
-        full = np.array(pb.calculateMassMatrix(self.body, self._full(q), physicsClientId=self.client))
-        return full[np.ix_(self.base + self.index, self.base + self.index)]
+        return self.T.T @ self._engine_mass(q) @ self.T
 
     def bias(self, q, v):
-        zeros = [0.0] * (self.base + len(self.movable))
-        if self.base:
-            position, orientation = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
-            pose = [*position, *orientation]
-            tau = pb.calculateInverseDynamics(self.body, pose + self._full(q), [0.0] * self.base + self._full(v),
-                                              zeros, physicsClientId=self.client)
-        else:
-            tau = pb.calculateInverseDynamics(self.body, self._full(q), self._full(v), zeros,
-                                              physicsClientId=self.client)
-        return np.array(tau)[self.base + self.index]
+        size = self.base + len(self.movable)
+        joints = self._full(self._joints_of(q))
+        if not self.base:
+            tau = np.array(pb.calculateInverseDynamics(self.body, joints, self._full(v), [0.0] * size,
+                                                       physicsClientId=self.client))
+            return tau[self.index]
+        velocity = np.zeros(size)
+        rates = self.T @ np.asarray(v, dtype=float)
+        velocity[self.selected] = rates
+        pose = self._pose(q)
+        # calculateInverseDynamics reads the base quaternion's extrinsic x-y-z angles as intrinsic X-Y-Z ones
+        # (measured: gravity lands in the wrong base axes otherwise): hand it the quaternion it reads as the pose.
+        pose[3:] = Rotation.from_euler("xyz", Rotation.from_quat(pose[3:]).as_euler("XYZ")).as_quat()
+        raw = np.array(pb.calculateInverseDynamics(self.body, pose + joints, velocity.tolist(), [0.0] * size,
+                                                   physicsClientId=self.client))
+        raw[:6] = np.concatenate([raw[3:6], raw[:3]])  # its base rows are linear first, its velocities angular first
+        if not self.floating:
+            return raw[self.selected]
+        # Its base's linear acceleration is P's classical one in P's axes, d/dt(v_P) + ω × v_P (measured).
+        classical = np.zeros(len(self.selected))
+        classical[3:6] = np.cross(rates[:3], rates[3:6])
+        return self.T.T @ (raw[self.selected] + self._engine_mass(q) @ classical)
 
     def forward(self, q, v, tau):
         if self.base:
