@@ -54,6 +54,14 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
             joint = plant.get_joint(index)
             if joint.num_velocities() == 1 and hasattr(joint, "set_default_damping"):
                 joint.set_default_damping(0.0)
+        # Drake's MJCF parser turns a joint's armature into its actuator's reflected inertia (rotor inertia ×
+        # gear ratio²): zeroed like every engine's armature.
+        reflected = 0
+        for index in plant.GetJointActuatorIndices():
+            actuator = plant.get_mutable_joint_actuator(index)
+            if actuator.default_rotor_inertia() != 0.0:
+                actuator.set_default_rotor_inertia(0.0)
+                reflected += 1
         plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -GRAVITY])
         plant.Finalize()
     except RuntimeError as exc:
@@ -62,7 +70,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
         logger.removeHandler(warnings)
         logger.setLevel(level)
         logger.propagate = propagate
-    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines))
+    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines),
+             *((f"reflected inertia (the MJCF's armature) of {reflected} actuators set to 0",) if reflected else ()))
     options = {"parser": "Parser.AddModelsFromString", "time_step": "0 (continuous plant)",
                "root": f"{description.root} welded to the world"}
     return DrakeModel(plant, description, options, notes)
