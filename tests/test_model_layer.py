@@ -137,7 +137,6 @@ MJCF = '<mujoco><worldbody><body name="b">{joints}<inertial pos="0 0 0" mass="1"
 
 
 @pytest.mark.parametrize("joints, message", [
-    ('<freejoint name="float"/>', r"^joint float: type 'free' is not supported; the base is welded to the world; remove the freejoint$"),
     ('<joint name="ball" type="ball"/>', r"^joint ball: type 'ball' is not supported; use hinge or slide joints$"),
 ])
 def test_the_mjcf_reader_refuses_what_the_description_cannot_hold(tmp_path, joints, message):

@@ -117,6 +117,9 @@ def _joint(element: ET.Element) -> Joint:
     name = _name(element, "joint")
     where = f"joint {name}"
     kind = element.get("type", "")
+    if kind == "floating":  # the one floating joint is the base's, asked for with --base floating
+        raise ModelError(f"{where}: type 'floating' is not supported; the base is welded to the world; "
+                         f"remove the floating joint")
     parent, child = element.find("parent"), element.find("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
         raise ModelError(f"{where}: needs <parent link=…> and <child link=…>; add them")

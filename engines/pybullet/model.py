@@ -94,6 +94,9 @@ class PyBulletModel(LoadedModel):
         names = [infos[k][1].decode() for k in self.movable]
         self.index = index_map(description, names)  # description order -> position among movable joints
         self.joints = [self.movable[k] for k in self.index]
+        for link in range(-1, self.n_joints):
+            pb.changeDynamics(body, link, linearDamping=0, angularDamping=0, jointDamping=0, **kw)
+        pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
         size = len(pb.calculateMassMatrix(body, [0.0] * len(self.movable), **kw))
         #: 6 when PyBullet's base is floating (a floating base, or an MJCF root PyBullet floats), else 0.
         self.base = size - len(self.movable)
