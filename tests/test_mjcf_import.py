@@ -112,3 +112,14 @@ def test_static_geoms_are_not_bodies_and_pybullets_floating_root_is_welded_back(
         np.testing.assert_allclose(pybullet.mass_matrix(q), reference.mass_matrix(q), atol=1e-6)
         np.testing.assert_allclose(pybullet.bias(q, v), reference.bias(q, v), atol=1e-5)
         np.testing.assert_allclose(pybullet.forward(q, v, tau), reference.forward(q, v, tau), atol=1e-4)
+
+
+def test_an_empty_limit_range_locks_no_joint_in_the_check_as_in_simulate():
+    """<limit lower=0 upper=0> locks a joint in PyBullet unless limits are off; check and simulate both turn
+    them off (the same 'no limit' range), and the note says so. Every engine then agrees."""
+    path = FIXTURES.parent / "urdf" / "zero_range.urdf"
+    report = check(str(path), states=10)
+    assert {e.engine: e.agrees for e in report.engines} == {"mujoco": True, "pybullet": True, "drake": True,
+                                                             "dart": True}
+    pybullet = next(e for e in report.engines if e.engine == "pybullet")
+    assert any(note.startswith("joint limits off: every <limit> given lower 1 > upper -1") for note in pybullet.notes)

@@ -49,7 +49,11 @@ def version() -> str:
 
 
 def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
+    source = _without_limits(source)
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    if source.format == "urdf":
+        notes = (*notes, "joint limits off: every <limit> given lower 1 > upper -1, PyBullet's 'no limit' "
+                         "(a range such as lower = upper = 0 would lock the joint)")
     with quiet_output():
         client = pb.connect(pb.DIRECT)
     try:
@@ -206,7 +210,7 @@ class PyBulletStepper:
 
     def __init__(self, scene: Any, dt: float) -> None:
         self.pb, self.quiet = pb, quiet_output
-        loaded = self.loaded = load(_without_limits(scene.source), scene.description)
+        loaded = self.loaded = load(scene.source, scene.description)
         self.kw = {"physicsClientId": loaded.client}
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, **self.kw)
         for joint, position, velocity in zip(loaded.joints, scene.initial_q, scene.initial_v):
