@@ -111,3 +111,21 @@ def test_an_mjcf_free_joint_is_the_floating_base_and_checks():
     assert rows["pybullet"].loaded and all("pybullet drops the inertia" in line for line in rows["pybullet"].diagnosis)
     assert not rows["dart"].loaded
     assert rows["dart"].message == "MjcfParser.readWorld did not give one skeleton (DART printed the reason)"
+
+
+def test_a_model_scene_refuses_a_floating_base_in_one_line():
+    from engines.model.description import ModelError
+    from engines.model.scene import model_scene
+
+    with pytest.raises(ModelError, match=r"^model .*quadruped.xml: a floating base \(joint root\) is not supported "
+                                         r"in model scenes yet; use `xval model check` for its dynamics, or weld "
+                                         r"the base \(remove the free joint\)$"):
+        model_scene("q", str(MJCF))
+
+
+def test_the_panda_fingers_are_named_as_unbounded_once_limits_are_off():
+    from engines.model.scene import model_scene
+    from engines.model.stepping import unbounded_joints
+
+    scene = model_scene("panda", "pybullet_data:franka_panda/panda.urdf")
+    assert unbounded_joints(scene) == ["panda_finger_joint1", "panda_finger_joint2"]

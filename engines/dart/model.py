@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 from engines.dart import library
 from engines.dart.rk4 import rk4_stepper
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping
+from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -102,7 +102,7 @@ class DartModel(LoadedModel):
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         q = np.asarray(q, dtype=float)
         rates = None if v is None else np.asarray(v, dtype=float)
-        mapping = Mapping("dart", q, rates) if len(self.selected) > len(self.dof) else None
+        mapping = Mapping(angular_linear_world, q, rates) if len(self.selected) > len(self.dof) else None
         if mapping is not None:
             rotvec = Rotation.from_quat(q[3:7] / np.linalg.norm(q[3:7])).as_rotvec()
             q = np.concatenate([rotvec, q[:3], q[7:]])

@@ -21,7 +21,7 @@ import numpy as np
 
 from engines.drake import library as drake
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping
+from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -122,7 +122,7 @@ class DrakeModel(LoadedModel):
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         q = np.asarray(q, dtype=float)
-        mapping = Mapping("drake", q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
+        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
         positions = np.zeros(self.plant.num_positions())
         if mapping is not None:
             quaternion = q[3:7] / np.linalg.norm(q[3:7])

@@ -9,23 +9,26 @@ has, with Ṫ v from Ṙ = R [ω]×:
 
     M = Tᵀ M_e T,   b = Tᵀ (b_e + M_e Ṫ v),   a = T⁻¹ (a_e − Ṫ v),   τ_e = T⁻ᵀ τ.
 
-Each engine's layout below is what tests/test_floating_base.py measured by
+Each layout below is what tests/test_floating_base.py measured by
 invariants (½ vᵀ M v against the links' kinetic energy, the base rows of M v
 against the total momentum), not a reading of its documentation.
 """
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
-#: Engine base-velocity layouts, as functions of the base rotation R: u_base = block(R) (v, ω).
-#: mujoco: (R v, ω): linear in the world, angular in the body. drake: (R ω, R v): angular first, both in the
-#: world. dart (its FreeJoint, dartpy 6.20): as drake, (R ω, R v), though its documentation says the body frame.
-LAYOUTS = {
-    "mujoco": lambda r: np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]]),
-    "drake": lambda r: np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]]),
-    "dart": lambda r: np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]]),
-}
+def linear_world_angular_body(r: np.ndarray) -> np.ndarray:
+    """u = (R v, ω): the linear velocity in the world, the angular in the body (MuJoCo's free joint)."""
+    return np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]])
+
+
+def angular_linear_world(r: np.ndarray) -> np.ndarray:
+    """u = (R ω, R v): angular first, both in the world (Drake's floating body, DART's FreeJoint as measured,
+    though DART's documentation says the body frame)."""
+    return np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]])
 
 
 def rotation(quaternion_xyzw) -> np.ndarray:
@@ -46,11 +49,11 @@ def skew(w) -> np.ndarray:
 class Mapping:
     """An engine's velocity u = T v at one configuration q (xval's, (7 + n,)) and velocity v ((6 + n,) or None).
 
-    layout : a key of LAYOUTS. T : (6 + n, 6 + n), the base block then the identity on the joints.
+    block : the engine's base layout, R -> (6, 6), linear in R (one of the functions above).
+    T : (6 + n, 6 + n), the base block then the identity on the joints.
     """
 
-    def __init__(self, layout: str, q: np.ndarray, v: np.ndarray | None = None) -> None:
-        block = LAYOUTS[layout]
+    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None) -> None:
         r = rotation(q[3:7])
         n = len(q) - 7
         self.T = np.eye(6 + n)

@@ -216,6 +216,10 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     source = resolve(model, base)
     digest = _digest(source.text)
     description = _description(model, str(source.path), digest)
+    if description.floating is not None:
+        raise ModelError(f"model {model}: a floating base (joint {description.floating.name}) is not supported in "
+                         f"model scenes yet; use `xval model check` for its dynamics, or weld the base (remove the "
+                         f"free joint)")
     if description.nq == 0:
         raise ModelError(f"model {model}: it has no moving joints (revolute, continuous or prismatic); "
                          f"there is nothing to simulate")

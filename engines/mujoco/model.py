@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping
+from engines.model.floating import Mapping, linear_world_angular_body
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -98,7 +98,7 @@ class MujocoModel(LoadedModel):
         self.selected = np.concatenate([base, self.dof]).astype(int)
 
     def _mapping(self, q, v=None) -> Mapping | None:
-        return Mapping("mujoco", np.asarray(q, dtype=float), v) if self.base_q >= 0 else None
+        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v) if self.base_q >= 0 else None
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         d, q = self.data, np.asarray(q, dtype=float)
