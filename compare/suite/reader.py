@@ -456,12 +456,15 @@ class _Reader:
 
     def model_scene(self, key: str, entry: dict[str, Any], duration: float | None) -> SceneSpec:
         """A [[scenes]] entry with ``model = "…"`` (a path relative to the suite file, or pybullet_data:<path>),
-        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name."""
+        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name, and
+        ``parameters = { g = … }`` (m/s², the one catalog parameter a model takes)."""
+        from engines.model.loaded import GRAVITY
         from engines.model.scene import DEFAULT_DURATION, model_scene
 
-        if "scene" in entry or "parameters" in entry:
+        if "scene" in entry:
             raise self.error(f"{key}.model", "a scene is either a catalog scene (scene, parameters) or a model "
                              "(model, q0, v0, file_dynamics), not both; remove one")
+        parameters = self.table(f"{key}.parameters", entry.get("parameters", {}), ("g",))
         model = self.string(f"{key}.model", entry["model"])
         scene_id = self.string(f"{key}.id", entry.get("id", Path(model.partition(":")[2] or model).stem))
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
@@ -472,11 +475,11 @@ class _Reader:
         try:
             scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
                                 duration=DEFAULT_DURATION if duration is None else duration,
-                                file_dynamics=file_dynamics)
+                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY))
         except UserError as exc:
             raise self.error(f"{key}.model", str(exc)) from None
         return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
-                                             "file_dynamics": file_dynamics}, scene)
+                                             "file_dynamics": file_dynamics, **dict(parameters)}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

@@ -165,6 +165,7 @@ class DartStepper:
         skeleton.setPositions(positions)
         skeleton.setVelocities(velocities)
         skeleton.setForces(np.zeros(skeleton.getNumDofs()))
+        skeleton.setGravity(np.asarray(scene.gravity, dtype=float))
         if integrator == "world":
             self.world = dart.simulation.World()
             self.world.setGravity(np.asarray(scene.gravity, dtype=float))

@@ -34,7 +34,8 @@ def version() -> str:
     return drake.version()
 
 
-def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
+def load(source: ModelSource, description: ModelDescription, gravity: float = GRAVITY) -> "DrakeModel":
+    """``gravity`` : m/s² along −z (set before ``Finalize()``, the only time Drake takes it)."""
     Parser = drake.Parser
     MultibodyPlant = drake.MultibodyPlant
 
@@ -62,7 +63,7 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
             if actuator.default_rotor_inertia() != 0.0:
                 actuator.set_default_rotor_inertia(0.0)
                 reflected += 1
-        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -GRAVITY])
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -gravity])
         plant.Finalize()
     except RuntimeError as exc:
         raise Refused(" ".join(str(exc).split())) from None
@@ -179,7 +180,7 @@ class DrakeStepper:
 
     def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
         ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
-        loaded = load(scene.source, scene.description)
+        loaded = load(scene.source, scene.description, gravity=scene.g)
         plant = self.plant = loaded.plant
         self.simulator = Simulator(plant)
         self.context = self.simulator.get_mutable_context()

@@ -3,7 +3,8 @@
 A :class:`ModelScene` is a model file (``engines.model.source``), an initial
 state by joint name (SI: rad, m, rad/s, m/s; every joint not named starts at
 0), a duration and what to do with the file's joint damping, friction and
-armature (``file_dynamics``: "neutral" sets them to 0, "keep" leaves them).
+armature (``file_dynamics``: "neutral" sets them to 0, "keep" leaves them),
+and gravity g along −z (9.81 m/s² unless the scene's parameter ``g`` says).
 Contacts and joint limits are always off. What the catalog's particles are
 to its metrics, a model's link frames are here: ``frames`` are the moving
 links, whose origins (positions, velocities) every engine reports, computed
@@ -68,6 +69,8 @@ class ModelScene:
     #: sha256 of the file's text when the scene was made: the key of what is read from it (a file edited
     #: since is a different model).
     digest: str = ""
+    #: m/s², the gravity along −z (the catalog's parameter g; 0 for a model in free fall or in space).
+    g: float = GRAVITY
 
     #: What tells a model scene from a catalog one (engines refuse it without the "model" capability).
     is_model = True
@@ -112,7 +115,12 @@ class ModelScene:
 
     @property
     def gravity(self) -> tuple[float, float, float]:
-        return (0.0, 0.0, -GRAVITY)
+        return (0.0, 0.0, -self.g if self.g else 0.0)
+
+    @property
+    def _scale_gravity(self) -> float:
+        """g for the scales (E*, the speed): Earth's when g = 0, so that they stay defined."""
+        return self.g if self.g > 0 else GRAVITY
 
     @property
     def masses(self) -> np.ndarray:
@@ -127,16 +135,16 @@ class ModelScene:
 
     @property
     def characteristic_gravity(self) -> float:
-        return GRAVITY
+        return self._scale_gravity
 
     @property
     def characteristic_energy(self) -> float:
         """E* = (total mass of the moving links) · g · L, J."""
-        return float(self.masses.sum()) * GRAVITY * self.characteristic_length
+        return float(self.masses.sum()) * self._scale_gravity * self.characteristic_length
 
     @property
     def characteristic_speed(self) -> float:
-        return math.sqrt(GRAVITY * self.characteristic_length)
+        return math.sqrt(self._scale_gravity * self.characteristic_length)
 
     # -- states ----------------------------------------------------------------------------------
 
@@ -157,7 +165,7 @@ class ModelScene:
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path, self.digest).energy(q, v)
+        return _kinematics(self.model, self.path, self.digest).energy(q, v, self.g)
 
     # -- stepping ----------------------------------------------------------------------------------
 
@@ -175,13 +183,14 @@ class ModelScene:
     def content_hash(self) -> str:
         """The file's text, the initial state, the duration and file_dynamics: everything the physics depends on."""
         key = hashlib.sha256(self.digest.encode())
-        key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]).encode())
+        key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]
+                              + ([] if self.g == GRAVITY else [self.g])).encode())
         return key.hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "model", "name": self.name, "model": self.model, "path": self.path,
                 "q0": dict(self.q0), "v0": dict(self.v0), "duration": self.duration,
-                "file_dynamics": self.file_dynamics, "digest": self.digest,
+                "file_dynamics": self.file_dynamics, "digest": self.digest, "g": self.g,
                 "particles": [{"link": name, "mass": float(m)} for name, m in zip(self.frames, self.masses)],
                 "frame_parents": self.frame_parents()}
 
@@ -210,7 +219,7 @@ class ModelScene:
 
 def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[str, Any] | None = None,
                 v0: Mapping[str, Any] | None = None, duration: float = DEFAULT_DURATION,
-                file_dynamics: str = "neutral") -> ModelScene:
+                file_dynamics: str = "neutral", g: Any = GRAVITY) -> ModelScene:
     """A ModelScene from user units: q0 in degrees (revolute, continuous) or metres (prismatic), v0 in
     rad/s or m/s, by joint name; every moving joint not named starts at 0. ModelError naming the field."""
     source = resolve(model, base)
@@ -228,6 +237,12 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
                          f"got {file_dynamics!r}")
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ModelError(f"model {model}: duration must be a positive number of seconds, got {duration!r}")
+    try:
+        gravity = float(g)
+    except (TypeError, ValueError):
+        gravity = math.nan
+    if not (math.isfinite(gravity) and gravity >= 0):
+        raise ModelError(f"model {model}: g must be a finite number of m/s² ≥ 0 (along −z), got {g!r}")
     joints = description.moving_joints
     rubbing = [j.name for j in joints if j.friction]
     if file_dynamics == "keep" and rubbing:
@@ -239,8 +254,9 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     q = tuple((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name])
               if j.name in given_q else (j.name, 0.0) for j in joints)
     v = tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
-    parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics}
-    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest)
+    parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
+                  **({} if gravity == GRAVITY else {"g": gravity})}
+    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity)
 
 
 def _by_joint(model: str, what: str, values: Mapping[str, Any], angular: Mapping[str, bool]) -> dict[str, float]:
@@ -322,9 +338,11 @@ class FrameKinematics:
                 velocities[s, k] = pin.getFrameVelocity(model, data, frame, world).linear
         return positions, velocities
 
-    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def energy(self, q: np.ndarray, v: np.ndarray, g: float = GRAVITY) -> np.ndarray:
+        """(n,) J: kinetic plus potential energy in gravity g (m/s², along −z)."""
         pin, loaded = self.pin, self.loaded
         model, data = loaded.model, loaded.data
+        model.gravity.linear = np.array([0.0, 0.0, -g])
         out = np.empty(len(q))
         for s in range(len(q)):
             config, rates = loaded.configuration(q[s]), loaded._vector(v[s])

@@ -158,6 +158,7 @@ class MujocoStepper:
         loaded = load(scene.source, scene.description)
         self.model, self.data = loaded.model, loaded.data
         self.model.opt.timestep = dt
+        self.model.opt.gravity[:] = scene.gravity
         self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
         self.qpos, self.dof = loaded.qpos, loaded.dof
         self.model.dof_damping[self.dof] = kept_damping(scene)

@@ -103,7 +103,7 @@ class OursStepper:
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description)
+        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
         names = self.model.joint_names
         q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
         v0 = dict(zip(names, np.asarray(scene.initial_v, dtype=float)))

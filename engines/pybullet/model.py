@@ -213,6 +213,7 @@ class PyBulletStepper:
         loaded = self.loaded = load(scene.source, scene.description)
         self.kw = {"physicsClientId": loaded.client}
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, **self.kw)
+        pb.setGravity(*scene.gravity, **self.kw)
         for joint, position, velocity in zip(loaded.joints, scene.initial_q, scene.initial_v):
             pb.resetJointState(loaded.body, joint, float(position), float(velocity), **self.kw)
         self.settings = {**common_settings(scene, loaded), "fixedTimeStep": dt, "numSubSteps": 0,
