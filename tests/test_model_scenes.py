@@ -328,7 +328,12 @@ def test_in_zero_gravity_the_pivot_momentum_holds_and_a_still_arm_stays_put(tmp_
     def drift(run) -> float:
         q, v = run.joint_states[:, :2], run.joint_states[:, 2:]
         momentum = np.array([(mass(qk) @ vk)[0] for qk, vk in zip(q, v)])
+        exported = scene.momentum_drift(q, v)  # the metric momentum_drift, relative to M·L·√(g·L)
+        assert exported is not None and exported <= 1e-10
         return float(np.abs(momentum - momentum[0]).max() / abs(momentum[0]))
+
+    assert scene.conserved_joints() == ("shoulder",)
+    assert model_scene("dp", path).conserved_joints() == ()  # a horizontal pivot axis under gravity
 
     assert drift(REFERENCE.simulate(scene, 1e-3)) <= 1e-10
     for engine_id in ("mujoco/hinge-rk4", "ours/projection-rk4"):

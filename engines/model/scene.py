@@ -167,6 +167,40 @@ class ModelScene:
         with the file's mass properties (the reference's reading of them)."""
         return _kinematics(self.model, self.path, self.digest).energy(q, v, self.g)
 
+    def conserved_joints(self) -> tuple[str, ...]:
+        """The moving joints on the (fixed) root whose momentum nothing changes: (M v)_j is the momentum of
+        everything joint j carries, about its axis (revolute, continuous) or along it (prismatic), and only
+        gravity acts on that subtree beside the joint: conserved when g = 0, or when the axis is parallel
+        (revolute) or perpendicular (prismatic) to gravity."""
+        description, out = self.description, []
+        for joint in description.moving_joints:
+            if joint.parent != description.root:
+                continue
+            axis = _root_axis(description, joint)
+            along = abs(axis[2])  # gravity is along −z
+            if self.g == 0 or (joint.type == "prismatic" and along < 1e-12) or \
+                    (joint.type != "prismatic" and along > 1 - 1e-12):
+                out.append(joint.name)
+        return tuple(out)
+
+    def momentum_drift(self, q: np.ndarray, v: np.ndarray) -> float | None:
+        """max over :meth:`conserved_joints` and samples of |p_j(t) − p_j(0)| / scale, p = M(q) v (n, nq) at
+        joint states q, v (n, nq); scale M·L·√(g·L) about an axis, M·√(g·L) along one (M the moving links'
+        mass, L the reach, g Earth's when the scene's is 0). None when no joint qualifies; 0 for one sample."""
+        names = self.conserved_joints()
+        if not names:
+            return None
+        if len(q) < 2:
+            return 0.0
+        momentum = _kinematics(self.model, self.path, self.digest).momentum(q, v)
+        speed = float(self.masses.sum()) * self.characteristic_speed
+        worst = 0.0
+        for name in names:
+            k = self.joint_names.index(name)
+            scale = speed * (1.0 if self.description.joint(name).type == "prismatic" else self.characteristic_length)
+            worst = max(worst, float(np.abs(momentum[:, k] - momentum[0, k]).max()) / scale)
+        return worst
+
     # -- stepping ----------------------------------------------------------------------------------
 
     def refuse_kept_dynamics(self, engine: str) -> None:
@@ -295,6 +329,13 @@ def _description(model: str, path: str, digest: str) -> ModelDescription:
     return describe(_source(model, path, digest))
 
 
+def _root_axis(description: ModelDescription, joint) -> np.ndarray:
+    """(3,) a root joint's axis in the world (the root is the world frame; its joint frame turned by rpy)."""
+    from engines.model.kinematics import rpy_matrix
+
+    return rpy_matrix(joint.rpy) @ np.asarray(joint.axis, dtype=float)
+
+
 def _reach(description: ModelDescription) -> float:
     length = {description.root: 0.0}
     reach = 0.0
@@ -337,6 +378,11 @@ class FrameKinematics:
                 positions[s, k] = data.oMf[frame].translation
                 velocities[s, k] = pin.getFrameVelocity(model, data, frame, world).linear
         return positions, velocities
+
+    def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(n, nq) the generalised momenta M(q) v at joint states q, v (n, nq)."""
+        loaded = self.loaded
+        return np.array([loaded.mass_matrix(qk) @ vk for qk, vk in zip(q, v)])
 
     def energy(self, q: np.ndarray, v: np.ndarray, g: float = GRAVITY) -> np.ndarray:
         """(n,) J: kinetic plus potential energy in gravity g (m/s², along −z)."""
