@@ -346,3 +346,31 @@ def test_in_zero_gravity_the_pivot_momentum_holds_and_a_still_arm_stays_put(tmp_
     assert parse_suite(suite, str(tmp_path / "s.toml")).scenes[0].scene.g == 0.0
     with pytest.raises(UserError, match=r"g must be a finite number of m/s² ≥ 0 \(along −z\), got -1"):
         model_scene("bad", path, g=-1)
+
+
+def test_a_locked_joint_is_welded_at_its_initial_value_in_every_engine(tmp_path):
+    """lock = ["elbow"] at q0 = 30°: the locked scene's link frames are the free model's at elbow = 30° (the
+    weld folded into the file's origin); the Panda without its fingers steps in DART (whose import of the Panda
+    agrees with the reference's; MuJoCo's does not, docs/models.md) as in the reference, and no unbounded joint
+    is left to name."""
+    from engines.model.stepping import unbounded_joints
+
+    free = model_scene("dp", DOUBLE, q0={"shoulder": 10, "elbow": 30})
+    locked = model_scene("dpl", DOUBLE, q0={"shoulder": 10, "elbow": 30}, lock=["elbow"])
+    assert locked.joint_names == ("shoulder",) and locked.lock == (("elbow", pytest.approx(math.radians(30))),)
+    for shoulder in (0.2, -1.1):
+        np.testing.assert_allclose(locked.frame_states(np.array([[shoulder]]), np.zeros((1, 1)))[0][0, -1],
+                                   free.frame_states(np.array([[shoulder, math.radians(30)]]), np.zeros((1, 2)))[0][0, -1],
+                                   atol=1e-12)
+    panda = model_scene("arm", "pybullet_data:franka_panda/panda.urdf", duration=0.2,
+                        lock=["panda_finger_joint1", "panda_finger_joint2"])
+    assert len(panda.joint_names) == 7 and unbounded_joints(panda) == []
+    engine, variant = resolve("dart/rk4")
+    run = engine.simulate(panda, 1e-3, variant=variant)
+    reference = REFERENCE.simulate(panda, 1e-3)
+    assert np.linalg.norm(run.positions - reference.positions, axis=2).max() < 1e-6
+    assert any("welded at their initial value (lock)" in note for note in run.info.settings["import_notes"])
+    with pytest.raises(UserError, match=r"lock names joint 'wrist', which is not one of its moving joints"):
+        model_scene("bad", DOUBLE, lock=["wrist"])
+    suite = f'dt = [1e-2]\n[[scenes]]\nmodel = "{DOUBLE}"\nlock = ["elbow"]\n[[engines]]\nid = "mujoco/hinge"\n'
+    assert parse_suite(suite, str(tmp_path / "s.toml")).scenes[0].scene.joint_names == ("shoulder",)

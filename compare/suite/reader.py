@@ -56,9 +56,9 @@ TOP_LEVEL_KEYS = {
     "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock")
 #: Keys of a model scene ([[scenes]] model = "…"), beside id.
-MODEL_KEYS = ("model", "q0", "v0", "file_dynamics")
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics", "lock")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
@@ -472,14 +472,18 @@ class _Reader:
         q0 = self.table(f"{key}.q0", entry.get("q0", {}), tuple(entry.get("q0", {})))
         v0 = self.table(f"{key}.v0", entry.get("v0", {}), tuple(entry.get("v0", {})))
         file_dynamics = self.string(f"{key}.file_dynamics", entry.get("file_dynamics", "neutral"))
+        lock = entry.get("lock", [])
+        if not isinstance(lock, list) or not all(isinstance(name, str) for name in lock):
+            raise self.error(f"{key}.lock", f"must be a list of joint names, got {_describe(lock)}")
         try:
             scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
                                 duration=DEFAULT_DURATION if duration is None else duration,
-                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY))
+                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY), lock=lock)
         except UserError as exc:
             raise self.error(f"{key}.model", str(exc)) from None
         return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
-                                             "file_dynamics": file_dynamics, **dict(parameters)}, scene)
+                                             "file_dynamics": file_dynamics, **dict(parameters),
+                                             **({"lock": list(lock)} if lock else {})}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from engines.model.description import Body, Inertial, Joint, Limits, ModelDescription, ModelError
+from engines.model.kinematics import matrix_rpy
 from engines.model.source import ModelSource
 
 KINDS = {0: "floating", 2: "prismatic", 3: "revolute"}  # mjJNT_FREE, mjJNT_SLIDE, mjJNT_HINGE
@@ -58,7 +59,7 @@ def read(source: ModelSource) -> ModelDescription:
                             rotated=not np.allclose(m.body_iquat[k], (1, 0, 0, 0)))
         if not ids:
             name = f"{names[parent]}_to_{names[k]}"
-            joints.append(Joint(name, "fixed", names[parent], names[k], xyz=tuple(offsets[0]), rpy=_rpy(rotation)))
+            joints.append(Joint(name, "fixed", names[parent], names[k], xyz=tuple(offsets[0]), rpy=matrix_rpy(rotation)))
             bodies.append(Body(names[k], name, inertial))
             continue
         links = [f"{names[k]}/{m.joint(j).name}" for j in ids[:-1]] + [names[k]]
@@ -73,7 +74,7 @@ def read(source: ModelSource) -> ModelDescription:
                 joints.append(Joint(name, kind, above, link))
             else:
                 joints.append(Joint(name, kind, above, link, tuple(m.jnt_axis[joint_id]), tuple(offsets[i]),
-                                    _rpy(rotation) if i == 0 else (0.0, 0.0, 0.0), Limits(lo, hi),
+                                    matrix_rpy(rotation) if i == 0 else (0.0, 0.0, 0.0), Limits(lo, hi),
                                     float(m.dof_damping[m.jnt_dofadr[joint_id]])))
             last = link == names[k]
             bodies.append(Body(link, name, inertial if last else Inertial(), virtual=not last))
@@ -89,11 +90,3 @@ def _quat_matrix(quat) -> np.ndarray:
     matrix = np.zeros(9)
     mujoco.mju_quat2Mat(matrix, np.asarray(quat, dtype=float))
     return matrix.reshape(3, 3)
-
-
-def _rpy(r: np.ndarray) -> tuple[float, float, float]:
-    """Fixed-axis roll, pitch, yaw of a rotation matrix (R = Rz Ry Rx)."""
-    pitch = float(np.arcsin(-np.clip(r[2, 0], -1.0, 1.0)))
-    if abs(r[2, 0]) < 1 - 1e-12:
-        return float(np.arctan2(r[2, 1], r[2, 2])), pitch, float(np.arctan2(r[1, 0], r[0, 0]))
-    return float(np.arctan2(-r[1, 2], r[1, 1])), pitch, 0.0

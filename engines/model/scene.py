@@ -20,7 +20,7 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -71,6 +71,8 @@ class ModelScene:
     digest: str = ""
     #: m/s², the gravity along −z (the catalog's parameter g; 0 for a model in free fall or in space).
     g: float = GRAVITY
+    #: ((joint, value), …): joints welded at their initial value (rad or m), in every engine's text.
+    lock: tuple[tuple[str, float], ...] = ()
 
     #: What tells a model scene from a catalog one (engines refuse it without the "model" capability).
     is_model = True
@@ -82,11 +84,11 @@ class ModelScene:
 
     @property
     def source(self) -> ModelSource:
-        return _source(self.model, self.path, self.digest)
+        return _source(self.model, self.path, self.digest, self.lock)
 
     @property
     def description(self) -> ModelDescription:
-        return _description(self.model, self.path, self.digest)
+        return _description(self.model, self.path, self.digest, self.lock)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -160,12 +162,12 @@ class ModelScene:
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at joint states q, v (n, nq)."""
-        return _kinematics(self.model, self.path, self.digest).frames(q, v)
+        return _kinematics(self.model, self.path, self.digest, self.lock).frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path, self.digest).energy(q, v, self.g)
+        return _kinematics(self.model, self.path, self.digest, self.lock).energy(q, v, self.g)
 
     def conserved_joints(self) -> tuple[str, ...]:
         """The moving joints on the (fixed) root whose momentum nothing changes: (M v)_j is the momentum of
@@ -192,7 +194,7 @@ class ModelScene:
             return None
         if len(q) < 2:
             return 0.0
-        momentum = _kinematics(self.model, self.path, self.digest).momentum(q, v)
+        momentum = _kinematics(self.model, self.path, self.digest, self.lock).momentum(q, v)
         speed = float(self.masses.sum()) * self.characteristic_speed
         worst = 0.0
         for name in names:
@@ -218,13 +220,13 @@ class ModelScene:
         """The file's text, the initial state, the duration and file_dynamics: everything the physics depends on."""
         key = hashlib.sha256(self.digest.encode())
         key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]
-                              + ([] if self.g == GRAVITY else [self.g])).encode())
+                              + ([] if self.g == GRAVITY else [self.g]) + ([list(self.lock)] if self.lock else [])).encode())
         return key.hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "model", "name": self.name, "model": self.model, "path": self.path,
                 "q0": dict(self.q0), "v0": dict(self.v0), "duration": self.duration,
-                "file_dynamics": self.file_dynamics, "digest": self.digest, "g": self.g,
+                "file_dynamics": self.file_dynamics, "digest": self.digest, "g": self.g, "lock": dict(self.lock),
                 "particles": [{"link": name, "mass": float(m)} for name, m in zip(self.frames, self.masses)],
                 "frame_parents": self.frame_parents()}
 
@@ -253,12 +255,18 @@ class ModelScene:
 
 def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[str, Any] | None = None,
                 v0: Mapping[str, Any] | None = None, duration: float = DEFAULT_DURATION,
-                file_dynamics: str = "neutral", g: Any = GRAVITY) -> ModelScene:
+                file_dynamics: str = "neutral", g: Any = GRAVITY, lock: Sequence[str] = ()) -> ModelScene:
     """A ModelScene from user units: q0 in degrees (revolute, continuous) or metres (prismatic), v0 in
     rad/s or m/s, by joint name; every moving joint not named starts at 0. ModelError naming the field."""
     source = resolve(model, base)
     digest = _digest(source.text)
     description = _description(model, str(source.path), digest)
+    if lock:
+        welded = _lock_values(model, description, q0 or {}, lock)
+        description = _description(model, str(source.path), digest, welded)
+        q0 = {k: value for k, value in (q0 or {}).items() if k not in dict(welded)}
+    else:
+        welded = ()
     if description.floating is not None:
         raise ModelError(f"model {model}: a floating base (joint {description.floating.name}) is not supported in "
                          f"model scenes yet; use `xval model check` for its dynamics, or weld the base (remove the "
@@ -289,8 +297,23 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
               if j.name in given_q else (j.name, 0.0) for j in joints)
     v = tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
     parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
-                  **({} if gravity == GRAVITY else {"g": gravity})}
-    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity)
+                  **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {})}
+    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity,
+                      welded)
+
+
+def _lock_values(model: str, description: ModelDescription, q0: Mapping[str, Any],
+                 lock: Sequence[str]) -> tuple[tuple[str, float], ...]:
+    """((joint, value in SI), …) for the joints to weld: each at its q0 (degrees or metres), else 0."""
+    joints = {j.name: j for j in description.moving_joints}
+    unknown = [name for name in lock if name not in joints]
+    if unknown:
+        raise ModelError(f"model {model}: lock names joint {unknown[0]!r}, which is not one of its moving joints: "
+                         f"{', '.join(joints)}")
+    angular = {name: joints[name].type != "prismatic" for name in lock}
+    given = _by_joint(model, "q0", {k: v for k, v in q0.items() if k in angular}, angular)
+    return tuple((name, math.radians(given.get(name, 0.0)) if angular[name] else given.get(name, 0.0))
+                 for name in lock)
 
 
 def _by_joint(model: str, what: str, values: Mapping[str, Any], angular: Mapping[str, bool]) -> dict[str, float]:
@@ -316,17 +339,17 @@ def _digest(text: str) -> str:
 
 
 @functools.lru_cache(maxsize=16)
-def _source(model: str, path: str, digest: str) -> ModelSource:
-    """The file as the scene was made from it; ModelError when it has been edited since."""
-    source = replace(resolve(path), label=model)
+def _source(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> ModelSource:
+    """The file as the scene was made from it, ``lock``'s joints welded; ModelError when it has been edited since."""
+    source = replace(resolve(path), label=model, lock=lock)
     if digest and _digest(source.text) != digest:
         raise ModelError(f"model {model}: {path} changed after the scene was made from it; run again")
     return source
 
 
 @functools.lru_cache(maxsize=16)
-def _description(model: str, path: str, digest: str) -> ModelDescription:
-    return describe(_source(model, path, digest))
+def _description(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> ModelDescription:
+    return describe(_source(model, path, digest, lock))
 
 
 def _root_axis(description: ModelDescription, joint) -> np.ndarray:
@@ -348,8 +371,8 @@ def _reach(description: ModelDescription) -> float:
 
 
 @functools.lru_cache(maxsize=16)
-def _kinematics(model: str, path: str, digest: str) -> "FrameKinematics":
-    return FrameKinematics(_source(model, path, digest), _description(model, path, digest))
+def _kinematics(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> "FrameKinematics":
+    return FrameKinematics(_source(model, path, digest, lock), _description(model, path, digest, lock))
 
 
 class FrameKinematics:

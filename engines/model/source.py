@@ -31,16 +31,29 @@ FORMATS = {"robot": "urdf", "mujoco": "mjcf"}
 
 @dataclass(frozen=True)
 class ModelSource:
-    """label : MODEL as given. path : the file. format : 'urdf' or 'mjcf'. text : the file's text."""
+    """label : MODEL as given. path : the file. format : 'urdf' or 'mjcf'. text : the file's text.
+    lock : ((joint, value), …) welded at that value (rad or m) in every text engines get (engines.model.lock)."""
 
     label: str
     path: Path
     format: str
     text: str
+    lock: tuple[tuple[str, float], ...] = ()
 
     @property
     def root(self) -> ET.Element:
+        """The file's root element, locked joints fixed (a URDF's; an MJCF's are removed in engine_text)."""
+        if self.lock and self.format == "urdf":
+            from engines.model.lock import lock_urdf
+
+            return ET.fromstring(lock_urdf(self.text, dict(self.lock)))
         return ET.fromstring(self.text)
+
+    def lock_notes(self) -> tuple[str, ...]:
+        if not self.lock:
+            return ()
+        return (f"joint{'s' if len(self.lock) > 1 else ''} {', '.join(name for name, _ in self.lock)} welded at "
+                f"their initial value (lock)",)
 
     def engine_text(self, drop_mimic: bool = False) -> tuple[str, tuple[str, ...]]:
         """The text engines load (URDF without <visual>/<collision>, MJCF self-contained) and notes saying
@@ -49,8 +62,12 @@ class ModelSource:
             from engines.model.mjcf_text import flatten
 
             text, count = flatten(self.text, self.path)
+            if self.lock:
+                from engines.model.lock import lock_mjcf
+
+                text = lock_mjcf(text, dict(self.lock))
             return text, ((f"{count} <include> element{'s' if count > 1 else ''} inlined (each file found relative "
-                           f"to the file that names it)",) if count else ())
+                           f"to the file that names it)",) if count else ()) + self.lock_notes()
         root = self.root
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
@@ -72,7 +89,7 @@ class ModelSource:
             count = dropped["mimic"]
             notes.append(f"{count} <mimic> element{'s' if count > 1 else ''} removed: each mimic joint is an "
                          f"independent coordinate here (the tree's M, bias and accelerations, no coupling constraint)")
-        return ET.tostring(root, encoding="unicode"), tuple(notes)
+        return ET.tostring(root, encoding="unicode"), tuple(notes) + self.lock_notes()
 
     @contextlib.contextmanager
     def engine_file(self, drop_mimic: bool = False) -> Iterator[str]:
