@@ -1,23 +1,17 @@
 """PyBullet's import of a model file: ``loadURDF`` (or ``loadMJCF``) in a DIRECT client of its own.
 
-Import options: useFixedBase = True, flags = URDF_USE_INERTIA_FROM_FILE
-(otherwise PyBullet recomputes inertia from collision shapes), gravity
-(0, 0, −9.81). Linear, angular and joint damping set to 0 and every joint
-motor disabled. M is ``calculateMassMatrix``, the bias
-``calculateInverseDynamics`` at zero acceleration. PyBullet has no
-forward-dynamics call: the acceleration is measured from one step of
-dt = 1e-3 (its multibody step is semi-implicit Euler, v₁ = v₀ + dt·a(q₀, v₀)).
-Its prints (C-level stdout, stderr) are kept out of the caller's output.
-
-MJCF: ``loadMJCF`` on the self-contained text (includes inlined) returns one
-body per static worldbody geom besides the multibody: the multibody (the
-body with joints) is the model. It gives an MJCF root body a floating base
-even when MuJoCo welds it to the world: then M is the joints' block of its
-(6 + n)² matrix (base rows first, angular then linear), the bias the joints'
-rows of ``calculateInverseDynamics`` at the base's pose with the base at
-rest (q = base position, quaternion x y z w, joints; its base rows linear
-then angular), and the acceleration M⁻¹(τ − b), the fixed-base dynamics
-from PyBullet's own M and bias (a step would let the base fall).
+Import options: useFixedBase (True unless the base floats), flags =
+URDF_USE_INERTIA_FROM_FILE (else it recomputes inertia from collision
+shapes), gravity (0, 0, −9.81), joint limits off (as in simulate). Linear,
+angular and joint damping 0, every joint motor disabled. M is
+``calculateMassMatrix``, the bias ``calculateInverseDynamics`` at zero
+acceleration, the acceleration measured from one step of dt = 1e-3 (its
+multibody step is semi-implicit Euler) on a fixed base, else M⁻¹(τ − b).
+MJCF: of the bodies ``loadMJCF`` returns (one per static geom besides the
+multibody) the one with joints; a root it floats though MuJoCo welds it is
+welded back (:class:`PyBulletModel`). Its floating base's conventions:
+engines/model/floating.py and :class:`PyBulletModel`. Its prints (C-level
+stdout, stderr) are kept out of the caller's output.
 """
 
 from __future__ import annotations
@@ -82,6 +76,11 @@ def _multibody(bodies, client: int) -> int:
 
 
 class PyBulletModel(LoadedModel):
+    """PyBullet's multibody. A root that ``loadMJCF`` floats though the description welds it: M is the joints'
+    block of its (6 + n)² matrix, the bias the joints' rows of its inverse dynamics at the base's pose with the
+    base at rest, the acceleration M⁻¹(τ − b) (a step would let the base fall). A floating base: mapped to xval's
+    convention with T (its base velocity: angular then linear of the base's inertial frame, in its axes)."""
+
     engine = NAME
 
     def __init__(self, client: int, body: int, description: ModelDescription, options, notes=()):
