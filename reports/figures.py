@@ -6,7 +6,7 @@ Python has to do is produce JSON, and building dicts is much faster than
 validating graph objects (the tests validate the specs against plotly's
 schema instead).
 
-Details: docs/architecture.md, "Module notes", ``reports/figures.py``.
+Details: docs/report.md, "Module notes", ``reports/figures.py``.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ bits to a character, 1.68 MB instead of 4.8 MB for plotly.js); the page unpacks 
 browser's own DecompressionStream and makes no request, so it works offline
 and attached to a CI run or a mail.
 
-Details: docs/architecture.md, "Module notes", ``reports/render.py``.
+Details: docs/report.md, "Module notes", ``reports/render.py``.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Per scene, from :mod:`compare.results.verdict`: the Pareto front of error against cost, the cost to
 reach the tolerance, the focus family against the best other, the stability heat map and the problems.
 
-Details: docs/architecture.md, "Module notes", ``reports/verdict.py``.
+Details: docs/report.md, "Module notes", ``reports/verdict.py``.
 """
 
 from __future__ import annotations

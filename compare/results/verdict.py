@@ -7,7 +7,7 @@ of a variant's label before its first ``/`` (``mujoco`` for
 ``mujoco/hinge-rk4``), and the family a comparison is made for (the *focus*)
 is a parameter, by default the first family of the suite.
 
-Details: docs/architecture.md, "Module notes", ``compare/results/verdict.py``.
+Details: docs/report.md, "Module notes", ``compare/results/verdict.py``.
 """
 
 from __future__ import annotations
@@ -249,7 +249,7 @@ def _fits(p: Point, budget: float) -> bool:
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
     """(budget s/s, per family in suite order its most accurate run that may cost ≤ budget (:func:`_fits`));
-    see docs/architecture.md, "Module notes".
+    see docs/report.md, "Module notes".
 
     A family with no ok run gets ``Best(family, None)``.
     """
@@ -494,7 +494,7 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
 
 @dataclass(frozen=True)
 class SceneVerdict:
-    """Everything the verdict says about one scene (each quantity: docs/architecture.md, "Module notes").
+    """Everything the verdict says about one scene (each quantity: docs/report.md, "Module notes").
 
     length : L, m. target : TARGET_FRACTION · L, m. reaches : per competing variant, suite order.
     budget : s/s, the equal-cost budget; best : per family its most accurate run within it.

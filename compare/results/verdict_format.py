@@ -90,7 +90,7 @@ def _reach(r: Reach) -> dict[str, Any]:
 
 
 def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
-    """One scene's verdict as JSON-ready data (its fields: docs/architecture.md, "Module notes")."""
+    """One scene's verdict as JSON-ready data (its fields: docs/report.md, "Module notes")."""
     comparison = verdict.comparison
     same = comparison.at_equal_cost if comparison is not None else None
     return {

@@ -6,7 +6,7 @@
 is a :class:`UserError` naming the file (and line), the key and the fix; an engine that cannot be
 imported here is kept as *unavailable* and its cases are ``skipped`` with the reason.
 
-Details: docs/architecture.md, "Module notes", ``compare/suite/reader.py``.
+Details: docs/running.md, "Module notes", ``compare/suite/reader.py``.
 """
 
 from __future__ import annotations
