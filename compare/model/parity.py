@@ -1,9 +1,8 @@
 """Dynamics parity: each engine's M(q), b(q, v) and a(q, v, tau) against Pinocchio's at sampled states.
 
-States: a floating base anywhere within 1 m of the origin in any orientation
-(xval's convention: engines/model/floating.py); q uniform within each joint's limits (the inner 90 %: PyBullet's
-limit constraints stay idle) or ±π for a joint without them (±1 m for a
-prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
+States: a floating base anywhere within 1 m of the origin in any orientation (engines/model/floating.py);
+q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
+joint without them (±1 m for a prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
 a* uniform in ±1 rad/s² (m/s²), so every joint's reference acceleration is
 of order one. Per quantity the relative difference is the largest
 |engine − reference| over entries and states divided by the largest
