@@ -34,6 +34,7 @@ from compare.results.files import atomic_write_text, check_writable, results_inp
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 
+from reports.overview import overview
 from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
@@ -131,6 +132,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "n_traces": sum(p.n_traces for p in plots),
         "settings": settings,
         "verdicts": verdicts,
+        "overview": overview(verdicts, {entry["number"]: entry["parity"] for entry in scenes}),
         "focus": focus,
         "scene_numbers": {scene.scene_id: number for number, scene in enumerate(data.scenes)},
         "clip_factor": f"{CLIP_FACTOR:g}",

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from compare.results.verdict import (
-    Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
+    SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
 )
 
 from markupsafe import Markup
@@ -23,7 +23,8 @@ from reports.palette import Palette
 from reports.svgplot import Series, loglog_svg
 
 #: Text of a heat-map cell per status.
-STATUS_MARK = {"ok": "✓", "unstable": "↑", "failed": "✗", "timeout": "⌛", "skipped": "–"}
+#: Text of a heat-map cell per status (no glyph that needs an emoji font: "T" for a timeout).
+STATUS_MARK = {"ok": "✓", "unstable": "↑", "failed": "✗", "timeout": "T", "skipped": "–"}
 
 
 def row_id(scene: int, variant: int, dt: int) -> str:
@@ -50,10 +51,21 @@ class HeatRow:
 
 @dataclass(frozen=True)
 class ProblemItem:
+    """One problem as the page lists it: kind, variant, text, the link to its evidence (a case row, or the plot
+    that shows it with ``engine`` highlighted), its rank in SEVERITIES, and for a blow-up the time series at
+    its largest unstable dt ("" otherwise)."""
+
     kind: str
     engine: str
     text: str
     href: str
+    severity: int = 2
+    blowup: str = ""
+    plateau: float | None = None
+
+    @property
+    def severity_name(self) -> str:
+        return SEVERITIES[self.severity]
 
 
 @dataclass(frozen=True)
@@ -156,6 +168,21 @@ def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict
     return f"#scene-{number}"
 
 
+def _blowup(problem: Problem, number: int, scene: SceneResults) -> str:
+    """For an unstable problem, the time series at its largest unstable dt (where it blows up), else ""."""
+    if problem.kind != "unstable" or not problem.dts or problem.dts[0] not in scene.dts:
+        return ""
+    j = scene.dts.index(problem.dts[0])
+    return f"#s{number}-ts" if scene.dts[j] == scene.chosen_dt else f"#s{number}-ts@{j}"
+
+
+def _item(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> ProblemItem:
+    plateau = next((s.consistency.plateau for s in scene.sweeps if s.engine == problem.engine and s.consistency),
+                   None) if problem.kind == "inconsistent" else None
+    return ProblemItem(problem.kind, problem.engine, problem.text, _evidence(problem, number, scene, variants),
+                       problem.severity, _blowup(problem, number, scene), plateau)
+
+
 def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) -> list[SceneVerdictView]:
     """The verdict of every scene that ran, in suite order (numbers match the scene sections')."""
     all_sweeps = [s for scene in data.scenes for s in scene.sweeps]
@@ -181,13 +208,14 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                 # No tooltip: the message is one click away (the case's row), and 1,000 of them doubled the section.
                 cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), "#" + row_id(number, k, j)))
             heat.append(HeatRow(sweep.engine, family(sweep.engine), palette.colour(sweep.engine), cells))
-        items = [ProblemItem(p.kind, p.engine, p.text, _evidence(p, number, scene, variants)) for p in verdict.problems]
+        items = [_item(p, number, scene, variants) for p in verdict.problems]
         for probe in probes:
             if probe["engine"] in variants:
                 rate = probe.get("rate")
                 text = "the energy-loss rate extrapolated to dt → 0 is above zero" + (
                     f" ({rate:.2g} E*/s)" if isinstance(rate, (int, float)) else "")
-                items.append(ProblemItem("hidden dissipation", probe["engine"], text, f"#scene-{number}"))
+                items.append(ProblemItem("hidden dissipation", probe["engine"], text, f"#scene-{number}", 2))
+        items.sort(key=lambda item: item.severity)  # the probes' among the others of their rank (stable sort)
         reaches = [ReachRow(r.engine, family(r.engine), palette.colour(r.engine), r, family(r.engine) == focus)
                    for r in verdict.reaches]
         if verdict.comparison is not None:
