@@ -49,10 +49,11 @@ def _tick_label(exponent: int) -> str:
 
 def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *, x_title: str, y_title: str,
                target: float | None = None, target_label: str = "", width: int = 720, height: int = 420,
-               element_id: str = "") -> Markup:
+               element_id: str = "", label: str = "") -> Markup:
     """An SVG log–log plot: ``series`` as dots (one ``<g>`` per series, ``data-series`` = its index; muted ones
     grey and drawn first, under the others), ``front`` as a black staircase (step after each point), an
-    optional dotted horizontal line at ``target``."""
+    optional dotted horizontal line at ``target``. ``label``: what a screen reader says the plot shows
+    (its ``aria-label``; default: the axes' titles)."""
     xs = [p[0] for s in series for p in s.points if p[0] > 0]
     ys = [p[1] for s in series for p in s.points if p[1] > 0]
     if target is not None and target > 0:
@@ -72,6 +73,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
 
     parts = [f'<svg class="loglog" id="{_escape(element_id)}" viewBox="0 0 {width} {height}" '
              f'preserveAspectRatio="xMidYMid meet" role="img" '
+             f'aria-label="{_escape(label or f"{y_title} against {x_title}, log–log")}" '
              f'font-family="system-ui, sans-serif" font-size="12">',
              f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fbfbfb" stroke="#ccc"/>']
     y_step = max(1, math.ceil((y1 - y0) / 10))
