@@ -146,13 +146,14 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
         muted = mute and sweep.engine not in named  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
-            for p in pts], muted))
+            for p in pts], muted, palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]))
         groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour, muted))
     if not series:
         return None
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}",
+                     picks=[(b.point.cost, b.point.error, b.point.engine) for b in verdict.best if b.point is not None],
                      label=f"Scene {scene.scene_id}: max position error against stepping cost, log–log, every ok run "
                            f"of {len(series)} variants, the Pareto front as a staircase and the target 1e-6·L "
                            f"as a dotted line")

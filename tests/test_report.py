@@ -59,6 +59,7 @@ GOLDEN = {
 def test_page_has_the_sections_in_order_the_verdict_first(small_page):
     assert [(s.id, s.heading) for s in small_page.sections] == [
         ("top", "xval report: report-small"),
+        ("summary", "Summary"),  # issue 44: the summary across scenes before the verdict
         ("verdict", "Verdict"),
         ("run", "Run"),
         ("scene-0", "Scene bead"),
@@ -240,7 +241,7 @@ def test_a_single_case_renders(small_results, tmp_path):
     single = copy_results(small_results, tmp_path / "one",
                           keep=lambda r: r["case"]["id"] == "bead|pymunk/pin|dt=0.003")
     page = PageStructure(render(load_report_data(single)))
-    assert [s.id for s in page.sections] == ["top", "verdict", "run", "scene-0", "problems", "how-to-read"]
+    assert [s.id for s in page.sections] == ["top", "summary", "verdict", "run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
     # One point: nothing to fit an order to, but every plot still draws its one variant;
     # the force, phase and paths plots add the reference's, stored in the record beside the engine's.
@@ -274,7 +275,7 @@ def test_an_empty_or_unfinished_run_renders(small_results, tmp_path):
     empty = copy_results(small_results, tmp_path / "empty", keep=lambda r: False, change_header=unfinished)
     html = render(load_report_data(empty))
     assert "not finished" in html
-    assert [s.id for s in PageStructure(html).sections] == ["top", "verdict", "run", "problems", "how-to-read"]
+    assert [s.id for s in PageStructure(html).sections] == ["top", "summary", "verdict", "run", "problems", "how-to-read"]
 
 
 def test_missing_metrics_and_series_render(small_results, tmp_path):
