@@ -120,8 +120,10 @@ def _links(diagnosis: Sequence[str]) -> list[str]:
     return list(found)
 
 
-def import_findings(number: int, scene_id: str, parity: dict[str, Any] | None) -> list[Finding]:
-    """Every engine whose import of the scene's model file disagrees with the model reference, with its links."""
+def import_findings(number: int, scene_id: str, parity: dict[str, Any] | None,
+                    ran: set[str] | None = None) -> list[Finding]:
+    """Every engine whose import of the scene's model file disagrees with the model reference, with its links;
+    ``ran``: the engine families that ran on the scene (the others' import is named, their error is not)."""
     if not parity:
         return []
     found = []
@@ -133,10 +135,34 @@ def import_findings(number: int, scene_id: str, parity: dict[str, Any] | None) -
         if not row["cells"] or all(cell["value"] is None for cell in row["cells"]):
             text = f"did not load the file ({row['message'] or 'no message'})"
         else:
-            text = (f"disagrees with {reference} on this file" + (f": {', '.join(links)}" if links else "")
-                    + "; its error reflects the import, not the stepping")
+            text = f"disagrees with {reference} on this file" + (f": {', '.join(links)}" if links else "")
+            text += ("; its error below reflects the import, not the stepping" if ran is None or row["engine"] in ran
+                     else " (not in this run)")
         found.append(Finding(number, scene_id, row["engine"], text, f"#parity-{number}"))
     return found
+
+
+def reconcile(view: SceneVerdictView, parity: dict[str, Any] | None, tolerance: float,
+              horizon: float | None, duration: float | None) -> list[str]:
+    """Per engine that agrees with the model reference on the file's dynamics (M, bias, q̈) yet errs beyond
+    ``tolerance`` (m) at equal cost: why, in words: the stepping, or chaos when the reference's own horizon
+    (s) falls inside the run."""
+    if not parity:
+        return []
+    agreeing = {row["engine"] for row in parity["rows"] if row["agrees"]}
+    lines = []
+    for best in view.verdict.best:
+        if best.family not in agreeing or best.point is None or best.point.error <= tolerance:
+            continue
+        text = (f"{best.family} agrees with {parity['reference'] or 'the model reference'} on this file's mass matrix, "
+                f"bias and accelerations, yet {best.point.engine} is {si(best.point.error, 'm')} off at equal cost: ")
+        if horizon is not None and duration is not None and horizon < duration:
+            text += (f"the reference itself is reliable only to t = {si(horizon, 's')} (its horizon; the motion is "
+                     "chaotic), so this is chaos, not a fault of the import")
+        else:
+            text += "the import is right, so the difference comes from its stepping"
+        lines.append(text)
+    return lines
 
 
 def overview(views: Sequence[SceneVerdictView], parities: dict[int, dict[str, Any] | None]) -> Overview:
@@ -157,13 +183,20 @@ def overview(views: Sequence[SceneVerdictView], parities: dict[int, dict[str, An
             folded,
             view.dts[0] if folded and view.dts else None,
         ))
+        found = import_findings(view.number, view.scene_id, parities.get(view.number),
+                                {b.family for b in view.verdict.best})
+        imports.extend(found)
+        misread = {f.engine for f in found}
         for item in view.problems:
             if item.kind == "inconsistent":
                 plateau = f"stops at {si(item.plateau, 'm')}" if item.plateau is not None else "stops falling"
+                if item.worst_link:
+                    plateau += f", {item.worst_link}"
+                if family(item.engine) in misread:
+                    plateau += f"; {family(item.engine)}'s import of the file disagrees with the model reference"
                 wrong.append(Finding(view.number, view.scene_id, item.engine, plateau, item.href))
             elif 0 < item.severity < 3:
                 others[item.severity_name] = others.get(item.severity_name, 0) + 1
-        imports.extend(import_findings(view.number, view.scene_id, parities.get(view.number)))
     ranked = sorted(others.items(), key=lambda pair: SEVERITIES.index(pair[0]))
     return Overview(families, lines, wrong, imports, ranked)
 

@@ -29,12 +29,13 @@ from markupsafe import Markup
 
 from compare.results.verdict import families
 from engines.errors import UserError
+from engines.scene.catalog import CATALOG
 
 from compare.results.files import atomic_write_text, check_writable, results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 
-from reports.overview import overview
+from reports.overview import import_findings, overview, reconcile
 from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
@@ -92,6 +93,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "plots": scene_plots(scene, number, palette, ceilings, named.get(number, set())),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
+            "parameters": scene_parameters(scene.scene_name, scene.scene.get("parameters") or {}),
             "parity": parity_view(data.path, scene.scene_id, scene.scene) if scene.scene.get("kind") == "model" else None,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
@@ -133,6 +135,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "settings": settings,
         "verdicts": verdicts,
         "overview": overview(verdicts, {entry["number"]: entry["parity"] for entry in scenes}),
+        "leads": model_leads(verdicts, scenes, settings["verdict_tolerance"]),
         "focus": focus,
         "scene_numbers": {scene.scene_id: number for number, scene in enumerate(data.scenes)},
         "clip_factor": f"{CLIP_FACTOR:g}",
@@ -145,6 +148,34 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "pack_of": pack_of,
         "stability": stability,
     }
+
+
+def model_leads(verdicts: list[Any], scenes: list[dict[str, Any]], tolerance: float) -> dict[int, dict[str, Any]]:
+    """Per model scene with a parity table, what its verdict leads with: the engines whose import disagrees
+    with the model reference (reports.overview.import_findings) and, for those that agree yet err beyond the
+    verdict tolerance (``tolerance`` · L), whether that is the stepping or chaos (reports.overview.reconcile)."""
+    leads = {}
+    for view in verdicts:
+        entry = scenes[view.number]
+        if not entry["parity"]:
+            continue
+        results = entry["results"]
+        horizon = next((r.reference_horizon for s in results.sweeps for r in s.records
+                        if r.reference_horizon is not None), None)
+        duration = results.scene.get("duration")
+        imports = import_findings(view.number, view.scene_id, entry["parity"], {b.family for b in view.verdict.best})
+        agreeing = reconcile(view, entry["parity"], tolerance * results.length, horizon, duration)
+        if imports or agreeing:
+            leads[view.number] = {"imports": imports, "agreeing": agreeing}
+    return leads
+
+
+def scene_parameters(name: str, values: dict[str, Any]) -> list[str]:
+    """A catalog scene's parameters as "theta0 = 60 deg", each with the unit its builder declares
+    (engines.scene.catalog), value and unit joined by a no-break space."""
+    builder = CATALOG.get(name)
+    units = {p.name: p.unit for p in builder.parameters} if builder is not None else {}
+    return [f"{key} = {value}" + (f"\u00a0{units[key]}" if units.get(key) else "") for key, value in values.items()]
 
 
 def _weight(scene: dict[str, Any]) -> float:

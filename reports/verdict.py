@@ -14,11 +14,13 @@ from compare.results.verdict import (
     SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
 )
 
+import numpy as np
 from markupsafe import Markup
 
 from compare.stability.dissipation import load_probe_files
 from reports.emphasis import named_by
 from reports.load import ReportData, SceneResults
+from reports.numbers import si
 from reports.palette import Palette
 from reports.svgplot import Series, loglog_svg
 
@@ -62,6 +64,7 @@ class ProblemItem:
     severity: int = 2
     blowup: str = ""
     plateau: float | None = None
+    worst_link: str = ""  # on a model scene: which link errs most at the variant's finest ok dt, and by how much
 
     @property
     def severity_name(self) -> str:
@@ -180,11 +183,36 @@ def _blowup(problem: Problem, number: int, scene: SceneResults) -> str:
     return f"#s{number}-ts" if scene.dts[j] == scene.chosen_dt else f"#s{number}-ts@{j}"
 
 
+def worst_link(scene: SceneResults, engine: str) -> str:
+    """On a model scene, the link with the largest position error of ``engine``'s finest ok run and how far the
+    others stay ("panda_leftfinger 16 mm; the other links within 9.5 mm"), from the stored positions; "" when
+    the scene is no model or the run kept no positions."""
+    links = [p.get("link") for p in scene.scene.get("particles", [])]
+    sweep = next((s for s in scene.sweeps if s.engine == engine), None)
+    if scene.scene.get("kind") != "model" or sweep is None or not sweep.ok_records or not all(links):
+        return ""
+    record = min(sweep.ok_records, key=lambda r: r.case.dt)
+    series = record.series or {}
+    try:
+        mine = np.asarray(series["positions"], dtype=float)
+        reference = np.asarray(series["reference_positions"], dtype=float)
+        per_link = np.nanmax(np.linalg.norm(mine - reference, axis=2), axis=0)
+    except (KeyError, TypeError, ValueError):
+        return ""
+    if per_link.shape != (len(links),) or not np.isfinite(per_link).any():
+        return ""
+    worst = int(np.nanargmax(per_link))
+    others = np.delete(per_link, worst)
+    rest = f"; the other links within {si(float(np.nanmax(others)), 'm')}" if others.size else ""
+    return f"largest at {links[worst]} ({si(float(per_link[worst]), 'm')}{rest})"
+
+
 def _item(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> ProblemItem:
     plateau = next((s.consistency.plateau for s in scene.sweeps if s.engine == problem.engine and s.consistency),
                    None) if problem.kind == "inconsistent" else None
     return ProblemItem(problem.kind, problem.engine, problem.text, _evidence(problem, number, scene, variants),
-                       problem.severity, _blowup(problem, number, scene), plateau)
+                       problem.severity, _blowup(problem, number, scene), plateau,
+                       worst_link(scene, problem.engine) if problem.kind == "inconsistent" else "")
 
 
 def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) -> list[SceneVerdictView]:
