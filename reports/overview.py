@@ -40,6 +40,12 @@ class FamilyCell:
     note: str = ""
 
     @property
+    def problem_text(self) -> str:
+        """"2 wrong answers, 1 unstable below the largest dt"."""
+        return ", ".join(f"{n} {name}s" if n > 1 and name == SEVERITIES[0] else f"{n} {name}"
+                         for name, n in self.problems)
+
+    @property
     def worst(self) -> int | None:
         """Rank in SEVERITIES of its worst problem, None when it has none."""
         return SEVERITIES.index(self.problems[0][0]) if self.problems else None

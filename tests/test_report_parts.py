@@ -119,3 +119,30 @@ def test_the_time_series_shade_the_run_past_the_reference_horizon(tmp_path):
     assert "Shaded from t = 0.6 s: past the reference horizon" in shaded.caption
     plain = next(p for p in scene_plots(scenes["bead"], 0) if p.id.endswith("-ts"))
     assert "shapes" not in plain.figure["layout"] and "horizon" not in plain.caption
+
+
+def test_si_prefixes_round_first_and_never_break():
+    from reports.numbers import si
+
+    assert si(1.28e-3, "s/s") == "1.3\u00a0ms/s"
+    assert si(2.8e-10, "m") == "280\u00a0pm"  # never "2.8e+02 pm"
+    assert si(999.96, "m") == "1\u00a0km"  # rounding carries to the next prefix
+    assert si(0.0, "m") == "0\u00a0m" and si(None, "m") == "–" and si(math.inf, "m") == "–"
+
+
+def test_the_summary_names_an_import_that_disagrees_with_the_links_at_fault():
+    from reports.overview import import_findings
+
+    # As reports.parity.parity_view lays out `xval model check`'s JSON for the Panda (compare/model/diagnosis.py).
+    parity = {"reference": "pinocchio 4.1.0", "rows": [
+        {"engine": "mujoco", "agrees": False, "message": "", "cells": [{"value": 0.3}],
+         "diagnosis": ["links panda_link8, panda_grasptarget: mass 0 with inertia 0.1 kg·m² — mujoco drops the inertia"]},
+        {"engine": "pybullet", "agrees": True, "message": "", "cells": [{"value": 1e-12}], "diagnosis": []},
+        {"engine": "drake", "agrees": False, "message": "", "cells": [{"value": 0.2}],
+         "diagnosis": ["link panda_link8: mass 0 with inertia 0.1 kg·m² — drake gives it 1 kg"]},
+    ]}
+    found = import_findings(3, "panda", parity, ran={"mujoco", "pybullet"})
+    assert [(f.engine, f.href) for f in found] == [("mujoco", "#parity-3"), ("drake", "#parity-3")]
+    assert found[0].text == ("disagrees with pinocchio 4.1.0 on this file: panda_link8, panda_grasptarget; "
+                             "its error below reflects the import, not the stepping")
+    assert found[1].text.endswith("panda_link8 (not in this run)")
