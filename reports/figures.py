@@ -73,8 +73,12 @@ def _round(value: Any) -> Any:
     return float(f"{value:.{DIGITS}g}")
 
 
-def _rounded(values: Iterable[Any]) -> list[Any]:
-    return [_round(v) for v in values]
+def _rounded(values: Iterable[Any], digits: int | None = None) -> list[Any]:
+    """``values`` to ``digits`` (default DIGITS) significant digits."""
+    if digits is None:
+        return [_round(v) for v in values]
+    return [None if v is None or not isinstance(v, (int, float)) or not math.isfinite(v) else float(f"{v:.{digits}g}")
+            for v in values]
 
 
 def _positive(value: Any) -> TypeGuard[float]:
@@ -293,9 +297,12 @@ def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engin
 
 
 def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None,
-                named: set[str] | None = None) -> Plot | None:
+                named: set[str] | None = None, limit: int = MAX_POINTS, digits: int | None = None,
+                muted_limit: int | None = None) -> Plot | None:
     """Position error, |energy drift| and constraint error against t at ``dt`` (s; default the chosen dt):
-    three stacked panels; ``named`` (default: reports.emphasis.named_variants) in colour, the rest grey."""
+    three stacked panels; ``named`` (default: reports.emphasis.named_variants) in colour, the rest grey;
+    each trace thinned to ``limit`` points (LTTB), a grey one's to ``muted_limit`` (default ``limit``), at
+    ``digits`` significant digits (default DIGITS)."""
     dt = scene.chosen_dt if dt is None else dt
     chosen = _by_family(_chosen_cases(scene, dt), lambda c: c[1].engine)
     if not chosen:
@@ -305,19 +312,20 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     for index, sweep, record in chosen:
         series = record.series or {}
         colour = palette.colour(sweep.engine)
+        points = limit if muted_limit is None or named is None or sweep.engine in named else muted_limit
         for panel, (key, _, absolute, ceiling_name) in enumerate(SERIES_PANELS):
             values = list(series.get(key) or [])
             if absolute:
                 values = [None if v is None else abs(v) for v in values]
             ceiling = getattr(ceilings, ceiling_name)
             values, blew = clip(series["t"], values, ceiling)
-            t, values = decimate(series["t"][:len(values)], values)
+            t, values = decimate(series["t"][:len(values)], values, limit=points)
             panel_values[panel].extend(values)
             axis = ("x", "y" if panel == 0 else f"y{panel + 1}")
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "meta": plot_text(sweep.engine), "legendgroup": f"v{index}", "showlegend": panel == 0,
-                "x": _rounded(t), "y": _rounded(values), "line": {**palette.style(sweep.engine), "width": 1.5},
+                "x": _rounded(t, digits), "y": _rounded(values, digits), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>%{y:.3g}<extra></extra>",
             })

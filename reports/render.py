@@ -20,7 +20,7 @@ import functools
 import math
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -72,12 +72,25 @@ def suite_settings(settings: RunSettings) -> dict[str, Any]:
             "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
 
-def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
+#: Above this many scenes, each scene's verdict body and tables are packed and unpacked when the scene comes
+#: into view or a link asks for it (a big suite's page stays light and interactive at once).
+LAZY_SCENES = 8
+#: In such a suite, the time series at a scene's other dts (shown when the dt selector asks): points per trace
+#: (LTTB keeps peaks and blow-ups), significant digits, and points per trace of a variant drawn grey (one the
+#: verdict does not name: context, not evidence).
+LAZY_SERIES = (40, 3, 10)
+#: Points per grey trace of the time series at the chosen dt in such a suite.
+LAZY_CHOSEN_MUTED = 30
+
+
+def page_context(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> dict[str, Any]:
     """Everything the template needs, computed here so the template only lays it out.
 
     focus : the engine family the verdict compares with the others (default: the suite's first).
+    lazy : pack each scene's details (default: when there are more than LAZY_SCENES scenes).
     """
     focus = check_focus(data, focus)
+    lazy_page = len(data.scenes) > LAZY_SCENES if lazy is None else lazy
     settings = suite_settings(data.settings)
     palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
     verdicts = verdict_views(data, palette, focus)
@@ -90,7 +103,9 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "number": number,
             "results": scene,
             "tables": summary_tables(scene, palette) if scene.sweeps else [],
-            "plots": scene_plots(scene, number, palette, ceilings, named.get(number, set())),
+            "plots": _lighter(scene_plots(scene, number, palette, ceilings, named.get(number, set())), scene, number,
+                              palette, ceilings, named.get(number, set())) if lazy_page else
+                     scene_plots(scene, number, palette, ceilings, named.get(number, set())),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
             "parameters": scene_parameters(scene.scene_name, scene.scene.get("parameters") or {}),
@@ -107,7 +122,8 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             # The time series at the scene's other dts: the dt selector switches the plot with the table.
             for j, dt in enumerate(results.dts):
                 if dt != results.chosen_dt:
-                    other = time_series(results, palette, entry["ceilings"], dt, named.get(entry["number"], set()))
+                    other = time_series(results, palette, entry["ceilings"], dt, named.get(entry["number"], set()),
+                                        *(LAZY_SERIES if lazy_page else ()))
                     if other is not None:
                         items[f"s{entry['number']}-ts@{j}"] = other.figure
         if entry["animation"] is not None:
@@ -134,6 +150,7 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "n_traces": sum(p.n_traces for p in plots),
         "settings": settings,
         "verdicts": verdicts,
+        "lazy": lazy_page,
         "overview": overview(verdicts, {entry["number"]: entry["parity"] for entry in scenes}),
         "leads": model_leads(verdicts, scenes, settings["verdict_tolerance"]),
         "focus": focus,
@@ -148,6 +165,16 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "pack_of": pack_of,
         "stability": stability,
     }
+
+
+def _lighter(plots: list[Plot], scene: Any, number: int, palette: Palette, ceilings: Ceilings,
+             named: set[str]) -> list[Plot]:
+    """``plots`` with the time series at the chosen dt at LAZY_SERIES' digits and a grey variant thinned to
+    LAZY_CHOSEN_MUTED points (a big suite's page; the named variants keep every point)."""
+    digits = LAZY_SERIES[1]
+    lighter = time_series(scene, palette, ceilings, None, named, MAX_POINTS, digits, LAZY_CHOSEN_MUTED)
+    ts = f"s{number}-ts"
+    return [replace(lighter, id=ts) if p.id == ts and lighter is not None else p for p in plots]
 
 
 def model_leads(verdicts: list[Any], scenes: list[dict[str, Any]], tolerance: float) -> dict[int, dict[str, Any]]:
@@ -201,12 +228,13 @@ def check_focus(data: ReportData, focus: str | None) -> str | None:
 _INDENT = re.compile(r"\n[ \t]+<")
 
 
-def render(data: ReportData, focus: str | None = None) -> str:
-    """The report page of ``data`` as HTML text (``focus``: the engine family the verdict compares).
+def render(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> str:
+    """The report page of ``data`` as HTML text (``focus``: the engine family the verdict compares; ``lazy``:
+    see :func:`page_context`).
 
     The template's indentation is dropped (a fifth of a large report's bytes); the page is unchanged.
     """
-    return _INDENT.sub("\n<", environment().get_template("report.html.j2").render(page_context(data, focus)))
+    return _INDENT.sub("\n<", environment().get_template("report.html.j2").render(page_context(data, focus, lazy)))
 
 
 @dataclass(frozen=True)

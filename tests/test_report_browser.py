@@ -356,3 +356,22 @@ def test_keyboard_skip_links_first_and_a_heat_map_is_one_tab_stop(wrong_page):
                                 ' return [td.parentNode.rowIndex, td.cellIndex, a.getAttribute("tabindex")]; })()')
     assert moved == [2, 2, "0"]
     assert_offline_and_clean(wrong_page)
+
+
+def test_a_big_suite_page_unpacks_a_scene_when_a_link_asks_for_it(tmp_path_factory):
+    # Above LAZY_SCENES scenes each verdict body and table is packed; forced here on the small results.
+    from reports.load import load_report_data
+    from reports.render import render
+
+    results = run_suite_once(tmp_path_factory.getbasetemp())
+    html = render(load_report_data(results), lazy=True)
+    assert html.count('class="xval-lazy"') == 2 and 'id="s1-d0-v0"' not in html  # every row packed
+    report = tmp_path_factory.mktemp("browser-lazy") / "lazy.html"
+    report.write_text(html, encoding="utf-8")
+    with Page(report, tmp_path_factory.mktemp("profile-lazy"), *SCREEN) as page:
+        landed = _landed(page, '#summary tr[data-scene="1"] th a')
+        assert landed["id"] == "verdict-1" and 0 <= landed["top"] < SCREEN[1] / 2, landed
+        # Its problems are in the page now, and a blow-up's link still lands on its highlighted time series.
+        landed = _landed(page, '#verdict-1 li[data-engine="broken/blow-up"] a[data-highlight]')
+        assert landed["id"] == "s1-ts" and landed["highlighted"] == "broken/blow-up" and landed["wide"] >= 1
+        assert_offline_and_clean(page)
