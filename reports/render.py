@@ -26,6 +26,7 @@ from typing import Any
 
 import jinja2
 from markupsafe import Markup
+from markupsafe import escape as markupsafe_escape
 
 from compare.results.verdict import families
 from engines.errors import UserError
@@ -63,7 +64,18 @@ def environment() -> jinja2.Environment:
     env.filters["seconds"] = lambda v: "–" if v is None else f"{v:.3g} s"
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
     env.filters["packed"] = lambda text: packed_text(str(text))
+    env.filters["numbers"] = unbroken_numbers
     return env
+
+
+#: A number in running text: 1.28e-03, 2.34e+04, 0.016 (not inside a word, an entity or a path).
+_NUMBER = re.compile(r"(?<![\w#&;/.-])-?\d+(?:\.\d+)?(?:e[-+]\d+)?(?![\w;])")
+
+
+def unbroken_numbers(text: str) -> Markup:
+    """``text`` escaped, each number in a ``<span class="num">`` (white-space: nowrap), so "1.28e-03" never
+    breaks at its hyphen."""
+    return Markup(_NUMBER.sub(lambda m: f'<span class="num">{m.group(0)}</span>', str(markupsafe_escape(text))))
 
 
 def suite_settings(settings: RunSettings) -> dict[str, Any]:
