@@ -9,9 +9,8 @@ metric declared for the report gets a column with no edit here.
 Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
 "best". The reference engine, when a suite runs it, is shown but not ranked.
-A column in which every ranked variant ties gets no mark at all, nor one where
-more than half of them (and more than two) share the best. Ties (equal to the shown precision) are otherwise
-all marked. The observed order is a property of
+A column where all ranked variants, or more than half (and more than two), share
+the best gets no mark; ties (equal to the shown precision) are otherwise all marked. The observed order is a property of
 the whole sweep, so it is ranked over every variant that has one.
 """
 
