@@ -146,3 +146,12 @@ def test_the_summary_names_an_import_that_disagrees_with_the_links_at_fault():
     assert found[0].text == ("disagrees with pinocchio 4.1.0 on this file: panda_link8, panda_grasptarget; "
                              "its error below reflects the import, not the stepping")
     assert found[1].text.endswith("panda_link8 (not in this run)")
+
+
+def test_the_animation_view_leaves_out_a_runaway_link_of_a_model():
+    from reports.animation import runaway
+
+    # An arm's links within 0.6 m of the base; a free finger falls 6 m (the Panda's in issue 44).
+    frames = [[[0.1, 0.3], [0.3, 0.5], [0.5, 0.4], [0.6, 0.2], [0.55, 0.2 - 6.0 * t]] for t in (0.0, 0.5, 1.0)]
+    assert runaway([{"positions": frames}], model=True) == {4}
+    assert runaway([{"positions": frames}], model=False) == set()  # a catalog scene's particles all count
