@@ -133,10 +133,10 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
                 f'stroke-width="{1 if s.muted else 1.5}"' + (f' stroke-dasharray="{dash}"' if dash else "") + "/>"
                 if len(drawn) > 1 else "")
         if s.muted:
-            parts.append(f'<g class="series muted" data-series="{index}" fill="{GREY}" stroke="{GREY}" fill-opacity="0.7" '
+            parts.append(f'<g class="series muted" data-series="{index}" data-variant="{_escape(s.name)}" fill="{GREY}" stroke="{GREY}" fill-opacity="0.7" '
                          f'style="--own: {_escape(s.colour)}">{line}{dots}</g>')
         else:
-            parts.append(f'<g class="series" data-series="{index}" fill="{_escape(s.colour)}" stroke="{_escape(s.colour)}" '
+            parts.append(f'<g class="series" data-series="{index}" data-variant="{_escape(s.name)}" fill="{_escape(s.colour)}" stroke="{_escape(s.colour)}" '
                          f'fill-opacity="0.85">{line}{dots}</g>')
     if front:
         path = [f"M{px(front[0][0]):.1f},{py(front[0][1]):.1f}"]

@@ -375,3 +375,22 @@ def test_a_big_suite_page_unpacks_a_scene_when_a_link_asks_for_it(tmp_path_facto
         landed = _landed(page, '#verdict-1 li[data-engine="broken/blow-up"] a[data-highlight]')
         assert landed["id"] == "s1-ts" and landed["highlighted"] == "broken/blow-up" and landed["wide"] >= 1
         assert_offline_and_clean(page)
+
+
+def test_the_engine_filter_filters_the_plots_too(wrong_page):
+    wrong_page.await_promise('window.xvalGoTo("s0-dt", null).then(function () { return true; })')  # drawn (as an evidence link draws it)
+
+    def set_filter(value: str) -> None:
+        wrong_page.evaluate(f'var i = document.getElementById("filter-engine"); i.value = "{value}";'
+                            ' i.dispatchEvent(new Event("input"))')
+
+    set_filter("mujoco")
+    shown = wrong_page.evaluate('document.getElementById("s0-dt").data.filter(function (t) { return t.visible !== false; })'
+                                '.map(function (t) { return t.meta; })')
+    assert shown == ["reference/dop853", "mujoco/hinge-rk4"]  # the yardstick stays
+    pareto = wrong_page.evaluate('Array.from(document.querySelectorAll("#pareto-0 g.series")).filter(function (g) {'
+                                 ' return g.style.display !== "none"; }).map(function (g) { return g.getAttribute("data-variant"); })')
+    assert pareto == ["mujoco/hinge-rk4"]
+    set_filter("")
+    assert len(wrong_page.evaluate('document.getElementById("s0-dt").data.filter(function (t) { return t.visible !== false; })')) == 3
+    assert_offline_and_clean(wrong_page)
