@@ -355,6 +355,12 @@ def test_keyboard_skip_links_first_and_a_heat_map_is_one_tab_stop(wrong_page):
     moved = wrong_page.evaluate('(function () { var a = document.activeElement, td = a.closest("td");'
                                 ' return [td.parentNode.rowIndex, td.cellIndex, a.getAttribute("tabindex")]; })()')
     assert moved == [2, 2, "0"]
+    # The verdict's plot: one tab stop; an arrow shows the first run's tooltip (variant, dt, error, cost).
+    wrong_page.evaluate('document.getElementById("pareto-0").focus()')
+    press("ArrowRight", 39)
+    tip = wrong_page.evaluate('(function () { var t = document.querySelector(".xval-tip");'
+                              ' return t.hidden ? null : t.textContent; })()')
+    assert tip is not None and ": dt " in tip and " s/s" in tip, tip
     assert_offline_and_clean(wrong_page)
 
 
