@@ -143,9 +143,14 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
         for (xb, yb) in front[1:]:
             path.append(f"H{px(xb):.1f}V{py(yb):.1f}")
         parts.append(f'<path class="front" d="{"".join(path)}" fill="none" stroke="#222" stroke-width="2"/>')
-    for x, y, name in picks:
-        if x > 0 and y > 0:
-            parts.append(f'<text class="pick" x="{px(x) + 7:.1f}" y="{py(y) - 7:.1f}" font-size="11" font-weight="600" '
-                         f'paint-order="stroke" stroke="#fff" stroke-width="3">{_escape(name)}</text>')
+    placed: list[tuple[float, float, float]] = []  # (start, end, baseline) of the labels drawn so far
+    for x, y, name in sorted((p for p in picks if p[0] > 0 and p[1] > 0), key=lambda p: -p[1]):
+        start, base = px(x) + 7, py(y) - 7
+        end = start + 6.5 * len(name)  # about the width of 11 px bold text
+        while any(a < end and start < b and abs(base - c) < 13 for a, b, c in placed):
+            base += 13  # below the label it would overlap
+        placed.append((start, end, base))
+        parts.append(f'<text class="pick" x="{start:.1f}" y="{base:.1f}" font-size="11" font-weight="600" '
+                     f'paint-order="stroke" stroke="#fff" stroke-width="3">{_escape(name)}</text>')
     parts.append("</svg>")
     return Markup("".join(parts))

@@ -155,3 +155,17 @@ def test_the_animation_view_leaves_out_a_runaway_link_of_a_model():
     frames = [[[0.1, 0.3], [0.3, 0.5], [0.5, 0.4], [0.6, 0.2], [0.55, 0.2 - 6.0 * t]] for t in (0.0, 0.5, 1.0)]
     assert runaway([{"positions": frames}], model=True) == {4}
     assert runaway([{"positions": frames}], model=False) == set()  # a catalog scene's particles all count
+
+
+def test_the_verdict_plot_names_its_picks_without_overlap_and_has_an_accessible_name():
+    import re
+
+    series = [Series("a/x", "#0072b2", "a", [(1e-3, 1e-4, "a/x: dt 0.01 s")], symbol="circle"),
+              Series("b/y", "#e69f00", "b", [(1.05e-3, 1.02e-4, "b/y: dt 0.01 s")], symbol="square")]
+    svg = str(loglog_svg(series, [], x_title="cost", y_title="error", picks=[(1e-3, 1e-4, "a/x"),
+                                                                             (1.05e-3, 1.02e-4, "b/y")],
+                         label="Scene s: error against cost"))
+    assert 'aria-label="Scene s: error against cost"' in svg
+    assert svg.count("<polygon") == 1 and svg.count("<circle") == 1  # one marker shape per family
+    baselines = [float(y) for y in re.findall(r'<text class="pick" x="[^"]+" y="([^"]+)"', svg)]
+    assert len(baselines) == 2 and abs(baselines[0] - baselines[1]) >= 13  # the second label moved below the first
