@@ -92,7 +92,7 @@ LAZY_SCENES = 8
 #: verdict does not name: context, not evidence).
 LAZY_SERIES = (40, 3, 10)
 #: Points per grey trace of the time series at the chosen dt in such a suite.
-LAZY_CHOSEN_MUTED = 30
+LAZY_CHOSEN_MUTED = 20
 
 
 def page_context(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> dict[str, Any]:
