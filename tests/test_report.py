@@ -440,3 +440,17 @@ def test_each_scenes_verdict_is_computed_once_per_report(small_results, monkeypa
     data = load_report_data(small_results)
     render(data)
     assert sorted(calls) == sorted(scene.scene_id for scene in data.scenes if scene.sweeps)
+
+
+#: Characters drawn as emoji by default (Unicode Emoji_Presentation): the page must need no emoji font.
+_EMOJI = re.compile("[\u231a\u231b\u23e9-\u23f3\u23f8-\u23fa\u25fd\u25fe\u2614\u2615\u2648-\u2653\u267f\u2693\u26a1"
+                    "\u26aa\u26ab\u26bd\u26be\u26c4\u26c5\u26ce\u26d4\u26ea\u26f2\u26f3\u26f5\u26fa\u26fd\u2705"
+                    "\u270a\u270b\u2728\u274c\u274e\u2753-\u2755\u2757\u2795-\u2797\u27b0\u27bf\u2b1b\u2b1c\u2b50"
+                    "\u2b55\U0001f000-\U0001faff]")
+
+
+def test_the_page_needs_no_emoji_font_and_its_inline_plots_are_named(small_results):
+    html = render(load_report_data(small_results))
+    assert _EMOJI.findall(html) == []
+    svgs = re.findall(r"<svg\b[^>]*>", html)
+    assert svgs and all(re.search(r'aria-label="[^"]{20,}"', svg) for svg in svgs)
