@@ -32,7 +32,9 @@ from compare.results.verdict import families
 from engines.errors import UserError
 from engines.scene.catalog import CATALOG
 
-from compare.results.files import atomic_write_text, check_writable, results_inputs
+from engines.files import atomic_write_text, check_writable
+
+from compare.results.store import results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 
