@@ -355,6 +355,9 @@ def test_keyboard_skip_links_first_and_a_heat_map_is_one_tab_stop(wrong_page):
     moved = wrong_page.evaluate('(function () { var a = document.activeElement, td = a.closest("td");'
                                 ' return [td.parentNode.rowIndex, td.cellIndex, a.getAttribute("tabindex")]; })()')
     assert moved == [2, 2, "0"]
+    # A legend is one tab stop too.
+    assert wrong_page.evaluate("document.querySelectorAll('.pareto-legend[data-for=pareto-0] "
+                               ".legend-item:not([tabindex=\\'-1\\'])').length") == 1
     # The verdict's plot: one tab stop; an arrow shows the first run's tooltip (variant, dt, error, cost).
     wrong_page.evaluate('document.getElementById("pareto-0").focus()')
     press("ArrowRight", 39)
