@@ -39,7 +39,7 @@ def test_a_level_below_1e_8_L_is_an_engines_floor_not_convergence():
 def test_ours_rk4_variants_on_the_compound_double_pendulum_have_order_4(tmp_path):
     """The rigid two-link pendulum of models/double_pendulum.urdf: the reference's error is ~1e-12 m, ours'
     RK4 errors 2.7e-8, 1.7e-9 and 1.1e-10 m at dt 4, 2 and 1 ms (baumgarte-rk4, measured): order ≥ 3.5."""
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.results.sweep import sweeps
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
