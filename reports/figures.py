@@ -284,6 +284,10 @@ def last_finite(t: Sequence[float], values: Sequence[Any], duration: float) -> t
     return t[k], values[k]
 
 
+#: Where successive "blew up at t = …" labels go around their ×, so that neighbours do not overlap.
+BLOWUP_CORNERS = ("bottom right", "top left", "top right", "bottom left")
+
+
 def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engine: str,
                    text: str = "blew up at t = {t:.3g} s") -> dict[str, Any]:
     """An × at (t, y) with ``text`` beside it (formatted with t): where a run left the plot."""
@@ -353,6 +357,14 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
         layout["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": horizon, "x1": duration,
                              "y0": 0, "y1": 1, "fillcolor": "#888888", "opacity": 0.15, "line": {"width": 0},
                              "layer": "below"}]
+    # Labels of blow-ups near one another would print over each other: each takes the next corner, in dark text
+    # (a variant's own shade can be pale on white).
+    seen: dict[str, int] = {}
+    for marker in sorted(markers, key=lambda m: m["x"][0]):  # along t, within each panel
+        k = seen[marker["yaxis"]] = seen.get(marker["yaxis"], -1) + 1
+        marker["textposition"] = BLOWUP_CORNERS[k % len(BLOWUP_CORNERS)]
+        marker["textfont"] = {**marker["textfont"], "color": "#333"}
+        marker["cliponaxis"] = False  # a label near t = end stays readable past the axis
     figure = emphasise({"data": traces + markers, "layout": layout}, [t.get("meta") for t in traces + markers],
                        named_variants(scene) if named is None else named)
     caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
