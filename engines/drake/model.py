@@ -46,7 +46,7 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
     logger.addHandler(warnings)
     try:
         Parser(plant).AddModelsFromString(text, "urdf" if source.format == "urdf" else "xml")
-        root = plant.GetFrameByName(description.root)
+        root = plant.GetBodyByName(description.root).body_frame()  # a body's frame: a joint may share its name
         if root.body().index() != plant.world_body().index():  # Drake reads a link named "world" as the world
             plant.WeldFrames(plant.world_frame(), root)
         for index in plant.GetJointIndices():

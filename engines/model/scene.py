@@ -301,7 +301,8 @@ class FrameKinematics:
         self.pin = pin
         self.loaded = reference_import.load(source, description)
         model = self.loaded.model
-        self.frame_ids = [model.getFrameId(name) for name in description.moving_links]
+        # By name and type: URDF lets a link and a joint share a name, and each has a frame of that name.
+        self.frame_ids = [model.getFrameId(name, pin.FrameType.BODY) for name in description.moving_links]
 
     def frames(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pin, loaded = self.pin, self.loaded

@@ -174,4 +174,4 @@ def _without_limits(source):
     for limit in root.iter("limit"):
         limit.set("lower", "1")
         limit.set("upper", "-1")
-    return replace(source, text=ET.tostring(root, encoding="unicode"))
+    return replace(source, text=ET.tostring(root, encoding="unicode"), keep_empty_ranges=True)
