@@ -329,7 +329,11 @@ def test_evidence_links_land_on_their_plot_with_the_variant_highlighted(wrong_pa
 
 def test_a_link_from_a_url_opens_its_case_row(wrong_page):
     # Opened from a URL: the row of broken/blow-up at dt 0.003 s is packed until asked for; the page unpacks it.
-    wrong_page.evaluate('location.hash = "#s0-d1-v3"; location.reload()')
+    # Set the hash without a hashchange (so the page already open does not go there itself), then load anew.
+    wrong_page.evaluate('document.body.removeAttribute("data-landed"); history.replaceState(null, "", "#s0-d1-v3")')
+    wrong_page.browser.events.clear()
+    wrong_page.evaluate("setTimeout(function () { location.reload(); }, 0)")
+    wrong_page.browser.wait_for("Page.loadEventFired")
     wrong_page.wait('document.body && document.body.getAttribute("data-landed") === "s0-d1-v3"', 60)
     row = wrong_page.evaluate('(function () { var r = document.getElementById("s0-d1-v3"), b = r.getBoundingClientRect();'
                               ' return {engine: r.getAttribute("data-engine"), hidden: !!r.closest("[hidden]"), top: b.top}; })()')
