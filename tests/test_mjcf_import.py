@@ -123,3 +123,21 @@ def test_an_empty_limit_range_locks_no_joint_in_the_check_as_in_simulate():
                                                              "dart": True}
     pybullet = next(e for e in report.engines if e.engine == "pybullet")
     assert any(note.startswith("joint limits off: every <limit> given lower 1 > upper -1") for note in pybullet.notes)
+
+
+def test_the_reference_of_an_mjcf_is_mujoco_s_compiled_model_and_mujoco_and_drake_agree_with_it():
+    """The acrobot's defaults give every geom 1 kg (<default><geom mass="1">): MuJoCo's compiler says each
+    arm weighs 1 kg (the 0-kg decoration adds nothing), and so does the reference built from that compiled
+    model; Pinocchio's own MJCF reader ignores the default and weighs the capsules (8.38 kg, measured), which
+    made MuJoCo and Drake, agreeing with each other, disagree with the reference. At q = 0 the lower arm's
+    moment about the elbow is its own about its centre plus m·(0.5 m)², m = 1 kg (parallel axes)."""
+    path = FIXTURES.parent / "models" / "acrobot.xml"
+    source, model = read_description(str(path))
+    loaded = importer("pinocchio").load(source, model)
+    assert {link: round(found.mass, 12) for link, found in loaded.link_inertias().items()} == \
+        {"upper_arm": 1.0, "lower_arm": 1.0}
+    assert any("MuJoCo's compiled model" in note for note in loaded.notes)
+    own = model.body("lower_arm").inertial
+    assert own.com == pytest.approx((0.0, 0.0, 0.5), abs=1e-12)
+    assert loaded.mass_matrix(np.zeros(2))[1, 1] == pytest.approx(own.inertia_matrix[1, 1] + 1.0 * 0.5 ** 2, rel=1e-12)
+    assert verdicts(path, ("mujoco", "drake")) == {"mujoco": True, "drake": True}

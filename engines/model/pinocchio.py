@@ -1,16 +1,17 @@
-"""Pinocchio's import of a model file: the reference of the parity check.
+"""Pinocchio's model of a file: the reference of the parity check and of model scenes.
 
-Import options: ``buildModelFromXML`` (URDF) or ``buildModelFromMJCF``
-(MJCF, read from the self-contained text in a temporary file) with a fixed
-base (no root joint), or a ``JointModelFreeFlyer`` root joint for a URDF read
-with a floating base (an MJCF free joint is one already); links welded by fixed joints are merged into their
-joint's body (Pinocchio keeps them as frames). Several joints in one MJCF
-body are one composite joint (``Composite_<first>``) whose degrees of
-freedom are the body's joints in file order: each is matched by name to the
-description's chain.
-Armature, damping and friction set to 0; gravity (0, 0, −9.81). M is
-``crba`` (upper triangle, mirrored), the bias ``rnea(q, v, 0)``, the forward
-dynamics ``aba``. A continuous joint is Pinocchio's (cos θ, sin θ): the
+A URDF is read by Pinocchio's own reader (``buildModelFromXML``, the text
+without geometry) with a fixed base (no root joint), or a
+``JointModelFreeFlyer`` root joint for a URDF read with a floating base;
+links welded by fixed joints are merged into their joint's body (Pinocchio
+keeps them as frames). An MJCF's reference is built joint by joint from the
+description, which is MuJoCo's compiled model (MJCF is MuJoCo's format and
+its compiler says what the file means; Pinocchio's ``buildModelFromMJCF``
+ignores ``<default>`` geom masses): engines/model/pinocchio_tree.py. Either
+way Pinocchio's algorithms are the independent dynamics. Armature, damping
+and friction set to 0; gravity (0, 0, −9.81). M is ``crba`` (upper triangle,
+mirrored), the bias ``rnea(q, v, 0)``, the forward dynamics ``aba``. A
+continuous joint read from a URDF is Pinocchio's (cos θ, sin θ): the
 description's angle is converted on the way in.
 """
 
@@ -22,6 +23,7 @@ import pinocchio as pin
 from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.pinocchio_tree import build
 from engines.model.source import ModelSource
 
 NAME = "pinocchio"
@@ -39,13 +41,19 @@ def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel"
         elif source.format == "urdf":
             model = pin.buildModelFromXML(text)
         else:
-            with source.engine_file() as path:
-                model = pin.buildModelFromMJCF(path)
+            model = build(description)
+            notes = (*notes, MJCF_NOTE)
     except (RuntimeError, ValueError) as exc:
         raise Refused(" ".join(str(exc).split())) from None
-    options = {"builder": "buildModelFromXML" if source.format == "urdf" else "buildModelFromMJCF",
+    options = {"builder": "buildModelFromXML" if source.format == "urdf" else "joint by joint from MuJoCo's compiled model",
                "root_joint": "none (fixed base)" if description.floating is None else "JointModelFreeFlyer"}
     return PinocchioModel(model, description, options, notes)
+
+
+#: What the reference of an MJCF is, in the check's notes.
+MJCF_NOTE = ("the reference's model of an MJCF is MuJoCo's compiled model (MJCF is MuJoCo's format; Pinocchio's "
+             "own MJCF reader ignores <default> geom masses) built joint by joint; Pinocchio's crba, rnea and aba "
+             "compute its dynamics")
 
 
 class PinocchioModel(LoadedModel):
@@ -58,8 +66,7 @@ class PinocchioModel(LoadedModel):
         model.gravity.linear = np.array([0.0, 0.0, -GRAVITY])
         super().__init__(description, options, (*notes, "armature, damping and friction set to 0"))
         self.model, self.data = model, model.createData()
-        # One entry per degree of freedom: (its name, Pinocchio joint, index within it).
-        order = [j.name for j in description.moving_joints]
+        # One entry per degree of freedom: its name, and (Pinocchio joint, index within it).
         names, slots = [], []
         base: list[int] = []
         for joint in range(1, model.njoints):
@@ -69,15 +76,10 @@ class PinocchioModel(LoadedModel):
                 base = [int(model.idx_vs[joint]) + k for k in range(6)]
                 self.base_q = int(model.idx_qs[joint])
                 continue
-            if count > 1 and name.startswith("Composite_") and name[len("Composite_"):] in order:
-                start = order.index(name[len("Composite_"):])
-                parts = order[start:start + count]
-            elif count == 1:
-                parts = [name]
-            else:
+            if count != 1:
                 raise Refused(f"only 1-degree-of-freedom joints are compared; pinocchio's {name} has {count}")
-            names += parts
-            slots += [(joint, k) for k in range(len(parts))]
+            names.append(name)
+            slots.append((joint, 0))
         chosen = [slots[k] for k in index_map(description, names)]
         self.joint_ids = [joint for joint, _ in chosen]
         if description.floating is not None and not base:
@@ -127,11 +129,13 @@ class PinocchioModel(LoadedModel):
             names[next(j for j in range(1, self.model.njoints) if self.model.idx_vs[j] == self.dof[0])] = \
                 self.description.floating.name
         for joint in range(1, self.model.njoints):
-            # A joint's body is its child link with every link welded to it, in the joint frame (a composite
-            # joint's body is the child of its last part).
+            # A joint's body is its child link with every link welded to it, in the joint frame (a virtual
+            # link between two joints of one MJCF body is massless and no engine's: left out).
             if joint not in names:
                 continue
             inertia, pose = self.model.inertias[joint], self.data.oMi[joint]
             link = self.description.joint(names[joint]).child
+            if self.description.body(link).virtual:
+                continue
             found[link] = world_inertia(inertia.mass, inertia.lever, inertia.inertia, pose.rotation, pose.translation)
         return found

@@ -1,0 +1,60 @@
+"""A Pinocchio model built joint by joint from a :class:`ModelDescription` (the model reference of an MJCF).
+
+MJCF is MuJoCo's format and its compiler says what a file means (defaults
+classes, masses from geoms, angle units); the description of an MJCF is that
+compiled model (engines/model/mjcf.py). Pinocchio's own MJCF reader
+disagrees on real files (it ignores ``<default><geom mass=…>``: on a
+dm_control-style acrobot each arm weighs 8.38 kg, the capsule's volume times
+1000, where MuJoCo's compiler says 1 kg), so the reference is built from the
+description instead, and Pinocchio's algorithms (crba, rnea, aba) stay the
+independent dynamics.
+
+Each moving joint is a 1-degree-of-freedom Pinocchio joint of the same name
+(revolute or continuous: ``JointModelRevoluteUnaligned``; prismatic:
+``JointModelPrismaticUnaligned``) placed at the joint's origin in its parent
+joint's frame; a floating base is a ``JointModelFreeFlyer`` at the world's
+origin; a fixed joint welds its child into the body of the joint above it
+(its inertia appended there), as Pinocchio's readers do. Every link is a
+BODY frame of its name.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from engines.model.description import ModelDescription
+from engines.model.kinematics import rpy_matrix
+
+#: Pinocchio joint model per description joint type (the axis in the joint frame).
+_MODELS = {"revolute": pin.JointModelRevoluteUnaligned, "continuous": pin.JointModelRevoluteUnaligned,
+           "prismatic": pin.JointModelPrismaticUnaligned}
+
+
+def build(description: ModelDescription) -> pin.Model:
+    """The Pinocchio model of ``description`` (gravity and armature left at Pinocchio's defaults)."""
+    model = pin.Model()
+    model.name = description.name
+    # Link name -> (the Pinocchio joint that carries it, the link frame in that joint's frame, its frame id).
+    carried: dict[str, tuple[int, pin.SE3, int]] = {description.root: (0, pin.SE3.Identity(), 0)}
+    for joint in description.joints:  # depth-first: the parent is placed before its children
+        parent, above, previous = carried[joint.parent]
+        origin = above * pin.SE3(rpy_matrix(joint.rpy), np.asarray(joint.xyz, dtype=float))
+        inertial = description.body(joint.child).inertial
+        inertia = pin.Inertia(inertial.mass, np.asarray(inertial.com, dtype=float), inertial.inertia_matrix)
+        if joint.type == "fixed":
+            model.appendBodyToJoint(parent, inertia, origin)
+            frame = model.addBodyFrame(joint.child, parent, origin, previous)
+            carried[joint.child] = (parent, origin, frame)
+            continue
+        if joint.type == "floating":
+            kind = pin.JointModelFreeFlyer()
+            origin = pin.SE3.Identity()  # the configuration is the base's pose in the world
+        else:
+            kind = _MODELS[joint.type](np.asarray(joint.axis, dtype=float))
+        index = model.addJoint(parent, kind, origin, joint.name)
+        model.appendBodyToJoint(index, inertia, pin.SE3.Identity())
+        joint_frame = model.addJointFrame(index, previous)
+        frame = model.addBodyFrame(joint.child, index, pin.SE3.Identity(), joint_frame)
+        carried[joint.child] = (index, pin.SE3.Identity(), frame)
+    return model
