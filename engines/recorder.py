@@ -146,11 +146,14 @@ class Recorder:
     # -- results --
 
     def samples(self) -> tuple[np.ndarray, np.ndarray]:
-        """(n, P, k) positions and velocities recorded, float64, as the engine gave them (its frame)."""
+        """(n, P, k) positions and velocities recorded, float64, as the engine gave them (its frame); each its
+        own shape (a model's q and v differ in size with a floating base: 7 + n against 6 + n)."""
         n = len(self.q_rows)
-        shape = (n, *np.shape(self.q_rows[0])) if n else (0, 0, 3)
-        return (np.array(self.q_rows, dtype=float).reshape(shape),
-                np.array(self.v_rows, dtype=float).reshape(shape))
+
+        def stacked(rows: list) -> np.ndarray:
+            return np.array(rows, dtype=float).reshape((n, *np.shape(rows[0])) if n else (0, 0, 3))
+
+        return stacked(self.q_rows), stacked(self.v_rows)
 
     def force_samples(self) -> np.ndarray:
         """(n, C, 3) N from the forces recorded: arrays as given, a mapping's missing rows and None NaN."""

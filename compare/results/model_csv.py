@@ -1,7 +1,9 @@
 """A model run as a table: ``t``, q and v of every moving joint, then each link frame's origin, in SI.
 
 Columns: ``t`` (s); ``q_<joint>`` (rad or m) and ``v_<joint>`` (rad/s or
-m/s) for each moving joint in the model's order; ``<link>_x``, ``_y``, ``_z``
+m/s) for each moving joint in the model's order, after a floating base's
+``q_BASE.x`` … ``q_BASE.qw`` and ``v_BASE.vx`` … ``v_BASE.wz``
+(ModelScene.config_names, velocity_names); ``<link>_x``, ``_y``, ``_z``
 (m, world frame) for each moving link; then ``energy`` (J, rotational
 kinetic energy included). ``xval score --model`` reads the joint columns
 back and recomputes the link frames from them (the frame columns may be left
@@ -21,8 +23,7 @@ _AXES = ("x", "y", "z")
 
 
 def model_columns(scene: ModelScene) -> list[str]:
-    joints = scene.joint_names
-    return (["t", *(f"q_{j}" for j in joints), *(f"v_{j}" for j in joints),
+    return (["t", *(f"q_{j}" for j in scene.config_names), *(f"v_{j}" for j in scene.velocity_names),
              *(f"{link}_{a}" for link in scene.frames for a in _AXES), "energy"])
 
 
@@ -31,14 +32,14 @@ def model_table(scene: ModelScene, trajectory: Trajectory) -> np.ndarray:
     n = trajectory.n_samples
     joints = trajectory.joint_states
     if joints is None:
-        joints = np.full((n, 2 * len(scene.joint_names)), np.nan)
+        joints = np.full((n, len(scene.config_names) + len(scene.velocity_names)), np.nan)
     return np.column_stack([trajectory.t, joints, trajectory.positions.reshape(n, -1),
                             trajectory_energy(scene, trajectory)])
 
 
 def joint_states(table: protocol.Table, scene: ModelScene, where: str) -> np.ndarray:
-    """(n, 2·nq): q then v from ``table``'s ``q_<joint>``, ``v_<joint>`` columns; UserError naming a missing one."""
-    wanted = [f"q_{j}" for j in scene.joint_names] + [f"v_{j}" for j in scene.joint_names]
+    """(n, nconfig + nv): q then v from ``table``'s ``q_<name>``, ``v_<name>`` columns; UserError naming a missing one."""
+    wanted = [f"q_{j}" for j in scene.config_names] + [f"v_{j}" for j in scene.velocity_names]
     missing = [name for name in wanted if name not in table.header]
     if missing:
         raise UserError(f"{where}: header (line {table.header_line}), missing column {missing[0]!r}; a run of "

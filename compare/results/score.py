@@ -44,7 +44,7 @@ class Loaded:
     state: protocol.StateColumns
     lines: np.ndarray
     comments: dict[str, str]
-    joint_states: np.ndarray | None = None  # (n, 2·nq) of a model scene's file
+    joint_states: np.ndarray | None = None  # (n, nconfig + nv) of a model scene's file
 
 
 def load(path: str | Path, scene: Scene) -> Loaded:
@@ -75,13 +75,12 @@ def _load_model_run(where: str, table: protocol.Table, scene: ModelScene) -> Loa
     from compare.results.model_csv import joint_states
 
     states = joint_states(table, scene, where)
-    nq = states.shape[1] // 2
     n = len(states)
     positions = np.full((n, len(scene.frames), 3), np.nan)
     velocities = positions.copy()
     finite = np.flatnonzero(np.isfinite(states).all(axis=1))
     if len(finite):
-        positions[finite], velocities[finite] = scene.frame_states(states[finite, :nq], states[finite, nq:])
+        positions[finite], velocities[finite] = scene.frame_states(*scene.split(states[finite]))
     state = protocol.StateColumns(table.column("t").copy(), positions, velocities, None)
     loaded = Loaded(where, state, table.data_lines, dict(table.comments), states)
     _check_times(loaded)

@@ -122,7 +122,9 @@ class DrakeModel(LoadedModel):
         self.selected = np.concatenate([base, self.dof]).astype(int)
         self.forces = plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
 
-    def _set(self, q, v=None, tau=None) -> Mapping | None:
+    def plant_state(self, q, v=None) -> tuple[np.ndarray, Mapping | None]:
+        """Drake's (positions, velocities) for xval's q (nconfig,) and v (nv,) (zero when None), and the
+        floating base's mapping (None with a fixed base)."""
         q = np.asarray(q, dtype=float)
         mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
         positions = np.zeros(self.plant.num_positions())
@@ -134,7 +136,21 @@ class DrakeModel(LoadedModel):
         velocities = np.zeros(self.plant.num_velocities())
         if v is not None:
             velocities[self.selected] = v if mapping is None else mapping.velocity(v)
-        self.plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
+        return np.concatenate([positions, velocities]), mapping
+
+    def xval_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """xval's (q, v) of Drake's state x (positions then velocities): the inverse of :meth:`plant_state`."""
+        positions, velocities = x[:self.plant.num_positions()], x[self.plant.num_positions():]
+        q, v = positions[self.qpos], velocities[self.selected]
+        if self.base_q < 0:
+            return q.copy(), v.copy()
+        pose = positions[self.base_q:self.base_q + 7]  # (w x y z, p)
+        config = np.concatenate([pose[4:7], pose[1:4], pose[:1], q])
+        return config, np.linalg.solve(Mapping(angular_linear_world, config).T, v)
+
+    def _set(self, q, v=None, tau=None) -> Mapping | None:
+        x, mapping = self.plant_state(q, v)
+        self.plant.SetPositionsAndVelocities(self.context, x)
         forces = np.zeros(self.plant.num_velocities())
         if tau is not None:
             forces[self.selected] = tau if mapping is None else mapping.force(tau)
@@ -186,10 +202,8 @@ class DrakeStepper(Stepper):
         self.simulator = Simulator(plant)
         self.context = self.simulator.get_mutable_context()
         plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
-        positions, velocities = np.zeros(plant.num_positions()), np.zeros(plant.num_velocities())
-        positions[loaded.qpos], velocities[loaded.dof] = scene.initial_q, scene.initial_v
-        plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
-        self.qpos, self.dof, self.nq = loaded.qpos, loaded.dof, plant.num_positions()
+        plant.SetPositionsAndVelocities(self.context, loaded.plant_state(scene.initial_q, scene.initial_v)[0])
+        self.loaded = loaded
         integrator = self.integrator = ResetIntegratorFromFlags(self.simulator, scheme, dt)
         integrator.set_fixed_step_mode(fixed)
         if not fixed:
@@ -208,5 +222,4 @@ class DrakeStepper(Stepper):
         return int(self.integrator.get_num_steps_taken())
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        x = self.plant.GetPositionsAndVelocities(self.context)
-        return x[self.qpos].copy(), x[self.nq:][self.dof].copy()
+        return self.loaded.xval_state(self.plant.GetPositionsAndVelocities(self.context))

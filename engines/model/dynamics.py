@@ -2,7 +2,8 @@
 
 :class:`ModelDynamics` has the shape of the catalog's reduced-coordinate
 models (engines/reference/reference.py integrates it with DOP853): the state is
-y = (q, v) in the model's joint order, ``rhs`` is (v, aba(q, v, τ)) with τ
+y = (q, v) in xval's order (a floating base's pose and velocity first, its
+quaternion's rate ½ q ⊗ ω: :func:`base_rate`), ``rhs`` is (q̇, aba(q, v, τ)) with τ
 the file's joint damping (−d·v) when the scene keeps it (friction, being
 non-smooth, is left out of the reference and said so), and ``evaluate``
 turns states into the link frames' positions and velocities. It holds only
@@ -18,8 +19,20 @@ import numpy as np
 from engines.model.scene import ModelScene
 
 
+def base_rate(pose: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """d/dt of a floating base's pose (p (3,) m, quaternion x y z w) for its velocity v (linear m/s, angular
+    rad/s, both in the base frame): ṗ = R v, q̇ = ½ q ⊗ (ω, 0) (the quaternion's norm is kept by the flow; R
+    normalises it)."""
+    from engines.model.floating import rotation
+
+    quaternion, linear, angular = pose[3:7], v[:3], v[3:6]
+    vector, scalar = quaternion[:3], quaternion[3]
+    return np.concatenate([rotation(quaternion) @ linear, 0.5 * (scalar * angular + np.cross(vector, angular)),
+                           [-0.5 * vector @ angular]])
+
+
 class ModelDynamics:
-    """ẏ = f(y) for y = (q, v) (2·nq,) of ``scene``: v and Pinocchio's ABA acceleration."""
+    """ẏ = f(y) for y = (q, v) (nconfig + nv,) of ``scene``: q̇ from v and Pinocchio's ABA acceleration."""
 
     def __init__(self, scene: ModelScene) -> None:
         self.scene = scene
@@ -44,16 +57,18 @@ class ModelDynamics:
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
         pin, loaded, damping = self._model
-        n = len(y) // 2
+        n = loaded.description.nconfig
         q, v = y[:n], y[n:]
         rates = loaded._vector(v)
         a = pin.aba(loaded.model, loaded.data, loaded.configuration(q), rates, -damping * rates)[loaded.dof]
-        return np.concatenate([v, a])
+        if loaded.description.floating is None:
+            return np.concatenate([v, a])
+        return np.concatenate([base_rate(q[:7], v[:6]), v[6:], a])
 
     def evaluate(self, scene: ModelScene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Link frame positions (n, L, 3) m and velocities (n, L, 3) m/s at states (n, 2·nq); no constraint forces."""
-        n = states.shape[1] // 2
-        positions, velocities = scene.frame_states(states[:, :n], states[:, n:])
+        """Link frame positions (n, L, 3) m and velocities (n, L, 3) m/s at states (n, nconfig + nv); no
+        constraint forces."""
+        positions, velocities = scene.frame_states(*scene.split(states))
         return positions, velocities, np.zeros((len(states), 0, 3))
 
     def __getstate__(self) -> dict:

@@ -94,8 +94,30 @@ class ModelScene:
 
     @property
     def joint_names(self) -> tuple[str, ...]:
-        """The moving joints, in the model's order: the order of q, v and the CSV's columns."""
+        """The moving joints, in the model's order."""
         return tuple(j.name for j in self.description.moving_joints)
+
+    @property
+    def floating_base(self) -> bool:
+        """True when the model's base is free (an MJCF free joint)."""
+        return self.description.floating is not None
+
+    @property
+    def config_names(self) -> tuple[str, ...]:
+        """A name per configuration entry, the order of q and of the CSV's ``q_`` columns: with a floating
+        base ``BASE.x``, ``.y``, ``.z`` (m) and ``BASE.qx``, ``.qy``, ``.qz``, ``.qw`` first, then the joints."""
+        return (*_base_names(self.description, BASE_CONFIG), *self.joint_names)
+
+    @property
+    def velocity_names(self) -> tuple[str, ...]:
+        """A name per velocity entry, the order of v and of the CSV's ``v_`` columns: with a floating base
+        ``BASE.vx`` … ``BASE.wz`` (m/s, rad/s, in the base frame) first, then the joints."""
+        return self.description.dof_names
+
+    def split(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q (n, nconfig), v (n, nv)) of joint states (n, nconfig + nv)."""
+        n = self.description.nconfig
+        return states[:, :n], states[:, n:]
 
     @property
     def frames(self) -> tuple[str, ...]:
@@ -163,13 +185,21 @@ class ModelScene:
         return self.frame_states(self.initial_q[None], self.initial_v[None])[1][0]
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at joint states q, v (n, nq)."""
+        """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at states q (n, nconfig), v (n, nv)."""
         return _kinematics(self.model, self.path, self.digest, self.lock).frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
         return _kinematics(self.model, self.path, self.digest, self.lock).energy(q, v, self.g)
+
+    def conserved_momenta(self) -> tuple[str, ...]:
+        """With a floating base, the components of the total momentum in the world that nothing changes: every
+        one when g = 0, else the horizontal linear ones and the angular one about the vertical through the
+        origin (gravity's torque about it vanishes); without one, :meth:`conserved_joints`."""
+        if self.description.floating is None:
+            return self.conserved_joints()
+        return WORLD_MOMENTA if self.g == 0 else ("px", "py", "Lz")
 
     def conserved_joints(self) -> tuple[str, ...]:
         """The moving joints on the (fixed) root whose momentum nothing changes: (M v)_j is the momentum of
@@ -188,10 +218,12 @@ class ModelScene:
         return tuple(out)
 
     def momentum_drift(self, q: np.ndarray, v: np.ndarray) -> float | None:
-        """max over :meth:`conserved_joints` and samples of |p_j(t) − p_j(0)| / scale, p = M(q) v (n, nq) at
-        joint states q, v (n, nq); scale M·L·√(g·L) about an axis, M·√(g·L) along one (M the moving links'
-        mass, L the reach, g Earth's when the scene's is 0). None when no joint qualifies; 0 for one sample."""
-        names = self.conserved_joints()
+        """max over :meth:`conserved_momenta` and samples of |p_j(t) − p_j(0)| / scale at states q (n, nconfig),
+        v (n, nv): p = M(q) v for a root joint; with a floating base, the total linear momentum and the angular
+        momentum about the world origin, in the world. Scale M·L·√(g·L) about an axis, M·√(g·L) along one (M
+        the moving links' mass, L the reach, g Earth's when the scene's is 0). None when nothing qualifies; 0
+        for one sample."""
+        names = self.conserved_momenta()
         if not names:
             return None
         if len(q) < 2:
@@ -199,6 +231,12 @@ class ModelScene:
         momentum = _kinematics(self.model, self.path, self.digest, self.lock).momentum(q, v)
         speed = float(self.masses.sum()) * self.characteristic_speed
         worst = 0.0
+        if self.description.floating is not None:
+            for k, name in enumerate(WORLD_MOMENTA):
+                if name in names:
+                    scale = speed * (1.0 if name.startswith("p") else self.characteristic_length)
+                    worst = max(worst, float(np.abs(momentum[:, k] - momentum[0, k]).max()) / scale)
+            return worst
         for name in names:
             k = self.joint_names.index(name)
             scale = speed * (1.0 if self.description.joint(name).type == "prismatic" else self.characteristic_length)
@@ -267,10 +305,6 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
         q0 = {k: value for k, value in (q0 or {}).items() if k not in dict(welded)}
     else:
         welded = ()
-    if description.floating is not None:
-        raise ModelError(f"model {model}: a floating base (joint {description.floating.name}) is not supported in "
-                         f"model scenes yet; use `xval model check` for its dynamics, or weld the base (remove the "
-                         f"free joint)")
     if description.nq == 0:
         raise ModelError(f"model {model}: it has no moving joints (revolute, continuous or prismatic); "
                          f"there is nothing to simulate")
@@ -291,15 +325,55 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
         raise ModelError(f"model {model}: file_dynamics = \"keep\" with joint friction ({', '.join(rubbing)}): the "
                          f"reference has no Coulomb friction; use \"neutral\" (friction and damping set to 0)")
     angular = {j.name: j.type != "prismatic" for j in joints}
-    given_q = _by_joint(model, "q0", q0 or {}, angular)
-    given_v = _by_joint(model, "v0", v0 or {}, angular)
-    q = tuple((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name])
-              if j.name in given_q else (j.name, 0.0) for j in joints)
-    v = tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
+    base_q, base_v = _base_state(model, description, q0 or {}, v0 or {})
+    floating = () if description.floating is None else (description.floating.name,)
+    given_q = _by_joint(model, "q0", {k: x for k, x in (q0 or {}).items() if k not in floating}, angular)
+    given_v = _by_joint(model, "v0", {k: x for k, x in (v0 or {}).items() if k not in floating}, angular)
+    q = base_q + tuple((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name])
+                       if j.name in given_q else (j.name, 0.0) for j in joints)
+    v = base_v + tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
     parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
                   **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {})}
     return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity,
                       welded)
+
+
+#: A floating base's configuration entries (position m, quaternion x y z w) and velocity entries.
+BASE_CONFIG = ("x", "y", "z", "qx", "qy", "qz", "qw")
+BASE_VELOCITY = ("vx", "vy", "vz", "wx", "wy", "wz")
+#: The total momentum of a free model in the world: linear (kg·m/s), angular about the origin (kg·m²/s).
+WORLD_MOMENTA = ("px", "py", "pz", "Lx", "Ly", "Lz")
+
+
+def _base_names(description: ModelDescription, parts: Sequence[str]) -> tuple[str, ...]:
+    return () if description.floating is None else tuple(f"{description.floating.name}.{a}" for a in parts)
+
+
+def _base_state(model: str, description: ModelDescription, q0: Mapping[str, Any],
+                v0: Mapping[str, Any]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
+    """The floating base's initial entries by name: q0.BASE = [x, y, z, qx, qy, qz, qw] (m; a quaternion,
+    normalised here; default the origin, unturned), v0.BASE = [vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base
+    frame; default at rest). ModelError naming the field."""
+    if description.floating is None:
+        return (), ()
+    name = description.floating.name
+    out = []
+    for what, given, default in (("q0", q0, (0, 0, 0, 0, 0, 0, 1.0)), ("v0", v0, (0.0,) * 6)):
+        raw = given.get(name, default)
+        try:
+            values = np.array(raw, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            values = np.zeros(0)
+        if len(values) != len(default) or not np.all(np.isfinite(values)) or \
+                (what == "q0" and np.linalg.norm(values[3:]) == 0):
+            form = "[x, y, z, qx, qy, qz, qw] (m, a nonzero quaternion)" if what == "q0" else \
+                "[vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base frame)"
+            raise ModelError(f"model {model}: {what}.{name} (the floating base) must be {form}, got {raw!r}")
+        if what == "q0":
+            values[3:] /= np.linalg.norm(values[3:])
+        parts = BASE_CONFIG if what == "q0" else BASE_VELOCITY
+        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(parts, values)))
+    return out[0], out[1]
 
 
 def _lock_values(model: str, description: ModelDescription, q0: Mapping[str, Any],
@@ -404,9 +478,22 @@ class FrameKinematics:
         return positions, velocities
 
     def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """(n, nq) the generalised momenta M(q) v at joint states q, v (n, nq)."""
+        """The generalised momenta M(q) v (n, nv) at states q (n, nconfig), v (n, nv); with a floating base
+        instead the total momentum in the world (n, 6): linear (kg·m/s), then angular about the origin
+        (kg·m²/s). The base rows of M v are the whole model's linear momentum and its angular momentum about
+        the base origin, in the base frame (tests/test_floating_base.py measures this)."""
+        from engines.model.floating import rotation
+
         loaded = self.loaded
-        return np.array([loaded.mass_matrix(qk) @ vk for qk, vk in zip(q, v)])
+        momenta = np.array([loaded.mass_matrix(qk) @ vk for qk, vk in zip(q, v)])
+        if loaded.description.floating is None:
+            return momenta
+        out = np.empty((len(q), 6))
+        for k, (qk, h) in enumerate(zip(q, momenta)):
+            r = rotation(qk[3:7])
+            out[k, :3] = r @ h[:3]
+            out[k, 3:] = r @ h[3:6] + np.cross(qk[:3], out[k, :3])
+        return out
 
     def energy(self, q: np.ndarray, v: np.ndarray, g: float = GRAVITY) -> np.ndarray:
         """(n,) J: kinetic plus potential energy in gravity g (m/s², along −z)."""

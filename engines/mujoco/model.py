@@ -160,12 +160,9 @@ class MujocoStepper(Stepper):
         self.model.opt.timestep = dt
         self.model.opt.gravity[:] = scene.gravity
         self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
-        self.qpos, self.dof = loaded.qpos, loaded.dof
+        self.qpos, self.dof, self.loaded = loaded.qpos, loaded.dof, loaded
         self.model.dof_damping[self.dof] = kept_damping(scene)
-        self.data.qpos[:] = 0.0
-        self.data.qvel[:] = 0.0
-        self.data.qpos[self.qpos] = scene.initial_q
-        self.data.qvel[self.dof] = scene.initial_v
+        loaded._set(scene.initial_q, scene.initial_v)  # a floating base mapped from xval's convention
         mujoco.mj_forward(self.model, self.data)
         self.settings = {**common_settings(scene, loaded), "integrator": integrator,
                          "disableflags": int(self.model.opt.disableflags)}
@@ -174,4 +171,12 @@ class MujocoStepper(Stepper):
         self.mujoco.mj_step(self.model, self.data, nstep=steps)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.data.qpos[self.qpos].copy(), self.data.qvel[self.dof].copy()
+        q, v = self.data.qpos[self.qpos].copy(), self.data.qvel[self.dof].copy()
+        start = self.loaded.base_q
+        if start < 0:
+            return q, v
+        # The free joint's (p, w x y z) and (R v, ω) as xval's (p, x y z w) and (v, ω).
+        pose = self.data.qpos[start:start + 7]
+        config = np.concatenate([pose[:3], pose[4:7], pose[3:4], q])
+        rates = self.data.qvel[self.loaded.selected]
+        return config, np.linalg.solve(Mapping(linear_world_angular_body, config).T, rates)

@@ -2,7 +2,9 @@
 
 Links welded by fixed joints are fused into the link they hang from (mass properties combined by the
 parallel-axis theorem, ``engines.model.inertia``), and links welded to the root belong to the world
-(the base is fixed); continuous joints are revolute. ours never reads the file. A moving group with no
+(when the base is fixed); continuous joints are revolute. A floating base is a body with no joint above it
+(free, as maximal coordinates have it): its pose and velocity are its rigid body's state, mapped to xval's
+convention (engines/model/floating.py) here. ours never reads the file. A moving group with no
 mass, or whose inertia is not positive definite, is refused naming its links: maximal coordinates
 give every moving body its own mass matrix, which must be invertible.
 """
@@ -20,7 +22,8 @@ from engines.model.kinematics import rpy_matrix
 from engines.model.stepping import Stepper, unbounded_joints
 from ours import OursError
 from ours.rigid import (
-    Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, simulate,
+    Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, quaternion, rotation_of,
+    simulate,
 )
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -30,11 +33,13 @@ GRAVITY = (0.0, 0.0, -9.81)
 class OursModel:
     """mechanism : ours' bodies and joints (one body per moving group of links).
     carriers : link name -> (ours body index, -1 for the world; R (3, 3); p (3,) m): the link frame in
-    that body's frame. joint_names : the moving joints, in the description's order (ours' q order)."""
+    that body's frame. joint_names : the moving joints, in the description's order (ours' q order).
+    base : the floating base's body index (its body frame is the base link's frame), −1 when the base is fixed."""
 
     mechanism: Mechanism
     carriers: dict[str, tuple[int, np.ndarray, np.ndarray]]
     joint_names: tuple[str, ...]
+    base: int = -1
 
 
 def translate(description: ModelDescription, gravity=GRAVITY) -> OursModel:
@@ -52,7 +57,8 @@ def translate(description: ModelDescription, gravity=GRAVITY) -> OursModel:
             continue
         carriers[j.child] = (len(groups), np.eye(3), np.zeros(3))
         groups.append([j.child])
-        joints.append((j, body, Rj, pj))
+        if j.type != "floating":  # a floating base is a free body: no joint above it
+            joints.append((j, body, Rj, pj))
     bodies = []
     for links in groups:
         parts = [world_inertia(description.body(n).inertial.mass, description.body(n).inertial.com,
@@ -69,7 +75,37 @@ def translate(description: ModelDescription, gravity=GRAVITY) -> OursModel:
     ours_joints = tuple(Joint(j.name, "revolute" if j.type == "continuous" else j.type, parent, carriers[j.child][0],
                               pj, Rj, j.axis) for j, parent, Rj, pj in joints)
     mechanism = Mechanism(tuple(bodies), ours_joints, gravity)
-    return OursModel(mechanism, carriers, tuple(j.name for j, *_ in joints))
+    base = -1 if description.floating is None else carriers[description.floating.child][0]
+    return OursModel(mechanism, carriers, tuple(j.name for j, *_ in joints), base)
+
+
+def placed(model: OursModel, y: np.ndarray, pose: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """The state y (13 nb,) built with the floating base at the origin and at rest (``initial_state``), moved
+    rigidly to the base pose (p (3,) m, quaternion x y z w) with the base velocity (linear m/s, angular rad/s,
+    in the base frame) added to every body: x' = R x + p, v' = R v + V + Ω × (x' − p), ω' = R ω + Ω."""
+    r = rotation_of(np.array([pose[6], *pose[3:6]]))
+    linear, spin = r @ velocity[:3], r @ velocity[3:6]
+    out = np.array(y, dtype=float)
+    for b in range(len(model.mechanism.bodies)):
+        o = 13 * b
+        com = r @ y[o:o + 3] + pose[:3]
+        out[o:o + 3] = com
+        out[o + 3:o + 7] = quaternion(r @ rotation_of(y[o + 3:o + 7]))
+        out[o + 7:o + 10] = r @ y[o + 7:o + 10] + linear + np.cross(spin, com - pose[:3])
+        out[o + 10:o + 13] = r @ y[o + 10:o + 13] + spin
+    return out
+
+
+def base_state(model: OursModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The floating base's pose (7,) (p m, quaternion x y z w) and velocity (6,) (linear m/s and angular rad/s of
+    the base frame, in the base frame) at the state y (13 nb,)."""
+    o = 13 * model.base
+    origins, rotations = frames(model.mechanism, y)
+    r, origin = rotations[model.base], origins[model.base]
+    w, x, yy, z = y[o + 3:o + 7] / np.linalg.norm(y[o + 3:o + 7])
+    spin = y[o + 10:o + 13]
+    velocity = y[o + 7:o + 10] + np.cross(spin, origin - y[o:o + 3])
+    return np.array([*origin, x, yy, z, w]), np.concatenate([r.T @ velocity, r.T @ spin])
 
 
 def link_origins(model: OursModel, y: np.ndarray, links) -> np.ndarray:
@@ -105,10 +141,16 @@ class OursStepper(Stepper):
         self.scene = scene
         self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
         names = self.model.joint_names
-        q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
-        v0 = dict(zip(names, np.asarray(scene.initial_v, dtype=float)))
+        floating = self.model.base >= 0
+        start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
+        q0 = dict(zip(names, start_q[7:] if floating else start_q))
+        v0 = dict(zip(names, start_v[6:] if floating else start_v))
         mech = self.model.mechanism
-        self.run = Stepping(mech, initial_state(mech, q0, v0), dt, method=method, integrator=integrator, **options)
+        y0 = initial_state(mech, q0, v0)
+        if floating:
+            y0 = placed(self.model, y0, start_q[:7], start_v[:6])
+        self.run = Stepping(mech, y0, dt, method=method, integrator=integrator, **options)
+        self._turn = start_q[3:7] if floating else np.zeros(4)
         self._last = np.array([q0[n] for n in names])
         self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
         #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
@@ -125,15 +167,22 @@ class OursStepper(Stepper):
         self.run.advance(steps)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
+        floating = self.model.base >= 0
         if self.run.status != "ok":
             self._read.append(np.full(len(self.run.y), np.nan))
             nan = np.full(len(self._last), np.nan)
-            return nan, nan.copy()
+            return np.full(len(nan) + 7 * floating, np.nan), np.full(len(nan) + 6 * floating, np.nan)
         self._read.append(self.run.y.copy())
         q, v = joint_coordinates(self.model.mechanism, self.run.y)
         turns = np.round((self._last - q) / (2 * np.pi))
         q[self._revolute] += 2 * np.pi * turns[self._revolute]
         self._last = q.copy()
+        if floating:
+            pose, rates = base_state(self.model, self.run.y)
+            if pose[3:7] @ self._turn < 0:  # q and −q are one turn: keep the quaternion continuous between reads
+                pose[3:7] *= -1
+            self._turn = pose[3:7].copy()
+            return np.concatenate([pose, q]), np.concatenate([rates, v])
         return q, v
 
     def constraint_violations(self) -> np.ndarray:

@@ -341,6 +341,10 @@ class ModelSceneLike(SceneLike, Protocol):
 
     @property
     def file_dynamics(self) -> str: ...
+    @property
+    def floating_base(self) -> bool:
+        """True when the model's base is free (a floating joint between the world and its root link)."""
+        ...
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when the scene keeps the file's joint damping, which ``engine``'s import cannot."""
 
