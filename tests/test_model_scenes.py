@@ -374,3 +374,19 @@ def test_a_locked_joint_is_welded_at_its_initial_value_in_every_engine(tmp_path)
         model_scene("bad", DOUBLE, lock=["wrist"])
     suite = f'dt = [1e-2]\n[[scenes]]\nmodel = "{DOUBLE}"\nlock = ["elbow"]\n[[engines]]\nid = "mujoco/hinge"\n'
     assert parse_suite(suite, str(tmp_path / "s.toml")).scenes[0].scene.joint_names == ("shoulder",)
+
+
+def test_the_position_error_names_the_link_where_it_is_largest(tmp_path, capsys):
+    """The double pendulum's rod1 frame sits on the shoulder's axis, which never moves: every engine puts it
+    where the reference does, so the largest error is rod2's (index 1), in the record and in `xval show`."""
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.5\ndt = [1e-2]\n[[scenes]]\nid = "dp"\nmodel = "{DOUBLE}"\n'
+                     f'q0 = {{ shoulder = 40 }}\n[[engines]]\nid = "mujoco/hinge"\n')
+    out = tmp_path / "run"
+    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
+    assert code == 0, err
+    code, shown, err = run_cli(capsys, "show", out, "--format", "json")
+    (row,) = json.loads(shown)
+    assert code == 0 and row["position_error_where"] == 1 and row["position_error_linf"] > 0
+    code, table, err = run_cli(capsys, "show", out)
+    assert code == 0 and re.search(r"mujoco/hinge: largest position error \d\.\d\de-\d\d m at link rod2\n", table), table

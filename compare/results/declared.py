@@ -119,6 +119,9 @@ _BUILT_IN = (
     Metric("position_error_linf", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9), shown=True, label="error/m",
            report=True, title="position error",
            description="max over samples of e(t) = max over particles ‖p − p_ref‖"),
+    Metric("position_error_where", "", "lower", compute=lambda inputs: _where_largest(inputs),
+           description="the particle (a model scene's link frame), by its index in the scene's order, where "
+                       "position_error_linf is reached (null: no finite error)"),
     Metric("position_error_rms", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
            description="RMS over samples of e(t)"),
     Metric("position_error_final", "m", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9),
@@ -152,6 +155,15 @@ _BUILT_IN = (
            description="max |L_z(t) − L_z(0)| / L*, L_z about the Pins' vertical line, L* = M·L·√(g·L) "
                        "(null where L_z is not conserved or is zero by symmetry: planar scenes)"),
 )
+
+
+def _where_largest(inputs: "MetricInputs") -> float | None:
+    """Index of the particle farthest from the reference at any sample (None when no distance is finite)."""
+    reference = inputs.reference_positions
+    distance = np.linalg.norm(inputs.trajectory.positions[:len(reference)] - reference, axis=-1)
+    if distance.size == 0 or not np.isfinite(distance).any():
+        return None
+    return float(np.unravel_index(np.nanargmax(distance), distance.shape)[1])
 
 
 def _momentum_drift(inputs: "MetricInputs") -> float | None:

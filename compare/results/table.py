@@ -161,6 +161,9 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
             [sweep.engine, _statuses(sweep), _step(finest), *values,
              sweep.cost.describe().replace(" s/step", "") if sweep.cost else "-", _verdict(sweep)]
         )
+        where = _largest_error_link(finest)
+        if where:
+            notes.setdefault(sweep.scene_id, []).append(f"  {sweep.engine}: {where}")
         reason = _reason(sweep)
         if reason:
             notes.setdefault(sweep.scene_id, []).append(f"  {sweep.engine}: {reason}")
@@ -176,6 +179,18 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
         lines.extend(notes.get(scene_id, []))
         blocks.append("\n".join(line.rstrip() for line in lines))
     return "\n\n".join(blocks) + "\n"
+
+
+def _largest_error_link(finest: CaseRecord | None) -> str:
+    """A model scene's "largest position error at link L" at the variant's finest ok dt ("" for a catalog
+    scene, or without an error)."""
+    if finest is None or finest.scene.get("kind") != "model":
+        return ""
+    where, error = finest.metrics.get("position_error_where"), finest.metrics.get("position_error_linf")
+    links = [p.get("link", "?") for p in finest.scene.get("particles", [])]
+    if not isinstance(where, (int, float)) or not isinstance(error, (int, float)) or not 0 <= int(where) < len(links):
+        return ""
+    return f"largest position error {error:.2e} m at link {links[int(where)]}"
 
 
 def scene_reference(records: Iterable[CaseRecord]) -> dict[str, Any] | None:
