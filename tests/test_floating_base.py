@@ -99,6 +99,16 @@ def test_a_urdf_quadruped_with_a_floating_base_checks_in_every_engine():
     assert report.moving_joints == tuple(f"{leg}_{j}" for leg in ("fl", "fr", "bl", "br") for j in ("hip", "knee"))
 
 
+def test_the_urdf_quadruped_with_its_base_welded_checks_in_every_engine():
+    """Its base's inertial frame is turned: PyBullet's fixed-base calculateInverseDynamics reads gravity in that
+    frame's axes (its gravity torques were 28 % off while its stepping was right); handed gravity there, every
+    engine agrees, and PyBullet's notes say so."""
+    rows = {e.engine: e for e in check(str(URDF), states=10).engines}
+    assert {name: row.agrees for name, row in rows.items()} == {"mujoco": True, "pybullet": True, "drake": True,
+                                                                 "dart": True}
+    assert any("handed gravity in that frame's axes" in note for note in rows["pybullet"].notes)
+
+
 def test_an_mjcf_free_joint_is_the_floating_base_and_checks():
     """MuJoCo and Drake agree with the reference; PyBullet compares (its MJCF import drops the inertias, and
     the diagnosis says so); DART's MJCF parser makes the floor a skeleton of its own here (and elsewhere welds a

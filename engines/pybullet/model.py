@@ -109,6 +109,9 @@ class PyBulletModel(LoadedModel):
         if self.base and not self.floating:
             self.notes = (*self.notes, "loadMJCF gave the root a floating base: M, bias and acceleration are "
                           "the fixed-base ones (joints' block and rows, base at rest)")
+        if not self.base and not np.allclose(pb.getBasePositionAndOrientation(body, **kw)[1], (0, 0, 0, 1)):
+            self.notes = (*self.notes, "the fixed base's inertial frame is turned: calculateInverseDynamics is "
+                          "handed gravity in that frame's axes (it reads it there)")
         if self.floating:
             self.notes = (*self.notes, "floating base: acceleration M⁻¹(τ − b) from PyBullet's own M and bias; "
                           "calculateInverseDynamics given the base quaternion it reads as the pose (it takes "
@@ -152,8 +155,16 @@ class PyBulletModel(LoadedModel):
         size = self.base + len(self.movable)
         joints = self._full(self._joints_of(q))
         if not self.base:
-            tau = np.array(pb.calculateInverseDynamics(self.body, joints, self._full(v), [0.0] * size,
-                                                       physicsClientId=self.client))
+            # A fixed base's calculateInverseDynamics reads gravity in the axes of the base's inertial frame P
+            # (measured on tests/fixtures/urdf/quadruped.urdf, whose P is turned: its gravity torques 28 % off,
+            # its stepping right): hand it gravity in P's axes, then restore the world's.
+            kw = {"physicsClientId": self.client}
+            turn = np.array(pb.getMatrixFromQuaternion(pb.getBasePositionAndOrientation(self.body, **kw)[1]))
+            pb.setGravity(*(turn.reshape(3, 3).T @ np.array([0.0, 0.0, -GRAVITY])), **kw)
+            try:
+                tau = np.array(pb.calculateInverseDynamics(self.body, joints, self._full(v), [0.0] * size, **kw))
+            finally:
+                pb.setGravity(0.0, 0.0, -GRAVITY, **kw)
             return tau[self.index]
         velocity = np.zeros(size)
         rates = self.T @ np.asarray(v, dtype=float)
