@@ -141,3 +141,14 @@ def test_the_reference_of_an_mjcf_is_mujoco_s_compiled_model_and_mujoco_and_drak
     assert own.com == pytest.approx((0.0, 0.0, 0.5), abs=1e-12)
     assert loaded.mass_matrix(np.zeros(2))[1, 1] == pytest.approx(own.inertia_matrix[1, 1] + 1.0 * 0.5 ** 2, rel=1e-12)
     assert verdicts(path, ("mujoco", "drake")) == {"mujoco": True, "drake": True}
+
+
+def test_armature_is_zeroed_on_a_body_whose_only_joints_are_slides():
+    """The puck's M is its mass, 0.3 kg, on each slide (no coupling: the axes are orthogonal), with the file's
+    0.04 armature set to 0 in MuJoCo as in every engine; MuJoCo once kept it (its compiler's constant mass of
+    such a body), 0.34 kg."""
+    path = FIXTURES / "slide_armature.xml"
+    source, model = read_description(str(path))
+    mass = importer("mujoco").load(source, model).mass_matrix(np.array([0.2, -0.1]))
+    np.testing.assert_allclose(mass, 0.3 * np.eye(2), rtol=0, atol=1e-15)
+    assert verdicts(path, ("mujoco", "drake")) == {"mujoco": True, "drake": True}

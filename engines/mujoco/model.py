@@ -82,6 +82,9 @@ class MujocoModel(LoadedModel):
         super().__init__(description, options, (*notes, "joint damping, friction loss, armature and stiffness "
                                                 "set to 0; constraints (limits, contacts) disabled"))
         self.model, self.data = model, mujoco.MjData(model)
+        # The compiler folds armature into the constant mass of "simple" bodies (dof_M0, a body whose only joints
+        # are slides: pusher.xml's object): recompute the constants, or those dofs keep their armature.
+        mujoco.mj_setConst(model, self.data)
         kinds = mujoco.mjtJoint
         free = [k for k in range(model.njnt) if model.jnt_type[k] == int(kinds.mjJNT_FREE)]
         single = [k for k in range(model.njnt) if model.jnt_type[k] in (int(kinds.mjJNT_HINGE), int(kinds.mjJNT_SLIDE))]
