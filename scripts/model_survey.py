@@ -20,7 +20,7 @@ from compare.model.survey import OUTCOMES, counts, survey  # noqa: E402
 DOC = "docs/models.md"
 _MOVING = re.compile(r"""type\s*=\s*["'](?:revolute|continuous|prismatic)["']""")
 #: Every count is slow (the whole survey): the quote test checks only that the doc has the row.
-SLOW = {f"pybullet_data.{key}" for key in ("files", *OUTCOMES)}
+SLOW = {f"pybullet_data.{key}" for key in ("files", *(o.replace(" ", "_") for o in OUTCOMES))}
 
 
 def pybullet_data_set() -> list[str]:
@@ -46,11 +46,12 @@ def figures(quick: bool = False) -> dict[str, float]:
     totals = counts(rows)
     print("\n| set | files | " + " | ".join(OUTCOMES) + " |\n|---|---|" + "---|" * len(OUTCOMES))
     print(f"| pybullet_data | {len(rows)} | " + " | ".join(str(totals[o]) for o in OUTCOMES) + " |")
-    return {"pybullet_data.files": float(len(rows)), **{f"pybullet_data.{o}": float(n) for o, n in totals.items()}}
+    return {"pybullet_data.files": float(len(rows)),
+            **{f"pybullet_data.{o.replace(' ', '_')}": float(n) for o, n in totals.items()}}
 
 
 QUOTES: list = []
-ROWS = [Row(DOC, "pybullet_data", ("pybullet_data.files", *(f"pybullet_data.{o}" for o in OUTCOMES)),
+ROWS = [Row(DOC, "pybullet_data", ("pybullet_data.files", *(f"pybullet_data.{o.replace(' ', '_')}" for o in OUTCOMES)),
             after="## Surveying many files")]
 
 

@@ -152,3 +152,12 @@ def test_armature_is_zeroed_on_a_body_whose_only_joints_are_slides():
     mass = importer("mujoco").load(source, model).mass_matrix(np.array([0.2, -0.1]))
     np.testing.assert_allclose(mass, 0.3 * np.eye(2), rtol=0, atol=1e-15)
     assert verdicts(path, ("mujoco", "drake")) == {"mujoco": True, "drake": True}
+
+
+def test_an_mjcf_without_a_model_name_loads_in_drake_and_a_lone_free_body_checks():
+    """A free capsule (6 velocities, no joint): MuJoCo and Drake agree with the reference once Drake's import
+    names the model, and its note says so."""
+    path = FIXTURES / "unnamed_free_body.xml"
+    rows = {e.engine: e for e in check(str(path), engines=("mujoco", "drake"), states=10).engines}
+    assert {name: row.agrees for name, row in rows.items()} == {"mujoco": True, "drake": True}
+    assert any(note.startswith("<mujoco> has no model name; Drake's parser needs one") for note in rows["drake"].notes)

@@ -60,7 +60,7 @@ def test_a_folder_is_searched_and_an_engine_crash_is_a_crashed_row(capsys, tmp_p
     assert lines[1].split()[:3] == [str(tmp_path / "arms" / "acrobot.xml"), "crashed", "dart"]
     assert "dart crashed (SIGSEGV) while loading" in lines[1]
     assert lines[2].split()[:3] == [str(tmp_path / "arms" / "same_name.urdf"), "agrees", "-"]
-    assert lines[3] == "2 files: 1 agrees, 0 disagrees, 0 refused, 1 crashed, 0 failed"
+    assert lines[3] == "2 files: 1 agrees, 0 disagrees, 0 refused, 0 nothing to compare, 1 crashed, 0 failed"
 
 
 def test_a_path_that_is_not_there_is_one_line_and_exit_2(capsys, tmp_path):
@@ -88,3 +88,12 @@ def test_pybullet_data_s_folders_are_reached_by_their_prefix():
     found = find_models(["pybullet_data:kuka_iiwa"])
     assert found and all(f.endswith(".urdf") and "/kuka_iiwa/" in f for f in found)
     assert any(f.endswith("/kuka_iiwa/model.urdf") for f in found)
+
+
+def test_a_file_with_no_moving_joint_is_nothing_to_compare_not_refused():
+    from compare.model.survey import survey_one
+
+    path = str(Path(__file__).resolve().parent / "fixtures" / "urdf" / "no_joint.urdf")
+    row = survey_one(path, states=3, seed=0, timeout=60)
+    assert (row.outcome, row.moving_joints) == ("nothing to compare", 0)
+    assert row.reason.endswith("no moving joint (revolute, continuous or prismatic); nothing to compare")

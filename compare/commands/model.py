@@ -99,7 +99,8 @@ def survey_command(paths, jobs, scheduler, states, seed, timeout, quiet, output_
     """Check every model file among PATH... (files, or folders searched recursively for .urdf and .xml
     files whose root is <robot> or <mujoco>; pybullet_data:<path> for PyBullet's, pybullet_data: for all of
     them), each as `xval model check` does, one row per file: agrees,
-    disagrees (engines and cause), refused (the reason), crashed (engine and signal). Exit code 0 when
+    disagrees (engines and cause), refused (the reason), nothing to compare (no moving joint), crashed
+    (engine and signal). Exit code 0 when
     nothing crashed, 1 when something did, 2 for bad input."""
     from compare.model.survey import counts, find_models, survey
 

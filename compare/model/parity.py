@@ -35,6 +35,11 @@ from engines.model.loaded import LoadedModel, Refused
 QUANTITIES = ("mass_matrix", "bias", "forward")
 
 
+class NothingToCompare(ModelError):
+    """The file holds no moving joint and no floating base: no M, bias or acceleration to compare (not an error
+    the user must fix; ``xval model survey`` counts it apart)."""
+
+
 class CheckCrashed(Exception):
     """Reading the file or the model reference crashed or hung: nothing can be compared. ``part``: which one."""
 
@@ -190,7 +195,7 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     source = replace(source, path=Path(source.path).absolute())  # the children work in folders of their own
     model, notes = _answer("reading the file", isolation.run(_describe, source, base, timeout=timeout))
     if model.nq == 0 and model.floating is None:
-        raise ModelError(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
+        raise NothingToCompare(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
     model_reference = _answer(f"the model reference ({REFERENCE})",
                               isolation.run(_model_reference, source, model, label, states, seed, timeout=timeout))
     results, findings = [], {}

@@ -5,7 +5,8 @@ reference and every engine in child processes of their own), in a pool of
 ``jobs`` worker processes or on a Dask cluster (compare/run/cluster.py).
 A file's row says one of: ``agrees`` (every engine), ``disagrees`` (the
 engines, and the cause: the diagnosis, or the engine's message when it did
-not load), ``refused`` (the reason the user must fix), ``crashed`` (the
+not load), ``refused`` (the reason the user must fix), ``nothing to compare``
+(no moving joint and no floating base: not refused, nothing wrong), ``crashed`` (the
 engine and how: a signal, a hang), or ``failed`` (xval itself raised: a bug
 of xval's, never expected).
 """
@@ -27,7 +28,7 @@ from engines.model.source import PREFIX
 #: File name endings a folder is searched for; a file qualifies when its root element is <robot> or <mujoco>.
 SUFFIXES = (".urdf", ".xml")
 #: The outcomes of a file, in the order the counts are printed.
-OUTCOMES = ("agrees", "disagrees", "refused", "crashed", "failed")
+OUTCOMES = ("agrees", "disagrees", "refused", "nothing to compare", "crashed", "failed")
 _ROOT = re.compile(rb"<(robot|mujoco)[\s>/]")
 
 
@@ -78,10 +79,12 @@ def _looks_like_a_model(path: Path) -> bool:
 
 def survey_one(model: str, states: int, seed: int, timeout: float) -> SurveyRow:
     """Check one file; never raises (an exception of xval's own is the row ``failed``)."""
-    from compare.model.parity import CheckCrashed, check
+    from compare.model.parity import CheckCrashed, NothingToCompare, check
 
     try:
         report = check(model, states=states, seed=seed, timeout=timeout)
+    except NothingToCompare as exc:
+        return SurveyRow(model, "nothing to compare", reason=str(exc), moving_joints=0)
     except UserError as exc:
         return SurveyRow(model, "refused", reason=str(exc))
     except CheckCrashed as exc:

@@ -40,6 +40,8 @@ def load(source: ModelSource, description: ModelDescription, gravity: float = GR
     MultibodyPlant = drake.MultibodyPlant
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    if source.format == "mjcf":
+        text, notes = _named(text, description.name, notes)
     plant = MultibodyPlant(0.0)
     logger, warnings = logging.getLogger("drake"), _Collect()
     level, propagate = logger.level, logger.propagate
@@ -90,6 +92,19 @@ class _Collect(logging.Handler):
         text = " ".join(record.getMessage().split())
         if "safety_controller" not in text:  # ROS tags Drake ignores: no bearing on dynamics
             self.lines.append(text.split(": warning: ", 1)[-1][:300])
+
+
+def _named(text: str, name: str, notes: tuple[str, ...]) -> tuple[str, tuple[str, ...]]:
+    """An MJCF text whose <mujoco> has a model name (Drake's parser refuses one without: "must have a name
+    attribute"), the description's name given when the file has none, said in a note."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(text)
+    if root.get("model"):
+        return text, notes
+    root.set("model", name or "model")
+    return ET.tostring(root, encoding="unicode"), (*notes, f"<mujoco> has no model name; Drake's parser needs one: "
+                                                          f"given model=\"{name or 'model'}\"")
 
 
 class DrakeModel(LoadedModel):
