@@ -1,0 +1,131 @@
+"""ours' rigid-body trajectories before and after a change of the kernel: save them, or check today's.
+
+The rigid-body twin of scripts/ours_equivalence.py. Runs ``ours.rigid.simulate`` for every method ×
+integrator pair on the compound double pendulum, a 6-link chain, a branching tree of every joint kind
+(revolute, ball, prismatic, fixed) and the KUKA iiwa (pybullet_data, translated by engines/model), at
+dt 1e-3 and 1e-2 s for 0.5 s (a sample every 0.05 s), and stores the states, steps taken and status.
+
+    .venv/bin/python scripts/rigid_equivalence.py save bench/data/rigid_trajectories.npz
+    .venv/bin/python scripts/rigid_equivalence.py check bench/data/rigid_trajectories.npz
+
+``check`` prints the largest relative difference of the states (max |new − old| / max |old| over a run)
+and exits 1 when it exceeds TOLERANCE or a status or step count differs. A kernel that only reorders
+independent operations reproduces the file bit for bit; one that regroups sums (a triangular solve
+instead of a full one) differs in round-off, which the chaotic arm amplifies over the run's 500 steps.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+from ours.rigid import Body, Joint, Mechanism, initial_state, rotation_of, simulate, valid_pairs  # noqa: E402
+from rigid_support import chain, compound_double_pendulum  # noqa: E402
+
+DTS = (1e-3, 1e-2)
+DURATION = 0.5
+SAMPLE = 0.05
+#: Round-off amplified over a run: 1e-16 per step grows by the arm's Lyapunov factor over 0.5 s.
+TOLERANCE = 1e-9
+STATUS = ("ok", "non-finite", "singular", "not-converged")
+
+
+def tree() -> tuple[Mechanism, np.ndarray]:
+    """A root with three branches of every joint kind (as tests/test_ours_rigid.py's dense-solve check)."""
+    rng = np.random.default_rng(3)
+    kinds = ["revolute", "ball", "prismatic", "fixed", "revolute", "ball"]
+    parents = [-1, 0, 0, 1, 0, 4]
+    bodies = tuple(Body(f"b{i}", 0.5 + i * 0.1, rng.normal(size=3) * 0.1, np.diag([0.01, 0.02, 0.025]) * (1 + i))
+                   for i in range(6))
+    joints = tuple(Joint(f"j{i}", kinds[i], parents[i], i, rng.normal(size=3) * 0.3, rotation_of(rng.normal(size=4)),
+                         rng.normal(size=3)) for i in range(6))
+    mech = Mechanism(bodies, joints)
+    return mech, initial_state(mech, {"j0": 0.4, "j2": 0.1, "j4": -0.3}, {"j0": 1.0, "j2": -0.5, "j4": 2.0})
+
+
+def kuka() -> tuple[Mechanism, np.ndarray]:
+    """The KUKA iiwa from pybullet_data, q = 0.3 rad at every joint, at rest (bench/bench_rigid.py's start)."""
+    from engines.model.ours import translate
+    from engines.model.source import resolve
+    from engines.model.urdf import read
+
+    description = read(resolve("pybullet_data:kuka_iiwa/model.urdf"))
+    mech = translate(description).mechanism
+    return mech, initial_state(mech, {j.name: 0.3 for j in description.moving_joints})
+
+
+def scenes() -> dict[str, tuple[Mechanism, np.ndarray]]:
+    double = compound_double_pendulum()
+    six = chain(6)
+    return {"double": (double, initial_state(double, {"shoulder": 1.0, "elbow": -0.5}, {"elbow": 2.0})),
+            "chain6": (six, initial_state(six, {f"j{i}": 0.1 for i in range(6)})),
+            "tree": tree(), "kuka": kuka()}
+
+
+def runs(names=None):
+    """Yield (key, arrays) for every scene (of ``names``, default all) × method × integrator × dt."""
+    for name, (mech, y0) in scenes().items():
+        if names is not None and name not in names:
+            continue
+        for method, integrator in valid_pairs():
+            for dt in DTS:
+                n = int(round(DURATION / dt))
+                r = simulate(mech, y0, dt, n, max(1, int(round(SAMPLE / dt))), method=method, integrator=integrator)
+                yield f"{name}|{method}-{integrator}|{dt:g}", {"y": r.y, "meta": np.array([r.steps, STATUS.index(r.status)])}
+
+
+def _rel(new: np.ndarray, old: np.ndarray) -> float:
+    if new.shape != old.shape:
+        return np.inf
+    same = (new == old) | (np.isnan(new) & np.isnan(old))
+    with np.errstate(invalid="ignore"):
+        diff = np.where(same, 0.0, np.abs(new - old))
+    if np.isnan(diff).any():
+        return np.inf
+    finite = np.abs(old[np.isfinite(old)])
+    scale = finite.max() if finite.size else 1.0
+    return float(diff.max() / max(scale, 1e-300)) if diff.size else 0.0
+
+
+def compare(path, names=None) -> tuple[int, float, int, list[str]]:
+    """(runs checked, largest relative difference, runs bit-identical, failures) against the file at ``path``."""
+    old = np.load(path)
+    worst, identical, count, failures = 0.0, 0, 0, []
+    for key, arrays in runs(names):
+        count += 1
+        if not np.array_equal(arrays["meta"], old[f"{key}|meta"]):
+            failures.append(f"{key}: steps/status {arrays['meta'].tolist()} != {old[f'{key}|meta'].tolist()}")
+        rel = _rel(arrays["y"], old[f"{key}|y"])
+        worst = max(worst, rel)
+        identical += rel == 0.0
+        if rel > TOLERANCE:
+            failures.append(f"{key}: y differs by {rel:.3g} (relative)")
+    return count, worst, identical, failures
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 2 or argv[0] not in ("save", "check"):
+        print(__doc__)
+        return 2
+    mode, path = argv
+    if mode == "save":
+        data = {f"{key}|{name}": a for key, arrays in runs() for name, a in arrays.items()}
+        np.savez_compressed(path, **data)
+        print(f"saved {len(data) // 2} runs to {path}")
+        return 0
+    count, worst, identical, failures = compare(path)
+    print(f"checked {count} runs; {identical} bit-identical; largest relative difference of the states {worst:.3g}"
+          f" (tolerance {TOLERANCE:g})")
+    for line in failures[:20]:
+        print("  " + line)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
