@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from ours.banded import compiled, inlined
+from ours.banded import compiled, inlined, llvm_inlined
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
@@ -232,13 +232,11 @@ def _eliminate(D, X, H, JA, JB, nb, i, p, di, dp):
     return True
 
 
-@compiled
-def tree_factor(y, model, work):
-    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
-    mass, inertia, nb = model[0], model[1], model[0].shape[0]
-    rows, order, up = model[11], model[12], model[13]
-    R, JA, JB, D, X, H = work[0], work[2], work[3], work[5], work[6], work[11]
-    nn = order.shape[0]
+@llvm_inlined
+def assemble(model, work):
+    """D (nodes, 6, 6) ← the mass blocks [[m 1, 0], [0, I_w]] with I_w = R I_b Rᵀ (R in work[0]), zeros elsewhere."""
+    mass, inertia, nb, nn = model[0], model[1], model[0].shape[0], model[12].shape[0]
+    R, D = work[0], work[5]
     for i in range(nn):
         for r in range(6):
             for c in range(6):
@@ -253,6 +251,14 @@ def tree_factor(y, model, work):
                     for n in range(3):
                         s += R[b, r, m] * inertia[b, m, n] * R[b, c, n]
                 D[b, 3 + r, 3 + c] = s
+
+
+@llvm_inlined
+def eliminate(model, work):
+    """Factor the assembled system (work[5], rows in work[2:4]) leaves first; False if singular."""
+    nb, rows, order, up = model[0].shape[0], model[11], model[12], model[13]
+    JA, JB, D, X, H = work[2], work[3], work[5], work[6], work[11]
+    nn = order.shape[0]
     for idx in range(nn):
         i = order[idx]
         p = up[i]
@@ -268,6 +274,13 @@ def tree_factor(y, model, work):
         if not ok:
             return False
     return True
+
+
+@compiled
+def tree_factor(y, model, work):
+    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
+    assemble(model, work)
+    return eliminate(model, work)
 
 
 @inlined
@@ -320,16 +333,11 @@ def _row_rate(y, model, JA, JB, k, r):
     return cdot
 
 
-@compiled
-def derivative(y, model, work, ks, kd, ydot):
-    """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
+@llvm_inlined
+def forces(y, model, work):
+    """work[7]'s body entries ← (m g, −ω × I_w ω) at y (R in work[0])."""
     mass, inertia, gravity, nb = model[0], model[1], model[2], model[0].shape[0]
-    rows = model[11]
-    R, C, JA, JB, gam, sol, lam = work[0], work[1], work[2], work[3], work[4], work[7], work[8]
-    rotations(y, nb, R)
-    joint_rows(y, model, R, C, JA, JB, gam)
-    if not tree_factor(y, model, work):
-        return SINGULAR
+    R, sol = work[0], work[7]
     for b in range(nb):
         o = 13 * b
         w0, w1, w2 = y[o + 10], y[o + 11], y[o + 12]
@@ -345,10 +353,22 @@ def derivative(y, model, work, ks, kd, ydot):
         for r in range(3):
             sol[b, 0, r] = mass[b] * gravity[r]
         sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5] = -g0, -g1, -g2
+
+
+@llvm_inlined
+def row_targets(y, model, work, ks, kd):
+    """work[7]'s joint entries ← −J̇u − k_s C − k_d J u (the rows' right side, Baumgarte's terms included)."""
+    nb, rows = model[0].shape[0], model[11]
+    C, JA, JB, gam, sol = work[1], work[2], work[3], work[4], work[7]
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
             sol[nb + k, 0, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
-    tree_solve(model, work, sol)
+
+
+@llvm_inlined
+def rates(y, model, work, ydot):
+    """ydot ← (v, ½ (0, ω) ⊗ Q, u̇) with u̇ from the solved work[7]; λ (nj, 6) into work[8]."""
+    nb, rows, sol, lam = model[0].shape[0], model[11], work[7], work[8]
     for b in range(nb):
         o = 13 * b
         ydot[o], ydot[o + 1], ydot[o + 2] = y[o + 7], y[o + 8], y[o + 9]
@@ -364,6 +384,20 @@ def derivative(y, model, work, ks, kd, ydot):
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
             lam[k, r] = -sol[nb + k, 0, r]
+
+
+@compiled
+def derivative(y, model, work, ks, kd, ydot):
+    """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
+    nb, R = model[0].shape[0], work[0]
+    rotations(y, nb, R)
+    joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+    if not tree_factor(y, model, work):
+        return SINGULAR
+    forces(y, model, work)
+    row_targets(y, model, work, ks, kd)
+    tree_solve(model, work, work[7])
+    rates(y, model, work, ydot)
     return OK
 
 
@@ -383,6 +417,18 @@ def _rotate_quaternion(y, o, t0, t1, t2):
     n = math.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
     for i in range(4):
         y[o + i] /= n
+
+
+@llvm_inlined
+def kick_drift(y, nb, ydot, h):
+    """Symplectic Euler: u += h u̇, then x += h v and Q ← exp(h ω / 2) ⊗ Q, renormalised."""
+    for b in range(nb):
+        o = 13 * b
+        for r in range(6):
+            y[o + 7 + r] += h * ydot[o + 7 + r]
+        for r in range(3):
+            y[o + r] += h * y[o + 7 + r]
+        _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
 
 
 @compiled
@@ -459,13 +505,7 @@ def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iteratio
         status = derivative(y, model, work, ks, kd, K[0])
         if status != OK:
             return status
-        for b in range(nb):
-            o = 13 * b
-            for r in range(6):
-                y[o + 7 + r] += h * K[0, o + 7 + r]
-            for r in range(3):
-                y[o + r] += h * y[o + 7 + r]
-            _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
+        kick_drift(y, nb, K[0], h)
     else:
         s = bw.shape[0]
         for i in range(s):
