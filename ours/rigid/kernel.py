@@ -163,6 +163,14 @@ def joint_rows(y, model, R, C, JA, JB, gam):
 
 
 # --- the tree solve -------------------------------------------------------------------------
+#
+# The system [[M, Jᵀ], [J, 0]] [u; λ] = [f; c] is eliminated one joint at a time, deepest first: joint k
+# joins its child body B (whose block D_B already holds what B's own child joints folded into it) to its
+# parent A. With D_B = L_B L_Bᵀ, Y_k = L_B⁻¹ J_Bᵀ (stored row by row, (r, 6), in X[B]) and
+# S_k = J_B D_B⁻¹ J_Bᵀ = Y_kᵀ Y_k = L_k L_kᵀ (r × r, in D[nb + k]), eliminating u_B and then λ_k adds
+# J_Aᵀ S_k⁻¹ J_A = Z_kᵀ Z_k to D_A, with Z_k = L_k⁻¹ J_A (stored column by column, (6, r), in X[nb + k]).
+# Only forward substitutions build the factor (Y and Z, not D⁻¹ J), and every block is a constant
+# size for the common joints, so the loops unroll.
 
 @inlined
 def _cholesky(D, i, n):
@@ -183,140 +191,172 @@ def _cholesky(D, i, n):
 
 
 @inlined
-def _chol_solve(D, i, n, x, j, c, scale):
-    """x[j, c, :n] ← scale · (L Lᵀ)⁻¹ x[j, c, :n] in place, with L in D[i]."""
+def _forward(D, i, n, x, j, c):
+    """x[j, c, :n] ← L⁻¹ x[j, c, :n] in place, with L in D[i]."""
     for r in range(n):
         s = x[j, c, r]
         for m in range(r):
             s -= D[i, r, m] * x[j, c, m]
         x[j, c, r] = s * D[i, r, r]
+
+
+@inlined
+def _backward(D, i, n, x, j, c):
+    """x[j, c, :n] ← L⁻ᵀ x[j, c, :n] in place, with L in D[i]."""
     for r in range(n - 1, -1, -1):
         s = x[j, c, r]
         for m in range(r + 1, n):
             s -= D[i, m, r] * x[j, c, m]
         x[j, c, r] = s * D[i, r, r]
-    if scale != 1.0:
-        for r in range(n):
-            x[j, c, r] *= scale
 
 
 @inlined
-def _coupling(i, p, nb, JA, JB, r, c):
-    """H[i, p][r, c]: a body i below its inbound joint p (Jᵀ on the child), or a joint i below its parent body p."""
-    if i < nb:
-        return JB[p - nb, c, r]
-    return JA[i - nb, r, c]
-
-
-@inlined
-def _eliminate(D, X, H, JA, JB, nb, i, p, di, dp):
-    """Factor node i's reduced block (negated first for a joint) and, below a parent p (dp > 0), fold
-    it into the parent's: X[i] = (D_i⁻¹ H_{i,p})ᵀ, D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}. False if not definite."""
-    sign = 1.0 if i < nb else -1.0
-    if sign < 0.0:
-        for r in range(di):
-            for c in range(di):
-                D[i, r, c] = -D[i, r, c]
-    if not _cholesky(D, i, di):
+def _fold(D, X, JA, JB, nb, k, A, B, r):
+    """Eliminate body B, then joint k (r rows) into A (A < 0: the world, nothing to fold). False if not definite."""
+    if not _cholesky(D, B, 6):
         return False
-    for c in range(dp):  # row c of X[i] = D_i⁻¹ (column c of H_{i,p})
-        for r in range(di):
-            X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
-        _chol_solve(D, i, di, X, i, c, sign)
-    for r in range(dp):  # lower triangle only (the Cholesky reads no more)
-        for c in range(r + 1):
+    for c in range(r):  # Y_k = L_B⁻¹ J_Bᵀ, one constraint row at a time
+        for m in range(6):
+            X[B, c, m] = JB[k, c, m]
+        _forward(D, B, 6, X, B, c)
+    j = nb + k
+    for a in range(r):  # S_k = Y_kᵀ Y_k, lower triangle (the Cholesky reads no more)
+        for b in range(a + 1):
             s = 0.0
-            for m in range(di):
-                s += H[r, m] * X[i, c, m]
-            D[p, r, c] -= s
+            for m in range(6):
+                s += X[B, a, m] * X[B, b, m]
+            D[j, a, b] = s
+    if not _cholesky(D, j, r):
+        return False
+    if A >= 0:
+        for c in range(6):  # Z_k = L_k⁻¹ J_A, one column of J_A at a time
+            for m in range(r):
+                X[j, c, m] = JA[k, m, c]
+            _forward(D, j, r, X, j, c)
+        for a in range(6):  # D_A += Z_kᵀ Z_k
+            for b in range(a + 1):
+                s = 0.0
+                for m in range(r):
+                    s += X[j, a, m] * X[j, b, m]
+                D[A, a, b] += s
     return True
 
 
 @llvm_inlined
 def assemble(model, work):
-    """D (nodes, 6, 6) ← the mass blocks [[m 1, 0], [0, I_w]] with I_w = R I_b Rᵀ (R in work[0]), zeros elsewhere."""
-    mass, inertia, nb, nn = model[0], model[1], model[0].shape[0], model[12].shape[0]
+    """D's body blocks ← [[m 1, 0], [0, I_w]] with I_w = R I_b Rᵀ (R in work[0]), lower triangles."""
+    mass, inertia, nb = model[0], model[1], model[0].shape[0]
     R, D = work[0], work[5]
-    for i in range(nn):
-        for r in range(6):
-            for c in range(6):
-                D[i, r, c] = 0.0
     for b in range(nb):
+        for r in range(6):
+            for c in range(r + 1):
+                D[b, r, c] = 0.0
         for r in range(3):
             D[b, r, r] = mass[b]
-        for r in range(3):  # I_w = R I_b Rᵀ
-            for c in range(3):
+        for r in range(3):  # I_w = R (I_b Rᵀ)
+            for c in range(r + 1):
                 s = 0.0
                 for m in range(3):
-                    for n in range(3):
-                        s += R[b, r, m] * inertia[b, m, n] * R[b, c, n]
+                    s += R[b, r, m] * (inertia[b, m, 0] * R[b, c, 0] + inertia[b, m, 1] * R[b, c, 1]
+                                       + inertia[b, m, 2] * R[b, c, 2])
                 D[b, 3 + r, 3 + c] = s
 
 
 @llvm_inlined
 def eliminate(model, work):
-    """Factor the assembled system (work[5], rows in work[2:4]) leaves first; False if singular."""
-    nb, rows, order, up = model[0].shape[0], model[11], model[12], model[13]
-    JA, JB, D, X, H = work[2], work[3], work[5], work[6], work[11]
-    nn = order.shape[0]
-    for idx in range(nn):
-        i = order[idx]
-        p = up[i]
-        di = 6 if i < nb else rows[i - nb]
-        dp = 0 if p < 0 else (6 if p < nb else rows[p - nb])
-        # the common pairs with their sizes as constants, so that the compiler unrolls the small loops
-        if di == 6 and dp == 5:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 6, 5)
-        elif di == 5 and dp == 6:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 5, 6)
+    """Factor the assembled system (work[5], rows in work[2:4]) joint by joint, deepest first; False if singular."""
+    nb, parent, child, rows, order, free = model[0].shape[0], model[5], model[6], model[11], model[12], model[13]
+    JA, JB, D, X = work[2], work[3], work[5], work[6]
+    for idx in range(order.shape[0]):
+        k = order[idx]
+        A, B, r = parent[k], child[k], rows[k]
+        if r == 5:  # sizes as constants, so that the compiler unrolls the small loops
+            ok = _fold(D, X, JA, JB, nb, k, A, B, 5)
+        elif r == 3:
+            ok = _fold(D, X, JA, JB, nb, k, A, B, 3)
         else:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, di, dp)
+            ok = _fold(D, X, JA, JB, nb, k, A, B, 6)
         if not ok:
+            return False
+    for idx in range(free.shape[0]):  # bodies with no inbound joint: their block is the last to factor
+        if not _cholesky(D, free[idx], 6):
             return False
     return True
 
 
-@compiled
+@llvm_inlined
 def tree_factor(y, model, work):
-    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
+    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it; False if singular."""
     assemble(model, work)
     return eliminate(model, work)
 
 
 @inlined
-def _subtract_coupling(X, i, x, dst, src, n_dst, n_src, transpose):
-    """x[dst] −= L x[src] with L = X[i] (n_dst, n_src), or Xᵢᵀ when ``transpose``: one sweep of the tree solve."""
-    for r in range(n_dst):
+def _sweep_down(D, X, x, nb, k, A, B, r):
+    """Forward: z_B = L_B⁻¹ f̃_B, w_k = L_k⁻¹ (c_k − Y_k z_B), f̃_A += Z_kᵀ w_k."""
+    j = nb + k
+    _forward(D, B, 6, x, B, 0)
+    for c in range(r):
         s = 0.0
-        for m in range(n_src):
-            s += (X[i, m, r] if transpose else X[i, r, m]) * x[src, 0, m]
-        x[dst, 0, r] -= s
+        for m in range(6):
+            s += X[B, c, m] * x[B, 0, m]
+        x[j, 0, c] -= s
+    _forward(D, j, r, x, j, 0)
+    if A >= 0:
+        for c in range(6):
+            s = 0.0
+            for m in range(r):
+                s += X[j, c, m] * x[j, 0, m]
+            x[A, 0, c] += s
 
 
-@compiled
+@inlined
+def _sweep_up(D, X, x, nb, k, A, B, r):
+    """Backward: λ_k = L_k⁻ᵀ (Z_k u_A − w_k), u_B = L_B⁻ᵀ (z_B − Y_kᵀ λ_k)."""
+    j = nb + k
+    for m in range(r):
+        s = -x[j, 0, m]
+        if A >= 0:
+            for c in range(6):
+                s += X[j, c, m] * x[A, 0, c]
+        x[j, 0, m] = s
+    _backward(D, j, r, x, j, 0)
+    for m in range(6):
+        s = 0.0
+        for c in range(r):
+            s += X[B, c, m] * x[j, 0, c]
+        x[B, 0, m] -= s
+    _backward(D, B, 6, x, B, 0)
+
+
+@llvm_inlined
 def tree_solve(model, work, x):
-    """Solve the factored system in place: x (nodes, 1, 6) holds the right side on entry."""
-    nb, dims, order, up = model[0].shape[0], model[3], model[12], model[13]
+    """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
+    nb, parent, child, rows, order, free = model[0].shape[0], model[5], model[6], model[11], model[12], model[13]
     D, X = work[5], work[6]
-    nn = order.shape[0]
-    for idx in range(nn):  # forward: y_p −= L_{p,i} y_i, children first
-        i = order[idx]
-        p = up[i]
-        if p >= 0:
-            _subtract_coupling(X, i, x, p, i, dims[p], dims[i], False)
-    for i in range(nn):
-        sign = 1.0 if i < nb else -1.0
-        if dims[i] == 6:  # constant sizes: unrolled
-            _chol_solve(D, i, 6, x, i, 0, sign)
-        elif dims[i] == 5:
-            _chol_solve(D, i, 5, x, i, 0, sign)
+    n = order.shape[0]
+    for idx in range(n):
+        k = order[idx]
+        A, B, r = parent[k], child[k], rows[k]
+        if r == 5:
+            _sweep_down(D, X, x, nb, k, A, B, 5)
+        elif r == 3:
+            _sweep_down(D, X, x, nb, k, A, B, 3)
         else:
-            _chol_solve(D, i, dims[i], x, i, 0, sign)
-    for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
-        i = order[idx]
-        p = up[i]
-        if p >= 0:
-            _subtract_coupling(X, i, x, i, p, dims[i], dims[p], True)
+            _sweep_down(D, X, x, nb, k, A, B, 6)
+    for idx in range(free.shape[0]):
+        b = free[idx]
+        _forward(D, b, 6, x, b, 0)
+        _backward(D, b, 6, x, b, 0)
+    for idx in range(n - 1, -1, -1):
+        k = order[idx]
+        A, B, r = parent[k], child[k], rows[k]
+        if r == 5:
+            _sweep_up(D, X, x, nb, k, A, B, 5)
+        elif r == 3:
+            _sweep_up(D, X, x, nb, k, A, B, 3)
+        else:
+            _sweep_up(D, X, x, nb, k, A, B, 6)
 
 
 # --- dynamics --------------------------------------------------------------------------------

@@ -45,19 +45,16 @@ def pack(mech: Mechanism) -> tuple:
         FA[k] = j.origin_rotation @ j.frame
         FB[k] = j.frame
     rows = np.array([ROWS[j.kind] for j in mech.joints], dtype=np.int64)
-    up = np.full(nb + nj, -1, dtype=np.int64)
-    for k, j in enumerate(mech.joints):
-        up[j.child] = nb + k
-        up[nb + k] = j.parent  # -1 for the world: the joint is a root of the elimination
-    depth = np.zeros(nb + nj, dtype=np.int64)  # edges from the node to its root
+    depth = np.zeros(nj, dtype=np.int64)  # joints from the world (or a free body) down to joint k
+    inbound = {j.child: k for k, j in enumerate(mech.joints)}
     for k in mech.topological_joints():
-        j = mech.joints[k]
-        depth[nb + k] = depth[j.parent] + 1 if j.parent >= 0 else 0
-        depth[j.child] = depth[nb + k] + 1
-    order = np.argsort(-depth, kind="stable").astype(np.int64)  # leaves first, each node before its parent
+        above = mech.joints[k].parent
+        depth[k] = depth[inbound[above]] + 1 if above in inbound else 0
+    order = np.argsort(-depth, kind="stable").astype(np.int64)  # deepest first: each joint before its parent's
+    free = np.array([b for b in range(nb) if b not in inbound], dtype=np.int64)  # bodies no joint holds
     dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
     return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
-            rows, order, up)
+            rows, order, free)
 
 
 _PACKED: "weakref.WeakKeyDictionary[Mechanism, tuple]" = weakref.WeakKeyDictionary()
@@ -79,7 +76,7 @@ def workspace(mech: Mechanism, stages: int) -> tuple:
     nn = nb + nj
     return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
             np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb), np.zeros((6, 6)))
+            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
