@@ -251,3 +251,11 @@ def test_a_free_spin_about_a_hinge_reads_back_unwrapped():
     q, v = joint_coordinates(mech, run.y)
     np.testing.assert_allclose(q[:, 0], 0.5 + 10.0 * run.t, rtol=0, atol=1e-9)
     np.testing.assert_allclose(v[:, 0], 10.0, rtol=0, atol=1e-9)
+
+
+def test_written_out_blocks_are_what_their_generator_writes():
+    """ours/rigid/blocks.py is generated (python -m ours.rigid.generate): an edit by hand, or a generator
+    changed without rewriting the file, fails here."""
+    from ours.rigid import generate
+
+    assert generate.TARGET.read_text(encoding="utf-8") == generate.source()

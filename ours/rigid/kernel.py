@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 from ours.banded import compiled, inlined, llvm_inlined
+from ours.rigid.blocks import fold3, fold5, fold6, sweep_down3, sweep_down5, sweep_down6, sweep_up3, sweep_up5, sweep_up6
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
@@ -33,7 +34,7 @@ def _rot(R, b, v0, v1, v2):
             R[b, 2, 0] * v0 + R[b, 2, 1] * v1 + R[b, 2, 2] * v2)
 
 
-@compiled
+@llvm_inlined
 def rotations(y, nb, R):
     """R[b] (3, 3) from each body's quaternion, normalised on the fly (its norm does not matter)."""
     for b in range(nb):
@@ -77,7 +78,7 @@ def _set_row(JA, JB, k, r, a, b):
         JB[k, r, c] = b[c]
 
 
-@compiled
+@llvm_inlined
 def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     """Three rows C = (x_A + r_A) − (x_B + r_B): the anchors coincide (m)."""
     tA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
@@ -93,7 +94,7 @@ def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
         gam[k, r0 + i] = cA[i] - cB[i]
 
 
-@compiled
+@llvm_inlined
 def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
     """One row C = p · w, p fixed in the parent, w in the child (both world, unit): they stay perpendicular."""
     n = _cross(p[0], p[1], p[2], w[0], w[1], w[2])
@@ -109,7 +110,7 @@ def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
     gam[k, r] = g
 
 
-@compiled
+@llvm_inlined
 def _slide_row(k, r, p, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     """One row C = p · d, d = (x_B + r_B) − (x_A + r_A), p fixed in the parent: no slip across p (m)."""
     d = (xB[0] + rB[0] - xA[0] - rA[0], xB[1] + rB[1] - xA[1] - rA[1], xB[2] + rB[2] - xA[2] - rA[2])
@@ -130,7 +131,7 @@ def _slide_row(k, r, p, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     gam[k, r] = g
 
 
-@compiled
+@llvm_inlined
 def joint_rows(y, model, R, C, JA, JB, gam):
     """Every joint's rows at state y (R from :func:`rotations`): C (nj, 6), JA / JB (nj, 6, 6) the
     Jacobians on the parent's and the child's u = (v, ω), gam (nj, 6) = J̇u (the velocity product)."""
@@ -210,38 +211,6 @@ def _backward(D, i, n, x, j, c):
         x[j, c, r] = s * D[i, r, r]
 
 
-@inlined
-def _fold(D, X, JA, JB, nb, k, A, B, r):
-    """Eliminate body B, then joint k (r rows) into A (A < 0: the world, nothing to fold). False if not definite."""
-    if not _cholesky(D, B, 6):
-        return False
-    for c in range(r):  # Y_k = L_B⁻¹ J_Bᵀ, one constraint row at a time
-        for m in range(6):
-            X[B, c, m] = JB[k, c, m]
-        _forward(D, B, 6, X, B, c)
-    j = nb + k
-    for a in range(r):  # S_k = Y_kᵀ Y_k, lower triangle (the Cholesky reads no more)
-        for b in range(a + 1):
-            s = 0.0
-            for m in range(6):
-                s += X[B, a, m] * X[B, b, m]
-            D[j, a, b] = s
-    if not _cholesky(D, j, r):
-        return False
-    if A >= 0:
-        for c in range(6):  # Z_k = L_k⁻¹ J_A, one column of J_A at a time
-            for m in range(r):
-                X[j, c, m] = JA[k, m, c]
-            _forward(D, j, r, X, j, c)
-        for a in range(6):  # D_A += Z_kᵀ Z_k
-            for b in range(a + 1):
-                s = 0.0
-                for m in range(r):
-                    s += X[j, a, m] * X[j, b, m]
-                D[A, a, b] += s
-    return True
-
-
 @llvm_inlined
 def assemble(model, work):
     """D's body blocks ← [[m 1, 0], [0, I_w]] with I_w = R I_b Rᵀ (R in work[0]), lower triangles."""
@@ -270,12 +239,12 @@ def eliminate(model, work):
     for idx in range(order.shape[0]):
         k = order[idx]
         A, B, r = parent[k], child[k], rows[k]
-        if r == 5:  # sizes as constants, so that the compiler unrolls the small loops
-            ok = _fold(D, X, JA, JB, nb, k, A, B, 5)
+        if r == 5:  # written out, every block entry a local (ours.rigid.generate)
+            ok = fold5(D, X, JA, JB, nb, k, A, B)
         elif r == 3:
-            ok = _fold(D, X, JA, JB, nb, k, A, B, 3)
+            ok = fold3(D, X, JA, JB, nb, k, A, B)
         else:
-            ok = _fold(D, X, JA, JB, nb, k, A, B, 6)
+            ok = fold6(D, X, JA, JB, nb, k, A, B)
         if not ok:
             return False
     for idx in range(free.shape[0]):  # bodies with no inbound joint: their block is the last to factor
@@ -291,44 +260,6 @@ def tree_factor(y, model, work):
     return eliminate(model, work)
 
 
-@inlined
-def _sweep_down(D, X, x, nb, k, A, B, r):
-    """Forward: z_B = L_B⁻¹ f̃_B, w_k = L_k⁻¹ (c_k − Y_k z_B), f̃_A += Z_kᵀ w_k."""
-    j = nb + k
-    _forward(D, B, 6, x, B, 0)
-    for c in range(r):
-        s = 0.0
-        for m in range(6):
-            s += X[B, c, m] * x[B, 0, m]
-        x[j, 0, c] -= s
-    _forward(D, j, r, x, j, 0)
-    if A >= 0:
-        for c in range(6):
-            s = 0.0
-            for m in range(r):
-                s += X[j, c, m] * x[j, 0, m]
-            x[A, 0, c] += s
-
-
-@inlined
-def _sweep_up(D, X, x, nb, k, A, B, r):
-    """Backward: λ_k = L_k⁻ᵀ (Z_k u_A − w_k), u_B = L_B⁻ᵀ (z_B − Y_kᵀ λ_k)."""
-    j = nb + k
-    for m in range(r):
-        s = -x[j, 0, m]
-        if A >= 0:
-            for c in range(6):
-                s += X[j, c, m] * x[A, 0, c]
-        x[j, 0, m] = s
-    _backward(D, j, r, x, j, 0)
-    for m in range(6):
-        s = 0.0
-        for c in range(r):
-            s += X[B, c, m] * x[j, 0, c]
-        x[B, 0, m] -= s
-    _backward(D, B, 6, x, B, 0)
-
-
 @llvm_inlined
 def tree_solve(model, work, x):
     """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
@@ -339,11 +270,11 @@ def tree_solve(model, work, x):
         k = order[idx]
         A, B, r = parent[k], child[k], rows[k]
         if r == 5:
-            _sweep_down(D, X, x, nb, k, A, B, 5)
+            sweep_down5(D, X, x, nb, k, A, B)
         elif r == 3:
-            _sweep_down(D, X, x, nb, k, A, B, 3)
+            sweep_down3(D, X, x, nb, k, A, B)
         else:
-            _sweep_down(D, X, x, nb, k, A, B, 6)
+            sweep_down6(D, X, x, nb, k, A, B)
     for idx in range(free.shape[0]):
         b = free[idx]
         _forward(D, b, 6, x, b, 0)
@@ -352,11 +283,11 @@ def tree_solve(model, work, x):
         k = order[idx]
         A, B, r = parent[k], child[k], rows[k]
         if r == 5:
-            _sweep_up(D, X, x, nb, k, A, B, 5)
+            sweep_up5(D, X, x, nb, k, A, B)
         elif r == 3:
-            _sweep_up(D, X, x, nb, k, A, B, 3)
+            sweep_up3(D, X, x, nb, k, A, B)
         else:
-            _sweep_up(D, X, x, nb, k, A, B, 6)
+            sweep_up6(D, X, x, nb, k, A, B)
 
 
 # --- dynamics --------------------------------------------------------------------------------
@@ -426,7 +357,7 @@ def rates(y, model, work, ydot):
             lam[k, r] = -sol[nb + k, 0, r]
 
 
-@compiled
+@llvm_inlined
 def derivative(y, model, work, ks, kd, ydot):
     """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
     nb, R = model[0].shape[0], work[0]
@@ -471,18 +402,7 @@ def kick_drift(y, nb, ydot, h):
         _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
 
 
-@compiled
-def _constraint_norm(model, work):
-    """max |C| over every row (m for anchors and slides, cosines for the orientation rows)."""
-    rows, C = model[11], work[1]
-    worst = 0.0
-    for k in range(rows.shape[0]):
-        for r in range(rows[k]):
-            worst = max(worst, abs(C[k, r]))
-    return worst
-
-
-@compiled
+@llvm_inlined
 def _correction(y, model, work, velocity, tolerance):
     """Returns max |e| with e = C (positions) or J u (velocity); when it exceeds ``tolerance``, also
     work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body, through the factor in work (the tree system with no force
@@ -502,7 +422,7 @@ def _correction(y, model, work, velocity, tolerance):
     return worst
 
 
-@compiled
+@llvm_inlined
 def project(y, model, work, tolerance, max_iterations):
     """Positions onto C(q) = 0, then velocities onto J u = 0, both in the mass metric: Δ = −W Jᵀ (J W Jᵀ)⁻¹ e
     (e = C, rotations by the exponential map and quaternions renormalised; then e = J u), repeated until
@@ -535,7 +455,7 @@ def project(y, model, work, tolerance, max_iterations):
     return OK
 
 
-@compiled
+@llvm_inlined
 def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iterations):
     """One step of h seconds in place; returns a status code. work[9] (stages, n), work[10] (n,) scratch."""
     nb = model[0].shape[0]
