@@ -13,7 +13,10 @@ from __future__ import annotations
 import math
 
 from ours.banded import compiled, inlined, llvm_inlined
-from ours.rigid.blocks import fold3, fold5, fold6, sweep_down3, sweep_down5, sweep_down6, sweep_up3, sweep_up5, sweep_up6
+from ours.rigid.blocks import (
+    fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
+    sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute,
+)
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
@@ -234,17 +237,20 @@ def assemble(model, work):
 @llvm_inlined
 def eliminate(model, work):
     """Factor the assembled system (work[5], rows in work[2:4]) joint by joint, deepest first; False if singular."""
-    nb, parent, child, rows, order, free = model[0].shape[0], model[5], model[6], model[11], model[12], model[13]
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
     JA, JB, D, X = work[2], work[3], work[5], work[6]
     for idx in range(order.shape[0]):
         k = order[idx]
-        A, B, r = parent[k], child[k], rows[k]
-        if r == 5:  # written out, every block entry a local (ours.rigid.generate)
-            ok = fold5(D, X, JA, JB, nb, k, A, B)
-        elif r == 3:
-            ok = fold3(D, X, JA, JB, nb, k, A, B)
+        A, B = parent[k], child[k]
+        t = kind[k]  # written out per kind, every block entry a local (ours.rigid.generate)
+        if t == REVOLUTE:
+            ok = fold_revolute(D, X, JA, JB, nb, k, A, B)
+        elif t == PRISMATIC:
+            ok = fold_prismatic(D, X, JA, JB, nb, k, A, B)
+        elif t == BALL:
+            ok = fold_ball(D, X, JA, JB, nb, k, A, B)
         else:
-            ok = fold6(D, X, JA, JB, nb, k, A, B)
+            ok = fold_fixed(D, X, JA, JB, nb, k, A, B)
         if not ok:
             return False
     for idx in range(free.shape[0]):  # bodies with no inbound joint: their block is the last to factor
@@ -263,31 +269,37 @@ def tree_factor(y, model, work):
 @llvm_inlined
 def tree_solve(model, work, x):
     """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
-    nb, parent, child, rows, order, free = model[0].shape[0], model[5], model[6], model[11], model[12], model[13]
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
     D, X = work[5], work[6]
     n = order.shape[0]
     for idx in range(n):
         k = order[idx]
-        A, B, r = parent[k], child[k], rows[k]
-        if r == 5:
-            sweep_down5(D, X, x, nb, k, A, B)
-        elif r == 3:
-            sweep_down3(D, X, x, nb, k, A, B)
+        A, B = parent[k], child[k]
+        t = kind[k]
+        if t == REVOLUTE:
+            sweep_down_revolute(D, X, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            sweep_down_prismatic(D, X, x, nb, k, A, B)
+        elif t == BALL:
+            sweep_down_ball(D, X, x, nb, k, A, B)
         else:
-            sweep_down6(D, X, x, nb, k, A, B)
+            sweep_down_fixed(D, X, x, nb, k, A, B)
     for idx in range(free.shape[0]):
         b = free[idx]
         _forward(D, b, 6, x, b, 0)
         _backward(D, b, 6, x, b, 0)
     for idx in range(n - 1, -1, -1):
         k = order[idx]
-        A, B, r = parent[k], child[k], rows[k]
-        if r == 5:
-            sweep_up5(D, X, x, nb, k, A, B)
-        elif r == 3:
-            sweep_up3(D, X, x, nb, k, A, B)
+        A, B = parent[k], child[k]
+        t = kind[k]
+        if t == REVOLUTE:
+            sweep_up_revolute(D, X, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            sweep_up_prismatic(D, X, x, nb, k, A, B)
+        elif t == BALL:
+            sweep_up_ball(D, X, x, nb, k, A, B)
         else:
-            sweep_up6(D, X, x, nb, k, A, B)
+            sweep_up_fixed(D, X, x, nb, k, A, B)
 
 
 # --- dynamics --------------------------------------------------------------------------------
