@@ -258,4 +258,7 @@ def test_written_out_blocks_are_what_their_generator_writes():
     changed without rewriting the file, fails here."""
     from ours.rigid import generate
 
+    from ours.rigid import kernel
+
     assert generate.TARGET.read_text(encoding="utf-8") == generate.source()
+    assert kernel.BLOCKS_DIGEST == generate.digest(generate.source())  # numba's cache of the kernel follows

@@ -8,11 +8,15 @@ form's, term for term and in the same order, so the results are the same bit for
 
     .venv/bin/python -m ours.rigid.generate        # rewrites ours/rigid/blocks.py
 
-tests/test_ours_rigid.py checks that the file is what this module writes.
+It also writes the file's digest into ours/rigid/kernel.py (``BLOCKS_DIGEST``), so that numba's on-disk
+cache of the kernel, checked against kernel.py's stamp alone, is rebuilt. tests/test_ours_rigid.py checks
+that both are what this module writes.
 """
 
 from __future__ import annotations
 
+import hashlib
+import re
 from pathlib import Path
 
 #: Each kind's rows (ours.rigid.kernel's joint_rows), by the first three columns of J (the COM velocity):
@@ -50,7 +54,10 @@ def _cholesky(lines: list[str], name: str, source: str, n: int) -> None:
 
 
 def _jb(form: str, c: int, m: int) -> str | None:
-    """Entry (c, m) of J_B for a kind of this row form: None where it is zero by construction."""
+    """Entry (c, m) of J_B for a kind of this row form: None where it is zero by construction (a point row's
+    first three columns but its own, and its moment arm r × e_c's component c)."""
+    if form[c] == "P" and m == 3 + c:
+        return None
     if m >= 3 or form[c] == "G":
         return f"JB[k, {c}, {m}]"
     return "-1.0" if form[c] == "P" and m == c else None
@@ -58,6 +65,8 @@ def _jb(form: str, c: int, m: int) -> str | None:
 
 def _ja(form: str, m: int, c: int) -> str | None:
     """Entry (m, c) of J_A: None where it is zero by construction."""
+    if form[m] == "P" and c == 3 + m:
+        return None
     if c >= 3 or form[m] == "G":
         return f"JA[k, {m}, {c}]"
     return "1.0" if form[m] == "P" and m == c else None
@@ -196,9 +205,17 @@ def source() -> str:
     return "\n\n\n".join(parts) + "\n"
 
 
+def digest(text: str) -> str:
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
 def main() -> None:
-    TARGET.write_text(source(), encoding="utf-8")
-    print(f"wrote {TARGET}")
+    text = source()
+    TARGET.write_text(text, encoding="utf-8")
+    kernel = TARGET.with_name("kernel.py")
+    kernel.write_text(re.sub(r'^BLOCKS_DIGEST = ".*"$', f'BLOCKS_DIGEST = "{digest(text)}"',
+                             kernel.read_text(encoding="utf-8"), count=1, flags=re.M), encoding="utf-8")
+    print(f"wrote {TARGET} and its digest in {kernel}")
 
 
 if __name__ == "__main__":

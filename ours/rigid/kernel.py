@@ -19,6 +19,11 @@ from ours.rigid.blocks import (
 )
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
+#: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
+#: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
+#: must change this file too, or the compiled step would keep the old blocks.
+BLOCKS_DIGEST = "9c796d8781ce09373a96bbc9d6c4beb38146cebe53fb286d2b57630834936fbe"
+
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
 PLAIN, BAUMGARTE, PROJECTION = 0, 1, 2
