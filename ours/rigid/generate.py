@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 
-from ours.banded import llvm_inlined
+from ours.banded import llvm_inlined_fma as llvm_inlined
 '''
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from ours.banded import compiled, inlined, llvm_inlined
+from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.blocks import (
     fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
     sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute,
@@ -22,7 +22,7 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 #: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
 #: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
 #: must change this file too, or the compiled step would keep the old blocks.
-BLOCKS_DIGEST = "9c796d8781ce09373a96bbc9d6c4beb38146cebe53fb286d2b57630834936fbe"
+BLOCKS_DIGEST = "64ac7f49ed3bd13c0b6ced31e36ee1b7c9e723e46a80b46c8052fb5c189027c4"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1

@@ -336,6 +336,19 @@ def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return distance, angle
 
 
+def _compiled_run(args: tuple, y: np.ndarray, model: tuple, work: tuple, out: np.ndarray):
+    """``kernel.run``'s machine code for these argument types, called without numba's dispatch: the
+    dispatcher types every argument at every call (a microsecond for the model's and the work's tuples
+    of arrays), which a caller advancing a sample at a time, ten steps of a robot, pays on each sample.
+    The dispatcher itself when the compiled version is not found (a numba that keeps them elsewhere)."""
+    run = _kernel().run
+    values = (*args, y, model, work, 0.0, 0.0, 1.0, 1, 1, 1.0, 1, out)
+    try:
+        return run.overloads[tuple(run.typeof_pyval(v) for v in values)].entry_point
+    except (AttributeError, KeyError):
+        return run
+
+
 class Stepping:
     """A run that advances on request (for a caller that samples as it goes): the same compiled step
     as :func:`simulate`. ``y`` (13 nb,) is the current state; ``status`` "ok" or why it stopped (then
@@ -355,12 +368,13 @@ class Stepping:
         self.y = np.array(y0, dtype=float).ravel()
         self._out = np.zeros((2, self.y.size))
         self.status, self.steps = "ok", 0
+        self._run = _compiled_run(self._args, self.y, self._model, self._work, self._out)
 
     def advance(self, steps: int) -> str:
         """Take ``steps`` steps of dt in place; returns the status."""
         if self.status == "ok" and steps > 0:
-            _, taken, status = _kernel().run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
-                                             int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
+            _, taken, status = self._run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
+                                         int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
             self.steps += int(taken)
             self.status = STATUS_TEXT[int(status)]
         return self.status
