@@ -50,7 +50,7 @@ llvm_inlined = njit(forceinline=True, **_OPTIONS)
 #: instruction where the CPU has one (one rounding instead of two), which moves results by round-off and
 #: saves instructions. ours.rigid's kernel uses these (its trajectories stay within 3e-13 of the unfused
 #: ones: scripts/rigid_equivalence.py); the particle kernel keeps the unfused ones, bit for bit.
-_CONTRACT: dict[str, Any] = {"fastmath": {"contract"}}
+_CONTRACT: dict[str, Any] = {"fastmath": {"contract"}, "error_model": "numpy"}
 compiled_fma = njit(forceinline=False, **_CONTRACT, **_OPTIONS)
 inlined_fma = njit(inline="always", forceinline=False, **_CONTRACT, **_OPTIONS)
 llvm_inlined_fma = njit(forceinline=True, **_CONTRACT, **_OPTIONS)

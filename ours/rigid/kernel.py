@@ -487,10 +487,12 @@ def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iteratio
         s = bw.shape[0]
         for i in range(s):
             for e in range(n):
-                acc = y[e]
-                for j in range(i):
-                    acc += h * A[i, j] * K[j, e]
-                ys[e] = acc
+                ys[e] = y[e]
+            for j in range(i):  # the tableau's zeros skipped (RK4's stages each read one K)
+                a = h * A[i, j]
+                if a != 0.0:
+                    for e in range(n):
+                        ys[e] += a * K[j, e]
             status = derivative(ys, model, work, ks, kd, K[i])
             if status != OK:
                 return status
