@@ -28,11 +28,15 @@ sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
 
-from ours.banded import compiled  # noqa: E402
+from numba import njit  # noqa: E402
+
+from ours.banded import _NO_RUNTIME  # noqa: E402
 from ours.rigid import Stepping, initial_state, pack, workspace  # noqa: E402
 from ours.rigid import kernel as K  # noqa: E402
 from ours.rigid.method import resolve  # noqa: E402
 
+#: Compiled afresh on each run, not cached: numba's cache of this file would not see the kernel change.
+profiled = njit(cache=False, fastmath={"contract"}, error_model="numpy", **_NO_RUNTIME)
 #: The derivative's stages in the order it runs them: (name, what it computes).
 STAGES = (
     ("rotations", "R = R(Q) per body, the quaternion normalised on the fly"),
@@ -46,7 +50,7 @@ STAGES = (
 )
 
 
-@compiled
+@profiled
 def _upto(y, model, work, ks, kd, ydot, stages, n):
     """Run the derivative's first ``stages`` stages n times at y (the same state each time)."""
     nb, R = model[0].shape[0], work[0]
@@ -71,7 +75,7 @@ def _upto(y, model, work, ks, kd, ydot, stages, n):
     return ok
 
 
-@compiled
+@profiled
 def _integrate(y, nb, ydot, h, n):
     """n symplectic-Euler updates (kick, drift, quaternion exponential and renormalisation) from y."""
     for _ in range(n):

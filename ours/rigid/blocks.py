@@ -259,6 +259,18 @@ def sweep_up_ball(D, X, x, nb, k, A, B):
 
 
 @llvm_inlined
+def targets_ball(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd):
+    """sol[nb + k] ← −J̇u − k_s C − k_d J u for ball joint k (parent A, child B; A < 0: the world)."""
+    a, b = 13 * A + 7, 13 * B + 7
+    rate = y[a + 0] + -y[b + 0] + JA[k, 0, 4] * y[a + 4] + JB[k, 0, 4] * y[b + 4] + JA[k, 0, 5] * y[a + 5] + JB[k, 0, 5] * y[b + 5] if A >= 0 else -y[b + 0] + JB[k, 0, 4] * y[b + 4] + JB[k, 0, 5] * y[b + 5]
+    sol[nb + k, 0, 0] = -gam[k, 0] - ks * C[k, 0] - kd * rate
+    rate = y[a + 1] + -y[b + 1] + JA[k, 1, 3] * y[a + 3] + JB[k, 1, 3] * y[b + 3] + JA[k, 1, 5] * y[a + 5] + JB[k, 1, 5] * y[b + 5] if A >= 0 else -y[b + 1] + JB[k, 1, 3] * y[b + 3] + JB[k, 1, 5] * y[b + 5]
+    sol[nb + k, 0, 1] = -gam[k, 1] - ks * C[k, 1] - kd * rate
+    rate = y[a + 2] + -y[b + 2] + JA[k, 2, 3] * y[a + 3] + JB[k, 2, 3] * y[b + 3] + JA[k, 2, 4] * y[a + 4] + JB[k, 2, 4] * y[b + 4] if A >= 0 else -y[b + 2] + JB[k, 2, 3] * y[b + 3] + JB[k, 2, 4] * y[b + 4]
+    sol[nb + k, 0, 2] = -gam[k, 2] - ks * C[k, 2] - kd * rate
+
+
+@llvm_inlined
 def fold_revolute(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then revolute joint k (5 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
@@ -587,6 +599,22 @@ def sweep_up_revolute(D, X, x, nb, k, A, B):
 
 
 @llvm_inlined
+def targets_revolute(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd):
+    """sol[nb + k] ← −J̇u − k_s C − k_d J u for revolute joint k (parent A, child B; A < 0: the world)."""
+    a, b = 13 * A + 7, 13 * B + 7
+    rate = y[a + 0] + -y[b + 0] + JA[k, 0, 4] * y[a + 4] + JB[k, 0, 4] * y[b + 4] + JA[k, 0, 5] * y[a + 5] + JB[k, 0, 5] * y[b + 5] if A >= 0 else -y[b + 0] + JB[k, 0, 4] * y[b + 4] + JB[k, 0, 5] * y[b + 5]
+    sol[nb + k, 0, 0] = -gam[k, 0] - ks * C[k, 0] - kd * rate
+    rate = y[a + 1] + -y[b + 1] + JA[k, 1, 3] * y[a + 3] + JB[k, 1, 3] * y[b + 3] + JA[k, 1, 5] * y[a + 5] + JB[k, 1, 5] * y[b + 5] if A >= 0 else -y[b + 1] + JB[k, 1, 3] * y[b + 3] + JB[k, 1, 5] * y[b + 5]
+    sol[nb + k, 0, 1] = -gam[k, 1] - ks * C[k, 1] - kd * rate
+    rate = y[a + 2] + -y[b + 2] + JA[k, 2, 3] * y[a + 3] + JB[k, 2, 3] * y[b + 3] + JA[k, 2, 4] * y[a + 4] + JB[k, 2, 4] * y[b + 4] if A >= 0 else -y[b + 2] + JB[k, 2, 3] * y[b + 3] + JB[k, 2, 4] * y[b + 4]
+    sol[nb + k, 0, 2] = -gam[k, 2] - ks * C[k, 2] - kd * rate
+    rate = JA[k, 3, 3] * y[a + 3] + JB[k, 3, 3] * y[b + 3] + JA[k, 3, 4] * y[a + 4] + JB[k, 3, 4] * y[b + 4] + JA[k, 3, 5] * y[a + 5] + JB[k, 3, 5] * y[b + 5] if A >= 0 else JB[k, 3, 3] * y[b + 3] + JB[k, 3, 4] * y[b + 4] + JB[k, 3, 5] * y[b + 5]
+    sol[nb + k, 0, 3] = -gam[k, 3] - ks * C[k, 3] - kd * rate
+    rate = JA[k, 4, 3] * y[a + 3] + JB[k, 4, 3] * y[b + 3] + JA[k, 4, 4] * y[a + 4] + JB[k, 4, 4] * y[b + 4] + JA[k, 4, 5] * y[a + 5] + JB[k, 4, 5] * y[b + 5] if A >= 0 else JB[k, 4, 3] * y[b + 3] + JB[k, 4, 4] * y[b + 4] + JB[k, 4, 5] * y[b + 5]
+    sol[nb + k, 0, 4] = -gam[k, 4] - ks * C[k, 4] - kd * rate
+
+
+@llvm_inlined
 def fold_prismatic(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then prismatic joint k (5 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
@@ -902,6 +930,22 @@ def sweep_up_prismatic(D, X, x, nb, k, A, B):
     x[B, 0, 3] = u3
     x[B, 0, 4] = u4
     x[B, 0, 5] = u5
+
+
+@llvm_inlined
+def targets_prismatic(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd):
+    """sol[nb + k] ← −J̇u − k_s C − k_d J u for prismatic joint k (parent A, child B; A < 0: the world)."""
+    a, b = 13 * A + 7, 13 * B + 7
+    rate = JA[k, 0, 3] * y[a + 3] + JB[k, 0, 3] * y[b + 3] + JA[k, 0, 4] * y[a + 4] + JB[k, 0, 4] * y[b + 4] + JA[k, 0, 5] * y[a + 5] + JB[k, 0, 5] * y[b + 5] if A >= 0 else JB[k, 0, 3] * y[b + 3] + JB[k, 0, 4] * y[b + 4] + JB[k, 0, 5] * y[b + 5]
+    sol[nb + k, 0, 0] = -gam[k, 0] - ks * C[k, 0] - kd * rate
+    rate = JA[k, 1, 3] * y[a + 3] + JB[k, 1, 3] * y[b + 3] + JA[k, 1, 4] * y[a + 4] + JB[k, 1, 4] * y[b + 4] + JA[k, 1, 5] * y[a + 5] + JB[k, 1, 5] * y[b + 5] if A >= 0 else JB[k, 1, 3] * y[b + 3] + JB[k, 1, 4] * y[b + 4] + JB[k, 1, 5] * y[b + 5]
+    sol[nb + k, 0, 1] = -gam[k, 1] - ks * C[k, 1] - kd * rate
+    rate = JA[k, 2, 3] * y[a + 3] + JB[k, 2, 3] * y[b + 3] + JA[k, 2, 4] * y[a + 4] + JB[k, 2, 4] * y[b + 4] + JA[k, 2, 5] * y[a + 5] + JB[k, 2, 5] * y[b + 5] if A >= 0 else JB[k, 2, 3] * y[b + 3] + JB[k, 2, 4] * y[b + 4] + JB[k, 2, 5] * y[b + 5]
+    sol[nb + k, 0, 2] = -gam[k, 2] - ks * C[k, 2] - kd * rate
+    rate = JA[k, 3, 0] * y[a + 0] + JB[k, 3, 0] * y[b + 0] + JA[k, 3, 1] * y[a + 1] + JB[k, 3, 1] * y[b + 1] + JA[k, 3, 2] * y[a + 2] + JB[k, 3, 2] * y[b + 2] + JA[k, 3, 3] * y[a + 3] + JB[k, 3, 3] * y[b + 3] + JA[k, 3, 4] * y[a + 4] + JB[k, 3, 4] * y[b + 4] + JA[k, 3, 5] * y[a + 5] + JB[k, 3, 5] * y[b + 5] if A >= 0 else JB[k, 3, 0] * y[b + 0] + JB[k, 3, 1] * y[b + 1] + JB[k, 3, 2] * y[b + 2] + JB[k, 3, 3] * y[b + 3] + JB[k, 3, 4] * y[b + 4] + JB[k, 3, 5] * y[b + 5]
+    sol[nb + k, 0, 3] = -gam[k, 3] - ks * C[k, 3] - kd * rate
+    rate = JA[k, 4, 0] * y[a + 0] + JB[k, 4, 0] * y[b + 0] + JA[k, 4, 1] * y[a + 1] + JB[k, 4, 1] * y[b + 1] + JA[k, 4, 2] * y[a + 2] + JB[k, 4, 2] * y[b + 2] + JA[k, 4, 3] * y[a + 3] + JB[k, 4, 3] * y[b + 3] + JA[k, 4, 4] * y[a + 4] + JB[k, 4, 4] * y[b + 4] + JA[k, 4, 5] * y[a + 5] + JB[k, 4, 5] * y[b + 5] if A >= 0 else JB[k, 4, 0] * y[b + 0] + JB[k, 4, 1] * y[b + 1] + JB[k, 4, 2] * y[b + 2] + JB[k, 4, 3] * y[b + 3] + JB[k, 4, 4] * y[b + 4] + JB[k, 4, 5] * y[b + 5]
+    sol[nb + k, 0, 4] = -gam[k, 4] - ks * C[k, 4] - kd * rate
 
 
 @llvm_inlined
@@ -1276,3 +1320,21 @@ def sweep_up_fixed(D, X, x, nb, k, A, B):
     x[B, 0, 3] = u3
     x[B, 0, 4] = u4
     x[B, 0, 5] = u5
+
+
+@llvm_inlined
+def targets_fixed(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd):
+    """sol[nb + k] ← −J̇u − k_s C − k_d J u for fixed joint k (parent A, child B; A < 0: the world)."""
+    a, b = 13 * A + 7, 13 * B + 7
+    rate = y[a + 0] + -y[b + 0] + JA[k, 0, 4] * y[a + 4] + JB[k, 0, 4] * y[b + 4] + JA[k, 0, 5] * y[a + 5] + JB[k, 0, 5] * y[b + 5] if A >= 0 else -y[b + 0] + JB[k, 0, 4] * y[b + 4] + JB[k, 0, 5] * y[b + 5]
+    sol[nb + k, 0, 0] = -gam[k, 0] - ks * C[k, 0] - kd * rate
+    rate = y[a + 1] + -y[b + 1] + JA[k, 1, 3] * y[a + 3] + JB[k, 1, 3] * y[b + 3] + JA[k, 1, 5] * y[a + 5] + JB[k, 1, 5] * y[b + 5] if A >= 0 else -y[b + 1] + JB[k, 1, 3] * y[b + 3] + JB[k, 1, 5] * y[b + 5]
+    sol[nb + k, 0, 1] = -gam[k, 1] - ks * C[k, 1] - kd * rate
+    rate = y[a + 2] + -y[b + 2] + JA[k, 2, 3] * y[a + 3] + JB[k, 2, 3] * y[b + 3] + JA[k, 2, 4] * y[a + 4] + JB[k, 2, 4] * y[b + 4] if A >= 0 else -y[b + 2] + JB[k, 2, 3] * y[b + 3] + JB[k, 2, 4] * y[b + 4]
+    sol[nb + k, 0, 2] = -gam[k, 2] - ks * C[k, 2] - kd * rate
+    rate = JA[k, 3, 3] * y[a + 3] + JB[k, 3, 3] * y[b + 3] + JA[k, 3, 4] * y[a + 4] + JB[k, 3, 4] * y[b + 4] + JA[k, 3, 5] * y[a + 5] + JB[k, 3, 5] * y[b + 5] if A >= 0 else JB[k, 3, 3] * y[b + 3] + JB[k, 3, 4] * y[b + 4] + JB[k, 3, 5] * y[b + 5]
+    sol[nb + k, 0, 3] = -gam[k, 3] - ks * C[k, 3] - kd * rate
+    rate = JA[k, 4, 3] * y[a + 3] + JB[k, 4, 3] * y[b + 3] + JA[k, 4, 4] * y[a + 4] + JB[k, 4, 4] * y[b + 4] + JA[k, 4, 5] * y[a + 5] + JB[k, 4, 5] * y[b + 5] if A >= 0 else JB[k, 4, 3] * y[b + 3] + JB[k, 4, 4] * y[b + 4] + JB[k, 4, 5] * y[b + 5]
+    sol[nb + k, 0, 4] = -gam[k, 4] - ks * C[k, 4] - kd * rate
+    rate = JA[k, 5, 3] * y[a + 3] + JB[k, 5, 3] * y[b + 3] + JA[k, 5, 4] * y[a + 4] + JB[k, 5, 4] * y[b + 4] + JA[k, 5, 5] * y[a + 5] + JB[k, 5, 5] * y[b + 5] if A >= 0 else JB[k, 5, 3] * y[b + 3] + JB[k, 5, 4] * y[b + 4] + JB[k, 5, 5] * y[b + 5]
+    sol[nb + k, 0, 5] = -gam[k, 5] - ks * C[k, 5] - kd * rate

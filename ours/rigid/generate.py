@@ -198,10 +198,32 @@ def sweep_up(kind: str) -> str:
     return "\n".join(lines)
 
 
+def targets(kind: str) -> str:
+    """The rows' right side −J̇u − k_s C − k_d J u of one joint, J u over J's entries that are not zero by
+    construction, in the loop form's order (parent and child interleaved, column by column)."""
+    form = ROW_FORMS[kind]
+    lines = [f"@llvm_inlined\ndef targets_{kind}(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd):",
+             f'    """sol[nb + k] ← −J̇u − k_s C − k_d J u for {kind} joint k (parent A, child B; A < 0: the world)."""',
+             "    a, b = 13 * A + 7, 13 * B + 7"]
+
+    def term(entry: str | None, u: str) -> str | None:
+        if entry is None:
+            return None
+        return {"1.0": u, "-1.0": f"-{u}"}.get(entry, f"{entry} * {u}")
+
+    for c in range(len(form)):
+        both = [t for m in range(6) for t in (term(_ja(form, c, m), f"y[a + {m}]"), term(_jb(form, c, m), f"y[b + {m}]"))
+                if t is not None]
+        child = [t for m in range(6) if (t := term(_jb(form, c, m), f"y[b + {m}]")) is not None]
+        lines.append(f"    rate = {' + '.join(both)} if A >= 0 else {' + '.join(child)}")
+        lines.append(f"    sol[nb + k, 0, {c}] = -gam[k, {c}] - ks * C[k, {c}] - kd * rate")
+    return "\n".join(lines)
+
+
 def source() -> str:
     parts = [HEADER]
     for kind in ROW_FORMS:
-        parts += [fold(kind), sweep_down(kind), sweep_up(kind)]
+        parts += [fold(kind), sweep_down(kind), sweep_up(kind), targets(kind)]
     return "\n\n\n".join(parts) + "\n"
 
 

@@ -15,14 +15,15 @@ import math
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.blocks import (
     fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
-    sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute,
+    sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute, targets_ball,
+    targets_fixed, targets_prismatic, targets_revolute,
 )
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 #: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
 #: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
 #: must change this file too, or the compiled step would keep the old blocks.
-BLOCKS_DIGEST = "64ac7f49ed3bd13c0b6ced31e36ee1b7c9e723e46a80b46c8052fb5c189027c4"
+BLOCKS_DIGEST = "de86eb32e75e83dc8a9a55a2f5c7ab87dc75479d98f35becf9455fa3ec50882a"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
@@ -346,11 +347,18 @@ def forces(y, model, work):
 @llvm_inlined
 def row_targets(y, model, work, ks, kd):
     """work[7]'s joint entries ← −J̇u − k_s C − k_d J u (the rows' right side, Baumgarte's terms included)."""
-    nb, rows = model[0].shape[0], model[11]
+    nb, kind, parent, child = model[0].shape[0], model[4], model[5], model[6]
     C, JA, JB, gam, sol = work[1], work[2], work[3], work[4], work[7]
-    for k in range(rows.shape[0]):
-        for r in range(rows[k]):
-            sol[nb + k, 0, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
+    for k in range(kind.shape[0]):
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:  # written out per kind, J's zeros skipped (ours.rigid.generate)
+            targets_revolute(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        elif t == PRISMATIC:
+            targets_prismatic(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        elif t == BALL:
+            targets_ball(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        else:
+            targets_fixed(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
 
 
 @llvm_inlined
@@ -505,9 +513,11 @@ def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iteratio
         status = project(y, model, work, tolerance, max_iterations)
         if status != OK:
             return status
+    spread = 0.0  # y − y is 0 for a finite number and NaN for inf or NaN: one reduction the compiler vectorises
     for e in range(n):
-        if not math.isfinite(y[e]):
-            return NON_FINITE
+        spread += y[e] - y[e]
+    if spread != 0.0:
+        return NON_FINITE
     return OK
 
 
