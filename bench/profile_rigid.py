@@ -41,11 +41,11 @@ profiled = njit(cache=False, fastmath={"contract"}, error_model="numpy", **_NO_R
 STAGES = (
     ("rotations", "R = R(Q) per body, the quaternion normalised on the fly"),
     ("joint rows", "Jacobian blocks J_A, J_B, the residual C and J̇u of every joint"),
-    ("mass blocks", "M per body: m 1 and I_w = R I Rᵀ"),
-    ("elimination", "the tree's block Cholesky, leaves first"),
     ("forces", "gravity and the gyroscopic term −ω × I_w ω"),
     ("row targets", "−J̇u − k_s C − k_d J u (Baumgarte's terms)"),
-    ("back-substitution", "forward and backward sweeps of the tree solve"),
+    ("mass blocks", "M per body: m 1 and I_w = R I Rᵀ"),
+    ("elimination", "the tree's block Cholesky, leaves first, with the forward sweep of the right side"),
+    ("back-substitution", "the backward sweep: u and λ"),
     ("rates", "ẏ: v, ½ (0, ω) ⊗ Q, u̇ and λ read out"),
 )
 
@@ -61,15 +61,15 @@ def _upto(y, model, work, ks, kd, ydot, stages, n):
         if stages >= 2:
             K.joint_rows(y, model, R, work[1], work[2], work[3], work[4])
         if stages >= 3:
-            K.assemble(model, work)
-        if stages >= 4:
-            ok = K.eliminate(model, work) and ok
-        if stages >= 5:
             K.forces(y, model, work)
-        if stages >= 6:
+        if stages >= 4:
             K.row_targets(y, model, work, ks, kd)
+        if stages >= 5:
+            K.assemble(model, work)
+        if stages >= 6:
+            ok = K.factor_and_sweep(model, work, work[7]) and ok
         if stages >= 7:
-            K.tree_solve(model, work, work[7])
+            K.sweep_up(model, work, work[7])
         if stages >= 8:
             K.rates(y, model, work, ydot)
     return ok

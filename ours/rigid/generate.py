@@ -99,15 +99,21 @@ def _structure(form: str) -> tuple[list[list[bool]], list[list[bool]]]:
     return Y, Z
 
 
-def fold(kind: str) -> str:
+def fold(kind: str, sweep: bool = False) -> str:
+    """Eliminate one joint; with ``sweep``, also the forward sweep of a right side x, with the blocks still in
+    registers (:func:`sweep_down`'s arithmetic, the same operations on the same values)."""
     form = ROW_FORMS[kind]
     r = len(form)
     Y, Z = _structure(form)
     y = [[f"y{c}_{m}" if Y[c][m] else None for m in range(6)] for c in range(r)]
     z = [[f"z{c}_{m}" if Z[c][m] else None for m in range(r)] for c in range(6)]
-    lines = [f"@llvm_inlined\ndef fold_{kind}(D, X, JA, JB, nb, k, A, B):",
-             f'    """Eliminate body B, then {kind} joint k ({r} rows) into A (A < 0: the world). False if not definite."""',
-             "    j = nb + k"]
+    if sweep:
+        lines = [f"@llvm_inlined\ndef fold_sweep_{kind}(D, X, JA, JB, x, nb, k, A, B):",
+                 f'    """fold_{kind} and sweep_down_{kind} in one pass. False if not definite."""', "    j = nb + k"]
+    else:
+        lines = [f"@llvm_inlined\ndef fold_{kind}(D, X, JA, JB, nb, k, A, B):",
+                 f'    """Eliminate body B, then {kind} joint k ({r} rows) into A (A < 0: the world). False if not definite."""',
+                 "    j = nb + k"]
     _cholesky(lines, "b", "D[B, {r}, {c}]", 6)
     for rr in range(6):
         for c in range(rr + 1):
@@ -125,6 +131,19 @@ def fold(kind: str) -> str:
     for a in range(r):
         for b in range(a + 1):
             lines.append(f"    D[j, {a}, {b}] = q{a}_{b}")
+    if sweep:
+        for m in range(6):
+            terms = "".join(f" - b{m}_{p} * u{p}" for p in range(m))
+            lines.append(f"    u{m} = (x[B, 0, {m}]{terms}) * b{m}_{m}")
+        for c in range(r):
+            lines.append(f"    g{c} = x[j, 0, {c}] - ({_sum([(y[c][m], f'u{m}') for m in range(6)])})")
+        for m in range(r):
+            terms = "".join(f" - q{m}_{p} * w{p}" for p in range(m))
+            lines.append(f"    w{m} = (g{m}{terms}) * q{m}_{m}")
+        for m in range(6):
+            lines.append(f"    x[B, 0, {m}] = u{m}")
+        for m in range(r):
+            lines.append(f"    x[j, 0, {m}] = w{m}")
     lines.append("    if A >= 0:")
     for c in range(6):  # Z column c = L_k⁻¹ (J_A column c)
         for m in range(r):
@@ -137,6 +156,11 @@ def fold(kind: str) -> str:
             total = _sum([(z[a][m], z[b][m]) for m in range(r)])
             if total:
                 lines.append(f"        D[A, {a}, {b}] += {total}")
+    if sweep:
+        for c in range(6):
+            total = _sum([(z[c][m], f"w{m}") for m in range(r)])
+            if total:
+                lines.append(f"        x[A, 0, {c}] += {total}")
     lines.append("    return True")
     return "\n".join(lines)
 
@@ -223,7 +247,7 @@ def targets(kind: str) -> str:
 def source() -> str:
     parts = [HEADER]
     for kind in ROW_FORMS:
-        parts += [fold(kind), sweep_down(kind), sweep_up(kind), targets(kind)]
+        parts += [fold(kind), fold(kind, sweep=True), sweep_down(kind), sweep_up(kind), targets(kind)]
     return "\n\n\n".join(parts) + "\n"
 
 

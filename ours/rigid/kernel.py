@@ -14,6 +14,7 @@ import math
 
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.blocks import (
+    fold_sweep_ball, fold_sweep_fixed, fold_sweep_prismatic, fold_sweep_revolute,
     fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
     sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute, targets_ball,
     targets_fixed, targets_prismatic, targets_revolute,
@@ -23,7 +24,7 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 #: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
 #: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
 #: must change this file too, or the compiled step would keep the old blocks.
-BLOCKS_DIGEST = "de86eb32e75e83dc8a9a55a2f5c7ab87dc75479d98f35becf9455fa3ec50882a"
+BLOCKS_DIGEST = "ee530e6a3418e8bea3936de6d0b3ff4cd537acdde657f9ed5a3e22b098359fe6"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
@@ -273,15 +274,41 @@ def tree_factor(y, model, work):
 
 
 @llvm_inlined
-def tree_solve(model, work, x):
-    """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
+def factor_and_sweep(model, work, x):
+    """:func:`eliminate` and the forward half of :func:`tree_solve` of the right side x in one pass (each joint's
+    blocks are swept while still in registers); :func:`sweep_up` finishes the solve. False if singular."""
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
+    JA, JB, D, X = work[2], work[3], work[5], work[6]
+    for idx in range(order.shape[0]):
+        k = order[idx]
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:
+            ok = fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            ok = fold_sweep_prismatic(D, X, JA, JB, x, nb, k, A, B)
+        elif t == BALL:
+            ok = fold_sweep_ball(D, X, JA, JB, x, nb, k, A, B)
+        else:
+            ok = fold_sweep_fixed(D, X, JA, JB, x, nb, k, A, B)
+        if not ok:
+            return False
+    for idx in range(free.shape[0]):
+        b = free[idx]
+        if not _cholesky(D, b, 6):
+            return False
+        _forward(D, b, 6, x, b, 0)
+        _backward(D, b, 6, x, b, 0)
+    return True
+
+
+@llvm_inlined
+def sweep_down(model, work, x):
+    """The forward half of the tree solve (children first), and the bodies no joint holds solved."""
     nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
     D, X = work[5], work[6]
-    n = order.shape[0]
-    for idx in range(n):
+    for idx in range(order.shape[0]):
         k = order[idx]
-        A, B = parent[k], child[k]
-        t = kind[k]
+        A, B, t = parent[k], child[k], kind[k]
         if t == REVOLUTE:
             sweep_down_revolute(D, X, x, nb, k, A, B)
         elif t == PRISMATIC:
@@ -294,10 +321,16 @@ def tree_solve(model, work, x):
         b = free[idx]
         _forward(D, b, 6, x, b, 0)
         _backward(D, b, 6, x, b, 0)
-    for idx in range(n - 1, -1, -1):
+
+
+@llvm_inlined
+def sweep_up(model, work, x):
+    """The backward half of the tree solve (parents first): u and λ."""
+    nb, kind, parent, child, order = model[0].shape[0], model[4], model[5], model[6], model[12]
+    D, X = work[5], work[6]
+    for idx in range(order.shape[0] - 1, -1, -1):
         k = order[idx]
-        A, B = parent[k], child[k]
-        t = kind[k]
+        A, B, t = parent[k], child[k], kind[k]
         if t == REVOLUTE:
             sweep_up_revolute(D, X, x, nb, k, A, B)
         elif t == PRISMATIC:
@@ -306,6 +339,13 @@ def tree_solve(model, work, x):
             sweep_up_ball(D, X, x, nb, k, A, B)
         else:
             sweep_up_fixed(D, X, x, nb, k, A, B)
+
+
+@llvm_inlined
+def tree_solve(model, work, x):
+    """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
+    sweep_down(model, work, x)
+    sweep_up(model, work, x)
 
 
 # --- dynamics --------------------------------------------------------------------------------
@@ -330,7 +370,7 @@ def forces(y, model, work):
     for b in range(nb):
         o = 13 * b
         w0, w1, w2 = y[o + 10], y[o + 11], y[o + 12]
-        # angular momentum I_w ω = R I_b Rᵀ ω (D holds the factor by now, not I_w)
+        # angular momentum I_w ω = R I_b Rᵀ ω (from R: D holds the factor once eliminated)
         l0 = R[b, 0, 0] * w0 + R[b, 1, 0] * w1 + R[b, 2, 0] * w2
         l1 = R[b, 0, 1] * w0 + R[b, 1, 1] * w1 + R[b, 2, 1] * w2
         l2 = R[b, 0, 2] * w0 + R[b, 1, 2] * w1 + R[b, 2, 2] * w2
@@ -388,11 +428,12 @@ def derivative(y, model, work, ks, kd, ydot):
     nb, R = model[0].shape[0], work[0]
     rotations(y, nb, R)
     joint_rows(y, model, R, work[1], work[2], work[3], work[4])
-    if not tree_factor(y, model, work):
-        return SINGULAR
     forces(y, model, work)
     row_targets(y, model, work, ks, kd)
-    tree_solve(model, work, work[7])
+    assemble(model, work)
+    if not factor_and_sweep(model, work, work[7]):
+        return SINGULAR
+    sweep_up(model, work, work[7])
     rates(y, model, work, ydot)
     return OK
 
