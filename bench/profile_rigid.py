@@ -1,6 +1,6 @@
 """Where a step of ours' rigid bodies goes: a per-stage profile on the KUKA iiwa (issue 46).
 
-The KUKA iiwa (pybullet_data's kuka_iiwa/model.urdf, 7 moving bodies, translated by engines/model) at
+The KUKA iiwa (pybullet_data's kuka_iiwa/model.urdf, 7 moving bodies, translated by engines/ours/model.py) at
 q = 0.3 rad per joint, at rest, dt 1e-3 s. Each stage of the compiled derivative (ours.rigid.kernel) is
 timed as the difference between two compiled loops that run the derivative's stages up to it and up to the
 one before, from the same state every time (so no stage sees another's output drift). A step of each
@@ -92,7 +92,7 @@ def least(run, repeats: int) -> float:
 
 
 def kuka():
-    from engines.model.ours import translate
+    from engines.ours.model import translate
     from engines.model.source import resolve as resolve_source
     from engines.model.urdf import read
 

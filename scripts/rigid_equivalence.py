@@ -2,11 +2,11 @@
 
 The rigid-body twin of scripts/ours_equivalence.py. Runs ``ours.rigid.simulate`` for every method ×
 integrator pair on the compound double pendulum, a 6-link chain, a branching tree of every joint kind
-(revolute, ball, prismatic, fixed) and the KUKA iiwa (pybullet_data, translated by engines/model), at
+(revolute, ball, prismatic, fixed) and the KUKA iiwa (pybullet_data, translated by engines/ours/model.py), at
 dt 1e-3 and 1e-2 s for 0.5 s (a sample every 0.05 s), and stores the states, steps taken and status.
 
-    .venv/bin/python scripts/rigid_equivalence.py save bench/data/rigid_trajectories.npz
-    .venv/bin/python scripts/rigid_equivalence.py check bench/data/rigid_trajectories.npz
+    .venv/bin/python scripts/rigid_equivalence.py save tests/golden/rigid_trajectories.npz
+    .venv/bin/python scripts/rigid_equivalence.py check tests/golden/rigid_trajectories.npz
 
 ``check`` prints the largest relative difference of the states (max |new − old| / max |old| over a run)
 and exits 1 when it exceeds TOLERANCE or a status or step count differs. A kernel that only reorders
@@ -51,7 +51,7 @@ def tree() -> tuple[Mechanism, np.ndarray]:
 
 def kuka() -> tuple[Mechanism, np.ndarray]:
     """The KUKA iiwa from pybullet_data, q = 0.3 rad at every joint, at rest (bench/bench_rigid.py's start)."""
-    from engines.model.ours import translate
+    from engines.ours.model import translate
     from engines.model.source import resolve
     from engines.model.urdf import read
 

@@ -44,7 +44,7 @@ def test_drakes_finiteness_assertion_is_a_blow_up_named_in_one_line():
 
 
 def test_drake_discrete_chain_32_at_a_large_step_is_unstable_not_failed():
-    from engines.adapters.drake import ENGINE as DRAKE
+    from engines.drake.adapter import ENGINE as DRAKE
 
     # suites/peers.toml's chain-32 at dt 1e-2 (the case): the discrete plant's state goes non-finite.
     scene = catalog.build("chain", {"n": 32, "length": 0.03125, "mass": 0.03125, "duration": 1.0})
@@ -70,7 +70,7 @@ def test_numerical_warnings_become_one_note_in_the_message():
 
 
 def test_a_run_that_overflows_numpy_keeps_the_warning_in_the_record_and_prints_nothing(tmp_path, capfd):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
 

@@ -2,7 +2,7 @@
 
 JAX starts threads on import, and a fork of a process with them may deadlock (JAX warns "os.fork() was
 called ... JAX is multithreaded"). So the xval process, which forks every case host, must never import
-it: the MJX adapter imports JAX on first use (engines.adapters.mjx._jax), inside the host running the case, and
+it: the MJX adapter imports JAX on first use (engines.mjx.library.jax_mjx), inside the host running the case, and
 the host has forked its one child (the reaper) before any case runs.
 """
 
@@ -27,7 +27,7 @@ PROBE = """
 import json, sys, warnings
 warnings.simplefilter("always")
 from compare.run.runner import run_suite
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.suite.reader import parse_suite
 suite = parse_suite('name = "jax"\\nduration = 0.05\\ndt = [1e-2]\\n[[scenes]]\\nscene = "bead"\\n'
                     '[[engines]]\\nid = "mjx/hinge"\\n[[engines]]\\nid = "mujoco/hinge"\\n')

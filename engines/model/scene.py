@@ -23,6 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from engines.errors import Unsupported
 from engines.model.description import ModelDescription, ModelError
 from engines.model.loaded import GRAVITY
 from engines.model.source import ModelSource, resolve
@@ -161,20 +162,9 @@ class ModelScene:
 
     # -- stepping ----------------------------------------------------------------------------------
 
-    def run_in(self, engine: str, schedule: Any, settings: Mapping[str, Any]) -> Any:
-        """The RawRun of this model stepped by ``engine`` (an adapter's name; its resolved ``settings``) on
-        ``schedule``: what an adapter's ``_run`` returns for a model. The adapters reach the model layer
-        only through this, so none of them imports it (its import modules use the adapters' modules)."""
-        from engines.model.stepping import run_model
-        from engines.model.steppers import stepper
-
-        return run_model(self, schedule, stepper(engine, self, schedule.dt, dict(settings)))
-
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when this scene keeps the file's joint damping and ``engine``'s import cannot."""
         if self.file_dynamics == "keep":
-            from engines.errors import Unsupported
-
             raise Unsupported(f"{engine}: file_dynamics = \"keep\" is not supported here (its import sets joint "
                               f"damping to 0 before the model is finalised); use \"neutral\"")
 
@@ -311,7 +301,8 @@ class FrameKinematics:
         self.pin = pin
         self.loaded = reference_import.load(source, description)
         model = self.loaded.model
-        self.frame_ids = [model.getFrameId(name) for name in description.moving_links]
+        # By name and type: URDF lets a link and a joint share a name, and each has a frame of that name.
+        self.frame_ids = [model.getFrameId(name, pin.FrameType.BODY) for name in description.moving_links]
 
     def frames(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pin, loaded = self.pin, self.loaded

@@ -6,6 +6,8 @@ element: ``<robot>`` is URDF, ``<mujoco>`` MJCF. Dynamics need no meshes:
 :meth:`ModelSource.engine_text` drops every ``<visual>`` and ``<collision>``
 of a URDF (and, when asked, every ``<mimic>``) before an engine sees it, so
 missing mesh files cannot stop an import; the notes say what was dropped.
+Blank lines before the XML declaration (which XML forbids, and PyBullet
+reads) are removed, with a note.
 """
 
 from __future__ import annotations
@@ -22,12 +24,17 @@ FORMATS = {"robot": "urdf", "mujoco": "mjcf"}
 
 @dataclass(frozen=True)
 class ModelSource:
-    """label : MODEL as given. path : the file. format : 'urdf' or 'mjcf'. text : the file's text."""
+    """label : MODEL as given. path : the file. format : 'urdf' or 'mjcf'. text : the file's text (any blank
+    lines before its XML declaration removed). notes : what reading it changed."""
 
     label: str
     path: Path
     format: str
     text: str
+    notes: tuple[str, ...] = ()
+    #: False: a <limit> with lower above upper (no limit) reaches the engines as ±NO_LIMIT (Drake refuses
+    #: lower > upper); True: as it is (PyBullet's stepper empties every range so that PyBullet makes no limit).
+    keep_empty_ranges: bool = False
 
     @property
     def root(self) -> ET.Element:
@@ -36,17 +43,21 @@ class ModelSource:
     def engine_text(self, drop_mimic: bool = False) -> tuple[str, tuple[str, ...]]:
         """The text engines load (URDF without <visual>/<collision>, MJCF as it is) and notes saying what went."""
         if self.format != "urdf":
-            return self.text, ()
+            return self.text, self.notes
         root = self.root
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
+        widened = [] if self.keep_empty_ranges else _widen_empty_ranges(root)
         for parent in root.iter():
             for child in list(parent):
                 if child.tag in ("visual", "collision") or (drop_mimic and child.tag == "mimic"):
                     dropped[child.tag] += 1
                     missing.update(self._missing_meshes(child))
                     parent.remove(child)
-        notes = []
+        notes = list(self.notes)
+        if widened:
+            notes.append(f"{', '.join(widened)}: lower above upper (no limit, PyBullet's convention) given to every "
+                         f"engine as lower {-NO_LIMIT:g}, upper {NO_LIMIT:g} (Drake refuses lower > upper)")
         if dropped["visual"] or dropped["collision"]:
             note = (f"dynamics need no geometry: {dropped['visual']} <visual> and {dropped['collision']} "
                     f"<collision> elements removed before import")
@@ -75,6 +86,32 @@ class ModelSource:
         return names
 
 
+#: rad or m: the range a ``<limit>`` with lower above upper (no limit) is given to the engines as.
+NO_LIMIT = 1e6
+
+
+def _widen_empty_ranges(root: ET.Element) -> list[str]:
+    """Give every joint whose <limit> has lower above upper the range ±NO_LIMIT; the joints' names."""
+    widened = []
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        try:
+            empty = limit is not None and float(limit.get("lower", "0")) > float(limit.get("upper", "0"))
+        except ValueError:  # the description has already refused a non-numeric limit
+            empty = False
+        if empty and limit is not None:
+            limit.set("lower", f"{-NO_LIMIT:g}")
+            limit.set("upper", f"{NO_LIMIT:g}")
+            widened.append(f"joint {joint.get('name', '?')}")
+    return widened
+
+
+def unexpanded_xacro(model: str) -> ModelError:
+    """The error for a file that still holds xacro macros (ROS's macro language for URDF)."""
+    return ModelError(f"model {model}: unexpanded xacro (xacro: elements); expand it into a URDF first: "
+                      f"xacro FILE > model.urdf")
+
+
 def resolve(model: str, base: Path | None = None) -> ModelSource:
     """Read MODEL (a path, relative to ``base`` when given, or ``pybullet_data:<path>``); ModelError if unusable."""
     if model.startswith(PREFIX):
@@ -90,11 +127,17 @@ def resolve(model: str, base: Path | None = None) -> ModelSource:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ModelError(f"model {model}: cannot read {path} ({exc}); give a readable UTF-8 text file") from None
+    notes: tuple[str, ...] = ()
+    if text[:1].isspace() and text.lstrip().startswith("<?xml"):
+        text = text.lstrip()
+        notes = ("blank lines before the XML declaration removed (XML allows nothing before it)",)
     try:
         tag = ET.fromstring(text).tag
     except ET.ParseError as exc:
+        if "unbound prefix" in str(exc) and "xacro:" in text:
+            raise unexpanded_xacro(model) from None
         raise ModelError(f"model {model}: not well-formed XML ({exc}); fix the file") from None
     if tag not in FORMATS:
         raise ModelError(f"model {model}: root element <{tag}> is neither URDF's <robot> nor MJCF's <mujoco>; "
                          f"give a URDF or MJCF file")
-    return ModelSource(model, path, FORMATS[tag], text)
+    return ModelSource(model, path, FORMATS[tag], text, notes)

@@ -1,0 +1,155 @@
+"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF) into a Skeleton.
+
+Import options: ``DartLoader.Options`` with mDefaultRootJointType = FIXED
+(DART gives a URDF a floating root otherwise) and its default
+mDefaultInertia (1 kg, identity inertia: what a link without ``<inertial>``
+gets); the text is parsed with ``parseSkeletonString`` (so unresolvable
+``package://`` meshes, already stripped, cannot stop it). Gravity (0, 0,
+−9.81); every degree of freedom's damping, Coulomb friction and spring
+stiffness set to 0. M is ``getMassMatrix``, the bias
+``getCoriolisAndGravityForces``, the forward dynamics
+``computeForwardDynamics`` (no constraint solver: limits are not enforced).
+"""
+
+from __future__ import annotations
+
+
+
+import numpy as np
+
+from engines.dart import library
+from engines.dart.rk4 import rk4_stepper
+from engines.model.description import ModelDescription
+from engines.model.inertia import world_inertia
+from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.source import ModelSource
+from engines.model.stepping import common_settings, kept_damping, Stepper
+from engines.stdio import quiet_output
+from engines.model.scene import ModelScene
+
+NAME = "dart"
+
+
+def version() -> str:
+    return library.version()
+
+
+def load(source: ModelSource, description: ModelDescription) -> "DartModel":
+    dartpy = library.dartpy()
+
+    text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    if source.format == "mjcf":
+        try:
+            with quiet_output():
+                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(source.path.resolve().as_uri()))
+        except RuntimeError as exc:
+            raise Refused(" ".join(str(exc).split())) from None
+        if world is None or world.getNumSkeletons() != 1:
+            raise Refused("MjcfParser.readWorld did not give one skeleton (DART printed the reason)")
+        stated = {"loader": "MjcfParser.readWorld"}
+        return DartModel(world.getSkeleton(0), description, stated, notes)
+    loader = dartpy.utils.DartLoader()
+    options = dartpy.utils.DartLoader.Options()
+    options.mDefaultRootJointType = dartpy.utils.DartLoader.RootJointType.FIXED
+    loader.setOptions(options)
+    with quiet_output():  # DART prints a warning per massless link to stdout
+        skeleton = loader.parseSkeletonString(text, source.path.resolve().as_uri())
+    if skeleton is None:
+        raise Refused("DartLoader.parseSkeletonString returned no skeleton (DART printed the reason)")
+    stated = {"loader": "DartLoader.parseSkeletonString", "mDefaultRootJointType": "FIXED",
+              "mDefaultInertia": "1 kg, identity (DART's default)"}
+    return DartModel(skeleton, description, stated, notes)
+
+
+class DartModel(LoadedModel):
+    engine = NAME
+
+    def __init__(self, skeleton, description: ModelDescription, options, notes=()):
+        super().__init__(description, options, (*notes, "damping, Coulomb friction and spring stiffness set to 0"))
+        self.skeleton = skeleton
+        skeleton.setGravity([0.0, 0.0, -GRAVITY])
+        names, dofs = [], []
+        for k in range(skeleton.getNumJoints()):
+            joint = skeleton.getJoint(k)
+            if joint.getNumDofs() == 0:
+                continue
+            if joint.getNumDofs() != 1:
+                raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
+            joint.setDampingCoefficient(0, 0.0)
+            joint.setCoulombFriction(0, 0.0)
+            joint.setSpringStiffness(0, 0.0)
+            names.append(joint.getName())
+            dofs.append(joint.getIndexInSkeleton(0))
+        self.dof = np.array(dofs, dtype=int)[index_map(description, names)]
+        self.n = skeleton.getNumDofs()
+
+    def _set(self, q, v=None, tau=None) -> None:
+        for values, setter in ((q, self.skeleton.setPositions), (v, self.skeleton.setVelocities),
+                               (tau, self.skeleton.setForces)):
+            full = np.zeros(self.n)
+            if values is not None:
+                full[self.dof] = values
+            setter(full)
+
+    def mass_matrix(self, q):
+        self._set(q)
+        return np.array(self.skeleton.getMassMatrix())[np.ix_(self.dof, self.dof)]
+
+    def bias(self, q, v):
+        self._set(q, v)
+        return np.array(self.skeleton.getCoriolisAndGravityForces())[self.dof]
+
+    def forward(self, q, v, tau):
+        self._set(q, v, tau)
+        self.skeleton.computeForwardDynamics()
+        return np.array(self.skeleton.getAccelerations())[self.dof]
+
+    def link_inertias(self):
+        self._set(np.zeros(len(self.dof)))
+        found = {}
+        for k in range(self.skeleton.getNumBodyNodes()):
+            node = self.skeleton.getBodyNode(k)
+            inertia = node.getInertia()  # moment about the COM, in the body frame
+            pose = node.getWorldTransform()
+            found[node.getName()] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(),
+                                                  pose.rotation(), pose.translation())
+        return found
+
+
+class DartStepper(Stepper):
+    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
+
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
+        dart = library.dartpy()
+        loaded = load(scene.source, scene.description)
+        skeleton = self.skeleton = loaded.skeleton
+        for k in range(skeleton.getNumJoints()):
+            skeleton.getJoint(k).setLimitEnforcement(False)
+        self.dof = loaded.dof
+        for dof, damping in zip(self.dof, kept_damping(scene)):
+            skeleton.getDof(int(dof)).setDampingCoefficient(float(damping))
+        positions, velocities = np.zeros(skeleton.getNumDofs()), np.zeros(skeleton.getNumDofs())
+        positions[self.dof], velocities[self.dof] = scene.initial_q, scene.initial_v
+        skeleton.setPositions(positions)
+        skeleton.setVelocities(velocities)
+        skeleton.setForces(np.zeros(skeleton.getNumDofs()))
+        if integrator == "world":
+            self.world = dart.simulation.World()
+            self.world.setGravity(np.asarray(scene.gravity, dtype=float))
+            self.world.addSkeleton(skeleton)
+            self.world.setTimeStep(dt)
+            self.step = self.world.step
+        else:
+            # DART's forward dynamics treats joint damping implicitly over the skeleton's time step
+            # (a dt·d term in the articulated inertia); RK4 needs the acceleration itself: step 0.
+            skeleton.setTimeStep(0.0)
+            self.step = rk4_stepper(skeleton, dt)
+        self.settings = {**common_settings(scene, loaded), "integrator": integrator, "position_limits": "not enforced"}
+
+    def advance(self, steps: int) -> None:
+        for _ in range(steps):
+            self.step()
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return (np.asarray(self.skeleton.getPositions())[self.dof].copy(),
+                np.asarray(self.skeleton.getVelocities())[self.dof].copy())

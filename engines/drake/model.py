@@ -1,0 +1,179 @@
+"""Drake's import of a model file: ``Parser`` into a continuous ``MultibodyPlant``.
+
+Import options: ``Parser(plant).AddModelsFromString(text, "urdf")`` (or
+"xml" for MJCF) into a plant with time_step = 0 (continuous: no discrete
+solver, joint limits not enforced), the root link welded to the world
+before ``Finalize()``, gravity (0, 0, −9.81), every joint's default damping
+set to 0. M is ``CalcMassMatrix``, the bias ``CalcBiasTerm −
+CalcGravityGeneralizedForces``, the forward dynamics ``EvalTimeDerivatives``
+with the torques on the applied-generalized-force port. The parser's
+warnings go to Python's ``drake`` logger: they are kept in the notes
+(an inertia Drake finds physically invalid is replaced, and it says so).
+"""
+
+from __future__ import annotations
+
+import logging
+
+
+import numpy as np
+
+from engines.drake import library as drake
+from engines.model.description import ModelDescription
+from engines.model.inertia import world_inertia
+from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.source import ModelSource
+from engines.model.stepping import common_settings, Stepper
+from engines.model.scene import ModelScene
+
+NAME = "drake"
+
+
+def version() -> str:
+    return drake.version()
+
+
+def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
+    Parser = drake.Parser
+    MultibodyPlant = drake.MultibodyPlant
+
+    text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    plant = MultibodyPlant(0.0)
+    logger, warnings = logging.getLogger("drake"), _Collect()
+    level, propagate = logger.level, logger.propagate
+    logger.setLevel(logging.WARNING)
+    logger.propagate = False
+    logger.addHandler(warnings)
+    try:
+        Parser(plant).AddModelsFromString(text, "urdf" if source.format == "urdf" else "xml")
+        root = plant.GetBodyByName(description.root).body_frame()  # a body's frame: a joint may share its name
+        if root.body().index() != plant.world_body().index():  # Drake reads a link named "world" as the world
+            plant.WeldFrames(plant.world_frame(), root)
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            if joint.num_velocities() == 1 and hasattr(joint, "set_default_damping"):
+                joint.set_default_damping(0.0)
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -GRAVITY])
+        plant.Finalize()
+    except RuntimeError as exc:
+        raise Refused(" ".join(str(exc).split())) from None
+    finally:
+        logger.removeHandler(warnings)
+        logger.setLevel(level)
+        logger.propagate = propagate
+    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines))
+    options = {"parser": "Parser.AddModelsFromString", "time_step": "0 (continuous plant)",
+               "root": f"{description.root} welded to the world"}
+    return DrakeModel(plant, description, options, notes)
+
+
+class _Collect(logging.Handler):
+    """Keeps the parser's warnings (one line each, the file name dropped) for the notes."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.lines: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = " ".join(record.getMessage().split())
+        if "safety_controller" not in text:  # ROS tags Drake ignores: no bearing on dynamics
+            self.lines.append(text.split(": warning: ", 1)[-1][:300])
+
+
+class DrakeModel(LoadedModel):
+    engine = NAME
+
+    def __init__(self, plant, description: ModelDescription, options, notes=()):
+        super().__init__(description, options, (*notes, "joint damping set to 0"))
+        self.plant, self.context = plant, plant.CreateDefaultContext()
+        names, self.qpos, self.dof = [], [], []
+        for index in plant.GetJointIndices():
+            joint = plant.get_joint(index)
+            if joint.num_velocities() == 0:
+                continue
+            if joint.num_velocities() != 1 or joint.num_positions() != 1:
+                raise Refused(f"only 1-degree-of-freedom joints are compared; drake's {joint.name()} has more")
+            names.append(joint.name())
+            self.qpos.append(joint.position_start())
+            self.dof.append(joint.velocity_start())
+        index = index_map(description, names)
+        self.qpos, self.dof = np.array(self.qpos)[index], np.array(self.dof)[index]
+        self.forces = plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
+
+    def _set(self, q, v=None, tau=None) -> None:
+        positions = np.zeros(self.plant.num_positions())
+        positions[self.qpos] = q
+        velocities = np.zeros(self.plant.num_velocities())
+        if v is not None:
+            velocities[self.dof] = v
+        self.plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
+        forces = np.zeros(self.plant.num_velocities())
+        if tau is not None:
+            forces[self.dof] = tau
+        self.forces.GetMutableData().set_value(forces)
+
+    def mass_matrix(self, q):
+        self._set(q)
+        return self.plant.CalcMassMatrix(self.context)[np.ix_(self.dof, self.dof)]
+
+    def bias(self, q, v):
+        self._set(q, v)
+        bias = self.plant.CalcBiasTerm(self.context) - self.plant.CalcGravityGeneralizedForces(self.context)
+        return bias[self.dof]
+
+    def forward(self, q, v, tau):
+        self._set(q, v, tau)
+        derivatives = self.plant.EvalTimeDerivatives(self.context).get_vector().CopyToVector()
+        return derivatives[self.plant.num_positions():][self.dof]
+
+    def link_inertias(self):
+        BodyIndex = drake.BodyIndex
+
+        self._set(np.zeros(len(self.dof)))
+        found = {}
+        for k in range(1, self.plant.num_bodies()):  # body 0 is the world
+            body = self.plant.get_body(BodyIndex(k))
+            pose = self.plant.EvalBodyPoseInWorld(self.context, body)
+            mass, com = body.default_mass(), np.asarray(body.default_com())
+            # Drake keeps the inertia about the body origin Bo: shift it to the centre of mass.
+            about_origin = body.default_rotational_inertia().CopyToFullMatrix3()
+            about_com = about_origin - mass * (com @ com * np.eye(3) - np.outer(com, com))
+            found[body.name()] = world_inertia(mass, com, about_com, pose.rotation().matrix(), pose.translation())
+        return found
+
+
+class DrakeStepper(Stepper):
+    """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
+    integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
+
+    def __init__(self, scene: ModelScene, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
+        ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
+        loaded = load(scene.source, scene.description)
+        plant = self.plant = loaded.plant
+        self.simulator = Simulator(plant)
+        self.context = self.simulator.get_mutable_context()
+        plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
+        positions, velocities = np.zeros(plant.num_positions()), np.zeros(plant.num_velocities())
+        positions[loaded.qpos], velocities[loaded.dof] = scene.initial_q, scene.initial_v
+        plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
+        self.qpos, self.dof, self.nq = loaded.qpos, loaded.dof, plant.num_positions()
+        integrator = self.integrator = ResetIntegratorFromFlags(self.simulator, scheme, dt)
+        integrator.set_fixed_step_mode(fixed)
+        if not fixed:
+            integrator.set_target_accuracy(accuracy)
+        self.simulator.Initialize()
+        self.dt, self.time = dt, 0.0
+        self.settings = {**common_settings(scene, loaded), "drake_integrator": type(integrator).__name__,
+                         "fixed_step_mode": fixed, "target_accuracy": None if fixed else accuracy}
+
+    def advance(self, steps: int) -> None:
+        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/drake/adapter.py)
+            self.time += self.dt
+        self.simulator.AdvanceTo(self.time)
+
+    def steps_taken(self) -> int:
+        return int(self.integrator.get_num_steps_taken())
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        x = self.plant.GetPositionsAndVelocities(self.context)
+        return x[self.qpos].copy(), x[self.nq:][self.dof].copy()

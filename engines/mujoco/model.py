@@ -1,0 +1,147 @@
+"""MuJoCo's import of a model file: URDF through its compiler, MJCF natively.
+
+Import options (a URDF gets a ``<mujoco><compiler …/></mujoco>`` element):
+fusestatic = true (MuJoCo's URDF default: links welded by fixed joints are
+fused into one body), inertiafromgeom = auto (its default: only links with
+no ``<inertial>`` would take mass from geometry, and none is left),
+balanceinertia = false (an inertia violating A + B ≥ C is refused, as
+MuJoCo does; ``balance_inertia=True`` turns it on), discardvisual = true.
+An MJCF file is compiled as written. Joint damping, friction loss and
+armature are set to 0 after compiling, and the constraint solver is
+disabled (no joint limits or contacts), so forward dynamics are the tree's.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from engines.model.description import ModelDescription
+from engines.model.inertia import world_inertia
+from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
+from engines.model.source import ModelSource
+from engines.model.stepping import common_settings, kept_damping, Stepper
+from engines.mujoco.library import mujoco
+from engines.model.scene import ModelScene
+
+NAME = "mujoco"
+
+
+def version() -> str:
+    return mujoco.__version__
+
+
+def compiler_options(balance_inertia: bool = False, fusestatic: bool = True) -> dict[str, str]:
+    return {"fusestatic": "true" if fusestatic else "false", "inertiafromgeom": "auto",
+            "balanceinertia": "true" if balance_inertia else "false", "discardvisual": "true"}
+
+
+def load(source: ModelSource, description: ModelDescription, balance_inertia: bool = False,
+         fusestatic: bool = True) -> "MujocoModel":
+    """``fusestatic=False`` keeps welded links as bodies of their own (not MuJoCo's URDF default)."""
+    text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    options = compiler_options(balance_inertia, fusestatic) if source.format == "urdf" else {"mjcf": "compiled as written"}
+    if source.format == "urdf":
+        text = _with_compiler(text, options)
+    try:
+        model = mujoco.MjModel.from_xml_string(text)
+    except ValueError as exc:
+        raise Refused(" ".join(str(exc).split())) from None
+    return MujocoModel(model, description, options, notes)
+
+
+def _with_compiler(text: str, options: dict[str, str]) -> str:
+    import xml.etree.ElementTree as ET
+
+    robot = ET.fromstring(text)
+    for old in robot.findall("mujoco"):
+        robot.remove(old)
+    extension = ET.SubElement(robot, "mujoco")
+    ET.SubElement(extension, "compiler", options)
+    return ET.tostring(robot, encoding="unicode")
+
+
+class MujocoModel(LoadedModel):
+    engine = NAME
+
+    def __init__(self, model, description: ModelDescription, options: dict[str, str], notes=()):
+        model.dof_damping[:] = 0.0
+        model.dof_frictionloss[:] = 0.0
+        model.dof_armature[:] = 0.0
+        model.jnt_stiffness[:] = 0.0
+        model.opt.gravity[:] = (0.0, 0.0, -GRAVITY)
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        super().__init__(description, options, (*notes, "joint damping, friction loss, armature and stiffness "
+                                                "set to 0; constraints (limits, contacts) disabled"))
+        self.model, self.data = model, mujoco.MjData(model)
+        names = [model.joint(k).name for k in range(model.njnt)]
+        if model.nq != model.nv or model.nq != model.njnt:
+            raise Refused(f"only 1-degree-of-freedom joints are compared; mujoco has nq={model.nq}, nv={model.nv}")
+        self.index = index_map(description, names)
+        self.qpos = model.jnt_qposadr[self.index]
+        self.dof = model.jnt_dofadr[self.index]
+
+    def _set(self, q, v=None, tau=None) -> None:
+        d = self.data
+        d.qpos[:] = 0.0
+        d.qvel[:] = 0.0
+        d.qfrc_applied[:] = 0.0
+        d.qpos[self.qpos] = q
+        if v is not None:
+            d.qvel[self.dof] = v
+        if tau is not None:
+            d.qfrc_applied[self.dof] = tau
+
+    def mass_matrix(self, q):
+        self._set(q)
+        mujoco.mj_forward(self.model, self.data)
+        full = np.zeros((self.model.nv, self.model.nv))
+        mujoco.mj_fullM(self.model, self.data, full)
+        return full[np.ix_(self.dof, self.dof)]
+
+    def bias(self, q, v):
+        self._set(q, v)
+        mujoco.mj_forward(self.model, self.data)
+        return self.data.qfrc_bias[self.dof].copy()
+
+    def forward(self, q, v, tau):
+        self._set(q, v, tau)
+        mujoco.mj_forward(self.model, self.data)
+        return self.data.qacc[self.dof].copy()
+
+    def link_inertias(self):
+        self._set(np.zeros(len(self.dof)))
+        mujoco.mj_kinematics(self.model, self.data)
+        found = {}
+        for k in range(1, self.model.nbody):  # body 0 is the world
+            # ximat: the inertial frame's axes in the world; body_inertia: principal moments in it.
+            found[self.model.body(k).name] = world_inertia(
+                self.model.body_mass[k], np.zeros(3), np.diag(self.model.body_inertia[k]),
+                self.data.ximat[k].reshape(3, 3), self.data.xipos[k])
+        return found
+
+
+class MujocoStepper(Stepper):
+    """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
+
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
+        self.mujoco = mujoco
+        loaded = load(scene.source, scene.description)
+        self.model, self.data = loaded.model, loaded.data
+        self.model.opt.timestep = dt
+        self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
+        self.qpos, self.dof = loaded.qpos, loaded.dof
+        self.model.dof_damping[self.dof] = kept_damping(scene)
+        self.data.qpos[:] = 0.0
+        self.data.qvel[:] = 0.0
+        self.data.qpos[self.qpos] = scene.initial_q
+        self.data.qvel[self.dof] = scene.initial_v
+        mujoco.mj_forward(self.model, self.data)
+        self.settings = {**common_settings(scene, loaded), "integrator": integrator,
+                         "disableflags": int(self.model.opt.disableflags)}
+
+    def advance(self, steps: int) -> None:
+        self.mujoco.mj_step(self.model, self.data, nstep=steps)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.data.qpos[self.qpos].copy(), self.data.qvel[self.dof].copy()

@@ -1,0 +1,146 @@
+"""ours' rigid bodies for a robot model: the engine-neutral description (engines/model) translated once.
+
+Links welded by fixed joints are fused into the link they hang from (mass properties combined by the
+parallel-axis theorem, ``engines.model.inertia``), and links welded to the root belong to the world
+(the base is fixed); continuous joints are revolute. ours never reads the file. A moving group with no
+mass, or whose inertia is not positive definite, is refused naming its links: maximal coordinates
+give every moving body its own mass matrix, which must be invertible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engines.errors import Unsupported
+from engines.model.description import ModelDescription
+from engines.model.inertia import combine, world_inertia
+from engines.model.kinematics import rpy_matrix
+from engines.model.stepping import Stepper
+from ours import OursError
+from ours.rigid import (
+    Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, simulate,
+)
+
+GRAVITY = (0.0, 0.0, -9.81)
+
+
+@dataclass(frozen=True, eq=False)
+class OursModel:
+    """mechanism : ours' bodies and joints (one body per moving group of links).
+    carriers : link name -> (ours body index, -1 for the world; R (3, 3); p (3,) m): the link frame in
+    that body's frame. joint_names : the moving joints, in the description's order (ours' q order)."""
+
+    mechanism: Mechanism
+    carriers: dict[str, tuple[int, np.ndarray, np.ndarray]]
+    joint_names: tuple[str, ...]
+
+
+def translate(description: ModelDescription, gravity=GRAVITY) -> OursModel:
+    """ours' Mechanism for ``description`` (Unsupported, naming the links, when a moving group has no mass)."""
+    carriers = {description.root: (-1, np.eye(3), np.zeros(3))}
+    groups: list[list[str]] = []
+    joints = []
+    for j in description.joints:  # depth-first: the parent's carrier is known
+        body, R, p = carriers[j.parent]
+        Rj, pj = R @ rpy_matrix(j.rpy), p + R @ np.asarray(j.xyz, dtype=float)
+        if j.type == "fixed":
+            carriers[j.child] = (body, Rj, pj)
+            if body >= 0:
+                groups[body].append(j.child)
+            continue
+        carriers[j.child] = (len(groups), np.eye(3), np.zeros(3))
+        groups.append([j.child])
+        joints.append((j, body, Rj, pj))
+    bodies = []
+    for links in groups:
+        parts = [world_inertia(description.body(n).inertial.mass, description.body(n).inertial.com,
+                               description.body(n).inertial.inertia_matrix, carriers[n][1], carriers[n][2])
+                 for n in links]
+        total = combine(parts)
+        try:
+            bodies.append(Body(links[0], total.mass, total.com, total.inertia))
+        except OursError as error:
+            raise Unsupported(f"ours: the moving link {' + '.join(links)} has mass {total.mass:g} kg and principal "
+                              f"moments {', '.join(f'{m:.3g}' for m in np.linalg.eigvalsh(total.inertia))} kg·m²; "
+                              f"maximal coordinates need a positive mass and inertia for every moving body "
+                              f"({error})") from None
+    ours_joints = tuple(Joint(j.name, "revolute" if j.type == "continuous" else j.type, parent, carriers[j.child][0],
+                              pj, Rj, j.axis) for j, parent, Rj, pj in joints)
+    mechanism = Mechanism(tuple(bodies), ours_joints, gravity)
+    return OursModel(mechanism, carriers, tuple(j.name for j, *_ in joints))
+
+
+def link_origins(model: OursModel, y: np.ndarray, links) -> np.ndarray:
+    """(S, len(links), 3) m: each named link frame's origin at the states y (S, 13 nb)."""
+    origins, rotations = frames(model.mechanism, y)
+    out = np.zeros(origins.shape[:-2] + (len(links), 3))
+    for k, name in enumerate(links):
+        body, _, p = model.carriers[name]
+        out[..., k, :] = p if body < 0 else origins[..., body, :] + rotations[..., body, :, :] @ p
+    return out
+
+
+def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_every: int, **options):
+    """Simulate from joint coordinates q0, v0 (by joint name; rad, m, rad/s, m/s). Returns
+    (result, q (S, nq), v (S, nq)) with q unwrapped from q0 (ours' rows hold the angle only modulo 2π)."""
+    result = simulate(model.mechanism, initial_state(model.mechanism, q0, v0), dt, n_steps, sample_every, **options)
+    q, v = joint_coordinates(model.mechanism, result.y)
+    start = np.array([float(q0.get(name, 0.0)) for name in model.joint_names])
+    turns = np.round((start - q[0]) / (2 * np.pi)) if len(q) else np.zeros(len(start))
+    revolute = np.array([j.kind == "revolute" for j in model.mechanism.joints], dtype=bool)
+    if len(q):
+        q[:, revolute] += 2 * np.pi * turns[revolute]
+    return result, q, v
+
+
+class OursStepper(Stepper):
+    """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
+    start from the scene's joint state, step with the variant's method and integrator. Revolute angles
+    are read continuously from sample to sample (ours' rows fix them only modulo 2π). Its joints are
+    constraint rows, so they can come apart: :meth:`constraint_violations` says by how much at each state read."""
+
+    def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
+        self.scene = scene
+        self.model = translate(scene.description)
+        names = self.model.joint_names
+        q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
+        v0 = dict(zip(names, np.asarray(scene.initial_v, dtype=float)))
+        mech = self.model.mechanism
+        self.run = Stepping(mech, initial_state(mech, q0, v0), dt, method=method, integrator=integrator, **options)
+        self._last = np.array([q0[n] for n in names])
+        self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
+        #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
+        self._read: list[np.ndarray] = []
+        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.ours.model",
+                         "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
+                                                                     self.model.carriers.items() if b >= 0 and
+                                                                     mech.bodies[b].name != n},
+                         "contacts": "off", "joint_limits": "off", "file_dynamics": "neutral: joint damping, "
+                         "friction and armature left out", **self.run.settings}
+
+    def advance(self, steps: int) -> None:
+        self.run.advance(steps)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.run.status != "ok":
+            self._read.append(np.full(len(self.run.y), np.nan))
+            nan = np.full(len(self._last), np.nan)
+            return nan, nan.copy()
+        self._read.append(self.run.y.copy())
+        q, v = joint_coordinates(self.model.mechanism, self.run.y)
+        turns = np.round((self._last - q) / (2 * np.pi))
+        q[self._revolute] += 2 * np.pi * turns[self._revolute]
+        self._last = q.copy()
+        return q, v
+
+    def constraint_violations(self) -> np.ndarray:
+        """(n,) m: at each state :meth:`state` returned, in order, the largest joint violation (NaN once stepping
+        failed): the anchor gaps and prismatic slides off their axes (m), and each misalignment of a joint's
+        axes θ as L·sin θ (m), the displacement it makes at the scene's characteristic length L (the arm's
+        reach). docs/metrics.md. Read once, after the run, like the link frames (engines.model.stepping)."""
+        if not self._read:
+            return np.zeros(0)
+        distance, sine = joint_errors(self.model.mechanism, np.array(self._read))
+        return np.maximum(distance, float(self.scene.characteristic_length) * sine)
