@@ -19,15 +19,16 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 import tracemalloc
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import numpy as np  # noqa: E402
 
+from bench_ours import fastest  # noqa: E402
 from numba import njit  # noqa: E402
 
 from ours.banded import _NO_RUNTIME  # noqa: E402
@@ -82,15 +83,6 @@ def _integrate(y, nb, ydot, h, n):
         K.kick_drift(y, nb, ydot, h)
 
 
-def least(run, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.thread_time()
-        run()
-        best = min(best, time.thread_time() - start)
-    return best
-
-
 def kuka():
     from engines.ours.model import translate
     from engines.model.source import resolve as resolve_source
@@ -109,11 +101,11 @@ def stage_seconds(mech, y0, repeats: int, n: int = 20_000) -> dict[str, float]:
     _upto(y0, model, work, ks, kd, ydot, len(STAGES), 1)  # compile
     prefix = [0.0]
     for stages in range(1, len(STAGES) + 1):
-        prefix.append(least(lambda: _upto(y0, model, work, ks, kd, ydot, stages, n), repeats) / n)  # noqa: B023
+        prefix.append(fastest(lambda: _upto(y0, model, work, ks, kd, ydot, stages, n), repeats) / n)  # noqa: B023
     out = {name: max(prefix[i + 1] - prefix[i], 0.0) for i, (name, _) in enumerate(STAGES)}
     y = y0.copy()
     _integrate(y, len(mech.bodies), ydot, 1e-3, 1)
-    out["integration"] = least(lambda: _integrate(y.copy(), len(mech.bodies), ydot, 1e-3, n), repeats) / n
+    out["integration"] = fastest(lambda: _integrate(y.copy(), len(mech.bodies), ydot, 1e-3, n), repeats) / n
     out["derivative"] = prefix[-1]
     return out
 
@@ -127,7 +119,7 @@ def step_seconds(mech, y0, method: str, integrator: str, repeats: int, steps: in
         run.status = "ok"
         run.advance(steps)
 
-    return least(once, repeats) / steps
+    return fastest(once, repeats) / steps
 
 
 def python_allocations(mech, y0, calls: int = 200) -> float:

@@ -24,9 +24,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "scripts"))
 
-from ours.rigid import Body, Joint, Mechanism, initial_state, rotation_of, simulate, valid_pairs  # noqa: E402
-from rigid_support import chain, compound_double_pendulum  # noqa: E402
+from ours.rigid import Mechanism, initial_state, simulate, valid_pairs  # noqa: E402
+from ours_equivalence import _rel  # noqa: E402  (max |new − old| / max |old|, NaN = NaN)
+from rigid_support import branching_tree, chain, compound_double_pendulum  # noqa: E402
 
 DTS = (1e-3, 1e-2)
 DURATION = 0.5
@@ -37,15 +39,8 @@ STATUS = ("ok", "non-finite", "singular", "not-converged")
 
 
 def tree() -> tuple[Mechanism, np.ndarray]:
-    """A root with three branches of every joint kind (as tests/test_ours_rigid.py's dense-solve check)."""
-    rng = np.random.default_rng(3)
-    kinds = ["revolute", "ball", "prismatic", "fixed", "revolute", "ball"]
-    parents = [-1, 0, 0, 1, 0, 4]
-    bodies = tuple(Body(f"b{i}", 0.5 + i * 0.1, rng.normal(size=3) * 0.1, np.diag([0.01, 0.02, 0.025]) * (1 + i))
-                   for i in range(6))
-    joints = tuple(Joint(f"j{i}", kinds[i], parents[i], i, rng.normal(size=3) * 0.3, rotation_of(rng.normal(size=4)),
-                         rng.normal(size=3)) for i in range(6))
-    mech = Mechanism(bodies, joints)
+    """A root with three branches of every joint kind (tests/rigid_support.py), moving."""
+    mech = branching_tree(np.random.default_rng(3))
     return mech, initial_state(mech, {"j0": 0.4, "j2": 0.1, "j4": -0.3}, {"j0": 1.0, "j2": -0.5, "j4": 2.0})
 
 
@@ -78,19 +73,6 @@ def runs(names=None):
                 n = int(round(DURATION / dt))
                 r = simulate(mech, y0, dt, n, max(1, int(round(SAMPLE / dt))), method=method, integrator=integrator)
                 yield f"{name}|{method}-{integrator}|{dt:g}", {"y": r.y, "meta": np.array([r.steps, STATUS.index(r.status)])}
-
-
-def _rel(new: np.ndarray, old: np.ndarray) -> float:
-    if new.shape != old.shape:
-        return np.inf
-    same = (new == old) | (np.isnan(new) & np.isnan(old))
-    with np.errstate(invalid="ignore"):
-        diff = np.where(same, 0.0, np.abs(new - old))
-    if np.isnan(diff).any():
-        return np.inf
-    finite = np.abs(old[np.isfinite(old)])
-    scale = finite.max() if finite.size else 1.0
-    return float(diff.max() / max(scale, 1e-300)) if diff.size else 0.0
 
 
 def compare(path, names=None) -> tuple[int, float, int, list[str]]:

@@ -99,6 +99,27 @@ def _structure(form: str) -> tuple[list[list[bool]], list[list[bool]]]:
     return Y, Z
 
 
+def _sweep_lines(r: int, lb, y, lk, z, indent: str = "    ") -> tuple[list[str], list[str]]:
+    """The forward sweep of one joint: (lines before the ``if A >= 0:``, lines inside it). ``lb(m, p)`` and
+    ``lk(m, p)`` name L_B's and L_k's entries, ``y(c, m)`` and ``z(c, m)`` Y's and Z's (None: zero)."""
+    lines = []
+    for m in range(6):
+        terms = "".join(f" - {lb(m, p)} * u{p}" for p in range(m))
+        lines.append(f"{indent}u{m} = (x[B, 0, {m}]{terms}) * {lb(m, m)}")
+    for c in range(r):
+        lines.append(f"{indent}g{c} = x[j, 0, {c}] - ({_sum([(y(c, m), f'u{m}') for m in range(6)])})")
+    for m in range(r):
+        terms = "".join(f" - {lk(m, p)} * w{p}" for p in range(m))
+        lines.append(f"{indent}w{m} = (g{m}{terms}) * {lk(m, m)}")
+    lines += [f"{indent}x[B, 0, {m}] = u{m}" for m in range(6)] + [f"{indent}x[j, 0, {m}] = w{m}" for m in range(r)]
+    inside = []
+    for c in range(6):
+        total = _sum([(z(c, m), f"w{m}") for m in range(r)])
+        if total:
+            inside.append(f"{indent}    x[A, 0, {c}] += {total}")
+    return lines, inside
+
+
 def fold(kind: str, sweep: bool = False) -> str:
     """Eliminate one joint; with ``sweep``, also the forward sweep of a right side x, with the blocks still in
     registers (:func:`sweep_down`'s arithmetic, the same operations on the same values)."""
@@ -121,8 +142,7 @@ def fold(kind: str, sweep: bool = False) -> str:
     for c in range(r):  # Y row c = L_B⁻¹ (J_B row c)
         for m in range(6):
             if y[c][m]:
-                lines.append(f"    {y[c][m]} = " + _less(_jb(form, c, m), [(f"b{m}_{p}", y[c][p]) for p in range(m)],
-                                                       f"b{m}_{m}"))
+                lines.append(f"    {y[c][m]} = {_less(_jb(form, c, m), [(f'b{m}_{p}', y[c][p]) for p in range(m)], f'b{m}_{m}')}")
                 lines.append(f"    X[B, {c}, {m}] = {y[c][m]}")
     for a in range(r):  # S = Y Yᵀ (S[a, b] = Y row a · Y row b)
         for b in range(a + 1):
@@ -131,36 +151,21 @@ def fold(kind: str, sweep: bool = False) -> str:
     for a in range(r):
         for b in range(a + 1):
             lines.append(f"    D[j, {a}, {b}] = q{a}_{b}")
-    if sweep:
-        for m in range(6):
-            terms = "".join(f" - b{m}_{p} * u{p}" for p in range(m))
-            lines.append(f"    u{m} = (x[B, 0, {m}]{terms}) * b{m}_{m}")
-        for c in range(r):
-            lines.append(f"    g{c} = x[j, 0, {c}] - ({_sum([(y[c][m], f'u{m}') for m in range(6)])})")
-        for m in range(r):
-            terms = "".join(f" - q{m}_{p} * w{p}" for p in range(m))
-            lines.append(f"    w{m} = (g{m}{terms}) * q{m}_{m}")
-        for m in range(6):
-            lines.append(f"    x[B, 0, {m}] = u{m}")
-        for m in range(r):
-            lines.append(f"    x[j, 0, {m}] = w{m}")
+    swept, swept_inside = _sweep_lines(r, lambda m, p: f"b{m}_{p}", lambda c, m: y[c][m], lambda m, p: f"q{m}_{p}",
+                                       lambda c, m: z[c][m]) if sweep else ([], [])
+    lines += swept
     lines.append("    if A >= 0:")
     for c in range(6):  # Z column c = L_k⁻¹ (J_A column c)
         for m in range(r):
             if z[c][m]:
-                lines.append(f"        {z[c][m]} = " + _less(_ja(form, m, c), [(f"q{m}_{p}", z[c][p]) for p in range(m)],
-                                                           f"q{m}_{m}"))
+                lines.append(f"        {z[c][m]} = {_less(_ja(form, m, c), [(f'q{m}_{p}', z[c][p]) for p in range(m)], f'q{m}_{m}')}")
                 lines.append(f"        X[j, {c}, {m}] = {z[c][m]}")
     for a in range(6):
         for b in range(a + 1):
             total = _sum([(z[a][m], z[b][m]) for m in range(r)])
             if total:
                 lines.append(f"        D[A, {a}, {b}] += {total}")
-    if sweep:
-        for c in range(6):
-            total = _sum([(z[c][m], f"w{m}") for m in range(r)])
-            if total:
-                lines.append(f"        x[A, 0, {c}] += {total}")
+    lines += swept_inside
     lines.append("    return True")
     return "\n".join(lines)
 
@@ -172,25 +177,9 @@ def sweep_down(kind: str) -> str:
     lines = [f"@llvm_inlined\ndef sweep_down_{kind}(D, X, x, nb, k, A, B):",
              '    """Forward: z_B = L_B⁻¹ f̃_B, w_k = L_k⁻¹ (c_k − Y_k z_B), f̃_A += Z_kᵀ w_k."""',
              "    j = nb + k"]
-    for m in range(6):
-        terms = "".join(f" - D[B, {m}, {p}] * u{p}" for p in range(m))
-        lines.append(f"    u{m} = (x[B, 0, {m}]{terms}) * D[B, {m}, {m}]")
-    for c in range(r):
-        total = _sum([(f"X[B, {c}, {m}]" if Y[c][m] else None, f"u{m}") for m in range(6)])
-        lines.append(f"    g{c} = x[j, 0, {c}] - ({total})")
-    for m in range(r):
-        terms = "".join(f" - D[j, {m}, {p}] * w{p}" for p in range(m))
-        lines.append(f"    w{m} = (g{m}{terms}) * D[j, {m}, {m}]")
-    for m in range(6):
-        lines.append(f"    x[B, 0, {m}] = u{m}")
-    for m in range(r):
-        lines.append(f"    x[j, 0, {m}] = w{m}")
-    lines.append("    if A >= 0:")
-    for c in range(6):
-        total = _sum([(f"X[j, {c}, {m}]" if Z[c][m] else None, f"w{m}") for m in range(r)])
-        if total:
-            lines.append(f"        x[A, 0, {c}] += {total}")
-    return "\n".join(lines)
+    swept, inside = _sweep_lines(r, lambda m, p: f"D[B, {m}, {p}]", lambda c, m: f"X[B, {c}, {m}]" if Y[c][m] else None,
+                                 lambda m, p: f"D[j, {m}, {p}]", lambda c, m: f"X[j, {c}, {m}]" if Z[c][m] else None)
+    return "\n".join(lines + swept + ["    if A >= 0:"] + inside)
 
 
 def sweep_up(kind: str) -> str:
