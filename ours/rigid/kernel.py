@@ -91,6 +91,15 @@ def _set_row(JA, JB, k, r, a, b):
         JB[k, r, c] = b[c]
 
 
+@inlined
+def _set_moment(JA, JB, k, r, a, b):
+    """The angular half (columns 3–5) of row r of joint k: JA = a, JB = b (3 floats each). The linear half
+    of a point row (±e) and of a torque row (0) never changes: ``ours.rigid.workspace`` writes it once."""
+    for c in range(3):
+        JA[k, r, 3 + c] = a[c]
+        JB[k, r, 3 + c] = b[c]
+
+
 @llvm_inlined
 def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     """Three rows C = (x_A + r_A) − (x_B + r_B): the anchors coincide (m)."""
@@ -102,7 +111,7 @@ def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
         e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
         ra = _cross(rA[0], rA[1], rA[2], e0, e1, e2)
         rb = _cross(rB[0], rB[1], rB[2], e0, e1, e2)
-        _set_row(JA, JB, k, r0 + i, (e0, e1, e2, ra[0], ra[1], ra[2]), (-e0, -e1, -e2, -rb[0], -rb[1], -rb[2]))
+        _set_moment(JA, JB, k, r0 + i, (ra[0], ra[1], ra[2]), (-rb[0], -rb[1], -rb[2]))
         C[k, r0 + i] = xA[i] + rA[i] - xB[i] - rB[i]
         gam[k, r0 + i] = cA[i] - cB[i]
 
@@ -111,7 +120,7 @@ def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
 def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
     """One row C = p · w, p fixed in the parent, w in the child (both world, unit): they stay perpendicular."""
     n = _cross(p[0], p[1], p[2], w[0], w[1], w[2])
-    _set_row(JA, JB, k, r, (0.0, 0.0, 0.0, n[0], n[1], n[2]), (0.0, 0.0, 0.0, -n[0], -n[1], -n[2]))
+    _set_moment(JA, JB, k, r, (n[0], n[1], n[2]), (-n[0], -n[1], -n[2]))
     C[k, r] = p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
     pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
     wd = _cross(wB[0], wB[1], wB[2], w[0], w[1], w[2])

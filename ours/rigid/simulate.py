@@ -71,10 +71,15 @@ def packed(mech: Mechanism) -> tuple:
 
 
 def workspace(mech: Mechanism, stages: int) -> tuple:
-    """Scratch arrays of the kernel (nothing in it allocates)."""
+    """Scratch arrays of the kernel (nothing in it allocates), with the constant entries of the joints'
+    Jacobians J_A, J_B (work[2], work[3]) written once."""
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
-    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
+    JA, JB = np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6))
+    for k, j in enumerate(mech.joints):  # the point rows' linear half, ±e, is constant: the kernel never writes it
+        if j.kind != "prismatic":
+            JA[k, :3, :3], JB[k, :3, :3] = np.eye(3), -np.eye(3)
+    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), JA, JB, np.zeros((nj, 6)),
             np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
             np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
 
