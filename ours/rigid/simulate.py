@@ -6,6 +6,7 @@ COM velocity v, world angular velocity ω. :func:`initial_state` builds y from j
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import weakref
@@ -356,8 +357,9 @@ def _compiled_run(args: tuple, y: np.ndarray, model: tuple, work: tuple, out: np
 
 class Stepping:
     """A run that advances on request (for a caller that samples as it goes): the same compiled step
-    as :func:`simulate`. ``y`` (13 nb,) is the current state; ``status`` "ok" or why it stopped (then
-    ``y`` is left as it was when the step failed and :meth:`advance` does nothing more)."""
+    as :func:`simulate`. ``y`` (13 nb,) is the current state, stepped in place (set it with ``y[:] = ...``:
+    the compiled call holds this array); ``status`` "ok" or why it stopped (then ``y`` is left as it was
+    when the step failed and :meth:`advance` does nothing more)."""
 
     def __init__(self, mech: Mechanism, y0, dt: float, *, method: str = "baumgarte", integrator: str | None = None,
                  k_s: float | None = None, k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
@@ -373,13 +375,15 @@ class Stepping:
         self.y = np.array(y0, dtype=float).ravel()
         self._out = np.zeros((2, self.y.size))
         self.status, self.steps = "ok", 0
-        self._run = _compiled_run(self._args, self.y, self._model, self._work, self._out)
+        # everything but the step count bound once: a sample's call passes two numbers
+        self._run = functools.partial(_compiled_run(self._args, self.y, self._model, self._work, self._out),
+                                      *self._args, self.y, self._model, self._work, *self._gains, self._dt)
 
     def advance(self, steps: int) -> str:
         """Take ``steps`` steps of dt in place; returns the status."""
         if self.status == "ok" and steps > 0:
-            _, taken, status = self._run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
-                                         int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
+            steps = int(steps)
+            _, taken, status = self._run(steps, steps, self._tolerance, self._max_iterations, self._out)
             self.steps += int(taken)
             self.status = STATUS_TEXT[int(status)]
         return self.status
