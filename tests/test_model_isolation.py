@@ -92,7 +92,7 @@ def test_dart_segfaults_on_a_dm_control_acrobot_and_the_other_engines_report(cle
     assert rows["dart"]["message"] == "crashed (SIGSEGV) while loading" and not rows["dart"]["loaded"]
     assert [name for name, row in rows.items() if row["failure"]] == ["dart"]
     assert rows["mujoco"]["loaded"] and rows["drake"]["loaded"]  # they report their differences
-    assert rows["pybullet"]["message"]  # its loadMJCF's answer, whatever it is
+    assert rows["pybullet"]["loaded"] or rows["pybullet"]["message"]  # its loadMJCF's answer, whatever it is
 
 
 def test_a_child_s_answer_its_exception_and_its_working_folder(tmp_path):

@@ -7,7 +7,7 @@ import json
 import click
 
 from compare.model.isolation import DEFAULT_TIMEOUT
-from compare.model.parity import QUANTITIES, TOLERANCE, CheckCrashed, ParityReport, check
+from compare.model.parity import BASES, QUANTITIES, TOLERANCE, CheckCrashed, ParityReport, check
 from engines.model.importers import ENGINES
 
 
@@ -27,8 +27,10 @@ def command() -> None:
               help="Let MuJoCo balance inertias that violate A + B >= C (its balanceinertia) instead of refusing them.")
 @click.option("--timeout", default=DEFAULT_TIMEOUT, show_default=True, type=click.FloatRange(min=0, min_open=True),
               help="Seconds each engine (and the reference) may take before it is killed.")
+@click.option("--base", type=click.Choice(BASES), default="fixed", show_default=True,
+              help="A URDF's root link welded to the world (fixed) or free (floating); an MJCF says its own.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table", show_default=True)
-def check_command(model, engines, states, seed, balance_inertia, timeout, output_format) -> None:
+def check_command(model, engines, states, seed, balance_inertia, timeout, base, output_format) -> None:
     """Compare each engine's M(q), bias b(q, v) and forward dynamics with Pinocchio's on MODEL.
 
     MODEL is a URDF or MJCF file, or pybullet_data:<path> for a model PyBullet
@@ -39,7 +41,7 @@ def check_command(model, engines, states, seed, balance_inertia, timeout, output
     """
     try:
         report = check(model, tuple(engines) or ENGINES, states=states, seed=seed, balance_inertia=balance_inertia,
-                       timeout=timeout)
+                       timeout=timeout, base=base)
     except CheckCrashed as exc:
         click.echo(f"xval: model {model}: {exc}; nothing was compared", err=True)
         raise click.exceptions.Exit(1) from None

@@ -1,8 +1,8 @@
 """Dynamics parity: each engine's M(q), b(q, v) and a(q, v, tau) against Pinocchio's at sampled states.
 
-States: q uniform within each joint's limits (the inner 90 %: PyBullet's
-limit constraints stay idle) or ±π for a joint without them (±1 m for a
-prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
+States: a floating base anywhere within 1 m of the origin in any orientation (engines/model/floating.py);
+q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
+joint without them (±1 m for a prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
 a* uniform in ±1 rad/s² (m/s²), so every joint's reference acceleration is
 of order one. Per quantity the relative difference is the largest
 |engine − reference| over entries and states divided by the largest
@@ -116,17 +116,21 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
             reach = math.pi if joint.type != "prismatic" else 1.0
             lower[k], upper[k] = -reach, reach
     q = rng.uniform(lower, upper, (count, model.nq))
-    v = rng.uniform(-1.0, 1.0, (count, model.nq))
-    target = rng.uniform(-1.0, 1.0, (count, model.nq))
+    if model.floating is not None:  # the base anywhere within 1 m, in any orientation (a uniform unit quaternion)
+        quaternions = rng.normal(size=(count, 4))
+        quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
+        q = np.concatenate([rng.uniform(-1.0, 1.0, (count, 3)), quaternions, q], axis=1)
+    v = rng.uniform(-1.0, 1.0, (count, model.nv))
+    target = rng.uniform(-1.0, 1.0, (count, model.nv))
     tau = np.array([reference.mass_matrix(qk) @ ak + reference.bias(qk, vk) for qk, vk, ak in zip(q, v, target)])
     return States(q, v, tau)
 
 
 def _require_invertible(model: ModelDescription, reference: LoadedModel, label: str) -> None:
     """ModelError naming the joints that move nothing with mass or inertia (M singular: no forward dynamics)."""
-    m = reference.mass_matrix(np.zeros(model.nq))
+    m = reference.mass_matrix(model.neutral())
     scale = max(float(np.abs(m).max()), 1e-300)
-    idle = [j.name for j, d in zip(model.moving_joints, np.diag(m)) if d <= 1e-12 * scale]
+    idle = [name for name, d in zip(model.dof_names, np.diag(m)) if d <= 1e-12 * scale]
     if idle:
         raise ModelError(f"model {label}: joint {', '.join(idle)} moves no mass or inertia (M is singular); "
                          f"give the links it moves an <inertial>")
@@ -151,27 +155,41 @@ def relative_difference(values: list[np.ndarray], reference: list[np.ndarray], f
     return worst / scale if scale > 0 else worst
 
 
-def read_description(label: str) -> tuple[sources.ModelSource, ModelDescription]:
-    """The source and its description (mimic joints as independent coordinates, said in the notes)."""
+#: What ``--base`` takes: a URDF's root welded to the world (URDF's default) or joined by a floating joint.
+BASES = ("fixed", "floating")
+
+
+def read_description(label: str, base: str = "fixed") -> tuple[sources.ModelSource, ModelDescription]:
+    """The source and its description (mimic joints as independent coordinates, said in the notes); ``base``
+    applies to a URDF (an MJCF says its own: a free joint)."""
     from engines.model.scene import describe
 
+    _check_base(base)
     source = sources.resolve(label)
-    return source, describe(source)
+    return source, describe(source, base)
+
+
+def _check_base(base: str) -> None:
+    if base not in BASES:
+        raise ModelError(f"--base: must be one of {', '.join(BASES)}, got {base!r}")
 
 
 def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, seed: int = 0,
-          balance_inertia: bool = False, timeout: float = isolation.DEFAULT_TIMEOUT) -> ParityReport:
+          balance_inertia: bool = False, timeout: float = isolation.DEFAULT_TIMEOUT,
+          base: str = "fixed") -> ParityReport:
     """The parity report of model ``label``; UserError (ModelError) for bad input, before any engine runs;
-    CheckCrashed when reading the file or the model reference crashed or hung. ``timeout`` : s per child process."""
+    CheckCrashed when reading the file or the model reference crashed or hung. ``timeout`` : s per child process.
+    ``base`` : a URDF's root "fixed" to the world or "floating"."""
     for name in engines:
         if name not in ENGINES:
             raise ModelError(f"--engine: unknown engine {name!r}; choose from {', '.join(ENGINES)}")
     if states < 1:
         raise ModelError(f"--states: must be at least 1, got {states}")
+    _check_base(base)
     source = sources.resolve(label)
     source = replace(source, path=Path(source.path).absolute())  # the children work in folders of their own
-    model, notes = _answer("reading the file", isolation.run(_describe, source, timeout=timeout))
-    if model.nq == 0:
+    model, notes = _answer("reading the file", isolation.run(_describe, source, base, timeout=timeout))
+    if model.nq == 0 and model.floating is None:
         raise ModelError(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
     model_reference = _answer(f"the model reference ({REFERENCE})",
                               isolation.run(_model_reference, source, model, label, states, seed, timeout=timeout))
@@ -193,12 +211,12 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
                         seed, tuple(results), notes, tuple(lines), model_reference.forward_tolerance)
 
 
-def _describe(source: sources.ModelSource) -> tuple[ModelDescription, tuple[str, ...]]:
+def _describe(source: sources.ModelSource, base: str) -> tuple[ModelDescription, tuple[str, ...]]:
     """The description and the notes on what the engines are given (in a child: MJCF is read by MuJoCo)."""
     from engines.model.scene import describe
 
     isolation.report("stage", "reading the file")
-    model = describe(source)
+    model = describe(source, base)
     return model, (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
 
 

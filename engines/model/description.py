@@ -27,8 +27,9 @@ from engines.errors import UserError
 Vector = tuple[float, float, float]
 Matrix = tuple[Vector, Vector, Vector]
 
-#: Joint types a description holds; every other type is refused.
-JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+#: Joint types a description holds; every other type is refused. "floating" (six degrees of freedom) only
+#: between the world and the base.
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating")
 #: Joint types that add a coordinate.
 MOVING = ("revolute", "continuous", "prismatic")
 #: Most negative principal moment accepted, relative to the largest principal moment of any link of the model
@@ -92,11 +93,13 @@ class Inertial:
 
 @dataclass(frozen=True)
 class Body:
-    """A rigid link. parent_joint : the joint whose child it is (None for the root)."""
+    """A rigid link. parent_joint : the joint whose child it is (None for the root). virtual : a massless
+    link the reader added between two joints of one MJCF body (no engine need have it; never compared)."""
 
     name: str
     parent_joint: str | None
     inertial: Inertial = field(default_factory=Inertial)
+    virtual: bool = False
 
 
 @dataclass(frozen=True)
@@ -137,9 +140,8 @@ class Joint:
 
     def check(self) -> None:
         if self.type not in JOINT_TYPES:
-            fix = ("the base is welded to the world; remove the floating joint" if self.type == "floating"
-                   else f"use one of {', '.join(JOINT_TYPES)}")
-            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; {fix}")
+            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; "
+                             f"use one of {', '.join(t for t in JOINT_TYPES if t != 'floating')}")
         if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
             raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
         if self.moving:
@@ -154,7 +156,14 @@ class Joint:
 
 @dataclass(frozen=True)
 class ModelDescription:
-    """A fixed-base kinematic tree. bodies, joints : depth-first from ``root``."""
+    """A kinematic tree. bodies, joints : depth-first from ``root``.
+
+    A floating base is a joint of type "floating" from the root (the world: MuJoCo's ``world`` for an MJCF
+    free joint, a massless ``__world__`` added for a URDF read with a floating base) to the base link, the
+    first joint. Coordinates (Pinocchio's convention, the one inside xval): the configuration is (base
+    position (3,) m, base orientation quaternion x y z w, joint q) and the velocity (base linear velocity
+    (3,) m/s and angular velocity (3,) rad/s, both in the base frame, joint v); fixed base: joint q and v.
+    """
 
     name: str
     source: str
@@ -181,7 +190,45 @@ class ModelDescription:
                 if end not in names:
                     raise ModelError(f"joint {joint.name}: link {end} is not declared; add a <link name=\"{end}\">")
         _check_tree(self)
+        for k, joint in enumerate(self.joints):
+            if joint.type == "floating" and (k > 0 or joint.parent != self.root or self.body(self.root).inertial.mass):
+                raise ModelError(f"joint {joint.name}: a floating joint must join the world to the base; "
+                                 f"make it the root body's only joint (a free joint in a top-level body)")
         object.__setattr__(self, "notes", (*self.notes, *(n for n in _inertia_notes(self) if n not in self.notes)))
+
+    @cached_property
+    def floating(self) -> Joint | None:
+        """The floating joint between the world and the base (None: the root is welded to the world)."""
+        return self.joints[0] if self.joints and self.joints[0].type == "floating" else None
+
+    @property
+    def base_dofs(self) -> int:
+        """6 with a floating base, else 0: the velocity entries before the joints'."""
+        return 6 if self.floating is not None else 0
+
+    @property
+    def nv(self) -> int:
+        """Velocity size: base_dofs + nq."""
+        return self.base_dofs + self.nq
+
+    @property
+    def nconfig(self) -> int:
+        """Configuration size: 7 (position, quaternion) with a floating base, + nq."""
+        return (7 if self.floating is not None else 0) + self.nq
+
+    @property
+    def dof_names(self) -> tuple[str, ...]:
+        """A name per velocity entry: the base's six (``BASE.vx`` … ``BASE.wz``), then the joints."""
+        base = () if self.floating is None else tuple(f"{self.floating.name}.{a}" for a in
+                                                      ("vx", "vy", "vz", "wx", "wy", "wz"))
+        return (*base, *(j.name for j in self.moving_joints))
+
+    def neutral(self) -> np.ndarray:
+        """(nconfig,) the zero configuration (the base at the origin, identity orientation)."""
+        q = np.zeros(self.nconfig)
+        if self.floating is not None:
+            q[6] = 1.0
+        return q
 
     @cached_property
     def moving_joints(self) -> tuple[Joint, ...]:
@@ -208,12 +255,13 @@ class ModelDescription:
 
     @cached_property
     def moving_links(self) -> tuple[str, ...]:
-        """Links with a moving joint between them and the world (the others cannot change the dynamics)."""
+        """Links with a moving joint between them and the world (the others cannot change the dynamics),
+        the virtual ones left out."""
         moving: set[str] = set()
         for joint in self.joints:  # depth-first: a parent is settled before its children
-            if joint.moving or joint.parent in moving:
+            if joint.moving or joint.type == "floating" or joint.parent in moving:
                 moving.add(joint.child)
-        return tuple(b.name for b in self.bodies if b.name in moving)
+        return tuple(b.name for b in self.bodies if b.name in moving and not b.virtual)
 
 
 def _inertia_notes(model: ModelDescription) -> list[str]:

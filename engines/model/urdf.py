@@ -24,8 +24,15 @@ from engines.model.kinematics import rpy_matrix
 from engines.model.source import ModelSource, unexpanded_xacro
 
 
-def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescription:
-    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold."""
+#: The world body and the joint a floating base adds above a URDF's root link (names no URDF link takes).
+WORLD, FLOATING = "__world__", "__floating_base__"
+
+
+def read(source: ModelSource, mimic_independent: bool = False, floating: bool = False) -> ModelDescription:
+    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold.
+
+    floating : the root link joined to the world by a floating joint (``--base floating``); URDF's default,
+    and this one's, is the root welded to the world."""
     robot = source.root
     _refuse_xacro(source.label, robot)
     links = robot.findall("link")
@@ -64,6 +71,11 @@ def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescripti
     ordered_links += [n for n in bodies if n not in ordered_links]
     ordered_joints += [j for j in joints if j not in ordered_joints]
     body_records = tuple(Body(n, parent_of[n].name if n in parent_of else None, bodies[n][1]) for n in ordered_links)
+    if floating and len(roots) == 1:
+        body_records = (Body(WORLD, None), *(replace(b, parent_joint=FLOATING) if b.name == root else b
+                                             for b in body_records))
+        ordered_joints.insert(0, Joint(FLOATING, "floating", WORLD, root))
+        root = WORLD
     return ModelDescription(name=robot.get("name", source.path.stem), source=source.label, format="urdf",
                             root=root, bodies=body_records, joints=tuple(ordered_joints), notes=tuple(notes),
                             mimic_independent=mimic_independent)
@@ -129,6 +141,9 @@ def _joint(element: ET.Element) -> Joint:
     name = _name(element, "joint")
     where = f"joint {name}"
     kind = element.get("type", "")
+    if kind == "floating":  # the one floating joint is the base's, asked for with --base floating
+        raise ModelError(f"{where}: type 'floating' is not supported; the base is welded to the world; "
+                         f"remove the floating joint")
     parent, child = element.find("parent"), element.find("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
         raise ModelError(f"{where}: needs <parent link=…> and <child link=…>; add them")
