@@ -9,7 +9,7 @@
    ours' symplectic Euler against MuJoCo's Euler, ours' RK4 against MuJoCo's RK4, 0.5 s from rest at
    0.3 rad per joint. Target ≤ 5× for the default cure (baumgarte); the projection rows say what a
    factor and its iterations per step add (no target).
-3. KUKA iiwa as the harness times it (issue 46): suites/models.toml's kuka-iiwa scene run through each
+3. KUKA iiwa as the harness times it: suites/models.toml's kuka-iiwa scene run through each
    engine's ``Engine.simulate`` (bench/bench_models.py's ``stepping``: thread CPU of the sample-by-sample
    stepping, per step), ours/baumgarte-symplectic-euler against mujoco/hinge and ours/baumgarte-rk4
    against mujoco/hinge-rk4, the four taken in turns; a run's figure is the least of 5 such rounds, and

@@ -1,4 +1,4 @@
-"""Where a step of ours' rigid bodies goes: a per-stage profile on the KUKA iiwa (issue 46).
+"""Where a step of ours' rigid bodies goes: a per-stage profile on the KUKA iiwa.
 
 The KUKA iiwa (pybullet_data's kuka_iiwa/model.urdf, 7 moving bodies, translated by engines/ours/model.py) at
 q = 0.3 rad per joint, at rest, dt 1e-3 s. Each stage of the compiled derivative (ours.rigid.kernel) is

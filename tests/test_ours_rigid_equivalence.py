@@ -1,4 +1,4 @@
-"""ours' rigid-body trajectories are those saved from the kernel before the speed work (issue 46), to round-off.
+"""ours' rigid-body trajectories are those saved from the kernel before it was reshaped for speed, to round-off.
 
 tests/golden/rigid_trajectories.npz holds every method × integrator of scripts/rigid_equivalence.py on the
 compound double pendulum, a 6-link chain, a branching tree of every joint kind and the KUKA iiwa, at dt
