@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 from ours.rigid import Mechanism, initial_state, simulate, valid_pairs  # noqa: E402
-from ours_equivalence import _rel  # noqa: E402  (max |new − old| / max |old|, NaN = NaN)
+from ours_equivalence import _rel, save  # noqa: E402  (_rel: max |new − old| / max |old|, NaN = NaN)
 from rigid_support import branching_tree, chain, compound_double_pendulum  # noqa: E402
 
 DTS = (1e-3, 1e-2)
@@ -97,9 +97,7 @@ def main(argv: list[str]) -> int:
         return 2
     mode, path = argv
     if mode == "save":
-        data = {f"{key}|{name}": a for key, arrays in runs() for name, a in arrays.items()}
-        np.savez_compressed(path, **data)
-        print(f"saved {len(data) // 2} runs to {path}")
+        save(path, runs())
         return 0
     count, worst, identical, failures = compare(path)
     print(f"checked {count} runs; {identical} bit-identical; largest relative difference of the states {worst:.3g}"
