@@ -1,0 +1,320 @@
+"""The reference's sensitivities: variational equations integrated beside its own solve with DOP853.
+
+For a planar chain (the catalog's bead, double pendulum and chain: a Pin and Rods hung from it) the
+reference's state is y = (θ, θ̇) (absolute link angles, rad, rad/s) and its right-hand side
+f(y, π) depends on the physical parameters π = (masses (n) kg, lengths (n) m, g_x, g_z m/s²).
+A scene parameter p (``theta1``, ``omega2``, ``g``, ``m1``, ``l2``, ...) moves y(0) and π along a
+fixed direction (y0', π'), read from the catalog (:func:`parameter_directions`). The sensitivity
+S = ∂y/∂p solves
+
+    Ṡ = ∂f/∂y · S + ∂f/∂π · π',   S(0) = y0',
+
+and the outputs (the CSV's columns at T: each particle's p_x p_y p_z v_x v_y v_z) have
+dout/dp = ∂h/∂y · S(T) + ∂h/∂π · π'. Every product of a Jacobian with a direction is taken by a
+complex step, f(y + i h s, π + i h π').imag / h with h = 1e-30, through a complex-capable copy of
+the reference's right-hand side: exact to round-off (no differences, no cancellation), all k
+directions in one batched evaluation.
+
+Units: a column of the Jacobian is per SI unit of its parameter (per radian for an angle given in
+degrees, per kg, per m, per m/s²).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from engines.errors import Unsupported, UserError
+from engines.reference.reference import (
+    DEFAULT_ATOL,
+    DEFAULT_RTOL,
+    MIN_RTOL,
+    TIGHTER,
+    ChainModel,
+    _solve_ivp,
+    chain_model,
+)
+from engines.scene.scene import Scene
+
+#: The complex step (any h ≪ √ε|x| works; the derivative is exact to round-off).
+COMPLEX_STEP = 1e-30
+#: The reference's Jacobian is trusted while its two solves (tolerance and TIGHTER times tighter) agree to
+#: this relative Frobenius difference: a tenth of the 1e-6 an engine must reach to be called correct.
+JACOBIAN_HORIZON = 1e-7
+
+
+def output_columns(scene: Scene) -> list[str]:
+    """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle."""
+    return [f"{kind}{i}_{axis}" for i in range(len(scene.particles)) for kind in "pv" for axis in "xyz"]
+
+
+def outputs_of(positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
+    """(…, 6P) in :func:`output_columns` order from positions and velocities (…, P, 3)."""
+    both = np.concatenate([positions, velocities], axis=-1)  # (…, P, 6)
+    return both.reshape(both.shape[:-2] + (-1,))
+
+
+# -- the parameters --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ChainPoint:
+    """A chain's reduced initial state and physical parameters, as one vector each.
+
+    y0 : (2n,) rad, rad/s; physics : (2n + 2,) masses kg, lengths m, (g_x, g_z) m/s².
+    """
+
+    y0: np.ndarray
+    physics: np.ndarray
+
+    @classmethod
+    def of(cls, scene: Scene) -> "ChainPoint":
+        model = chain_model(scene)
+        return cls(model.initial_state(scene), np.concatenate([model.masses, model.lengths, model.gravity]))
+
+
+def si_scale(scene_name: str, name: str) -> float:
+    """SI units per unit of catalog parameter ``name``: π/180 for an angle in degrees, 1 otherwise."""
+    from engines.scene.catalog import builder
+
+    unit = {p.name: p.unit for p in builder(scene_name).parameters}[name]
+    return math.pi / 180.0 if unit == "deg" else 1.0
+
+
+def check_wrt(scene: Scene, wrt: Sequence[str]) -> None:
+    """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry."""
+    from engines.scene.catalog import builder
+
+    if scene.is_model:
+        raise Unsupported("gradients of model files are not computed yet: use a catalog scene")
+    if not wrt:
+        raise UserError("--wrt: give at least one scene parameter, e.g. --wrt theta1,g")
+    parameters = {p.name: p for p in builder(scene.name).parameters}
+    allowed = [n for n, p in parameters.items() if not p.integer and n != "duration"]
+    for name in wrt:
+        if name not in allowed:
+            raise UserError(f"--wrt: {scene.name} has no real parameter {name!r}; choose from: {', '.join(allowed)}")
+    if len(set(wrt)) != len(wrt):
+        raise UserError(f"--wrt: a parameter is named twice in {', '.join(wrt)}")
+
+
+def perturbed(scene: Scene, name: str, delta: float) -> Scene:
+    """``scene`` rebuilt from the catalog with parameter ``name`` moved by ``delta`` SI units (rad for angles)."""
+    from engines.scene.catalog import build
+
+    values: dict[str, Any] = dict(scene.parameters)
+    values[name] = float(values[name]) + delta / si_scale(scene.name, name)
+    return build(scene.name, values)
+
+
+#: Relative step of the differences that read a direction from the catalog (its maps are linear:
+#: the step only sets the round-off, ε / step ≈ 2e-12).
+_DIRECTION_STEP = 1e-4
+
+
+def parameter_directions(scene: Scene, wrt: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(dy0/dp (2n, k), dπ/dp (2n + 2, k)) per SI unit of each parameter of ``wrt``.
+
+    The catalog's chain builders are linear in every real parameter (an angle, a rate, a mass, a length,
+    g each set one or more entries of y0 or π), so a central difference of the built scenes gives the
+    direction to round-off.
+    """
+    check_wrt(scene, wrt)
+    dy, dpi = [], []
+    for name in wrt:
+        value = float(scene.parameters[name]) * si_scale(scene.name, name)
+        h = _DIRECTION_STEP * max(1.0, abs(value))
+        up, down = ChainPoint.of(perturbed(scene, name, h)), ChainPoint.of(perturbed(scene, name, -h))
+        dy.append((up.y0 - down.y0) / (2 * h))
+        dpi.append((up.physics - down.physics) / (2 * h))
+    return np.array(dy).T, np.array(dpi).T
+
+
+# -- the chain, complex-capable and batched over directions -----------------------------------
+
+
+def chain_rhs(y: np.ndarray, physics: np.ndarray) -> np.ndarray:
+    """dy/dt (k, 2n) for states y (k, 2n) and parameters π (k, 2n + 2); real or complex.
+
+    The same equations as :func:`engines.reference.kernels.chain_rhs` (M θ̈ = G − S θ̇², with
+    M_ij = μ_ij l_i l_j cos(θ_i − θ_j)), written with numpy so that complex numbers pass through.
+    """
+    n = y.shape[1] // 2
+    theta, theta_dot = y[:, :n], y[:, n:]
+    masses, lengths, gx, gz = physics[:, :n], physics[:, n:2 * n], physics[:, 2 * n], physics[:, 2 * n + 1]
+    tail = np.cumsum(masses[:, ::-1], axis=1)[:, ::-1]  # μ_i = Σ_{k ≥ i} m_k
+    mu = tail[:, np.maximum.outer(np.arange(n), np.arange(n))]  # μ_ij = μ_max(i, j)
+    inertia = mu * lengths[:, :, None] * lengths[:, None, :]
+    d = theta[:, :, None] - theta[:, None, :]
+    m = inertia * np.cos(d)
+    weight = tail * lengths
+    b = weight * (gx[:, None] * np.cos(theta) + gz[:, None] * np.sin(theta))
+    b = b - np.einsum("kij,kj->ki", inertia * np.sin(d), theta_dot**2)
+    theta_ddot = np.linalg.solve(m, b[:, :, None])[:, :, 0]
+    return np.concatenate([theta_dot, theta_ddot], axis=1)
+
+
+def chain_outputs(model: ChainModel, y: np.ndarray, physics: np.ndarray) -> np.ndarray:
+    """(k, 6P) outputs (:func:`output_columns`) for states y (k, 2n) and parameters π (k, 2n + 2)."""
+    n = y.shape[1] // 2
+    theta, theta_dot, lengths = y[:, :n], y[:, n:], physics[:, n:2 * n]
+    sin, cos = np.sin(theta), np.cos(theta)
+    x = np.cumsum(lengths * sin, axis=1) + model.anchor[0]
+    z = np.cumsum(-lengths * cos, axis=1) + model.anchor[2]
+    vx = np.cumsum(lengths * theta_dot * cos, axis=1)
+    vz = np.cumsum(lengths * theta_dot * sin, axis=1)
+    k, p = y.shape[0], len(model.order)
+    zero = np.zeros((k, n), dtype=y.dtype)
+    per_link = np.stack([x, zero + model.anchor[1], z, vx, zero, vz], axis=-1)  # (k, n, 6), link order
+    out = np.zeros((k, p, 6), dtype=y.dtype)
+    out[:, model.order] = per_link
+    return out.reshape(k, 6 * p)
+
+
+# -- the solve -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    """The reference's Jacobian of the outputs w.r.t. ``wrt``, dense in time.
+
+    columns : output names (m); wrt : parameter names (k); rtol, atol : DOP853's.
+    n_steps, nfev : accepted steps and right-hand-side calls of the augmented solve.
+    """
+
+    scene: Scene
+    model: ChainModel
+    columns: list[str]
+    wrt: list[str]
+    point: ChainPoint
+    directions: np.ndarray
+    ode: Any
+    rtol: float
+    atol: float
+    n_steps: int
+    nfev: int
+
+    def states(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(y (n_t, 2n), S (n_t, 2n, k)) at ``times`` (n_t,) s."""
+        dense = self.ode(np.asarray(times, dtype=float)).T
+        n2, k = len(self.point.y0), len(self.wrt)
+        return dense[:, :n2], dense[:, n2:].reshape(len(dense), n2, k)
+
+    def jacobian(self, times: np.ndarray) -> np.ndarray:
+        """(n_t, m, k) d outputs / d parameters (SI) at ``times`` (n_t,) s."""
+        ys, ss = self.states(times)
+        n_t, n2, k = ss.shape
+        # All samples and directions in one batch of n_t·k complex evaluations, sample-major.
+        y = np.repeat(ys, k, axis=0) + 1j * COMPLEX_STEP * ss.transpose(0, 2, 1).reshape(n_t * k, n2)
+        physics = np.broadcast_to(self.point.physics + 1j * COMPLEX_STEP * self.directions.T,
+                                  (n_t, k, len(self.point.physics))).reshape(n_t * k, -1)
+        tangent = chain_outputs(self.model, y, physics).imag / COMPLEX_STEP  # (n_t·k, m)
+        return tangent.reshape(n_t, k, -1).transpose(0, 2, 1)
+
+    def outputs(self, times: np.ndarray) -> np.ndarray:
+        """(n_t, m) the outputs themselves at ``times`` (n_t,) s."""
+        ys, _ = self.states(times)
+        return chain_outputs(self.model, ys, np.broadcast_to(self.point.physics, (len(ys), len(self.point.physics))))
+
+
+def solve_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RTOL,
+                      atol: float = DEFAULT_ATOL) -> Sensitivity:
+    """Integrate the reference's state and its sensitivities to ``wrt`` over the scene's duration (DOP853).
+
+    Unsupported for a scene the chain form cannot read (the sensitivities cover planar chains);
+    UserError for a name of ``wrt`` that is not a real parameter of the scene.
+    """
+    if scene.is_model or not scene.is_planar:
+        raise Unsupported(f"the reference's sensitivities cover planar chains (bead, double pendulum, chain); "
+                          f"{scene.name!r} is not one")
+    model = chain_model(scene)
+    wrt = list(wrt)
+    dy0, dpi = parameter_directions(scene, wrt)
+    point = ChainPoint.of(scene)
+    n2, k = len(point.y0), len(wrt)
+
+    def rhs(_t: float, w: np.ndarray) -> np.ndarray:
+        y, s = w[:n2], w[n2:].reshape(n2, k)
+        # One batched complex evaluation: its real part is f(y, π) itself, its imaginary part the k columns of Ṡ.
+        args = (np.broadcast_to(y, (k, n2)) + 1j * COMPLEX_STEP * s.T,
+                np.broadcast_to(point.physics, (k, len(point.physics))) + 1j * COMPLEX_STEP * dpi.T)
+        value = chain_rhs(*args)
+        return np.concatenate([value[0].real, (value.imag / COMPLEX_STEP).T.ravel()])
+
+    w0 = np.concatenate([point.y0, dy0.ravel()])
+    result = _solve_ivp()(rhs, (0.0, scene.duration), w0, method="DOP853", rtol=rtol, atol=atol, dense_output=True)
+    if not result.success:
+        raise RuntimeError(f"reference sensitivity integration failed: {result.message}")
+    return Sensitivity(scene, model, output_columns(scene), wrt, point, dpi, result.sol, rtol, atol,
+                       len(result.t) - 1, result.nfev)
+
+
+def relative_error(jacobian: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """‖J − J_ref‖_F / ‖J_ref‖_F over the last two axes of (…, m, k) arrays."""
+    diff = np.linalg.norm(np.asarray(jacobian) - reference, axis=(-2, -1))
+    return diff / np.linalg.norm(reference, axis=(-2, -1))
+
+
+@dataclass(frozen=True)
+class SensitivityBound:
+    """The reference's Jacobian solved twice, and what the difference says.
+
+    t : (n,) s; difference : (n,) relative Frobenius difference of the two Jacobians;
+    error : the difference at the last sample; horizon : s, first sample with difference above
+    JACOBIAN_HORIZON, or None; growth : (n,) ‖J(t)‖_F of the looser solve.
+    """
+
+    sensitivity: Sensitivity
+    t: np.ndarray
+    difference: np.ndarray
+    error: float
+    horizon: float | None
+    growth: np.ndarray
+
+
+def bound_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
+                      times: np.ndarray | None = None) -> SensitivityBound:
+    """:func:`solve_sensitivity` at (rtol, atol) and TIGHTER times tighter, compared at ``times``
+    (default every 0.01 s, at most 2001 samples)."""
+    if times is None:
+        times = np.linspace(0.0, scene.duration, min(2001, max(2, round(scene.duration / 0.01) + 1)))
+    loose = solve_sensitivity(scene, wrt, rtol, atol)
+    tight = solve_sensitivity(scene, wrt, max(rtol / TIGHTER, MIN_RTOL), atol / TIGHTER)
+    a, b = loose.jacobian(times), tight.jacobian(times)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        difference = np.nan_to_num(relative_error(a, b), nan=0.0)
+    above = np.nonzero(difference > JACOBIAN_HORIZON)[0]
+    horizon = float(times[above[0]]) if len(above) else None
+    return SensitivityBound(tight, times, difference, float(difference[-1]), horizon,
+                            np.linalg.norm(b, axis=(1, 2)))
+
+
+def reference_jacobian(scene: Scene, wrt: Sequence[str], time: float,
+                       rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> np.ndarray:
+    """(m, k) d outputs(time) / d parameters from the reference at (rtol, atol)."""
+    return solve_sensitivity(scene, wrt, rtol, atol).jacobian(np.array([float(time)]))[0]
+
+
+def finite_difference_reference(scene: Scene, wrt: Sequence[str], time: float, steps: Mapping[str, float] | None = None,
+                                rtol: float = MIN_RTOL, atol: float = 1e-15) -> np.ndarray:
+    """(m, k) the same Jacobian by central differences of whole reference solves with one Richardson step.
+
+    An independent check of :func:`solve_sensitivity`: no variational equations, no complex step, the
+    scene rebuilt from the catalog at p ± h and p ± h/2 (h = 1e-3 SI units unless ``steps`` says).
+    """
+    from engines.reference.reference import solve
+
+    def out(s: Scene) -> np.ndarray:
+        positions, velocities, _ = solve(s, rtol, atol).at(np.array([float(time)]))
+        return outputs_of(positions, velocities)[0]
+
+    columns = []
+    for name in wrt:
+        h = (steps or {}).get(name, 1e-3)
+        d1 = (out(perturbed(scene, name, h)) - out(perturbed(scene, name, -h))) / (2 * h)
+        d2 = (out(perturbed(scene, name, h / 2)) - out(perturbed(scene, name, -h / 2))) / h
+        columns.append((4 * d2 - d1) / 3)
+    return np.array(columns).T
