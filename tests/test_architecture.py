@@ -176,7 +176,8 @@ def test_model_scenes_reach_adapters_through_one_dispatch():
 #: (recorder) are built on them; each adapter of an engine library, and each kind of engine from outside
 #: xval (processes, plugins), on those; the robot models import files through the adapters' libraries;
 #: the reference integrates scenes and models; the registry names them all.
-ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
+ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "gradients": 3, "adapters": 4,
+                "external": 4,
                 "model": 5, "reference": 6, "registry": 7}
 
 
@@ -219,7 +220,7 @@ def test_a_model_import_uses_only_its_own_engine_s_adapter():
 #: The stages of compare/, lowest first; a stage imports only its own and lower ones. The suite and the
 #: record are the vocabulary every stage speaks (the runner builds records, a results directory keeps
 #: its suite), so they share the lowest rank; run, then what reads runs back.
-STAGES = {"suite": 0, "results": 0, "run": 1, "gate": 2, "stability": 2, "history": 2}
+STAGES = {"suite": 0, "results": 0, "gradients": 0, "run": 1, "gate": 2, "stability": 2, "history": 2}
 
 
 def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():

@@ -27,7 +27,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from engines.errors import Unsupported, UserError
+from engines.errors import Unsupported
 from engines.reference.reference import (
     DEFAULT_ATOL,
     DEFAULT_RTOL,
@@ -37,6 +37,7 @@ from engines.reference.reference import (
     _solve_ivp,
     chain_model,
 )
+from engines.scene.parameters import check_wrt, output_columns, outputs_of, perturbed, si_scale
 from engines.scene.scene import Scene
 
 #: The complex step (any h ≪ √ε|x| works; the derivative is exact to round-off).
@@ -44,17 +45,6 @@ COMPLEX_STEP = 1e-30
 #: The reference's Jacobian is trusted while its two solves (tolerance and TIGHTER times tighter) agree to
 #: this relative Frobenius difference: a tenth of the 1e-6 an engine must reach to be called correct.
 JACOBIAN_HORIZON = 1e-7
-
-
-def output_columns(scene: Scene) -> list[str]:
-    """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle."""
-    return [f"{kind}{i}_{axis}" for i in range(len(scene.particles)) for kind in "pv" for axis in "xyz"]
-
-
-def outputs_of(positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-    """(…, 6P) in :func:`output_columns` order from positions and velocities (…, P, 3)."""
-    both = np.concatenate([positions, velocities], axis=-1)  # (…, P, 6)
-    return both.reshape(both.shape[:-2] + (-1,))
 
 
 # -- the parameters --------------------------------------------------------------
@@ -74,40 +64,6 @@ class ChainPoint:
     def of(cls, scene: Scene) -> "ChainPoint":
         model = chain_model(scene)
         return cls(model.initial_state(scene), np.concatenate([model.masses, model.lengths, model.gravity]))
-
-
-def si_scale(scene_name: str, name: str) -> float:
-    """SI units per unit of catalog parameter ``name``: π/180 for an angle in degrees, 1 otherwise."""
-    from engines.scene.catalog import builder
-
-    unit = {p.name: p.unit for p in builder(scene_name).parameters}[name]
-    return math.pi / 180.0 if unit == "deg" else 1.0
-
-
-def check_wrt(scene: Scene, wrt: Sequence[str]) -> None:
-    """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry."""
-    from engines.scene.catalog import builder
-
-    if scene.is_model:
-        raise Unsupported("gradients of model files are not computed yet: use a catalog scene")
-    if not wrt:
-        raise UserError("--wrt: give at least one scene parameter, e.g. --wrt theta1,g")
-    parameters = {p.name: p for p in builder(scene.name).parameters}
-    allowed = [n for n, p in parameters.items() if not p.integer and n != "duration"]
-    for name in wrt:
-        if name not in allowed:
-            raise UserError(f"--wrt: {scene.name} has no real parameter {name!r}; choose from: {', '.join(allowed)}")
-    if len(set(wrt)) != len(wrt):
-        raise UserError(f"--wrt: a parameter is named twice in {', '.join(wrt)}")
-
-
-def perturbed(scene: Scene, name: str, delta: float) -> Scene:
-    """``scene`` rebuilt from the catalog with parameter ``name`` moved by ``delta`` SI units (rad for angles)."""
-    from engines.scene.catalog import build
-
-    values: dict[str, Any] = dict(scene.parameters)
-    values[name] = float(values[name]) + delta / si_scale(scene.name, name)
-    return build(scene.name, values)
 
 
 #: Relative step of the differences that read a direction from the catalog (its maps are linear:
@@ -262,11 +218,15 @@ def relative_error(jacobian: np.ndarray, reference: np.ndarray) -> np.ndarray:
 class SensitivityBound:
     """The reference's Jacobian solved twice, and what the difference says.
 
+    loose : the solve at the given tolerances; sensitivity : the tighter one, the better answer.
+    loose : the solve at the given tolerances; sensitivity : the tighter one, the better answer.
     t : (n,) s; difference : (n,) relative Frobenius difference of the two Jacobians;
     error : the difference at the last sample; horizon : s, first sample with difference above
     JACOBIAN_HORIZON, or None; growth : (n,) ‖J(t)‖_F of the looser solve.
     """
 
+    loose: Sensitivity
+    loose: Sensitivity
     sensitivity: Sensitivity
     t: np.ndarray
     difference: np.ndarray
@@ -288,7 +248,7 @@ def bound_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RT
         difference = np.nan_to_num(relative_error(a, b), nan=0.0)
     above = np.nonzero(difference > JACOBIAN_HORIZON)[0]
     horizon = float(times[above[0]]) if len(above) else None
-    return SensitivityBound(tight, times, difference, float(difference[-1]), horizon,
+    return SensitivityBound(loose, tight, times, difference, float(difference[-1]), horizon,
                             np.linalg.norm(b, axis=(1, 2)))
 
 

@@ -1,0 +1,62 @@
+"""Scene parameters as variables: which a gradient may be taken with respect to, a scene moved along one,
+and the outputs a gradient is of.
+
+A parameter is a catalog scene's real parameter (``theta1``, ``omega2``, ``g``, ``m1``, ``l2``, ...),
+measured in SI units (radians for an angle the catalog takes in degrees); the outputs are the CSV's
+state columns at one time (positions m and velocities m/s of each particle).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from engines.errors import Unsupported, UserError
+from engines.scene.scene import Scene
+
+
+def output_columns(scene: Scene) -> list[str]:
+    """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle."""
+    return [f"{kind}{i}_{axis}" for i in range(len(scene.particles)) for kind in "pv" for axis in "xyz"]
+
+
+def outputs_of(positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
+    """(…, 6P) in :func:`output_columns` order from positions and velocities (…, P, 3)."""
+    both = np.concatenate([positions, velocities], axis=-1)  # (…, P, 6)
+    return both.reshape(both.shape[:-2] + (-1,))
+
+
+def si_scale(scene_name: str, name: str) -> float:
+    """SI units per unit of catalog parameter ``name``: π/180 for an angle in degrees, 1 otherwise."""
+    from engines.scene.catalog import builder
+
+    unit = {p.name: p.unit for p in builder(scene_name).parameters}[name]
+    return math.pi / 180.0 if unit == "deg" else 1.0
+
+
+def check_wrt(scene: Scene, wrt: Sequence[str]) -> None:
+    """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry."""
+    from engines.scene.catalog import builder
+
+    if scene.is_model:
+        raise Unsupported("gradients of model files are not computed yet: use a catalog scene")
+    if not wrt:
+        raise UserError("--wrt: give at least one scene parameter, e.g. --wrt theta1,g")
+    parameters = {p.name: p for p in builder(scene.name).parameters}
+    allowed = [n for n, p in parameters.items() if not p.integer and n != "duration"]
+    for name in wrt:
+        if name not in allowed:
+            raise UserError(f"--wrt: {scene.name} has no real parameter {name!r}; choose from: {', '.join(allowed)}")
+    if len(set(wrt)) != len(wrt):
+        raise UserError(f"--wrt: a parameter is named twice in {', '.join(wrt)}")
+
+
+def perturbed(scene: Scene, name: str, delta: float) -> Scene:
+    """``scene`` rebuilt from the catalog with parameter ``name`` moved by ``delta`` SI units (rad for angles)."""
+    from engines.scene.catalog import build
+
+    values: dict[str, Any] = dict(scene.parameters)
+    values[name] = float(values[name]) + delta / si_scale(scene.name, name)
+    return build(scene.name, values)
