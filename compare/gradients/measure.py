@@ -143,7 +143,7 @@ def engine_case(engine: Engine, variant: str | None, options: Mapping[str, Any] 
     classes = [classify(float(a), float(b), floor, bound.horizon, answer.time) for a, b in zip(per, per_half)]
     klass = worst([classify(error, error_half, floor, bound.horizon, answer.time), *classes])
     consistency = None
-    if answer.method != "finite-difference":
+    if answer.own:
         own = finite_difference_jacobian(engine, scene, variant, options, dt, wrt).jacobian
         consistency = _error(answer, own)
     return GradientCase(scene.name, f"{engine.name}/{variant}", dt, scene.duration, list(wrt), output_columns(scene),

@@ -1,0 +1,1 @@
+"""MuJoCo's home: its own derivatives (gradients.py)."""

@@ -1,0 +1,121 @@
+"""Engines' Jacobians against the reference's (compare/gradients/measure.py), and ``xval grad``."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from compare.gradients.measure import classify, engine_case
+from conftest import ROOT, run_xval
+from engines import registry
+from engines.external.command import command_engine
+from engines.gradients import finite_difference_jacobian
+from engines.mujoco import gradients as mujoco_gradients
+from engines.reference.sensitivity import reference_jacobian, relative_error
+from engines.scene.catalog import build
+
+ONE_SECOND = {"bead": {"duration": 1.0}, "double-pendulum": {"duration": 1.0}, "chain-8": {"n": 8, "duration": 1.0}}
+WRT = {"bead": ["theta0", "omega0", "g", "radius"], "double-pendulum": ["theta1", "omega2", "g", "m1", "l2"],
+       "chain-8": ["theta0", "g", "length"]}
+
+
+def _scene(key: str):
+    return build(key.partition("-8")[0], ONE_SECOND[key])
+
+
+@pytest.mark.parametrize("key", list(ONE_SECOND))
+def test_mujoco_rk4_by_differences_of_rollouts_is_correct_to_1e_6(key):
+    """Float64 RK4 at dt 1e-3 over 1 s: its Jacobian (central differences of whole rollouts with Richardson)
+    within 1e-6 of the reference's, and falling as dt halves."""
+    engine, variant = registry.resolve("mujoco/hinge-rk4")
+    case = engine_case(engine, variant, None, _scene(key), 1e-3, WRT[key])
+    assert case.method == "finite-difference" and case.self_consistency is None
+    assert case.error <= 1e-6 and case.klass == "correct"
+    assert case.error_half < case.error
+
+
+@pytest.mark.parametrize("key", list(ONE_SECOND))
+def test_mujoco_chained_transition_fd_agrees_with_its_own_rollouts(key):
+    """Own derivatives (mjd_transitionFD chained, Euler) against differences of its own rollouts: ≤ 1e-6
+    (measured 5e-8 to 1.4e-7), while both are O(dt) off the reference."""
+    scene = _scene(key)
+    initial = [w for w in WRT[key] if w.startswith(("theta", "omega"))]
+    own, method = mujoco_gradients.jacobian(scene, "hinge", None, 1e-3, initial)
+    engine, _ = registry.resolve("mujoco/hinge")
+    differences = finite_difference_jacobian(engine, scene, "hinge", None, 1e-3, initial).jacobian
+    assert method == "finite-difference"
+    assert relative_error(own, differences) <= 1e-6
+    assert relative_error(own, reference_jacobian(scene, initial, 1.0)) > 1e-4
+
+
+def test_mujoco_euler_gradient_error_falls_at_first_order():
+    scene = _scene("double-pendulum")
+    reference = reference_jacobian(scene, ["theta1", "omega2"], 1.0)
+    errors = [relative_error(mujoco_gradients.jacobian(scene, "hinge", None, dt, ["theta1", "omega2"])[0], reference)
+              for dt in (2e-3, 1e-3, 5e-4)]
+    orders = np.log2(np.array(errors[:-1]) / errors[1:])
+    assert np.all((orders > 0.8) & (orders < 1.2)), orders
+
+
+def _gravity_blind_bead(tmp_path: Path) -> Path:
+    """examples/python/bead.py with g fixed at 9.81 m/s²: a solver that ignores the g it is given."""
+    text = (ROOT / "examples" / "python" / "bead.py").read_text()
+    given = 'r, (gx, _, gz) = pin["length"], scene["gravity"]'
+    assert given in text
+    program = tmp_path / "blind_bead.py"
+    program.write_text(text.replace(given, 'r, gx, gz = pin["length"], 0.0, -9.81'))
+    return program
+
+
+def test_a_solver_that_ignores_g_is_wrong_for_g_and_correct_for_the_rest(tmp_path):
+    import sys
+
+    engine = command_engine("blind_bead", [sys.executable, str(_gravity_blind_bead(tmp_path))], tmp_path,
+                            capabilities=["3d"], where="test")
+    case = engine_case(engine, None, None, _scene("bead"), 1e-3, ["theta0", "g"])
+    assert case.column_classes == ["correct", "wrong"]
+    assert case.column_errors[1] == pytest.approx(1.0, abs=1e-9)  # its d/dg is exactly 0
+    assert case.klass == "wrong"
+
+
+def test_classes_follow_their_definitions():
+    assert classify(float("nan"), 1e-3, 1e-9, None, 1.0) == "nan"
+    assert classify(1e-2, 1e-2, 1e-9, 5.0, 20.0) == "chaotic"
+    assert classify(1e-2, 5e-3, 1e-9, None, 1.0) == "correct"  # first order
+    assert classify(1e-2, 0.95e-2, 1e-9, None, 1.0) == "wrong"  # a plateau
+    assert classify(5e-10, 5e-10, 1e-9, None, 1.0) == "correct"  # at the floor
+
+
+def test_xval_grad_json_has_the_documented_fields():
+    done = run_xval("grad", "double-pendulum", "--engine", "mujoco/hinge-rk4", "--dt", "1e-3", "--duration", "1",
+                    "--wrt", "theta1,g", "--format", "json")
+    assert done.returncode == 0, done.stderr
+    answer = json.loads(done.stdout)
+    assert list(answer) == ["scene", "engine", "dt", "duration", "wrt", "outputs", "jacobian", "reference_jacobian",
+                            "error", "method", "self_consistency", "class", "horizon"]
+    assert answer["engine"] == "mujoco/hinge-rk4" and answer["wrt"] == ["theta1", "g"]
+    assert answer["outputs"][:6] == ["p0_x", "p0_y", "p0_z", "v0_x", "v0_y", "v0_z"] and len(answer["outputs"]) == 12
+    assert np.shape(answer["jacobian"]) == np.shape(answer["reference_jacobian"]) == (12, 2)
+    assert answer["error"] <= 1e-6 and answer["class"] == "correct" and answer["horizon"] is None
+    assert answer["method"] == "finite-difference" and answer["self_consistency"] is None
+
+
+def test_xval_grad_without_engine_is_the_reference_and_says_when_chaotic():
+    done = run_xval("grad", "double-pendulum", "--dt", "1e-3", "--duration", "20", "--wrt", "theta1",
+                    "--format", "json")
+    assert done.returncode == 0, done.stderr
+    answer = json.loads(done.stdout)
+    assert answer["engine"] == "reference/dop853" and answer["method"] == "reference"
+    assert answer["class"] == "chaotic" and 2.0 <= answer["horizon"] <= 15.0
+    assert math.isfinite(answer["error"])
+
+
+def test_xval_grad_refuses_an_unknown_parameter_in_one_line():
+    done = run_xval("grad", "bead", "--dt", "1e-3", "--duration", "1", "--wrt", "theta1")
+    assert done.returncode == 2
+    assert done.stderr == ("xval: error: --wrt: bead has no real parameter 'theta1'; choose from: m, radius, theta0, "
+                           "omega0, g\n")
