@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from engines.scene.parameters import check_wrt, outputs_of, perturbed, si_scale
+from engines.scene.parameters import central_difference, check_wrt, outputs_of, perturbed, si_scale
 from engines.scene.scene import Scene
 
 if TYPE_CHECKING:
@@ -67,17 +67,10 @@ def finite_difference_jacobian(engine: "Engine", scene: Scene, variant: str | No
     same dt), so the differences converge as for any smooth function.
     """
     check_wrt(scene, wrt)
-    columns, time = [], float(round(scene.duration / dt) * dt)
-    for name in wrt:
-        h = parameter_step(scene, name, relative)
-
-        def out(delta: float) -> np.ndarray:
-            return rollout_outputs(engine, perturbed(scene, name, delta), variant, options, dt)[0]
-
-        wide = (out(h) - out(-h)) / (2 * h)
-        narrow = (out(h / 2) - out(-h / 2)) / h
-        columns.append((4 * narrow - wide) / 3)
-    return EngineJacobian(np.array(columns).T, "finite-difference", time)
+    columns = [central_difference(
+        lambda delta, name=name: rollout_outputs(engine, perturbed(scene, name, delta), variant, options, dt)[0],
+        parameter_step(scene, name, relative)) for name in wrt]
+    return EngineJacobian(np.array(columns).T, "finite-difference", float(round(scene.duration / dt) * dt))
 
 
 def engine_jacobian(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
@@ -113,26 +106,15 @@ def initial_output_directions(scene: Scene, wrt: Sequence[str]) -> np.ndarray:
         moved = perturbed(scene, name, delta)
         return outputs_of(moved.initial_positions, moved.initial_velocities)
 
-    columns = []
-    for name in wrt:
-        h = parameter_step(scene, name, 1e-4)
-        wide = (out(name, h) - out(name, -h)) / (2 * h)
-        narrow = (out(name, h / 2) - out(name, -h / 2)) / h
-        columns.append((4 * narrow - wide) / 3)
-    return np.array(columns).T
+    return np.array([central_difference(lambda delta, name=name: out(name, delta), parameter_step(scene, name, 1e-4))
+                     for name in wrt]).T
 
 
 def readout_jacobian(readout, x: np.ndarray, step: float = 1e-5) -> np.ndarray:
     """(m, n) d readout / d x at ``x`` (n,): central differences with one Richardson step of the engine's map
     from its state to the outputs (kinematics only, so O(h⁴) ≈ 1e-20 and round-off ≈ 1e-11)."""
-    columns = []
-    for j in range(len(x)):
-        e = np.zeros(len(x))
-        e[j] = step
-        wide = (readout(x + e) - readout(x - e)) / (2 * step)
-        narrow = (readout(x + e / 2) - readout(x - e / 2)) / step
-        columns.append((4 * narrow - wide) / 3)
-    return np.array(columns).T
+    basis = np.eye(len(x))
+    return np.array([central_difference(lambda delta, e=e: readout(x + delta * e), step) for e in basis]).T
 
 
 def chained_jacobian(scene: Scene, wrt: Sequence[str], transition: np.ndarray, readout, x0: np.ndarray,

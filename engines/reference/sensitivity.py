@@ -21,7 +21,6 @@ degrees, per kg, per m, per m/s²).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -37,7 +36,7 @@ from engines.reference.reference import (
     _solve_ivp,
     chain_model,
 )
-from engines.scene.parameters import check_wrt, output_columns, outputs_of, perturbed, si_scale
+from engines.scene.parameters import central_difference, check_wrt, output_columns, outputs_of, perturbed, si_scale
 from engines.scene.scene import Scene
 
 #: The complex step (any h ≪ √ε|x| works; the derivative is exact to round-off).
@@ -222,13 +221,11 @@ class SensitivityBound:
     """The reference's Jacobian solved twice, and what the difference says.
 
     loose : the solve at the given tolerances; sensitivity : the tighter one, the better answer.
-    loose : the solve at the given tolerances; sensitivity : the tighter one, the better answer.
     t : (n,) s; difference : (n,) relative Frobenius difference of the two Jacobians;
     error : the difference at the last sample; horizon : s, first sample with difference above
     JACOBIAN_HORIZON, or None; growth : (n,) ‖J(t)‖_F of the tighter solve.
     """
 
-    loose: Sensitivity
     loose: Sensitivity
     sensitivity: Sensitivity
     t: np.ndarray
@@ -274,10 +271,5 @@ def finite_difference_reference(scene: Scene, wrt: Sequence[str], time: float, s
         positions, velocities, _ = solve(s, rtol, atol).at(np.array([float(time)]))
         return outputs_of(positions, velocities)[0]
 
-    columns = []
-    for name in wrt:
-        h = (steps or {}).get(name, 1e-3)
-        d1 = (out(perturbed(scene, name, h)) - out(perturbed(scene, name, -h))) / (2 * h)
-        d2 = (out(perturbed(scene, name, h / 2)) - out(perturbed(scene, name, -h / 2))) / h
-        columns.append((4 * d2 - d1) / 3)
-    return np.array(columns).T
+    return np.array([central_difference(lambda delta, name=name: out(perturbed(scene, name, delta)),
+                                        (steps or {}).get(name, 1e-3)) for name in wrt]).T
