@@ -26,8 +26,16 @@ if TYPE_CHECKING:
 METHODS = ("reference", "analytic", "autodiff", "finite-difference")
 #: Relative step of the differences of rollouts: h = STEP · scale, scale = |p| (1 rad for an angle,
 #: 1 SI unit for a parameter at 0). With one Richardson step the truncation is O(h⁴) ≈ 1e-12 and the
-#: round-off of a float64 rollout about ε·|out|/h ≈ 1e-13.
+#: round-off of a float64 rollout about ε·|out|/h ≈ 1e-13 ...
 STEP = 1e-3
+#: ... and of a float32 rollout: round-off ε/h and truncation h⁴ balance near h = ε^(1/5) ≈ 0.04.
+STEP_FLOAT32 = 3e-2
+
+
+def single_precision(engine: "Engine", variant: str | None, options: Mapping[str, Any] | None) -> bool:
+    """Whether this variant computes in float32 (its ``precision`` or ``dtype`` setting says so)."""
+    settings = engine.resolve(variant, options)
+    return "float32" in (str(settings.get("precision")), str(settings.get("dtype")))
 
 
 @dataclass(frozen=True)
@@ -60,13 +68,16 @@ def rollout_outputs(engine: "Engine", scene: Scene, variant: str | None, options
 
 
 def finite_difference_jacobian(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
-                               dt: float, wrt: Sequence[str], relative: float = STEP) -> EngineJacobian:
+                               dt: float, wrt: Sequence[str], relative: float | None = None) -> EngineJacobian:
     """Central differences of whole rollouts at p ± h and p ± h/2, one Richardson step: (4 D(h/2) − D(h)) / 3.
 
     Four rollouts per parameter; a fixed-step rollout is a smooth function of the parameters (same steps,
-    same dt), so the differences converge as for any smooth function.
+    same dt), so the differences converge as for any smooth function. ``relative`` : the step's fraction of
+    each parameter's scale, default STEP (STEP_FLOAT32 for a float32 variant).
     """
     check_wrt(scene, wrt)
+    if relative is None:
+        relative = STEP_FLOAT32 if single_precision(engine, variant, options) else STEP
     columns = [central_difference(
         lambda delta, name=name: rollout_outputs(engine, perturbed(scene, name, delta), variant, options, dt)[0],
         parameter_step(scene, name, relative)) for name in wrt]

@@ -177,7 +177,7 @@ def test_model_scenes_reach_adapters_through_one_dispatch():
 #: xval (processes, plugins), on those; the robot models import files through the adapters' libraries;
 #: the reference integrates scenes and models; the registry names them all.
 ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "gradients": 3, "adapters": 4,
-                "external": 4, "mujoco": 4.5,
+                "external": 4, "mujoco": 4.5, "mjx": 4.6,
                 "model": 5, "reference": 6, "registry": 7}
 
 

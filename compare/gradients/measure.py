@@ -23,7 +23,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from engines.adapter import Engine
-from engines.gradients import EngineJacobian, engine_jacobian, finite_difference_jacobian
+from engines.gradients import EngineJacobian, engine_jacobian, finite_difference_jacobian, single_precision
 from engines.reference.sensitivity import SensitivityBound, bound_sensitivity, relative_error
 from engines.scene.parameters import output_columns
 from engines.scene.scene import Scene
@@ -179,6 +179,4 @@ def _error(answer: EngineJacobian, reference: np.ndarray) -> float:
 
 def _floor(engine: Engine, variant: str, options: Mapping[str, Any] | None) -> float:
     """The relative error a Jacobian of this variant is correct under, whatever its trend."""
-    settings = engine.resolve(variant, options)
-    single = "float32" in (str(settings.get("precision")), str(settings.get("dtype")))
-    return FLOAT32_FLOOR if single else FLOAT64_FLOOR
+    return FLOAT32_FLOOR if single_precision(engine, variant, options) else FLOAT64_FLOOR

@@ -40,7 +40,7 @@ def jacobian(scene: Scene, variant: str | None, options: Mapping[str, Any] | Non
     mujoco.mj_forward(model, data)
     x0 = _state(model, data)
     transition = transition_product(model, data, max(1, round(scene.duration / dt)))
-    columns = dict(zip(initial, chained_jacobian(scene, initial, transition, _readout(scene, model), x0,
+    columns = dict(zip(initial, chained_jacobian(scene, initial, transition, hinge_readout(scene, model), x0,
                                                  _state(model, data)).T))
     physical = [name for name in wrt if name not in columns]
     if physical:
@@ -66,7 +66,7 @@ def _state(model: Any, data: Any) -> np.ndarray:
     return np.concatenate([data.qpos, data.qvel])
 
 
-def _readout(scene: Scene, model: Any):
+def hinge_readout(scene: Scene, model: Any):
     """outputs (6P,) of a state (2nv,): each particle's site position and world velocity after mj_forward."""
     data = mujoco.MjData(model)
     sites = [model.site(f"s{i}").id for i in range(len(scene.particles))]

@@ -1,0 +1,1 @@
+"""MJX's home: its own derivatives (gradients.py)."""
