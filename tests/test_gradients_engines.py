@@ -14,7 +14,6 @@ from conftest import ROOT, run_xval
 from engines import registry
 from engines.external.command import command_engine
 from engines.gradients import finite_difference_jacobian
-from engines.mujoco import gradients as mujoco_gradients
 from engines.reference.sensitivity import reference_jacobian, relative_error
 from engines.scene.catalog import build
 
@@ -40,12 +39,12 @@ def test_mujoco_rk4_by_differences_of_rollouts_is_correct_to_1e_6(key):
 
 @pytest.mark.parametrize("key", list(ONE_SECOND))
 def test_mujoco_chained_transition_fd_agrees_with_its_own_rollouts(key):
-    """Own derivatives (mjd_transitionFD chained, Euler) against differences of its own rollouts: ≤ 1e-6
+    """Own derivatives (Engine.jacobian: mjd_transitionFD chained, Euler) against differences of its own rollouts: ≤ 1e-6
     (measured 5e-8 to 1.4e-7), while both are O(dt) off the reference."""
     scene = _scene(key)
     initial = [w for w in WRT[key] if w.startswith(("theta", "omega"))]
-    own, method = mujoco_gradients.jacobian(scene, "hinge", None, 1e-3, initial)
     engine, _ = registry.resolve("mujoco/hinge")
+    own, method = engine.jacobian(scene, "hinge", None, 1e-3, initial)
     differences = finite_difference_jacobian(engine, scene, "hinge", None, 1e-3, initial).jacobian
     assert method == "finite-difference"
     assert relative_error(own, differences) <= 1e-6
@@ -55,7 +54,8 @@ def test_mujoco_chained_transition_fd_agrees_with_its_own_rollouts(key):
 def test_mujoco_euler_gradient_error_falls_at_first_order():
     scene = _scene("double-pendulum")
     reference = reference_jacobian(scene, ["theta1", "omega2"], 1.0)
-    errors = [relative_error(mujoco_gradients.jacobian(scene, "hinge", None, dt, ["theta1", "omega2"])[0], reference)
+    engine, _ = registry.resolve("mujoco/hinge")
+    errors = [relative_error(engine.jacobian(scene, "hinge", None, dt, ["theta1", "omega2"])[0], reference)
               for dt in (2e-3, 1e-3, 5e-4)]
     orders = np.log2(np.array(errors[:-1]) / errors[1:])
     assert np.all((orders > 0.8) & (orders < 1.2)), orders

@@ -22,15 +22,16 @@ def _measure(variant: str) -> dict:
     differences of its own rollouts and against the reference, and the first sample whose Jacobian is not finite."""
     from engines import registry
     from engines.gradients import finite_difference_jacobian
-    from engines.mjx import gradients as mjx_gradients
     from engines.reference.sensitivity import reference_jacobian, relative_error
     from engines.scene.catalog import build
 
     scene, wrt = build("double-pendulum", {"duration": 1.0}), ["theta1", "omega2"]
-    own, method = mjx_gradients.jacobian(scene, variant, None, 1e-3, wrt)
     engine, _ = registry.resolve(f"mjx/{variant}")
+    own, method = engine.jacobian(scene, variant, None, 1e-3, wrt)
     differences = finite_difference_jacobian(engine, scene, variant, None, 1e-3, wrt).jacobian
-    _, transition = mjx_gradients.transition_over_time(scene, variant, None, 1e-3)
+    from engines.mjx.gradients import transition_over_time
+
+    _, transition = transition_over_time(engine, scene, variant, None, 1e-3)
     return {"method": method, "self": float(relative_error(own, differences)),
             "error": float(relative_error(own, reference_jacobian(scene, wrt, 1.0))),
             "first_nonfinite": transition.first_nonfinite, "samples": len(transition.times)}

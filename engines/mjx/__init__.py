@@ -1,1 +1,1 @@
-"""MJX's home: its own derivatives (gradients.py)."""
+"""MJX's home: its adapter (MuJoCo's model, stepped in JAX) and its own derivatives (gradients.py)."""

@@ -16,13 +16,13 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from engines.adapters.mjx import ENGINE, _jax
-from engines.adapters.mujoco import hinge_velocities, mujoco
 from engines.gradients import chained_jacobian, finite_difference_jacobian, is_initial_condition
-from engines.mujoco.gradients import hinge_readout
+from engines.mjx import library
+from engines.mujoco.builder import hinge_readout
+from engines.mujoco.library import mujoco
 from engines.scene.scene import Scene
 
-#: Compiled jit(jacfwd(advance)) by (model XML, x64): one compile (13-19 s of CPU) serves every dt and length.
+#: Compiled jit(jacfwd(advance)) by (model structure, x64): one compile (13-19 s of CPU) serves every dt and length.
 _compiled: dict[tuple[str, bool], Any] = {}
 
 
@@ -37,14 +37,15 @@ class Transition:
     first_nonfinite: float | None
 
 
-def transition_over_time(scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+def transition_over_time(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                          interval: float = 0.01) -> tuple[Any, Transition]:
     """(the MuJoCo model, the Transition) of ``scene`` run for its duration at ``dt``, sampled every ``interval`` s."""
-    jax, mjx = _jax()
-    settings = ENGINE.resolve(variant, options)
-    model, xml, _ = ENGINE.build(scene, dt, settings)
+    jax, mjx = library.jax_mjx()
+    settings = engine.resolve(variant, options)
+    hinge = engine.build(scene, dt, settings)
+    model, xml = hinge.model, hinge.structure
     data = mujoco.MjData(model)
-    data.qvel[:] = hinge_velocities(scene, model)
+    data.qvel[:] = hinge.qvel
     mujoco.mj_forward(model, data)
     x64 = settings["precision"] == "float64"
     n_steps = max(1, round(scene.duration / dt))
@@ -55,7 +56,7 @@ def transition_over_time(scene: Scene, variant: str | None, options: Mapping[str
         dx = mjx.put_data(model, data, impl="jax")
         step = _compiled.get((xml, x64))
         if step is None:
-            jax.clear_caches()  # a trace made in the other precision must not be reused (engines/adapters/mjx.py)
+            library.trace_in(jax, x64)
             step = _compiled[(xml, x64)] = _jacobian_of_steps(jax, mjx, model.nq)
         x = np.concatenate([dx.qpos, dx.qvel])
         product = np.eye(len(x))
@@ -75,8 +76,7 @@ def transition_over_time(scene: Scene, variant: str | None, options: Mapping[str
 
 def _jacobian_of_steps(jax, mjx, nq: int):
     """jit(x, n -> (d x_n / d x, x_n)) for MJX's state x = (qpos, qvel) after n steps."""
-    import jax.numpy as jnp
-
+    jnp = jax.numpy
     def advance(x, mx, dx, n):
         d = dx.replace(qpos=x[:nq], qvel=x[nq:])
         d = jax.lax.fori_loop(0, n, lambda _, s: mjx.step(mx, s), d)
@@ -87,19 +87,19 @@ def _jacobian_of_steps(jax, mjx, nq: int):
     return jax.jit(lambda mx, dx, x, n: jacobian(x, mx, dx, n))
 
 
-def jacobian(scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str] | None:
     """(J (6P, k), "autodiff"): jacfwd for initial-condition parameters, differences of rollouts for the rest;
     None when no parameter of ``wrt`` is an initial condition."""
     initial = [name for name in wrt if is_initial_condition(scene, name)]
     if not initial:
         return None
-    model, transition = transition_over_time(scene, variant, options, dt)
+    model, transition = transition_over_time(engine, scene, variant, options, dt)
     readout = hinge_readout(scene, model)
     columns = dict(zip(initial, chained_jacobian(scene, initial, transition.product[-1], readout,
                                                  transition.states[0], transition.states[-1]).T))
     physical = [name for name in wrt if name not in columns]
     if physical:
-        differences = finite_difference_jacobian(ENGINE, scene, variant, options, dt, physical).jacobian
+        differences = finite_difference_jacobian(engine, scene, variant, options, dt, physical).jacobian
         columns.update(zip(physical, differences.T))
     return np.array([columns[name] for name in wrt]).T, "autodiff"

@@ -1,1 +1,1 @@
-"""MuJoCo's home: its own derivatives (gradients.py)."""
+"""MuJoCo's home: its adapter, its import of model files, its own derivatives (gradients.py)."""

@@ -10,12 +10,12 @@ whole rollouts (engines.gradients.finite_difference_jacobian), as every engine d
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from engines.adapters.mujoco import ENGINE, hinge_velocities, mujoco
 from engines.gradients import chained_jacobian, finite_difference_jacobian, is_initial_condition
+from engines.mujoco.library import mujoco
 from engines.scene.scene import Scene
 
 #: The integrators mjd_transitionFD differentiates.
@@ -24,19 +24,20 @@ DIFFERENTIATED = ("Euler", "implicit", "implicitfast")
 EPS = 1e-6
 
 
-def jacobian(scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
-             wrt: Sequence[str]) -> tuple[np.ndarray, str] | None:
+def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+             wrt: Sequence[str], initial_velocities: Callable[[Scene, Any], np.ndarray]) -> tuple[np.ndarray, str] | None:
     """(J (6P, k), "finite-difference") from chained mjd_transitionFD, or None where it does not apply (RK4,
-    the connect formulation, or no initial-condition parameter among ``wrt``)."""
-    settings = ENGINE.resolve(variant, options)
+    the connect formulation, or no initial-condition parameter among ``wrt``). ``engine`` : MuJoCo's adapter;
+    initial_velocities : its map from a scene and its hinge model to the joint velocities qvel (nv,)."""
+    settings = engine.resolve(variant, options)
     if settings["formulation"] != "hinge" or settings["integrator"] not in DIFFERENTIATED:
         return None
     initial = [name for name in wrt if is_initial_condition(scene, name)]
     if not initial:
         return None
-    model, _, _ = ENGINE.build(scene, dt, settings)
+    model, _, _ = engine.build(scene, dt, settings)
     data = mujoco.MjData(model)
-    data.qvel[:] = hinge_velocities(scene, model)
+    data.qvel[:] = initial_velocities(scene, model)
     mujoco.mj_forward(model, data)
     x0 = _state(model, data)
     transition = transition_product(model, data, max(1, round(scene.duration / dt)))
@@ -44,7 +45,7 @@ def jacobian(scene: Scene, variant: str | None, options: Mapping[str, Any] | Non
                                                  _state(model, data)).T))
     physical = [name for name in wrt if name not in columns]
     if physical:
-        differences = finite_difference_jacobian(ENGINE, scene, variant, options, dt, physical).jacobian
+        differences = finite_difference_jacobian(engine, scene, variant, options, dt, physical).jacobian
         columns.update(zip(physical, differences.T))
     return np.array([columns[name] for name in wrt]).T, "finite-difference"
 
@@ -66,8 +67,10 @@ def _state(model: Any, data: Any) -> np.ndarray:
     return np.concatenate([data.qpos, data.qvel])
 
 
-def hinge_readout(scene: Scene, model: Any):
-    """outputs (6P,) of a state (2nv,): each particle's site position and world velocity after mj_forward."""
+def hinge_readout(scene: Scene, model: Any) -> Callable[[np.ndarray], np.ndarray]:
+    """The outputs of a hinge model's state: a function of x = (qpos, qvel) (2nv,) giving (6P,) each particle's
+    site position (m) and world velocity (m/s), in the CSV's order (p{i}_x..z v{i}_x..z), after mj_forward.
+    Planar hinges only (qpos is then its own tangent space)."""
     data = mujoco.MjData(model)
     sites = [model.site(f"s{i}").id for i in range(len(scene.particles))]
     velocity = np.empty(6)
