@@ -42,10 +42,9 @@ from engines.scene.scene import Scene
 #: The complex step (any h ≪ √ε|x| works; the derivative is exact to round-off).
 COMPLEX_STEP = 1e-30
 #: The reference's Jacobian is trusted while its two solves (tolerance and TIGHTER times tighter) agree to
-#: this relative Frobenius difference: the floor under which an engine's Jacobian is called correct whatever
-#: its trend (compare/gradients/measure.py). Past it, on the default double pendulum, the difference grows
-#: about tenfold per 1.5 s (measured: 8.9-12.5 s at 1e-9 for five choices of parameters over 20 s, 11-19 s
-#: at 1e-7): two decades of threshold move it by 3-6 s.
+#: this relative Frobenius difference, three decades under the 1e-6 an engine's Jacobian is judged to
+#: (compare/gradients/measure.py). Past it, on the default double pendulum, the difference grows about tenfold
+#: per 1.5 s (measured: 8.9-12.5 s at 1e-9 for five choices of parameters over 20 s, 11-19 s at 1e-7).
 JACOBIAN_HORIZON = 1e-9
 
 
