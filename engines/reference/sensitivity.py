@@ -1,22 +1,15 @@
 """The reference's sensitivities: variational equations integrated beside its own solve with DOP853.
 
-For a planar chain (the catalog's bead, double pendulum and chain: a Pin and Rods hung from it) the
-reference's state is y = (θ, θ̇) (absolute link angles, rad, rad/s) and its right-hand side
-f(y, π) depends on the physical parameters π = (masses (n) kg, lengths (n) m, g_x, g_z m/s²).
-A scene parameter p (``theta1``, ``omega2``, ``g``, ``m1``, ``l2``, ...) moves y(0) and π along a
-fixed direction (y0', π'), read from the catalog (:func:`parameter_directions`). The sensitivity
-S = ∂y/∂p solves
+For a planar chain (bead, double pendulum, chain) the state is y = (θ, θ̇) (absolute link angles, rad,
+rad/s) and f(y, π) depends on π = (masses kg, lengths m, g_x, g_z m/s²). A scene parameter p moves y(0)
+and π along a direction (y0', π') read from the catalog (:func:`parameter_directions`); S = ∂y/∂p solves
 
     Ṡ = ∂f/∂y · S + ∂f/∂π · π',   S(0) = y0',
 
-and the outputs (the CSV's columns at T: each particle's p_x p_y p_z v_x v_y v_z) have
-dout/dp = ∂h/∂y · S(T) + ∂h/∂π · π'. Every product of a Jacobian with a direction is taken by a
-complex step, f(y + i h s, π + i h π').imag / h with h = 1e-30, through a complex-capable copy of
-the reference's right-hand side: exact to round-off (no differences, no cancellation), all k
-directions in one batched evaluation.
-
-Units: a column of the Jacobian is per SI unit of its parameter (per radian for an angle given in
-degrees, per kg, per m, per m/s²).
+and d outputs / dp = ∂h/∂y · S(T) + ∂h/∂π · π' (outputs: the CSV's p_x..z v_x..z per particle). Each
+Jacobian-direction product is a complex step, f(y + i h s, π + i h π').imag / h with h = 1e-30, through a
+complex-capable copy of the reference's right-hand side: exact to round-off, all k directions in one batch.
+Columns are per SI unit of their parameter (per radian for an angle given in degrees). docs/gradients.md.
 """
 
 from __future__ import annotations
