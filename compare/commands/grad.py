@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import click
 import numpy as np
@@ -76,7 +77,9 @@ def format_case(case: GradientCase) -> str:
     lines.append(f"error {_g(case.error)} (relative Frobenius at T{half}); class {case.klass}")
     if case.self_consistency is not None:
         lines.append(f"self-consistency {_g(case.self_consistency)} (own derivatives against differences of own rollouts)")
-    lines.append(f"reference: own error {_g(case.reference_error)}, |J| grew {case.growth:.3g}x, horizon {horizon}")
+    grew = "" if case.growth is None else (f", |J| grew {case.growth:.3g}x (ln of it over T: "
+                                           f"{math.log(case.growth) / case.duration:.2g} /s)")
+    lines.append(f"reference: own error {_g(case.reference_error)}{grew}, horizon {horizon}")
     return "\n".join(lines)
 
 

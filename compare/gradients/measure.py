@@ -46,7 +46,8 @@ class GradientCase:
 
     jacobian, reference_jacobian : (m, k) per SI unit; error_half : the error at dt/2 (None for the
     reference); column_errors, column_classes : (k,) per parameter; horizon : s or None;
-    reference_error : the reference's own relative error at T; growth : ‖J_ref(T)‖_F / ‖J_ref(0)‖_F.
+    reference_error : the reference's own relative error at T; growth : ‖J_ref(T)‖_F / ‖J_ref(0)‖_F (None when
+    J_ref(0) = 0), whose log over T is a finite-time Lyapunov estimate (1/s).
     """
 
     scene: str
@@ -66,7 +67,7 @@ class GradientCase:
     column_errors: list[float]
     column_classes: list[str]
     reference_error: float
-    growth: float
+    growth: float | None
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``xval grad --format json`` (NaN and infinities as null)."""
@@ -168,9 +169,10 @@ def _reference_error(bound: SensitivityBound, time: float) -> float:
     return float(relative_error(loose, tight))
 
 
-def _growth(bound: SensitivityBound, time: float) -> float:
+def _growth(bound: SensitivityBound, time: float) -> float | None:
+    """‖J_ref(T)‖_F / ‖J_ref(0)‖_F, or None when J_ref(0) = 0 (only physical parameters: they move nothing at 0)."""
     at = np.linalg.norm(_reference_at(bound, time)[1])
-    return float(at / bound.growth[0])
+    return float(at / bound.growth[0]) if bound.growth[0] > 0 else None
 
 
 def _error(answer: EngineJacobian, reference: np.ndarray) -> float:

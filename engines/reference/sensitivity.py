@@ -177,10 +177,14 @@ def solve_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RT
     Unsupported for a scene the chain form cannot read (the sensitivities cover planar chains);
     UserError for a name of ``wrt`` that is not a real parameter of the scene.
     """
-    if scene.is_model or not scene.is_planar:
-        raise Unsupported(f"the reference's sensitivities cover planar chains (bead, double pendulum, chain); "
+    refusal = Unsupported(f"the reference's sensitivities cover planar chains (bead, double pendulum, chain); "
                           f"{scene.name!r} is not one")
-    model = chain_model(scene)
+    if scene.is_model or not scene.is_planar:
+        raise refusal
+    try:
+        model = chain_model(scene)
+    except Unsupported:
+        raise refusal from None
     wrt = list(wrt)
     dy0, dpi = parameter_directions(scene, wrt)
     point = ChainPoint.of(scene)
