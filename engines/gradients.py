@@ -1,7 +1,7 @@
 """Derivatives of a run's outputs at T with respect to scene parameters, from any engine.
 
 The quantity is engine-neutral: J = d outputs(T) / d p, outputs the CSV's state columns
-(``p{i}_x..z v{i}_x..z``, engines.reference.sensitivity.output_columns) at the run's last sample,
+(``p{i}_x..z v{i}_x..z``, or a model's ``q_<joint> v_<joint>``; engines.scene.parameters.output_columns) at the run's last sample,
 p the catalog parameters of ``wrt`` per SI unit (per radian for angles). An engine that computes
 derivatives of its own (analytic, autodiff) answers through ``Engine.jacobian``; every engine,
 outside programs included, can be differentiated by :func:`finite_difference_jacobian`: central
@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from engines.scene.parameters import central_difference, check_wrt, outputs_of, perturbed, si_scale
+from engines.scene.parameters import central_difference, check_wrt, output_columns, outputs_of, perturbed, si_scale
 from engines.scene.scene import Scene
 
 if TYPE_CHECKING:
@@ -30,6 +30,8 @@ METHODS = ("reference", "analytic", "autodiff", "finite-difference")
 STEP = 1e-3
 #: ... and of a float32 rollout: round-off ε/h and truncation h⁴ balance near h = ε^(1/5) ≈ 0.04.
 STEP_FLOAT32 = 3e-2
+#: A model scene's steps are this fraction of a catalog scene's (parameter_step).
+MODEL_STEP_FACTOR = 0.1
 
 
 def single_precision(engine: "Engine", variant: str | None, options: Mapping[str, Any] | None) -> bool:
@@ -51,6 +53,10 @@ class EngineJacobian:
 
 def parameter_step(scene: Scene, name: str, relative: float = STEP) -> float:
     """SI units: the difference step of parameter ``name`` (``relative`` of its scale)."""
+    if scene.is_model:
+        # q0 in rad (or m), v0 in rad/s (or m/s): 1 SI unit is a joint's scale, but a robot's light distal links
+        # move fast: on the KUKA iiwa, differences of the reference at h = 1e-3 rad are 5e-4 off, at 1e-4 about 5e-8.
+        return relative * MODEL_STEP_FACTOR
     if si_scale(scene.name, name) != 1.0:
         return relative  # an angle: 1 rad is its scale wherever it points
     value = abs(float(scene.parameters[name]))
@@ -61,9 +67,12 @@ def rollout_outputs(engine: "Engine", scene: Scene, variant: str | None, options
                     dt: float) -> tuple[np.ndarray, float]:
     """(outputs (m,) at the run's last sample, its time s); NaN outputs when the run is not ok."""
     trajectory = engine.simulate(scene, dt, variant=variant, options=options, sample_interval=scene.duration)
-    m = 6 * len(scene.particles)
+    m = len(output_columns(scene))
     if trajectory.info.status != "ok" or not trajectory.n_samples:
         return np.full(m, np.nan), float(round(scene.duration / dt) * dt)
+    if scene.is_model:  # a model's outputs are its joints' q and v
+        joints = trajectory.joint_states
+        return (np.full(m, np.nan) if joints is None else np.asarray(joints[-1], dtype=float)), float(trajectory.t[-1])
     return outputs_of(trajectory.positions[-1], trajectory.velocities[-1]), float(trajectory.t[-1])
 
 
@@ -103,7 +112,10 @@ def engine_jacobian(engine: "Engine", scene: Scene, variant: str | None, options
 
 def is_initial_condition(scene: Scene, name: str) -> bool:
     """Whether parameter ``name`` moves only the initial state (positions, velocities), not the physics: an
-    engine's derivative of its own step answers for these; for g, masses and lengths its model changes."""
+    engine's derivative of its own step answers for these; for g, masses and lengths its model changes. A model
+    scene's parameters (q0, v0) all are."""
+    if scene.is_model:
+        return True
     moved = perturbed(scene, name, parameter_step(scene, name))
     return (np.array_equal(moved.masses, scene.masses) and moved.gravity == scene.gravity
             and moved.constraints == scene.constraints)

@@ -8,7 +8,7 @@ import math
 import click
 import numpy as np
 
-from compare.cli import Seconds, engine_option_option, param_option, parse_assignments, scene_from_params
+from compare.cli import Seconds, engine_option_option, model_option, param_option, parse_assignments, scene_from_params
 from compare.gradients.measure import GradientCase, engine_case, reference_case
 from engines import registry
 from engines.adapter import check_time_step
@@ -17,7 +17,8 @@ from engines.reference.sensitivity import bound_sensitivity
 
 
 @click.command("grad")
-@click.argument("scene_name", metavar="SCENE")
+@click.argument("scene_name", metavar="SCENE", required=False)
+@model_option("Differentiate")
 @click.option("--engine", "engine_id", default=None,
               help="ENGINE or ENGINE/VARIANT (see 'xval engines'); without it (and without --command), the reference.")
 @click.option("--command", "program", default=None, metavar='"PROG ARGS"',
@@ -27,18 +28,25 @@ from engines.reference.sensitivity import bound_sensitivity
 @click.option("--duration", required=True, type=Seconds(), help="T, s: the outputs' time.")
 @click.option("--wrt", required=True, metavar="P1,P2,...",
               help="Scene parameters to differentiate by (see 'xval scenes'): initial angles and rates, g, masses, "
-                   "lengths; per SI unit (per radian for angles).")
+                   "lengths; a model's q0.JOINT, v0.JOINT; per SI unit (per radian for angles).")
 @param_option()
 @engine_option_option()
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table", show_default=True,
               help="table: per parameter, the error and its class; json: one object with both Jacobians.")
-def command(scene_name, engine_id, program, dt, duration, wrt, params, options, output_format) -> None:
-    """d outputs(T) / d parameters of SCENE from one engine (its own derivatives where it has them, central
+def command(scene_name, model, engine_id, program, dt, duration, wrt, params, options, output_format) -> None:
+    """d outputs(T) / d parameters of SCENE (or of --model's q0.JOINT, v0.JOINT) from one engine (its own derivatives where it has them, central
     differences of its rollouts otherwise), against the reference's variational equations; classed correct,
     chaotic, wrong or nan (docs/gradients.md)."""
     overrides = parse_assignments(params, "--param")
-    overrides["duration"] = str(duration)
-    scene = scene_from_params(scene_name, overrides)
+    if (scene_name is None) == (model is None):
+        raise UserError("give a catalog SCENE (see 'xval scenes') or --model MODEL, one of them")
+    if model is not None:
+        from compare.commands.simulate import _model_scene
+
+        scene = _model_scene(model, overrides, str(duration))
+    else:
+        overrides["duration"] = str(duration)
+        scene = scene_from_params(scene_name, overrides)
     check_time_step(dt, scene.duration)
     names = [name.strip() for name in wrt.split(",") if name.strip()]
     if program is not None:

@@ -24,6 +24,8 @@ def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[st
              wrt: Sequence[str], schemes: Mapping[str, str]) -> tuple[np.ndarray, str] | None:
     """(J (6P, k), "autodiff") for a continuous fixed-step variant, else None. ``engine`` : Drake's adapter;
     schemes : its integrator option -> Drake's scheme name (ResetIntegratorFromFlags)."""
+    if scene.is_model:  # a model's own derivatives are not chained here yet: differences of rollouts
+        return None
     settings = engine.resolve(variant, options)
     if settings["plant"] != "continuous" or settings["error_control"]:
         return None

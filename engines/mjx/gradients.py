@@ -91,6 +91,8 @@ def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[st
              wrt: Sequence[str]) -> tuple[np.ndarray, str] | None:
     """(J (6P, k), "autodiff"): jacfwd for initial-condition parameters, differences of rollouts for the rest;
     None when no parameter of ``wrt`` is an initial condition."""
+    if scene.is_model:  # a model's own derivatives are not chained here yet: differences of rollouts
+        return None
     initial = [name for name in wrt if is_initial_condition(scene, name)]
     if not initial:
         return None

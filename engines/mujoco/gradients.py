@@ -29,6 +29,8 @@ def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[st
     """(J (6P, k), "finite-difference") from chained mjd_transitionFD, or None where it does not apply (RK4,
     the connect formulation, or no initial-condition parameter among ``wrt``). ``engine`` : MuJoCo's adapter;
     initial_velocities : its map from a scene and its hinge model to the joint velocities qvel (nv,)."""
+    if scene.is_model:  # a model's own derivatives are not chained here yet: differences of rollouts
+        return None
     settings = engine.resolve(variant, options)
     if settings["formulation"] != "hinge" or settings["integrator"] not in DIFFERENTIATED:
         return None

@@ -136,7 +136,7 @@ class Sensitivity:
     """
 
     scene: Scene
-    model: ChainModel
+    model: Any  # ChainModel, or ModelDynamics for a model scene
     columns: list[str]
     wrt: list[str]
     point: ChainPoint
@@ -156,6 +156,8 @@ class Sensitivity:
     def jacobian(self, times: np.ndarray) -> np.ndarray:
         """(n_t, m, k) d outputs / d parameters (SI) at ``times`` (n_t,) s."""
         ys, ss = self.states(times)
+        if self.scene.is_model:  # the outputs are the state (q, v) itself
+            return ss
         n_t, n2, k = ss.shape
         # All samples and directions in one batch of n_t·k complex evaluations, sample-major.
         y = np.repeat(ys, k, axis=0) + 1j * COMPLEX_STEP * ss.transpose(0, 2, 1).reshape(n_t * k, n2)
@@ -163,11 +165,6 @@ class Sensitivity:
                                   (n_t, k, len(self.point.physics))).reshape(n_t * k, -1)
         tangent = chain_outputs(self.model, y, physics).imag / COMPLEX_STEP  # (n_t·k, m)
         return tangent.reshape(n_t, k, -1).transpose(0, 2, 1)
-
-    def outputs(self, times: np.ndarray) -> np.ndarray:
-        """(n_t, m) the outputs themselves at ``times`` (n_t,) s."""
-        ys, _ = self.states(times)
-        return chain_outputs(self.model, ys, np.broadcast_to(self.point.physics, (len(ys), len(self.point.physics))))
 
 
 def solve_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RTOL,
@@ -177,9 +174,11 @@ def solve_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RT
     Unsupported for a scene the chain form cannot read (the sensitivities cover planar chains);
     UserError for a name of ``wrt`` that is not a real parameter of the scene.
     """
-    refusal = Unsupported(f"the reference's sensitivities cover planar chains (bead, double pendulum, chain); "
-                          f"{scene.name!r} is not one")
-    if scene.is_model or not scene.is_planar:
+    if scene.is_model:
+        return _solve_model(scene, list(wrt), rtol, atol)
+    refusal = Unsupported(f"the reference's sensitivities cover planar chains (bead, double pendulum, chain) "
+                          f"and model files; {scene.name!r} is neither")
+    if not scene.is_planar:
         raise refusal
     try:
         model = chain_model(scene)
@@ -204,6 +203,39 @@ def solve_sensitivity(scene: Scene, wrt: Sequence[str], rtol: float = DEFAULT_RT
         raise RuntimeError(f"reference sensitivity integration failed: {result.message}")
     return Sensitivity(scene, model, output_columns(scene), wrt, point, dpi, result.sol, rtol, atol,
                        len(result.t) - 1, result.nfev)
+
+
+def _solve_model(scene: Any, wrt: list[str], rtol: float, atol: float) -> Sensitivity:
+    """A model scene's sensitivities to its q0 and v0: Ṡ = [[0, I], [∂q̈/∂q, ∂q̈/∂v]] S with S(0) the unit
+    directions, the partial derivatives Pinocchio's computeABADerivatives (analytic), the outputs (q, v) so J = S."""
+    from engines.model.dynamics import ModelDynamics
+
+    check_wrt(scene, wrt)
+    dynamics = ModelDynamics(scene)
+    pin, loaded, damping = dynamics._model
+    dof = np.ix_(loaded.dof, loaded.dof)
+    y0 = dynamics.initial_state(scene)
+    n2, n, k = len(y0), len(y0) // 2, len(wrt)
+    index = {name: i for i, name in enumerate(f"{kind}.{joint}" for kind in ("q0", "v0") for joint in scene.joint_names)}
+    s0 = np.zeros((n2, k))
+    s0[[index[name] for name in wrt], np.arange(k)] = 1.0
+
+    def rhs(_t: float, w: np.ndarray) -> np.ndarray:
+        q, v, s = w[:n], w[n:n2], w[n2:].reshape(n2, k)
+        rates = loaded._vector(v)
+        ddq_dq, ddq_dv, minv = pin.computeABADerivatives(loaded.model, loaded.data, loaded.configuration(q), rates,
+                                                         -damping * rates)
+        minv = np.triu(minv) + np.triu(minv, 1).T  # Pinocchio fills the upper triangle
+        by_v = ddq_dv - minv * damping  # the file's damping τ = −d·v, when the scene keeps it
+        ds = np.vstack([s[n:], ddq_dq[dof] @ s[:n] + by_v[dof] @ s[n:]])
+        return np.concatenate([v, loaded.data.ddq[loaded.dof], ds.ravel()])
+
+    result = _solve_ivp()(rhs, (0.0, scene.duration), np.concatenate([y0, s0.ravel()]), method="DOP853", rtol=rtol,
+                          atol=atol, dense_output=True)
+    if not result.success:
+        raise RuntimeError(f"reference sensitivity integration failed: {result.message}")
+    return Sensitivity(scene, dynamics, output_columns(scene), wrt, ChainPoint(y0, np.zeros(0)), np.zeros((0, k)),
+                       result.sol, rtol, atol, len(result.t) - 1, result.nfev)
 
 
 def relative_error(jacobian: np.ndarray, reference: np.ndarray) -> np.ndarray:

@@ -9,16 +9,19 @@ state columns at one time (positions m and velocities m/s of each particle).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any, Sequence
 
 import numpy as np
 
-from engines.errors import Unsupported, UserError
-from engines.scene.scene import Scene
+from engines.errors import UserError
 
 
-def output_columns(scene: Scene) -> list[str]:
-    """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle."""
+def output_columns(scene: Any) -> list[str]:
+    """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle; for a
+    model scene ``q_<joint>`` then ``v_<joint>`` for its moving joints."""
+    if scene.is_model:
+        return [f"{kind}_{joint}" for kind in "qv" for joint in scene.joint_names]
     return [f"{kind}{i}_{axis}" for i in range(len(scene.particles)) for kind in "pv" for axis in "xyz"]
 
 
@@ -36,16 +39,23 @@ def si_scale(scene_name: str, name: str) -> float:
     return math.pi / 180.0 if unit == "deg" else 1.0
 
 
-def check_wrt(scene: Scene, wrt: Sequence[str]) -> None:
-    """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry."""
-    from engines.scene.catalog import builder
+def model_parameters(scene: Any) -> list[str]:
+    """A model scene's parameters: ``q0.<joint>`` and ``v0.<joint>`` for its moving joints (SI: rad or m, rad/s
+    or m/s; the q0 a user gives in degrees is differentiated per radian)."""
+    return [f"{kind}.{joint}" for kind in ("q0", "v0") for joint in scene.joint_names]
 
-    if scene.is_model:
-        raise Unsupported("gradients of model files are not computed yet: use a catalog scene")
+
+def check_wrt(scene: Any, wrt: Sequence[str]) -> None:
+    """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry (or, for a
+    model scene, one of :func:`model_parameters`)."""
     if not wrt:
         raise UserError("--wrt: give at least one scene parameter, e.g. --wrt theta1,g")
-    parameters = {p.name: p for p in builder(scene.name).parameters}
-    allowed = [n for n, p in parameters.items() if not p.integer and n != "duration"]
+    if scene.is_model:
+        allowed = model_parameters(scene)
+    else:
+        from engines.scene.catalog import builder
+
+        allowed = [p.name for p in builder(scene.name).parameters if not p.integer and p.name != "duration"]
     for name in wrt:
         if name not in allowed:
             raise UserError(f"--wrt: {scene.name} has no real parameter {name!r}; choose from: {', '.join(allowed)}")
@@ -53,8 +63,13 @@ def check_wrt(scene: Scene, wrt: Sequence[str]) -> None:
         raise UserError(f"--wrt: a parameter is named twice in {', '.join(wrt)}")
 
 
-def perturbed(scene: Scene, name: str, delta: float) -> Scene:
-    """``scene`` rebuilt from the catalog with parameter ``name`` moved by ``delta`` SI units (rad for angles)."""
+def perturbed(scene: Any, name: str, delta: float) -> Any:
+    """``scene`` with parameter ``name`` moved by ``delta`` SI units (rad for angles): a catalog scene rebuilt from
+    the catalog, a model scene with its q0 or v0 entry moved."""
+    if scene.is_model:
+        kind, _, joint = name.partition(".")
+        moved = tuple((j, value + delta if j == joint else value) for j, value in getattr(scene, kind))
+        return replace(scene, **{kind: moved})
     from engines.scene.catalog import build
 
     values: dict[str, Any] = dict(scene.parameters)
