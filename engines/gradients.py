@@ -43,12 +43,15 @@ def single_precision(engine: "Engine", variant: str | None, options: Mapping[str
 @dataclass(frozen=True)
 class EngineJacobian:
     """An engine's answer: jacobian (m, k) per SI unit; method, one of METHODS; time : s, the outputs' time;
-    own : whether the engine computed it itself (Engine.jacobian), not the harness by differences of rollouts."""
+    own : whether the engine computed it itself (Engine.jacobian), not the harness by differences of rollouts;
+    times (n,) s and over_time (n, m, k): the Jacobian at every sample, when known (differences of rollouts)."""
 
     jacobian: np.ndarray
     method: str
     time: float
     own: bool = False
+    times: np.ndarray | None = None
+    over_time: np.ndarray | None = None
 
 
 def parameter_step(scene: Scene, name: str, relative: float = STEP) -> float:
@@ -63,17 +66,26 @@ def parameter_step(scene: Scene, name: str, relative: float = STEP) -> float:
     return relative * (value if value > 0 else 1.0)
 
 
+#: s between the samples at which differences of rollouts give the Jacobian (its error over time, the first NaN).
+SAMPLE_INTERVAL = 0.01
+
+
 def rollout_outputs(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
-                    dt: float) -> tuple[np.ndarray, float]:
-    """(outputs (m,) at the run's last sample, its time s); NaN outputs when the run is not ok."""
-    trajectory = engine.simulate(scene, dt, variant=variant, options=options, sample_interval=scene.duration)
-    m = len(output_columns(scene))
-    if trajectory.info.status != "ok" or not trajectory.n_samples:
-        return np.full(m, np.nan), float(round(scene.duration / dt) * dt)
+                    dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(outputs (n, m) at every sample, the sample times (n,) s), sampled every SAMPLE_INTERVAL; the samples a
+    run did not reach (it blew up or failed) are NaN."""
+    from engines.adapter import Schedule
+
+    times = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL).times
+    out = np.full((len(times), len(output_columns(scene))), np.nan)
+    trajectory = engine.simulate(scene, dt, variant=variant, options=options, sample_interval=SAMPLE_INTERVAL)
+    n = trajectory.n_samples if trajectory.info.status == "ok" else 0
     if scene.is_model:  # a model's outputs are its joints' q and v
-        joints = trajectory.joint_states
-        return (np.full(m, np.nan) if joints is None else np.asarray(joints[-1], dtype=float)), float(trajectory.t[-1])
-    return outputs_of(trajectory.positions[-1], trajectory.velocities[-1]), float(trajectory.t[-1])
+        if trajectory.joint_states is not None:
+            out[:n] = np.asarray(trajectory.joint_states[:n], dtype=float)
+    else:
+        out[:n] = outputs_of(trajectory.positions[:n], trajectory.velocities[:n])
+    return out, times
 
 
 def finite_difference_jacobian(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
@@ -82,15 +94,23 @@ def finite_difference_jacobian(engine: "Engine", scene: Scene, variant: str | No
 
     Four rollouts per parameter; a fixed-step rollout is a smooth function of the parameters (same steps,
     same dt), so the differences converge as for any smooth function. ``relative`` : the step's fraction of
-    each parameter's scale, default STEP (STEP_FLOAT32 for a float32 variant).
+    each parameter's scale, default STEP (STEP_FLOAT32 for a float32 variant). The Jacobian comes at every
+    sample (``over_time``) as well as at T.
     """
     check_wrt(scene, wrt)
     if relative is None:
         relative = STEP_FLOAT32 if single_precision(engine, variant, options) else STEP
-    columns = [central_difference(
-        lambda delta, name=name: rollout_outputs(engine, perturbed(scene, name, delta), variant, options, dt)[0],
-        parameter_step(scene, name, relative)) for name in wrt]
-    return EngineJacobian(np.array(columns).T, "finite-difference", float(round(scene.duration / dt) * dt))
+    times = np.empty(0)
+
+    def outputs(name: str, delta: float) -> np.ndarray:
+        nonlocal times
+        out, times = rollout_outputs(engine, perturbed(scene, name, delta), variant, options, dt)
+        return out
+
+    columns = [central_difference(lambda delta, name=name: outputs(name, delta), parameter_step(scene, name, relative))
+               for name in wrt]
+    over_time = np.stack(columns, axis=-1)  # (n, m, k)
+    return EngineJacobian(over_time[-1], "finite-difference", float(times[-1]), times=times, over_time=over_time)
 
 
 def engine_jacobian(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,

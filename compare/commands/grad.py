@@ -83,6 +83,15 @@ def format_case(case: GradientCase) -> str:
         lines.append(f"{name:<12} {norm:>12.4g} {_g(error):>11}  {klass}")
     horizon = "none within the run" if case.horizon is None else f"{case.horizon:g} s"
     lines.append(f"error {_g(case.error)} (relative Frobenius at T{half}); class {case.klass}")
+    if case.error_over_time is not None and case.times is not None:
+        within = case.times <= (case.horizon if case.horizon is not None else case.duration)
+        errors = np.nan_to_num(case.error_over_time[within & (case.times > 0)], nan=np.inf)
+        if len(errors):
+            worst = int(np.argmax(errors))
+            lines.append(f"over time: largest error {_g(errors[worst])} at t = "
+                         f"{case.times[within & (case.times > 0)][worst]:g} s (at the samples, within the horizon)")
+    if case.first_nonfinite is not None:
+        lines.append(f"first NaN or infinity: t = {case.first_nonfinite[0]:g} s, parameter {case.first_nonfinite[1]}")
     if case.self_consistency is not None:
         lines.append(f"self-consistency {_g(case.self_consistency)} (own derivatives against differences of own rollouts)")
     grew = "" if case.growth is None else (f", |J| grew {case.growth:.3g}x (ln of it over T: "

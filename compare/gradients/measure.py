@@ -47,7 +47,9 @@ class GradientCase:
     jacobian, reference_jacobian : (m, k) per SI unit; error_half : the error at dt/2 (None for the
     reference); column_errors, column_classes : (k,) per parameter; horizon : s or None;
     reference_error : the reference's own relative error at T; growth : ‖J_ref(T)‖_F / ‖J_ref(0)‖_F (None when
-    J_ref(0) = 0), whose log over T is a finite-time Lyapunov estimate (1/s).
+    J_ref(0) = 0), whose log over T is a finite-time Lyapunov estimate (1/s); first_nonfinite : (s, parameter) of
+    the first sample whose Jacobian holds a NaN or an infinity, or None; times (n,) s, error_over_time (n,) : the
+    error at every sample, when the engine's Jacobian is known there (differences of rollouts).
     """
 
     scene: str
@@ -68,6 +70,9 @@ class GradientCase:
     column_classes: list[str]
     reference_error: float
     growth: float | None
+    first_nonfinite: tuple[float, str] | None = None
+    times: np.ndarray | None = None
+    error_over_time: np.ndarray | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``xval grad --format json`` (NaN and infinities as null)."""
@@ -148,10 +153,25 @@ def engine_case(engine: Engine, variant: str | None, options: Mapping[str, Any] 
     if answer.own:
         own = finite_difference_jacobian(engine, scene, variant, options, dt, wrt).jacobian
         consistency = _error(answer, own)
+    over_time = None
+    if answer.over_time is not None and answer.times is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            over_time = relative_error(answer.over_time, bound.sensitivity.jacobian(answer.times))
     return GradientCase(scene.name, f"{engine.name}/{variant}", dt, scene.duration, list(wrt), output_columns(scene),
                         answer.jacobian, reference, error, answer.method, consistency, klass, bound.horizon, error_half,
                         [float(e) for e in per], classes, _reference_error(bound, answer.time),
-                        _growth(bound, answer.time))
+                        _growth(bound, answer.time), first_nonfinite(answer, list(wrt)), answer.times, over_time)
+
+
+def first_nonfinite(answer: EngineJacobian, wrt: list[str]) -> tuple[float, str] | None:
+    """(s, parameter): the first sample, and its first parameter, whose Jacobian holds a NaN or an infinity."""
+    series = answer.over_time if answer.over_time is not None else answer.jacobian[None]
+    times = answer.times if answer.times is not None else np.array([answer.time])
+    bad = ~np.isfinite(series).all(axis=1)  # (n, k)
+    if not bad.any():
+        return None
+    sample = int(np.argmax(bad.any(axis=1)))
+    return float(times[sample]), wrt[int(np.argmax(bad[sample]))]
 
 
 def _end_time(scene: Scene, dt: float) -> float:
