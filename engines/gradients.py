@@ -72,14 +72,17 @@ SAMPLE_INTERVAL = 0.01
 
 def rollout_outputs(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
                     dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """(outputs (n, m) at every sample, the sample times (n,) s), sampled every SAMPLE_INTERVAL; the samples a
-    run did not reach (it blew up or failed) are NaN."""
+    """(outputs (n, m) at every sample, the sample times (n,) s), sampled every SAMPLE_INTERVAL (or every step,
+    for a longer step); the samples a run did not reach (it blew up or failed) are NaN."""
     from engines.adapter import Schedule
 
     times = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL).times
     out = np.full((len(times), len(output_columns(scene))), np.nan)
     trajectory = engine.simulate(scene, dt, variant=variant, options=options, sample_interval=SAMPLE_INTERVAL)
-    n = trajectory.n_samples if trajectory.info.status == "ok" else 0
+    # An unstable run's samples stop before its first non-finite state; a failed run has none to trust.
+    n = trajectory.n_samples if trajectory.info.status in ("ok", "unstable") else 0
+    if n == 0:
+        return out, times
     if scene.is_model:  # a model's outputs are its joints' q and v
         if trajectory.joint_states is not None:
             out[:n] = np.asarray(trajectory.joint_states[:n], dtype=float)

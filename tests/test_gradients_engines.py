@@ -143,3 +143,14 @@ def test_mujoco_rk4_on_the_kuka_model_is_correct_to_1e_6():
     case = engine_case(engine, variant, None, scene, 1e-3, ["q0.lbr_iiwa_joint_2", "v0.lbr_iiwa_joint_4"])
     assert case.outputs[:2] == ["q_lbr_iiwa_joint_1", "q_lbr_iiwa_joint_2"]
     assert case.error <= 1e-6 and case.klass == "correct" and case.error_half < case.error
+
+
+def test_a_rollout_that_blows_up_is_nan_from_its_first_non_finite_sample():
+    """ours' explicit Euler with Baumgarte feedback at dt 0.05 s on a 4-link chain: the perturbed runs blow up
+    within 5 s (measured at 4.2 s); the Jacobian is nan from that sample on, and the case names it."""
+    engine, variant = registry.resolve("ours/baumgarte-euler")
+    case = engine_case(engine, variant, None, build("chain", {"n": 4, "duration": 5.0}), 0.05, ["theta0"])
+    assert case.klass == "nan" and case.column_classes == ["nan"]
+    assert case.first_nonfinite is not None and case.first_nonfinite[1] == "theta0"
+    assert 0.05 < case.first_nonfinite[0] <= 5.0
+    assert case.error_over_time is not None and np.isfinite(case.error_over_time[0])

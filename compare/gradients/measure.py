@@ -7,8 +7,9 @@ converges to the reference's falls with dt at the engine's order. Classes:
 - ``chaotic``: T lies past the reference's horizon (its two solves' Jacobians part by more than
   JACOBIAN_HORIZON), where neither side resolves the sensitivity;
 - ``correct``: the error is under the floor (a tolerance of 1e-6, 1e-3 for float32, or ten times the
-  reference's own error), or it falls with dt at an observed order of at least MIN_ORDER;
-- ``wrong``: it does not fall: a bias, such as a parameter the solver ignores.
+  reference's own error), or it is under SMALL (100 %) and falls with dt at an observed order of at least
+  MIN_ORDER;
+- ``wrong``: it does not fall (a bias, such as a parameter the solver ignores), or is off by its own size.
 
 Self-consistency, for an engine with derivatives of its own: its Jacobian against central differences
 of its own rollouts at the same dt ("is the derivative of what it computes right?", not "is it accurate?").
@@ -31,6 +32,8 @@ from engines.scene.scene import Scene
 CLASSES = ("correct", "chaotic", "wrong", "nan")
 #: Observed order (log2 of the error's fall from dt to dt/2) below which a Jacobian is not converging.
 MIN_ORDER = 0.5
+#: A Jacobian off by its own size is not small, converging or not: wrong at this dt.
+SMALL = 1.0
 #: Relative error under which a float64 Jacobian is correct whatever its trend: the tolerance the verdict
 #: grants a plateau by default (1e-6·L for trajectories). A plateau under it is a model's own small difference
 #: (MJX's default point-mass inertia, 1e-9·m·L², holds its Jacobian 8e-9 off on the double pendulum) ...
@@ -110,7 +113,7 @@ def classify(error: float, error_half: float | None, floor: float, horizon: floa
         return "chaotic"
     if error <= floor:
         return "correct"
-    if error_half is not None and error_half > 0 and math.log2(error / error_half) >= MIN_ORDER:
+    if error < SMALL and error_half is not None and error_half > 0 and math.log2(error / error_half) >= MIN_ORDER:
         return "correct"
     return "wrong"
 
