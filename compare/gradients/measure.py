@@ -101,7 +101,7 @@ def column_errors(jacobian: np.ndarray, reference: np.ndarray) -> np.ndarray:
     chain's common mass moves nothing) is measured against ‖J_ref‖_F instead."""
     norms = np.linalg.norm(reference, axis=0)
     scale = np.maximum(norms, 1e-12 * np.linalg.norm(reference))
-    with np.errstate(invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
         return np.linalg.norm(jacobian - reference, axis=0) / scale
 
 

@@ -239,9 +239,11 @@ def _solve_model(scene: Any, wrt: list[str], rtol: float, atol: float) -> Sensit
 
 
 def relative_error(jacobian: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """‖J − J_ref‖_F / ‖J_ref‖_F over the last two axes of (…, m, k) arrays."""
-    diff = np.linalg.norm(np.asarray(jacobian) - reference, axis=(-2, -1))
-    return diff / np.linalg.norm(reference, axis=(-2, -1))
+    """‖J − J_ref‖_F / ‖J_ref‖_F over the last two axes of (…, m, k) arrays (inf or NaN where J is, silently:
+    a Jacobian that blew up is a class of its own, not a warning)."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        diff = np.linalg.norm(np.asarray(jacobian) - reference, axis=(-2, -1))
+        return diff / np.linalg.norm(reference, axis=(-2, -1))
 
 
 @dataclass(frozen=True)
