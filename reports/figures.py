@@ -18,6 +18,7 @@ from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
+from compare.results.table import estimate_text, scene_reference
 from compare.results.verdict import points
 
 from reports.decimate import MAX_POINTS, decimate
@@ -353,6 +354,10 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     if horizon is not None and horizon < duration:
         caption += (f" Shaded from t = {horizon:.3g} s: past the reference horizon, where the reference's own two "
                     "solves (its tolerance and one 100× tighter) part; the case's error metrics are taken before it.")
+        reference = scene_reference(r for _, _, r in chosen) or {}
+        caption += (f" As estimates with their intervals (docs/metrics.md): the horizon "
+                    f"{estimate_text(horizon, reference.get('reference_horizon_interval'), 's', 3)}, the largest "
+                    f"Lyapunov exponent {estimate_text(reference.get('lyapunov_exponent'), reference.get('lyapunov_interval'), '/s')}.")
     return Plot("ts", f"Time series at dt = {dt:.3g} s", caption, figure)
 
 

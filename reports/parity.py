@@ -46,7 +46,7 @@ def write_parity(path: Path, scene: dict[str, Any]) -> None:
     """Run ``xval model check`` on the scene's file and write its JSON to ``path``; nothing when the file
     cannot be found or read (the report then says how to make the table)."""
     from compare.model.parity import check
-    from compare.results.files import atomic_write_text
+    from engines.files import atomic_write_text
     from engines.errors import UserError
 
     label = model_label(scene)

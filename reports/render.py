@@ -30,7 +30,9 @@ from markupsafe import Markup
 from compare.results.verdict import families
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text, check_writable, results_inputs
+from engines.files import atomic_write_text, check_writable
+
+from compare.results.store import results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 

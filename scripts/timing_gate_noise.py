@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from compare.gate.baseline import Baseline, build_baseline  # noqa: E402
 from compare.gate.gate import gate_results  # noqa: E402
-from compare.results.store import load_results  # noqa: E402
+from compare.run.results import load_results  # noqa: E402
 from compare.run.runner import run_suite  # noqa: E402
 from compare.suite.reader import parse_suite  # noqa: E402
 

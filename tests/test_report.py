@@ -291,7 +291,7 @@ def test_missing_metrics_and_series_render(small_results, tmp_path):
 
 
 def test_chosen_dt_is_the_smallest_with_the_most_ok_variants(small_results):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
 
     scene_sweeps = [s for s in sweeps(load_results(small_results).records) if s.scene_id == "bead"]
     assert choose_dt(scene_sweeps, [1e-2, 3e-3, 1e-3]) == 1e-3

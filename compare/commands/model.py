@@ -39,22 +39,23 @@ def check_command(model, engines, states, seed, balance_inertia, output_format) 
 
 
 def render(report: ParityReport) -> str:
-    lines = [f"model {report.model} ({report.name}: {len(report.moving_joints)} moving joints), reference "
-             f"{report.reference.engine} {report.reference.version}, {report.states} states (seed {report.seed})"]
+    lines = [f"model {report.model} ({report.name}: {len(report.moving_joints)} moving joints), model reference "
+             f"{report.model_reference.engine} {report.model_reference.version}, {report.states} states "
+             f"(seed {report.seed})"]
     header = ["engine", "version", "loaded", "M", "bias", "forward", "agrees"]
     rows = [[e.engine, e.version, "yes" if e.loaded else "no",
              *(_cell(getattr(e, q)) for q in QUANTITIES), "yes" if e.agrees else "no"] for e in report.engines]
     widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header))]
     lines += ["  ".join(c.ljust(w) if k < 3 else c.rjust(w) for k, (c, w) in enumerate(zip(r, widths))).rstrip()
               for r in [header, *rows]]
-    lines.append(f"M, bias, forward: largest |engine - {report.reference.engine}| over states and entries, divided by "
-                 f"the largest |{report.reference.engine}|; agrees when all three are <= {TOLERANCE:g}")
+    lines.append(f"M, bias, forward: largest |engine - {report.model_reference.engine}| over states and entries, divided by "
+                 f"the largest |{report.model_reference.engine}|; agrees when all three are <= {TOLERANCE:g}")
     for e in report.engines:
         if e.message:
             lines.append(f"{e.engine}: {e.message}")
-    if report.diagnosis or report.reference.diagnosis:
+    if report.diagnosis or report.model_reference.diagnosis:
         lines.append("diagnosis (mass properties at q = 0 in the world frame, against the file):")
-        lines += [f"  {line}" for line in (*report.diagnosis, *report.reference.diagnosis)]
+        lines += [f"  {line}" for line in (*report.diagnosis, *report.model_reference.diagnosis)]
     lines += [f"note: {note}" for note in report.notes]
     return "\n".join(lines)
 

@@ -12,8 +12,9 @@ import numpy as np
 
 from compare.cli import Seconds, engine_option_option, model_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
-from compare.results.files import STDOUT, atomic_write_text, check_writable
-from compare.results.metrics import Bounds, apply_bounds, largest, relative_drift
+from engines.files import STDOUT, atomic_write_text, check_writable
+from compare.results.measure import apply_bounds
+from compare.results.metrics import Bounds, largest, relative_drift
 from engines import registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.external.command import command_engine

@@ -20,8 +20,9 @@ from typing import Any, Mapping
 from engines.errors import UserError
 
 from compare.gate.entry import BaselineEntry, EntryError, entry_of, record_key
-from compare.results.files import atomic_write_text, read_user_text
-from compare.results.store import Results, jsonable, now
+from engines.files import atomic_write_text, read_user_text
+from compare.results.store import jsonable, now
+from compare.run.results import Results
 
 #: Bump when a field of the baseline file changes meaning.
 BASELINE_SCHEMA_VERSION = 1

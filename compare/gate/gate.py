@@ -20,7 +20,7 @@ from engines.errors import UserError
 from compare.gate.baseline import MACHINE_FIELDS, Baseline
 from compare.gate.entry import BaselineEntry, Timing, case_name
 from compare.results.declared import Metric
-from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings
+from compare.suite.gate_rules import RULES, TIMING_METRIC, GateSettings
 from compare.results.record import PROBLEMS, Status
 
 #: Case outcomes, in the order a table lists them (most urgent first).

@@ -1,14 +1,12 @@
 """One gradient case: an engine's Jacobian of its outputs at T against the reference's, and its class.
 
-error : ‖J − J_ref‖_F / ‖J_ref‖_F at T. The engine is run at dt and at dt/2: a Jacobian that
-converges to the reference's falls with dt at the engine's order. Classes:
+error : ‖J − J_ref‖_F / ‖J_ref‖_F at T; the engine runs at dt and dt/2. Classes (docs/gradients.md):
 
 - ``nan``: the Jacobian holds a NaN or an infinity;
 - ``chaotic``: T lies past the reference's horizon (its two solves' Jacobians part by more than
   JACOBIAN_HORIZON), where neither side resolves the sensitivity;
-- ``correct``: the error is under the floor (a tolerance of 1e-6, 1e-3 for float32, or ten times the
-  reference's own error), or it is under SMALL (100 %) and falls with dt at an observed order of at least
-  MIN_ORDER;
+- ``correct``: the error is under the floor (1e-6, 1e-3 for float32, or ten times the reference's own
+  error), or under SMALL (100 %) and falling with dt at an observed order of at least MIN_ORDER;
 - ``wrong``: it does not fall (a bias, such as a parameter the solver ignores), or is off by its own size.
 
 Self-consistency, for an engine with derivatives of its own: its Jacobian against central differences

@@ -33,7 +33,8 @@ from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
 from compare.results.declared import current_names
 from compare.results.record import CaseRecord
-from compare.results.store import Results, now
+from compare.results.store import now
+from compare.run.results import Results
 
 #: Version of the tables; bump it and append a migration when they change.
 SCHEMA_VERSION = 1

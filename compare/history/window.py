@@ -16,10 +16,10 @@ from typing import Any, Sequence
 from compare.gate.baseline import Baseline
 from compare.gate.entry import BaselineEntry, Timing, engine_version, record_key
 from compare.results.record import Status
-from compare.suite.tolerance import RULES
+from compare.suite.gate_rules import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
-from compare.results.store import Results
+from compare.run.results import Results
 
 #: Runs in the window when --window is not given.
 DEFAULT_WINDOW = 5

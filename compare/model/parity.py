@@ -62,7 +62,9 @@ class ParityReport:
     model: str
     name: str
     moving_joints: tuple[str, ...]
-    reference: EngineParity
+    #: Pinocchio's answers, what every engine is compared with: the model reference (not the DOP853
+    #: ``reference`` engine of the catalog's scenes).
+    model_reference: EngineParity
     states: int
     seed: int
     engines: tuple[EngineParity, ...]
@@ -75,8 +77,9 @@ class ParityReport:
 
     def to_dict(self) -> dict:
         return {"model": self.model, "name": self.name, "moving_joints": list(self.moving_joints),
-                "reference": {"name": self.reference.engine, "version": self.reference.version,
-                              "options": self.reference.options, "diagnosis": list(self.reference.diagnosis)},
+                "reference": {"name": self.model_reference.engine, "version": self.model_reference.version,
+                              "options": self.model_reference.options,
+                              "diagnosis": list(self.model_reference.diagnosis)},
                 "states": self.states, "seed": self.seed, "tolerance": TOLERANCE,
                 "engines": [asdict(e) for e in self.engines], "notes": list(self.notes),
                 "diagnosis": list(self.diagnosis)}
@@ -151,22 +154,22 @@ def check(label: str, engines: tuple[str, ...] = ENGINES, states: int = 100, see
     if model.nq == 0:
         raise ModelError(f"model {label}: no moving joint (revolute, continuous or prismatic); nothing to compare")
     try:
-        reference = importer(REFERENCE).load(source, model)
+        model_reference = importer(REFERENCE).load(source, model)
     except Refused as exc:
-        raise ModelError(f"model {label}: the reference (pinocchio) cannot load it: {exc}") from None
-    _require_invertible(model, reference, label)
-    sample = sample_states(model, reference, states, seed)
-    expected = evaluate(reference, sample)
+        raise ModelError(f"model {label}: the model reference (pinocchio) cannot load it: {exc}") from None
+    _require_invertible(model, model_reference, label)
+    sample = sample_states(model, model_reference, states, seed)
+    expected = evaluate(model_reference, sample)
     results, findings = [], {}
     for name in engines:
         result, findings[name] = _one(name, source, model, sample, expected, balance_inertia)
         results.append(result)
-    reference_findings = diagnose(model, reference.link_inertias())
+    model_reference_findings = diagnose(model, model_reference.link_inertias())
     notes = (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
-    ref_entry = EngineParity(REFERENCE, importer(REFERENCE).version(), True, True, 0.0, 0.0, 0.0,
-                             options=reference.options, notes=reference.notes,
-                             diagnosis=tuple(sentences({REFERENCE: reference_findings})))
-    return ParityReport(label, model.name, tuple(j.name for j in model.moving_joints), ref_entry, states, seed,
+    reference_entry = EngineParity(REFERENCE, importer(REFERENCE).version(), True, True, 0.0, 0.0, 0.0,
+                             options=model_reference.options, notes=model_reference.notes,
+                             diagnosis=tuple(sentences({REFERENCE: model_reference_findings})))
+    return ParityReport(label, model.name, tuple(j.name for j in model.moving_joints), reference_entry, states, seed,
                         tuple(results), notes, tuple(sentences(findings)))
 
 

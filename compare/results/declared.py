@@ -22,6 +22,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from engines.scene.scene import SceneLike
+from engines.scene.trajectory import momentum_drift
+
+from compare.results.metrics import CaseMetrics
+
 #: Relative tolerance shared by the accuracy metrics. 10 %: far above the
 #: cross-machine round-off of a deterministic run (~1e-12 relative on these
 #: short scenes, up to ~1e-6 where a chaotic scene amplifies it), far below
@@ -46,7 +51,7 @@ class MetricInputs:
     reference_positions : (n, P, 3) m at the trajectory's times; position_error : (n,) m.
     """
 
-    scene: Any
+    scene: SceneLike
     trajectory: Any
     reference_positions: np.ndarray
     position_error: np.ndarray
@@ -150,8 +155,6 @@ _BUILT_IN = (
 
 
 def _momentum_drift(inputs: "MetricInputs") -> float | None:
-    from engines.scene.trajectory import momentum_drift
-
     trajectory = inputs.trajectory
     return momentum_drift(inputs.scene, trajectory.positions, trajectory.velocities)
 
@@ -207,8 +210,7 @@ def case_metrics() -> list[Metric]:
     """The per-case metrics in export order (exports have a column for each): the ones the runner computes
     itself in compare.results.metrics.CaseMetrics' field order (which CSV readers of earlier releases rely
     on), then the others in declaration order."""
-    from compare.results.metrics import CaseMetrics  # the dataclass is the order; no copy of it here
-
+    # CaseMetrics, the dataclass, is the order; no copy of it here.
     per_case = [m for m in METRICS.values() if m.per == "case"]
     rank = {f.name: k for k, f in enumerate(fields(CaseMetrics))}
     return sorted(per_case, key=lambda m: rank.get(m.name, len(rank)))

@@ -13,6 +13,7 @@ from __future__ import annotations
 import textwrap
 from typing import Any, Sequence
 
+from compare.results.table import scene_reference
 from compare.results.verdict import Point, Reach, SceneVerdict
 
 #: Longest problem text printed in the terminal (the report and the case files have the whole message).
@@ -96,6 +97,8 @@ def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
         "scene": verdict.scene_id,
         "length": verdict.length,
         "target": verdict.target,
+        # The reference's error bar, horizon and Lyapunov estimate, each estimate with its interval.
+        "reference": scene_reference(r for s in verdict.variants for r in s.records),
         "front": [_point(p) for p in verdict.front],
         "cost_models": [
             {"engine": s.engine, "per_step": s.cost.per_step, "per_step_interval": [s.cost.low, s.cost.high],

@@ -1,7 +1,7 @@
 """Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
 
 Criterion (the same one ``xval run`` applies to every case, see
-:func:`compare.results.metrics.apply_bounds`): a trial at time step dt is *stable*
+:func:`compare.results.measure.decide_status`): a trial at time step dt is *stable*
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
@@ -23,7 +23,8 @@ from typing import Any, Callable
 
 from compare.results.metrics import Bounds
 from compare.results.store import jsonable, now
-from compare.run.runner import default_jobs, skip_reason
+from compare.run.plan import skip_reason
+from compare.run.runner import default_jobs
 from compare.stability.trial import (
     Trial, check_output, document_head, load_document, run_trial, write_document,
 )

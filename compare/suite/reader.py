@@ -18,20 +18,20 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from engines import registry
 from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import catalog
-from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
-from compare.results.files import read_user_text
+from engines.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.suite.tolerance import GateSettings, gate_settings
+from compare.suite.gate_rules import GateSettings, gate_settings
+from compare.suite.specs import EngineSpec, SceneSpec
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
@@ -65,35 +65,6 @@ REFERENCE_KEYS = ("rtol", "atol")
 BOUND_KEYS = ("energy_drift", "constraint_error")
 
 DEFAULTS = {"sample_interval": 0.01, "delta": DEFAULT_DELTA, "repeats": 1, "timeout": 120.0}
-
-
-@dataclass(frozen=True)
-class SceneSpec:
-    """One scene of a suite: readable ``id``, catalog ``name``, ``parameters`` as written, the built Scene."""
-
-    id: str
-    name: str
-    parameters: Mapping[str, Any]
-    scene: Scene
-
-
-@dataclass(frozen=True)
-class EngineSpec:
-    """One engine variant of a suite.
-
-    id : what the suite wrote, expanded (``mujoco/hinge-rk4``, or
-        ``tests.engines:BROKEN/raise``); used to load the engine in a worker.
-    label : the readable id shown in tables and results (``id`` unless set).
-    engine : the adapter, or None when it cannot be loaded here (``unavailable`` says why).
-    variant : key of ``engine.variants``; options : as written in the suite.
-    """
-
-    id: str
-    label: str
-    variant: str | None
-    options: Mapping[str, Any]
-    engine: Engine | None
-    unavailable: str = ""
 
 
 @dataclass(frozen=True)
@@ -147,8 +118,8 @@ class Suite:
 
 def _program_of(engine: EngineSpec) -> list[Any]:
     """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
-    spec = getattr(engine.engine, "spec", None)
-    return [] if spec is None else [list(spec.argv), spec.version]
+    program = None if engine.engine is None else engine.engine.program()
+    return [] if program is None else [list(program[0]), program[1]]
 
 
 # -- engine ids ------------------------------------------------------------------

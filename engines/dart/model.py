@@ -14,7 +14,6 @@ stiffness set to 0. M is ``getMassMatrix``, the bias
 from __future__ import annotations
 
 
-from typing import Any
 
 import numpy as np
 
@@ -24,8 +23,9 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.stdio import quiet_output
+from engines.model.scene import ModelScene
 
 NAME = "dart"
 
@@ -116,10 +116,10 @@ class DartModel(LoadedModel):
         return found
 
 
-class DartStepper:
+class DartStepper(Stepper):
     """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
 
-    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         dart = library.dartpy()
         loaded = load(scene.source, scene.description)
         skeleton = self.skeleton = loaded.skeleton

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import logging
 
-from typing import Any
 
 import numpy as np
 
@@ -24,7 +23,8 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
+from engines.model.scene import ModelScene
 
 NAME = "drake"
 
@@ -142,11 +142,11 @@ class DrakeModel(LoadedModel):
         return found
 
 
-class DrakeStepper:
+class DrakeStepper(Stepper):
     """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
     integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
 
-    def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
+    def __init__(self, scene: ModelScene, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
         ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
         loaded = load(scene.source, scene.description)
         plant = self.plant = loaded.plant

@@ -23,6 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from engines.errors import Unsupported
 from engines.model.description import ModelDescription, ModelError
 from engines.model.loaded import GRAVITY
 from engines.model.source import ModelSource, resolve
@@ -164,8 +165,6 @@ class ModelScene:
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when this scene keeps the file's joint damping and ``engine``'s import cannot."""
         if self.file_dynamics == "keep":
-            from engines.errors import Unsupported
-
             raise Unsupported(f"{engine}: file_dynamics = \"keep\" is not supported here (its import sets joint "
                               f"damping to 0 before the model is finalised); use \"neutral\"")
 

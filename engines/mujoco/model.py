@@ -13,7 +13,6 @@ disabled (no joint limits or contacts), so forward dynamics are the tree's.
 
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 
@@ -21,8 +20,9 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.mujoco.library import mujoco
+from engines.model.scene import ModelScene
 
 NAME = "mujoco"
 
@@ -121,10 +121,10 @@ class MujocoModel(LoadedModel):
         return found
 
 
-class MujocoStepper:
+class MujocoStepper(Stepper):
     """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
 
-    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         self.mujoco = mujoco
         loaded = load(scene.source, scene.description)
         self.model, self.data = loaded.model, loaded.data

@@ -17,6 +17,7 @@ from engines.errors import Unsupported
 from engines.model.description import ModelDescription
 from engines.model.inertia import combine, world_inertia
 from engines.model.kinematics import rpy_matrix
+from engines.model.stepping import Stepper
 from ours import OursError
 from ours.rigid import (
     Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, simulate,
@@ -94,7 +95,7 @@ def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_ev
     return result, q, v
 
 
-class OursStepper:
+class OursStepper(Stepper):
     """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
     start from the scene's joint state, step with the variant's method and integrator. Revolute angles
     are read continuously from sample to sample (ours' rows fix them only modulo 2π). Its joints are

@@ -17,7 +17,7 @@ import os
 import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import replace
-from typing import Any, Iterator
+from typing import Iterator
 
 import numpy as np
 
@@ -25,10 +25,11 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
 from engines.pybullet.library import pb
 from engines.pybullet.library import version as _pybullet_version
 from engines.stdio import quiet_output
+from engines.model.scene import ModelScene
 
 NAME = "pybullet"
 #: The step that measures an acceleration (s).
@@ -138,10 +139,10 @@ class PyBulletModel(LoadedModel):
             pass
 
 
-class PyBulletStepper:
+class PyBulletStepper(Stepper):
     """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
 
-    def __init__(self, scene: Any, dt: float) -> None:
+    def __init__(self, scene: ModelScene, dt: float) -> None:
         self.pb, self.quiet = pb, quiet_output
         loaded = self.loaded = load(_without_limits(scene.source), scene.description)
         self.kw = {"physicsClientId": loaded.client}
