@@ -154,3 +154,40 @@ def test_a_rollout_that_blows_up_is_nan_from_its_first_non_finite_sample():
     assert case.first_nonfinite is not None and case.first_nonfinite[1] == "theta0"
     assert 0.05 < case.first_nonfinite[0] <= 5.0
     assert case.error_over_time is not None and np.isfinite(case.error_over_time[0])
+
+
+def test_a_suite_with_gradients_records_them_and_the_verdict_names_the_wrong_one(tmp_path):
+    """[gradients] wrt: each case carries gradient_error, gradient_self_consistency and gradient_wrong (show's
+    JSON has them); the verdict lists "wrong gradient" for the solver that ignores g, and only for it."""
+    import sys
+
+    program = _gravity_blind_bead(tmp_path)
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'''name = "gradients"
+dt = [2e-3, 1e-3]
+duration = 0.5
+
+[[scenes]]
+id = "bead"
+scene = "bead"
+
+[[engines]]
+id = "mujoco/hinge-rk4"
+
+[[engines]]
+command = ["{sys.executable}", "{program}"]
+label = "blind-bead"
+
+[gradients]
+wrt = ["theta0", "g", "theta1"]
+''')
+    done = run_xval("run", suite, "--output", tmp_path / "out", "--jobs", "1", timeout=600)
+    assert done.returncode == 0, done.stderr
+    shown = run_xval("show", tmp_path / "out", "--format", "json")
+    rows = {(row["engine"], row["dt"]): row for row in json.loads(shown.stdout)}
+    mujoco, blind = rows[("mujoco/hinge-rk4", 1e-3)], rows[("command/blind-bead", 1e-3)]
+    assert mujoco["gradient_error"] <= 1e-6 and mujoco["gradient_wrong"] == 0
+    assert blind["gradient_error"] > 0.1 and blind["gradient_wrong"] == 1
+    verdict = json.loads(run_xval("verdict", tmp_path / "out", "--format", "json").stdout)
+    text = json.dumps(verdict)
+    assert "wrong gradient" in text and text.count("wrong gradient at dt") == 1

@@ -24,7 +24,7 @@ import numpy as np
 from engines.adapter import Engine
 from engines.gradients import EngineJacobian, engine_jacobian, finite_difference_jacobian, single_precision
 from engines.reference.sensitivity import SensitivityBound, bound_sensitivity, relative_error
-from engines.scene.parameters import output_columns
+from engines.scene.parameters import output_columns, real_parameters
 from engines.scene.scene import Scene
 
 CLASSES = ("correct", "chaotic", "wrong", "nan")
@@ -204,3 +204,21 @@ def _error(answer: EngineJacobian, reference: np.ndarray) -> float:
 def _floor(engine: Engine, variant: str, options: Mapping[str, Any] | None) -> float:
     """The relative error a Jacobian of this variant is correct under, whatever its trend."""
     return FLOAT32_FLOOR if single_precision(engine, variant, options) else FLOAT64_FLOOR
+
+
+def gradient_metrics(engine: Engine, variant: str | None, options: Mapping[str, Any] | None, scene: Scene, dt: float,
+                     wrt: Sequence[str]) -> dict[str, Any]:
+    """A suite case's gradient metrics (compare/results/declared.py): gradient_error, gradient_self_consistency,
+    gradient_wrong (1 for wrong or nan), with respect to the parameters of ``wrt`` this scene has; {} when it has
+    none of them or the reference's sensitivities do not cover it (the case's other metrics stand)."""
+    from engines.errors import UserError
+
+    names = [name for name in wrt if name in real_parameters(scene)]
+    if not names:
+        return {}
+    try:
+        case = engine_case(engine, variant, options, scene, dt, names)
+    except UserError:
+        return {}
+    return {"gradient_error": _number(case.error), "gradient_self_consistency": _number(case.self_consistency),
+            "gradient_wrong": float(case.klass in ("wrong", "nan"))}

@@ -23,7 +23,7 @@ from compare.results.sweep import ORDER_METRIC, VariantSweep
 #: The target error of "cost to reach", as a fraction of L.
 TARGET_FRACTION = 1e-6
 #: Problem kinds, in the order they are listed (worst first).
-PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "hidden dissipation")
+PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "wrong gradient", "hidden dissipation")
 
 
 def family(engine: str) -> str:
@@ -488,6 +488,12 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
             if message:
                 text += f": {message}"
             found.append(Problem(sweep.scene_id, sweep.engine, kind, text, dts, tuple(r.case.id for r in hit)))
+        wrong = sorted((r for r in sweep.records if (r.metrics or {}).get("gradient_wrong") == 1), key=lambda r: -r.case.dt)
+        if wrong:  # [gradients]: d outputs / d wrt does not converge to the reference's (docs/gradients.md)
+            dts = tuple(r.case.dt for r in wrong)
+            found.append(Problem(sweep.scene_id, sweep.engine, "wrong gradient",
+                                 f"wrong gradient at dt {_dts(dts)} s: it does not converge to the reference's",
+                                 dts, tuple(r.case.id for r in wrong)))
     found.sort(key=lambda p: PROBLEM_KINDS.index(p.kind))
     return found
 

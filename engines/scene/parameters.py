@@ -45,17 +45,22 @@ def model_parameters(scene: Any) -> list[str]:
     return [f"{kind}.{joint}" for kind in ("q0", "v0") for joint in scene.joint_names]
 
 
+def real_parameters(scene: Any) -> list[str]:
+    """The parameters a gradient may be taken with respect to: a catalog scene's real ones (not an integer such as
+    ``n``, not ``duration``), a model scene's :func:`model_parameters`."""
+    if scene.is_model:
+        return model_parameters(scene)
+    from engines.scene.catalog import builder
+
+    return [p.name for p in builder(scene.name).parameters if not p.integer and p.name != "duration"]
+
+
 def check_wrt(scene: Any, wrt: Sequence[str]) -> None:
     """UserError unless every name of ``wrt`` is a real-valued parameter of ``scene``'s catalog entry (or, for a
     model scene, one of :func:`model_parameters`)."""
     if not wrt:
         raise UserError("--wrt: give at least one scene parameter, e.g. --wrt theta1,g")
-    if scene.is_model:
-        allowed = model_parameters(scene)
-    else:
-        from engines.scene.catalog import builder
-
-        allowed = [p.name for p in builder(scene.name).parameters if not p.integer and p.name != "duration"]
+    allowed = real_parameters(scene)
     for name in wrt:
         if name not in allowed:
             raise UserError(f"--wrt: {scene.name} has no real parameter {name!r}; choose from: {', '.join(allowed)}")
