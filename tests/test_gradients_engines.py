@@ -163,24 +163,10 @@ def test_a_suite_with_gradients_records_them_and_the_verdict_names_the_wrong_one
 
     program = _gravity_blind_bead(tmp_path)
     suite = tmp_path / "suite.toml"
-    suite.write_text(f'''name = "gradients"
-dt = [2e-3, 1e-3]
-duration = 0.5
-
-[[scenes]]
-id = "bead"
-scene = "bead"
-
-[[engines]]
-id = "mujoco/hinge-rk4"
-
-[[engines]]
-command = ["{sys.executable}", "{program}"]
-label = "blind-bead"
-
-[gradients]
-wrt = ["theta0", "g", "theta1"]
-''')
+    engines = f'["mujoco/hinge-rk4", {{ command = ["{sys.executable}", "{program}"], label = "blind-bead" }}]'
+    suite.write_text("\n".join([
+        'name = "gradients"', "dt = [2e-3, 1e-3]", "duration = 0.5", 'scenes = [{ id = "bead", scene = "bead" }]',
+        f"engines = {engines}", 'gradients = { wrt = ["theta0", "g", "theta1"] }', ""]))
     done = run_xval("run", suite, "--output", tmp_path / "out", "--jobs", "1", timeout=600)
     assert done.returncode == 0, done.stderr
     shown = run_xval("show", tmp_path / "out", "--format", "json")
