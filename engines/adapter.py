@@ -350,8 +350,8 @@ class Engine:
                  wrt: list[str]) -> tuple[np.ndarray, str] | None:
         """The engine's own derivatives of a run's outputs at its last step, or None (the default).
 
-        J : (6P, k) d outputs / d parameters, outputs the CSV's state columns (p{i}_x..z v{i}_x..z, m and
-        m/s), parameters the catalog's ``wrt`` per SI unit (per radian for an angle), for ``scene`` run
+        J : (m, k) d outputs / d parameters, outputs the CSV's state columns (p{i}_x..z v{i}_x..z, m and
+        m/s; a model's q_<joint> v_<joint>), parameters ``wrt`` per SI unit (per radian for an angle), for ``scene`` run
         for its duration at ``dt`` with this variant and options; method : "analytic", "autodiff" or
         "finite-difference" (its own, such as MuJoCo's chained one-step differences).
         None means the engine has no derivatives of its own for this case, and the harness takes
