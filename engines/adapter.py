@@ -1,23 +1,16 @@
-"""The protocol every engine adapter follows, and the shared machinery behind it.
+"""The protocol every engine adapter follows, and the shared machinery behind it. An adapter fills in:
 
-An adapter subclasses :class:`Engine` and fills in:
+- ``name``, ``capabilities`` (``{"3d", "constraint-forces"}``), ``options`` (typed :class:`Option`
+  records), ``variants`` (named presets, the first the default), ``overrides`` (engine defaults changed);
+- ``version()``; ``_check(scene, settings)`` (refusals), ``_check_options(settings)`` (option values);
+- ``_run(scene, schedule, settings) -> RawRun``: build, step, record the samples, time the stepping alone.
 
-- ``name``, ``capabilities`` (e.g. ``{"3d", "constraint-forces"}``),
-  ``options`` (typed :class:`Option` records with defaults), ``variants``
-  (named option presets; the first is the default), ``overrides`` (engine
-  defaults the adapter changes, recorded in every RunInfo);
-- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities,
-  ``_check_options(settings)`` for option values (run for every scene);
-- ``_run(scene, schedule, settings) -> RawRun``: build the model, step it ``schedule.n_steps``
-  times, record the state at ``schedule.sample_steps``, time only the stepping loop.
-
-and may override the hooks the harness calls on every engine, each declared here with its default:
-``_check_model`` / ``_run_model`` (model files), ``model_import()`` (what ``xval model check``
-compares), ``preload(scenes)`` (load once before case hosts fork), ``needs_warm_up``,
-``tolerance_options`` / ``tolerance_capable(settings)`` (a suite's tolerance axis), ``program()`` (an
-outside program's argv and version), ``spectral_radius`` / ``largest_stable_dt`` (the engine's own
-stability theory). Nothing else is looked up on an engine.
-
+and may override the hooks the harness calls, each declared here with its default: ``_check_model`` /
+``_run_model`` (model files), ``model_import()`` (what ``xval model check`` compares), ``preload(scenes)``
+(load once before case hosts fork), ``needs_warm_up``, ``tolerance_options`` /
+``tolerance_capable(settings)`` (a suite's tolerance axis), ``program()`` (an outside program's argv and
+version), ``spectral_radius`` / ``largest_stable_dt`` (the engine's own stability theory). Nothing else
+is looked up on an engine.
 Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 

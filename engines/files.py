@@ -6,17 +6,10 @@ of them ours itself needs: ours imports nothing above it); this module adds what
 ours need (errors that are UserErrors, ``-`` for standard output). It imports ours where it writes,
 for cost: ours loads numpy, which a command must not do before its start-up (compare/run/startup.py).
 
-Rules every output of xval follows (issue 21):
-
-- an output never replaces one of the command's inputs (a baseline, a
-  results directory's files, the suite): UserError, exit 2, before any work;
-- ``-`` is standard output, for the commands that offer it;
-- a symlink is written through: its target gets the new content and the
-  link stays a link;
-- a path that exists and is not a regular file is never replaced by one: a
-  directory is refused, a device or FIFO (``/dev/null``) is written in place;
-- a new file gets the mode the user's umask gives (``0666 & ~umask``), an
-  existing one keeps its mode.
+Rules every output follows: it never replaces one of the command's inputs (UserError, exit 2, before
+any work); ``-`` is standard output; a symlink is written through and stays a link; a path that is
+not a regular file is never replaced by one (a directory is refused, a device or FIFO written in
+place); a new file gets ``0666 & ~umask``, an existing one keeps its mode (docs/reliability.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Keeping what an engine's C library prints (PyBullet, DART) out of xval's output: fds 1 and 2 silenced."""
+"""Keeping what an engine's C library prints (PyBullet, DART) out of xval's output: fds 1 and 2 silenced,
+or, in a child process that keeps what its engine printed (:func:`capture_into`), sent to a file."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ _LIBC = ctypes.CDLL(None)
 _quiet_lock = threading.Lock()
 _quiet_depth = 0
 _saved_fds: dict[int, int] = {}
+#: Where :func:`quiet_output` points fds 1 and 2: /dev/null, or the file of :func:`capture_into`.
+_sink = os.devnull
 
 
 def _flush_all() -> None:
@@ -38,7 +41,7 @@ def quiet_output() -> Iterator[None]:
     with _quiet_lock:
         if _quiet_depth == 0:
             _flush_all()
-            devnull = os.open(os.devnull, os.O_WRONLY)
+            devnull = os.open(_sink, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
             try:
                 for fd in (1, 2):
                     try:
@@ -60,3 +63,22 @@ def quiet_output() -> Iterator[None]:
                     os.dup2(saved, fd)
                     os.close(saved)
                 _saved_fds.clear()
+
+
+def capture_into(path: str) -> None:
+    """Point fds 1 and 2 at the file ``path`` (appended to) for the rest of this process, and make
+    :func:`quiet_output` send there too: a child process that runs one engine keeps all it printed."""
+    global _sink
+    _flush_all()
+    _sink = path
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    try:
+        for target in (1, 2):
+            os.dup2(fd, target)
+    finally:
+        os.close(fd)
+
+
+def flush_all() -> None:
+    """Flush Python's streams and C's stdio, so what was printed reaches the file descriptors now."""
+    _flush_all()

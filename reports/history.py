@@ -8,7 +8,7 @@ commit; hover = commit, date, run, value, status). Step changes found by
 compare.history.trend.steps are marked on the figure (a dashed line before
 the first run after the step) and listed at the top of the page.
 
-Details: docs/architecture.md, "Module notes", ``reports/history.py``.
+Details: docs/history.md, "Module notes", ``reports/history.py``.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Does the timing gate tell a busy neighbour from a regression? (issue 21; docs/reliability.md quotes this.)
+"""Does the timing gate tell a busy neighbour from a regression? (docs/reliability.md quotes this.)
 
 1. Runs a small suite (2 scenes x 2 engines, repeats = 3, timing_factor = 1.5)
    once and makes it the baseline.

@@ -7,7 +7,7 @@ case record by :func:`compare.gate.entry.entry_of`. :class:`Baseline` is the
 typed document a gate compares: a baseline file, the current results, or a
 window of the history's runs.
 
-Details: docs/architecture.md, "Module notes", ``compare/gate/baseline.py``.
+Details: docs/gate.md, "Module notes", ``compare/gate/baseline.py``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ by the noise measured in both runs; a changed scene, option set or engine versio
 Everything here is a pure function of two :class:`~compare.gate.baseline.Baseline` documents, so the
 rules are tested without running anything.
 
-Details: docs/architecture.md, "Module notes", ``compare/gate/gate.py``.
+Details: docs/gate.md, "Module notes", ``compare/gate/gate.py``.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
-    #: True when the missing cases fail the gate (the rule: docs/architecture.md, "Module notes").
+    #: True when the missing cases fail the gate (the rule: docs/gate.md, "Module notes").
     missing_fails: bool = False
 
     @property
@@ -179,7 +179,7 @@ def calibrated(timing: Timing) -> list[float]:
 
 
 def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: bool, why_not: str = "") -> Change:
-    """The statistical timing rule (docs/architecture.md, "Module notes") on two timing entries with "cpu"
+    """The statistical timing rule (docs/gate.md, "Module notes") on two timing entries with "cpu"
     and "calibration".
 
     worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the calibrated

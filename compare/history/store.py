@@ -9,7 +9,7 @@ ever changed or deleted: the tables carry triggers that abort any UPDATE or
 DELETE, so appending a run cannot alter an earlier one, whatever the code
 that appends does.
 
-Details: docs/architecture.md, "Module notes", ``compare/history/store.py``.
+Details: docs/history.md, "Module notes", ``compare/history/store.py``.
 """
 
 from __future__ import annotations

@@ -164,8 +164,15 @@ _BUILT_IN = (
 
 
 def _momentum_drift(inputs: "MetricInputs") -> float | None:
-    trajectory = inputs.trajectory
-    return momentum_drift(inputs.scene, trajectory.positions, trajectory.velocities)
+    trajectory, scene = inputs.trajectory, inputs.scene
+    drift = getattr(scene, "momentum_drift", None)
+    if getattr(scene, "is_model", False) and drift is not None:  # its root joints' momenta (docs/metrics.md)
+        states = trajectory.joint_states
+        if states is None or not np.isfinite(states).all():
+            return None
+        n = states.shape[1] // 2
+        return drift(states[:, :n], states[:, n:])
+    return momentum_drift(scene, trajectory.positions, trajectory.velocities)
 
 #: Every declared metric by name, in table order.
 METRICS: dict[str, Metric] = {m.name: m for m in _BUILT_IN}

@@ -6,7 +6,7 @@ Everything downstream — show, report, baseline, gate, history, stability —
 works on these objects, never on the raw dict, so a misspelt field is an
 AttributeError at once, not a silent None.
 
-Details: docs/architecture.md, "Module notes", ``compare/results/record.py``.
+Details: docs/running.md, "Module notes", ``compare/results/record.py``.
 """
 
 from __future__ import annotations

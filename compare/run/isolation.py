@@ -6,7 +6,7 @@ a dead host is ``failed`` with its exit code or signal, no answer in time kills 
 ``timeout``; the next case gets a new host. Nothing xval starts outlives it (process groups,
 PR_SET_PDEATHSIG, a reaper), and ``RLIMIT_AS`` bounds each task's memory.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/isolation.py``.
+Details: docs/running.md, "Module notes", ``compare/run/isolation.py``.
 """
 
 from __future__ import annotations

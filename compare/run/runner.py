@@ -6,7 +6,7 @@ the cases to case hosts (compare.run.isolation) or an executor, and writes each 
 finishes (measured by compare.results.measure), so an interrupted run resumes without redoing finished
 cases.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/runner.py``.
+Details: docs/running.md, "Module notes", ``compare/run/runner.py``.
 """
 
 from __future__ import annotations

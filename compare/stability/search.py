@@ -8,7 +8,7 @@ and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
 (non-finite state, a bound exceeded, the engine raised, died or timed out)
 is not stable.
 
-Details: docs/architecture.md, "Module notes", ``compare/stability/search.py``.
+Details: docs/running.md, "Module notes", ``compare/stability/search.py``.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ class PairResult:
 
 def search(trial: Callable[[float], Trial], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Trial]]:
     """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; the search:
-    docs/architecture.md, "Module notes"."""
+    docs/running.md, "Module notes"."""
     trials: list[Trial] = []
 
     def stable(dt: float) -> bool:

@@ -6,7 +6,7 @@
 is a :class:`UserError` naming the file (and line), the key and the fix; an engine that cannot be
 imported here is kept as *unavailable* and its cases are ``skipped`` with the reason.
 
-Details: docs/architecture.md, "Module notes", ``compare/suite/reader.py``.
+Details: docs/running.md, "Module notes", ``compare/suite/reader.py``.
 """
 
 from __future__ import annotations
@@ -57,9 +57,9 @@ TOP_LEVEL_KEYS = {
     "gradients": "a table with wrt, a list of scene parameters (docs/gradients.md)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock")
 #: Keys of a model scene ([[scenes]] model = "…"), beside id.
-MODEL_KEYS = ("model", "q0", "v0", "file_dynamics")
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics", "lock")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
@@ -443,12 +443,15 @@ class _Reader:
 
     def model_scene(self, key: str, entry: dict[str, Any], duration: float | None) -> SceneSpec:
         """A [[scenes]] entry with ``model = "…"`` (a path relative to the suite file, or pybullet_data:<path>),
-        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name."""
+        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name, and
+        ``parameters = { g = … }`` (m/s², the one catalog parameter a model takes)."""
+        from engines.model.loaded import GRAVITY
         from engines.model.scene import DEFAULT_DURATION, model_scene
 
-        if "scene" in entry or "parameters" in entry:
+        if "scene" in entry:
             raise self.error(f"{key}.model", "a scene is either a catalog scene (scene, parameters) or a model "
                              "(model, q0, v0, file_dynamics), not both; remove one")
+        parameters = self.table(f"{key}.parameters", entry.get("parameters", {}), ("g",))
         model = self.string(f"{key}.model", entry["model"])
         scene_id = self.string(f"{key}.id", entry.get("id", Path(model.partition(":")[2] or model).stem))
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
@@ -456,14 +459,18 @@ class _Reader:
         q0 = self.table(f"{key}.q0", entry.get("q0", {}), tuple(entry.get("q0", {})))
         v0 = self.table(f"{key}.v0", entry.get("v0", {}), tuple(entry.get("v0", {})))
         file_dynamics = self.string(f"{key}.file_dynamics", entry.get("file_dynamics", "neutral"))
+        lock = entry.get("lock", [])
+        if not isinstance(lock, list) or not all(isinstance(name, str) for name in lock):
+            raise self.error(f"{key}.lock", f"must be a list of joint names, got {_describe(lock)}")
         try:
             scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
                                 duration=DEFAULT_DURATION if duration is None else duration,
-                                file_dynamics=file_dynamics)
+                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY), lock=lock)
         except UserError as exc:
             raise self.error(f"{key}.model", str(exc)) from None
         return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
-                                             "file_dynamics": file_dynamics}, scene)
+                                             "file_dynamics": file_dynamics, **dict(parameters),
+                                             **({"lock": list(lock)} if lock else {})}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

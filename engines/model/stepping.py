@@ -91,7 +91,15 @@ def common_settings(scene: ModelScene, loaded: Any) -> dict[str, Any]:
         "file_dynamics": ("keep: the file's joint damping kept (no friction in the file)" if scene.file_dynamics == "keep"
                           else "neutral: joint damping, friction and armature set to 0"),
         "contacts": "off", "joint_limits": "off",
+        "unbounded_once_limits_off": unbounded_joints(scene),
     }
+
+
+def unbounded_joints(scene: ModelScene) -> list[str]:
+    """The prismatic joints the file limits: with limits off nothing stops them (a gripper's finger slides
+    away), so their links' errors say little; named in every run's settings."""
+    return [j.name for j in scene.description.moving_joints
+            if j.type == "prismatic" and (j.limits.lower is not None or j.limits.upper is not None)]
 
 
 def kept_damping(scene: ModelScene) -> np.ndarray:
