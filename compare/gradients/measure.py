@@ -209,8 +209,9 @@ def _floor(engine: Engine, variant: str, options: Mapping[str, Any] | None) -> f
 def gradient_metrics(engine: Engine, variant: str | None, options: Mapping[str, Any] | None, scene: Scene, dt: float,
                      wrt: Sequence[str]) -> dict[str, Any]:
     """A suite case's gradient metrics (compare/results/declared.py): gradient_error, gradient_self_consistency,
-    gradient_wrong (1 for wrong or nan), with respect to the parameters of ``wrt`` this scene has; {} when it has
-    none of them or the reference's sensitivities do not cover it (the case's other metrics stand)."""
+    gradient_wrong (1 for wrong or nan), with respect to the parameters of ``wrt`` this scene has; {} (null
+    metrics) when it has none of them, the reference's sensitivities do not cover it, or the differentiation
+    raised: the case's own run and metrics stand."""
     from engines.errors import UserError
 
     names = [name for name in wrt if name in real_parameters(scene)]
@@ -218,7 +219,9 @@ def gradient_metrics(engine: Engine, variant: str | None, options: Mapping[str, 
         return {}
     try:
         case = engine_case(engine, variant, options, scene, dt, names)
-    except UserError:
+    except UserError:  # the reference's sensitivities do not cover this scene
+        return {}
+    except Exception:  # noqa: BLE001 - the gradient's own trouble leaves its metrics null, not the case failed
         return {}
     return {"gradient_error": _number(case.error), "gradient_self_consistency": _number(case.self_consistency),
             "gradient_wrong": float(case.klass in ("wrong", "nan"))}
