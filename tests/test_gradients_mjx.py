@@ -17,15 +17,16 @@ HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_s
 pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip install 'xval[mjx]'")
 
 
-def _measure(variant: str) -> dict:
-    """In the spawned process: MJX's jacfwd Jacobian of the double pendulum at dt 1e-3 over 1 s against
-    differences of its own rollouts and against the reference, and the first sample whose Jacobian is not finite."""
+def _measure(variant: str, name: str = "double-pendulum") -> dict:
+    """In the spawned process: MJX's jacfwd Jacobian of scene ``name`` at dt 1e-3 over 1 s against differences of
+    its own rollouts and against the reference, and the first sample whose Jacobian is not finite."""
     from engines import registry
     from engines.gradients import finite_difference_jacobian
     from engines.reference.sensitivity import reference_jacobian, relative_error
     from engines.scene.catalog import build
 
-    scene, wrt = build("double-pendulum", {"duration": 1.0}), ["theta1", "omega2"]
+    scene = build(name, {"duration": 1.0})
+    wrt = ["theta1", "omega2"] if name == "double-pendulum" else ["theta0", "omega0"]
     engine, _ = registry.resolve(f"mjx/{variant}")
     own, method = engine.jacobian(scene, variant, None, 1e-3, wrt)
     differences = finite_difference_jacobian(engine, scene, variant, None, 1e-3, wrt).jacobian
@@ -51,11 +52,12 @@ def test_float64_rk4_jacfwd_is_accurate_and_self_consistent(spawned):
     assert answer["first_nonfinite"] is None
 
 
-def test_float32_rk4_jacfwd_stays_finite_at_every_sample_and_within_its_floor(spawned):
-    """No NaN appears in MJX's float32 forward-mode Jacobian on the double pendulum: each 0.01 s sample of
-    d x(t) / d x(0) is finite; at T it is within the float32 floor (1e-3) of the reference, and of differences
-    of its own float32 rollouts (step 3e-2 of each parameter's scale)."""
-    answer = spawned.submit(_measure, "hinge-rk4-f32").result()
+@pytest.mark.parametrize("name", ["double-pendulum", "bead"])
+def test_float32_rk4_jacfwd_stays_finite_at_every_sample_and_within_its_floor(spawned, name):
+    """No NaN appears in MJX's float32 forward-mode Jacobian on the double pendulum and the bead: each 0.01 s
+    sample of d x(t) / d x(0) is finite; at T it is within the float32 floor (1e-3) of the reference (measured
+    2e-6 on both), and of differences of its own float32 rollouts (step 3e-2 of each parameter's scale)."""
+    answer = spawned.submit(_measure, "hinge-rk4-f32", name).result()
     assert answer["first_nonfinite"] is None and answer["samples"] == 101
-    assert answer["error"] <= 1e-3  # measured 2e-6
+    assert answer["error"] <= 1e-3
     assert answer["self"] <= 1e-3
