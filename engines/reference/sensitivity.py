@@ -29,7 +29,15 @@ from engines.reference.reference import (
     _solve_ivp,
     chain_model,
 )
-from engines.scene.parameters import central_difference, check_wrt, output_columns, outputs_of, perturbed, si_scale
+from engines.scene.parameters import (
+    central_difference,
+    check_wrt,
+    model_parameters,
+    output_columns,
+    outputs_of,
+    perturbed,
+    si_scale,
+)
 from engines.scene.scene import Scene
 
 #: The complex step (any h ≪ √ε|x| works; the derivative is exact to round-off).
@@ -212,23 +220,17 @@ def _solve_model(scene: Any, wrt: list[str], rtol: float, atol: float) -> Sensit
 
     check_wrt(scene, wrt)
     dynamics = ModelDynamics(scene)
-    pin, loaded, damping = dynamics._model
-    dof = np.ix_(loaded.dof, loaded.dof)
     y0 = dynamics.initial_state(scene)
     n2, n, k = len(y0), len(y0) // 2, len(wrt)
-    index = {name: i for i, name in enumerate(f"{kind}.{joint}" for kind in ("q0", "v0") for joint in scene.joint_names)}
+    index = {name: i for i, name in enumerate(model_parameters(scene))}  # q0.<joint>..., v0.<joint>...: y's order
     s0 = np.zeros((n2, k))
     s0[[index[name] for name in wrt], np.arange(k)] = 1.0
 
     def rhs(_t: float, w: np.ndarray) -> np.ndarray:
-        q, v, s = w[:n], w[n:n2], w[n2:].reshape(n2, k)
-        rates = loaded._vector(v)
-        ddq_dq, ddq_dv, minv = pin.computeABADerivatives(loaded.model, loaded.data, loaded.configuration(q), rates,
-                                                         -damping * rates)
-        minv = np.triu(minv) + np.triu(minv, 1).T  # Pinocchio fills the upper triangle
-        by_v = ddq_dv - minv * damping  # the file's damping τ = −d·v, when the scene keeps it
-        ds = np.vstack([s[n:], ddq_dq[dof] @ s[:n] + by_v[dof] @ s[n:]])
-        return np.concatenate([v, loaded.data.ddq[loaded.dof], ds.ravel()])
+        s = w[n2:].reshape(n2, k)
+        acceleration, by_q, by_v = dynamics.derivatives(w[:n2])
+        ds = np.vstack([s[n:], by_q @ s[:n] + by_v @ s[n:]])
+        return np.concatenate([w[n:n2], acceleration, ds.ravel()])
 
     result = _solve_ivp()(rhs, (0.0, scene.duration), np.concatenate([y0, s0.ravel()]), method="DOP853", rtol=rtol,
                           atol=atol, dense_output=True)
