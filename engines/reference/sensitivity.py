@@ -9,7 +9,8 @@ and π along a direction (y0', π') read from the catalog (:func:`parameter_dire
 and d outputs / dp = ∂h/∂y · S(T) + ∂h/∂π · π' (outputs: the CSV's p_x..z v_x..z per particle). Each
 Jacobian-direction product is a complex step, f(y + i h s, π + i h π').imag / h with h = 1e-30, through a
 complex-capable copy of the reference's right-hand side: exact to round-off, all k directions in one batch.
-Columns are per SI unit of their parameter (per radian for an angle given in degrees). docs/gradients.md.
+Columns are per SI unit of their parameter (per radian for an angle given in degrees). A model file's
+sensitivities to q0, v0 use Pinocchio's analytic derivatives instead (ModelDynamics.derivatives).
 """
 
 from __future__ import annotations
