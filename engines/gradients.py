@@ -127,6 +127,10 @@ def engine_jacobian(engine: "Engine", scene: Scene, variant: str | None, options
     jacobian, method = own
     if method not in METHODS:
         raise ValueError(f"{engine.name}.jacobian: method must be one of {', '.join(METHODS)}, got {method!r}")
+    shape = (len(output_columns(scene)), len(wrt))
+    if np.shape(jacobian) != shape:
+        raise ValueError(f"{engine.name}.jacobian: J must have shape {shape} (outputs × parameters), got "
+                         f"{np.shape(jacobian)}")
     return EngineJacobian(np.asarray(jacobian, dtype=float), method, float(round(scene.duration / dt) * dt), own=True)
 
 
