@@ -177,3 +177,18 @@ def test_a_suite_with_gradients_records_them_and_the_verdict_names_the_wrong_one
     verdict = json.loads(run_xval("verdict", tmp_path / "out", "--format", "json").stdout)
     text = json.dumps(verdict)
     assert "wrong gradient" in text and text.count("wrong gradient at dt") == 1
+
+
+def test_an_engine_s_own_sign_flipped_derivative_is_caught_by_both_numbers():
+    """A plug-in's Engine.jacobian (here MuJoCo's RK4 adapter answering with the sign flipped, as MuJoCo Warp's
+    connect gradients once were): self-consistency against its own rollouts is 2 and the class wrong, while the
+    same engine's differences of rollouts are correct."""
+    from engines.mujoco.adapter import MuJoCoEngine
+
+    class SignFlipped(MuJoCoEngine):
+        def jacobian(self, scene, variant, options, dt, wrt):
+            return -finite_difference_jacobian(self, scene, variant, options, dt, wrt).jacobian, "analytic"
+
+    case = engine_case(SignFlipped(), "hinge-rk4", None, _scene("bead"), 1e-3, ["theta0", "g"])
+    assert case.method == "analytic" and case.self_consistency == pytest.approx(2.0, rel=1e-9)
+    assert case.error == pytest.approx(2.0, rel=1e-6) and case.klass == "wrong"
