@@ -69,6 +69,10 @@ class ModelDynamics:
         """(q̈ (nq,), ∂q̈/∂q (nq, nq), ∂q̈/∂v (nq, nq)) at y = (q, v): Pinocchio's computeABADerivatives (analytic),
         the file's joint damping τ = −d·v included when the scene keeps it; for the variational equations."""
         pin, loaded, damping = self._model
+        if loaded.description.floating is not None:  # a quaternion in q: its derivatives live in the tangent space
+            from engines.errors import Unsupported
+
+            raise Unsupported("reference: derivatives of a floating-base model are not computed yet")
         n = len(y) // 2
         rates = loaded._vector(y[n:])
         by_q, by_v, minv = pin.computeABADerivatives(loaded.model, loaded.data, loaded.configuration(y[:n]), rates,

@@ -1,18 +1,12 @@
 """Pinocchio's model of a file: the reference of the parity check and of model scenes.
 
-A URDF is read by Pinocchio's own reader (``buildModelFromXML``, the text
-without geometry) with a fixed base (no root joint), or a
-``JointModelFreeFlyer`` root joint for a URDF read with a floating base;
-links welded by fixed joints are merged into their joint's body (Pinocchio
-keeps them as frames). An MJCF's reference is built joint by joint from the
-description, which is MuJoCo's compiled model (MJCF is MuJoCo's format and
-its compiler says what the file means; Pinocchio's ``buildModelFromMJCF``
-ignores ``<default>`` geom masses): engines/model/pinocchio_tree.py. Either
-way Pinocchio's algorithms are the independent dynamics. Armature, damping
-and friction set to 0; gravity (0, 0, −9.81). M is ``crba`` (upper triangle,
-mirrored), the bias ``rnea(q, v, 0)``, the forward dynamics ``aba``. A
-continuous joint read from a URDF is Pinocchio's (cos θ, sin θ): the
-description's angle is converted on the way in.
+A URDF is read by Pinocchio's own reader (``buildModelFromXML``, no geometry), with no root joint or a
+``JointModelFreeFlyer`` for ``--base floating``; welded links merged into their joint's body. An MJCF's
+reference is built joint by joint from the description, MuJoCo's compiled model
+(engines/model/pinocchio_tree.py: MuJoCo's compiler says what its format means, and Pinocchio's
+``buildModelFromMJCF`` ignores ``<default>`` geom masses). Pinocchio's algorithms are the independent
+dynamics: M is ``crba`` (mirrored), the bias ``rnea(q, v, 0)``, the forward dynamics ``aba``; armature,
+damping and friction 0, gravity (0, 0, −9.81). A URDF's continuous joint is Pinocchio's (cos θ, sin θ).
 """
 
 from __future__ import annotations

@@ -1,21 +1,12 @@
 """A Pinocchio model built joint by joint from a :class:`ModelDescription` (the model reference of an MJCF).
 
-MJCF is MuJoCo's format and its compiler says what a file means (defaults
-classes, masses from geoms, angle units); the description of an MJCF is that
-compiled model (engines/model/mjcf.py). Pinocchio's own MJCF reader
-disagrees on real files (it ignores ``<default><geom mass=…>``: on a
-dm_control-style acrobot each arm weighs 8.38 kg, the capsule's volume times
-1000, where MuJoCo's compiler says 1 kg), so the reference is built from the
-description instead, and Pinocchio's algorithms (crba, rnea, aba) stay the
-independent dynamics.
-
-Each moving joint is a 1-degree-of-freedom Pinocchio joint of the same name
-(revolute or continuous: ``JointModelRevoluteUnaligned``; prismatic:
-``JointModelPrismaticUnaligned``) placed at the joint's origin in its parent
-joint's frame; a floating base is a ``JointModelFreeFlyer`` at the world's
-origin; a fixed joint welds its child into the body of the joint above it
-(its inertia appended there), as Pinocchio's readers do. Every link is a
-BODY frame of its name.
+The description of an MJCF is MuJoCo's compiled model (engines/model/mjcf.py); Pinocchio's own MJCF
+reader disagrees with it on real files (it ignores ``<default><geom mass=…>``: a dm_control-style
+acrobot's arms weigh 8.38 kg, the capsules' volume × 1000, where MuJoCo's compiler says 1 kg). Each
+moving joint is a 1-degree-of-freedom Pinocchio joint of its name (``JointModelRevoluteUnaligned`` for
+revolute and continuous, ``JointModelPrismaticUnaligned``) at the joint's origin in its parent joint's
+frame; a floating base is a ``JointModelFreeFlyer`` at the world's origin; a fixed joint's child is
+appended to the body of the joint above it, as Pinocchio's readers do. Every link is a BODY frame.
 """
 
 from __future__ import annotations
