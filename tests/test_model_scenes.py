@@ -256,16 +256,21 @@ def test_file_damping_is_set_to_0_unless_kept(tmp_path):
         model_scene("df", damped_copy(tmp_path, '<dynamics damping="0.3" friction="0.1"/>'), file_dynamics="keep")
 
 
-def _run_no_inertial(tmp_path, capsys, duration: float, q0: str = "") -> tuple[str, Path]:
-    """`xval run` of the no-<inertial> pitfall as scene "bare" on mujoco/hinge; its model path and run dir."""
-    model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
+def _run_on_mujoco(tmp_path, capsys, model: str, scene_id: str, duration: float, q0: str = "") -> Path:
+    """`xval run` of ``model`` as scene ``scene_id`` on mujoco/hinge at dt 1e-2; its run dir."""
     suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = {duration}\ndt = [1e-2]\n[[scenes]]\nid = "bare"\nmodel = "{model}"\n'
+    suite.write_text(f'duration = {duration}\ndt = [1e-2]\n[[scenes]]\nid = "{scene_id}"\nmodel = "{model}"\n'
                      f'{q0}[[engines]]\nid = "mujoco/hinge"\n')
     out = tmp_path / "run"
     code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
     assert code == 0, err
-    return model, out
+    return out
+
+
+def _run_no_inertial(tmp_path, capsys, duration: float, q0: str = "") -> tuple[str, Path]:
+    """`xval run` of the no-<inertial> pitfall as scene "bare" on mujoco/hinge; its model path and run dir."""
+    model = str(ROOT / "models" / "pitfalls" / "no_inertial.urdf")
+    return model, _run_on_mujoco(tmp_path, capsys, model, "bare", duration, q0)
 
 
 def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
@@ -379,12 +384,7 @@ def test_a_locked_joint_is_welded_at_its_initial_value_in_every_engine(tmp_path)
 def test_the_position_error_names_the_link_where_it_is_largest(tmp_path, capsys):
     """The double pendulum's rod1 frame sits on the shoulder's axis, which never moves: every engine puts it
     where the reference does, so the largest error is rod2's (index 1), in the record and in `xval show`."""
-    suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = 0.5\ndt = [1e-2]\n[[scenes]]\nid = "dp"\nmodel = "{DOUBLE}"\n'
-                     f'q0 = {{ shoulder = 40 }}\n[[engines]]\nid = "mujoco/hinge"\n')
-    out = tmp_path / "run"
-    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
-    assert code == 0, err
+    out = _run_on_mujoco(tmp_path, capsys, DOUBLE, "dp", 0.5, "q0 = { shoulder = 40 }\n")
     code, shown, err = run_cli(capsys, "show", out, "--format", "json")
     (row,) = json.loads(shown)
     assert code == 0 and row["position_error_where"] == 1 and row["position_error_linf"] > 0
