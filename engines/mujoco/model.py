@@ -79,8 +79,12 @@ class MujocoModel(LoadedModel):
         model.jnt_stiffness[:] = 0.0
         model.opt.gravity[:] = (0.0, 0.0, -GRAVITY)
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        fluid = bool(model.opt.density or model.opt.viscosity or np.any(model.opt.wind))
+        model.opt.density, model.opt.viscosity, model.opt.wind[:] = 0.0, 0.0, 0.0  # no medium: the tree's dynamics
         super().__init__(description, options, (*notes, "joint damping, friction loss, armature and stiffness "
-                                                "set to 0; constraints (limits, contacts) disabled"))
+                                                "set to 0; constraints (limits, contacts) disabled",
+                                                *(("the medium's density, viscosity and wind set to 0 (the file's "
+                                                   "fluid forces left out)",) if fluid else ())))
         self.model, self.data = model, mujoco.MjData(model)
         # The compiler folds armature into the constant mass of "simple" bodies (dof_M0, a body whose only joints
         # are slides: pusher.xml's object): recompute the constants, or those dofs keep their armature.
