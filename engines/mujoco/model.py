@@ -7,8 +7,9 @@ no ``<inertial>`` would take mass from geometry, and none is left),
 balanceinertia = false (an inertia violating A + B ≥ C is refused, as
 MuJoCo does; ``balance_inertia=True`` turns it on), discardvisual = true.
 An MJCF file is compiled as written. Joint damping, friction loss and
-armature are set to 0 after compiling, and the constraint solver is
-disabled (no joint limits or contacts), so forward dynamics are the tree's.
+armature are set to 0 after compiling (then ``mj_setConst``), the medium
+(density, viscosity, wind) too, and the constraint solver is disabled (no
+joint limits or contacts), so forward dynamics are the tree's.
 """
 
 from __future__ import annotations
