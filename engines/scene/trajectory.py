@@ -163,8 +163,7 @@ def trajectory_energy(scene: SceneLike, trajectory: Trajectory) -> np.ndarray:
     states = trajectory.joint_states
     if states is None:
         return np.full(trajectory.n_samples, np.nan)
-    nq = states.shape[1] // 2
-    return model.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
+    return model.energy(*model.split(states)) if len(states) else np.zeros(0)
 
 
 def constraint_vectors(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
