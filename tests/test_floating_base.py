@@ -215,3 +215,31 @@ def test_a_floating_base_runs_through_simulate_score_and_a_suite(tmp_path, capsy
     rows = {r["engine"]: r for r in json.loads(shown)}
     assert {name: r["status"] for name, r in rows.items()} == {"ours/projection-rk4": "ok", "mujoco/hinge-rk4": "ok"}
     assert all(r["momentum_drift"] <= 1e-10 for r in rows.values()), rows
+
+
+def test_a_urdf_runs_with_a_floating_base_when_the_suite_says_base_floating(tmp_path, capsys):
+    """`base = "floating"` frees the URDF quadruped's root (a floating joint __floating_base__ above it, its
+    state first in q and v): in g = 0 ours, MuJoCo and Drake run it, following the reference and holding the
+    total momentum; `base` on an MJCF is refused in one line (its free joint says it)."""
+    import json
+
+    from cli_support import run_cli
+    from engines.model.description import ModelError
+    from engines.model.scene import model_scene
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.3\ndt = [1e-3]\n[[scenes]]\nid = "free"\nmodel = "{URDF}"\nbase = "floating"\n'
+                     f'parameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2, '
+                     f'__floating_base__ = [0.1, 0, 0, 0, 0.5, 0] }}\n[[engines]]\nid = "ours/projection-rk4"\n'
+                     f'[[engines]]\nid = "mujoco/hinge-rk4"\n[[engines]]\nid = "drake/rk3"\n')
+    code, _, err = run_cli(capsys, "run", suite, "--output", tmp_path / "run", "--jobs", "1")
+    assert code == 0, err
+    code, shown, err = run_cli(capsys, "show", tmp_path / "run", "--format", "json")
+    rows = json.loads(shown)
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    assert all(r["momentum_drift"] <= 1e-10 and r["position_error_linf"] <= 1e-9 for r in rows), rows
+    scene = model_scene("q", str(URDF), root_joint="floating")
+    assert scene.config_names[:7] == tuple(f"__floating_base__.{a}" for a in ("x", "y", "z", "qx", "qy", "qz", "qw"))
+    with pytest.raises(ModelError, match=r'^model .*quadruped.xml: base = "floating" is for a URDF; an MJCF\'s '
+                                         r'base floats when its root body has a free joint$'):
+        model_scene("q", str(MJCF), root_joint="floating")

@@ -153,24 +153,29 @@ def _split(program: str) -> list[str]:
 
 def _model_scene(model: str, overrides: dict[str, str], duration: str | None, lock: tuple[str, ...] = ()):
     """The model scene of ``--model`` with ``--param q0.JOINT=VALUE`` / ``v0.JOINT=VALUE`` (degrees or metres,
-    rad/s or m/s) and ``--param g=VALUE`` (m/s²); UserError naming a parameter that is none of these."""
+    rad/s or m/s), ``--param g=VALUE`` (m/s²) and ``--param base=floating`` (a URDF's root); UserError naming a
+    parameter that is none of these."""
     from engines.model.scene import DEFAULT_DURATION, model_scene
     from engines.model.loaded import GRAVITY
 
     state: dict[str, dict[str, str]] = {"q0": {}, "v0": {}}
     gravity: str | float = GRAVITY
+    root_joint = "fixed"
     for name, value in overrides.items():
         if name == "g":
             gravity = value
             continue
+        if name == "base":
+            root_joint = value
+            continue
         kind, _, joint = name.partition(".")
         if kind not in state or not joint:
             raise UserError(f"--param {name}: a model takes q0.JOINT=VALUE (degrees, metres for prismatic joints), "
-                            f"v0.JOINT=VALUE (rad/s, m/s) and g=VALUE (m/s²)")
+                            f"v0.JOINT=VALUE (rad/s, m/s), g=VALUE (m/s²) and base=fixed|floating (a URDF's root)")
         state[kind][joint] = value
     try:
         seconds = DEFAULT_DURATION if duration is None else float(duration)
     except ValueError:
         raise UserError(f"--duration must be a number of seconds, got {duration!r}") from None
     return model_scene(Path(model.partition(":")[2] or model).stem, model, q0=state["q0"], v0=state["v0"],
-                       duration=seconds, g=gravity, lock=lock)
+                       duration=seconds, g=gravity, lock=lock, root_joint=root_joint)

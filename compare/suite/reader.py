@@ -57,9 +57,9 @@ TOP_LEVEL_KEYS = {
     "gradients": "a table with wrt, a list of scene parameters (docs/gradients.md)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock", "base")
 #: Keys of a model scene ([[scenes]] model = "…"), beside id.
-MODEL_KEYS = ("model", "q0", "v0", "file_dynamics", "lock")
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics", "lock", "base")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
@@ -462,15 +462,18 @@ class _Reader:
         lock = entry.get("lock", [])
         if not isinstance(lock, list) or not all(isinstance(name, str) for name in lock):
             raise self.error(f"{key}.lock", f"must be a list of joint names, got {_describe(lock)}")
+        root_joint = self.string(f"{key}.base", entry.get("base", "fixed"))
         try:
             scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
                                 duration=DEFAULT_DURATION if duration is None else duration,
-                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY), lock=lock)
+                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY), lock=lock,
+                                root_joint=root_joint)
         except UserError as exc:
             raise self.error(f"{key}.model", str(exc)) from None
         return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
                                              "file_dynamics": file_dynamics, **dict(parameters),
-                                             **({"lock": list(lock)} if lock else {})}, scene)
+                                             **({"lock": list(lock)} if lock else {}),
+                                             **({"base": root_joint} if root_joint != "fixed" else {})}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

@@ -75,6 +75,8 @@ class ModelScene:
     g: float = GRAVITY
     #: ((joint, value), …): joints welded at their initial value (rad or m), in every engine's text.
     lock: tuple[tuple[str, float], ...] = ()
+    #: A URDF's root "fixed" to the world or "floating" (an MJCF says its own: a free joint).
+    root_joint: str = "fixed"
 
     #: What tells a model scene from a catalog one (engines refuse it without the "model" capability).
     is_model = True
@@ -90,7 +92,7 @@ class ModelScene:
 
     @property
     def description(self) -> ModelDescription:
-        return _description(self.model, self.path, self.digest, self.lock)
+        return _description(self.model, self.path, self.digest, self.lock, self.root_joint)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -186,12 +188,12 @@ class ModelScene:
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at states q (n, nconfig), v (n, nv)."""
-        return _kinematics(self.model, self.path, self.digest, self.lock).frames(q, v)
+        return _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path, self.digest, self.lock).energy(q, v, self.g)
+        return _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).energy(q, v, self.g)
 
     def conserved_momenta(self) -> tuple[str, ...]:
         """With a floating base, the components of the total momentum in the world that nothing changes: every
@@ -228,7 +230,7 @@ class ModelScene:
             return None
         if len(q) < 2:
             return 0.0
-        momentum = _kinematics(self.model, self.path, self.digest, self.lock).momentum(q, v)
+        momentum = _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).momentum(q, v)
         speed = float(self.masses.sum()) * self.characteristic_speed
         worst = 0.0
         if self.description.floating is not None:
@@ -258,13 +260,15 @@ class ModelScene:
         """The file's text, the initial state, the duration and file_dynamics: everything the physics depends on."""
         key = hashlib.sha256(self.digest.encode())
         key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]
-                              + ([] if self.g == GRAVITY else [self.g]) + ([list(self.lock)] if self.lock else [])).encode())
+                              + ([] if self.g == GRAVITY else [self.g]) + ([list(self.lock)] if self.lock else [])
+                              + ([self.root_joint] if self.root_joint != "fixed" else [])).encode())
         return key.hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "model", "name": self.name, "model": self.model, "path": self.path,
                 "q0": dict(self.q0), "v0": dict(self.v0), "duration": self.duration,
                 "file_dynamics": self.file_dynamics, "digest": self.digest, "g": self.g, "lock": dict(self.lock),
+                **({"base": self.root_joint} if self.root_joint != "fixed" else {}),
                 "particles": [{"link": name, "mass": float(m)} for name, m in zip(self.frames, self.masses)],
                 "frame_parents": self.frame_parents()}
 
@@ -293,15 +297,22 @@ class ModelScene:
 
 def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[str, Any] | None = None,
                 v0: Mapping[str, Any] | None = None, duration: float = DEFAULT_DURATION,
-                file_dynamics: str = "neutral", g: Any = GRAVITY, lock: Sequence[str] = ()) -> ModelScene:
+                file_dynamics: str = "neutral", g: Any = GRAVITY, lock: Sequence[str] = (),
+                root_joint: str = "fixed") -> ModelScene:
     """A ModelScene from user units: q0 in degrees (revolute, continuous) or metres (prismatic), v0 in
-    rad/s or m/s, by joint name; every moving joint not named starts at 0. ModelError naming the field."""
+    rad/s or m/s, by joint name; every moving joint not named starts at 0. ``root_joint`` : a URDF's root
+    "fixed" to the world or "floating" (a suite's ``base``). ModelError naming the field."""
     source = resolve(model, base)
+    if root_joint not in ("fixed", "floating"):
+        raise ModelError(f"model {model}: base must be \"fixed\" or \"floating\", got {root_joint!r}")
+    if root_joint == "floating" and source.format != "urdf":
+        raise ModelError(f"model {model}: base = \"floating\" is for a URDF; an MJCF's base floats when its root "
+                         f"body has a free joint")
     digest = _digest(source.text)
-    description = _description(model, str(source.path), digest)
+    description = _description(model, str(source.path), digest, (), root_joint)
     if lock:
         welded = _lock_values(model, description, q0 or {}, lock)
-        description = _description(model, str(source.path), digest, welded)
+        description = _description(model, str(source.path), digest, welded, root_joint)
         q0 = {k: value for k, value in (q0 or {}).items() if k not in dict(welded)}
     else:
         welded = ()
@@ -333,9 +344,10 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
                        if j.name in given_q else (j.name, 0.0) for j in joints)
     v = base_v + tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
     parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
-                  **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {})}
+                  **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {}),
+                  **({"base": root_joint} if root_joint != "fixed" else {})}
     return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity,
-                      welded)
+                      welded, root_joint)
 
 
 #: A floating base's configuration entries (position m, quaternion x y z w) and velocity entries.
@@ -422,8 +434,9 @@ def _source(model: str, path: str, digest: str, lock: tuple[tuple[str, float], .
 
 
 @functools.lru_cache(maxsize=16)
-def _description(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> ModelDescription:
-    return describe(_source(model, path, digest, lock))
+def _description(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = (),
+                 root_joint: str = "fixed") -> ModelDescription:
+    return describe(_source(model, path, digest, lock), root_joint)
 
 
 def _root_axis(description: ModelDescription, joint) -> np.ndarray:
@@ -445,8 +458,9 @@ def _reach(description: ModelDescription) -> float:
 
 
 @functools.lru_cache(maxsize=16)
-def _kinematics(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> "FrameKinematics":
-    return FrameKinematics(_source(model, path, digest, lock), _description(model, path, digest, lock))
+def _kinematics(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = (),
+                root_joint: str = "fixed") -> "FrameKinematics":
+    return FrameKinematics(_source(model, path, digest, lock), _description(model, path, digest, lock, root_joint))
 
 
 class FrameKinematics:
