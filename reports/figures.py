@@ -62,6 +62,21 @@ class Ceilings:
         return cls(CLIP_FACTOR * length, CLIP_FACTOR * energy_bound, CLIP_FACTOR * constraint_bound * length, force)
 
 
+@dataclass(frozen=True)
+class Thinning:
+    """How a plot's time series are thinned: points per trace (LTTB), significant digits (None: DIGITS), and points
+    per trace of a variant outside ``named`` (None: ``limit``), drawn for context. A big suite's page thins more
+    (reports.render.LAZY_SERIES)."""
+
+    limit: int = MAX_POINTS
+    digits: int | None = None
+    muted_limit: int | None = None
+    named: frozenset[str] = frozenset()
+
+    def points(self, engine: str) -> int:
+        return self.limit if self.muted_limit is None or engine in self.named else self.muted_limit
+
+
 def plot_text(value: Any) -> str:
     """``value`` as text that plotly.js shows literally (its pseudo-HTML escaped)."""
     return html.escape(str(value), quote=False)
@@ -454,7 +469,7 @@ def _force_difference(forces: Sequence[Any], reference: Sequence[Any], n_constra
     return out
 
 
-def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Plot | None:
+def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings, thin: Thinning = Thinning()) -> Plot | None:
     """‖F‖ (N) of each constraint (up to MAX_FORCE_PANELS, stacked) against t at the chosen dt, over the reference's,
     and below them the largest difference from the reference's force, max_k ‖F_k − F_k^ref‖ (N, log axis when it
     spans decades): at a small dt the ‖F‖ lines lie on one another, their differences do not."""
@@ -475,16 +490,17 @@ def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings)
     for k in range(n_constraints):
         axis = ("x", "y" if k == 0 else f"y{k + 1}")
         if reference is not None and t_reference is not None:
-            t, values = decimate(t_reference, _norms(reference, k))
+            t, values = decimate(t_reference, _norms(reference, k), limit=thin.limit)
             traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                           "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values), "line": REFERENCE_STYLE,
+                           "showlegend": k == 0, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
+                           "line": REFERENCE_STYLE,
                            "xaxis": axis[0], "yaxis": axis[1], "hoverinfo": "skip"})
         for index, sweep, record in chosen:
             values, blew = clip(record.series["t"], _norms(record.series["constraint_forces"], k), ceilings.force)
-            t, values = decimate(record.series["t"][:len(values)], values)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values),
+                "legendgroup": f"v{index}", "showlegend": k == 0, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
                 "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": f"%{{fullData.name}}<br>constraint {k}<br>t = %{{x:.3g}} s<br>‖F‖ = %{{y:.3g}} N<extra></extra>",
             })
@@ -496,11 +512,11 @@ def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings)
             own = record.series.get("reference_constraint_forces") or reference
             values, blew = clip(record.series["t"], _force_difference(record.series["constraint_forces"], own,
                                                                       n_constraints), ceilings.force)
-            t, values = decimate(record.series["t"][:len(values)], values)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
             differences.extend(values)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t), "y": _rounded(values),
+                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
                 "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>max ‖F − F<sup>ref</sup>‖ = %{y:.3g} N<extra></extra>",
             })
@@ -575,13 +591,19 @@ def phase_curve(t: Sequence[float], positions: Sequence[Any], velocities: Sequen
     return thetas, omegas
 
 
-def _thin(xs: list[Any], ys: list[Any]) -> tuple[list[Any], list[Any]]:
-    """Every k-th point of a curve that is not a function of x (a phase curve), at most MAX_POINTS of them."""
-    step = max(1, math.ceil(len(xs) / MAX_POINTS))
-    return xs[::step], ys[::step]
+def _thin(xs: list[Any], ys: list[Any], limit: int = MAX_POINTS) -> tuple[list[Any], list[Any]]:
+    """Every k-th point of a curve that is not a function of x (a phase curve, a path), at most ``limit`` of them
+    and always the last (where a run ends)."""
+    step = max(1, math.ceil(len(xs) / limit))
+    if step == 1:
+        return xs, ys
+    keep = list(range(0, len(xs), step))
+    if keep[-1] != len(xs) - 1:
+        keep.append(len(xs) - 1)
+    return [xs[k] for k in keep], [ys[k] for k in keep]
 
 
-def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
+def phase_plot(scene: SceneResults, palette: Palette, thin: Thinning = Thinning()) -> Plot | None:
     """Angle against angular velocity of the first pinned particle (pendulum scenes), every variant and the reference."""
     pin = _pendulum_pin(scene)
     chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
@@ -595,16 +617,17 @@ def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
     if first.get("reference_positions"):
         theta, omega = phase_curve(first["t"], first["reference_positions"], first.get("reference_velocities"),
                                    particle, anchor, planar)
-        theta, omega = _thin(theta, omega)
+        theta, omega = _thin(theta, omega, thin.limit)
         traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                       "x": _rounded(theta), "y": _rounded(omega), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
+                       "x": _rounded(theta, thin.digits), "y": _rounded(omega, thin.digits), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
     titled: set[str] = set()
     for _index, sweep, record in chosen:
         series = record.series
-        theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor, planar))
+        theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor,
+                                          planar), thin.points(sweep.engine))
         traces.append(_group({
             "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-            "x": _rounded(theta), "y": _rounded(omega),
+            "x": _rounded(theta, thin.digits), "y": _rounded(omega, thin.digits),
             "line": {**palette.style(sweep.engine), "width": 1.5},
             "hovertemplate": "%{fullData.name}<br>θ = %{x:.3g} rad<br>ω = %{y:.3g} rad/s<extra></extra>",
         }, sweep.engine, titled))
@@ -654,7 +677,7 @@ def _clip_path(xs: list[Any], zs: list[Any], box: float) -> tuple[list[Any], lis
     return out_x, out_z
 
 
-def paths(scene: SceneResults, palette: Palette) -> Plot | None:
+def paths(scene: SceneResults, palette: Palette, thin: Thinning = Thinning()) -> Plot | None:
     """Particle paths in the x–z plane at the chosen dt, drawn over the reference's (wide grey line), and below
     them each variant's position error against t (m, the stored series: max over particles of ‖p − pʳᵉᶠ‖ at full
     precision, where positions are stored to 6 digits): where the paths lie on one another (a small dt), the
@@ -671,28 +694,29 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
     reference, source = _reference_positions(scene)
     if reference:
         for particle in drawn:
-            xs, zs = _particle_xz(reference, particle)
+            xs, zs = _thin(*_particle_xz(reference, particle), thin.limit)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                "showlegend": particle == drawn[0], "x": _rounded(xs), "y": _rounded(zs), "line": REFERENCE_STYLE,
+                "showlegend": particle == drawn[0], "x": _rounded(xs, thin.digits), "y": _rounded(zs, thin.digits), "line": REFERENCE_STYLE,
                 "hoverinfo": "skip",
             })
     for index, sweep, record in chosen:
         for particle in drawn:
-            xs, zs = _clip_path(*_particle_xz(record.series["positions"], particle), box)
+            xs, zs = _thin(*_clip_path(*_particle_xz(record.series["positions"], particle), box), thin.points(sweep.engine))
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "legendgroup": f"v{index}", "showlegend": particle == drawn[0],
-                "x": _rounded(xs), "y": _rounded(zs), "line": {**palette.style(sweep.engine), "width": 1.5},
+                "x": _rounded(xs, thin.digits), "y": _rounded(zs, thin.digits), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "hovertemplate": f"%{{fullData.name}}<br>particle {particle}<br>x = %{{x:.3g}} m<br>z = %{{y:.3g}} m<extra></extra>",
             })
         if record.series.get("position_error"):
             values, _ = clip(record.series["t"], list(record.series["position_error"]), box)
-            t, values = decimate(record.series["t"][:len(values)], values)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
             distances.extend(values)
             apart.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t), "y": _rounded(values),
+                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t, thin.digits),
+                "y": _rounded(values, thin.digits),
                 "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": "x2", "yaxis": "y2",
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>position error = %{y:.3g} m<extra></extra>",
             })

@@ -44,7 +44,7 @@ DASH_WORDS = {"solid": "solid", "dash": "dashed", "dot": "dotted", "dashdot": "d
 def marker(symbol: str, x: float, y: float, r: float, inner: str = "") -> str:
     """One marker of shape ``symbol`` (a plotly name) centred at (x, y), radius about ``r`` px, ``inner`` inside it."""
     if symbol == "circle":
-        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
+        return f'<circle cx="{x:.0f}" cy="{y:.0f}" r="{r}">{inner}</circle>'
     shapes = {
         "square": [(-0.85, -0.85), (0.85, -0.85), (0.85, 0.85), (-0.85, 0.85)],
         "diamond": [(0, -1.2), (1.2, 0), (0, 1.2), (-1.2, 0)],
@@ -57,8 +57,8 @@ def marker(symbol: str, x: float, y: float, r: float, inner: str = "") -> str:
     }
     corners = shapes.get(symbol)
     if corners is None:
-        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
-    points = " ".join(f"{x + r * dx:.1f},{y + r * dy:.1f}" for dx, dy in corners)
+        return f'<circle cx="{x:.0f}" cy="{y:.0f}" r="{r}">{inner}</circle>'
+    points = " ".join(f"{x + r * dx:.0f},{y + r * dy:.0f}" for dx, dy in corners)
     return f'<polygon points="{points}">{inner}</polygon>'
 
 
@@ -144,7 +144,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
         )
         drawn = [(px(x), py(y)) for x, y, _ in s.points if x > 0 and y > 0]
         dash = DASH_ARRAYS.get(s.dash, "")
-        line = (f'<polyline points="{" ".join(f"{a:.1f},{b:.1f}" for a, b in drawn)}" fill="none" '
+        line = (f'<polyline points="{" ".join(f"{a:.0f},{b:.0f}" for a, b in drawn)}" fill="none" '
                 f'stroke-width="{1 if s.muted else 1.5}"' + (f' stroke-dasharray="{dash}"' if dash else "") + "/>"
                 if len(drawn) > 1 else "")
         if s.muted:

@@ -175,7 +175,7 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
             for p in pts], muted, symbol, dash))
         by_dt.append(Series(sweep.engine, colour, family(sweep.engine), [
-            (dt, error, f"{sweep.engine}: dt {dt:.3g} s, error {error:.3g} m, order {_order_text(sweep)}")
+            (dt, error, f"{sweep.engine}: dt {dt:.3g} s, error {error:.3g} m")
             for dt, error in zip(dts, errors)], muted and sweep.engine not in wrong, symbol, dash))
         groups.setdefault(family(sweep.engine), []).append(LegendEntry(
             len(series) - 1, sweep.engine, colour, muted, key_svg(symbol, dash, colour, muted), _order_text(sweep)))
