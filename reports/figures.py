@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
+from compare.results.series import SERIES_DIGITS
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 from compare.results.table import estimate_text, scene_reference
 from compare.results.verdict import points
@@ -31,6 +32,9 @@ REFERENCE_STYLE = {"color": REFERENCE_COLOUR, "width": 5}
 CLIP_FACTOR = 10.0
 #: Significant digits of the numbers in a figure spec (the stored series keep 6).
 DIGITS = 4
+#: The relative resolution of a stored series (SERIES_DIGITS = 6 significant digits, each value within 5e-6 of
+#: itself): a difference of two stored values below this fraction of their size may be round-off.
+SERIES_RESOLUTION = 10.0 ** (1 - SERIES_DIGITS)
 
 
 @dataclass(frozen=True)
@@ -508,10 +512,14 @@ def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings,
                 markers.append(_blowup_marker(blew, ceilings.force, palette.colour(sweep.engine), axis, sweep.engine))
     if reference is not None:
         axis = ("x", f"y{n_panels}")
+        # The stored forces keep 6 significant digits: a difference below 1e-5 of the largest force is not
+        # resolved, and is drawn at that floor rather than as a gap (a zero on a log axis) or as round-off.
+        floor = SERIES_RESOLUTION * max((v for k in range(n_constraints) for v in _norms(reference, k) if v), default=0.0)
         for index, sweep, record in chosen:
             own = record.series.get("reference_constraint_forces") or reference
-            values, blew = clip(record.series["t"], _force_difference(record.series["constraint_forces"], own,
-                                                                      n_constraints), ceilings.force)
+            difference = [None if d is None else max(d, floor)
+                          for d in _force_difference(record.series["constraint_forces"], own, n_constraints)]
+            values, blew = clip(record.series["t"], difference, ceilings.force)
             t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
             differences.extend(values)
             traces.append({
@@ -538,8 +546,9 @@ def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings,
     if reference is not None:
         caption += (" The lowest panel is each variant's largest difference from the reference's force over the "
                     "constraints, max ‖F − Fʳᵉᶠ‖ (N): where the lines above lie on one another, it tells them apart. "
-                    "It is taken from the stored forces, 6 significant digits: a difference below about 1e-6 of the "
-                    "force is not resolved (the case's constraint-force error, in the table, is exact).")
+                    f"It is taken from the stored forces (6 significant digits), which cannot resolve a difference "
+                    f"below {SERIES_RESOLUTION:g} of the largest reference force: such a difference is drawn at that "
+                    f"floor, {floor:.2g} N (the case's constraint-force error, in the table, is exact).")
     return Plot("force", "Constraint forces", caption, figure)
 
 
