@@ -148,8 +148,8 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
     variant's observed order in the legend), one shared legend.
 
     named : the variants in colour (default: every one); the others grey, as the plotly plots mute theirs,
-    unless that would grey all or none. A variant that converges to the wrong answer is in colour in the dt
-    plot, and named there: its plateau is the evidence.
+    unless that would grey all or none. A variant that converges to the wrong answer is in colour too, and
+    named on the dt plot: its plateau is the evidence.
     """
     competing = {r.engine for r in verdict.reaches}
     sweeps = [s for s in scene.sweeps if s.engine in competing]
@@ -170,13 +170,13 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
             continue
         colour = palette.colour(sweep.engine)
         symbol, dash = palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]
-        muted = mute and sweep.engine not in named  # type: ignore[operator]
+        muted = mute and sweep.engine not in named and sweep.engine not in wrong  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
             for p in pts], muted, symbol, dash))
         by_dt.append(Series(sweep.engine, colour, family(sweep.engine), [
             (dt, error, f"{sweep.engine}: dt {dt:.3g} s, error {error:.3g} m")
-            for dt, error in zip(dts, errors)], muted and sweep.engine not in wrong, symbol, dash))
+            for dt, error in zip(dts, errors)], muted, symbol, dash))
         groups.setdefault(family(sweep.engine), []).append(LegendEntry(
             len(series) - 1, sweep.engine, colour, muted, key_svg(symbol, dash, colour, muted), _order_text(sweep)))
     if not any(s.points for s in series) and not any(s.points for s in by_dt):
