@@ -31,6 +31,7 @@ from compare.results.verdict import families
 from engines.errors import UserError
 
 from compare.results.files import atomic_write_text, check_writable, results_inputs
+from compare.results.record import engine_output_lines
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 
@@ -61,6 +62,7 @@ def environment() -> jinja2.Environment:
     env.filters["seconds"] = lambda v: "–" if v is None else f"{v:.3g} s"
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
     env.filters["packed"] = lambda text: packed_text(str(text))
+    env.filters["engine_output"] = engine_output_lines
     return env
 
 

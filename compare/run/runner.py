@@ -584,6 +584,7 @@ def build_record(
         wall_times=tuple(float(w) for w in outcome.wall_times),
         cpu_times=tuple(jsonable(outcome.cpu_times)),  # s of CPU per repeat: what the timing gate compares,
         calibrations=tuple(jsonable(outcome.calibrations)),  # in units of this kernel's CPU time, timed beside each
+        engine_output=outcome.output.to_dict() if outcome.output else None,  # what its library printed, kept here
     )
     if outcome.trajectory is None:
         return record
