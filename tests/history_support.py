@@ -60,7 +60,13 @@ def scaled(record: CaseRecord, error: float = 1.0, timing: float = 1.0, tight: b
     repeats = record.wall_times
     if tight and record.metrics.get("wall_time"):
         repeats = tuple(record.metrics["wall_time"] * f for f in (0.99, 1.0, 1.01))
-    return dataclasses.replace(record, metrics=metrics, wall_times=tuple(w * timing for w in repeats))
+    # The CPU times move with the wall times (the code got slower, the machine did not: calibrations stay).
+    cpu = record.cpu_times
+    if cpu and tight:
+        middle = sorted(c for c in cpu if c is not None)[len(cpu) // 2]
+        cpu = tuple(middle * f for f in (0.99, 1.0, 1.01))[:len(cpu)]
+    return dataclasses.replace(record, metrics=metrics, wall_times=tuple(w * timing for w in repeats),
+                               cpu_times=None if cpu is None else tuple(c * timing for c in cpu if c is not None))
 
 
 def synthetic(base: Results, index: int, error: float = 1.0, timing: float | Callable[[CaseRecord], float] = 1.0,
