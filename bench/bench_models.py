@@ -4,8 +4,8 @@
 
 The scene is suites/models.toml's kuka-iiwa (joint 2 at 30°, joint 4 at −45°), stepped --steps times at
 dt 1e-3 s by each variant's ``Engine.simulate``: the model scenes' one loop (engines/model/stepping.py) over
-the engine's stepper (engines/model/steppers.py), sampled as the suite samples. The time is what that loop
-counts as stepping (thread CPU of ``advance``: no loading, building or reading of samples), per step, least
+the stepper of the engine's home (engines/<engine>/model.py), sampled as the suite samples. The time is what
+that loop counts as stepping (thread CPU of ``advance``: no loading, building or reading of samples), per step, least
 of --repeats runs taken in turns round the engines, after a warm-up. Rows pair like with like: first order
 against mujoco/hinge (Euler), RK4 against mujoco/hinge-rk4; Drake's fixed-step RK2 (2nd order, two
 evaluations a step) is listed against RK4 for what it is. A row is what xval runs, binding included:

@@ -55,7 +55,7 @@ import fused  # noqa: E402
 from bench_harness import machine_speed  # noqa: E402
 import ours  # noqa: E402
 from engines.scene import catalog  # noqa: E402
-from engines.adapters.ours import _to_system  # noqa: E402
+from engines.ours.adapter import _to_system  # noqa: E402
 from engines.registry import resolve  # noqa: E402
 
 RK4_TARGET = 4.0
@@ -69,7 +69,7 @@ _COMPILE = r"""
 import json, time
 w, c = time.perf_counter(), time.process_time()
 from compare.suite.reader import load_suite
-from engines.adapters.ours import ENGINE
+from engines.ours.adapter import ENGINE
 from engines.reference.reference import ENGINE as REFERENCE
 scenes = [spec.scene for spec in load_suite("suites/default.toml").scenes]
 ENGINE.preload(scenes)

@@ -77,10 +77,10 @@ def kuka_rows(repeats: int, steps: int = 500) -> list[dict]:
     import mujoco
     from mujoco import rollout
 
-    from engines.model import mujoco as mujoco_model
+    from engines.mujoco import model as mujoco_model
     from engines.model.source import resolve
     from engines.model.urdf import read
-    from engines.model.ours import translate
+    from engines.ours.model import translate
 
     source = resolve("pybullet_data:kuka_iiwa/model.urdf")
     description = read(source)

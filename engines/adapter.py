@@ -22,7 +22,7 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, ClassVar, Iterable, Mapping
+from typing import Any, Callable, ClassVar, Iterable, Mapping
 
 import numpy as np
 
@@ -159,6 +159,22 @@ class Schedule:
 
 
 @functools.lru_cache(maxsize=256)
+@dataclass(frozen=True)
+class ModelImport:
+    """An engine's import of a model file, as ``xval model check`` uses it (engines/<engine>/model.py).
+
+    load : ``load(source, description, **options)`` -> the loaded model (engines.model.loaded.LoadedModel).
+    options : the keyword options ``load`` takes that ``xval model check`` may pass (MuJoCo's
+        ``balance_inertia``); the others are not given them.
+    stated : ``stated(**options)`` -> the import settings a file was given, shown when the engine refused it.
+    """
+
+    version: Callable[[], str]
+    load: Callable[..., Any]
+    options: frozenset[str] = frozenset()
+    stated: Callable[..., dict[str, str]] = lambda **_: {}
+
+
 def refuse_ellipse(scene: Scene, why: str) -> None:
     """Raise Unsupported for the first Ellipse of ``scene``: ``why`` (the engine's reason), then its index."""
     for k, c in enumerate(scene.constraints):
@@ -273,9 +289,14 @@ class Engine:
         """Raise Unsupported for a model scene (engines.model.scene.ModelScene) these settings cannot load."""
 
     def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        """The RawRun of a model scene: the model layer imports the file into this engine and steps it with
-        the engine's stepper (engines/model/steppers.py), which reads what it needs from ``settings``."""
-        return scene.run_in(self.name, schedule, settings)
+        """The RawRun of a model scene: the engine's home imports the file (engines/<engine>/model.py), builds
+        its stepper from ``settings`` and hands it to ``engines.model.stepping.run_model``, the one loop."""
+        raise NotImplementedError(f"{self.name} declares the 'model' capability but does not run model scenes")
+
+    def model_import(self) -> "ModelImport | None":
+        """This engine's import of model files as ``xval model check`` compares it with Pinocchio's, or None
+        (the default: the engine is not compared)."""
+        return None
 
     # -- optional: what only the engine knows ---------------------------------------
 

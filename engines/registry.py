@@ -19,16 +19,18 @@ from typing import Any
 from engines.adapter import Engine, api_version_problem, parse_engine_id
 from engines.errors import UserError
 
-#: Built-in adapters: engine name -> module defining ``ENGINE``.
+#: Built-in adapters: engine name -> module defining ``ENGINE``. Each engine lives in a folder of its own,
+#: engines/<engine>/ (its adapter, its model import, the one import of its library); adding one is that
+#: folder and a line here (docs/plugins.md).
 BUILTIN: dict[str, str] = {
     "reference": "engines.reference.reference",
-    "ours": "engines.adapters.ours",
-    "mujoco": "engines.adapters.mujoco",
-    "pybullet": "engines.adapters.pybullet",
-    "pymunk": "engines.adapters.pymunk",
-    "drake": "engines.adapters.drake",
-    "mjx": "engines.adapters.mjx",
-    "dart": "engines.adapters.dart",
+    "ours": "engines.ours.adapter",
+    "mujoco": "engines.mujoco.adapter",
+    "pybullet": "engines.pybullet.adapter",
+    "pymunk": "engines.pymunk.adapter",
+    "drake": "engines.drake.adapter",
+    "mjx": "engines.mjx.adapter",
+    "dart": "engines.dart.adapter",
 }
 
 #: Built-ins whose library is an optional extra: the pip line that installs it, shown when it is missing.
@@ -46,6 +48,9 @@ DISTRIBUTION: dict[str, str] = {
     "dart": "dartpy",
 }
 
+#: Built-ins whose import of model files ``xval model check`` compares with Pinocchio's (``Engine.model_import``).
+MODEL_CHECK: tuple[str, ...] = ("mujoco", "pybullet", "drake", "dart")
+
 #: The entry-point group installed packages register engines under.
 ENTRY_POINT_GROUP = "xval.engines"
 
@@ -58,7 +63,7 @@ class EngineUnavailable(UserError):
 class EngineStatus:
     """What ``xval engines`` shows for one engine.
 
-    origin : where it comes from: ``engines.adapters.mujoco`` (built-in),
+    origin : where it comes from: ``engines.mujoco.adapter`` (built-in),
         ``plugin my-solver 0.1.0: my_solver.adapter:ENGINE`` (entry point),
         or ``module:ATTRIBUTE`` (by path).
     kind : ``"built-in"``, ``"plugin"`` or ``"path"``.
@@ -109,13 +114,17 @@ MOVED = {
     **{f"engines.{n}": f"engines.scene.{n}" for n in ("limits", "catalog", "trajectory", "pendulum", "tree")},
     "engines.reference_mechanisms": "engines.reference.mechanisms",
     "engines.closed_form": "engines.reference.closed_form",
-    **{f"engines.{n}": f"engines.adapters.{n}"
+    "engines.adapters": "engines.<engine>.adapter (each engine's home)",
+    **{f"engines.adapters.{n}": f"engines.{n}.adapter"
        for n in ("mujoco", "pybullet", "pymunk", "drake", "dart", "mjx", "ours")},
+    **{f"engines.model.{n}": f"engines.{n}.model" for n in ("mujoco", "pybullet", "drake", "dart", "ours")},
     **{f"engines.{n}": f"engines.external.{n}" for n in ("protocol", "command", "plugin")},
 }
 #: Old modules that are packages now, by where their contents went.
 BECAME_PACKAGES = {"engines": "engines.scene.catalog, engines.external.plugin, …",
-                   "engines.scene": "engines.scene.scene", "engines.reference": "engines.reference.reference"}
+                   "engines.scene": "engines.scene.scene", "engines.reference": "engines.reference.reference",
+                   **{f"engines.{n}": f"engines.{n}.adapter"
+                      for n in ("mujoco", "pybullet", "pymunk", "drake", "dart", "mjx", "ours")}}
 
 
 def _failure(exc: BaseException) -> str:

@@ -21,8 +21,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from quoted import Quote, Row, report  # noqa: E402
 
 from engines.scene import catalog  # noqa: E402
-from engines.adapters.dart import ENGINE as DART  # noqa: E402
-from engines.adapters.mujoco import ENGINE as MUJOCO  # noqa: E402
+from engines.dart.adapter import ENGINE as DART  # noqa: E402
+from engines.mujoco.adapter import ENGINE as MUJOCO  # noqa: E402
 from engines.reference.reference import ENGINE as REFERENCE  # noqa: E402
 
 G = 9.81

@@ -23,7 +23,7 @@ from quoted import Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines.scene import catalog
-from engines.adapters.mujoco import ENGINE
+from engines.mujoco.adapter import ENGINE
 from engines.reference.reference import solve
 from engines.scene.trajectory import tensions
 
@@ -122,7 +122,7 @@ def figures(quick: bool = False) -> dict[str, float]:
     f["stretch_ratio_solimp"] = f["connect.double.cerr"] / f["solimp.double.cerr"]
     f["stiff_gain_1e-4"] = f["stiff.double.cerr"] / f["stiff_1e-4.double.cerr"]
     # The default connect's steady stretch under g, r = (1 − d)·g/(d·k), and the period it costs the 10° bead.
-    from engines.adapters.mujoco import MUJOCO_SOLIMP, MUJOCO_SOLREF
+    from engines.mujoco.options import MUJOCO_SOLIMP, MUJOCO_SOLREF
 
     k = 1.0 / (MUJOCO_SOLIMP[1] * MUJOCO_SOLREF[0] * MUJOCO_SOLREF[1]) ** 2
     f["connect.stretch_under_g"] = (1 - MUJOCO_SOLIMP[0]) * 9.81 / (MUJOCO_SOLIMP[0] * k)

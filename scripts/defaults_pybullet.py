@@ -1,6 +1,6 @@
 """Measure what each PyBullet default costs: damping, motors, sleeping, ERP, solver, iterations, point-mass inertia.
 
-Runs the PyBullet adapter (engines/adapters/pybullet.py) with one default left in
+Runs the PyBullet adapter (engines/pybullet/adapter.py) with one default left in
 place (or one setting changed) at a time, and prints Markdown tables:
 
 - constraint error: max |‖a − b‖ − l| over constraints and samples, m;
@@ -34,7 +34,7 @@ from quoted import Case, Row, load_quotes, report  # noqa: E402
 
 from compare.results.metrics import constraint_error, energy_drift, position_error  # noqa: E402
 from engines.scene import catalog
-from engines.adapters.pybullet import ENGINE
+from engines.pybullet.adapter import ENGINE
 from engines.reference.reference import solve
 from engines.scene.trajectory import tensions
 
@@ -57,7 +57,7 @@ DOUBLE = Case("double pendulum (120°, −10°), 10 s, dt = 1e-3", "double-pendu
 CHAIN = Case("chain of 4, 5 s, dt = 1e-3", "chain", {"duration": 5.0}, 1e-3)
 SPHERICAL = Case("spherical pendulum, 10 s, dt = 1e-3", "spherical-pendulum", {"duration": 10.0}, 1e-3)
 
-#: Table 1: the overrides of engines/adapters/pybullet.py, each switched off in turn.
+#: Table 1: the overrides of engines/pybullet/adapter.py, each switched off in turn.
 KEPT_DEFAULTS = (
     Setting("multibody, every override", "multibody", {}),
     Setting("multibody, default damping (0.04) kept", "multibody", {"keep_defaults": "damping"}),

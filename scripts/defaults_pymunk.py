@@ -36,7 +36,7 @@ from quoted import Case, Row, load_quotes, report  # noqa: E402
 from compare.results.metrics import constraint_error, energy_drift, energy_drift_series, position_error  # noqa: E402
 from engines.scene import catalog
 from engines.reference.closed_form import pendulum_period
-from engines.adapters.pymunk import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
+from engines.pymunk.adapter import ENGINE, PYMUNK_DAMPING, PYMUNK_ERROR_BIAS, PYMUNK_ITERATIONS
 from engines.reference.reference import solve
 from engines.scene.trajectory import tensions
 

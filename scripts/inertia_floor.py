@@ -21,8 +21,8 @@ from quoted import load_quotes, report  # noqa: E402
 
 from compare.results.metrics import position_error  # noqa: E402
 from engines.scene import catalog  # noqa: E402
-from engines.adapters.mujoco import ENGINE as MUJOCO  # noqa: E402
-from engines.adapters.pybullet import ENGINE as PYBULLET  # noqa: E402
+from engines.mujoco.adapter import ENGINE as MUJOCO  # noqa: E402
+from engines.pybullet.adapter import ENGINE as PYBULLET  # noqa: E402
 from engines.reference.reference import solve  # noqa: E402
 
 SLOW: set[str] = set()

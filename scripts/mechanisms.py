@@ -32,7 +32,7 @@ import numpy as np
 from engines import registry
 from engines.scene import catalog
 from engines.errors import Unsupported
-from engines.adapters.mujoco import STIFF
+from engines.mujoco.options import STIFF
 from engines.reference.reference import solve
 from engines.scene.trajectory import constraint_errors, linear_momentum_drift, total_energy
 

@@ -6,8 +6,8 @@ every time step of the default suite (1e-1 … 1e-4 s, two per decade), for 2 s
 with a sample every 0.25 s (``OURS_EQ_SAMPLE``), and stores positions, velocities, multipliers,
 steps taken and the status.
 
-    .venv/bin/python scripts/ours_equivalence.py save bench/data/ours_trajectories.npz
-    .venv/bin/python scripts/ours_equivalence.py check bench/data/ours_trajectories.npz
+    .venv/bin/python scripts/ours_equivalence.py save tests/golden/ours_trajectories.npz
+    .venv/bin/python scripts/ours_equivalence.py check tests/golden/ours_trajectories.npz
 
 ``check`` prints the largest relative difference per quantity (max |new − old| /
 max |old| over a run, NaN where both are NaN counting as equal) and exits 1
@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 import ours  # noqa: E402
 from engines.scene import catalog  # noqa: E402
 from engines.adapter import Schedule  # noqa: E402
-from engines.adapters.ours import ENGINE, _to_system  # noqa: E402
+from engines.ours.adapter import ENGINE, _to_system  # noqa: E402
 
 SCENES = {
     "bead": ("bead", {"theta0": 60}),

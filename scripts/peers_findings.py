@@ -14,7 +14,7 @@ those: ``discrete mjx accuracy ours compile``). Prints five Markdown tables:
 4. Drake's error-controlled integrators on the double pendulum (2 s): error and steps
    against the accuracy setting, 1e-4 to 1e-10 (dt = 1e-2, the largest step).
 5. MJX's jit compile time of one step on chains of 2, 4 and 8 links (why deeper trees are
-   left out, engines/adapters/mjx.py).
+   left out, engines/mjx/adapter.py).
 
 Errors are max over samples of the largest particle distance from the reference (DOP853,
 rtol = atol = 1e-12), in metres. Costs are ratios measured in this run, never absolutes.
@@ -27,10 +27,10 @@ import sys
 import numpy as np
 
 from engines.scene import catalog
-from engines.adapters.drake import ENGINE as DRAKE
-from engines.adapters.mjx import ENGINE as MJX
-from engines.adapters.mujoco import ENGINE as MUJOCO
-from engines.adapters.ours import ENGINE as OURS
+from engines.drake.adapter import ENGINE as DRAKE
+from engines.mjx.adapter import ENGINE as MJX
+from engines.mujoco.adapter import ENGINE as MUJOCO
+from engines.ours.adapter import ENGINE as OURS
 from engines.reference.reference import solve
 
 SCENES = {
@@ -152,16 +152,16 @@ def mjx_compile_time() -> None:
 
     import mujoco
 
-    from engines.adapters.mjx import _jax
+    from engines.mjx.library import jax_mjx
 
-    jax, mjx = _jax()  # imported as the adapter does (quiet about the absent warp)
+    jax, mjx = jax_mjx()  # imported as the adapter does (quiet about the absent warp)
 
     print("\n### MJX jit compile of one step against the depth of the body tree (chain, float64, Euler)\n")
     print("| links | compile CPU (s) | compile wall (s) |")
     print("|---|---|---|")
     for n in (2, 4, 8):
         scene = catalog.build("chain", {"n": n, "duration": 1})
-        model, _, _ = MJX.build(scene, 1e-3, MJX.resolve("hinge"))
+        model = MJX.build(scene, 1e-3, MJX.resolve("hinge")).model
         with jax.enable_x64(True):
             jax.clear_caches()
             mx, dx = mjx.put_model(model, impl="jax"), mjx.put_data(model, mujoco.MjData(model), impl="jax")

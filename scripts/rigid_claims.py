@@ -122,7 +122,7 @@ MODEL = HERE.parent / "models" / "double_pendulum.urdf"
 
 
 def model_joints(f: dict) -> None:
-    """ours' joint gap on a model scene as the constraint-error metric reads it (engines/model/ours.py): the
+    """ours' joint gap on a model scene as the constraint-error metric reads it (engines/ours/model.py): the
     double pendulum fixture, q0 = 30°, −20°, 2 s; largest gap at dt = 1 ms and the slope over 4, 2, 1 ms."""
     from engines.model.scene import model_scene
     from engines.registry import resolve

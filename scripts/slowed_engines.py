@@ -11,8 +11,8 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 
-from engines.adapters.mujoco import MuJoCoEngine
-from engines.adapters.pymunk import PymunkEngine
+from engines.mujoco.adapter import MuJoCoEngine
+from engines.pymunk.adapter import PymunkEngine
 
 
 def _slowed(cls):

@@ -139,45 +139,163 @@ def builtin_adapters() -> dict[str, str]:
     raise AssertionError("engines/registry.py defines no BUILTIN")
 
 
-#: Adapter -> the other adapters it may import: MJX runs MuJoCo's own model (its MJCF, its reading of samples).
-ADAPTER_USES = {"engines.adapters.mjx": {"engines.adapters.mujoco"}}
+#: The engines with a home of their own, engines/<engine>/ (its adapter, its model import, the one import of
+#: its library); the reference is an engine too, but a shared part (engines/reference/: the ground truth the
+#: model check and every comparison use), so it has no home and its name is not one the checks below look for.
+HOMES = ("mujoco", "mjx", "pybullet", "pymunk", "drake", "dart", "ours")
+#: Home -> what it may import from other homes: MJX steps MuJoCo's own model, built by MuJoCo's public builder
+#: (engines/mujoco/builder.py), with MuJoCo's one import of the library.
+HOME_USES = {"mjx": {"engines.mujoco.builder", "engines.mujoco.library", "engines.mujoco.library.mujoco",
+                     *(f"engines.mujoco.builder.{name}" for name in ("HINGE_INERTIA_RATIO", "HingeModel", "check_hinge",
+                                                                     "hinge_model", "read_hinge_samples", "tree_depth"))}}
+#: Each home's engine library (top-level import names): imported only by that home's library.py.
+LIBRARIES = {"mujoco": {"mujoco"}, "mjx": {"jax", "mujoco.mjx"}, "pybullet": {"pybullet"}, "pymunk": {"pymunk"},
+             "drake": {"pydrake"}, "dart": {"dartpy"}}
+#: Shared modules that may use an engine home's library module: the MJCF reader reads a file with MuJoCo's
+#: own compiler (the format's reference reader), through MuJoCo's one import of it.
+SHARED_USES = {"engines.model.mjcf": {"engines.mujoco.library", "engines.mujoco.library.mujoco"}}
 
 
-def test_no_engine_adapter_imports_another():
-    """Shared structure (the tree of joints, the recorder) lives in neutral modules, so that an engine
-    loads without another engine's library (Drake without MuJoCo)."""
-    adapters = set(builtin_adapters().values())
-    assert {"engines.adapters.mujoco", "engines.adapters.drake", "engines.adapters.mjx"} <= adapters
-    # Every built-in is an adapter of engines/adapters/ or the reference; a new folder of them would
-    # otherwise go unchecked by the layers below.
-    assert sorted(m for m in adapters if m.rpartition(".")[0] not in ("engines.adapters", "engines.reference")) == []
+def home_of(module: str) -> str | None:
+    """The engine whose home ``module`` (or the package named) is in, else None."""
+    parts = module.split(".")
+    return parts[1] if parts[0] == "engines" and len(parts) > 1 and parts[1] in HOMES else None
+
+
+def test_every_builtin_engine_but_the_reference_has_a_home_of_its_own():
+    adapters = builtin_adapters()
+    assert {name: module for name, module in adapters.items() if name not in HOMES} == {
+        "reference": "engines.reference.reference"}
+    assert {name: adapters[name] for name in HOMES} == {name: f"engines.{name}.adapter" for name in HOMES}
+    assert sorted(p.name for p in (ROOT / "engines").iterdir() if p.is_dir() and p.name in HOMES) == sorted(HOMES)
+    # Every home has its adapter; each engine with a library outside xval imports it in one module.
+    for name in HOMES:
+        assert (ROOT / "engines" / name / "adapter.py").is_file(), name
+    assert sorted(n for n in HOMES if (ROOT / "engines" / n / "library.py").is_file()) == sorted(LIBRARIES)
+
+
+def test_no_engine_home_imports_another():
+    """An engine loads without another engine's library (Drake without MuJoCo); MJX reaches MuJoCo's public
+    builder only, never a private helper."""
+    assert {"engines.mujoco.adapter", "engines.drake.adapter", "engines.mjx.adapter"} <= set(builtin_adapters().values())
     wrong = []
-    for module in sorted(adapters):
-        path = ROOT / (module.replace(".", "/") + ".py")
+    for module, path in project_modules().items():
+        home = home_of(module)
+        if home is None:
+            continue
         for target in imports_of(path):
-            other = next((a for a in adapters if target == a or target.startswith(a + ".")), None)
-            if other not in (None, module) and other not in ADAPTER_USES.get(module, set()):
+            other = home_of(target)
+            if other not in (None, home) and target not in HOME_USES.get(home, set()):
+                wrong.append(f"{module} imports {target}")
+    assert wrong == []
+    assert not any(name.rpartition(".")[2].startswith("_") for uses in HOME_USES.values() for name in uses)
+
+
+def test_shared_parts_never_import_an_engine_home():
+    """engines/scene, reference, model, external, the contract, the recorder and the registry (and compare,
+    reports) reach an engine through the registry only."""
+    wrong = []
+    for module, path in project_modules().items():
+        if home_of(module) is not None:
+            continue
+        for target in imports_of(path):
+            if home_of(target) is not None and target not in SHARED_USES.get(module, set()):
                 wrong.append(f"{module} imports {target}")
     assert wrong == []
 
 
+def test_each_engine_library_is_imported_by_its_home_s_library_module_alone():
+    owners = {library: home for home, libraries in LIBRARIES.items() for library in libraries}
+    wrong = []
+    for module, path in project_modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            for name in names:
+                # "from mujoco import mjx" is MJX's library, "import mujoco" MuJoCo's.
+                full = [f"{name}.{a.name}" for a in node.names] if isinstance(node, ast.ImportFrom) else [name]
+                for imported in full:
+                    owner = owners.get(".".join(imported.split(".")[:2])) or owners.get(imported.split(".")[0])
+                    if owner is not None and module != f"engines.{owner}.library":
+                        wrong.append(f"{module}:{node.lineno} imports {imported}")
+    assert wrong == []
+
+
+def engine_name_uses(tree: ast.AST, names: set[str]) -> list[int]:
+    """Lines comparing a string constant with an engine's name (``==``, ``!=``, ``in``, ``match``) or keying a
+    dict by one (a literal's key, ``dict.fromkeys`` of them, ``d["mujoco"]``, ``d.get("mujoco")``). A string in
+    a docstring, a message or a call's argument is not a comparison."""
+    def named(node: ast.AST | None) -> bool:
+        if isinstance(node, ast.Constant) and node.value in names:
+            return True
+        return isinstance(node, (ast.Tuple, ast.List, ast.Set)) and any(named(e) for e in node.elts)
+
+    lines = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare) and any(named(c) for c in [node.left, *node.comparators]):
+            lines.append(node.lineno)
+        elif isinstance(node, ast.Dict) and any(named(k) for k in node.keys):
+            lines.append(node.lineno)
+        elif isinstance(node, ast.DictComp) and named(node.key):
+            lines.append(node.lineno)
+        elif isinstance(node, ast.Subscript) and named(node.slice):
+            lines.append(node.lineno)
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+              and node.func.attr in ("get", "pop", "setdefault", "fromkeys") and node.args and named(node.args[0])):
+            lines.append(node.lineno)
+        elif isinstance(node, ast.MatchValue) and named(node.value):
+            lines.append(node.lineno)
+    return lines
+
+
+#: Module-level tables whose keys equal an engine's name without naming the engine: an MJCF file's root
+#: element is <mujoco> (engines.model.source.FORMATS: root element -> format).
+NOT_ENGINES = {("engines.model.source", "FORMATS")}
+
+
+def test_no_module_outside_an_engine_s_home_and_the_registry_picks_code_by_an_engine_s_name():
+    """What one engine does lives in its home: no shared module (nor compare, reports) tests a string for
+    an engine's name or keys a table by engine names. The names are the registry's built-in ones, but for
+    "reference": the shared ground truth, which compare picks on purpose (the reference run of every case)."""
+    names = set(builtin_adapters()) - {"reference"}
+    assert names == set(HOMES)
+    wrong = []
+    for module, path in project_modules().items():
+        if home_of(module) is not None or module == "engines.registry":
+            continue
+        tree = ast.parse(path.read_text())
+        tree.body = [node for node in tree.body if not (isinstance(node, ast.Assign) and any(
+            (module, getattr(target, "id", None)) in NOT_ENGINES for target in node.targets))]
+        wrong += [f"{module}:{line}" for line in engine_name_uses(tree, names)]
+    assert wrong == []
+
+
+def test_the_engine_name_check_sees_comparisons_and_tables_not_messages():
+    names = {"mujoco", "drake"}
+    code = ('if name == "mujoco": pass\nx = name in ("drake", "other")\nd = {"mujoco": 1}\ny = d["drake"]\n'
+            'z = d.get("mujoco")\ndef f():\n    """mujoco == drake"""\n    raise ValueError("mujoco is missing")\n'
+            'print("drake")\n')
+    assert engine_name_uses(ast.parse(code), names) == [1, 2, 3, 4, 5]
+
+
 def test_model_scenes_reach_adapters_through_one_dispatch():
-    """engines.adapter.Engine routes a model file to _check_model / _run_model; no adapter of
-    engines/adapters/ tests a scene for being one (the special case each used to write)."""
-    testing = [(path.name, line.strip()) for path in sorted((ROOT / "engines" / "adapters").glob("*.py"))
+    """engines.adapter.Engine routes a model file to _check_model / _run_model; no adapter tests a scene
+    for being one (the special case each used to write)."""
+    testing = [(path.parent.name, line.strip()) for path in sorted((ROOT / "engines").glob("*/adapter.py"))
                for line in path.read_text().splitlines() if "is_model" in line]
     # ours' preload passes over model scenes (nothing to compile ahead): a loop over scenes, not a dispatch.
-    assert testing == [("ours.py", "if scene.is_model:  # rigid bodies: compiled when their run is set up")]
+    assert testing == [("ours", "if scene.is_model:  # rigid bodies: compiled when their run is set up")]
 
 
 #: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
 #: same rank). The errors, the file helpers, the silencing of C libraries' prints (stdio) and the scene
 #: language are what every engine speaks; the engine protocol (adapter) and the one stepping loop on it
-#: (recorder) are built on them; each adapter of an engine library, and each kind of engine from outside
-#: xval (processes, plugins), on those; the robot models import files through the adapters' libraries;
-#: the reference integrates scenes and models; the registry names them all.
-ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "adapters": 4, "external": 4,
-                "model": 5, "reference": 6, "registry": 7}
+#: (recorder) are built on them; each kind of engine from outside xval (processes, plugins) on those; the
+#: registry names every engine (built-in homes by module name, never by import); the robot models reach
+#: engines through it; the reference integrates scenes and models; each engine's home uses all of these.
+#: Homes share a rank: test_no_engine_home_imports_another says which of them may use another.
+ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "external": 4,
+                "registry": 5, "model": 6, "reference": 7, **dict.fromkeys(HOMES, 8)}
 
 
 def test_no_import_in_engines_points_back_up_or_across():
@@ -192,25 +310,25 @@ def test_no_import_in_engines_points_back_up_or_across():
             to = target.split(".")
             if to[0] != "engines" or len(to) < 2 or to[1] not in ENGINE_PARTS or to[1] == parts[1]:
                 continue
+            if (to[1] in HOMES and parts[1] in HOMES) or target in SHARED_USES.get(name, set()):
+                continue  # between homes: test_no_engine_home_imports_another; the MJCF reader's MuJoCo
             if ENGINE_PARTS[to[1]] >= ENGINE_PARTS[parts[1]]:
                 wrong.append(f"{path.relative_to(ROOT)} ({parts[1]}) imports {target} ({to[1]})")
     assert wrong == []
 
 
-def test_a_model_import_uses_only_its_own_engine_s_adapter():
-    """engines/model/<engine>.py loads a file with <engine>'s library: importing another engine's adapter
-    would make it fail where that other library is missing (DART's import without PyBullet)."""
-    adapters = {m.rpartition(".")[2] for m in builtin_adapters().values() if m.startswith("engines.adapters.")}
+def test_a_model_import_uses_only_its_own_engine_s_home():
+    """engines/<engine>/model.py loads a file with <engine>'s library: importing another engine's home would
+    make it fail where that other library is missing (DART's import without PyBullet)."""
     wrong, checked = [], set()
-    for engine in sorted(adapters):
-        path = ROOT / "engines" / "model" / f"{engine}.py"
+    for engine in HOMES:
+        path = ROOT / "engines" / engine / "model.py"
         if not path.is_file():  # an engine without a model importer of its own (pymunk, MJX)
             continue
         checked.add(engine)
         for target in imports_of(path):
-            parts = target.split(".")
-            if parts[:2] == ["engines", "adapters"] and len(parts) > 2 and parts[2] != engine:
-                wrong.append(f"engines.model.{engine} imports {target}")
+            if home_of(target) not in (None, engine):
+                wrong.append(f"engines.{engine}.model imports {target}")
     # Every engine that loads models was checked: a moved or renamed import module would otherwise pass unread.
     assert checked == {"dart", "drake", "mujoco", "ours", "pybullet"}
     assert wrong == []

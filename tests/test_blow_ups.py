@@ -44,7 +44,7 @@ def test_drakes_finiteness_assertion_is_a_blow_up_named_in_one_line():
 
 
 def test_drake_discrete_chain_32_at_a_large_step_is_unstable_not_failed():
-    from engines.adapters.drake import ENGINE as DRAKE
+    from engines.drake.adapter import ENGINE as DRAKE
 
     # suites/peers.toml's chain-32 at dt 1e-2 (the case): the discrete plant's state goes non-finite.
     scene = catalog.build("chain", {"n": 32, "length": 0.03125, "mass": 0.03125, "duration": 1.0})

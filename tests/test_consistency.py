@@ -18,7 +18,7 @@ from compare.results.consistency import judge
 from compare.results.store import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
-from engines.adapters.mjx import precision_floor
+from engines.mjx.adapter import precision_floor
 
 HERE = Path(__file__).parent
 

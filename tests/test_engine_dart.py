@@ -14,9 +14,9 @@ import pytest
 
 from engines.scene import catalog
 from engines.reference.closed_form import pendulum_period
-from engines.adapters.dart import ENGINE as DART
+from engines.dart.adapter import ENGINE as DART
 from engines.errors import Unsupported, UserError
-from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.mujoco.adapter import ENGINE as MUJOCO
 from engines.reference.reference import ENGINE as REFERENCE
 from engines.registry import resolve
 

@@ -30,7 +30,7 @@ G = 9.81
 
 
 def drake():
-    from engines.adapters.drake import ENGINE
+    from engines.drake.adapter import ENGINE
 
     return ENGINE
 
@@ -149,7 +149,7 @@ def test_fixed_step_variants_have_their_order(variant, order):
 def test_discrete_plant_equals_mujoco_hinge(scene_name, params):
     # Without contact, Drake's discrete plant is symplectic Euler in joint coordinates, MuJoCo's
     # Euler: given MuJoCo's point-mass inertia they agree to round-off (measured 5e-15 m, 2e-12 N).
-    from engines.adapters.mujoco import ENGINE as MUJOCO
+    from engines.mujoco.adapter import ENGINE as MUJOCO
 
     scene = catalog.build(scene_name, {"duration": 2, **params})
     mujoco = MUJOCO.simulate(scene, 1e-3, variant="hinge", options={"inertia_ratio": 1e-9})

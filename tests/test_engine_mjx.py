@@ -23,7 +23,7 @@ import pytest
 
 from engines.scene import catalog
 from engines.reference.closed_form import pendulum_period
-from engines.adapters.mujoco import ENGINE as MUJOCO
+from engines.mujoco.adapter import ENGINE as MUJOCO
 from engines.reference.reference import ENGINE as REFERENCE
 
 HAVE_MJX = importlib.util.find_spec("jax") is not None and importlib.util.find_spec("mujoco.mjx") is not None
@@ -33,16 +33,16 @@ G = 9.81
 
 def _call(method, *args, **kwargs):
     """ENGINE.<method>(...) in the spawned process, where JAX may be imported."""
-    from engines.adapters.mjx import ENGINE
+    from engines.mjx.adapter import ENGINE
 
     return getattr(ENGINE, method)(*args, **kwargs)
 
 
 def _forget_compiled():
     """Empty the adapter's compiled loops in the spawned process, so the next run compiles."""
-    import engines.adapters.mjx
+    import engines.mjx.adapter
 
-    engines.adapters.mjx._compiled.clear()
+    engines.mjx.adapter._compiled.clear()
 
 
 class SpawnedMJX:
@@ -139,7 +139,7 @@ import json, jax
 events = []
 jax.monitoring.register_event_listener(lambda name, **kwargs: events.append(name))
 from engines.scene import catalog
-from engines.adapters.mjx import ENGINE
+from engines.mjx.adapter import ENGINE
 run = ENGINE.simulate(catalog.build("bead", {"duration": 0.05}), 1e-2, variant="hinge")
 print(json.dumps({"status": run.info.status, "hits": events.count("/jax/compilation_cache/cache_hits"),
                   "misses": events.count("/jax/compilation_cache/cache_misses")}))

@@ -18,7 +18,8 @@ from engines.model.scene import model_scene
 from engines.scene import catalog
 from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
-from engines.adapters.mujoco import ENGINE, MUJOCO_SOLIMP, MUJOCO_SOLREF, STIFF
+from engines.mujoco.adapter import ENGINE
+from engines.mujoco.options import MUJOCO_SOLIMP, MUJOCO_SOLREF, STIFF
 from engines.reference.reference import solve
 from engines.scene.scene import Particle, Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy
@@ -297,11 +298,11 @@ def test_a_bad_option_value_is_refused_on_a_model_file_too():
 
 @pytest.mark.parametrize("name", ["double-pendulum", "four-bar", "slider-pendulum", "spherical-pendulum"])
 def test_a_model_and_data_kept_from_another_run_give_bit_for_bit_a_fresh_compiles_run(name):
-    # engines.adapters.mujoco._model_and_data keeps each MJCF's compiled model and MjData (per thread) and,
+    # engines.mujoco.adapter._model_and_data keeps each MJCF's compiled model and MjData (per thread) and,
     # for the next run of it, sets the timestep and resets the data rather than compile again: every
     # variant's run at a dt must equal a fresh compile's exactly, after a run of the same MJCF at
     # another dt (the stiff variants too: their dt-dependent equality softness is set on the kept model).
-    import engines.adapters.mujoco as adapter
+    import engines.mujoco.adapter as adapter
 
     scene = catalog.build(name, {"duration": 0.3})
     for variant in VARIANTS:
@@ -326,7 +327,7 @@ def test_a_model_and_data_kept_from_another_run_give_bit_for_bit_a_fresh_compile
 def test_only_the_connect_equalities_solref_and_the_timestep_are_left_out_of_the_kept_models_key():
     # A solref anywhere else (here a geom's) is part of the model the compiler builds: each value its
     # own kept model. A connect's is set on the kept model, as is the timestep.
-    import engines.adapters.mujoco as adapter
+    import engines.mujoco.adapter as adapter
 
     def mjcf(dt, geom_solref, connect_solref):
         return (f'<mujoco><option timestep="{dt!r}"/><worldbody><body name="a"><freejoint/>'
@@ -348,7 +349,7 @@ def test_only_the_connect_equalities_solref_and_the_timestep_are_left_out_of_the
 def test_a_kept_mjdata_that_blew_up_starts_the_next_run_clean(tmp_path, monkeypatch):
     # mj_resetData clears the warning counters too: a run after a blow-up (MuJoCo reset its state and
     # counted mjWARN_BADQACC) of the same MJCF is bit for bit a fresh compile's run, not cut short.
-    import engines.adapters.mujoco as adapter
+    import engines.mujoco.adapter as adapter
 
     monkeypatch.chdir(tmp_path)  # where MuJoCo would write MUJOCO_LOG.TXT
     scene = catalog.build("chain", {"n": 8, "duration": 5})

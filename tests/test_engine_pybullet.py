@@ -18,7 +18,8 @@ from engines.scene import catalog
 
 from engines.reference import closed_form
 from engines.errors import Unsupported, UserError
-from engines.adapters.pybullet import ENGINE, PYBULLET_ITERATIONS, forest
+from engines.pybullet.adapter import ENGINE, forest
+from engines.pybullet.options import PYBULLET_ITERATIONS
 from engines.scene.scene import Particle, Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy
 
@@ -199,7 +200,7 @@ def test_a_bad_option_value_is_a_user_error_naming_the_option(options, message):
 
 
 def test_the_iterations_default_is_what_a_fresh_client_reports():
-    from engines.adapters.pybullet import _pb
+    from engines.pybullet.library import pb as _pb
     from engines.stdio import quiet_output
 
     with quiet_output():
@@ -225,7 +226,7 @@ def test_forest_orders_parents_before_children():
 
 
 def test_multibody_refuses_chains_longer_than_pybullet_builds_correctly():
-    from engines.adapters.pybullet import MAX_MULTIBODY_LINKS
+    from engines.pybullet.adapter import MAX_MULTIBODY_LINKS
 
     # The largest chain still starts in the scene's pose and runs ...
     n = MAX_MULTIBODY_LINKS
@@ -245,7 +246,7 @@ def test_a_run_does_not_depend_on_what_ran_in_the_reused_client_before_it():
     """The adapter keeps one client per thread and empties it of the last run's bodies and constraints
     between runs: every variant, after runs of other variants, solvers, scenes and time steps in that
     client, gives bit for bit what it gives in a client just connected."""
-    import engines.adapters.pybullet as adapter
+    import engines.pybullet.adapter as adapter
 
     scenes = [catalog.build("bead", {"theta0": 60, "duration": 0.3}),
               catalog.build("double-pendulum", {"duration": 0.3}),
@@ -292,7 +293,7 @@ def test_a_run_does_not_depend_on_what_ran_in_the_reused_client_before_it():
 
 
 def test_a_run_that_raised_leaves_no_client_behind_to_be_reused(monkeypatch):
-    import engines.adapters.pybullet as adapter
+    import engines.pybullet.adapter as adapter
 
     scene = catalog.build("bead", {"theta0": 60, "duration": 0.05})
     ENGINE.simulate(scene, 1e-3, variant="p2p")  # leaves an idle client
@@ -319,7 +320,7 @@ def test_a_run_that_runs_away_or_goes_non_finite_stops_there(monkeypatch, bad, s
     # PyBullet's p2p keeps the double pendulum bounded, so its reader is made to report a particle
     # 1e7 m away (past RUNAWAY_LENGTHS · L = 2e6 m: the run stops, that sample kept) or NaN (the run
     # stops, and the adapter keeps the samples before it) at the fifth sample, t = 0.05 s.
-    import engines.adapters.pybullet as adapter
+    import engines.pybullet.adapter as adapter
 
     real = adapter._Run._state_p2p
     calls = []

@@ -16,7 +16,7 @@ import pytest
 from engines.scene import catalog
 from engines.reference.closed_form import normal_modes, pendulum_period
 from engines.errors import Unsupported, UserError
-from engines.adapters.pymunk import ENGINE
+from engines.pymunk.adapter import ENGINE
 from engines.reference.reference import solve
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.trajectory import max_constraint_error, tensions, total_energy

@@ -2,7 +2,7 @@
 
 JAX starts threads on import, and a fork of a process with them may deadlock (JAX warns "os.fork() was
 called ... JAX is multithreaded"). So the xval process, which forks every case host, must never import
-it: the MJX adapter imports JAX on first use (engines.adapters.mjx._jax), inside the host running the case, and
+it: the MJX adapter imports JAX on first use (engines.mjx.library.jax_mjx), inside the host running the case, and
 the host has forked its one child (the reaper) before any case runs.
 """
 

@@ -126,7 +126,7 @@ def test_four_bar_refuses_only_a_loop_that_cannot_close_naming_the_rule():
 
 
 def test_a_triple_rocker_passes_its_dead_points_conserving_energy_with_ours_converging_to_it():
-    from engines.adapters.ours import ENGINE as OURS
+    from engines.ours.adapter import ENGINE as OURS
     from engines.reference.reference import solve
     from engines.scene.trajectory import max_constraint_error, total_energy
 

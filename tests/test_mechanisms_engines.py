@@ -20,7 +20,7 @@ from scipy.optimize import brentq
 from engines import registry
 from engines.scene import catalog
 from engines.errors import Unsupported
-from engines.adapters.mujoco import STIFF
+from engines.mujoco.options import STIFF
 from engines.reference.reference import solve
 from engines.scene.scene import Line, Particle, Rod, Scene
 from engines.scene.trajectory import free_direction, linear_momentum_drift
@@ -41,7 +41,7 @@ ORDERS = [
     ("four-bar", "mujoco", "hinge", STIFF_LOOP, 1, (1e-2, 5e-3)),
     ("four-bar", "pymunk", "pin-bias0", {}, 1, (1e-2, 5e-3)),
     # The loop's light arm body between two point-to-point constraints; particle inertia 1e-6 (the default
-    # 1e-4 leaves a floor of ~3e-3 m, see engines/adapters/pybullet.py).
+    # 1e-4 leaves a floor of ~3e-3 m, see engines/pybullet/adapter.py).
     ("four-bar", "pybullet", "p2p-dantzig", {"inertia_ratio": 1e-6}, 1, (1e-2, 5e-3)),
     ("bead-ellipse", "ours", "projection-rk4", {}, 4, (2e-2, 1e-2)),
 ]

@@ -13,7 +13,7 @@ import pytest
 
 import ours
 from engines.scene import catalog
-from engines.adapters.ours import ENGINE
+from engines.ours.adapter import ENGINE
 from engines.reference.reference import solve
 
 CURVES = [

@@ -16,7 +16,7 @@ from compare.run.runner import _truncate, run_suite
 from compare.suite.reader import parse_suite
 from engines.adapter import Schedule
 from engines.model.scene import model_scene
-from engines.adapters.ours import OursEngine
+from engines.ours.adapter import OursEngine
 from engines.registry import resolve
 from engines.scene.trajectory import trajectory_constraint_error
 
@@ -61,7 +61,7 @@ def test_the_reported_violation_is_the_size_of_what_the_link_frames_hide(model, 
     """The link frames compared are computed from ours' joint coordinates; the same links as ours' bodies
     carry them stand off by about the reported violation (measured 0.18 to 2.0 times it: anchor gaps count
     once per joint, misalignments at the full reach L), so the metric says how far the frames are wrong."""
-    from engines.model.ours import OursStepper, link_origins
+    from engines.ours.model import OursStepper, link_origins
 
     scene = model_scene("drift", model, q0=q0, duration=1.0)
     stepper = OursStepper(scene, 1e-2, "plain", "rk4")

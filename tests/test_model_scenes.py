@@ -287,7 +287,7 @@ def test_report_shows_a_model_scene_with_its_parity_table(tmp_path, capsys):
 
 
 def test_ours_steps_a_model_in_maximal_coordinates_as_mujoco_does_in_joint_coordinates():
-    """ours' rigid bodies (engines/model/ours.py) and MuJoCo's hinges, both RK4 at 1 ms over 1 s: the joint
+    """ours' rigid bodies (engines/ours/model.py) and MuJoCo's hinges, both RK4 at 1 ms over 1 s: the joint
     states agree to 1e-9 (each method's own error is ~1e-10 here), and projection keeps the joints shut."""
     scene = model_scene("dp", DOUBLE, q0={"shoulder": 30, "elbow": -20}, duration=1.0)
     runs = {eid: resolve(eid)[0].simulate(scene, 1e-3, variant=resolve(eid)[1])

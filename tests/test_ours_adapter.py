@@ -1,4 +1,4 @@
-"""engines/adapters/ours.py: variants, refusals, frames, and agreement with the reference engine."""
+"""engines/ours/adapter.py: variants, refusals, frames, and agreement with the reference engine."""
 
 import math
 

@@ -1,11 +1,11 @@
 """ours' trajectories are today's as saved from main before the speed work (issue 20), to 1e-12 relative.
 
-bench/data/ours_trajectories.npz holds every ours variant × scene × dt of
+tests/golden/ours_trajectories.npz holds every ours variant × scene × dt of
 scripts/ours_equivalence.py as computed by main at cf334d7. The double pendulum
 runs through a kernel with every size a constant, the 8-link chain through the
 per-dimension kernel and the spherical pendulum through a 3-D kernel, so each
 path ours.specialize generates is held to the saved numbers. (The script checks
-all five scenes: ``scripts/ours_equivalence.py check bench/data/ours_trajectories.npz``.)
+all five scenes: ``scripts/ours_equivalence.py check tests/golden/ours_trajectories.npz``.)
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def _script():
 
 def test_trajectories_match_those_saved_from_main():
     script = _script()
-    count, worst, failures = script.compare(ROOT / "bench" / "data" / "ours_trajectories.npz",
+    count, worst, failures = script.compare(ROOT / "tests" / "golden" / "ours_trajectories.npz",
                                             scenes={"double-pendulum", "chain8", "spherical"})
     # 16 variants × 7 time steps on each planar scene; the 3-D one has no Lagrangian form (13 variants).
     assert count == 16 * 7 + 16 * 7 + 13 * 7

@@ -14,7 +14,7 @@ from engines.model import pinocchio as reference
 from engines.model.kinematics import link_poses
 from engines.model.source import resolve
 from engines.model.urdf import read
-from engines.model.ours import link_origins, run, translate
+from engines.ours.model import link_origins, run, translate
 
 MODELS = Path(__file__).resolve().parent.parent / "models"
 
@@ -116,7 +116,7 @@ def test_the_stepper_advancing_in_chunks_is_the_one_call_run_bit_for_bit():
     angles read continuously through several turns of a fast joint."""
     from types import SimpleNamespace
 
-    from engines.model.ours import OursStepper
+    from engines.ours.model import OursStepper
 
     description, _ = _load("double_pendulum.urdf")
     q0, v0 = np.array([0.9, -0.6]), np.array([0.3, 60.0])  # the whirl turns the shoulder over and over

@@ -196,6 +196,10 @@ def test_broken_plugins_are_reported_and_every_other_engine_still_runs(tmp_path)
      "engines.external.plugin now: import it from there"),
     ("from engines.scene import Scene", "engines.scene is a package of modules now (engines.scene.scene): import from "
      "the module, or take what a plugin needs from engines.external.plugin (docs/plugins.md)"),
+    ("from engines.adapters.mujoco import ENGINE", "ModuleNotFoundError: No module named 'engines.adapters'; "
+     "engines.adapters is engines.<engine>.adapter (each engine's home) now: import it from there"),
+    ("from engines.mujoco import ENGINE", "engines.mujoco is a package of modules now (engines.mujoco.adapter): import "
+     "from the module, or take what a plugin needs from engines.external.plugin (docs/plugins.md)"),
 ])
 def test_a_plugin_written_before_engines_was_split_into_folders_is_told_where_to_import_from(
         line, fix, tmp_path, monkeypatch):

@@ -2,7 +2,7 @@
 
 Both step reduced coordinates with semi-implicit Euler; the only model
 difference is the tiny rotational inertia each gives a point mass
-(engines/adapters/pybullet.py, engines/adapters/mujoco.py, scripts/inertia_floor.py).
+(engines/pybullet/adapter.py, engines/mujoco/adapter.py, scripts/inertia_floor.py).
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pytest
 
 from compare.results.metrics import position_error
 from engines.scene import catalog
-from engines.adapters.mujoco import ENGINE as MUJOCO
-from engines.adapters.pybullet import ENGINE as PYBULLET
+from engines.mujoco.adapter import ENGINE as MUJOCO
+from engines.pybullet.adapter import ENGINE as PYBULLET
 from engines.reference.reference import solve
 
 #: A mild double pendulum: small enough angles that 2 s of semi-implicit Euler is in its asymptotic range.

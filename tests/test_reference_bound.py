@@ -72,7 +72,7 @@ def test_momentum_drift_is_none_where_lz_is_not_conserved_or_trivially_zero():
 
 def test_momentum_drift_is_a_declared_gated_metric_computed_for_each_case():
     from compare.results.declared import METRICS, MetricInputs, computed_extras
-    from engines.adapters.mujoco import ENGINE as MUJOCO
+    from engines.mujoco.adapter import ENGINE as MUJOCO
 
     metric = METRICS["momentum_drift"]
     assert metric.gated and metric.better == "lower" and metric.unit == "L*"

@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from compare.model.diagnosis import Finding, diagnose, sentences
+from engines.adapter import ModelImport
 from engines.model import source as sources
 from engines.model import urdf
 from engines.model.description import ModelDescription, ModelError
@@ -174,7 +175,7 @@ def _one(name, source, model, sample, expected, balance_inertia) -> tuple[Engine
     try:
         module = importer(name)
         version = module.version()
-        options = {"balance_inertia": balance_inertia} if name == "mujoco" else {}
+        options = _options_for(module, balance_inertia)
         loaded = module.load(source, model, **options)
     except Refused as exc:
         return EngineParity(name, _version_of(name), False, False, message=str(exc),
@@ -197,11 +198,18 @@ def _one(name, source, model, sample, expected, balance_inertia) -> tuple[Engine
                         diagnosis=tuple(sentences({name: findings}))), findings
 
 
+def _options_for(module: ModelImport, balance_inertia: bool) -> dict[str, bool]:
+    """The options of ``xval model check`` that this engine's import declares it takes (MuJoCo's balance_inertia)."""
+    return {k: v for k, v in {"balance_inertia": balance_inertia}.items() if k in module.options}
+
+
 def _stated_options(name: str, balance_inertia: bool) -> dict[str, str]:
     """The import options an engine that refused the file was given (MuJoCo's compiler settings)."""
-    if name == "mujoco":
-        return importer(name).compiler_options(balance_inertia)
-    return {}
+    try:
+        module = importer(name)
+    except Refused:
+        return {}
+    return module.stated(**_options_for(module, balance_inertia))
 
 
 def _version_of(name: str) -> str:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 
-#: The capability an engine declares to take part (engines.adapters.drake.DrakeEngine).
+#: The capability an engine declares to take part (engines.drake.adapter.DrakeEngine).
 CAPABILITY = "tolerance"
 
 

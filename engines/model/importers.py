@@ -1,28 +1,38 @@
-"""The engines that import model files, by name, each imported only when asked for.
+"""The model imports ``xval model check`` compares, each reached through the registry (``Engine.model_import``).
 
-``ENGINES`` are compared against ``REFERENCE`` (Pinocchio). An engine whose
-library is not installed raises :class:`Refused` saying how to install it.
+``ENGINES`` (the registry's ``MODEL_CHECK``) are compared against ``REFERENCE``
+(Pinocchio, engines/model/pinocchio.py). An engine whose library is not
+installed raises :class:`Refused` saying why and how to install it.
 """
 
 from __future__ import annotations
 
-import importlib
-from types import ModuleType
-
+from engines import registry
+from engines.adapter import ModelImport
 from engines.errors import UserError
 from engines.model.loaded import Refused
 
-ENGINES = ("mujoco", "pybullet", "drake", "dart")
+ENGINES = registry.MODEL_CHECK
 REFERENCE = "pinocchio"
-#: Engine name -> the pip package that provides it.
-PACKAGES = {"mujoco": "mujoco", "pybullet": "pybullet", "drake": "drake", "dart": "dartpy", "pinocchio": "pin"}
+#: The pip package that provides the reference.
+REFERENCE_PACKAGE = "pin"
 
 
-def importer(name: str) -> ModuleType:
-    """The module engines/model/<name>.py; UserError for an unknown name, Refused when its library is missing."""
-    if name not in PACKAGES:
+def importer(name: str) -> ModelImport:
+    """The model import of engine ``name`` (or of the reference); UserError for an unknown name, Refused
+    when its library is missing."""
+    if name == REFERENCE:
+        try:
+            from engines.model import pinocchio
+        except ImportError as exc:
+            raise Refused(f"not installed ({exc}); pip install {REFERENCE_PACKAGE}") from None
+        return ModelImport(pinocchio.version, pinocchio.load)
+    if name not in ENGINES:
         raise UserError(f"unknown model engine {name!r}; choose from {', '.join((*ENGINES, REFERENCE))}")
-    try:
-        return importlib.import_module(f"engines.model.{name}")
-    except ImportError as exc:
-        raise Refused(f"not installed ({exc}); pip install {PACKAGES[name]}") from None
+    found = registry.status(name)
+    if found.engine is None:
+        raise Refused(f"not installed ({found.reason})")
+    made = found.engine.model_import()
+    if made is None:
+        raise UserError(f"engine {name!r} declares no model import (Engine.model_import)")
+    return made

@@ -21,7 +21,7 @@ KINDS = {2: "prismatic", 3: "revolute"}  # mjJNT_SLIDE, mjJNT_HINGE
 
 
 def read(source: ModelSource) -> ModelDescription:
-    from engines.adapters.mujoco import mujoco
+    from engines.mujoco.library import mujoco
 
     try:
         m = mujoco.MjModel.from_xml_path(str(source.path))
@@ -68,7 +68,7 @@ def read(source: ModelSource) -> ModelDescription:
 
 
 def _quat_matrix(quat) -> np.ndarray:
-    from engines.adapters.mujoco import mujoco
+    from engines.mujoco.library import mujoco
 
     matrix = np.zeros(9)
     mujoco.mju_quat2Mat(matrix, np.asarray(quat, dtype=float))

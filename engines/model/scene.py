@@ -161,15 +161,6 @@ class ModelScene:
 
     # -- stepping ----------------------------------------------------------------------------------
 
-    def run_in(self, engine: str, schedule: Any, settings: Mapping[str, Any]) -> Any:
-        """The RawRun of this model stepped by ``engine`` (an adapter's name; its resolved ``settings``) on
-        ``schedule``: what an adapter's ``_run`` returns for a model. The adapters reach the model layer
-        only through this, so none of them imports it (its import modules use the adapters' modules)."""
-        from engines.model.stepping import run_model
-        from engines.model.steppers import stepper
-
-        return run_model(self, schedule, stepper(engine, self, schedule.dt, dict(settings)))
-
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when this scene keeps the file's joint damping and ``engine``'s import cannot."""
         if self.file_dynamics == "keep":

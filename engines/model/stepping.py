@@ -1,7 +1,7 @@
 """Stepping a model scene in an engine: one loop for every engine, each engine's own step.
 
 An engine adapter that runs model scenes builds a :class:`Stepper` from the
-engine's import of the file (``engines.model.<engine>.load``), with its
+engine's import of the file (``engines/<engine>/model.py``), with its
 integrator and time step, and hands it to :func:`run_model`. The loop
 advances to each sample step (only that is timed), reads the joint state
 (q, v) in the model's joint order, and afterwards turns every sample into
@@ -69,3 +69,22 @@ def file_values(scene: Any) -> dict[str, dict[str, float]]:
     return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
             if j.damping or j.friction}
 
+
+def common_settings(scene: Any, loaded: Any) -> dict[str, Any]:
+    """Settings every model run records: the import's options and notes, and what the file's joint
+    damping and friction were (set to 0, or the damping kept; contacts and joint limits are off)."""
+    return {
+        "model": scene.model,
+        "import_options": dict(loaded.options),
+        "import_notes": list(loaded.notes),
+        "file_damping_friction": file_values(scene),
+        "file_dynamics": ("keep: the file's joint damping kept (no friction in the file)" if scene.file_dynamics == "keep"
+                          else "neutral: joint damping, friction and armature set to 0"),
+        "contacts": "off", "joint_limits": "off",
+    }
+
+
+def kept_damping(scene: Any) -> np.ndarray:
+    """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
+    keep = scene.file_dynamics == "keep"
+    return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])

@@ -4,7 +4,7 @@ Variants are ``<method>-<integrator>`` (``baumgarte-rk4``, ``plain-euler``,
 ``projection-symplectic-euler``, ``lagrangian-rk4``, …) plus ``rattle``, which
 is its own integrator; every pair ``ours.valid_pairs()`` accepts has one.
 
-Details: docs/engines.md, "Adapter notes", ``engines/adapters/ours.py``.
+Details: docs/engines.md, "Adapter notes", ``engines/ours/adapter.py``.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import numpy as np
 import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
 from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
@@ -111,8 +112,15 @@ class OursEngine(Engine):
             except (Unsupported, ours.OursError):
                 continue
 
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        from engines.ours.model import OursStepper  # for cost: ours' rigid bodies load only for a model scene
+
+        return run_model(scene, schedule, OursStepper(scene, schedule.dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
+                                                      k_d=settings["k_d"], tolerance=settings["tolerance"],
+                                                      max_iterations=settings["max_iterations"]))
+
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
-        """A model file: ours' rigid bodies (engines/model/ours.py) with the variant's method and integrator."""
+        """A model file: ours' rigid bodies (engines/ours/model.py) with the variant's method and integrator."""
         from ours.rigid.method import resolve as rigid_pair
 
         try:

@@ -1,64 +1,29 @@
 """MuJoCo adapter: the scenes as a MuJoCo user would build them, in two formulations.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/mujoco.py``.
+``engines/mujoco/adapter.py``.
 """
 
 from __future__ import annotations
 
-import os
 import re
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-# xval never renders with MuJoCo. With MUJOCO_GL unset, importing mujoco loads an OpenGL backend
-# (GLFW, whose binding starts a Python process to probe its library) in every run; "disable" skips
-# it. Set for the import only, and only when the user has not chosen a backend, so outside programs
-# xval starts see the environment they were given.
-_GL_UNSET = "MUJOCO_GL" not in os.environ
-if _GL_UNSET:
-    os.environ["MUJOCO_GL"] = "disable"
-try:
-    import mujoco
-    from mujoco import rollout as mj_rollout
-finally:
-    if _GL_UNSET:
-        del os.environ["MUJOCO_GL"]
-import numpy as np  # noqa: E402 (after the guarded import above)
+import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, ModelImport, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
+from engines.mujoco import model
+from engines.mujoco.library import mj_rollout, mujoco
+from engines.mujoco import options as tables
+from engines.mujoco.options import MIN_INERTIA, MUJOCO_SOLIMP, MUJOCO_SOLREF
 from engines.recorder import Recorder
 from engines.scene.scene import Ellipse, Line, Pin, Scene
 from engines.scene.tree import Tree, read_tree
-
-#: MuJoCo's own default solref (timeconst s, dampratio) and solimp (dmin, dmax, width m, midpoint, power).
-_ref, _imp = np.zeros(mujoco.mjNREF), np.zeros(mujoco.mjNIMP)
-mujoco.mj_defaultSolRefImp(_ref, _imp)
-MUJOCO_SOLREF: tuple[float, ...] = tuple(float(x) for x in _ref)
-MUJOCO_SOLIMP: tuple[float, ...] = tuple(float(x) for x in _imp)
-
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
-HINGE_INERTIA_RATIO = 1e-12
-CONNECT_INERTIA_RATIO = 1e-9
-#: kg·m²: the least inertia MuJoCo compiles ("mass and inertia of moving bodies must be larger than
-#: mjMINVAL"); a ratio that would give less is raised to it (a scene smaller than ~3 cm at 1 kg).
-MIN_INERTIA = mujoco.mjMINVAL * (1 + 1e-6)
-
-#: Stiff equality setting: time constant 2·dt (the smallest refsafe allows), critical damping,
-#: impedance 0.9999 whatever the violation (R = 1e-4 of the constraint's inverse mass).
-STIFF = {"timeconst_steps": 2.0, "solref": (0.02, 1.0), "solimp": (0.9999, 0.9999, 0.001, 0.5, 2.0)}
-#: The connect variants' point-mass inertia: a ball joint turns the arm with it.
-CONNECT = {"inertia_ratio": CONNECT_INERTIA_RATIO}
-
-INTEGRATORS = {
-    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
-    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
-    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-}
 
 #: Steps per rollout call: long enough that the per-call overhead is negligible against the steps,
 #: short enough that the state buffer stays a few MB.
@@ -355,64 +320,17 @@ class MuJoCoEngine(Engine):
 
     name = "mujoco"
     capabilities = frozenset({"3d", "constraint-forces", "model"})
-    options = {
-        "formulation": Option(
-            "formulation", "hinge", "hinge: nested bodies with joints; connect: free bodies and connect equalities",
-            kind="str", choices=("hinge", "connect"),
-        ),
-        "integrator": Option(
-            "integrator", "Euler", "MuJoCo integrator (Euler is MuJoCo's default, semi-implicit)",
-            kind="str", choices=tuple(INTEGRATORS),
-        ),
-        "solref": Option(
-            "solref", MUJOCO_SOLREF,
-            "connect: timeconst (s), dampratio of the equality constraints (MuJoCo's default 0.02, 1)",
-            kind="floats",
-        ),
-        "solimp": Option(
-            "solimp", MUJOCO_SOLIMP,
-            "connect: dmin, dmax, width (m), midpoint, power (MuJoCo's default 0.9, 0.95, 0.001, 0.5, 2)",
-            kind="floats",
-        ),
-        "timeconst_steps": Option(
-            "timeconst_steps", 0.0,
-            "connect: when > 0, solref's time constant is this many time steps (2 is the least refsafe allows)",
-        ),
-        "refsafe": Option(
-            "refsafe", True, "keep MuJoCo's refsafe clamp of solref's time constant to at least 2·dt", kind="bool"
-        ),
-        "inertia_ratio": Option(
-            "inertia_ratio", HINGE_INERTIA_RATIO,
-            "rotational inertia of each point-mass body, as a fraction of m·L² (L: the scene's length scale); "
-            f"{HINGE_INERTIA_RATIO:g} for hinge, {CONNECT_INERTIA_RATIO:g} in the connect variants",
-        ),
-    }
-    variants = {
-        "hinge": {"formulation": "hinge"},
-        "hinge-rk4": {"formulation": "hinge", "integrator": "RK4"},
-        "hinge-implicit": {"formulation": "hinge", "integrator": "implicit"},
-        "hinge-implicitfast": {"formulation": "hinge", "integrator": "implicitfast"},
-        "connect": {"formulation": "connect", **CONNECT},
-        "connect-stiff": {"formulation": "connect", **CONNECT, **STIFF},
-        "connect-rk4": {"formulation": "connect", "integrator": "RK4", **CONNECT},
-        "connect-rk4-stiff": {"formulation": "connect", "integrator": "RK4", **CONNECT, **STIFF},
-        "connect-implicitfast-stiff": {"formulation": "connect", "integrator": "implicitfast", **CONNECT, **STIFF},
-    }
-    variant_docs = {
-        "hinge": "reduced coordinates, MuJoCo's default Euler integrator",
-        "hinge-rk4": "reduced coordinates, RK4 (4th order)",
-        "hinge-implicit": "reduced coordinates, implicit in velocity",
-        "hinge-implicitfast": "reduced coordinates, implicit in velocity without the RNE derivative",
-        "connect": "free bodies + connect equalities with MuJoCo's default solref/solimp, Euler",
-        "connect-stiff": "connect with solref time constant 2·dt, solimp 0.9999, Euler",
-        "connect-rk4": "connect with MuJoCo's default solref/solimp, RK4",
-        "connect-rk4-stiff": "connect with the stiff setting, RK4",
-        "connect-implicitfast-stiff": "connect with the stiff setting, implicitfast",
-    }
-    overrides = {"flag.contact": "disable (default enable): the scenes have nothing to collide"}
+    # The option tables (engines/mujoco/options.py).
+    options, variants, variant_docs, overrides = tables.OPTIONS, tables.VARIANTS, tables.VARIANT_DOCS, tables.OVERRIDES
 
     def version(self) -> str:
         return mujoco.mj_versionString()
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.MujocoStepper(scene, schedule.dt, settings["integrator"]))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load, frozenset({"balance_inertia"}), model.compiler_options)
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "hinge":

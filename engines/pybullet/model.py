@@ -15,7 +15,9 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
-from typing import Iterator
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -23,7 +25,9 @@ from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.adapters.pybullet import _pb as pb, _pybullet_version
+from engines.model.stepping import common_settings
+from engines.pybullet.library import pb
+from engines.pybullet.library import version as _pybullet_version
 from engines.stdio import quiet_output
 
 NAME = "pybullet"
@@ -132,3 +136,41 @@ class PyBulletModel(LoadedModel):
             pb.disconnect(self.client)
         except Exception:  # the interpreter is ending, or the client is gone
             pass
+
+
+class PyBulletStepper:
+    """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
+
+    def __init__(self, scene: Any, dt: float) -> None:
+        self.pb, self.quiet = pb, quiet_output
+        loaded = self.loaded = load(_without_limits(scene.source), scene.description)
+        self.kw = {"physicsClientId": loaded.client}
+        pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, **self.kw)
+        for joint, position, velocity in zip(loaded.joints, scene.initial_q, scene.initial_v):
+            pb.resetJointState(loaded.body, joint, float(position), float(velocity), **self.kw)
+        self.settings = {**common_settings(scene, loaded), "fixedTimeStep": dt, "numSubSteps": 0,
+                         "motors": "velocity motors disabled (force 0)",
+                         "joint_limits": "off: every URDF <limit> given lower 1 > upper -1, so loadURDF makes no "
+                                         "limit constraint (changeDynamics cannot remove one)"}
+
+    def advance(self, steps: int) -> None:
+        step = self.pb.stepSimulation
+        with self.quiet():
+            for _ in range(steps):
+                step(**self.kw)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        states = self.pb.getJointStates(self.loaded.body, self.loaded.joints, **self.kw)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+
+def _without_limits(source):
+    """``source`` with every URDF ``<limit>``'s range emptied (lower 1 > upper -1): PyBullet then builds no
+    joint-limit constraint, which it otherwise enforces whatever the caller asks (an MJCF is left as it is)."""
+    if source.format != "urdf":
+        return source
+    root = ET.fromstring(source.text)
+    for limit in root.iter("limit"):
+        limit.set("lower", "1")
+        limit.set("upper", "-1")
+    return replace(source, text=ET.tostring(root, encoding="unicode"))

@@ -112,7 +112,7 @@ class OursStepper:
         self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
         #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
         self._read: list[np.ndarray] = []
-        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.model.ours",
+        self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.ours.model",
                          "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
                                                                      self.model.carriers.items() if b >= 0 and
                                                                      mech.bodies[b].name != n},

@@ -1,31 +1,23 @@
 """Drake adapter: a MultibodyPlant per scene, stepped by Drake's own integrators or its discrete plant.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/drake.py``.
+``engines/drake/adapter.py``.
 """
 
 from __future__ import annotations
 
-import importlib.metadata
-import importlib.util
 import time
-from typing import TYPE_CHECKING, Any, Mapping, cast
+from typing import Any, Mapping, cast
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds
+from engines.adapter import Engine, ModelImport, Option, RawRun, Schedule, refuse_constraint_kinds
+from engines.drake import library as drake
+from engines.drake import model
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
 from engines.scene.scene import Pin, Rod, Scene
 from engines.scene.tree import Tree, read_tree
-
-# pydrake itself is imported where a plant is built (and by preload, before a run forks its hosts):
-# listing the engines (`xval engines`) or planning a run needs only to know it is installed, and
-# importing it was much of what `xval engines` spent.
-if importlib.util.find_spec("pydrake") is None:
-    raise ImportError("No module named 'pydrake'")
-if TYPE_CHECKING:
-    from pydrake.math import RotationMatrix
-    from pydrake.multibody.plant import MultibodyPlant
 
 #: Drake's scheme names (``ResetIntegratorFromFlags``) by this adapter's integrator option value.
 SCHEMES = {
@@ -47,12 +39,6 @@ BALL_INERTIA_RATIO = 1e-9
 
 #: The option an error-controlled variant's tolerance sets (see the tolerance capability).
 TOLERANCE_OPTION = "accuracy"
-
-
-def drake_version() -> str:
-    """Drake's version string, from the installed wheel's metadata (pydrake has no __version__ in some
-    wheels), so that asking needs no import of pydrake."""
-    return importlib.metadata.version("drake")
 
 
 class DrakeEngine(Engine):
@@ -114,15 +100,12 @@ class DrakeEngine(Engine):
     }
 
     def version(self) -> str:
-        return drake_version()
+        return drake.version()
 
     def preload(self, scenes) -> None:
         """Import pydrake's plant, frames and simulator in this process, so that case hosts forked from it
         (a run whose suite uses Drake) inherit them instead of each importing them again."""
-        import pydrake.math  # noqa: F401
-        import pydrake.multibody.plant  # noqa: F401
-        import pydrake.multibody.tree  # noqa: F401
-        import pydrake.systems.analysis  # noqa: F401
+        drake.preload()
 
     def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
         """Whether these settings run with error control, so that ``accuracy`` (not dt) sets the error."""
@@ -146,6 +129,13 @@ class DrakeEngine(Engine):
                 "drake: a 3-D scene is built with a ball joint per particle, and only one-particle 3-D scenes "
                 "keep the roll-pitch-yaw ball joint away from its singular pitch"
             )
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.DrakeStepper(
+            scene, schedule.dt, SCHEMES[settings["integrator"]], not settings["error_control"], settings["accuracy"]))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load)
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["plant"] == "discrete":
@@ -176,9 +166,9 @@ class DrakeEngine(Engine):
 
     def build(self, scene: Scene, time_step: float, settings: Mapping[str, Any]) -> "DrakeModel":
         """The finalized plant for ``scene`` (time_step s: 0 continuous, dt discrete) and its joints."""
-        from pydrake.math import RigidTransform
-        from pydrake.multibody.plant import DiscreteContactApproximation, MultibodyPlant
-        from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia
+        RigidTransform = drake.RigidTransform
+        DiscreteContactApproximation, MultibodyPlant = drake.DiscreteContactApproximation, drake.MultibodyPlant
+        BallRpyJoint, RevoluteJoint, RotationalInertia, SpatialInertia = drake.BallRpyJoint, drake.RevoluteJoint, drake.RotationalInertia, drake.SpatialInertia
 
         tree = read_tree(scene)
         q = scene.initial_positions
@@ -198,7 +188,7 @@ class DrakeEngine(Engine):
             parent = plant.world_body() if tree.parent[i] == -1 else bodies[tree.parent[i]]
             # The parent's frame sits at its own pivot: this body's pivot is at (pivot − parent's pivot).
             offset = tree.pivot[i] - (0.0 if tree.parent[i] == -1 else tree.pivot[tree.parent[i]])
-            joint: RevoluteJoint | BallRpyJoint
+            joint: Any
             if scene.is_planar:
                 on_parent = plant.AddFrame(_fixed_frame(f"pivot{i}", parent.body_frame(), RigidTransform(offset)))
                 joint = RevoluteJoint(f"j{i}", on_parent, body.body_frame(), np.array([0.0, 1.0, 0.0]), damping=0.0)
@@ -218,7 +208,7 @@ class DrakeEngine(Engine):
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+        ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
 
         discrete = settings["plant"] == "discrete"
         model = self.build(scene, schedule.dt if discrete else 0.0, settings)
@@ -281,14 +271,14 @@ class DrakeEngine(Engine):
 
 
 def _fixed_frame(name: str, parent_frame, X):
-    from pydrake.multibody.tree import FixedOffsetFrame
+    FixedOffsetFrame = drake.FixedOffsetFrame
 
     return FixedOffsetFrame(name, parent_frame, X)
 
 
-def _frame_with_x_along(direction: np.ndarray) -> RotationMatrix:
+def _frame_with_x_along(direction: np.ndarray) -> Any:
     """A rotation whose first column is ``direction`` (normalized); the others complete a right-handed frame."""
-    from pydrake.math import RotationMatrix
+    RotationMatrix = drake.RotationMatrix
 
     x = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
     helper = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
@@ -323,7 +313,7 @@ def _sample_targets(schedule: Schedule, running_sum: bool) -> list[float]:
 class DrakeModel:
     """A built plant and what is needed to set and read its state in the scene's terms."""
 
-    def __init__(self, scene: Scene, plant: MultibodyPlant, tree: Tree, bodies: dict, joints: dict,
+    def __init__(self, scene: Scene, plant: Any, tree: Tree, bodies: dict, joints: dict,
                  inertia: np.ndarray) -> None:
         self.scene, self.plant, self.tree, self.bodies, self.joints, self.inertia = (
             scene, plant, tree, bodies, joints, inertia
@@ -338,7 +328,7 @@ class DrakeModel:
         ω = r × Δv / |r|² (r the arm, Δv the particle's velocity relative to its
         pivot); a revolute joint's rate is (ω − ω_parent)·ŷ.
         """
-        from pydrake.math import RollPitchYaw
+        RollPitchYaw = drake.RollPitchYaw
 
         scene, tree = self.scene, self.tree
         plant_context = context

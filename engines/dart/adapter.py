@@ -15,33 +15,26 @@ docs/engines.md ("DART") lists every default changed and what is refused.
 
 from __future__ import annotations
 
-import importlib.metadata
-import importlib.util
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
+from engines.adapter import Engine, ModelImport, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
+from engines.dart import library
+from engines.dart.rk4 import rk4_stepper
+from engines.dart import model
 from engines.errors import Unsupported
+from engines.model.stepping import run_model
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Rod, Scene
 from engines.scene.tree import Tree, read_tree
-
-# dartpy itself (0.6 s to import) is imported where a skeleton is built, and by preload before a run forks.
-if importlib.util.find_spec("dartpy") is None:
-    raise ImportError("No module named 'dartpy'")
 
 #: A ball joint's body needs rotational inertia (with none the spin about the arm has no mass and the
 #: mass matrix is singular): this ratio of m·L² when inertia_ratio = 0 is asked for (MuJoCo's and Drake's too).
 BALL_INERTIA_RATIO = 1e-9
 #: Rotational inertia (fraction of m·L²) given about an axis a body never turns about, where it would be 0.
 UNTURNED_INERTIA_RATIO = 1e-12
-
-
-def dart_version() -> str:
-    """dartpy's version, from the installed wheel's metadata (no import of dartpy needed)."""
-    return importlib.metadata.version("dartpy")
 
 
 def point_mass_inertia(mass: float, arm: np.ndarray, inertia: float, fill: float) -> np.ndarray:
@@ -96,11 +89,17 @@ class DartEngine(Engine):
     }
 
     def version(self) -> str:
-        return dart_version()
+        return library.version()
 
     def preload(self, scenes) -> None:
         """Import dartpy in this process, so that case hosts forked from it inherit it."""
-        import dartpy  # noqa: F401
+        library.dartpy()
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.DartStepper(scene, schedule.dt, settings["integrator"]))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load)
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         refuse_ellipse(scene, "dart: no DART joint moves a point on an ellipse (a revolute joint moves it on "
@@ -135,7 +134,7 @@ class DartEngine(Engine):
 
     def build(self, scene: Scene, settings: Mapping[str, Any]) -> "DartModel":
         """The skeleton of ``scene`` in a World with the scene's gravity, at its initial state."""
-        import dartpy as dart
+        dart = library.dartpy()
 
         tree = read_tree(scene)
         q = scene.initial_positions
@@ -253,38 +252,6 @@ class DartModel:
 
     def joint_types(self) -> list[str]:
         return [body.getParentJoint().getType() for body in self.bodies]
-
-
-def rk4_stepper(skeleton: Any, dt: float) -> Callable[[], None]:
-    """A function that advances ``skeleton`` one classic RK4 step of ``dt`` s (4th order, not symplectic).
-
-    f(q, v) = (v, a(q, v)), a from DART's forward dynamics (its forces as set: none here); valid for
-    joints whose position rate is their velocity (revolute, prismatic), which ``_check`` ensures.
-    """
-    set_q, set_v, forward, get_a = (skeleton.setPositions, skeleton.setVelocities,
-                                    skeleton.computeForwardDynamics, skeleton.getAccelerations)
-    get_q, get_v = skeleton.getPositions, skeleton.getVelocities
-    half, sixth = 0.5 * dt, dt / 6.0
-
-    def acceleration(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        set_q(q)
-        set_v(v)
-        forward()
-        return get_a()
-
-    def step() -> None:
-        q, v = get_q(), get_v()
-        a1 = acceleration(q, v)
-        v2 = v + half * a1
-        a2 = acceleration(q + half * v, v2)
-        v3 = v + half * a2
-        a3 = acceleration(q + half * v2, v3)
-        v4 = v + dt * a3
-        a4 = acceleration(q + dt * v3, v4)
-        set_q(q + sixth * (v + 2.0 * v2 + 2.0 * v3 + v4))
-        set_v(v + sixth * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
-
-    return step
 
 
 ENGINE = DartEngine()

@@ -13,26 +13,29 @@ warnings go to Python's ``drake`` logger: they are kept in the notes
 
 from __future__ import annotations
 
-import importlib.metadata
 import logging
+
+from typing import Any
 
 import numpy as np
 
+from engines.drake import library as drake
 from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
+from engines.model.stepping import common_settings
 
 NAME = "drake"
 
 
 def version() -> str:
-    return importlib.metadata.version("drake")
+    return drake.version()
 
 
 def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
-    from pydrake.multibody.parsing import Parser
-    from pydrake.multibody.plant import MultibodyPlant
+    Parser = drake.Parser
+    MultibodyPlant = drake.MultibodyPlant
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     plant = MultibodyPlant(0.0)
@@ -124,7 +127,7 @@ class DrakeModel(LoadedModel):
         return derivatives[self.plant.num_positions():][self.dof]
 
     def link_inertias(self):
-        from pydrake.multibody.tree import BodyIndex
+        BodyIndex = drake.BodyIndex
 
         self._set(np.zeros(len(self.dof)))
         found = {}
@@ -137,3 +140,40 @@ class DrakeModel(LoadedModel):
             about_com = about_origin - mass * (com @ com * np.eye(3) - np.outer(com, com))
             found[body.name()] = world_inertia(mass, com, about_com, pose.rotation().matrix(), pose.translation())
         return found
+
+
+class DrakeStepper:
+    """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
+    integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
+
+    def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
+        ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
+        loaded = load(scene.source, scene.description)
+        plant = self.plant = loaded.plant
+        self.simulator = Simulator(plant)
+        self.context = self.simulator.get_mutable_context()
+        plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
+        positions, velocities = np.zeros(plant.num_positions()), np.zeros(plant.num_velocities())
+        positions[loaded.qpos], velocities[loaded.dof] = scene.initial_q, scene.initial_v
+        plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
+        self.qpos, self.dof, self.nq = loaded.qpos, loaded.dof, plant.num_positions()
+        integrator = self.integrator = ResetIntegratorFromFlags(self.simulator, scheme, dt)
+        integrator.set_fixed_step_mode(fixed)
+        if not fixed:
+            integrator.set_target_accuracy(accuracy)
+        self.simulator.Initialize()
+        self.dt, self.time = dt, 0.0
+        self.settings = {**common_settings(scene, loaded), "drake_integrator": type(integrator).__name__,
+                         "fixed_step_mode": fixed, "target_accuracy": None if fixed else accuracy}
+
+    def advance(self, steps: int) -> None:
+        for _ in range(steps):  # the integrator's own clock, t += dt, so no sliver steps (engines/drake/adapter.py)
+            self.time += self.dt
+        self.simulator.AdvanceTo(self.time)
+
+    def steps_taken(self) -> int:
+        return int(self.integrator.get_num_steps_taken())
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        x = self.plant.GetPositionsAndVelocities(self.context)
+        return x[self.qpos].copy(), x[self.nq:][self.dof].copy()

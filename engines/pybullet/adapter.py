@@ -1,13 +1,12 @@
 """PyBullet adapter: point-mass scenes as one multibody, or as separate bodies joined by point-to-point constraints.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/pybullet.py``.
+``engines/pybullet/adapter.py``.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import threading
 from dataclasses import dataclass
@@ -15,42 +14,18 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from engines.adapter import Engine, Option, RawRun, Schedule, refuse_ellipse
+from engines.adapter import Engine, ModelImport, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
+from engines.model.stepping import run_model
+from engines.pybullet import model
+from engines.pybullet.library import pb as _pb
+from engines.pybullet.library import version as pybullet_version
+from engines.pybullet import options as tables
+from engines.pybullet.options import KEEPABLE, SOLVERS
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Scene
 from engines.scene.tree import ROOT, read_tree
 from engines.stdio import quiet_output
-
-# -- keeping PyBullet's prints out of the caller's output (engines/stdio.py) -------------------
-
-with quiet_output():
-    import pybullet as _pb  # prints "pybullet build time: ..." at import
-
-# -- PyBullet's own defaults (documented values; the library does not report them) ----------
-
-#: btContactSolverInfo::m_erp2, the error reduction of non-contact constraints.
-PYBULLET_ERP = 0.2
-#: setPhysicsEngineParameter's numSolverIterations (a fresh client reports it; a test checks
-#: this value against one, so importing the adapter connects no client).
-PYBULLET_ITERATIONS = 50
-#: btMultiBody::m_maxCoordinateVelocity, rad/s: PyBullet clamps multibody joint speeds to it.
-#: Not raised: changeDynamics(maxJointVelocity=...) set the base free in 3.2.7 (the pendulum fell).
-PYBULLET_MAX_JOINT_VELOCITY = 100.0
-
-SOLVERS = {
-    "si": _pb.CONSTRAINT_SOLVER_LCP_SI,
-    "pgs": _pb.CONSTRAINT_SOLVER_LCP_PGS,
-    "dantzig": _pb.CONSTRAINT_SOLVER_LCP_DANTZIG,
-}
-
-#: Overrides a user can switch off (option ``keep_defaults``) to see what PyBullet's default costs:
-#: damping (0.04 linear and angular per body), motors (a velocity motor on each joint), sleeping.
-KEEPABLE = ("damping", "motors", "sleeping")
-
-#: Point-mass inertia as a fraction of m·L², per formulation (the variants set it; docs/engines.md, "Adapter notes").
-MULTIBODY_INERTIA_RATIO = 1e-9
-P2P_INERTIA_RATIO = 1e-4
 
 #: A loop-closing arm body's mass, as a fraction of the mean particle mass (its central inertia is
 #: that mass · L²). On the four-bar (p2p-dantzig, dt = 1e-3 s, particle inertia_ratio 1e-6) any value
@@ -195,79 +170,11 @@ class PyBulletEngine(Engine):
 
     name = "pybullet"
     capabilities = frozenset({"3d", "constraint-forces", "model"})
-    options = {
-        "formulation": Option(
-            "formulation",
-            "multibody",
-            "multibody: one multibody per Pin, revolute/spherical joints; p2p: separate bodies joined by JOINT_POINT2POINT",
-            "str",
-            ("multibody", "p2p"),
-        ),
-        "solver": Option(
-            "solver",
-            "si",
-            "constraint solver: si (sequential impulse, PyBullet's default), pgs (MLCP projected Gauss-Seidel), "
-            "dantzig (MLCP Dantzig, a direct solver)",
-            "str",
-            tuple(SOLVERS),
-        ),
-        "erp": Option(
-            "erp",
-            PYBULLET_ERP,
-            f"fraction of a constraint's position error corrected per step (PyBullet's default {PYBULLET_ERP}); in [0, 1]",
-        ),
-        "iterations": Option(
-            "iterations",
-            PYBULLET_ITERATIONS,
-            f"solver iterations per step (PyBullet's default {PYBULLET_ITERATIONS}); at least 1",
-            "int",
-            high=10_000,
-        ),
-        "keep_defaults": Option(
-            "keep_defaults",
-            "",
-            "PyBullet defaults to leave in place, comma-separated, for measuring what they cost: "
-            f"{', '.join(KEEPABLE)} (none by default)",
-            "str",
-        ),
-        "inertia_ratio": Option(
-            "inertia_ratio",
-            MULTIBODY_INERTIA_RATIO,
-            "each point mass's central inertia as a fraction of m·L² (L: the scene's characteristic length); "
-            f"positive; {MULTIBODY_INERTIA_RATIO:g} for multibody, {P2P_INERTIA_RATIO:g} in the p2p variants "
-            "(the sequential-impulse solver needs it)",
-        ),
-    }
-    variants = {
-        "multibody": {"formulation": "multibody", "inertia_ratio": MULTIBODY_INERTIA_RATIO},
-        "p2p": {"formulation": "p2p", "inertia_ratio": P2P_INERTIA_RATIO},
-        "p2p-dantzig": {"formulation": "p2p", "solver": "dantzig", "inertia_ratio": P2P_INERTIA_RATIO},
-        "p2p-dantzig-erp0.8": {
-            "formulation": "p2p", "solver": "dantzig", "erp": 0.8, "inertia_ratio": P2P_INERTIA_RATIO,
-        },
-        "p2p-iter500": {"formulation": "p2p", "iterations": 500, "inertia_ratio": P2P_INERTIA_RATIO},
-    }
-    variant_docs = {
-        "multibody": "one multibody per Pin: revolute joints (spherical in 3-D), motors off, no damping",
-        "p2p": "separate bodies joined by JOINT_POINT2POINT, PyBullet's default solver (sequential impulse, 50 iterations, ERP 0.2)",
-        "p2p-dantzig": "p2p with the MLCP Dantzig (direct) solver, ERP 0.2",
-        "p2p-dantzig-erp0.8": "p2p with the Dantzig solver and ERP 0.8 (stiffer drift correction)",
-        "p2p-iter500": "p2p with the default sequential-impulse solver at 500 iterations",
-    }
-    overrides = {
-        "gravity": "scene gravity (PyBullet's default: 0)",
-        "fixedTimeStep": "dt (PyBullet's default: 1/240 s)",
-        "numSubSteps": 0,
-        "linearDamping": "0 (PyBullet's default: 0.04)",
-        "angularDamping": "0 (PyBullet's default: 0.04)",
-        "jointDamping": 0.0,
-        "joint velocity motors": "disabled: zero maximum force (PyBullet's default holds each revolute joint at rest)",
-        "sleeping": "disabled (PyBullet's default: bodies sleep after 2 s below 0.8 m/s and 1 rad/s)",
-        "collision shapes": "none (no contacts possible)",
-    }
+    # The option tables (engines/pybullet/options.py).
+    options, variants, variant_docs, overrides = tables.OPTIONS, tables.VARIANTS, tables.VARIANT_DOCS, tables.OVERRIDES
 
     def version(self) -> str:
-        return _pybullet_version()
+        return pybullet_version()
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":
@@ -280,6 +187,12 @@ class PyBulletEngine(Engine):
                 f"one multibody correctly (from the next one on, a link's initial pose is not applied; "
                 f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
             )
+
+    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        return run_model(scene, schedule, model.PyBulletStepper(scene, schedule.dt))
+
+    def model_import(self) -> ModelImport:
+        return ModelImport(model.version, model.load)
 
     def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":
@@ -315,18 +228,6 @@ class PyBulletEngine(Engine):
                 raise
             _clients.give_back(client)
             return raw
-
-
-@functools.lru_cache(maxsize=1)
-def _pybullet_version() -> str:
-    """The installed pybullet's version (read from its metadata once: each read scans the installed
-    distributions, and every run records it)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("pybullet")
-    except PackageNotFoundError:
-        return f"api {_pb.getAPIVersion()}"
 
 
 def _empty(client: int) -> None:

@@ -1,7 +1,7 @@
 """pymunk (Chipmunk2D / Munk2D) adapter: planar scenes as point masses joined by ``PinJoint``s.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/pymunk.py``.
+``engines/pymunk/adapter.py``.
 """
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ import math
 from typing import Any, Mapping
 
 import numpy as np
-import pymunk
 
 from engines.adapter import Engine, Option, RawRun, Schedule, refuse_constraint_kinds, refuse_ellipse
 from engines.errors import UserError
+from engines.pymunk.library import pymunk
 from engines.recorder import Recorder
 from engines.scene.scene import Line, Pin, Rod, Scene
 

@@ -13,13 +13,16 @@ disabled (no joint limits or contacts), so forward dynamics are the tree's.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from engines.model.description import ModelDescription
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.adapters.mujoco import mujoco  # imported with no OpenGL backend (engines/adapters/mujoco.py says why)
+from engines.model.stepping import common_settings, kept_damping
+from engines.mujoco.library import mujoco
 
 NAME = "mujoco"
 
@@ -116,3 +119,29 @@ class MujocoModel(LoadedModel):
                 self.model.body_mass[k], np.zeros(3), np.diag(self.model.body_inertia[k]),
                 self.data.ximat[k].reshape(3, 3), self.data.xipos[k])
         return found
+
+
+class MujocoStepper:
+    """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
+
+    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
+        self.mujoco = mujoco
+        loaded = load(scene.source, scene.description)
+        self.model, self.data = loaded.model, loaded.data
+        self.model.opt.timestep = dt
+        self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
+        self.qpos, self.dof = loaded.qpos, loaded.dof
+        self.model.dof_damping[self.dof] = kept_damping(scene)
+        self.data.qpos[:] = 0.0
+        self.data.qvel[:] = 0.0
+        self.data.qpos[self.qpos] = scene.initial_q
+        self.data.qvel[self.dof] = scene.initial_v
+        mujoco.mj_forward(self.model, self.data)
+        self.settings = {**common_settings(scene, loaded), "integrator": integrator,
+                         "disableflags": int(self.model.opt.disableflags)}
+
+    def advance(self, steps: int) -> None:
+        self.mujoco.mj_step(self.model, self.data, nstep=steps)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.data.qpos[self.qpos].copy(), self.data.qvel[self.dof].copy()

@@ -1,35 +1,32 @@
 """MuJoCo MJX adapter: the MuJoCo adapter's hinge model, stepped by MJX (MuJoCo in JAX) on the CPU.
 
 Details (what is built, which defaults are overridden and why): docs/engines.md, "Adapter notes",
-``engines/adapters/mjx.py``.
+``engines/mjx/adapter.py``.
 """
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import importlib.metadata
-import importlib.util
-import io
 import math
-import os
 import time
 from typing import Any, Mapping
 
 import numpy as np
 
-from ours.files import cache_dir
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
-from engines.adapters.mujoco import ENGINE as MUJOCO  # first: it imports mujoco without its OpenGL backend
-from engines.adapters.mujoco import mujoco
-from engines.adapters.mujoco import HINGE_INERTIA_RATIO, constraint_tree, hinge_velocities, read_samples, without_timestep
-from engines.scene.scene import Scene
+from engines.mjx import library
 
-if importlib.util.find_spec("jax") is None:
-    raise ImportError("No module named 'jax' (MJX runs on JAX)")
-if importlib.util.find_spec("mujoco.mjx") is None:
-    raise ImportError("No module named 'mujoco.mjx' (the mujoco-mjx package)")
+# MJX steps MuJoCo's own model: built and read by MuJoCo's public builder, with MuJoCo's one import of it.
+from engines.mujoco.builder import (
+    HINGE_INERTIA_RATIO,
+    HingeModel,
+    check_hinge,
+    hinge_model,
+    read_hinge_samples,
+    tree_depth,
+)
+from engines.mujoco.library import mujoco
+from engines.scene.scene import Scene
 
 #: MJX's integrators that this adapter offers (MJX has no 'implicit').
 MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
@@ -43,38 +40,6 @@ MAX_DEPTH = 8
 #: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
 _compiled: dict[tuple, Any] = {}
 _last_trace_x64: list[bool] = []
-
-
-@functools.cache
-def _jax():
-    """(jax, mjx), imported on first use: `xval engines` lists this engine without paying for JAX's import."""
-    os.environ.setdefault("JAX_PLATFORMS", "cpu")
-    import jax
-
-    _persistent_cache(jax)
-
-    with contextlib.redirect_stdout(io.StringIO()):  # "Failed to import warp: ..." without warp-lang
-        from mujoco import mjx
-    return jax, mjx
-
-
-def _persistent_cache(jax) -> None:
-    """Keep JAX's compiled executables in ``<cache>/jax`` (xval's user cache directory, ``ours.files``),
-    so a later process loads a stepping loop instead of compiling it again (3.7-11.9 s of CPU each).
-
-    Every compile is kept, however quick (JAX's default keeps only those over 1 s). An explicit
-    ``JAX_COMPILATION_CACHE_DIR`` in the environment wins. Called by :func:`_jax`, once per process, before
-    the first compile.
-    """
-    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
-        jax.config.update("jax_compilation_cache_dir", str(cache_dir() / "jax"))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-
-
-def mjx_version() -> str:
-    """``mujoco-mjx X, jax Y`` from the installed distributions' metadata."""
-    return f"mujoco-mjx {importlib.metadata.version('mujoco-mjx')}, jax {importlib.metadata.version('jax')}"
 
 
 class MJXEngine(Engine):
@@ -121,37 +86,36 @@ class MJXEngine(Engine):
     }
 
     def version(self) -> str:
-        return f"{mjx_version()}, mujoco {mujoco.mj_versionString()}"
+        return f"{library.version()}, mujoco {mujoco.mj_versionString()}"
 
     def _check_options(self, settings: Mapping[str, Any]) -> None:
         if settings["inertia_ratio"] <= 0:
             raise UserError(f"mjx: option inertia_ratio must be positive, got {settings['inertia_ratio']}")
 
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
-        MUJOCO.check(scene, "hinge", _mujoco_options(settings))
-        tree = constraint_tree(scene)
-        depth = max(_depth(tree.parent, i) for i in range(len(tree.parent)))
+        check_hinge(scene, settings["integrator"], settings["inertia_ratio"])
+        depth = tree_depth(scene)
         if depth > settings["max_depth"]:
             raise Unsupported(
                 f"mjx: the body tree is {depth} deep and MJX's jit compile on the CPU grows steeply with depth "
                 f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
             )
 
-    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> tuple[mujoco.MjModel, str, np.ndarray]:
-        """(compiled MuJoCo model, MJCF text, (n,) kg·m² inertia of each particle body): the MuJoCo adapter's
-        hinge model with this integrator and inertia."""
-        return MUJOCO.build(scene, dt, _mujoco_settings(settings))
+    def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> HingeModel:
+        """The MuJoCo adapter's hinge model with this integrator and inertia."""
+        return hinge_model(scene, dt, settings["integrator"], settings["inertia_ratio"])
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
-        jax, mjx = _jax()
-        model, xml, inertia = self.build(scene, schedule.dt, settings)
+        jax, mjx = library.jax_mjx()
+        hinge = self.build(scene, schedule.dt, settings)
+        model, inertia = hinge.model, hinge.inertia
         data = mujoco.MjData(model)
-        data.qvel[:] = hinge_velocities(scene, model)
+        data.qvel[:] = hinge.qvel
         mujoco.mj_forward(model, data)
         x64 = settings["precision"] == "float64"
         strides = np.diff(schedule.sample_steps).astype(np.int32)
         # The compiled loop depends on the model's structure, not on dt (an array in MJX's model).
-        key = (without_timestep(xml), x64)
+        key = (hinge.structure, x64)
         record: dict[str, Any] = {}
         with jax.enable_x64(x64):
             mx = mjx.put_model(model, impl="jax")
@@ -180,7 +144,7 @@ class MJXEngine(Engine):
         finite = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
         n = len(qpos) if finite.all() else int(np.argmin(finite)) + 1
         states = _full_states(model, qpos[:n], qvel[:n], schedule.times[:n])
-        positions, velocities, forces = read_samples(scene, model, mujoco.MjData(model), states, hinge=True)
+        positions, velocities, forces = read_hinge_samples(scene, model, states)
         record["point_mass_inertia"] = [float(x) for x in inertia]  # the model's, MuJoCo's floor included
         taken = int(schedule.sample_steps[-1] if n == len(qpos) else schedule.sample_steps[n])
         record["precision_floor"] = precision_floor(record["dtype"], taken, scene.characteristic_length)
@@ -197,28 +161,9 @@ def precision_floor(dtype: str, steps: int, length: float) -> float:
     return float(np.finfo(np.dtype(dtype)).eps) * math.sqrt(max(steps, 1)) * length
 
 
-def _mujoco_options(settings: Mapping[str, Any]) -> dict[str, Any]:
-    return {"integrator": settings["integrator"], "inertia_ratio": settings["inertia_ratio"]}
-
-
-def _mujoco_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
-    """The MuJoCo adapter's settings for mujoco/hinge with this integrator and point-mass inertia."""
-    return MUJOCO.resolve("hinge", _mujoco_options(settings))
-
-
-def _depth(parent: tuple[int, ...], i: int) -> int:
-    """Bodies from the world down to particle ``i`` (1 for a particle hung from a Pin)."""
-    depth = 1
-    while parent[i] >= 0:
-        i, depth = parent[i], depth + 1
-    return depth
-
-
 def _advance(m, d, n):
     """``n`` MJX steps of ``d`` under model ``m`` (a fori_loop with a traced count: one compile for any n)."""
-    import jax
-    from mujoco import mjx
-
+    jax, mjx = library.jax_mjx()
     return jax.lax.fori_loop(0, n, lambda _, x: mjx.step(m, x), d)
 
 

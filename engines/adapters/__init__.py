@@ -1,1 +1,0 @@
-"""One adapter per engine library, all on the engine protocol of engines.adapter."""

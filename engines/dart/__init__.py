@@ -1,0 +1,1 @@
+"""DART's home: its adapter, its import of model files."""

@@ -1,0 +1,1 @@
+"""Drake's home: its adapter, its import of model files."""

@@ -1,0 +1,1 @@
+"""MJX's home: its adapter (MuJoCo's model, stepped in JAX)."""

@@ -1,0 +1,1 @@
+"""MuJoCo's home: its adapter, its import of model files."""

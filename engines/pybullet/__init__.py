@@ -1,0 +1,1 @@
+"""PyBullet's home: its adapter, its import of model files."""

@@ -1,0 +1,1 @@
+"""Pymunk's home: its adapter."""
