@@ -20,7 +20,6 @@ from engines.errors import UserError
 
 from compare.gate.baseline import MACHINE_FIELDS, Baseline
 from compare.gate.entry import BaselineEntry, Timing, case_name
-from compare.results.cost import theil_sen
 from compare.results.declared import Metric
 from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings
 from compare.results.record import PROBLEMS, Status
@@ -143,7 +142,7 @@ def timing_change(baseline: Timing | None, current: Timing | None, factor: float
     zero would let one disturbed run fail the gate), so the change is shown
     but not gated; suites that gate timing set ``repeats`` ≥ MIN_TIMING_REPEATS.
     A case whose stepping lasted less than CASE_RESOLUTION is judged by its
-    ``variant``'s fitted per-step cost (:func:`variant_timings`), not on its own.
+    ``variant``'s per-step cost over all its cases (:func:`variant_timings`), not on its own.
     """
     if not baseline or not current:
         return None
@@ -167,7 +166,7 @@ def timing_change(baseline: Timing | None, current: Timing | None, factor: float
 #: s of CPU a case's fastest repeat must step for its own timing to be gated. Below it a case is a few of
 #: the scheduler's time slices (4 ms at 250 Hz): on a shared machine one case of 30–60 µs per simulated
 #: second read 1.55–1.67× slower between unchanged runs. Such cases are judged by their variant's fitted
-#: per-step cost, which pools every case of the variant (:func:`variant_timings`).
+#: per-step cost over all its cases (:func:`variant_timings`).
 CASE_RESOLUTION = 0.02
 
 
@@ -259,13 +258,13 @@ def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: b
 
 @dataclass(frozen=True)
 class VariantTiming:
-    """A variant's (scene × engine label) timing judged through its fitted per-step cost.
+    """A variant's (engine label's) timing judged over all its cases at once.
 
-    ratio : current per-step cost / the baseline's (a window's: the median over its runs); limit : the
-    ratio past which it is worse (or, inverted, better); outcome : "worse", "better" or "unchanged".
+    ratio : the current run's per-step cost / the baseline's (a window's: the median over its runs), the
+    median over the variant's cases; limit : the ratio past which it is worse (or, inverted, better);
+    outcome : "worse", "better" or "unchanged".
     """
 
-    scene_id: str
     engine: str
     ratio: float
     limit: float
@@ -273,65 +272,54 @@ class VariantTiming:
     note: str
 
 
-def per_step_cost(rates: Sequence[float], costs: Sequence[float]) -> float | None:
-    """The per-step cost (cost units × s/step) of T(rate) = a + c · rate over a variant's cases (rate = 1/dt,
-    steps per simulated second; cost per simulated second) by Theil–Sen (compare.results.cost.theil_sen);
-    the median of cost / rate when the fit needs two rates or gives no positive slope; None for no case."""
-    if not costs:
-        return None
-    if len(set(rates)) >= 2:
-        slope, _ = theil_sen(rates, costs)
-        if slope > 0:
-            return slope
-    return statistics.median(c / r for c, r in zip(costs, rates))
+def variant_ratio(cases: Sequence[tuple[Sequence[float], float]]) -> tuple[float, list[float]]:
+    """(the current run's per-step cost over the baseline's median, each baseline run's over the same median)
+    of one variant, from its cases' (baseline runs' calibrated costs oldest first, current calibrated cost).
 
-
-def _fits_of(entries: Sequence[BaselineEntry]) -> list[float]:
-    """Per run (oldest first), the per-step cost of these cases (one variant's) from their calibrated costs."""
-    runs = min(len(e.timing.calibrated_runs) for e in entries if e.timing)
-    fits = []
-    for k in range(runs):
-        rates = [1.0 / e.dt for e in entries if e.timing]
-        costs = [e.timing.calibrated_runs[-runs + k] for e in entries if e.timing]
-        fitted = per_step_cost(rates, costs)
-        if fitted is not None:
-            fits.append(fitted)
-    return fits
+    A case's per-step cost is its cost per simulated second × dt, the same factor on both sides, so per case
+    the ratio of costs is the ratio of per-step costs; the variant's is the median over its cases, which no
+    single disturbed case moves. Each baseline run gets the same median of its own cases' ratios: the
+    window's distribution the current run is judged against (its runs aligned from the latest back).
+    """
+    medians = [statistics.median(runs) for runs, _ in cases]
+    now = statistics.median(current / m for (_, current), m in zip(cases, medians))
+    depth = min(len(runs) for runs, _ in cases)
+    window = [statistics.median(runs[len(runs) - depth + k] / m for (runs, _), m in zip(cases, medians))
+              for k in range(depth)]
+    return now, window
 
 
 def variant_timings(base: Mapping[str, BaselineEntry], current: Mapping[str, BaselineEntry],
-                    factor: float) -> dict[tuple[str, str], VariantTiming]:
-    """Per (scene id, engine label), the variant's timing through its fitted per-step cost: the current
-    run's fit against the baseline's (a window: each run's fit, their median and spread), over the cases
-    ok and calibrated on both sides (docs/architecture.md, "Module notes", compare/gate/gate.py)."""
-    pairs: dict[tuple[str, str], list[tuple[BaselineEntry, BaselineEntry]]] = {}
+                    factor: float) -> dict[str, VariantTiming]:
+    """Per engine label, the variant's timing over its cases ok and calibrated on both sides: the current
+    run's per-step cost against the baseline's (:func:`variant_ratio`); worse past max(factor, the window's
+    spread over its runs × the current run's repeat spread), against one baseline run past factor ·
+    (1 + s_b + s_c) (docs/architecture.md, "Module notes", compare/gate/gate.py)."""
+    pairs: dict[str, list[tuple[BaselineEntry, BaselineEntry]]] = {}
     for key, entry in current.items():
         old = base.get(key)
         if (old is None or old.status is not Status.OK or entry.status is not Status.OK or not old.timing
                 or not entry.timing or not old.timing.calibrated_runs or not entry.timing.calibrated_runs
                 or old.engine_version != entry.engine_version):
             continue
-        pairs.setdefault((entry.scene_id, entry.engine), []).append((old, entry))
+        pairs.setdefault(entry.engine, []).append((old, entry))
     found = {}
-    for (scene_id, engine), matched in pairs.items():
-        base_fits, current_fits = _fits_of([o for o, _ in matched]), _fits_of([c for _, c in matched])
-        if not base_fits or not current_fits:
-            continue
-        median = statistics.median(base_fits)
-        ratio = current_fits[-1] / median
+    for engine, matched in pairs.items():
+        ratio, window = variant_ratio([(o.timing.calibrated_runs, c.timing.calibrated_runs[-1])  # type: ignore[union-attr]
+                                       for o, c in matched])
         spreads = [(best_spread(calibrated(o.timing)), best_spread(calibrated(c.timing)))  # type: ignore[arg-type]
                    for o, c in matched if o.timing and o.timing.cpu and c.timing and c.timing.cpu]
         s_b = statistics.median(b for b, _ in spreads) if spreads else 0.0
         s_c = statistics.median(c for _, c in spreads) if spreads else 0.0
-        limit, how = _limit(factor, base_fits, median, s_b, s_c)
-        how = f"per-step cost fitted over {len(matched)} cases; {how}"
+        limit, how = _limit(factor, window, 1.0, s_b, s_c)
+        how = f"per-step cost, median over its {len(matched)} cases; {how}"
         if ratio > limit:
             outcome, note = "worse", f"variant {ratio:.2f}× slower per step ({how})"
         elif 1 / ratio > limit:
             outcome, note = "better", f"variant {1 / ratio:.2f}× faster per step ({how})"
         else:
             outcome, note = "unchanged", ""
-        found[(scene_id, engine)] = VariantTiming(scene_id, engine, ratio, limit, outcome, note)
+        found[engine] = VariantTiming(engine, ratio, limit, outcome, note)
     return found
 
 
@@ -470,7 +458,7 @@ def gate(baseline: Baseline, current: Baseline, settings: GateSettings, *, timin
     for key, entry in current_cases.items():
         if key in base_cases:
             results.append(compare_case(base_cases[key], entry, settings, timing_gated, why_not,
-                                        variants.get((entry.scene_id, entry.engine))))
+                                        variants.get(entry.engine)))
     # Cases whose key changed but whose name did not: the same case, made different.
     unmatched_base = {_identity(e): e for k, e in base_cases.items() if k not in current_cases}
     for key, entry in current_cases.items():
