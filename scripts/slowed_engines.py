@@ -1,4 +1,4 @@
-"""MuJoCo, pymunk and ours with an injectable slowdown, for scripts/timing_gate_noise.py and
+"""MuJoCo, pymunk, ours and the reference with an injectable slowdown, for scripts/timing_gate_noise.py and
 scripts/gate_window_rates.py (stand-ins, not engines of their own).
 
 ``XVAL_SLOWDOWN = k`` (an integer, default 1) makes each run cost k times the CPU of one: the run, then
@@ -18,6 +18,7 @@ from dataclasses import replace
 from engines.mujoco.adapter import MuJoCoEngine
 from engines.ours.adapter import OursEngine
 from engines.pymunk.adapter import PymunkEngine
+from engines.reference.reference import ReferenceEngine
 
 
 def _slowed(cls):
@@ -40,3 +41,4 @@ def _slowed(cls):
 MUJOCO = _slowed(MuJoCoEngine)
 PYMUNK = _slowed(PymunkEngine)
 OURS = _slowed(OursEngine)
+REFERENCE = _slowed(ReferenceEngine)
