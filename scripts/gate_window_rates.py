@@ -1,7 +1,7 @@
 """How often the history window's timing gate fails an unchanged run, and how often it catches a 2× slowdown.
 
-docs/history.md quotes what this prints. On the smoke suite (suites/smoke.toml, with ours/rattle run
-reference/dop853 run through the stand-in of scripts/slowed_engines.py so that it can be slowed without
+docs/history.md quotes what this prints. On the smoke suite (suites/smoke.toml, with reference/dop853 run
+through the stand-in of scripts/slowed_engines.py so that it can be slowed without
 changing its case):
 
 1. WINDOW runs fill a fresh history (``xval run ... --history H``).
