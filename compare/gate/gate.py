@@ -251,14 +251,18 @@ def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: b
     ratio = min(c_cal) / median
     limit, how = _limit(factor, runs, median, best_spread(b_cal), best_spread(c_cal))
     b, c = min(baseline.cpu or ()), min(current.cpu or ())
-    how = f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} repeats; {how}"
-    if ratio > limit:
-        outcome, note = "worse", f"{ratio:.2f}× slower ({how})"
-    elif 1 / ratio > limit:
-        outcome, note = "better", f"{1 / ratio:.2f}× faster ({how})"
-    else:
-        outcome, note = "unchanged", ""
+    outcome, note = _judged(ratio, limit, "", f"CPU time per calibration, best of {len(b_cal)}/{len(c_cal)} "
+                                              f"repeats; {how}")
     return _timing(b, c, limit * b, outcome, note, gated, why_not)
+
+
+def _judged(ratio: float, limit: float, what: str, how: str) -> tuple[str, str]:
+    """(outcome, note) of a cost ``ratio`` (current / baseline) against ``limit``, either way."""
+    if ratio > limit:
+        return "worse", f"{what}{ratio:.2f}× slower ({how})"
+    if 1 / ratio > limit:
+        return "better", f"{what}{1 / ratio:.2f}× faster ({how})"
+    return "unchanged", ""
 
 
 # -- one variant ------------------------------------------------------------------------
@@ -328,13 +332,7 @@ def variant_timings(base: Mapping[str, BaselineEntry], current: Mapping[str, Bas
         s_b = statistics.median(b for b, _ in spreads) if spreads else 0.0
         s_c = statistics.median(c for _, c in spreads) if spreads else 0.0
         limit, how = _limit(factor, window, 1.0, s_b, s_c)
-        how = f"per-step cost, median over its {len(matched)} cases; {how}"
-        if ratio > limit:
-            outcome, note = "worse", f"variant {ratio:.2f}× slower per step ({how})"
-        elif 1 / ratio > limit:
-            outcome, note = "better", f"variant {1 / ratio:.2f}× faster per step ({how})"
-        else:
-            outcome, note = "unchanged", ""
+        outcome, note = _judged(ratio, limit, "variant ", f"per-step cost, median over its {len(matched)} cases; {how}")
         seconds = min(_stepped([o.timing for o, _ in matched]), _stepped([c.timing for _, c in matched]))
         found[engine] = VariantTiming(engine, ratio, limit, outcome, note, seconds)
     return found
