@@ -80,7 +80,8 @@ def gated(out: Path, history: Path) -> tuple[bool, list[str]]:
 
 
 def measure(per_core: float, reruns: int, slowed: int) -> dict[str, float]:
-    """{"false_alarms": failed / reruns, "detections": failed / slowed} with ``per_core`` neighbours per core."""
+    """With ``per_core`` neighbours per core: {"false_alarms": unchanged runs that failed, "detections": slowed
+    runs that failed on the slowed variant, "misattributed": slowed runs that failed on another variant too}."""
     neighbours = [subprocess.Popen([sys.executable, "-c", LOAD]) for _ in range(round(per_core * (os.cpu_count() or 1)))]
     label = f"{per_core:g} busy loops per core" if neighbours else "no added load"
     try:
@@ -113,8 +114,7 @@ def measure(per_core: float, reruns: int, slowed: int) -> dict[str, float]:
             print(f"{label} (load average {load:.1f} at the end, {time.monotonic() - started:.0f} s): "
                   f"{alarms} of {reruns} unchanged runs failed the gate; {caught} of {slowed} slowed runs failed it "
                   f"on the slowed variant ({others} of them also on another variant)")
-            return {"false_alarms": alarms / reruns if reruns else 0.0, "detections": caught / slowed if slowed else 0.0,
-                    "misattributed": others / slowed if slowed else 0.0}
+            return {"false_alarms": float(alarms), "detections": float(caught), "misattributed": float(others)}
     finally:
         for neighbour in neighbours:
             neighbour.kill()
@@ -126,9 +126,8 @@ SLOW = {f"{what}_{load}" for what in ("false_alarms", "detections", "misattribut
 
 def figures(quick: bool = False, reruns: int = RERUNS, slowed: int = SLOWED, loads: tuple[float, ...] = (0, 2),
             ) -> dict[str, float]:
-    """The rates (fractions) of false alarms (unchanged runs failed), detections (slowed runs failed on the slowed
-    variant) and misattributions (slowed runs failed on another variant too), idle (no added load) and loaded
-    (2 busy loops per core)."""
+    """The counts of :func:`measure` (of ``reruns`` unchanged and ``slowed`` slowed runs), idle (no load added)
+    and loaded (2 busy loops per core)."""
     if quick:
         return {}
     found = {}
@@ -152,7 +151,7 @@ def main() -> None:
     loads = tuple(float(x) for x in args.loads.split(","))
     found = figures(reruns=args.reruns, slowed=args.slowed, loads=loads)
     for key, value in found.items():
-        print(f"{key} = {value:.2f}")
+        print(f"{key} = {value:g}")
     if set(found) == SLOW:
         report(found, QUOTES, ROWS)
 
