@@ -20,7 +20,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from compare.results.store import load_results  # noqa: E402
+from compare.run.results import load_results  # noqa: E402
 from compare.run.runner import default_jobs  # noqa: E402
 
 

@@ -1,6 +1,6 @@
 """What writing one case record's file costs, and why it moves: a diagnostic for bench_harness.py.
 
-A run writes each case's record as its own file (``compare.results.files.atomic_write_text``:
+A run writes each case's record as its own file (``engines.files.atomic_write_text``:
 a temporary file, written, renamed into place), between cases whose stepping
 and reading fill the CPU's caches with other work. This script writes
 record-sized files the same way, with such work between them (sorting a
@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_harness import one_run
-from compare.results.files import atomic_write_text
+from engines.files import atomic_write_text
 
 #: Bytes of a default-suite record (about what the double pendulum's hold).
 RECORD_BYTES = 20_000

@@ -1,5 +1,5 @@
 """What the harness costs around the physics: CPU of ``xval run suites/default.toml --jobs 1``
-against the summed stepping time of its cases (issue 20's target: at most 1.4×).
+against the summed stepping time of its cases (target: at most 1.4×).
 
 Runs the suite into a temporary directory in a child process (numba's cache warm:
 a first run fills it, and the scenes' references come from their cache) and
@@ -24,7 +24,7 @@ work, the fastest of five): on a shared virtual machine the same build's
 ratio moves with it, because the harness's work (the interpreter, the
 kernel's file and page work) slows more than the engines' compiled stepping.
 Compare runs made at similar speed too. With more than one run it ends with
-the median ratio, its range, and how many runs were at or below issue 20's
+the median ratio, its range, and how many runs were at or below the target,
 1.4: single runs of one build scatter by several hundredths within an hour,
 so judge the target by the median of many.
 

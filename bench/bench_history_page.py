@@ -36,7 +36,7 @@ import numpy as np  # noqa: E402
 from browser_support import CHROMIUM, Page  # noqa: E402
 from compare.history.origin import Origin  # noqa: E402
 from compare.history.store import History  # noqa: E402
-from compare.results.store import load_results  # noqa: E402
+from compare.run.results import load_results  # noqa: E402
 from reports.history import write_history_report  # noqa: E402
 
 T0 = _dt.datetime(2026, 11, 1, 12, 0, tzinfo=_dt.timezone.utc)

@@ -169,7 +169,7 @@ def yardstick_rows(repeats: int) -> list[dict]:
                          "peer": "hand-fused numba", "ratio": seconds[name] / peer,
                          "note": f"final state within {agreement[name]:.1e} of ours"})
         # ours against each C kernel: the Cholesky one (same arithmetic as ours' generic solve) and the
-        # closed-form one (the machine's best for this system); the issue's target is on the latter.
+        # closed-form one (the machine's best for this system); the target is on the latter.
         for name, _ in kernels:
             if name == "hand-fused numba":
                 continue

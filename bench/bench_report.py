@@ -1,4 +1,4 @@
-"""Size and render time of the HTML report of the default suite's results (issue 6: under 10 MB, a few seconds).
+"""Size and render time of the HTML report of the default suite's results (target: under 10 MB, a few seconds).
 
 Uses the results in results/default (or $XVAL_BENCH_RESULTS), running
 suites/default.toml into it first when they are missing or unfinished (that
@@ -24,7 +24,7 @@ from reports.render import write_report
 ROOT = Path(__file__).resolve().parent.parent
 SUITE = ROOT / "suites" / "default.toml"
 RESULTS = Path(os.environ.get("XVAL_BENCH_RESULTS", ROOT / "results" / "default"))
-#: The issue's limit on the report's size, bytes.
+#: The limit on the report's size, bytes.
 SIZE_LIMIT = 10_000_000
 REPEATS = 3
 

@@ -1,16 +1,16 @@
-"""The protocol every engine adapter follows, and the shared machinery behind it.
+"""The protocol every engine adapter follows, and the shared machinery behind it. An adapter fills in:
 
-An adapter subclasses :class:`Engine` and fills in:
+- ``name``, ``capabilities`` (``{"3d", "constraint-forces"}``), ``options`` (typed :class:`Option`
+  records), ``variants`` (named presets, the first the default), ``overrides`` (engine defaults changed);
+- ``version()``; ``_check(scene, settings)`` (refusals), ``_check_options(settings)`` (option values);
+- ``_run(scene, schedule, settings) -> RawRun``: build, step, record the samples, time the stepping alone.
 
-- ``name``, ``capabilities`` (e.g. ``{"3d", "constraint-forces"}``),
-  ``options`` (typed :class:`Option` records with defaults), ``variants``
-  (named option presets; the first is the default), ``overrides`` (engine
-  defaults the adapter changes, recorded in every RunInfo);
-- ``version()``; ``_check(scene, settings)`` for refusals beyond capabilities,
-  ``_check_options(settings)`` for option values (run for every scene);
-- ``_run(scene, schedule, settings) -> RawRun``: build the model, step it ``schedule.n_steps``
-  times, record the state at ``schedule.sample_steps``, time only the stepping loop.
-
+and may override the hooks the harness calls, each declared here with its default: ``_check_model`` /
+``_run_model`` (model files), ``model_import()`` (what ``xval model check`` compares), ``preload(scenes)``
+(load once before case hosts fork), ``needs_warm_up``, ``tolerance_options`` /
+``tolerance_capable(settings)`` (a suite's tolerance axis), ``program()`` (an outside program's argv and
+version), ``spectral_radius`` / ``largest_stable_dt`` (the engine's own stability theory). Nothing else
+is looked up on an engine.
 Details: docs/engines.md, "Adapter notes", ``engines/adapter.py``.
 """
 
@@ -22,13 +22,13 @@ import re
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, ClassVar, Iterable, Mapping
+from typing import Any, Callable, ClassVar, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from engines.errors import Unsupported, UserError
-from engines.scene.scene import Ellipse, Scene
-from engines.scene.trajectory import RunInfo, Trajectory
+from engines.scene.scene import Ellipse, Scene, SceneLike, ModelSceneLike
+from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 #: Default interval between stored samples, s.
 DEFAULT_SAMPLE_INTERVAL = 0.01
@@ -285,10 +285,10 @@ class Engine:
 
     # -- model files (only for an engine with the "model" capability) ------------------------------
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         """Raise Unsupported for a model scene (engines.model.scene.ModelScene) these settings cannot load."""
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         """The RawRun of a model scene: the engine's home imports the file (engines/<engine>/model.py), builds
         its stepper from ``settings`` and hands it to ``engines.model.stepping.run_model``, the one loop."""
         raise NotImplementedError(f"{self.name} declares the 'model' capability but does not run model scenes")
@@ -296,6 +296,31 @@ class Engine:
     def model_import(self) -> "ModelImport | None":
         """This engine's import of model files as ``xval model check`` compares it with Pinocchio's, or None
         (the default: the engine is not compared)."""
+        return None
+
+    # -- optional: what the harness asks every engine, each with its default ----------------------
+
+    #: The options a suite's tolerance sets, for an engine with the "tolerance" capability
+    #: (compare/suite/tolerance_axis.py): Drake's ``("accuracy",)``, the reference's ``("rtol", "atol")``.
+    tolerance_options: ClassVar[tuple[str, ...]] = ()
+    #: Whether a case host runs each variant for two steps before its first case (so one-off costs, a
+    #: library's start-up or compiled kernels, stay out of that case's stepping time): a program started
+    #: afresh for every run has none.
+    needs_warm_up: ClassVar[bool] = True
+
+    def tolerance_capable(self, settings: Mapping[str, Any]) -> bool:
+        """Whether these resolved settings are error-controlled (a tolerance, not dt, sets the error), so a
+        suite's tolerance axis sweeps them; default False (a fixed-step variant)."""
+        return False
+
+    def preload(self, scenes: Sequence[SceneLike]) -> None:
+        """Load once, in the process that will fork the case hosts, what runs of ``scenes`` will need
+        (compiled kernels, a solver library), so the hosts inherit it; default: nothing. An error here
+        is ignored by the runner (the cases report their own)."""
+
+    def program(self) -> tuple[list[str], str] | None:
+        """(argv, version) of the outside program this engine runs (a command engine, docs/protocol.md),
+        which a suite's fingerprint includes; None (the default) for an engine in this process."""
         return None
 
     # -- optional: what only the engine knows ---------------------------------------
@@ -339,7 +364,7 @@ class Engine:
             settings[key] = self.options[key].parse(raw, self.name)
         return settings
 
-    def check(self, scene: Scene, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
+    def check(self, scene: SceneLike, variant: str | None = None, options: Mapping[str, Any] | None = None) -> None:
         """Raise Unsupported with the reason when this engine (variant) cannot express ``scene``."""
         missing = scene.requires - self.capabilities
         if missing:
@@ -351,7 +376,7 @@ class Engine:
         else:
             self._check(scene, settings)
 
-    def _lacking(self, scene: Scene, missing: frozenset[str]) -> str:
+    def _lacking(self, scene: SceneLike, missing: frozenset[str]) -> str:
         """Why this engine cannot express ``scene``, which needs the capabilities ``missing``."""
         if "model" in missing:
             return (f"{self.name} does not load model files (URDF, MJCF): it runs the catalog's scenes only, and "
@@ -362,7 +387,7 @@ class Engine:
 
     def simulate(
         self,
-        scene: Scene,
+        scene: SceneLike,
         dt: float,
         *,
         variant: str | None = None,
@@ -403,7 +428,7 @@ class Engine:
             except (Exception, SystemExit) as exc:
                 empty = np.empty((0, n_particles, 3))
                 cause = blow_up_cause(exc)
-                status, message = ("unstable", cause) if cause else ("failed", first_line(exc))
+                status, message = (Status.UNSTABLE, cause) if cause else (Status.FAILED, first_line(exc))
                 message = join_messages(message, warning_note(heard))
                 return Trajectory(np.empty(0), empty, empty.copy(), replace(info, status=status, message=message))
         trajectory = _finish(schedule, raw, info, n_constraints)
@@ -461,7 +486,7 @@ def api_version_problem(engine: "Engine", who: str) -> str | None:
 
     who : how to name the adapter in the message (``plugin 'my-solver' (my_solver.adapter:ENGINE)``).
     """
-    declared = getattr(engine, "api_version", None)
+    declared = engine.api_version
     if declared in SUPPORTED_API_VERSIONS:
         return None
     speaks = ", ".join(map(str, SUPPORTED_API_VERSIONS))
@@ -580,15 +605,15 @@ def _finish(schedule: Schedule, raw: RawRun, info: RunInfo, n_constraints: int) 
     if raw.constraint_violation is not None:
         # A joint gap that overflowed is a state gone non-finite, though the joint coordinates read finite.
         finite &= np.isfinite(raw.constraint_violation)
-    status, message = "ok", raw.message
+    status, message = Status.OK, raw.message
     if not finite.all():
         first_bad = int(np.argmin(finite))
-        status = "unstable"
+        status = Status.UNSTABLE
         message = f"non-finite state at t = {t[first_bad]:.6g} s" + (f"; {raw.message}" if raw.message else "")
         n = first_bad
     elif n < len(schedule.times):
         # The adapter stopped stepping early (it saw the state run away).
-        status = "unstable"
+        status = Status.UNSTABLE
         message = raw.message or f"stepping stopped at t = {t[-1] if n else 0:.6g} s"
     # Shapes were checked by check_raw_run; forces that go non-finite alone do not make a run unstable.
     forces = None if raw.forces is None else raw.forces[:n]

@@ -1,5 +1,6 @@
 """Keeping what an engine's C library prints (PyBullet, DART, MuJoCo) out of xval's output: fds 1 and 2
-silenced (:func:`quiet_output`), or captured and summarised for the case's record (:func:`capture_output`)."""
+silenced (:func:`quiet_output`); or, in a child process that keeps what its engine printed
+(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ _LIBC = ctypes.CDLL(None)
 _quiet_lock = threading.Lock()
 _quiet_depth = 0
 _saved_fds: dict[int, int] = {}
+#: Where :func:`quiet_output` points fds 1 and 2: /dev/null, or the file of :func:`capture_into`.
+_sink = os.devnull
 
 
 def _flush_all() -> None:
@@ -43,7 +46,7 @@ def quiet_output() -> Iterator[None]:
     with _quiet_lock:
         if _quiet_depth == 0:
             _flush_all()
-            devnull = os.open(os.devnull, os.O_WRONLY)
+            devnull = os.open(_sink, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
             try:
                 for fd in (1, 2):
                     try:
@@ -65,6 +68,25 @@ def quiet_output() -> Iterator[None]:
                     os.dup2(saved, fd)
                     os.close(saved)
                 _saved_fds.clear()
+
+
+def capture_into(path: str) -> None:
+    """Point fds 1 and 2 at the file ``path`` (appended to) for the rest of this process, and make
+    :func:`quiet_output` send there too: a child process that runs one engine keeps all it printed."""
+    global _sink
+    _flush_all()
+    _sink = path
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    try:
+        for target in (1, 2):
+            os.dup2(fd, target)
+    finally:
+        os.close(fd)
+
+
+def flush_all() -> None:
+    """Flush Python's streams and C's stdio, so what was printed reaches the file descriptors now."""
+    _flush_all()
 
 
 #: Lines an EngineOutput keeps from the start and from the end of what was printed.

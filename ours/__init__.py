@@ -1,9 +1,9 @@
-"""ours: constrained dynamics of point masses (after Baraff & Witkin), a library of its own.
+"""ours: constrained dynamics in maximal coordinates (after Baraff & Witkin), a library of its own.
 
-Build a :class:`System` of masses, gravity and constraints (:class:`Pin`,
-:class:`Wire`, :class:`Rod`; in 2-D also :class:`Line` and :class:`Ellipse`), then
-:func:`simulate` a whole trajectory in one call; the stepping loop is compiled with numba
-(cached between runs) for every constraint kind.
+Point masses here; rigid bodies (revolute, prismatic, fixed and ball joints) in :mod:`ours.rigid`.
+Build a :class:`System` of masses, gravity and constraints (:class:`Pin`, :class:`Wire`, :class:`Rod`;
+in 2-D also :class:`Line` and :class:`Ellipse`), then :func:`simulate` a whole trajectory in one call;
+the stepping loop is compiled with numba (cached between runs) for every constraint kind.
 
     >>> from ours import System, Wire, simulate
     >>> bead = System((1.0,), (0.0, -9.81), (Wire(0, (0.0, 0.0), 1.0),))

@@ -5,5 +5,5 @@ Modules: ``load`` (a results directory by scene and variant), ``verdict``, ``svg
 parts), ``render`` (the Jinja2 page), ``cli`` (the ``report`` verb). Imports go one way: reports uses
 compare and engines; nothing imports reports.
 
-Details: docs/architecture.md, "Module notes", ``reports/__init__.py``.
+Details: docs/report.md, "Module notes", ``reports/__init__.py``.
 """

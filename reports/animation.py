@@ -51,6 +51,28 @@ def _frame(sample: Any, box: float) -> list[Any] | None:
     return out
 
 
+#: On a model, a link whose largest distance from the base is more than this many times the median link's
+#: runs away: the view is fitted to the others.
+RUNAWAY_FACTOR = 3.0
+
+
+def runaway(runs: list[dict[str, Any]], model: bool) -> set[int]:
+    """Indices of a model's links that go more than RUNAWAY_FACTOR × the median link's reach from the base in
+    ``runs`` (each {"positions": frames of [x, z] per link}); empty for a catalog scene or under 3 links."""
+    if not model:
+        return set()
+    reach: dict[int, float] = {}
+    for run in runs:
+        for frame in run["positions"]:
+            for k, p in enumerate(frame or []):
+                if p:
+                    reach[k] = max(reach.get(k, 0.0), math.hypot(p[0], p[1]))
+    if len(reach) < 3:
+        return set()
+    middle = sorted(reach.values())[len(reach) // 2]
+    return {k for k, r in reach.items() if middle > 0 and r > RUNAWAY_FACTOR * middle}
+
+
 def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | None:
     """The animation of ``scene`` at its chosen dt, or None when no variant stored positions there."""
     chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
@@ -87,10 +109,14 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
             links.append([None, constraint["particle"], len(anchors) - 1])
         elif constraint.get("kind") == "rod":
             links.append([constraint["a"], constraint["b"], None])
-    # The view: the reference's (else every run's) extent and the anchors, with a margin.
+    # The view: the reference's (else every run's) extent and the anchors, with a margin; on a model, without
+    # the links that run away from the base (a free prismatic finger falling), which are named instead.
     source = runs[:1] if reference else runs
-    xs = [p[0] for run in source for frame in run["positions"] if frame for p in frame if p] + [a[0] for a in anchors]
-    zs = [p[1] for run in source for frame in run["positions"] if frame for p in frame if p] + [a[1] for a in anchors]
+    away = runaway(source, scene.scene.get("kind") == "model")
+    xs = [p[0] for run in source for frame in run["positions"] if frame for k, p in enumerate(frame)
+          if p and k not in away] + [a[0] for a in anchors]
+    zs = [p[1] for run in source for frame in run["positions"] if frame for k, p in enumerate(frame)
+          if p and k not in away] + [a[1] for a in anchors]
     if not xs:
         xs, zs = [-scene.length, scene.length], [-scene.length, scene.length]
     margin = 0.1 * max(max(xs) - min(xs), max(zs) - min(zs), 1e-3)
@@ -102,5 +128,6 @@ def animation_data(scene: SceneResults, palette: Palette) -> AnimationData | Non
         "links": links,
         "runs": runs,
         "only_ok": only_ok,
+        "runaway": [scene.scene["particles"][k].get("link", str(k)) for k in sorted(away)],
     }
     return AnimationData(len(keep), data)

@@ -6,7 +6,7 @@ Python has to do is produce JSON, and building dicts is much faster than
 validating graph objects (the tests validate the specs against plotly's
 schema instead).
 
-Details: docs/architecture.md, "Module notes", ``reports/figures.py``.
+Details: docs/report.md, "Module notes", ``reports/figures.py``.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import ORDER_METRIC, VariantSweep
+from compare.results.table import estimate_text, scene_reference
 from compare.results.verdict import points
 
 from reports.decimate import MAX_POINTS, decimate
@@ -73,8 +74,12 @@ def _round(value: Any) -> Any:
     return float(f"{value:.{DIGITS}g}")
 
 
-def _rounded(values: Iterable[Any]) -> list[Any]:
-    return [_round(v) for v in values]
+def _rounded(values: Iterable[Any], digits: int | None = None) -> list[Any]:
+    """``values`` to ``digits`` (default DIGITS) significant digits."""
+    if digits is None:
+        return [_round(v) for v in values]
+    return [None if v is None or not isinstance(v, (int, float)) or not math.isfinite(v) else float(f"{v:.{digits}g}")
+            for v in values]
 
 
 def _positive(value: Any) -> TypeGuard[float]:
@@ -279,6 +284,10 @@ def last_finite(t: Sequence[float], values: Sequence[Any], duration: float) -> t
     return t[k], values[k]
 
 
+#: Where successive "blew up at t = …" labels go around their ×, so that neighbours do not overlap.
+BLOWUP_CORNERS = ("bottom right", "top left", "top right", "bottom left")
+
+
 def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engine: str,
                    text: str = "blew up at t = {t:.3g} s") -> dict[str, Any]:
     """An × at (t, y) with ``text`` beside it (formatted with t): where a run left the plot."""
@@ -293,9 +302,12 @@ def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engin
 
 
 def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None,
-                named: set[str] | None = None) -> Plot | None:
+                named: set[str] | None = None, limit: int = MAX_POINTS, digits: int | None = None,
+                muted_limit: int | None = None) -> Plot | None:
     """Position error, |energy drift| and constraint error against t at ``dt`` (s; default the chosen dt):
-    three stacked panels; ``named`` (default: reports.emphasis.named_variants) in colour, the rest grey."""
+    three stacked panels; ``named`` (default: reports.emphasis.named_variants) in colour, the rest grey;
+    each trace thinned to ``limit`` points (LTTB), a grey one's to ``muted_limit`` (default ``limit``), at
+    ``digits`` significant digits (default DIGITS)."""
     dt = scene.chosen_dt if dt is None else dt
     chosen = _by_family(_chosen_cases(scene, dt), lambda c: c[1].engine)
     if not chosen:
@@ -305,19 +317,20 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     for index, sweep, record in chosen:
         series = record.series or {}
         colour = palette.colour(sweep.engine)
+        points = limit if muted_limit is None or named is None or sweep.engine in named else muted_limit
         for panel, (key, _, absolute, ceiling_name) in enumerate(SERIES_PANELS):
             values = list(series.get(key) or [])
             if absolute:
                 values = [None if v is None else abs(v) for v in values]
             ceiling = getattr(ceilings, ceiling_name)
             values, blew = clip(series["t"], values, ceiling)
-            t, values = decimate(series["t"][:len(values)], values)
+            t, values = decimate(series["t"][:len(values)], values, limit=points)
             panel_values[panel].extend(values)
             axis = ("x", "y" if panel == 0 else f"y{panel + 1}")
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "meta": plot_text(sweep.engine), "legendgroup": f"v{index}", "showlegend": panel == 0,
-                "x": _rounded(t), "y": _rounded(values), "line": {**palette.style(sweep.engine), "width": 1.5},
+                "x": _rounded(t, digits), "y": _rounded(values, digits), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>%{y:.3g}<extra></extra>",
             })
@@ -344,6 +357,14 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
         layout["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": horizon, "x1": duration,
                              "y0": 0, "y1": 1, "fillcolor": "#888888", "opacity": 0.15, "line": {"width": 0},
                              "layer": "below"}]
+    # Labels of blow-ups near one another would print over each other: each takes the next corner, in dark text
+    # (a variant's own shade can be pale on white).
+    seen: dict[str, int] = {}
+    for marker in sorted(markers, key=lambda m: m["x"][0]):  # along t, within each panel
+        k = seen[marker["yaxis"]] = seen.get(marker["yaxis"], -1) + 1
+        marker["textposition"] = BLOWUP_CORNERS[k % len(BLOWUP_CORNERS)]
+        marker["textfont"] = {**marker["textfont"], "color": "#333"}
+        marker["cliponaxis"] = False  # a label near t = end stays readable past the axis
     figure = emphasise({"data": traces + markers, "layout": layout}, [t.get("meta") for t in traces + markers],
                        named_variants(scene) if named is None else named)
     caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
@@ -353,6 +374,10 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     if horizon is not None and horizon < duration:
         caption += (f" Shaded from t = {horizon:.3g} s: past the reference horizon, where the reference's own two "
                     "solves (its tolerance and one 100× tighter) part; the case's error metrics are taken before it.")
+        reference = scene_reference(r for _, _, r in chosen) or {}
+        caption += (f" As estimates with their intervals (docs/metrics.md): the horizon "
+                    f"{estimate_text(horizon, reference.get('reference_horizon_interval'), 's', 3)}, the largest "
+                    f"Lyapunov exponent {estimate_text(reference.get('lyapunov_exponent'), reference.get('lyapunov_interval'), '/s')}.")
     return Plot("ts", f"Time series at dt = {dt:.3g} s", caption, figure)
 
 

@@ -8,7 +8,7 @@ commit; hover = commit, date, run, value, status). Step changes found by
 compare.history.trend.steps are marked on the figure (a dashed line before
 the first run after the step) and listed at the top of the page.
 
-Details: docs/architecture.md, "Module notes", ``reports/history.py``.
+Details: docs/history.md, "Module notes", ``reports/history.py``.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from markupsafe import Markup
 from compare.cli import history_option
 from compare.history.store import History, StoredRun
 from compare.history.trend import Series, build_series, run_groups, trend_metrics
-from compare.results.files import atomic_write_text, check_writable
+from engines.files import atomic_write_text, check_writable
 
 from reports.figures import Plot, plot_text
 from reports.pack import pack, template_values

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.results.record import PROBLEMS, CaseRecord, status_counts
 from compare.results.sweep import VariantSweep, sweeps
 from compare.suite.reader import RunSettings
@@ -66,7 +66,7 @@ class SceneResults:
 @dataclass(frozen=True)
 class ReportData:
     """Everything the report shows, arranged; ``header`` is run.json as stored; ``settings`` the δ, bounds
-    and verdict tolerance of the suite.toml stored with the results (compare.results.store.Results.settings)."""
+    and verdict tolerance of the suite.toml stored with the results (compare.run.results.Results.settings)."""
 
     path: Path
     header: dict[str, Any]

@@ -1,13 +1,13 @@
-"""Colours: one hue per engine family, one shade (and dash) per variant, the same in every report.
+"""Colours and shapes: one hue and one marker shape per engine family, one dash per variant, the same in every report.
 
-A family's hue is picked from :data:`FAMILY_COLOURS` by a stable hash of its
-name (SHA-1, not Python's salted ``hash``), never by the order traces happen
-to be drawn in, so ``mujoco`` is the same colour in every report of every
-suite. Two families whose hashes collide in one report are told apart by
-moving the later one (in name order) to the next free hue; only then can a
-family's colour depend on which others are present. A variant's shade
-(lightness), dash and marker symbol come from a hash of its whole label the same way. The
-reference is always translucent black.
+The hues are Okabe and Ito's colour-blind-safe set (distinct under the common red–green and blue–yellow
+deficiencies), yellow replaced by Paul Tol's olive, which reads on white. A family's hue and its marker
+shape share one slot, picked by a stable hash of its name (SHA-1, not Python's salted ``hash``), never by
+the order traces happen to be drawn in, so ``mujoco`` is the same colour and shape in every report of every
+suite. Two families whose hashes collide in one report are told apart by moving the later one (in name order)
+to the next free slot; only then can a family's look depend on which others are present. Within a family the
+variants differ by line style (dash) and slightly by lightness, from a hash of the whole label, so colour is
+never the only cue. The reference is always translucent black.
 """
 
 from __future__ import annotations
@@ -16,25 +16,22 @@ import colorsys
 import hashlib
 from typing import Iterable
 
-#: Base hues (Tableau 10 without its grey): well apart, readable on white, fine for most colour-blind readers.
-FAMILY_COLOURS = ("#4e79a7", "#f28e2b", "#59a14f", "#e15759", "#b07aa1", "#76b7b2", "#9c755f", "#edc948",
-                  "#ff9da7")
-#: Lightness levels of a family's variants (HLS lightness, 0 black – 1 white).
-SHADES = (0.30, 0.40, 0.50, 0.60, 0.35, 0.45, 0.55, 0.65)
-#: Dashes a variant may get, so two variants of one family differ even when their shades are close.
+#: Base hues: Okabe–Ito without black (the reference's) and with Tol's olive for their yellow.
+FAMILY_COLOURS = ("#0072b2", "#e69f00", "#009e73", "#d55e00", "#cc79a7", "#56b4e9", "#999933")
+#: One marker shape per family slot (plotly names; reports.svgplot draws the same shapes), so a family is
+#: told by its shape without colour.
+FAMILY_SYMBOLS = ("circle", "square", "diamond", "triangle-up", "triangle-down", "cross", "x")
+#: Lightness offsets of a family's variants around its base (HLS): shades close enough to keep the hue's identity.
+SHADES = (0.0, -0.08, 0.06, -0.04, 0.10, -0.12, 0.03, -0.02)
+#: Dashes a variant may get: within a family, the line style tells the variants apart.
 DASHES = ("solid", "dash", "dot", "dashdot", "longdash")
 REFERENCE_COLOUR = "rgba(0,0,0,0.45)"
 #: Colour of a variant a plot mutes (one the verdict does not name: reports.emphasis).
 GREY = "#c4c4c4"
-#: Marker symbols a variant may get (plotly names), so variants of one family differ in shape as well.
-SYMBOLS = ("circle", "square", "diamond", "triangle-up", "triangle-down", "cross", "x", "star", "pentagon",
-           "hexagon")
-
-
-#: Prefix of every hashed name. Any fixed prefix gives stable colours; this one (found by trying prefixes in
-#: turn) gives the built-in families and the ones planned (drake, mjx, command) distinct hues without a
-#: collision, the four built-in ones the four most distinct.
-SALT = "xval2554:"
+#: Prefix of every hashed name. Any fixed prefix gives stable slots; this one (found by trying prefixes in
+#: turn) gives the built-in families and the ones planned (drake, dart, mjx) a slot each without a collision,
+#: the four built-in ones the first four (the most distinct hues and shapes).
+SALT = "xval104:"
 
 
 def _digest(text: str) -> int:
@@ -46,10 +43,10 @@ def family_of(engine: str) -> str:
     return engine.split("/", 1)[0]
 
 
-def family_colours(families: Iterable[str]) -> dict[str, str]:
-    """Family -> base colour (hex) for the families of one report (see the module docstring)."""
+def family_slots(families: Iterable[str]) -> dict[str, int]:
+    """Family -> slot in FAMILY_COLOURS / FAMILY_SYMBOLS for the families of one report (see the module docstring)."""
     taken: dict[int, str] = {}
-    result: dict[str, str] = {}
+    result: dict[str, int] = {}
     for name in sorted(set(families)):
         slot = _digest(name) % len(FAMILY_COLOURS)
         for step in range(len(FAMILY_COLOURS)):
@@ -58,15 +55,20 @@ def family_colours(families: Iterable[str]) -> dict[str, str]:
                 slot = candidate
                 break
         taken[slot] = name
-        result[name] = FAMILY_COLOURS[slot]
+        result[name] = slot
     return result
 
 
-def shade(base: str, lightness: float) -> str:
-    """``base`` (#rrggbb) at HLS ``lightness``, saturation kept."""
+def family_colours(families: Iterable[str]) -> dict[str, str]:
+    """Family -> base colour (hex) for the families of one report."""
+    return {name: FAMILY_COLOURS[slot] for name, slot in family_slots(families).items()}
+
+
+def shade(base: str, offset: float) -> str:
+    """``base`` (#rrggbb) with its HLS lightness moved by ``offset`` (kept within 0.2–0.75), hue and saturation kept."""
     r, g, b = (int(base[i:i + 2], 16) / 255 for i in (1, 3, 5))
-    h, _, s = colorsys.rgb_to_hls(r, g, b)
-    r, g, b = colorsys.hls_to_rgb(h, lightness, max(s, 0.45))
+    h, lightness, s = colorsys.rgb_to_hls(r, g, b)
+    r, g, b = colorsys.hls_to_rgb(h, min(max(lightness + offset, 0.2), 0.75), s)
     return "#" + "".join(f"{round(c * 255):02x}" for c in (r, g, b))
 
 
@@ -75,18 +77,23 @@ class Palette:
 
     def __init__(self, engines: Iterable[str]) -> None:
         engines = list(engines)
-        self.families = family_colours(family_of(e) for e in engines if family_of(e) != "reference")
+        self.slots = family_slots(family_of(e) for e in engines if family_of(e) != "reference")
+        self.families = {name: FAMILY_COLOURS[slot] for name, slot in self.slots.items()}
+
+    def _slot(self, family: str) -> int:
+        slot = self.slots.get(family)
+        return slot if slot is not None else _digest(family) % len(FAMILY_COLOURS)
 
     def colour(self, engine: str) -> str:
-        base = self.families.get(family_of(engine)) or FAMILY_COLOURS[_digest(family_of(engine)) % len(FAMILY_COLOURS)]
+        base = FAMILY_COLOURS[self._slot(family_of(engine))]
         return shade(base, SHADES[_digest(engine) % len(SHADES)])
 
     def family_colour(self, family: str) -> str:
-        return self.families.get(family) or FAMILY_COLOURS[_digest(family) % len(FAMILY_COLOURS)]
+        return FAMILY_COLOURS[self._slot(family)]
 
     def symbol(self, engine: str) -> str:
-        """The marker symbol of a variant (from a hash of its label, independent of its shade and dash)."""
-        return SYMBOLS[(_digest(engine) >> 32) % len(SYMBOLS)]
+        """The marker shape of a variant: its family's (one shape per family, FAMILY_SYMBOLS)."""
+        return FAMILY_SYMBOLS[self._slot(family_of(engine))]
 
     def style(self, engine: str) -> dict[str, str]:
         if family_of(engine) == "reference":

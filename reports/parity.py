@@ -5,8 +5,9 @@ The numbers are ``xval model check``'s (compare/model/parity.py), read from
 (``xval model check MODEL --format json > DIR/model_check/ID.json``), else the
 report runs the check on the scene's file (REPORT_STATES states, seed 0) and
 writes that file first, so the next report reads it. Each cell's class grades the relative
-difference: ``agree`` at or below the check's tolerance, ``near`` up to
-1e-3, ``far`` beyond, ``refused`` when the engine did not load the file.
+difference: ``agree`` at or below the check's tolerance (the forward dynamics':
+``forward_tolerance``), ``near`` up to 1e-3, ``far`` beyond, ``refused`` when
+the engine did not load the file.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def write_parity(path: Path, scene: dict[str, Any]) -> None:
     """Run ``xval model check`` on the scene's file and write its JSON to ``path``; nothing when the file
     cannot be found or read (the report then says how to make the table)."""
     from compare.model.parity import check
-    from compare.results.files import atomic_write_text
+    from engines.files import atomic_write_text
     from engines.errors import UserError
 
     label = model_label(scene)
@@ -72,11 +73,15 @@ def parity_view(directory: Path, scene_id: str, scene: dict[str, Any] | None = N
         engines = document["engines"]
     except (OSError, ValueError, KeyError, TypeError):
         return None
+    bounds = {key: tolerance for _, key in QUANTITIES}
+    if "forward_tolerance" in document:  # the forward bound M's conditioning gives (null: M singular, not judged)
+        forward = document["forward_tolerance"]
+        bounds["forward"] = float("inf") if forward is None else float(forward)
     rows = []
     for entry in engines:
         loaded = bool(entry.get("loaded"))
         cells = [{"value": entry.get(key) if loaded else None,
-                  "grade": grade(entry.get(key) if loaded else None, tolerance)} for _, key in QUANTITIES]
+                  "grade": grade(entry.get(key) if loaded else None, bounds[key])} for _, key in QUANTITIES]
         rows.append({"engine": entry.get("engine", "?"), "version": entry.get("version", ""), "cells": cells,
                      "agrees": bool(entry.get("agrees")), "message": entry.get("message", ""),
                      "diagnosis": list(entry.get("diagnosis", []))})

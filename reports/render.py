@@ -11,7 +11,7 @@ bits to a character, 1.68 MB instead of 4.8 MB for plotly.js); the page unpacks 
 browser's own DecompressionStream and makes no request, so it works offline
 and attached to a CI run or a mail.
 
-Details: docs/architecture.md, "Module notes", ``reports/render.py``.
+Details: docs/report.md, "Module notes", ``reports/render.py``.
 """
 
 from __future__ import annotations
@@ -20,21 +20,26 @@ import functools
 import math
 import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import jinja2
 from markupsafe import Markup
+from markupsafe import escape as markupsafe_escape
 
 from compare.results.verdict import families
 from engines.errors import UserError
+from engines.scene.catalog import CATALOG
 
-from compare.results.files import atomic_write_text, check_writable, results_inputs
+from engines.files import atomic_write_text, check_writable
+
 from compare.results.record import engine_output_lines
+from compare.results.store import results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
 
+from reports.overview import import_findings, overview, reconcile
 from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
@@ -62,8 +67,19 @@ def environment() -> jinja2.Environment:
     env.filters["seconds"] = lambda v: "–" if v is None else f"{v:.3g} s"
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
     env.filters["packed"] = lambda text: packed_text(str(text))
+    env.filters["numbers"] = unbroken_numbers
     env.filters["engine_output"] = engine_output_lines
     return env
+
+
+#: A number in running text: 1.28e-03, 2.34e+04, 0.016 (not inside a word, an entity or a path).
+_NUMBER = re.compile(r"(?<![\w#&;/.-])-?\d+(?:\.\d+)?(?:e[-+]\d+)?(?![\w;])")
+
+
+def unbroken_numbers(text: str) -> Markup:
+    """``text`` escaped, each number in a ``<span class="num">`` (white-space: nowrap), so "1.28e-03" never
+    breaks at its hyphen."""
+    return Markup(_NUMBER.sub(lambda m: f'<span class="num">{m.group(0)}</span>', str(markupsafe_escape(text))))
 
 
 def suite_settings(settings: RunSettings) -> dict[str, Any]:
@@ -72,12 +88,25 @@ def suite_settings(settings: RunSettings) -> dict[str, Any]:
             "constraint_bound": settings.bounds.constraint_error, "verdict_tolerance": settings.verdict_tolerance}
 
 
-def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
+#: Above this many scenes, each scene's verdict body and tables are packed and unpacked when the scene comes
+#: into view or a link asks for it (a big suite's page stays light and interactive at once).
+LAZY_SCENES = 8
+#: In such a suite, the time series at a scene's other dts (shown when the dt selector asks): points per trace
+#: (LTTB keeps peaks and blow-ups), significant digits, and points per trace of a variant drawn grey (one the
+#: verdict does not name: context, not evidence).
+LAZY_SERIES = (40, 3, 10)
+#: Points per grey trace of the time series at the chosen dt in such a suite.
+LAZY_CHOSEN_MUTED = 20
+
+
+def page_context(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> dict[str, Any]:
     """Everything the template needs, computed here so the template only lays it out.
 
     focus : the engine family the verdict compares with the others (default: the suite's first).
+    lazy : pack each scene's details (default: when there are more than LAZY_SCENES scenes).
     """
     focus = check_focus(data, focus)
+    lazy_page = len(data.scenes) > LAZY_SCENES if lazy is None else lazy
     settings = suite_settings(data.settings)
     palette = Palette(s.engine for scene in data.scenes for s in scene.sweeps)
     verdicts = verdict_views(data, palette, focus)
@@ -90,9 +119,12 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             "number": number,
             "results": scene,
             "tables": summary_tables(scene, palette) if scene.sweeps else [],
-            "plots": scene_plots(scene, number, palette, ceilings, named.get(number, set())),
+            "plots": _lighter(scene_plots(scene, number, palette, ceilings, named.get(number, set())), scene, number,
+                              palette, ceilings, named.get(number, set())) if lazy_page else
+                     scene_plots(scene, number, palette, ceilings, named.get(number, set())),
             "animation": animation_data(scene, palette),
             "ceilings": ceilings,
+            "parameters": scene_parameters(scene.scene_name, scene.scene.get("parameters") or {}),
             "parity": parity_view(data.path, scene.scene_id, scene.scene) if scene.scene.get("kind") == "model" else None,
         })
     plots: list[Plot] = [p for s in scenes for p in s["plots"]]
@@ -106,7 +138,8 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
             # The time series at the scene's other dts: the dt selector switches the plot with the table.
             for j, dt in enumerate(results.dts):
                 if dt != results.chosen_dt:
-                    other = time_series(results, palette, entry["ceilings"], dt, named.get(entry["number"], set()))
+                    other = time_series(results, palette, entry["ceilings"], dt, named.get(entry["number"], set()),
+                                        *(LAZY_SERIES if lazy_page else ()))
                     if other is not None:
                         items[f"s{entry['number']}-ts@{j}"] = other.figure
         if entry["animation"] is not None:
@@ -133,6 +166,9 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "n_traces": sum(p.n_traces for p in plots),
         "settings": settings,
         "verdicts": verdicts,
+        "lazy": lazy_page,
+        "overview": overview(verdicts, {entry["number"]: entry["parity"] for entry in scenes}),
+        "leads": model_leads(verdicts, scenes, settings["verdict_tolerance"]),
         "focus": focus,
         "scene_numbers": {scene.scene_id: number for number, scene in enumerate(data.scenes)},
         "clip_factor": f"{CLIP_FACTOR:g}",
@@ -145,6 +181,44 @@ def page_context(data: ReportData, focus: str | None = None) -> dict[str, Any]:
         "pack_of": pack_of,
         "stability": stability,
     }
+
+
+def _lighter(plots: list[Plot], scene: Any, number: int, palette: Palette, ceilings: Ceilings,
+             named: set[str]) -> list[Plot]:
+    """``plots`` with the time series at the chosen dt at LAZY_SERIES' digits and a grey variant thinned to
+    LAZY_CHOSEN_MUTED points (a big suite's page; the named variants keep every point)."""
+    digits = LAZY_SERIES[1]
+    lighter = time_series(scene, palette, ceilings, None, named, MAX_POINTS, digits, LAZY_CHOSEN_MUTED)
+    ts = f"s{number}-ts"
+    return [replace(lighter, id=ts) if p.id == ts and lighter is not None else p for p in plots]
+
+
+def model_leads(verdicts: list[Any], scenes: list[dict[str, Any]], tolerance: float) -> dict[int, dict[str, Any]]:
+    """Per model scene with a parity table, what its verdict leads with: the engines whose import disagrees
+    with the model reference (reports.overview.import_findings) and, for those that agree yet err beyond the
+    verdict tolerance (``tolerance`` · L), whether that is the stepping or chaos (reports.overview.reconcile)."""
+    leads = {}
+    for view in verdicts:
+        entry = scenes[view.number]
+        if not entry["parity"]:
+            continue
+        results = entry["results"]
+        horizon = next((r.reference_horizon for s in results.sweeps for r in s.records
+                        if r.reference_horizon is not None), None)
+        duration = results.scene.get("duration")
+        imports = import_findings(view.number, view.scene_id, entry["parity"], {b.family for b in view.verdict.best})
+        agreeing = reconcile(view, entry["parity"], tolerance * results.length, horizon, duration)
+        if imports or agreeing:
+            leads[view.number] = {"imports": imports, "agreeing": agreeing}
+    return leads
+
+
+def scene_parameters(name: str, values: dict[str, Any]) -> list[str]:
+    """A catalog scene's parameters as "theta0 = 60 deg", each with the unit its builder declares
+    (engines.scene.catalog), value and unit joined by a no-break space."""
+    builder = CATALOG.get(name)
+    units = {p.name: p.unit for p in builder.parameters} if builder is not None else {}
+    return [f"{key} = {value}" + (f"\u00a0{units[key]}" if units.get(key) else "") for key, value in values.items()]
 
 
 def _weight(scene: dict[str, Any]) -> float:
@@ -170,12 +244,13 @@ def check_focus(data: ReportData, focus: str | None) -> str | None:
 _INDENT = re.compile(r"\n[ \t]+<")
 
 
-def render(data: ReportData, focus: str | None = None) -> str:
-    """The report page of ``data`` as HTML text (``focus``: the engine family the verdict compares).
+def render(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> str:
+    """The report page of ``data`` as HTML text (``focus``: the engine family the verdict compares; ``lazy``:
+    see :func:`page_context`).
 
     The template's indentation is dropped (a fifth of a large report's bytes); the page is unchanged.
     """
-    return _INDENT.sub("\n<", environment().get_template("report.html.j2").render(page_context(data, focus)))
+    return _INDENT.sub("\n<", environment().get_template("report.html.j2").render(page_context(data, focus, lazy)))
 
 
 @dataclass(frozen=True)

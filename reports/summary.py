@@ -9,8 +9,8 @@ metric declared for the report gets a column with no edit here.
 Values are compared only between variants whose case at that dt is
 ``ok``: an unstable run's small cost or a failed run's missing drift is not
 "best". The reference engine, when a suite runs it, is shown but not ranked.
-A column in which every ranked variant ties gets no mark at all. Ties (equal
-to the shown precision) are all marked. The observed order is a property of
+A column where all ranked variants, or more than half (and more than two), share
+the best gets no mark; ties (equal to the shown precision) are otherwise all marked. The observed order is a property of
 the whole sweep, so it is ranked over every variant that has one.
 """
 
@@ -156,7 +156,10 @@ def _best_flags(column: Column, values: list[Any], eligible: list[bool],
         return [False] * len(values)  # the runner-up is within the error bars: no one value is best
     shown = lambda v: column.missing if v is None else column.fmt(v)  # noqa: E731
     top_text = next(shown(v) for v, r in zip(values, ranks) if r == top)
-    return [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
+    flags = [r is not None and (r == top or shown(v) == top_text) for v, r in zip(values, ranks)]
+    if sum(flags) > max(2, len(candidates) / 2):
+        return [False] * len(values)  # most rows share the best ("never" diverged): a star on each says nothing
+    return flags
 
 
 #: Metrics whose error bar is the reference's own (``reference_error``, m).

@@ -32,6 +32,32 @@ class Series:
     group: str
     points: Sequence[tuple[float, float, str]]
     muted: bool = False
+    symbol: str = "circle"  # the family's marker shape (reports.palette.FAMILY_SYMBOLS)
+    dash: str = "solid"  # the line through its points (a plotly dash name): a work-precision line
+
+#: SVG stroke-dasharray of each plotly dash name.
+DASH_ARRAYS = {"solid": "", "dash": "6 4", "dot": "2 3", "dashdot": "6 3 2 3", "longdash": "10 4"}
+
+
+def marker(symbol: str, x: float, y: float, r: float, inner: str = "") -> str:
+    """One marker of shape ``symbol`` (a plotly name) centred at (x, y), radius about ``r`` px, ``inner`` inside it."""
+    if symbol == "circle":
+        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
+    shapes = {
+        "square": [(-0.85, -0.85), (0.85, -0.85), (0.85, 0.85), (-0.85, 0.85)],
+        "diamond": [(0, -1.2), (1.2, 0), (0, 1.2), (-1.2, 0)],
+        "triangle-up": [(0, -1.2), (1.1, 0.9), (-1.1, 0.9)],
+        "triangle-down": [(0, 1.2), (1.1, -0.9), (-1.1, -0.9)],
+        "cross": [(-0.35, -1.1), (0.35, -1.1), (0.35, -0.35), (1.1, -0.35), (1.1, 0.35), (0.35, 0.35), (0.35, 1.1),
+                  (-0.35, 1.1), (-0.35, 0.35), (-1.1, 0.35), (-1.1, -0.35), (-0.35, -0.35)],
+        "x": [(-0.8, -1.05), (0, -0.25), (0.8, -1.05), (1.05, -0.8), (0.25, 0), (1.05, 0.8), (0.8, 1.05), (0, 0.25),
+              (-0.8, 1.05), (-1.05, 0.8), (-0.25, 0), (-1.05, -0.8)],
+    }
+    corners = shapes.get(symbol)
+    if corners is None:
+        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
+    points = " ".join(f"{x + r * dx:.1f},{y + r * dy:.1f}" for dx, dy in corners)
+    return f'<polygon points="{points}">{inner}</polygon>'
 
 
 def _escape(text: str) -> str:
@@ -49,10 +75,12 @@ def _tick_label(exponent: int) -> str:
 
 def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *, x_title: str, y_title: str,
                target: float | None = None, target_label: str = "", width: int = 720, height: int = 420,
-               element_id: str = "") -> Markup:
+               element_id: str = "", label: str = "", picks: Sequence[tuple[float, float, str]] = ()) -> Markup:
     """An SVG log–log plot: ``series`` as dots (one ``<g>`` per series, ``data-series`` = its index; muted ones
     grey and drawn first, under the others), ``front`` as a black staircase (step after each point), an
-    optional dotted horizontal line at ``target``."""
+    optional dotted horizontal line at ``target``; each series' points joined in order (a work-precision line);
+    ``picks`` (x, y, name) labelled beside their point. ``label``: what a screen reader says the plot shows
+    (its ``aria-label``; default: the axes' titles)."""
     xs = [p[0] for s in series for p in s.points if p[0] > 0]
     ys = [p[1] for s in series for p in s.points if p[1] > 0]
     if target is not None and target > 0:
@@ -72,6 +100,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
 
     parts = [f'<svg class="loglog" id="{_escape(element_id)}" viewBox="0 0 {width} {height}" '
              f'preserveAspectRatio="xMidYMid meet" role="img" '
+             f'aria-label="{_escape(label or f"{y_title} against {x_title}, log–log")}" '
              f'font-family="system-ui, sans-serif" font-size="12">',
              f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fbfbfb" stroke="#ccc"/>']
     y_step = max(1, math.ceil((y1 - y0) / 10))
@@ -95,19 +124,33 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
                      f'{_escape(target_label)}</text>')
     for index, s in sorted(enumerate(series), key=lambda item: not item[1].muted):  # muted first: underneath
         dots = "".join(
-            f'<circle cx="{px(x):.1f}" cy="{py(y):.1f}" r="{3 if s.muted else 4}"><title>{_escape(text)}</title></circle>'
+            marker(s.symbol, px(x), py(y), 3 if s.muted else 4.5, f"<title>{_escape(text)}</title>")
             for x, y, text in s.points if x > 0 and y > 0
         )
+        drawn = [(px(x), py(y)) for x, y, _ in s.points if x > 0 and y > 0]
+        dash = DASH_ARRAYS.get(s.dash, "")
+        line = (f'<polyline points="{" ".join(f"{a:.1f},{b:.1f}" for a, b in drawn)}" fill="none" '
+                f'stroke-width="{1 if s.muted else 1.5}"' + (f' stroke-dasharray="{dash}"' if dash else "") + "/>"
+                if len(drawn) > 1 else "")
         if s.muted:
-            parts.append(f'<g class="series muted" data-series="{index}" fill="{GREY}" fill-opacity="0.7" '
-                         f'style="--own: {_escape(s.colour)}">{dots}</g>')
+            parts.append(f'<g class="series muted" data-series="{index}" data-variant="{_escape(s.name)}" fill="{GREY}" stroke="{GREY}" fill-opacity="0.7" '
+                         f'style="--own: {_escape(s.colour)}">{line}{dots}</g>')
         else:
-            parts.append(f'<g class="series" data-series="{index}" fill="{_escape(s.colour)}" fill-opacity="0.8">'
-                         f'{dots}</g>')
+            parts.append(f'<g class="series" data-series="{index}" data-variant="{_escape(s.name)}" fill="{_escape(s.colour)}" stroke="{_escape(s.colour)}" '
+                         f'fill-opacity="0.85">{line}{dots}</g>')
     if front:
         path = [f"M{px(front[0][0]):.1f},{py(front[0][1]):.1f}"]
         for (xb, yb) in front[1:]:
             path.append(f"H{px(xb):.1f}V{py(yb):.1f}")
         parts.append(f'<path class="front" d="{"".join(path)}" fill="none" stroke="#222" stroke-width="2"/>')
+    placed: list[tuple[float, float, float]] = []  # (start, end, baseline) of the labels drawn so far
+    for x, y, name in sorted((p for p in picks if p[0] > 0 and p[1] > 0), key=lambda p: -p[1]):
+        start, base = px(x) + 7, py(y) - 7
+        end = start + 6.5 * len(name)  # about the width of 11 px bold text
+        while any(a < end and start < b and abs(base - c) < 13 for a, b, c in placed):
+            base += 13  # below the label it would overlap
+        placed.append((start, end, base))
+        parts.append(f'<text class="pick" x="{start:.1f}" y="{base:.1f}" font-size="11" font-weight="600" '
+                     f'paint-order="stroke" stroke="#fff" stroke-width="3">{_escape(name)}</text>')
     parts.append("</svg>")
     return Markup("".join(parts))

@@ -3,7 +3,7 @@
 Per scene, from :mod:`compare.results.verdict`: the Pareto front of error against cost, the cost to
 reach the tolerance, the focus family against the best other, the stability heat map and the problems.
 
-Details: docs/architecture.md, "Module notes", ``reports/verdict.py``.
+Details: docs/report.md, "Module notes", ``reports/verdict.py``.
 """
 
 from __future__ import annotations
@@ -11,19 +11,22 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from compare.results.verdict import (
-    Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
+    SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
 )
 
+import numpy as np
 from markupsafe import Markup
 
 from compare.stability.dissipation import load_probe_files
 from reports.emphasis import named_by
 from reports.load import ReportData, SceneResults
+from reports.numbers import si
 from reports.palette import Palette
 from reports.svgplot import Series, loglog_svg
 
 #: Text of a heat-map cell per status.
-STATUS_MARK = {"ok": "✓", "unstable": "↑", "failed": "✗", "timeout": "⌛", "skipped": "–"}
+#: Text of a heat-map cell per status (no glyph that needs an emoji font: "T" for a timeout).
+STATUS_MARK = {"ok": "✓", "unstable": "↑", "failed": "✗", "timeout": "T", "skipped": "–"}
 
 
 def row_id(scene: int, variant: int, dt: int) -> str:
@@ -50,10 +53,22 @@ class HeatRow:
 
 @dataclass(frozen=True)
 class ProblemItem:
+    """One problem as the page lists it: kind, variant, text, the link to its evidence (a case row, or the plot
+    that shows it with ``engine`` highlighted), its rank in SEVERITIES, and for a blow-up the time series at
+    its largest unstable dt ("" otherwise)."""
+
     kind: str
     engine: str
     text: str
     href: str
+    severity: int = 2
+    blowup: str = ""
+    plateau: float | None = None
+    worst_link: str = ""  # on a model scene: which link errs most at the variant's finest ok dt, and by how much
+
+    @property
+    def severity_name(self) -> str:
+        return SEVERITIES[self.severity]
 
 
 @dataclass(frozen=True)
@@ -134,13 +149,18 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
         muted = mute and sweep.engine not in named  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
-            for p in pts], muted))
+            for p in pts], muted, palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]))
         groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour, muted))
     if not series:
         return None
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
-                     target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}")
+                     target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}",
+                     picks=[(b.reading.budget, b.reading.error, b.reading.engine) for b in verdict.best
+                            if b.reading is not None],
+                     label=f"Scene {scene.scene_id}: max position error against stepping cost, log–log, every ok run "
+                           f"of {len(series)} variants, the Pareto front as a staircase and the target 1e-6·L "
+                           f"as a dotted line")
     return ParetoPlot(svg, list(groups.items()))
 
 
@@ -154,6 +174,46 @@ def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict
     if problem.dts and problem.dts[0] in scene.dts:
         return "#" + row_id(number, k, scene.dts.index(problem.dts[0]))
     return f"#scene-{number}"
+
+
+def _blowup(problem: Problem, number: int, scene: SceneResults) -> str:
+    """For an unstable problem, the time series at its largest unstable dt (where it blows up), else ""."""
+    if problem.kind != "unstable" or not problem.dts or problem.dts[0] not in scene.dts:
+        return ""
+    j = scene.dts.index(problem.dts[0])
+    return f"#s{number}-ts" if scene.dts[j] == scene.chosen_dt else f"#s{number}-ts@{j}"
+
+
+def worst_link(scene: SceneResults, engine: str) -> str:
+    """On a model scene, the link with the largest position error of ``engine``'s finest ok run and how far the
+    others stay ("panda_leftfinger 16 mm; the other links within 9.5 mm"), from the stored positions; "" when
+    the scene is no model or the run kept no positions."""
+    links = [p.get("link") for p in scene.scene.get("particles", [])]
+    sweep = next((s for s in scene.sweeps if s.engine == engine), None)
+    if scene.scene.get("kind") != "model" or sweep is None or not sweep.ok_records or not all(links):
+        return ""
+    record = min(sweep.ok_records, key=lambda r: r.case.dt)
+    series = record.series or {}
+    try:
+        mine = np.asarray(series["positions"], dtype=float)
+        reference = np.asarray(series["reference_positions"], dtype=float)
+        per_link = np.nanmax(np.linalg.norm(mine - reference, axis=2), axis=0)
+    except (KeyError, TypeError, ValueError):
+        return ""
+    if per_link.shape != (len(links),) or not np.isfinite(per_link).any():
+        return ""
+    worst = int(np.nanargmax(per_link))
+    others = np.delete(per_link, worst)
+    rest = f"; the other links within {si(float(np.nanmax(others)), 'm')}" if others.size else ""
+    return f"largest at {links[worst]} ({si(float(per_link[worst]), 'm')}{rest})"
+
+
+def _item(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> ProblemItem:
+    plateau = next((s.consistency.plateau for s in scene.sweeps if s.engine == problem.engine and s.consistency),
+                   None) if problem.kind == "inconsistent" else None
+    return ProblemItem(problem.kind, problem.engine, problem.text, _evidence(problem, number, scene, variants),
+                       problem.severity, _blowup(problem, number, scene), plateau,
+                       worst_link(scene, problem.engine) if problem.kind == "inconsistent" else "")
 
 
 def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) -> list[SceneVerdictView]:
@@ -181,13 +241,14 @@ def verdict_views(data: ReportData, palette: Palette, focus: str | None = None) 
                 # No tooltip: the message is one click away (the case's row), and 1,000 of them doubled the section.
                 cells.append(HeatCell(status, STATUS_MARK.get(status, "?"), "#" + row_id(number, k, j)))
             heat.append(HeatRow(sweep.engine, family(sweep.engine), palette.colour(sweep.engine), cells))
-        items = [ProblemItem(p.kind, p.engine, p.text, _evidence(p, number, scene, variants)) for p in verdict.problems]
+        items = [_item(p, number, scene, variants) for p in verdict.problems]
         for probe in probes:
             if probe["engine"] in variants:
                 rate = probe.get("rate")
                 text = "the energy-loss rate extrapolated to dt → 0 is above zero" + (
                     f" ({rate:.2g} E*/s)" if isinstance(rate, (int, float)) else "")
-                items.append(ProblemItem("hidden dissipation", probe["engine"], text, f"#scene-{number}"))
+                items.append(ProblemItem("hidden dissipation", probe["engine"], text, f"#scene-{number}", 2))
+        items.sort(key=lambda item: item.severity)  # the probes' among the others of their rank (stable sort)
         reaches = [ReachRow(r.engine, family(r.engine), palette.colour(r.engine), r, family(r.engine) == focus)
                    for r in verdict.reaches]
         if verdict.comparison is not None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 from collections import Counter
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.results.sweep import VariantSweep
 
 

@@ -13,7 +13,7 @@ import json
 import sys
 
 from compare.results.cost import cpu_times, steps
-from compare.results.store import load_results
+from compare.run.results import load_results
 
 #: The variants the fixture keeps: the ones the default suite's headline picks among.
 VARIANTS = ("ours/lagrangian-rk4", "ours/projection-rk4", "ours/plain-rk4", "ours/lagrangian-midpoint",

@@ -32,7 +32,7 @@ import platform
 
 from compare.history.origin import machine_of, tree_origin
 from compare.history.store import AlreadyRecorded, History
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.environment import cpu_name
 
 ROOT = Path(__file__).resolve().parent.parent

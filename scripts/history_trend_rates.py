@@ -4,7 +4,7 @@ Series of 12 runs of a timing (cost per simulated second) with log-normal
 noise of the stated size; "step" series multiply the last 6 runs by the
 factor. A step is "found" when exactly one is marked, at run 7. Seeded, so
 it prints the same figures every time; docs/history.md quotes the table and
-docs/architecture.md three of its rates (scripts/quotes/history_trend_rates.toml,
+three of its rates in its module notes (scripts/quotes/history_trend_rates.toml,
 checked by tests/test_docs_figures.py).
 
     .venv/bin/python scripts/history_trend_rates.py

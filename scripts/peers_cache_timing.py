@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 from compare.results.record import CaseRecord
-from compare.results.store import load_results
+from compare.run.results import load_results
 
 ROOT = Path(__file__).resolve().parents[1]
 

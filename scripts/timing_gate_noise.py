@@ -1,4 +1,4 @@
-"""Does the timing gate tell a busy neighbour from a regression? (issue 21; docs/reliability.md quotes this.)
+"""Does the timing gate tell a busy neighbour from a regression? (docs/reliability.md quotes this.)
 
 1. Runs a small suite (2 scenes x 2 engines, repeats = 3, timing_factor = 1.5)
    once and makes it the baseline.
@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parent))
 
 from compare.gate.baseline import Baseline, build_baseline  # noqa: E402
 from compare.gate.gate import gate_results  # noqa: E402
-from compare.results.store import load_results  # noqa: E402
+from compare.run.results import load_results  # noqa: E402
 from compare.run.runner import run_suite  # noqa: E402
 from compare.suite.reader import parse_suite  # noqa: E402
 

@@ -4,7 +4,7 @@ A synthetic run is the real run with its start time moved and chosen
 metrics of chosen variants scaled (accuracy metrics by one factor, the
 timing — median cost, wall time, every repeat — by another), as a
 regression or machine noise would move them. Runs are added to the store
-as :class:`compare.results.store.Results` objects, so no suite is run more
+as :class:`compare.run.results.Results` objects, so no suite is run more
 than once per session.
 """
 
@@ -22,7 +22,7 @@ from typing import Any, Callable
 from compare.history.origin import Origin
 from compare.history.store import History, StoredRun
 from compare.results.record import CaseRecord
-from compare.results.store import Results, load_results
+from compare.run.results import Results, load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite
 from conftest import XVAL, XVAL_ENV

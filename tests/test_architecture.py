@@ -124,6 +124,37 @@ def test_no_import_cycles_between_modules():
     assert find_cycles(module_graph()) == []
 
 
+def folder_of(module: str) -> str:
+    """The part of the house ``module`` belongs to: its folder under a package (``compare.results``,
+    ``engines.scene``), or itself when it sits at a package's top (``engines.adapter``, ``compare.cli``).
+    An engine home's library module (``engines.mujoco.library``: the one guarded import of a library
+    outside xval) is a part of its own: the MJCF reader of the shared
+    model layer uses MuJoCo's compiler through it (SHARED_USES), not MuJoCo's home."""
+    parts = module.split(".")
+    if len(parts) > 2 and parts[0] == "engines" and parts[1] in HOMES and parts[2] == "library":
+        return ".".join(parts[:3])
+    return ".".join(parts[:2])
+
+
+def folder_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Folder -> the folders its modules import (imports inside functions included, as in module_graph)."""
+    folders: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        here = folder_of(module)
+        folders.setdefault(here, set()).update(folder_of(t) for t in targets if folder_of(t) != here)
+    return folders
+
+
+def test_no_import_cycles_between_folders():
+    """No circle between folders, imports inside functions included: an import deferred into a function is
+    for cost (a heavy optional library), never a way round a circle (results <-> suite once was one)."""
+    # A library module is a node of its own, but its home imports it: a path from it back to its home would
+    # still show here as a circle.
+    assert find_cycles(folder_graph(module_graph())) == []
+    planted = {"compare.results.store": {"compare.suite.reader"}, "compare.suite.reader": {"compare.results.metrics"}}
+    assert find_cycles(folder_graph(planted)) == ["compare.results -> compare.suite -> compare.results"]
+
+
 def test_the_checker_resolves_imports_and_finds_a_planted_cycle():
     assert "compare.results.consistency" in imports_of(ROOT / "compare" / "results" / "sweep.py")
     assert find_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == ["a -> b -> c -> a"]
@@ -288,13 +319,14 @@ def test_model_scenes_reach_adapters_through_one_dispatch():
 
 
 #: The parts of engines/, lowest first; a part imports only itself and lower ones (never a sibling of the
-#: same rank). The errors, the file helpers, the silencing of C libraries' prints (stdio) and the scene
-#: language are what every engine speaks; the engine protocol (adapter) and the one stepping loop on it
-#: (recorder) are built on them; each kind of engine from outside xval (processes, plugins) on those; the
-#: registry names every engine (built-in homes by module name, never by import); the robot models reach
-#: engines through it; the reference integrates scenes and models; each engine's home uses all of these.
-#: Homes share a rank: test_no_engine_home_imports_another says which of them may use another.
-ENGINE_PARTS = {"errors": 0, "files": 0, "stdio": 0, "scene": 1, "adapter": 2, "recorder": 3, "external": 4,
+#: same rank). The errors, the silencing of C libraries' prints (stdio), the file helpers (which raise
+#: those errors) and the scene language are what every engine speaks; the engine protocol (adapter) and
+#: the one stepping loop on it (recorder) are built on them; each kind of engine from outside xval
+#: (processes, plugins) on those; the registry names every engine (built-in homes by module name, never by
+#: import); the robot models reach engines through it; the reference integrates scenes and models; each
+#: engine's home uses all of these. Homes share a rank: test_no_engine_home_imports_another says which of
+#: them may use another.
+ENGINE_PARTS = {"errors": 0, "stdio": 0, "files": 1, "scene": 1, "adapter": 2, "recorder": 3, "external": 4,
                 "registry": 5, "model": 6, "reference": 7, **dict.fromkeys(HOMES, 8)}
 
 
@@ -334,10 +366,11 @@ def test_a_model_import_uses_only_its_own_engine_s_home():
     assert wrong == []
 
 
-#: The stages of compare/, lowest first; a stage imports only its own and lower ones. The suite and the
-#: record are the vocabulary every stage speaks (the runner builds records, a results directory keeps
-#: its suite), so they share the lowest rank; run, then what reads runs back.
-STAGES = {"suite": 0, "results": 0, "run": 1, "gate": 2, "stability": 2, "history": 2}
+#: The stages of compare/, lowest first; a stage imports only its own and lower ones (imports inside
+#: functions included). The record and its metrics are the vocabulary every stage speaks; the suite names
+#: metrics and bounds in that vocabulary; run measures cases into records, and reads a finished run back
+#: with the suite kept beside it (compare.run.results); then what reads runs back.
+STAGES = {"results": 0, "suite": 1, "run": 2, "gate": 3, "stability": 3, "history": 3}
 
 
 def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():
@@ -356,8 +389,8 @@ def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():
 
 
 #: Modules of compare/ and reports/ that may name a results directory's cases/ folder: the store reads and
-#: writes it (into and from CaseRecords); files.py names it only to keep every output off a run's inputs.
-CASES_FOLDER_NAMED_BY = {"compare.results.store", "compare.results.files"}
+#: writes it (into and from CaseRecords), and names it to keep every output off a run's inputs (results_inputs).
+CASES_FOLDER_NAMED_BY = {"compare.results.store"}
 
 
 def names_the_cases_folder(tree: ast.AST) -> bool:
@@ -445,3 +478,38 @@ def test_baseline_entries_are_typed_and_made_from_case_records_in_one_place():
             if key in CASE_FIELDS:
                 keyed.append(f"{module}:{node.lineno} [{key!r}]")
     assert keyed == []
+
+
+def engine_hook_names() -> set[str]:
+    """Names an engine class defines: the base Engine's and every built-in adapter's methods and attributes."""
+    names: set[str] = set()
+    for path in [ROOT / "engines" / "adapter.py", ROOT / "engines" / "external" / "command.py",
+                 ROOT / "engines" / "reference" / "reference.py", *(ROOT / "engines" / h / "adapter.py" for h in HOMES)]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ClassDef) and (node.name == "Engine" or any(
+                    isinstance(b, ast.Name) and b.id.endswith("Engine") for b in node.bases)):
+                for item in node.body:
+                    if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        names.add(item.name)
+                    elif isinstance(item, ast.AnnAssign) and isinstance(item.target, ast.Name):
+                        names.add(item.target.id)
+                    elif isinstance(item, ast.Assign):
+                        names.update(t.id for t in item.targets if isinstance(t, ast.Name))
+    # "name" is everything's (a task's too, which the cluster's progress reads with getattr).
+    return names - {"__init__", "name"}
+
+
+def test_every_engine_hook_is_declared_never_looked_up_by_name():
+    """The harness calls what Engine declares (with its default); getattr/hasattr with an engine hook's name
+    outside the engines' own classes would mean a hook an engine may or may not have."""
+    hooks = engine_hook_names()
+    assert {"preload", "tolerance_options", "tolerance_capable", "program", "needs_warm_up"} <= hooks
+    found = []
+    for module, path in project_modules().items():
+        if home_of(module) is not None:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and node.args[1].value in hooks):
+                found.append(f"{module}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
+    assert found == []

@@ -70,7 +70,7 @@ def test_numerical_warnings_become_one_note_in_the_message():
 
 
 def test_a_run_that_overflows_numpy_keeps_the_warning_in_the_record_and_prints_nothing(tmp_path, capfd):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
 

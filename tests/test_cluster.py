@@ -20,7 +20,7 @@ import pytest
 
 from compare.run import environment
 from compare.run.cluster import connect, parse_scheduler, run_on_cluster, start_local_cluster
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
 from engines.errors import UserError

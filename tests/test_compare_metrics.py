@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from compare.results.measure import apply_bounds
 from compare.results.metrics import (
     Bounds,
-    apply_bounds,
     case_metrics,
     constraint_error,
     constraint_force_error,

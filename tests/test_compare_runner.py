@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from compare.results.sweep import sweeps

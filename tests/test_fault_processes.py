@@ -17,7 +17,7 @@ from pathlib import Path
 
 
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from conftest import HERE, ROOT, XVAL, XVAL_ENV, run_xval, wait_for

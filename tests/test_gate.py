@@ -18,7 +18,8 @@ import pytest
 from compare.gate.baseline import BASELINE_SCHEMA_VERSION, build_baseline, load_baseline, write_baseline
 from compare.gate.entry import record_key
 from compare.gate.report import format_value
-from compare.results.store import load_results, read_json
+from compare.results.store import read_json
+from compare.run.results import load_results
 from compare.results.sweep import sweeps
 
 from gate_engines import REGRESSION

@@ -25,7 +25,7 @@ from compare.gate.baseline import load_baseline
 from compare.gate.gate import gate_results
 from compare.gate.report import format_table, to_markdown
 from compare.gate.junit import to_junit
-from compare.suite.tolerance import GateSettings
+from compare.suite.gate_rules import GateSettings
 
 from gate_support import GOLDEN
 

@@ -15,7 +15,7 @@ from compare.gate.entry import BaselineEntry, Timing
 from compare.gate.gate import accuracy_change, compare_case, machine_difference, timing_change
 from compare.results.record import Status
 from compare.suite.reader import parse_suite
-from compare.suite.tolerance import RULES, GateSettings, Tolerance, gate_settings
+from compare.suite.gate_rules import RULES, GateSettings, Tolerance, gate_settings
 
 SETTINGS = GateSettings()
 

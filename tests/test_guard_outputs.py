@@ -10,7 +10,7 @@ import stat
 
 import pytest
 
-from compare.results.files import atomic_write_text, check_writable
+from engines.files import atomic_write_text, check_writable
 from engines.errors import UserError
 from cli_support import run_cli as run
 
@@ -128,7 +128,7 @@ def test_gate_md_escapes_html_in_labels():
     from compare.gate.baseline import load_baseline
     from compare.gate.gate import gate_results
     from compare.gate.report import to_markdown
-    from compare.suite.tolerance import GateSettings
+    from compare.suite.gate_rules import GateSettings
 
     def labelled(baseline):
         return replace(baseline, cases={key: replace(entry, engine="<img src=x onerror=alert(1)>|" + entry.engine)

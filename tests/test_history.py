@@ -22,7 +22,7 @@ import pytest
 from compare.gate.baseline import build_baseline
 from compare.gate.entry import record_key
 from compare.gate.gate import gate
-from compare.suite.tolerance import GateSettings
+from compare.suite.gate_rules import GateSettings
 from compare.history import store as store_module
 from compare.history.store import History, HistoryError, SCHEMA_VERSION
 from compare.history.window import window_baseline

@@ -27,7 +27,7 @@ PROBE = """
 import json, sys, warnings
 warnings.simplefilter("always")
 from compare.run.runner import run_suite
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.suite.reader import parse_suite
 suite = parse_suite('name = "jax"\\nduration = 0.05\\ndt = [1e-2]\\n[[scenes]]\\nscene = "bead"\\n'
                     '[[engines]]\\nid = "mjx/hinge"\\n[[engines]]\\nid = "mujoco/hinge"\\n')

@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from compare.results.metrics import Bounds, apply_bounds, case_metrics
-from compare.results.store import load_results
-from compare.run.runner import _truncate, run_suite
+from compare.results.measure import apply_bounds, truncate as _truncate
+from compare.results.metrics import Bounds, case_metrics
+from compare.run.results import load_results
+from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from engines.adapter import Schedule
 from engines.model.scene import model_scene

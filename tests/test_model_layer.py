@@ -137,10 +137,7 @@ MJCF = '<mujoco><worldbody><body name="b">{joints}<inertial pos="0 0 0" mass="1"
 
 
 @pytest.mark.parametrize("joints, message", [
-    ('<freejoint name="float"/>', r"^joint float: type 'free' is not supported; the base is welded to the world; remove the freejoint$"),
     ('<joint name="ball" type="ball"/>', r"^joint ball: type 'ball' is not supported; use hinge or slide joints$"),
-    ('<joint name="a" axis="1 0 0"/><joint name="b" axis="0 1 0"/>',
-     r"^body b: 2 joints in one body are not supported; give each joint a body of its own$"),
 ])
 def test_the_mjcf_reader_refuses_what_the_description_cannot_hold(tmp_path, joints, message):
     from engines.model import mjcf

@@ -17,10 +17,10 @@ import pytest
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.gate.gate import gate_results
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import load_suite, parse_suite
-from compare.suite.tolerance import GateSettings
+from compare.suite.gate_rules import GateSettings
 from engines.scene import catalog
 from engines import registry
 from engines.adapter import API_VERSION, api_version_problem

@@ -238,7 +238,7 @@ def test_a_timed_out_program_and_its_children_are_killed(tmp_path):
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc to list a process group's members")
 def test_a_suite_case_timeout_reaches_the_program(tmp_path):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import load_suite
 

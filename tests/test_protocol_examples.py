@@ -183,7 +183,7 @@ def test_a_version_bump_makes_the_gate_say_not_comparable(tmp_path):
     """The suite's `version` is recorded; the gate calls a case of another version "not comparable", not worse."""
     from compare.gate.baseline import build_baseline
     from compare.gate.gate import gate_results
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import load_suite
 

@@ -15,7 +15,8 @@ from compare.results import declared
 from compare.results.declared import Metric, Tolerance
 from compare.results.record import CaseRecord, Status
 from engines.errors import UserError
-from compare.results.store import ResultsDir, load_results
+from compare.results.store import ResultsDir
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.suite.reader import parse_suite
 from gate_support import edit_case, xval

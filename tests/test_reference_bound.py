@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -87,7 +89,7 @@ def test_momentum_drift_is_a_declared_gated_metric_computed_for_each_case():
 
 
 def test_a_run_records_the_reference_horizon_and_error(tmp_path):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
     from compare.run.runner import run_suite
     from compare.suite.reader import parse_suite
 
@@ -124,6 +126,43 @@ def test_a_run_records_the_reference_horizon_and_error(tmp_path):
     text = scene_tables(sweeps(load_results(tmp_path / "run").records))
     assert "scene dp (reference error" in text and "Lyapunov exponent 0." in text
     assert "horizon none, Lyapunov exponent -)" in text
+
+
+def test_show_json_carries_the_chaotic_estimates_with_their_intervals(tmp_path):
+    """The Lyapunov exponent and the horizon of a chaotic scene are ensemble estimates with an interval
+    (engines/reference/ensemble.py); `xval show --format json` carries both, a regular scene's are null."""
+    import json
+
+    from conftest import run_xval
+
+    suite = tmp_path / "chaos.toml"
+    suite.write_text('name = "chaos"\nduration = 10.0\ndt = [0.01]\n'
+                     '[[scenes]]\nid = "dp"\nscene = "double-pendulum"\n'
+                     '[[scenes]]\nid = "bead"\nscene = "bead"\n'
+                     '[[engines]]\nid = "ours/baumgarte-rk4"\n')
+    assert run_xval("run", suite, "--output", tmp_path / "run", "--quiet", timeout=300).returncode == 0
+    shown = run_xval("show", tmp_path / "run", "--format", "json")
+    assert shown.returncode == 0, shown.stderr
+    rows = {row["scene"]: row for row in json.loads(shown.stdout)}
+    dp, bead = rows["dp"], rows["bead"]
+    low, high = dp["lyapunov_interval"]
+    # Twelve Benettin runs over 10 s: measured 0.95 [0.55, 1.1] /s; an orbit's ±15 % and more in the ends.
+    assert 0.3 < low < dp["lyapunov_exponent"] < high < 2.0
+    low, high = dp["reference_horizon_interval"]
+    assert low <= dp["reference_horizon"] <= high and low < high  # measured 7.29 [5.83, 8.8] s
+    assert bead["lyapunov_exponent"] is None and bead["lyapunov_interval"] is None
+    assert bead["reference_horizon"] is None and bead["reference_horizon_interval"] is None
+    # So does the verdict's document, per scene.
+    verdict = run_xval("verdict", tmp_path / "run", "--format", "json")
+    assert verdict.returncode == 0, verdict.stderr
+    scenes = {scene["scene"]: scene["reference"] for scene in json.loads(verdict.stdout)["scenes"]}
+    assert scenes["dp"]["lyapunov_interval"] == dp["lyapunov_interval"]
+    assert scenes["dp"]["reference_horizon_interval"] == dp["reference_horizon_interval"]
+    assert scenes["bead"]["lyapunov_interval"] is None
+    # The text table's scene line says the estimate with its interval.
+    text = run_xval("show", tmp_path / "run").stdout
+    assert re.search(r"scene dp \(reference error \S+ m, horizon [\d.]+ \[[\d.]+, [\d.]+\] s, "
+                     r"Lyapunov exponent [\d.]+ \[[\d.]+, [\d.]+\] /s\)", text), text
 
 
 def test_growth_rate_tells_exponential_from_linear_separation():

@@ -59,6 +59,7 @@ GOLDEN = {
 def test_page_has_the_sections_in_order_the_verdict_first(small_page):
     assert [(s.id, s.heading) for s in small_page.sections] == [
         ("top", "xval report: report-small"),
+        ("summary", "Summary"),  # issue 44: the summary across scenes before the verdict
         ("verdict", "Verdict"),
         ("run", "Run"),
         ("scene-0", "Scene bead"),
@@ -240,7 +241,7 @@ def test_a_single_case_renders(small_results, tmp_path):
     single = copy_results(small_results, tmp_path / "one",
                           keep=lambda r: r["case"]["id"] == "bead|pymunk/pin|dt=0.003")
     page = PageStructure(render(load_report_data(single)))
-    assert [s.id for s in page.sections] == ["top", "verdict", "run", "scene-0", "problems", "how-to-read"]
+    assert [s.id for s in page.sections] == ["top", "summary", "verdict", "run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
     # One point: nothing to fit an order to, but every plot still draws its one variant;
     # the force, phase and paths plots add the reference's, stored in the record beside the engine's.
@@ -274,7 +275,7 @@ def test_an_empty_or_unfinished_run_renders(small_results, tmp_path):
     empty = copy_results(small_results, tmp_path / "empty", keep=lambda r: False, change_header=unfinished)
     html = render(load_report_data(empty))
     assert "not finished" in html
-    assert [s.id for s in PageStructure(html).sections] == ["top", "verdict", "run", "problems", "how-to-read"]
+    assert [s.id for s in PageStructure(html).sections] == ["top", "summary", "verdict", "run", "problems", "how-to-read"]
 
 
 def test_missing_metrics_and_series_render(small_results, tmp_path):
@@ -291,7 +292,7 @@ def test_missing_metrics_and_series_render(small_results, tmp_path):
 
 
 def test_chosen_dt_is_the_smallest_with_the_most_ok_variants(small_results):
-    from compare.results.store import load_results
+    from compare.run.results import load_results
 
     scene_sweeps = [s for s in sweeps(load_results(small_results).records) if s.scene_id == "bead"]
     assert choose_dt(scene_sweeps, [1e-2, 3e-3, 1e-3]) == 1e-3
@@ -363,8 +364,13 @@ def test_write_report_reports_size_and_time(small_results, tmp_path):
 # -- the verdict section --------------------------------------------------------------------------
 
 
+def _unbroken(html: str) -> str:
+    """``html`` without the spans that keep each number on one line (reports.render.unbroken_numbers)."""
+    return re.sub(r'<span class="num">([^<]*)</span>', r"\1", html)
+
+
 def _answers(html: str) -> list[str]:
-    return [re.sub(r"\s+", " ", m) for m in re.findall(r'<p class="answer">(.*?)</p>', html, re.S)]
+    return [re.sub(r"\s+", " ", m) for m in re.findall(r'<p class="answer">(.*?)</p>', _unbroken(html), re.S)]
 
 
 def test_the_verdict_compares_the_suites_first_family_unless_told_otherwise(small_results):
@@ -401,7 +407,7 @@ def test_a_stored_probe_result_lists_hidden_dissipation(small_results, tmp_path)
         {"engine": "pymunk/pin", "scene": "bead", "rate": 0.0123, "uncertainty": 0.001, "hidden_dissipation": True}))
     (results / "probe-mujoco.json").write_text(json.dumps(
         {"engine": "mujoco/hinge-rk4", "scene": "bead", "rate": 1e-9, "uncertainty": 1e-9, "hidden_dissipation": False}))
-    html = render(load_report_data(results))
+    html = _unbroken(render(load_report_data(results)))
     items = re.findall(r'<li data-engine="([^"]+)" data-status="hidden dissipation">(.*?)</li>', html, re.S)
     assert [engine for engine, _ in items] == ["pymunk/pin"]  # bead only: pymunk does not run the 3-D scene
     assert "(0.012 E*/s)" in items[0][1]
@@ -434,3 +440,17 @@ def test_each_scenes_verdict_is_computed_once_per_report(small_results, monkeypa
     data = load_report_data(small_results)
     render(data)
     assert sorted(calls) == sorted(scene.scene_id for scene in data.scenes if scene.sweeps)
+
+
+#: Characters drawn as emoji by default (Unicode Emoji_Presentation): the page must need no emoji font.
+_EMOJI = re.compile("[\u231a\u231b\u23e9-\u23f3\u23f8-\u23fa\u25fd\u25fe\u2614\u2615\u2648-\u2653\u267f\u2693\u26a1"
+                    "\u26aa\u26ab\u26bd\u26be\u26c4\u26c5\u26ce\u26d4\u26ea\u26f2\u26f3\u26f5\u26fa\u26fd\u2705"
+                    "\u270a\u270b\u2728\u274c\u274e\u2753-\u2755\u2757\u2795-\u2797\u27b0\u27bf\u2b1b\u2b1c\u2b50"
+                    "\u2b55\U0001f000-\U0001faff]")
+
+
+def test_the_page_needs_no_emoji_font_and_its_inline_plots_are_named(small_results):
+    html = render(load_report_data(small_results))
+    assert _EMOJI.findall(html) == []
+    svgs = re.findall(r"<svg\b[^>]*>", html)
+    assert svgs and all(re.search(r'aria-label="[^"]{20,}"', svg) for svg in svgs)

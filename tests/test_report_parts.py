@@ -119,3 +119,53 @@ def test_the_time_series_shade_the_run_past_the_reference_horizon(tmp_path):
     assert "Shaded from t = 0.6 s: past the reference horizon" in shaded.caption
     plain = next(p for p in scene_plots(scenes["bead"], 0) if p.id.endswith("-ts"))
     assert "shapes" not in plain.figure["layout"] and "horizon" not in plain.caption
+
+
+def test_si_prefixes_round_first_and_never_break():
+    from reports.numbers import si
+
+    assert si(1.28e-3, "s/s") == "1.3\u00a0ms/s"
+    assert si(2.8e-10, "m") == "280\u00a0pm"  # never "2.8e+02 pm"
+    assert si(999.96, "m") == "1\u00a0km"  # rounding carries to the next prefix
+    assert si(0.0, "m") == "0\u00a0m" and si(None, "m") == "–" and si(math.inf, "m") == "–"
+
+
+def test_the_summary_names_an_import_that_disagrees_with_the_links_at_fault():
+    from reports.overview import import_findings
+
+    # As reports.parity.parity_view lays out `xval model check`'s JSON for the Panda (compare/model/diagnosis.py).
+    parity = {"reference": "pinocchio 4.1.0", "rows": [
+        {"engine": "mujoco", "agrees": False, "message": "", "cells": [{"value": 0.3}],
+         "diagnosis": ["links panda_link8, panda_grasptarget: mass 0 with inertia 0.1 kg·m² — mujoco drops the inertia"]},
+        {"engine": "pybullet", "agrees": True, "message": "", "cells": [{"value": 1e-12}], "diagnosis": []},
+        {"engine": "drake", "agrees": False, "message": "", "cells": [{"value": 0.2}],
+         "diagnosis": ["link panda_link8: mass 0 with inertia 0.1 kg·m² — drake gives it 1 kg"]},
+    ]}
+    found = import_findings(3, "panda", parity, ran={"mujoco", "pybullet"})
+    assert [(f.engine, f.href) for f in found] == [("mujoco", "#parity-3"), ("drake", "#parity-3")]
+    assert found[0].text == ("disagrees with pinocchio 4.1.0 on this file: panda_link8, panda_grasptarget; "
+                             "its error below reflects the import, not the stepping")
+    assert found[1].text.endswith("panda_link8 (not in this run)")
+
+
+def test_the_animation_view_leaves_out_a_runaway_link_of_a_model():
+    from reports.animation import runaway
+
+    # An arm's links within 0.6 m of the base; a free finger falls 6 m (the Panda's in issue 44).
+    frames = [[[0.1, 0.3], [0.3, 0.5], [0.5, 0.4], [0.6, 0.2], [0.55, 0.2 - 6.0 * t]] for t in (0.0, 0.5, 1.0)]
+    assert runaway([{"positions": frames}], model=True) == {4}
+    assert runaway([{"positions": frames}], model=False) == set()  # a catalog scene's particles all count
+
+
+def test_the_verdict_plot_names_its_picks_without_overlap_and_has_an_accessible_name():
+    import re
+
+    series = [Series("a/x", "#0072b2", "a", [(1e-3, 1e-4, "a/x: dt 0.01 s")], symbol="circle"),
+              Series("b/y", "#e69f00", "b", [(1.05e-3, 1.02e-4, "b/y: dt 0.01 s")], symbol="square")]
+    svg = str(loglog_svg(series, [], x_title="cost", y_title="error", picks=[(1e-3, 1e-4, "a/x"),
+                                                                             (1.05e-3, 1.02e-4, "b/y")],
+                         label="Scene s: error against cost"))
+    assert 'aria-label="Scene s: error against cost"' in svg
+    assert svg.count("<polygon") == 1 and svg.count("<circle") == 1  # one marker shape per family
+    baselines = [float(y) for y in re.findall(r'<text class="pick" x="[^"]+" y="([^"]+)"', svg)]
+    assert len(baselines) == 2 and abs(baselines[0] - baselines[1]) >= 13  # the second label moved below the first

@@ -16,8 +16,8 @@ import subprocess
 
 from compare.gate.baseline import build_baseline, load_baseline
 from compare.gate.gate import gate_results
-from compare.results.store import load_results
-from compare.suite.tolerance import GateSettings
+from compare.run.results import load_results
+from compare.suite.gate_rules import GateSettings
 from conftest import ROOT, XVAL
 
 SUITE = ROOT / "suites" / "smoke.toml"

@@ -14,7 +14,7 @@ from engines.errors import UserError
 
 from compare.stability.gainmap import load_gainmap, run_gainmap
 from ours.stability import critical_limit, largest_stable_dt, spectral_radius, theory_stable
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.run.runner import run_suite
 from compare.stability.search import (
     BOUNDED,

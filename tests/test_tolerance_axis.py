@@ -14,7 +14,7 @@ import importlib.util
 import numpy as np
 import pytest
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.results.sweep import sweeps
 from compare.run.runner import plan, run_suite
 from compare.suite.reader import parse_suite

@@ -14,7 +14,7 @@ import re
 import pytest
 
 from compare.results.record import CaseRecord
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.results.sweep import sweeps
 from compare.results.verdict import (
     best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, pareto_front, problems, scene_verdicts,

@@ -203,7 +203,7 @@ def test_a_run_without_cpu_times_gets_the_same_resolution_as_a_modelled_one():
     # Its interval must be as wide as a fitted model's least (RESOLUTION either side), not zero-width,
     # or two variants a timing's noise apart would never tie.
     from compare.results.cost import RESOLUTION, cpu_times, modelled
-    from compare.results.store import load_results
+    from compare.run.results import load_results
 
     records = load_results(Path(__file__).parent / "fixtures" / "run-v1-smoke").records
     assert records and all(cpu_times(r) == [] for r in records)

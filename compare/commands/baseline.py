@@ -7,8 +7,9 @@ import click
 from compare.cli import output_path
 
 from compare.gate.baseline import build_baseline, write_baseline
-from compare.results.files import check_writable, results_inputs
-from compare.results.store import load_results
+from engines.files import check_writable
+from compare.results.store import results_inputs
+from compare.run.results import load_results
 
 
 @click.command("baseline")

@@ -9,13 +9,14 @@ import click
 from engines.errors import UserError
 
 from compare.gate.baseline import build_baseline, load_baseline
-from compare.results.files import atomic_write_text, check_writable, results_inputs
+from engines.files import atomic_write_text, check_writable
+from compare.results.store import results_inputs
 from compare.gate.gate import TIMING_MODES, gate_results
 from compare.gate.report import format_table, to_markdown
 from compare.cli import history_option
 from compare.history.window import DEFAULT_WINDOW, history_baseline
 from compare.gate.junit import to_junit
-from compare.results.store import load_results
+from compare.run.results import load_results
 
 
 @click.command("gate")

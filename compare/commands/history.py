@@ -18,7 +18,7 @@ from compare.cli import history_option
 from compare.history.location import DEFAULT_LOCATION, LOCATION_VARIABLE
 from compare.history.origin import given_origin, recorded_origin, tree_origin
 from compare.history.store import AlreadyRecorded, History, StoredRun, baseline_of
-from compare.results.store import Results, load_results
+from compare.run.results import Results, load_results
 
 HISTORY_HELP = (f"The history: a SQLite file, or a postgresql:// URL (default: ${LOCATION_VARIABLE}, "
                 f"else {DEFAULT_LOCATION}).")

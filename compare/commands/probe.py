@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from compare.cli import engine_option_option, param_option, parse_assignments, scene_from_params
-from compare.results.files import atomic_write_text, check_writable
+from engines.files import atomic_write_text, check_writable
 from compare.stability.dissipation import DEFAULT_DTS, DEFAULT_DURATION, Dissipation, probe
 from engines import registry
 from engines.errors import UserError

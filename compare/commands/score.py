@@ -7,7 +7,7 @@ import json
 import click
 
 from compare.cli import model_option, output_path, param_option, parse_assignments, scene_from_params
-from compare.results.files import STDOUT, atomic_write_text, check_writable
+from engines.files import STDOUT, atomic_write_text, check_writable
 from compare.results.metrics import DEFAULT_DELTA
 from compare.results.score import score
 from engines.errors import UserError

@@ -5,9 +5,10 @@ from __future__ import annotations
 import click
 
 from compare.cli import output_path
-from compare.results.files import STDOUT, atomic_write_text, check_writable, results_inputs
+from engines.files import STDOUT, atomic_write_text, check_writable
+from compare.results.store import results_inputs
 
-from compare.results.store import load_results
+from compare.run.results import load_results
 from compare.results.table import scene_tables, to_csv, to_json
 from compare.results.verdict import scene_verdicts
 from compare.results.verdict_format import format_verdicts

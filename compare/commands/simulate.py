@@ -12,8 +12,9 @@ import numpy as np
 
 from compare.cli import Seconds, engine_option_option, model_option, output_path, param_option, parse_assignments, scene_from_params
 from compare.results.export import trajectory_columns, trajectory_csv
-from compare.results.files import STDOUT, atomic_write_text, check_writable
-from compare.results.metrics import Bounds, apply_bounds, largest, relative_drift
+from engines.files import STDOUT, atomic_write_text, check_writable
+from compare.results.measure import apply_bounds
+from compare.results.metrics import Bounds, largest, relative_drift
 from engines import registry
 from engines.adapter import DEFAULT_SAMPLE_INTERVAL, check_time_step
 from engines.external.command import command_engine
@@ -61,10 +62,12 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
                    f"{Bounds.constraint_error:g}); repeatable.")
 @click.option("--output", required=True, callback=output_path,
               help="CSV file to write, or - for standard output (the summary then goes to standard error).")
+@click.option("--lock", "lock", multiple=True, metavar="JOINT",
+              help="With --model: weld JOINT at its initial value (repeatable), e.g. a gripper's fingers.")
 @click.option("--verbose", "-v", is_flag=True,
               help="Also show what the engine's library printed while it ran (its first and last lines).")
 def command(scene_name, model, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
-            output, verbose) -> None:
+            output, lock, verbose) -> None:
     """Simulate SCENE with one engine and write one CSV row per sample.
 
     What the engine's library prints while it runs (C/C++ warnings, Python
@@ -77,8 +80,10 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
     overrides = parse_assignments(params, "--param")
     if (scene_name is None) == (model is None):
         raise UserError("give a catalog SCENE (see 'xval scenes') or --model MODEL, one of them")
+    if lock and model is None:
+        raise UserError("--lock welds joints of a model; give --model MODEL")
     if model is not None:
-        scene = _model_scene(model, overrides, duration)
+        scene = _model_scene(model, overrides, duration, lock)
     else:
         if duration is not None:
             overrides["duration"] = duration
@@ -159,21 +164,26 @@ def _split(program: str) -> list[str]:
     return argv
 
 
-def _model_scene(model: str, overrides: dict[str, str], duration: str | None):
+def _model_scene(model: str, overrides: dict[str, str], duration: str | None, lock: tuple[str, ...] = ()):
     """The model scene of ``--model`` with ``--param q0.JOINT=VALUE`` / ``v0.JOINT=VALUE`` (degrees or metres,
-    rad/s or m/s); UserError naming a parameter that is neither."""
+    rad/s or m/s) and ``--param g=VALUE`` (m/s²); UserError naming a parameter that is none of these."""
     from engines.model.scene import DEFAULT_DURATION, model_scene
+    from engines.model.loaded import GRAVITY
 
     state: dict[str, dict[str, str]] = {"q0": {}, "v0": {}}
+    gravity: str | float = GRAVITY
     for name, value in overrides.items():
+        if name == "g":
+            gravity = value
+            continue
         kind, _, joint = name.partition(".")
         if kind not in state or not joint:
-            raise UserError(f"--param {name}: a model takes q0.JOINT=VALUE (degrees, metres for prismatic joints) "
-                            f"and v0.JOINT=VALUE (rad/s, m/s)")
+            raise UserError(f"--param {name}: a model takes q0.JOINT=VALUE (degrees, metres for prismatic joints), "
+                            f"v0.JOINT=VALUE (rad/s, m/s) and g=VALUE (m/s²)")
         state[kind][joint] = value
     try:
         seconds = DEFAULT_DURATION if duration is None else float(duration)
     except ValueError:
         raise UserError(f"--duration must be a number of seconds, got {duration!r}") from None
     return model_scene(Path(model.partition(":")[2] or model).stem, model, q0=state["q0"], v0=state["v0"],
-                       duration=seconds)
+                       duration=seconds, g=gravity, lock=lock)

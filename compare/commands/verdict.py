@@ -7,8 +7,9 @@ import json
 import click
 
 from compare.cli import output_path
-from compare.results.files import STDOUT, atomic_write_text, check_writable, results_inputs
-from compare.results.store import load_results
+from engines.files import STDOUT, atomic_write_text, check_writable
+from compare.results.store import results_inputs
+from compare.run.results import load_results
 from compare.results.verdict import default_focus, families, scene_verdicts
 from compare.results.verdict_format import format_verdicts, verdict_document
 from engines.errors import UserError

@@ -7,7 +7,7 @@ case record by :func:`compare.gate.entry.entry_of`. :class:`Baseline` is the
 typed document a gate compares: a baseline file, the current results, or a
 window of the history's runs.
 
-Details: docs/architecture.md, "Module notes", ``compare/gate/baseline.py``.
+Details: docs/gate.md, "Module notes", ``compare/gate/baseline.py``.
 """
 
 from __future__ import annotations
@@ -20,8 +20,9 @@ from typing import Any, Mapping
 from engines.errors import UserError
 
 from compare.gate.entry import BaselineEntry, EntryError, entry_of, record_key
-from compare.results.files import atomic_write_text, read_user_text
-from compare.results.store import Results, jsonable, now
+from engines.files import atomic_write_text, read_user_text
+from compare.results.store import jsonable, now
+from compare.run.results import Results
 
 #: Bump when a field of the baseline file changes meaning.
 BASELINE_SCHEMA_VERSION = 1

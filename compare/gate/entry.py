@@ -20,7 +20,7 @@ from engines.errors import UserError
 from compare.results.declared import current_names
 from compare.results.record import CaseRecord, Status
 from compare.results.sweep import VariantSweep
-from compare.suite.tolerance import RULES, TIMING_METRIC
+from compare.suite.gate_rules import RULES, TIMING_METRIC
 
 
 def case_key(scene_id: str, scene_hash: str, engine: str, variant: str | None, options: Mapping[str, Any] | None,
@@ -120,7 +120,7 @@ class BaselineEntry:
     The key's parts (scene id and content hash, engine label, engine id, variant, options, dt s),
     position : (scene, engine, dt) indices in suite order; engine_version : the engine that ran
     it (another version is "not comparable"); status, message; metrics : the gated metrics
-    (compare.suite.tolerance.RULES, observed_order among them), None when the case has none;
+    (compare.suite.gate_rules.RULES, observed_order among them), None when the case has none;
     consistent, consistency : its variant's verdict; timing : None when not timed.
     """
 

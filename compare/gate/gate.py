@@ -7,7 +7,7 @@ by the noise measured in both runs; a changed scene, option set or engine versio
 Everything here is a pure function of two :class:`~compare.gate.baseline.Baseline` documents, so the
 rules are tested without running anything.
 
-Details: docs/architecture.md, "Module notes", ``compare/gate/gate.py``.
+Details: docs/gate.md, "Module notes", ``compare/gate/gate.py``.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from engines.errors import UserError
 from compare.gate.baseline import MACHINE_FIELDS, Baseline
 from compare.gate.entry import BaselineEntry, Timing, case_name
 from compare.results.declared import Metric
-from compare.suite.tolerance import RULES, TIMING_METRIC, GateSettings
+from compare.suite.gate_rules import RULES, TIMING_METRIC, GateSettings
 from compare.results.record import PROBLEMS, Status
 
 #: Case outcomes, in the order a table lists them (most urgent first).
@@ -88,7 +88,7 @@ class GateReport:
     timing: str
     timing_note: str = ""
     notes: tuple[str, ...] = ()
-    #: True when the missing cases fail the gate (the rule: docs/architecture.md, "Module notes").
+    #: True when the missing cases fail the gate (the rule: docs/gate.md, "Module notes").
     missing_fails: bool = False
 
     @property
@@ -237,7 +237,7 @@ def _limit(factor: float, base_runs: Sequence[float], median: float, base_spread
 
 
 def cpu_timing_change(baseline: Timing, current: Timing, factor: float, gated: bool, why_not: str = "") -> Change:
-    """The statistical timing rule (docs/architecture.md, "Module notes") on two timing entries with "cpu"
+    """The statistical timing rule (docs/gate.md, "Module notes") on two timing entries with "cpu"
     and "calibration".
 
     Against one run: worse when best(current) > best(baseline) · factor · (1 + s_b + s_c), bests of the
@@ -314,7 +314,7 @@ def variant_timings(base: Mapping[str, BaselineEntry], current: Mapping[str, Bas
     """Per engine label, the variant's timing over its cases ok and calibrated on both sides: the current
     run's per-step cost against the baseline's (:func:`variant_ratio`); worse past max(factor, the window's
     spread over its runs × the current run's repeat spread), against one baseline run past factor ·
-    (1 + s_b + s_c) (docs/architecture.md, "Module notes", compare/gate/gate.py)."""
+    (1 + s_b + s_c) (docs/gate.md, "Module notes", compare/gate/gate.py)."""
     pairs: dict[str, list[tuple[BaselineEntry, BaselineEntry]]] = {}
     for key, entry in current.items():
         old = base.get(key)

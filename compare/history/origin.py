@@ -9,7 +9,7 @@ The commit is the one recorded when the run was made whenever possible:
   (the xval checkout that made the run, recorded at run time), or the
   ``--commit`` given (a suite kept in another repository, added later).
 
-Details: docs/architecture.md, "Module notes", ``compare/history/origin.py``.
+Details: docs/history.md, "Module notes", ``compare/history/origin.py``.
 """
 
 from __future__ import annotations

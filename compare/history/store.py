@@ -9,7 +9,7 @@ ever changed or deleted: the tables carry triggers that abort any UPDATE or
 DELETE, so appending a run cannot alter an earlier one, whatever the code
 that appends does.
 
-Details: docs/architecture.md, "Module notes", ``compare/history/store.py``.
+Details: docs/history.md, "Module notes", ``compare/history/store.py``.
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from compare.history.location import parse
 from compare.history.origin import Machine, Origin, machine_of
 from compare.results.declared import current_names
 from compare.results.record import CaseRecord
-from compare.results.store import Results, now
+from compare.results.store import now
+from compare.run.results import Results
 
 #: Version of the tables; bump it and append a migration when they change.
 SCHEMA_VERSION = 1

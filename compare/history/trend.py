@@ -5,7 +5,7 @@ Steps are found by binary segmentation with a two-sample test against a robust n
 gate would call worse or better. Accuracy series (σ = 0) step at the first changed run; timing
 series need MIN_NOISY_RUNS runs, NOISY_SEGMENT runs a side and SIGMAS · σ.
 
-Details: docs/architecture.md, "Module notes", ``compare/history/trend.py``.
+Details: docs/history.md, "Module notes", ``compare/history/trend.py``.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ It builds a baseline from the stored entries of a window of runs and hands it to
 :func:`compare.gate.gate.gate_results`, so every rule is the gate's own; only the baseline each
 case is held to changes.
 
-Details: docs/architecture.md, "Module notes", ``compare/history/window.py``.
+Details: docs/history.md, "Module notes", ``compare/history/window.py``.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from typing import Any, Sequence
 from compare.gate.baseline import Baseline
 from compare.gate.entry import BaselineEntry, Timing, engine_version, record_key
 from compare.results.record import Status
-from compare.suite.tolerance import RULES
+from compare.suite.gate_rules import RULES
 from compare.history.origin import machine_of
 from compare.history.store import History, StoredRun
-from compare.results.store import Results
+from compare.run.results import Results
 
 #: Runs in the window when --window is not given.
 DEFAULT_WINDOW = 5
@@ -98,7 +98,7 @@ def combine(entries: Sequence[BaselineEntry], current_version: str | None) -> Ba
 
 
 def window_baseline(history: History, results: Results, size: int = DEFAULT_WINDOW) -> Window:
-    """The baseline of the window for ``results`` (what each case is held to: docs/architecture.md, "Module notes")."""
+    """The baseline of the window for ``results`` (what each case is held to: docs/history.md, "Module notes")."""
     machine = machine_of(results.header)
     suite = str((results.header.get("suite") or {}).get("name", ""))
     runs = window_runs(history, results, size)

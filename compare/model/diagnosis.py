@@ -7,8 +7,10 @@ file's links are combined the same way before comparing, and when the
 group differs, known importer habits (dropping the inertia of massless
 links, giving links 1 kg and 1 kg·m²) are tried on its suspicious members
 to name them. Only links that move count: the rest cannot change M or b.
-Differences below 1e-6 of the model's scales (total moving mass M, reach L,
-M·L²) are round-off.
+A difference counts when it can change an entry of M by more than
+DIAGNOSED (a tenth of the check's tolerance) of M's scale S_M: an inertia
+by ΔI, a mass by Δm·L², a centre of mass by about m·L·Δc (L the reach);
+without S_M, the scale is the moving mass times L².
 """
 
 from __future__ import annotations
@@ -17,11 +19,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from compare.model.tolerance import DIAGNOSED
 from engines.model.description import ModelDescription
 from engines.model.inertia import LinkInertia, combine, description_inertias
 
-#: Relative size (of the model's mass, length and inertia scales) below which a difference is round-off.
-RELATIVE = 1e-6
+#: Relative size (of the model's mass, length and inertia scales) below which a difference is not named.
+RELATIVE = DIAGNOSED
 
 
 @dataclass(frozen=True)
@@ -44,11 +47,15 @@ class Scales:
         return self.mass * self.length ** 2
 
 
-def scales(model: ModelDescription, file: dict[str, LinkInertia]) -> Scales:
+def scales(model: ModelDescription, file: dict[str, LinkInertia], m_scale: float | None = None) -> Scales:
+    """The model's scales; with ``m_scale`` (S_M, the largest |M| entry of the reference) the mass scale is
+    S_M / L², so that the inertia scale is S_M itself."""
     moving = model.moving_links
+    reach = float(max([np.linalg.norm(file[name].com) for name in moving] + [0.01]))
+    if m_scale is not None and m_scale > 0:
+        return Scales(m_scale / reach ** 2, reach)
     mass = sum(file[name].mass for name in moving) or 1.0
-    reach = max([np.linalg.norm(file[name].com) for name in moving] + [0.01])
-    return Scales(mass, float(reach))
+    return Scales(mass, reach)
 
 
 def differs(engine: LinkInertia, file: LinkInertia, scale: Scales) -> tuple[bool, bool, bool]:
@@ -94,10 +101,11 @@ HABITS = (
 )
 
 
-def diagnose(model: ModelDescription, engine: dict[str, LinkInertia]) -> list[Finding]:
-    """What the engine holds differently from the file, link by link (or group by group when it fused them)."""
+def diagnose(model: ModelDescription, engine: dict[str, LinkInertia], m_scale: float | None = None) -> list[Finding]:
+    """What the engine holds differently from the file, link by link (or group by group when it fused them).
+    m_scale : kg·m², the largest |M| entry of the reference over the sample (see :func:`scales`)."""
     file = description_inertias(model)
-    scale = scales(model, file)
+    scale = scales(model, file, m_scale)
     moving = set(model.moving_links)
     groups: dict[str, list[str]] = {}
     findings: list[Finding] = []
@@ -176,3 +184,15 @@ def sentences(per_engine: dict[str, list[Finding]]) -> list[str]:
             lines.setdefault((tuple(links), says), []).append(f"{engine} {does.format(it=pronoun)}")
     return [f"{'links' if len(links) > 1 else 'link'} {', '.join(links)}: {says} — {', '.join(doers)}"
             for (links, says), doers in lines.items()]
+
+
+#: What each compared quantity is called in a diagnosis line.
+QUANTITY_NAMES = {"mass_matrix": "M", "bias": "the bias", "forward": "the forward dynamics"}
+
+
+def unexplained(model: ModelDescription, quantity: str, row: int) -> str:
+    """The line of a disagreement no link's mass properties explain: where its largest difference is.
+    row : the index of the moving joint (q's order) whose entry differs most."""
+    joint = model.moving_joints[row]
+    return (f"cause not found: largest difference at joint {joint.name}, link {joint.child} "
+            f"(in {QUANTITY_NAMES[quantity]})")

@@ -5,7 +5,7 @@ order log(e₂/e₁)/log(dt₂/dt₁) between the two finest points is below MIN
 consistent: no plateau, or one explained (the reference's error bar, a declared precision floor,
 the tolerance); inconsistent: a plateau above all of these; None with fewer than two ok points.
 
-Details: docs/architecture.md, "Module notes", ``compare/results/consistency.py``.
+Details: docs/report.md, "Module notes", ``compare/results/consistency.py``.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ REFERENCE_MARGIN = 10.0
 
 @dataclass(frozen=True)
 class Consistency:
-    """consistent : True, False or None (docs/architecture.md, "Module notes"); reason : one line saying why.
+    """consistent : True, False or None (docs/report.md, "Module notes"); reason : one line saying why.
 
     plateau : m, the error the variant stopped at (None: still falling, or not judged).
     """

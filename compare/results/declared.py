@@ -22,6 +22,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from engines.scene.scene import SceneLike
+from engines.scene.trajectory import momentum_drift
+
+from compare.results.metrics import CaseMetrics
+
 #: Relative tolerance shared by the accuracy metrics. 10 %: far above the
 #: cross-machine round-off of a deterministic run (~1e-12 relative on these
 #: short scenes, up to ~1e-6 where a chaotic scene amplifies it), far below
@@ -46,7 +51,7 @@ class MetricInputs:
     reference_positions : (n, P, 3) m at the trajectory's times; position_error : (n,) m.
     """
 
-    scene: Any
+    scene: SceneLike
     trajectory: Any
     reference_positions: np.ndarray
     position_error: np.ndarray
@@ -150,10 +155,15 @@ _BUILT_IN = (
 
 
 def _momentum_drift(inputs: "MetricInputs") -> float | None:
-    from engines.scene.trajectory import momentum_drift
-
-    trajectory = inputs.trajectory
-    return momentum_drift(inputs.scene, trajectory.positions, trajectory.velocities)
+    trajectory, scene = inputs.trajectory, inputs.scene
+    drift = getattr(scene, "momentum_drift", None)
+    if getattr(scene, "is_model", False) and drift is not None:  # its root joints' momenta (docs/metrics.md)
+        states = trajectory.joint_states
+        if states is None or not np.isfinite(states).all():
+            return None
+        n = states.shape[1] // 2
+        return drift(states[:, :n], states[:, n:])
+    return momentum_drift(scene, trajectory.positions, trajectory.velocities)
 
 #: Every declared metric by name, in table order.
 METRICS: dict[str, Metric] = {m.name: m for m in _BUILT_IN}
@@ -207,8 +217,7 @@ def case_metrics() -> list[Metric]:
     """The per-case metrics in export order (exports have a column for each): the ones the runner computes
     itself in compare.results.metrics.CaseMetrics' field order (which CSV readers of earlier releases rely
     on), then the others in declaration order."""
-    from compare.results.metrics import CaseMetrics  # the dataclass is the order; no copy of it here
-
+    # CaseMetrics, the dataclass, is the order; no copy of it here.
     per_case = [m for m in METRICS.values() if m.per == "case"]
     rank = {f.name: k for k, f in enumerate(fields(CaseMetrics))}
     return sorted(per_case, key=lambda m: rank.get(m.name, len(rank)))

@@ -7,9 +7,8 @@ a file. Shapes: ``t (n,) s``, ``positions (n, P, 3) m``, ``velocities
 its first particle). Engine and reference are compared at the same sample
 times: the engine's own ``Trajectory.t``.
 
-The status rule for ``unstable`` (besides the non-finite state the adapter
-already flags) lives here too, in :func:`apply_bounds`, so it is a pure
-function with its own tests.
+The bounds an ``ok`` run must stay within (:class:`Bounds`) are declared here; the status they
+give is decided in :func:`compare.results.measure.decide_status`.
 """
 
 from __future__ import annotations
@@ -21,7 +20,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from engines.scene.scene import Scene
+from engines.scene.scene import Scene, SceneLike
 from engines.scene.trajectory import (
     Trajectory, max_constraint_error, total_energy, trajectory_constraint_error, trajectory_energy,
 )
@@ -198,7 +197,7 @@ class Series:
 
 
 def case_metrics(
-    scene: Scene,
+    scene: SceneLike,
     trajectory: Trajectory,
     reference_positions: np.ndarray,
     reference_forces: np.ndarray | None,
@@ -264,48 +263,32 @@ class Bounds:
     constraint_error: float = 0.1
 
 
-def apply_bounds(status: str, message: str, metrics: CaseMetrics, bounds: Bounds, scene: Scene) -> tuple[str, str]:
-    """The case's final (status, message).
-
-    Rules, in order: a status other than ``ok`` (``unstable`` from a
-    non-finite state, ``failed``, ``timeout``) is kept; an ``ok`` run whose
-    energy drift exceeds ``bounds.energy_drift`` (E*) or whose constraint
-    error exceeds ``bounds.constraint_error`` · L becomes ``unstable`` with a
-    message naming the metric, its value and the bound. Equal to the bound is
-    still ``ok``; a NaN metric is treated as past the bound.
-    """
-    if status != "ok":
-        return status, message
-    reasons = []
-    if not metrics.energy_drift <= bounds.energy_drift:
-        drift, bound = distinct(metrics.energy_drift, bounds.energy_drift)
-        reasons.append(f"energy drift {drift} E* exceeds the bound {bound} E*")
-    limit = bounds.constraint_error * scene.characteristic_length
-    if not metrics.constraint_error <= limit:
-        error, shown_limit = distinct(metrics.constraint_error, limit)
-        reasons.append(f"constraint error {error} m exceeds the bound {bounds.constraint_error:g} L = {shown_limit} m")
-    if reasons:
-        return "unstable", "; ".join(reasons)
-    return status, message
-
-
-def distinct(value: float, bound: float) -> tuple[str, str]:
-    """``value`` and ``bound`` printed with 3 significant digits, or more until they differ (up to 17), so a
-    value just past its bound never reads "1 exceeds the bound 1"."""
-    for digits in range(3, 18):
-        shown = f"{value:.{digits}g}", f"{bound:.{digits}g}"
-        if shown[0] != shown[1]:
-            return shown
-    return shown
-
-
 # -- across a dt sweep ---------------------------------------------------------------
 
 
 #: Errors below this fraction of L are treated as round-off, reference error or an engine's own floor
 #: (an engine's point-mass inertia sets one: MuJoCo's RK4 levels off near 2.6·ratio m on the bead, docs/engines.md;
-#: points near a floor bend the fitted slope).
+#: points near a floor bend the fitted slope): the floor where the reference's own error is unknown.
 ORDER_FLOOR = 1e-8
+#: Where the reference's error is measured, the floor is this multiple of it: an error ten times the
+#: reference's own is the engine's to within 10 % ...
+ORDER_REFERENCE_MARGIN = 10.0
+#: ... and never below this fraction of L, the round-off of a run of ~1e4 steps in double precision
+#: (1e4 · 1.1e-16 ≈ 1e-12).
+ORDER_ROUNDOFF = 1e-12
+#: Below ORDER_FLOOR · L a point counts only while the error still falls at least like dt to it from the
+#: next coarser dt (local order ≥ this; the coarsest dt: on to the next finer one): a level there is an
+#: engine's own floor, not convergence.
+ORDER_MIN_LOCAL = 1.0
+
+
+def order_floor(length: float, reference_error: float | None = None) -> float:
+    """The error (m) below which a sweep's points leave the asymptotic range: ORDER_REFERENCE_MARGIN times
+    ``reference_error`` (m) and at least ORDER_ROUNDOFF · ``length``; ORDER_FLOOR · ``length`` when the
+    reference's error is unknown (None, or not a positive finite number)."""
+    if reference_error is None or not math.isfinite(reference_error) or reference_error <= 0:
+        return ORDER_FLOOR * length
+    return max(ORDER_REFERENCE_MARGIN * reference_error, ORDER_ROUNDOFF * length)
 #: Errors above this fraction of L are treated as saturated (no longer asymptotic).
 ORDER_CEILING = 1e-1
 #: Fewest points an order is fitted to.
@@ -341,25 +324,48 @@ def observed_order(
     floor: float = ORDER_FLOOR,
     ceiling: float = ORDER_CEILING,
     min_points: int = ORDER_MIN_POINTS,
+    reference_error: float | None = None,
 ) -> OrderFit:
     """Slope of log error vs log dt over the asymptotic range.
 
     dts : s; errors : m (None or non-finite for runs that are not ``ok``);
     length : L in m, scaling ``floor`` and ``ceiling`` (fractions of L).
+    reference_error : m, the reference's own error bar; when given, the floor is
+    :func:`order_floor` instead (a multiple of it, not ``floor`` · L).
     The asymptotic range is the longest run of consecutive dts (in sorted
-    order) whose errors are finite and inside [floor·L, ceiling·L]: below the
+    order) whose errors are finite and inside [floor, ceiling·L]: below the
     floor the error is round-off or the reference's own error, above the
     ceiling it has saturated (a chaotic or unstable run no longer shrinks
-    with dt). Fewer than ``min_points`` points gives order None.
+    with dt). A point below ``floor`` · L (possible only with a reference
+    error) counts only while its error still falls with local order ≥
+    ORDER_MIN_LOCAL from the next coarser dt's (the coarsest dt: to the next
+    finer one). Fewer than ``min_points``
+    points gives order None.
     """
-    lo, hi = floor * length, ceiling * length
+    legacy = floor * length
+    lo = legacy if reference_error is None else order_floor(length, reference_error)
+    hi = ceiling * length
     pairs = sorted(
         (float(dt), (math.nan if err is None else float(err))) for dt, err in zip(dts, errors)
     )
+
+    def inside(k: int) -> bool:
+        err = pairs[k][1]
+        if not (math.isfinite(err) and lo <= err <= hi):
+            return False
+        if err >= legacy:
+            return True
+        # Its local order with the next coarser dt (the coarsest: with the next finer one).
+        (fine_dt, fine_err), (coarse_dt, coarse_err) = (pairs[k], pairs[k + 1]) if k + 1 < len(pairs) else (
+            (pairs[k - 1], pairs[k]) if k else (pairs[k], pairs[k]))
+        return (math.isfinite(fine_err) and math.isfinite(coarse_err) and coarse_err > fine_err > 0
+                and coarse_dt > fine_dt
+                and math.log(coarse_err / fine_err) / math.log(coarse_dt / fine_dt) >= ORDER_MIN_LOCAL)
+
     best: list[tuple[float, float]] = []
     current: list[tuple[float, float]] = []
-    for dt, err in pairs:
-        if math.isfinite(err) and lo <= err <= hi:
+    for k, (dt, err) in enumerate(pairs):
+        if inside(k):
             current.append((dt, err))
             if len(current) > len(best):
                 best = list(current)

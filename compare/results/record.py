@@ -6,45 +6,25 @@ Everything downstream — show, report, baseline, gate, history, stability —
 works on these objects, never on the raw dict, so a misspelt field is an
 AttributeError at once, not a silent None.
 
-Details: docs/architecture.md, "Module notes", ``compare/results/record.py``.
+Details: docs/running.md, "Module notes", ``compare/results/record.py``.
 """
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, TypedDict, Union
 
 from engines.errors import UserError
+from engines.scene.trajectory import Status  # the one status enum, from an engine's RunInfo up to the record
 from engines.stdio import EngineOutput
 
-from compare.results.declared import current_names
+from compare.results.declared import METRICS, current_names
 from compare.results.series import SeriesView
 
 #: Version of run.json and every case record; bump it when a field changes meaning.
 SCHEMA_VERSION = 1
-
-
-class Status(str, enum.Enum):
-    """How a case ended (the JSON spelling is the value).
-
-    ok : ran to the end inside the bounds (did not blow up; see ``consistent`` for "is right").
-    unstable : a non-finite state, or energy drift / constraint error past the suite's bounds.
-    failed : the engine raised or its process died.
-    timeout : ran past the case timeout and was killed.
-    skipped : left out (the engine cannot express the scene, or is not installed); message says why.
-    """
-
-    OK = "ok"
-    UNSTABLE = "unstable"
-    FAILED = "failed"
-    TIMEOUT = "timeout"
-    SKIPPED = "skipped"
-
-    def __str__(self) -> str:  # f"{status}" gives "ok", as the JSON does
-        return self.value
 
 
 #: The statuses of a case that went wrong: listed as problems, counted as not ok while running, and
@@ -73,6 +53,47 @@ def check_schema(data: Any, path: str | Path) -> None:
             f"{path}: results schema version {version!r}, but this xval reads version {SCHEMA_VERSION}; "
             f"re-run the suite with this xval (xval run SUITE --output NEW_DIR)"
         )
+
+
+#: A metric's value as stored: a number, a flag (``complete``), or None (not measured, or not finite).
+MetricValue = Union[float, int, bool, None]
+
+
+class RunInfoFields(TypedDict, total=False):
+    """A record's ``run_info``: engines.scene.trajectory.RunInfo.to_dict() as stored (JSON values)."""
+
+    engine: str
+    variant: str
+    engine_version: str
+    dt: float
+    steps: int
+    wall_time: float
+    status: str
+    message: str
+    #: Free-form: the engine's own option names and values (and ``override.*``, what the adapter changed).
+    settings: dict[str, Any]
+    cpu_time: float
+
+
+class ReferenceFields(TypedDict, total=False):
+    """A record's ``reference``: how the scene's reference was solved, and its own error bar.
+
+    rtol, atol : the solve's tolerances; steps : its steps; wall_time : s. With a bound (the
+    tighter second solve): reference_error (m), tight_rtol, horizon_threshold (m),
+    reference_horizon_interval ([low, high] s), lyapunov_exponent (1/s, the ensemble's median; None when
+    the scene is not chaotic) and lyapunov_interval ([low, high] 1/s).
+    """
+
+    rtol: float
+    atol: float
+    steps: int
+    wall_time: float
+    reference_error: float
+    tight_rtol: float
+    horizon_threshold: float
+    reference_horizon_interval: list[float] | None
+    lyapunov_exponent: float | None
+    lyapunov_interval: list[float] | None
 
 
 @dataclass(frozen=True)
@@ -122,20 +143,22 @@ class CaseRecord:
     series : name -> values; a record the runner holds keeps its rounded arrays in a SeriesView.
     engine_output : what the engine's library printed during the case (engines.stdio.EngineOutput.to_dict:
         ``lines``, ``first``, ``last``), captured in its case host; None when it printed nothing.
+    scene : free-form, the scene's own document (engines.scene.scene.Scene.to_dict()), kept for the report.
+    extra : free-form, fields of the file this xval does not know (kept, written back as they were).
     """
 
     case: CaseKey
     status: Status
     message: str
-    metrics: Mapping[str, Any]
-    run_info: Mapping[str, Any] | None
+    metrics: Mapping[str, MetricValue]
+    run_info: RunInfoFields | None
     wall_times: tuple[float, ...]
     elapsed: float
     scene: Mapping[str, Any]
     scene_hash: str
     characteristic: Characteristic
     series: Mapping[str, Any] | None
-    reference: Mapping[str, Any] | None
+    reference: ReferenceFields | None
     finished: str
     consistent: bool | None = None
     consistency: str = ""
@@ -173,8 +196,6 @@ class CaseRecord:
 
     def metric(self, name: str) -> Any:
         """The value of declared metric ``name`` (None when this case has none); KeyError for an undeclared name."""
-        from compare.results.declared import METRICS
-
         if name not in METRICS and name not in ("n_samples", "complete"):
             raise KeyError(f"{name!r} is not a declared metric (compare/results/declared.py)")
         return self.metrics.get(name)
@@ -271,7 +292,7 @@ class CaseRecord:
             status=status,
             message=str(data.get("message") or ""),
             metrics=current_names(metrics),  # the names an earlier release wrote read as today's
-            run_info=reader.optional_mapping(data, "run_info"),
+            run_info=reader.optional_mapping(data, "run_info"),  # type: ignore[arg-type]
             wall_times=tuple(float(w) for w in reader.sequence(data, "wall_times", default=())),
             elapsed=float(data.get("elapsed") or 0.0),
             scene=reader.mapping(data, "scene"),
@@ -281,7 +302,7 @@ class CaseRecord:
                 reader.number(characteristic, "characteristic.energy"),
             ),
             series=reader.optional_mapping(data, "series"),
-            reference=reader.optional_mapping(data, "reference"),
+            reference=reader.optional_mapping(data, "reference"),  # type: ignore[arg-type]
             finished=str(data.get("finished") or ""),
             consistent=consistent,
             consistency=str(data.get("consistency") or ""),

@@ -19,8 +19,9 @@ from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE
 from engines.errors import UserError
 from engines.reference.reference import DEFAULT_ATOL, DEFAULT_RTOL, solve
+from engines.model.scene import ModelScene
 from engines.scene.scene import Scene
-from engines.scene.trajectory import RunInfo, Trajectory
+from engines.scene.trajectory import RunInfo, Status, Trajectory
 
 from compare.results import declared
 from compare.results.metrics import DEFAULT_DELTA, case_metrics
@@ -68,7 +69,7 @@ def load(path: str | Path, scene: Scene) -> Loaded:
     return loaded
 
 
-def _load_model_run(where: str, table: protocol.Table, scene: Any) -> Loaded:
+def _load_model_run(where: str, table: protocol.Table, scene: ModelScene) -> Loaded:
     """A model run's file: its joint columns, and the link frames computed from them (rows up to the
     first non-finite one); UserError when row 0 is not the scene's (q0, v0)."""
     from compare.results.model_csv import joint_states
@@ -155,14 +156,14 @@ def _row(item: Loaded, scene: Scene, solution: Any, delta: float) -> dict[str, A
                                                               series.position_error))
     values = {**metrics.to_dict(), **computed}
     extra = [name for name in computed if name not in SCORE_METRICS]
-    status, message = "ok", ""
+    status, message = Status.OK, ""
     if first_bad is not None:
-        status = "unstable"
+        status = Status.UNSTABLE
         message = f"non-finite state at t = {state.t[first_bad]:.6g} s (line {int(item.lines[first_bad])})"
     return {
         "file": item.path,
         "scene": scene.name,
-        "status": status,
+        "status": status.value,
         "message": message,
         "n_samples": int(n),
         "t_end": float(state.t[-1]),

@@ -20,21 +20,19 @@ import functools
 import hashlib
 import json
 import math
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Iterator, Mapping
+from typing import Any, Iterable, Iterator, Mapping
 
 import numpy as np
 import orjson
 
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text
+from engines.files import atomic_write_text
 from compare.results.record import SCHEMA_VERSION, CaseRecord, check_schema, status_counts
-
-if TYPE_CHECKING:  # imported where used: reading a suite loads the engine registry
-    from compare.suite.reader import RunSettings
 
 
 def now() -> str:
@@ -191,68 +189,20 @@ def iter_records(cases_dir: Path) -> Iterable[CaseRecord]:
     return (record for _, record in read_records(cases_dir))
 
 
-@dataclass(frozen=True)
-class Results:
-    """A results directory as read back, once: ``header`` (run.json) and the typed case ``records``.
-
-    The views the commands need: :meth:`by_scene`, :meth:`by_variant` and
-    :meth:`sweeps` (per scene × variant across dt, with the observed order and
-    the consistency verdict).
-    """
-
-    path: Path
-    header: dict[str, Any]
-    records: list[CaseRecord]
-
-    def by_scene(self) -> dict[str, list[CaseRecord]]:
-        """Records grouped by scene id, in suite order."""
-        groups: dict[str, list[CaseRecord]] = {}
-        for record in sorted(self.records, key=lambda r: r.case.position):
-            groups.setdefault(record.case.scene_id, []).append(record)
-        return groups
-
-    def by_variant(self) -> dict[tuple[str, str], list[CaseRecord]]:
-        """Records grouped by (scene id, engine label), in suite order (largest dt first)."""
-        groups: dict[tuple[str, str], list[CaseRecord]] = {}
-        for record in sorted(self.records, key=lambda r: r.case.position):
-            groups.setdefault((record.case.scene_id, record.case.engine), []).append(record)
-        return groups
-
-    @functools.cached_property
-    def settings(self) -> RunSettings:
-        """The compare.suite.reader.RunSettings (δ, bounds, [gate], verdict tolerance) of the suite.toml kept
-        with these results, read once."""
-        from compare.suite.reader import load_run_settings  # here: only readers that judge need the suite
-
-        return load_run_settings(self.path / "suite.toml")
-
-    @property
-    def verdict_tolerance(self) -> float:
-        """The consistency tolerance (fraction of L) of the suite that made these results."""
-        return self.settings.verdict_tolerance
-
-    def sweeps(self):
-        """Per (scene, variant): records across dt, observed order and consistency (compare.results.sweep),
-        judged once (``xval run --history`` prints them and stores the baseline made of them)."""
-        return self._sweeps
-
-    @functools.cached_property
-    def _sweeps(self):
-        from compare.results.sweep import sweeps
-
-        return sweeps(self.records, self.verdict_tolerance)
-
-    def counts(self) -> dict[str, int]:
-        """How many cases ended in each status, in Status order."""
-        return status_counts(self.records)
-
-
-def load_results(path: str | Path) -> Results:
-    """Read a results directory once; UserError when it is not one, is damaged, or has another schema version."""
+def read_run(path: str | Path) -> tuple[Path, dict[str, Any], list[CaseRecord]]:
+    """A results directory's (path, run.json's header, typed case records), read once; UserError when it is
+    not one, is damaged, or has another schema version (compare.run.results.load_results wraps them)."""
     path = Path(path)
     run_file = path / "run.json"
     if not run_file.exists():
         raise UserError(f"{path}: not a results directory (no run.json); give the --output directory of 'xval run'")
     header = read_json(run_file)
     check_schema(header, run_file)
-    return Results(path, header, list(iter_records(path / "cases")))
+    return path, header, list(iter_records(path / "cases"))
+
+
+def results_inputs(directory: str | os.PathLike) -> list[Path]:
+    """The files of a results directory a command reads (run.json, suite.toml, every case file):
+    what an output must never replace. Other files in the directory (report.html) may be written."""
+    root = Path(directory)
+    return [root / "run.json", root / "suite.toml", root / "cases"]

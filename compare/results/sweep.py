@@ -88,7 +88,8 @@ def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> lis
         # A tolerance sweep has no order in dt; its consistency is judged along the tolerance.
         on_tolerance_axis = any(r.case.tolerance is not None for r in members)
         order = None if sweep.all_skipped or on_tolerance_axis else observed_order(
-            [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok], length=length
+            [r.case.dt for r in ok], [r.metric(ORDER_METRIC) for r in ok], length=length,
+            reference_error=_largest(_order_bar(r) for r in ok),
         )
         verdict = judge(
             [_step(r) for r in ok], [r.metric(ORDER_METRIC) for r in ok],
@@ -100,6 +101,15 @@ def sweeps(records: Iterable[CaseRecord], tolerance: float | None = None) -> lis
         )
         result.append(VariantSweep(scene_id, engine, members, order, verdict, fit(engine, members)))
     return result
+
+
+def _order_bar(record: CaseRecord) -> object:
+    """The reference's error bar (m) over the samples a case's errors are judged on: its ``reference_error``,
+    or within a horizon (which ends inside the run) the threshold the horizon is defined by."""
+    reference = record.reference or {}
+    if record.reference_horizon is not None:
+        return reference.get("horizon_threshold")
+    return reference.get("reference_error")
 
 
 def _largest(values: Iterable[object]) -> float | None:

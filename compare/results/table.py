@@ -42,16 +42,27 @@ def row_fields() -> tuple[str, ...]:
     )
 
 
-#: The reference's own error bar (m), horizon (s) and the scene's Lyapunov estimate (1/s), per case
-#: row (docs/metrics.md, "The reference's own error"); null when not measured.
-REFERENCE_FIELDS = ("reference_error", "reference_horizon", "lyapunov_exponent")
+#: The reference's own error bar (m), horizon (s) with its interval ([low, high] s) and the scene's
+#: Lyapunov estimate (1/s) with its interval, per case row (docs/metrics.md, "The reference's own
+#: error"); null when not measured (the intervals: for a scene with a horizon, a chaotic one).
+REFERENCE_FIELDS = ("reference_error", "reference_horizon", "reference_horizon_interval", "lyapunov_exponent",
+                    "lyapunov_interval")
 
 
 def reference_values(record: CaseRecord) -> dict[str, Any]:
     """:data:`REFERENCE_FIELDS` of one case (None where the record has no reference)."""
     reference = record.reference or {}
-    return {"reference_error": reference.get("reference_error"), "reference_horizon": record.reference_horizon,
-            "lyapunov_exponent": reference.get("lyapunov_exponent")}
+    return {"reference_horizon": record.reference_horizon,
+            **{name: reference.get(name) for name in REFERENCE_FIELDS if name != "reference_horizon"}}
+
+
+def estimate_text(value: float | None, interval: Any, unit: str, digits: int = 2) -> str:
+    """``0.95 [0.55, 1.1] /s``: an estimate with its interval (``-`` for none; no interval: the value alone)."""
+    if value is None:
+        return "-"
+    if not (isinstance(interval, (list, tuple)) and len(interval) == 2):
+        return f"{value:.{digits}g} {unit}"
+    return f"{value:.{digits}g} [{interval[0]:.{digits}g}, {interval[1]:.{digits}g}] {unit}"
 
 
 def case_rows(records: Iterable[CaseRecord], tolerance: float | None = None) -> list[dict[str, Any]]:
@@ -137,7 +148,7 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     references: dict[str, str] = {}
     for sweep in variant_sweeps:
         finest = sweep.finest_ok
-        if sweep.scene_id not in references:
+        if not references.get(sweep.scene_id):  # a sweep skipped throughout has no reference
             references[sweep.scene_id] = _reference_line(sweep.records)
         values = []
         for metric in declared.shown():
@@ -167,16 +178,23 @@ def scene_tables(variant_sweeps: Iterable[VariantSweep]) -> str:
     return "\n\n".join(blocks) + "\n"
 
 
-def _reference_line(records: Iterable[CaseRecord]) -> str:
-    """`` (reference error 3e-12 m, horizon none, Lyapunov -)`` from the first record that has a reference."""
+def scene_reference(records: Iterable[CaseRecord]) -> dict[str, Any] | None:
+    """:data:`REFERENCE_FIELDS` of a scene: those of its first record that has a reference (None: none has)."""
     for record in records:
         values = reference_values(record)
-        if values["reference_error"] is None:
-            continue
-        horizon, rate = values["reference_horizon"], values["lyapunov_exponent"]
+        if values["reference_error"] is not None:
+            return values
+    return None
+
+
+def _reference_line(records: Iterable[CaseRecord]) -> str:
+    """`` (reference error 3e-12 m, horizon none, Lyapunov -)`` from the first record that has a reference."""
+    values = scene_reference(records)
+    if values is not None:
+        horizon = values["reference_horizon"]
         return (f" (reference error {values['reference_error']:.2g} m, horizon "
-                f"{'none' if horizon is None else f'{horizon:.3g} s'}, Lyapunov exponent "
-                f"{'-' if rate is None else f'{rate:.2g} /s'})")
+                f"{'none' if horizon is None else estimate_text(horizon, values['reference_horizon_interval'], 's', 3)}"
+                f", Lyapunov exponent {estimate_text(values['lyapunov_exponent'], values['lyapunov_interval'], '/s')})")
     return ""
 
 

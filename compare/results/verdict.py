@@ -7,7 +7,7 @@ of a variant's label before its first ``/`` (``mujoco`` for
 ``mujoco/hinge-rk4``), and the family a comparison is made for (the *focus*)
 is a parameter, by default the first family of the suite.
 
-Details: docs/architecture.md, "Module notes", ``compare/results/verdict.py``.
+Details: docs/report.md, "Module notes", ``compare/results/verdict.py``.
 """
 
 from __future__ import annotations
@@ -25,6 +25,11 @@ from compare.results.sweep import ORDER_METRIC, VariantSweep
 TARGET_FRACTION = 1e-6
 #: Problem kinds, in the order they are listed (worst first).
 PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "hidden dissipation")
+#: Severity ranks, most severe first (Problem.severity indexes this): a wrong answer, then a run that never
+#: finished, then a blow-up at a time step below the suite's largest (a method that should hold there), then a
+#: blow-up only at the largest dt (where an explicit method is expected to fail; listed, but collapsed).
+SEVERITIES = ("wrong answer", "failed or timed out", "unstable below the largest dt", "unstable only at the largest dt")
+_SEVERITY_OF_KIND = {"inconsistent": 0, "failed": 1, "timeout": 1, "unstable": 2, "hidden dissipation": 2}
 
 
 def family(engine: str) -> str:
@@ -334,7 +339,7 @@ class Best:
 
 
 def _budget(by_family: Mapping[str, Sequence[Point]]) -> float | None:
-    """s/s, the common budget (docs/architecture.md, "Module notes"), or None when no family has a run."""
+    """s/s, the common budget (docs/report.md, "Module notes"), or None when no family has a run."""
     ranges = [(min(p.cost for p in ps), max(p.cost for p in ps)) for ps in by_family.values() if ps]
     if not ranges:
         return None
@@ -352,7 +357,7 @@ def most_accurate(readings: Sequence[AtBudget]) -> tuple[AtBudget, tuple[str, ..
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
     """(budget s/s, per family in suite order its variant most accurate at the budget, read from each
-    variant's error–cost curve (:func:`error_at_budget`)); see docs/architecture.md, "Module notes".
+    variant's error–cost curve (:func:`error_at_budget`)); see docs/report.md, "Module notes".
 
     A family with no ok run gets ``Best(family, None)``.
     """
@@ -564,6 +569,13 @@ class Problem:
     text: str
     dts: tuple[float, ...] = ()
     case_ids: tuple[str, ...] = ()
+    #: True for an unstable problem whose only dt is the largest of the suite (the least severe kind).
+    largest_only: bool = False
+
+    @property
+    def severity(self) -> int:
+        """Its rank in SEVERITIES (0: a wrong answer, the most severe)."""
+        return 3 if self.largest_only else _SEVERITY_OF_KIND.get(self.kind, 2)
 
 
 def _dts(values: Iterable[float]) -> str:
@@ -571,7 +583,7 @@ def _dts(values: Iterable[float]) -> str:
 
 
 def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
-    """Every problem of the competing ``sweeps`` (and the reference's own failures), worst kind first."""
+    """Every problem of the competing ``sweeps`` (and the reference's own failures), most severe first (:func:`ranked`)."""
     found: list[Problem] = []
     largest = max((r.case.dt for s in sweeps for r in s.records if r.status is not Status.SKIPPED), default=None)
     for sweep in sweeps:
@@ -595,14 +607,19 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
             message = next((r.message for r in hit if r.message), "")
             if message:
                 text += f": {message}"
-            found.append(Problem(sweep.scene_id, sweep.engine, kind, text, dts, tuple(r.case.id for r in hit)))
-    found.sort(key=lambda p: PROBLEM_KINDS.index(p.kind))
-    return found
+            found.append(Problem(sweep.scene_id, sweep.engine, kind, text, dts, tuple(r.case.id for r in hit),
+                                 largest_only=kind == "unstable" and dts == (largest,)))
+    return ranked(found)
+
+
+def ranked(found: Iterable[Problem]) -> list[Problem]:
+    """``found`` most severe first (SEVERITIES), then by kind (PROBLEM_KINDS); stable within a rank."""
+    return sorted(found, key=lambda p: (p.severity, PROBLEM_KINDS.index(p.kind) if p.kind in PROBLEM_KINDS else 99))
 
 
 @dataclass(frozen=True)
 class SceneVerdict:
-    """Everything the verdict says about one scene (each quantity: docs/architecture.md, "Module notes").
+    """Everything the verdict says about one scene (each quantity: docs/report.md, "Module notes").
 
     length : L, m. target : TARGET_FRACTION · L, m. reaches : per competing variant, suite order.
     budget : s/s, the equal-cost budget; best : per family its most accurate run within it.

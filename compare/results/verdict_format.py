@@ -5,7 +5,7 @@ lays out the same SceneVerdict objects. The JSON document (``schema`` "xval-verd
 the Pareto front, each variant's cost model (per-step cost with its interval), each variant's cost to
 reach 1e-6·L with its interval, each family's winner and the variants tied with it, the focus
 comparison (ratio with its interval, tie or not, its sentence), the consistency of every variant, and
-the problems.
+the problems, most severe first (each with its severity).
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from __future__ import annotations
 import textwrap
 from typing import Any, Sequence
 
-from compare.results.verdict import AtBudget, Point, Reach, SceneVerdict
+from compare.results.table import scene_reference
+from compare.results.verdict import SEVERITIES, AtBudget, Point, Problem, Reach, SceneVerdict
 
 #: Longest problem text printed in the terminal (the report and the case files have the whole message).
 LINE = 140
@@ -38,12 +39,23 @@ def format_verdicts(verdicts: Sequence[SceneVerdict], problems_only: bool = Fals
         if not problems_only:
             lines.extend(_rankings(verdict))
         if verdict.problems:
-            lines.append(f"  problems ({len(verdict.problems)}):")
-            for problem in verdict.problems:
-                lines.append(f"    {problem.kind:<12} {problem.engine}: {clip(problem.text)}")
+            lines.append(f"  problems ({len(verdict.problems)}, most severe first):")
+            lines.extend(_problem_lines(verdict.problems))
         elif not problems_only:
             lines.append("  problems: none")
     return "\n".join(lines) + ("\n" if lines else "")
+
+
+def _problem_lines(problems: Sequence[Problem]) -> list[str]:
+    """One line per problem (compare.results.verdict.ranked order), those unstable only at the suite's largest dt
+    (the least severe, often most of the list) folded into one paragraph that names them."""
+    lines = [f"    {p.kind:<12} {p.engine}: {clip(p.text)}" for p in problems if not p.largest_only]
+    largest = [p for p in problems if p.largest_only]
+    if largest:
+        head = f"    {SEVERITIES[3]} (dt {largest[0].dts[0]:.3g} s, {len(largest)}): "
+        lines.extend(textwrap.wrap(head + ", ".join(p.engine for p in largest), LINE, subsequent_indent=" " * 6,
+                                   break_on_hyphens=False))
+    return lines
 
 
 def _rankings(verdict: SceneVerdict) -> list[str]:
@@ -95,13 +107,15 @@ def _reach(r: Reach) -> dict[str, Any]:
 
 
 def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
-    """One scene's verdict as JSON-ready data (its fields: docs/architecture.md, "Module notes")."""
+    """One scene's verdict as JSON-ready data (its fields: docs/report.md, "Module notes")."""
     comparison = verdict.comparison
     same = comparison.at_equal_cost if comparison is not None else None
     return {
         "scene": verdict.scene_id,
         "length": verdict.length,
         "target": verdict.target,
+        # The reference's error bar, horizon and Lyapunov estimate, each estimate with its interval.
+        "reference": scene_reference(r for s in verdict.variants for r in s.records),
         "front": [_point(p) for p in verdict.front],
         "cost_models": [
             {"engine": s.engine, "per_step": s.cost.per_step, "per_step_interval": [s.cost.low, s.cost.high],
@@ -133,7 +147,8 @@ def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
             {"engine": s.engine, "consistent": s.consistency.consistent, "plateau": s.consistency.plateau,
              "reason": s.consistency.reason}
             for s in verdict.variants if s.consistency is not None],
-        "problems": [{"kind": p.kind, "engine": p.engine, "text": p.text, "dts": list(p.dts)}
+        "problems": [{"kind": p.kind, "severity": SEVERITIES[p.severity], "engine": p.engine, "text": p.text,
+                      "dts": list(p.dts)}
                      for p in verdict.problems],
     }
 

@@ -8,7 +8,7 @@ kills its process behave exactly as locally. Results come back to the client,
 which computes the metrics and writes the records case by case, so
 ``--resume`` and the statuses are unchanged.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/cluster.py``.
+Details: docs/running.md, "Module notes", ``compare/run/cluster.py``.
 """
 
 from __future__ import annotations
@@ -179,7 +179,7 @@ def _task_name(fn: Callable[..., Any], args: tuple[Any, ...]) -> str:
 
 class DaskExecutor(cf.Executor):
     """A concurrent.futures Executor whose tasks run on a Dask cluster (why not ``get_executor``:
-    docs/architecture.md, "Module notes").
+    docs/running.md, "Module notes").
 
     At most one task per worker thread is on the cluster at a time; the rest
     wait here. Dask would otherwise hand a worker several tasks at once (it

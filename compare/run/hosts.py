@@ -8,7 +8,7 @@ until the first answer or the nearest deadline, and turns each answer, death
 or timeout into its future's result exactly as
 :func:`~compare.run.isolation.execute` does in an executor's worker thread.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/hosts.py``.
+Details: docs/running.md, "Module notes", ``compare/run/hosts.py``.
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ class HostPool:
                 if not self.queue or len(slot.jobs) != place:
                     continue
                 if place > 0 and len(self.queue[0].pickled) > PIPELINED_BYTES:
-                    # It waits for an idle host (docs/architecture.md, "Module notes"), and the tasks behind it too.
+                    # It waits for an idle host (docs/running.md, "Module notes"), and the tasks behind it too.
                     return
                 job = self.queue.popleft()
                 if place == 0:

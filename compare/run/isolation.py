@@ -6,7 +6,7 @@ a dead host is ``failed`` with its exit code or signal, no answer in time kills 
 ``timeout``; the next case gets a new host. Nothing xval starts outlives it (process groups,
 PR_SET_PDEATHSIG, a reaper), and ``RLIMIT_AS`` bounds each task's memory.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/isolation.py``.
+Details: docs/running.md, "Module notes", ``compare/run/isolation.py``.
 """
 
 from __future__ import annotations
@@ -20,13 +20,15 @@ import sys
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any, Mapping
 
 from engines.adapter import Engine, scheduled_times
-from engines.scene.scene import Scene
-from engines.scene.trajectory import Trajectory
-from engines.stdio import EngineOutput, capture_output
+from engines.scene.scene import SceneLike
+from engines.scene.trajectory import Status, Trajectory
+from engines.stdio import capture_output
+
+from compare.results.measure import CaseOutcome
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,7 @@ class CaseTask:
     engine_id: str
     variant: str | None
     options: Mapping[str, Any]
-    scene: Scene
+    scene: SceneLike
     dt: float
     sample_interval: float
     repeats: int = 1
@@ -65,7 +67,7 @@ class ReferenceTask:
     """
 
     scene_id: str
-    scene: Scene
+    scene: SceneLike
     rtol: float
     atol: float
     timeout: float = 120.0
@@ -86,31 +88,6 @@ class ReferenceTask:
 
 class ReferenceFailed(RuntimeError):
     """The reference of a scene could not be solved (raised, timed out, died); the message says which."""
-
-
-@dataclass
-class CaseOutcome:
-    """What came back from one case.
-
-    trajectory : the first run's Trajectory (its RunInfo holds the engine's
-        own status), or None when the case failed or timed out outside the engine.
-    wall_times : s, the stepping-loop wall time of each repeat.
-    cpu_times : s, the stepping-loop CPU time of each repeat (RunInfo.cpu_time).
-    calibrations : s, CPU time of :func:`calibration_cpu_time` run just before each repeat.
-    output : what the engine's library printed meanwhile (fds 1 and 2, warnings printed), captured in the host.
-    status, message : ``ok`` when the trajectory's status applies; else ``failed`` or ``timeout``.
-    elapsed : s, wall time of the whole case (model building and all repeats).
-    """
-
-    case_id: str
-    trajectory: Trajectory | None
-    wall_times: list[float] = field(default_factory=list)
-    status: str = "ok"
-    message: str = ""
-    elapsed: float = 0.0
-    cpu_times: list[float] = field(default_factory=list)
-    calibrations: list[float] = field(default_factory=list)
-    output: EngineOutput = field(default_factory=EngineOutput)
 
 
 #: Fewest repeats for which the calibration kernel runs: the timing gate judges only cases timed at
@@ -171,10 +148,10 @@ def simulate(task: CaseTask) -> CaseOutcome:
             )
             wall_times.append(trajectory.info.wall_time)
             cpu_times.append(trajectory.info.cpu_time)
-            if trajectory.info.status == "failed" and trajectory.info.message.startswith("MemoryError"):
+            if trajectory.info.status is Status.FAILED and trajectory.info.message.startswith("MemoryError"):
                 trajectory = _out_of_memory(task, trajectory)
             first = first or trajectory
-            if trajectory.info.status != "ok":
+            if trajectory.info.status is not Status.OK:
                 break  # repeating a failed or unstable run would only time the failure
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
                        calibrations=calibrations[:len(cpu_times)])
@@ -200,12 +177,15 @@ def warm_up(task: CaseTask) -> None:
     ~0.5 s; MuJoCo and PyBullet initialize their libraries) then stay out of
     the case's stepping time. Errors are ignored here: the case reports them.
     """
-    if task.engine_id in _WARM or task.command is not None:  # a program starts afresh in every run
+    if task.engine_id in _WARM:
         return
     _WARM.add(task.engine_id)
     try:
+        engine = _engine_for(task)
+        if not engine.needs_warm_up:  # a program started afresh in every run
+            return
         scene = task.scene.with_duration(min(task.scene.duration, 2 * task.dt))
-        _engine_for(task).simulate(scene, task.dt, variant=task.variant, options=task.options)
+        engine.simulate(scene, task.dt, variant=task.variant, options=task.options)
     except Exception:
         pass
 
@@ -378,7 +358,7 @@ def _failure(task: Any, exc: BaseException) -> CaseOutcome:
     message = f"{type(exc).__name__}: {exc}".splitlines()[0] + where
     if isinstance(exc, MemoryError) and task.memory_limit is not None:
         message = _memory_message(task, message)
-    return CaseOutcome(task.case_id, None, status="failed", message=message)
+    return CaseOutcome(task.case_id, None, status=Status.FAILED, message=message)
 
 
 def _run_in_host(task: Any) -> Any:
@@ -570,13 +550,13 @@ def timed_out(task: Any, start: float) -> CaseOutcome:
     a case's message says how to give it longer; a reference's, quoted in its scene's case records, does not.
     start : time.perf_counter() when its host began it."""
     hint = "" if isinstance(task, ReferenceTask) else "; raise --timeout if it is only slow"
-    return CaseOutcome(task.case_id, None, status="timeout", elapsed=time.perf_counter() - start,
+    return CaseOutcome(task.case_id, None, status=Status.TIMEOUT, elapsed=time.perf_counter() - start,
                        message=f"ran past the timeout of {task.timeout:g} s and was killed{hint}")
 
 
 def died(task: Any, host: CaseHost, start: float) -> CaseOutcome:
     """The ``failed`` outcome of a task whose host died before answering (``host`` closed, so its exit
     code is known). start : time.perf_counter() when its host began it."""
-    return CaseOutcome(task.case_id, None, status="failed", elapsed=time.perf_counter() - start,
+    return CaseOutcome(task.case_id, None, status=Status.FAILED, elapsed=time.perf_counter() - start,
                        message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before "
                                f"returning a result")

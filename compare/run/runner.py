@@ -1,11 +1,12 @@
 """Running a suite: cases through case hosts or a concurrent.futures.Executor, one record written per
 finished case.
 
-The runner plans the cases, solves each scene's reference once, dispatches the cases to case hosts
-(compare.run.isolation) or an executor, and turns each answer into a CaseRecord written as it
-finishes, so an interrupted run resumes without redoing finished cases.
+The runner takes the suite's cases (compare.run.plan), solves each scene's reference once, dispatches
+the cases to case hosts (compare.run.isolation) or an executor, and writes each case's record as it
+finishes (measured by compare.results.measure), so an interrupted run resumes without redoing finished
+cases.
 
-Details: docs/architecture.md, "Module notes", ``compare/run/runner.py``.
+Details: docs/running.md, "Module notes", ``compare/run/runner.py``.
 """
 
 from __future__ import annotations
@@ -13,39 +14,31 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import gc
-import math
 import multiprocessing
 import os
 import time
-import warnings
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
-import numpy as np
 
-from engines.adapter import join_messages, scheduled_times, warning_note
-from engines.scene.limits import check_case_size
 from engines.external.command import spec_of
-from engines.errors import Unsupported
-from engines.scene.scene import Scene
 
 from compare.run.environment import environment
 from compare.run.hosts import HostPool
 from compare.run.lock import RunLock
 from compare.run import startup
-from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseOutcome, CaseTask, ReferenceTask, die_with_parent,
-                                   execute, execute_reference)
-from compare.results.files import remove_stale_temporaries
-from compare.results.metrics import apply_bounds, case_metrics
+from compare.run.isolation import (DEFAULT_MEMORY_LIMIT, CaseTask, ReferenceTask, die_with_parent, execute,
+                                   execute_reference)
+from engines.files import remove_stale_temporaries
+from compare.results.measure import CaseOutcome, SampledReference, SceneFields, measure
 from compare.run.progress import NullProgress, Progress
-from compare.results.declared import MetricInputs, computed_extras
-from compare.results.record import CaseKey, CaseRecord, Characteristic, Status, status_counts
-from compare.results.series import SeriesView, downsample_indices, round_each
-from compare.results.store import Results, ResultsDir, jsonable, now
-from compare.suite.reader import EngineSpec, SceneSpec, Suite
-from compare.suite.tolerance_axis import tolerance_options, with_tolerance
+from compare.results.record import CaseRecord, Status, status_counts
+from compare.results.store import ResultsDir
+from compare.run.plan import Case, check_sizes, key_of, plan, skip_reason
+from compare.run.results import Results
+from compare.suite.reader import Suite
 
 #: Runs of a case whose executor breaks under it: once among others, then once alone
 #: (the Dask executor's allowed-failures follows this).
@@ -60,58 +53,6 @@ class RunStopped(Exception):
     Unlike a case that failed, it stops the run: cases not yet finished get no
     record (so ``--resume`` runs them later), finished ones stay on disk.
     """
-
-
-@dataclass(frozen=True)
-class Case:
-    """One scene × engine variant × dt of a suite; ``position`` is its (scene, engine, dt) index in the suite."""
-
-    scene: SceneSpec
-    engine: EngineSpec
-    dt: float
-    position: tuple[int, int, int] = (0, 0, 0)
-    #: On the tolerance axis: the tolerance (already in ``engine.options``); dt is then the largest step.
-    tolerance: float | None = None
-
-    @property
-    def id(self) -> str:
-        return case_id(self.scene.id, self.engine.label, self.dt, self.tolerance)
-
-
-def case_id(scene_id: str, engine_label: str, dt: float, tolerance: float | None = None) -> str:
-    """``bead|mujoco/hinge-rk4|dt=0.001`` (``…|dt=0.01|tol=1e-06`` on the tolerance axis):
-    stable across runs, the key ``--resume`` matches on."""
-    tail = "" if tolerance is None else f"|tol={tolerance:.12g}"
-    return f"{scene_id}|{engine_label}|dt={dt:.12g}{tail}"
-
-
-def plan(suite: Suite) -> list[Case]:
-    """Every case of the suite, scene-major, in the suite's order.
-
-    A variant that takes a tolerance gets one case per suite tolerance instead of one per dt
-    (compare/suite/tolerance_axis.py), when the suite sweeps one.
-    """
-    cases = []
-    for i, s in enumerate(suite.scenes):
-        for j, e in enumerate(suite.engines):
-            names = tolerance_options(e.engine, e.variant, e.options) if suite.tolerances else ()
-            if names:
-                cases += [Case(s, replace(e, options=with_tolerance(e.options, names, tol)), suite.sample_interval,
-                               (i, j, k), tol) for k, tol in enumerate(suite.tolerances)]
-            else:
-                cases += [Case(s, e, dt, (i, j, k)) for k, dt in enumerate(suite.dts)]
-    return cases
-
-
-def skip_reason(scene: Scene, engine: EngineSpec) -> str | None:
-    """Why ``engine`` cannot run ``scene`` (unavailable here, or cannot express it), or None."""
-    if engine.engine is None:
-        return engine.unavailable
-    try:
-        engine.engine.check(scene, engine.variant, engine.options)
-    except Unsupported as exc:
-        return str(exc)
-    return None
 
 
 def solve_reference(task: ReferenceTask) -> Any:
@@ -136,7 +77,7 @@ class RunSummary:
     header: dict[str, Any]
 
     def results(self) -> Results:
-        """The results directory as :func:`compare.results.store.load_results` would read it back, without
+        """The results directory as :func:`compare.run.results.load_results` would read it back, without
         reading it: the records are those the run holds."""
         return Results(self.path, self.header, self.records)
 
@@ -159,14 +100,6 @@ def run_suite(suite: Suite, output: str | Path, **options: Any) -> RunSummary:
     check_sizes(suite)
     with RunLock(output):
         return _run_suite(suite, output, **options)
-
-
-def check_sizes(suite: Suite) -> None:
-    """UserError naming the scene and dt of the first case too big to run (engines/scene/limits.py)."""
-    for spec in suite.scenes:
-        for dt in suite.dts:
-            check_case_size(len(spec.scene.particles), spec.scene.duration, dt, suite.sample_interval,
-                            where=f"{suite.path}: scene {spec.id!r}")
 
 
 def _run_suite(
@@ -420,7 +353,7 @@ class _Dispatcher:
                         # A reference that could not be solved is kept as its exception;
                         # a case whose task itself raised (not the engine) is failed.
                         value = exc if kind == "reference" else CaseOutcome(
-                            key, None, status="failed", message=f"{type(exc).__name__}: {exc}".splitlines()[0]
+                            key, None, status=Status.FAILED, message=f"{type(exc).__name__}: {exc}".splitlines()[0]
                         )
                     self.handle(kind, key, value)
                 if broken:
@@ -467,14 +400,14 @@ class _Dispatcher:
         if not self.pool.owned:
             # Not ours to rebuild: what was lost, and what had not been submitted yet, is failed.
             for key in case_ids + list(self.queue):
-                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+                self.handle("case", key, CaseOutcome(key, None, status=Status.FAILED, message=LOST_MESSAGE))
             self.queue.clear()
             for scene_id in reference_ids:
                 self.handle("reference", scene_id, RuntimeError("the executor broke before the reference was solved"))
             return {}
         for key in case_ids:
             if key == self.alone:
-                self.handle("case", key, CaseOutcome(key, None, status="failed", message=LOST_MESSAGE))
+                self.handle("case", key, CaseOutcome(key, None, status=Status.FAILED, message=LOST_MESSAGE))
             else:
                 self.suspects.append(key)
         self.alone = None
@@ -488,7 +421,7 @@ _preloaded: set[int] = set()
 def preload_engines(suite: Suite, cases) -> None:
     """Let each engine of these cases (and the reference, unless every scene's is kept) load what it
     will need once, here, before the pool forks: workers and case hosts inherit it instead of each importing and loading it again
-    (numba's kernels, scipy's integrators). An engine without ``preload`` is left alone; a preload
+    (numba's kernels, scipy's integrators): Engine.preload, which does nothing by default; a preload
     that fails is ignored (the cases report their own errors)."""
     from engines.reference.reference import ENGINE as REFERENCE, is_kept
 
@@ -499,12 +432,11 @@ def preload_engines(suite: Suite, cases) -> None:
     if not all(is_kept(scene, suite.rtol, suite.atol) for scene in scenes):
         engines.setdefault(id(REFERENCE), REFERENCE)
     for key, engine in engines.items():
-        preload = getattr(engine, "preload", None)
-        if key in _preloaded or preload is None:
+        if key in _preloaded:
             continue
         _preloaded.add(key)
         try:
-            preload(scenes)
+            engine.preload(scenes)
         except Exception:  # noqa: BLE001 - a preload is an optimisation, never a failure
             continue
     # What is loaded now (modules, numba's kernels, engine libraries' objects) lives as long as the
@@ -529,215 +461,17 @@ class _Writer:
         #: Every record of the directory, by file: an earlier (resumed) run's, read once as the run
         #: started, and those written by this run, kept so the summary need not read them back.
         self.written: dict[Path, CaseRecord] = dict(earlier or {})
-        #: Each scene's part of its records (scene_fields), by scene id: built once, shared read-only.
-        self.scene_fields: dict[str, dict[str, Any]] = {}
+        #: Each scene's part of its records, by scene id: built once, shared read-only.
+        self.scene_fields: dict[str, SceneFields] = {}
 
     def write(self, case: Case, outcome: CaseOutcome | None, *, reference: Any = None, skipped: str | None = None) -> None:
         if case.scene.id not in self.scene_fields:
-            self.scene_fields[case.scene.id] = scene_fields(case.scene.scene)
-        record = build_record(case, outcome, reference, self.suite, skipped=skipped,
-                              scene_part=self.scene_fields[case.scene.id])
+            self.scene_fields[case.scene.id] = SceneFields.of(case.scene.scene)
+        record = measure(key_of(case), case.scene.scene, outcome, reference, self.suite, skipped=skipped,
+                         scene_part=self.scene_fields[case.scene.id])
         self.written[self.results.write_case(record)] = record
         self.progress.advance(record)
 
     def records(self) -> list[CaseRecord]:
         """Every record in the results directory, in file order (an earlier run's and this run's)."""
         return [self.written[f] for f in sorted(self.written)]
-
-
-def scene_fields(scene: Scene) -> dict[str, Any]:
-    """The CaseRecord fields that depend on the scene alone (JSON-ready): the same for every case of it."""
-    return {
-        "scene": jsonable(scene.to_dict()),
-        "scene_hash": scene.content_hash,
-        "characteristic": Characteristic(scene.characteristic_length, scene.characteristic_energy),
-    }
-
-
-def key_of(case: Case) -> CaseKey:
-    """The record's key of ``case`` (JSON-ready options)."""
-    return CaseKey(
-        id=case.id, scene_id=case.scene.id, scene_name=case.scene.name, engine=case.engine.label,
-        engine_id=case.engine.id, variant=case.engine.variant, options=jsonable(dict(case.engine.options)),
-        dt=float(case.dt), position=tuple(int(i) for i in case.position), tolerance=case.tolerance,
-    )
-
-
-def build_record(
-    case: Case, outcome: CaseOutcome | None, reference: Any, suite: Suite, *, scene_part: dict[str, Any],
-    skipped: str | None = None,
-) -> CaseRecord:
-    """The record of one case: its metrics, status and message, and its series (a SeriesView of float
-    arrays rounded to SERIES_DIGITS significant digits, which ResultsDir.write_case writes as lists).
-
-    reference : the scene's SampledReference, or the exception that kept it
-    from being solved (position metrics are then null and the message says why).
-    scene_part : ``scene_fields(case.scene.scene)``, kept by the caller for every case of the scene
-    (shared, not copied).
-    """
-    record = CaseRecord(case=key_of(case), status=Status.SKIPPED, message=skipped or "", metrics={}, run_info=None,
-                        wall_times=(), elapsed=0.0, series=None, reference=None, finished=now(), **scene_part)
-    if outcome is None:
-        return record
-    record = replace(
-        record, status=Status(outcome.status), message=outcome.message or "", elapsed=float(outcome.elapsed),
-        wall_times=tuple(float(w) for w in outcome.wall_times),
-        cpu_times=tuple(jsonable(outcome.cpu_times)),  # s of CPU per repeat: what the timing gate compares,
-        calibrations=tuple(jsonable(outcome.calibrations)),  # in units of this kernel's CPU time, timed beside each
-        engine_output=outcome.output.to_dict() if outcome.output else None,  # what its library printed, kept here
-    )
-    if outcome.trajectory is None:
-        return record
-    return _measured(record, case, outcome, reference, suite)
-
-
-def _measured(record: CaseRecord, case: Case, outcome: CaseOutcome, reference: Any, suite: Suite) -> CaseRecord:
-    """``record`` with what the trajectory of ``outcome`` gives: run info, reference, metrics, status, series."""
-    scene = case.scene.scene
-    trajectory = outcome.trajectory
-    info = trajectory.info
-    status, message = info.status, info.message
-    if not (np.isfinite(trajectory.positions).all() and np.isfinite(trajectory.velocities).all()):
-        # Engine.simulate already cuts a run at its first non-finite state; an engine
-        # that bypasses it (a plug-in overriding simulate) must not pass NaN off as ok.
-        finite = (np.isfinite(trajectory.positions).all(axis=(1, 2))
-                  & np.isfinite(trajectory.velocities).all(axis=(1, 2)))
-        if status == "ok":
-            status, message = "unstable", "non-finite state in the returned trajectory"
-        trajectory = _truncate(trajectory, int(np.argmin(finite)))
-    scheduled = scheduled_times(scene.duration, case.dt, suite.sample_interval)
-    n = trajectory.n_samples
-    reference_note = ""
-    solved: dict[str, Any] | None = None
-    horizon = None
-    if isinstance(reference, Exception) or reference is None:
-        why = reference if reference is not None else "no reference"
-        ref_positions = np.full((n, len(scene.particles), 3), math.nan)
-        ref_forces = None
-        # Every reference-based metric is null, and null here means "not measured", never "never diverged".
-        reference_note = f"reference failed ({why}): no reference-based metric"
-        message = "; ".join(m for m in (message, reference_note) if m)
-    else:
-        solution = reference.solution
-        # At the scheduled times (shared by every engine of this dt, their samples kept with the
-        # solution), of which the trajectory holds the first n; else at an engine's own sample times.
-        ref_times = scheduled if np.array_equal(trajectory.t, scheduled[:n]) else trajectory.t
-        ref_positions, _, ref_forces = solution.at(ref_times)
-        solved = {"rtol": solution.rtol, "atol": solution.atol, "steps": solution.n_steps,
-                  "wall_time": solution.wall_time}
-        if reference.bound is not None:
-            from engines.reference.reference import growth_rate  # loaded already: it made ``reference``
-
-            # The reference's own error bar (m) and horizon (s; None: it holds over the whole run).
-            solved.update(reference_error=reference.bound.reference_error,
-                          tight_rtol=reference.bound.tight_rtol,
-                          horizon_threshold=reference.bound.threshold,
-                          lyapunov_exponent=growth_rate(reference.bound.t, reference.bound.difference,
-                                                        scene.characteristic_length))
-            horizon = reference.bound.reference_horizon
-    # A state that ran away (finite, but 1e200 m/s) overflows numpy in the energy: a warning in the case's
-    # message, not a line on the terminal.
-    with warnings.catch_warnings(record=True) as heard:
-        warnings.simplefilter("always")
-        metrics, series = case_metrics(
-            scene,
-            trajectory,
-            ref_positions,
-            ref_forces,
-            scheduled_times=scheduled,
-            wall_times=outcome.wall_times,
-            delta=suite.delta,
-        )
-        n_ref = min(n, len(ref_positions))
-        extras = computed_extras(MetricInputs(scene, trajectory, ref_positions[:n_ref], series.position_error))
-    status, message = _with_note(apply_bounds(status, message, metrics, suite.bounds, scene), reference_note)
-    message = join_messages(message, warning_note(heard))
-    values = {**metrics.to_dict(), **extras}
-    if horizon is not None and n:
-        # Past the horizon the reference is not trusted: judge the errors within it, keep the whole run's too.
-        values.update(
-            within_horizon(scene, trajectory, ref_positions, ref_forces, scheduled, horizon, outcome.wall_times,
-                           suite.delta, metrics.to_dict())
-        )
-    keep = downsample_indices(n)
-    # Kept as rounded float arrays: ResultsDir.write_case writes them as lists, and making ~5,000 Python
-    # floats a record here was most of the cost of writing it.
-    series_arrays = {
-        "t": series.t[keep],
-        "position_error": series.position_error[keep],
-        "energy_drift": series.energy_drift[keep],
-        "constraint_error": series.constraint_error[keep],
-        "positions": trajectory.positions[keep],
-        # The reference at the same samples, so a report can overlay paths without re-solving.
-        "reference_positions": ref_positions[:n][keep],
-        # For the report's phase plot (angular velocity) and constraint-force plot.
-        "velocities": trajectory.velocities[keep],
-    }
-    if trajectory.constraint_forces is not None:
-        series_arrays["constraint_forces"] = trajectory.constraint_forces[keep]
-        if ref_forces is not None and len(ref_forces) >= n:
-            series_arrays["reference_constraint_forces"] = ref_forces[:n][keep]
-    return replace(
-        record, status=Status(status), message=message, metrics=jsonable(values), run_info=jsonable(info.to_dict()),
-        reference=jsonable(solved), reference_horizon=None if horizon is None else float(horizon),
-        series=SeriesView(round_each(series_arrays)),
-    )
-
-
-def _with_note(verdict: tuple[str, str], note: str) -> tuple[str, str]:
-    """(status, message) with ``note`` kept in the message (the bounds' verdict replaces the message)."""
-    status, message = verdict
-    if note and note not in message:
-        message = "; ".join(m for m in (message, note) if m)
-    return status, message
-
-
-#: Metrics judged within the reference's horizon (when it ends inside the run); the whole run's values
-#: stay in the record as ``<name>_whole_run``.
-HORIZON_METRICS = (
-    "position_error_final", "position_error_rms", "position_error_linf", "divergence_time",
-    "constraint_force_error", "constraint_force_error_relative",
-)
-
-
-def within_horizon(scene: Scene, trajectory: Any, ref_positions: np.ndarray, ref_forces: np.ndarray | None,
-                   scheduled: np.ndarray, horizon: float, wall_times: Any, delta: float,
-                   whole: dict[str, Any]) -> dict[str, Any]:
-    """HORIZON_METRICS over the samples at t ≤ ``horizon`` (s), and the whole run's as ``<name>_whole_run``."""
-    k = int(np.searchsorted(scheduled, horizon, side="right"))
-    n = min(k, trajectory.n_samples, len(ref_positions))
-    if n < 1:
-        return {}
-    inner, _ = case_metrics(
-        scene, _truncate(trajectory, n), ref_positions[:n], None if ref_forces is None else ref_forces[:n],
-        scheduled_times=scheduled[:k], wall_times=wall_times, delta=delta,
-    )
-    values = inner.to_dict()
-    out = {f"{name}_whole_run": whole.get(name) for name in HORIZON_METRICS}
-    out.update({name: values.get(name) for name in HORIZON_METRICS})
-    return out
-
-
-class SampledReference:
-    """A scene's reference: its dense solution, which carries its samples at this run's sample times
-    (evaluated by the reference's host, ``ReferenceTask.sample_dts``), and its bound (or None)."""
-
-    def __init__(self, solved: Any) -> None:
-        # solve_reference's (solution, bound); a bare solution (no bound) is accepted too.
-        self.solution, self.bound = solved if isinstance(solved, tuple) else (solved, None)
-
-
-def _truncate(trajectory, n: int):
-    """The first n samples of ``trajectory``."""
-    forces = None if trajectory.constraint_forces is None else trajectory.constraint_forces[:n]
-    joints = None if trajectory.joint_states is None else trajectory.joint_states[:n]
-    violation = None if trajectory.constraint_violation is None else trajectory.constraint_violation[:n]
-    return replace(
-        trajectory,
-        t=trajectory.t[:n],
-        positions=trajectory.positions[:n],
-        velocities=trajectory.velocities[:n],
-        constraint_forces=forces,
-        joint_states=joints,
-        constraint_violation=violation,
-    )

@@ -2,7 +2,7 @@
 
 Both measured with ``bench/bench_harness.py`` (the CPU a run costs around the physics).
 
-Details: docs/architecture.md, "Module notes", ``compare/run/startup.py``.
+Details: docs/running.md, "Module notes", ``compare/run/startup.py``.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ removes energy every step whatever the step) does not. So run one scene at
 several time steps over a long horizon, measure the energy-loss rate at each,
 and extrapolate the rate to dt → 0.
 
-Details: docs/architecture.md, "Module notes", ``compare/stability/dissipation.py``.
+Details: docs/metrics.md, "Module notes", ``compare/stability/dissipation.py``.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def loss_rate(scene: Scene, t: np.ndarray, positions: np.ndarray, velocities: np
 
 def extrapolate(dts: Sequence[float], rates: Sequence[float]) -> tuple[float, float]:
     """(r₀, σ) in E*/s: rate(dt) = r₀ + c·dt at dt → 0; needs ≥ 3 points (σ:
-    docs/architecture.md, "Module notes")."""
+    docs/metrics.md, "Module notes")."""
     x, y = np.asarray(dts, float), np.asarray(rates, float)
     if len(x) < 3:
         raise ValueError("extrapolate needs at least 3 time steps")

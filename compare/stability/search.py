@@ -1,7 +1,7 @@
 """Stability search: per scene × engine variant, the largest time step at which a run stays ``ok``.
 
 Criterion (the same one ``xval run`` applies to every case, see
-:func:`compare.results.metrics.apply_bounds`): a trial at time step dt is *stable*
+:func:`compare.results.measure.decide_status`): a trial at time step dt is *stable*
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
@@ -11,7 +11,7 @@ once more with RETRY_FACTOR times the limit (a loaded machine only made it
 slow), and a second timeout leaves the pair *undecided* between the dts
 known so far, never unstable there.
 
-Details: docs/architecture.md, "Module notes", ``compare/stability/search.py``.
+Details: docs/running.md, "Module notes", ``compare/stability/search.py``.
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ from typing import Any, Callable
 
 from compare.results.metrics import Bounds
 from compare.results.store import jsonable, now
-from compare.run.runner import default_jobs, skip_reason
+from compare.run.plan import skip_reason
+from compare.run.runner import default_jobs
 from compare.stability.trial import (
     RETRY_FACTOR, Trial, check_output, document_head, load_document, run_trial, timed_retry, write_document,
 )
@@ -90,7 +91,7 @@ class _Undecided(Exception):
 
 def search(trial: Callable[[float], Trial], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Trial]]:
     """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; the search:
-    docs/architecture.md, "Module notes". A trial with status ``timeout`` ends it ``undecided``, with the
+    docs/running.md, "Module notes". A trial with status ``timeout`` ends it ``undecided``, with the
     bracket known so far (:func:`timed_retry` gives the trial its second chance first)."""
     trials: list[Trial] = []
     known: list[float | None] = [None, None]  # largest stable, smallest unstable so far

@@ -18,10 +18,11 @@ from engines.adapter import Schedule
 from engines.external.command import spec_of
 from engines.errors import UserError
 
-from compare.results.files import atomic_write_text
-from compare.results.metrics import Bounds, apply_bounds, case_metrics
+from engines.files import atomic_write_text
+from compare.results.measure import CaseOutcome, CaseStatus, bounds_exceeded, decide_status
+from compare.results.metrics import Bounds, case_metrics
 from compare.results.store import jsonable
-from compare.run.isolation import CaseOutcome, CaseTask, execute
+from compare.run.isolation import CaseTask, execute
 from compare.run.runner import compare_version
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
 
@@ -90,18 +91,21 @@ def timed_retry(trial: Callable[[float, float], Trial], timeout: float) -> Calla
 
 
 def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Trial:
-    """The Trial of a finished case: the engine's status, then the suite's bounds (as ``xval run`` does)."""
+    """The Trial of a finished case: the engine's status, then the suite's bounds (decided as ``xval run``
+    decides a case's, by compare.results.measure.decide_status)."""
     trajectory = outcome.trajectory
+    host = CaseStatus(outcome.status, outcome.message)
     if trajectory is None:
-        return Trial(dt, outcome.status, outcome.message, elapsed=outcome.elapsed)
-    status, message = trajectory.info.status, trajectory.info.message
+        status, message = decide_status(host=host)
+        return Trial(dt, status.value, message, elapsed=outcome.elapsed)
     scheduled = Schedule.make(scene.duration, dt, sample_interval).times
     # Position metrics need the reference, which the criterion does not use: compare against NaN.
     no_reference = np.full((len(scheduled), len(scene.particles), 3), np.nan)
     metrics, _ = case_metrics(scene, trajectory, no_reference, None, scheduled_times=scheduled,
                               wall_times=outcome.wall_times)
-    status, message = apply_bounds(status, message, metrics, bounds, scene)
-    return Trial(dt, status, message, _finite_or_none(metrics.energy_drift),
+    status, message = decide_status(host=host, run=CaseStatus(trajectory.info.status, trajectory.info.message),
+                                    exceeded=bounds_exceeded(metrics, bounds, scene))
+    return Trial(dt, status.value, message, _finite_or_none(metrics.energy_drift),
                  _finite_or_none(metrics.constraint_error), outcome.elapsed)
 
 

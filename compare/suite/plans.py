@@ -15,8 +15,10 @@ from typing import Any
 from compare.results.consistency import DEFAULT_TOLERANCE
 from engines.errors import UserError
 
-# The reader (compare.suite.reader) imports this module and hands itself in as ``reader``; scenes and
-# engines are its SceneSpec and EngineSpec records. They are not imported here, so there is no cycle.
+from compare.suite.specs import EngineSpec, SceneSpec
+
+# The reader (compare.suite.reader) imports this module and hands itself in as ``reader`` (typed Any: the
+# reader's private _Reader); scenes and engines are compare.suite.specs' records.
 
 #: Keys of ``[stability]``.
 STABILITY_KEYS = ("scenes", "engines", "dt_max", "dt_min", "bracket_factor", "resolution", "sample_interval")
@@ -47,8 +49,8 @@ class SearchSettings:
 class StabilityPlan:
     """Which pairs the stability search runs and its settings (from ``[stability]``, defaults: everything)."""
 
-    scenes: tuple[Any, ...]
-    engines: tuple[Any, ...]
+    scenes: tuple[SceneSpec, ...]
+    engines: tuple[EngineSpec, ...]
     settings: SearchSettings
 
 
@@ -62,8 +64,8 @@ class GainMapPlan:
     theory grid per axis; sample_interval : s (None: the suite's).
     """
 
-    scene: Any
-    engines: tuple[Any, ...]
+    scene: SceneSpec
+    engines: tuple[EngineSpec, ...]
     x: str
     y: str
     x_values: tuple[float, ...]

@@ -6,7 +6,7 @@
 is a :class:`UserError` naming the file (and line), the key and the fix; an engine that cannot be
 imported here is kept as *unavailable* and its cases are ``skipped`` with the reason.
 
-Details: docs/architecture.md, "Module notes", ``compare/suite/reader.py``.
+Details: docs/running.md, "Module notes", ``compare/suite/reader.py``.
 """
 
 from __future__ import annotations
@@ -18,20 +18,20 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from engines import registry
 from engines.adapter import Engine
 from engines.errors import SceneError, UserError
 from engines.scene import catalog
-from engines.scene.scene import Scene
 
 from compare.results.consistency import DEFAULT_TOLERANCE
-from compare.results.files import read_user_text
+from engines.files import read_user_text
 from compare.results.metrics import DEFAULT_DELTA, Bounds
 from compare.suite.command import command_engine_spec
 from compare.suite.tolerance_axis import read_tolerances
-from compare.suite.tolerance import GateSettings, gate_settings
+from compare.suite.gate_rules import GateSettings, gate_settings
+from compare.suite.specs import EngineSpec, SceneSpec
 from compare.suite.plans import GainMapPlan, StabilityPlan, read_gainmap, read_stability, read_verdict
 
 #: Keys a suite file may hold at the top level, with what each must be.
@@ -56,44 +56,15 @@ TOP_LEVEL_KEYS = {
     "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
-SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics")
+SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock")
 #: Keys of a model scene ([[scenes]] model = "…"), beside id.
-MODEL_KEYS = ("model", "q0", "v0", "file_dynamics")
+MODEL_KEYS = ("model", "q0", "v0", "file_dynamics", "lock")
 ENGINE_KEYS = ("id", "options", "label")
 SWEEP_KEYS = ("from", "to", "per_decade")
 REFERENCE_KEYS = ("rtol", "atol")
 BOUND_KEYS = ("energy_drift", "constraint_error")
 
 DEFAULTS = {"sample_interval": 0.01, "delta": DEFAULT_DELTA, "repeats": 1, "timeout": 120.0}
-
-
-@dataclass(frozen=True)
-class SceneSpec:
-    """One scene of a suite: readable ``id``, catalog ``name``, ``parameters`` as written, the built Scene."""
-
-    id: str
-    name: str
-    parameters: Mapping[str, Any]
-    scene: Scene
-
-
-@dataclass(frozen=True)
-class EngineSpec:
-    """One engine variant of a suite.
-
-    id : what the suite wrote, expanded (``mujoco/hinge-rk4``, or
-        ``tests.engines:BROKEN/raise``); used to load the engine in a worker.
-    label : the readable id shown in tables and results (``id`` unless set).
-    engine : the adapter, or None when it cannot be loaded here (``unavailable`` says why).
-    variant : key of ``engine.variants``; options : as written in the suite.
-    """
-
-    id: str
-    label: str
-    variant: str | None
-    options: Mapping[str, Any]
-    engine: Engine | None
-    unavailable: str = ""
 
 
 @dataclass(frozen=True)
@@ -147,8 +118,8 @@ class Suite:
 
 def _program_of(engine: EngineSpec) -> list[Any]:
     """[argv, version] of a command engine (docs/protocol.md), [] for any other engine."""
-    spec = getattr(engine.engine, "spec", None)
-    return [] if spec is None else [list(spec.argv), spec.version]
+    program = None if engine.engine is None else engine.engine.program()
+    return [] if program is None else [list(program[0]), program[1]]
 
 
 # -- engine ids ------------------------------------------------------------------
@@ -456,12 +427,15 @@ class _Reader:
 
     def model_scene(self, key: str, entry: dict[str, Any], duration: float | None) -> SceneSpec:
         """A [[scenes]] entry with ``model = "…"`` (a path relative to the suite file, or pybullet_data:<path>),
-        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name."""
+        ``q0`` (degrees, or metres for prismatic joints) and ``v0`` (rad/s, m/s) by joint name, and
+        ``parameters = { g = … }`` (m/s², the one catalog parameter a model takes)."""
+        from engines.model.loaded import GRAVITY
         from engines.model.scene import DEFAULT_DURATION, model_scene
 
-        if "scene" in entry or "parameters" in entry:
+        if "scene" in entry:
             raise self.error(f"{key}.model", "a scene is either a catalog scene (scene, parameters) or a model "
                              "(model, q0, v0, file_dynamics), not both; remove one")
+        parameters = self.table(f"{key}.parameters", entry.get("parameters", {}), ("g",))
         model = self.string(f"{key}.model", entry["model"])
         scene_id = self.string(f"{key}.id", entry.get("id", Path(model.partition(":")[2] or model).stem))
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._-]*", scene_id):
@@ -469,14 +443,18 @@ class _Reader:
         q0 = self.table(f"{key}.q0", entry.get("q0", {}), tuple(entry.get("q0", {})))
         v0 = self.table(f"{key}.v0", entry.get("v0", {}), tuple(entry.get("v0", {})))
         file_dynamics = self.string(f"{key}.file_dynamics", entry.get("file_dynamics", "neutral"))
+        lock = entry.get("lock", [])
+        if not isinstance(lock, list) or not all(isinstance(name, str) for name in lock):
+            raise self.error(f"{key}.lock", f"must be a list of joint names, got {_describe(lock)}")
         try:
             scene = model_scene(scene_id, model, base=Path(self.path).parent, q0=q0, v0=v0,
                                 duration=DEFAULT_DURATION if duration is None else duration,
-                                file_dynamics=file_dynamics)
+                                file_dynamics=file_dynamics, g=parameters.get("g", GRAVITY), lock=lock)
         except UserError as exc:
             raise self.error(f"{key}.model", str(exc)) from None
         return SceneSpec(scene_id, "model", {"model": model, "q0": dict(q0), "v0": dict(v0),
-                                             "file_dynamics": file_dynamics}, scene)
+                                             "file_dynamics": file_dynamics, **dict(parameters),
+                                             **({"lock": list(lock)} if lock else {})}, scene)
 
     def engines(self, value: Any) -> tuple[EngineSpec, ...]:
         if not isinstance(value, list) or not value:

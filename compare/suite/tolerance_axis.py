@@ -2,9 +2,9 @@
 
 A suite may sweep ``tolerance = [1e-4, 1e-6]`` or ``tolerance = { from = 1e-4, to = 1e-10,
 per_decade = 1 }`` beside its ``dt``. An engine variant takes part when its engine declares
-the capability ``"tolerance"``, names the options a tolerance sets (``tolerance_options``,
+the capability ``"tolerance"``, names the options a tolerance sets (``Engine.tolerance_options``,
 e.g. Drake's ``("accuracy",)``), and says these settings are error-controlled
-(``tolerance_capable(settings)``; a fixed-step variant of the same engine is not). Such a
+(``Engine.tolerance_capable(settings)``; a fixed-step variant of the same engine is not). Such a
 variant gets one case per tolerance *instead of* one per dt: the tolerance is written into
 each of its tolerance options, and dt is the suite's sample interval, which such an engine
 takes as its largest step. Every other variant keeps its dt sweep. Both kinds of point land
@@ -14,7 +14,9 @@ is judged along the tolerance (does the error fall as it tightens).
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any
+
+from engines.adapter import Engine
 
 
 #: The capability an engine declares to take part (engines.drake.adapter.DrakeEngine).
@@ -29,15 +31,12 @@ def read_tolerances(reader: Any, value: Any) -> tuple[float, ...]:
     return tuple(sorted(values, reverse=True))
 
 
-def tolerance_options(engine: Any, variant: str | None, options: Any) -> tuple[str, ...]:
-    """The options a tolerance sets for this engine variant, or () when it takes no tolerance."""
-    if engine is None or CAPABILITY not in getattr(engine, "capabilities", ()):
+def tolerance_options(engine: Engine | None, variant: str | None, options: Any) -> tuple[str, ...]:
+    """The options a tolerance sets for this engine variant (Engine.tolerance_options, when
+    Engine.tolerance_capable says its settings are error-controlled), or () when it takes no tolerance."""
+    if engine is None or CAPABILITY not in engine.capabilities or not engine.tolerance_options:
         return ()
-    names = tuple(getattr(engine, "tolerance_options", ()))
-    capable: Callable[[Any], bool] | None = getattr(engine, "tolerance_capable", None)
-    if not names or capable is None:
-        return ()
-    return names if capable(engine.resolve(variant, options)) else ()
+    return tuple(engine.tolerance_options) if engine.tolerance_capable(engine.resolve(variant, options)) else ()
 
 
 def with_tolerance(options: Any, names: tuple[str, ...], tolerance: float) -> dict[str, Any]:

@@ -27,7 +27,7 @@ from engines.dart import model
 from engines.errors import Unsupported
 from engines.model.stepping import run_model
 from engines.recorder import Recorder
-from engines.scene.scene import Line, Pin, Rod, Scene
+from engines.scene.scene import Line, Pin, Rod, Scene, ModelSceneLike
 from engines.scene.tree import Tree, read_tree
 
 #: A ball joint's body needs rotational inertia (with none the spin about the arm has no mass and the
@@ -95,7 +95,7 @@ class DartEngine(Engine):
         """Import dartpy in this process, so that case hosts forked from it inherit it."""
         library.dartpy()
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.DartStepper(scene, schedule.dt, settings["integrator"]))
 
     def model_import(self) -> ModelImport:

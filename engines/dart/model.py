@@ -1,4 +1,4 @@
-"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF) into a Skeleton.
+"""DART's import of a model file: ``DartLoader`` (URDF) or ``MjcfParser.readWorld`` (MJCF, the self-contained text in a temporary file) into a Skeleton.
 
 Import options: ``DartLoader.Options`` with mDefaultRootJointType = FIXED
 (DART gives a URDF a floating root otherwise) and its default
@@ -14,18 +14,21 @@ stiffness set to 0. M is ``getMassMatrix``, the bias
 from __future__ import annotations
 
 
-from typing import Any
+from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from engines.dart import library
 from engines.dart.rk4 import rk4_stepper
 from engines.model.description import ModelDescription
+from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.stdio import quiet_output
+from engines.model.scene import ModelScene
 
 NAME = "dart"
 
@@ -40,8 +43,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "mjcf":
         try:
-            with quiet_output():
-                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(source.path.resolve().as_uri()))
+            with quiet_output(), source.engine_file() as path:
+                world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(Path(path).as_uri()))
         except RuntimeError as exc:
             raise Refused(" ".join(str(exc).split())) from None
         if world is None or world.getNumSkeletons() != 1:
@@ -50,13 +53,15 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
         return DartModel(world.getSkeleton(0), description, stated, notes)
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
-    options.mDefaultRootJointType = dartpy.utils.DartLoader.RootJointType.FIXED
+    floating = description.floating is not None
+    root_type = "FLOATING" if floating else "FIXED"
+    options.mDefaultRootJointType = getattr(dartpy.utils.DartLoader.RootJointType, root_type)
     loader.setOptions(options)
     with quiet_output():  # DART prints a warning per massless link to stdout
         skeleton = loader.parseSkeletonString(text, source.path.resolve().as_uri())
     if skeleton is None:
         raise Refused("DartLoader.parseSkeletonString returned no skeleton (DART printed the reason)")
-    stated = {"loader": "DartLoader.parseSkeletonString", "mDefaultRootJointType": "FIXED",
+    stated = {"loader": "DartLoader.parseSkeletonString", "mDefaultRootJointType": root_type,
               "mDefaultInertia": "1 kg, identity (DART's default)"}
     return DartModel(skeleton, description, stated, notes)
 
@@ -69,9 +74,13 @@ class DartModel(LoadedModel):
         self.skeleton = skeleton
         skeleton.setGravity([0.0, 0.0, -GRAVITY])
         names, dofs = [], []
+        base: list[int] = []
         for k in range(skeleton.getNumJoints()):
             joint = skeleton.getJoint(k)
             if joint.getNumDofs() == 0:
+                continue
+            if joint.getType() == "FreeJoint" and description.floating is not None and not base:
+                base = [joint.getIndexInSkeleton(i) for i in range(6)]
                 continue
             if joint.getNumDofs() != 1:
                 raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
@@ -81,31 +90,54 @@ class DartModel(LoadedModel):
             names.append(joint.getName())
             dofs.append(joint.getIndexInSkeleton(0))
         self.dof = np.array(dofs, dtype=int)[index_map(description, names)]
+        if bool(base) != (description.floating is not None):
+            raise Refused("DART's skeleton has no FreeJoint for the floating base (its MJCF parser welds a free "
+                          "joint's body to the world)")
+        #: DART's index of each of xval's velocities (the base's six first: its FreeJoint, angular then linear,
+        #: both in the world frame as measured (engines/model/floating.py); its positions are the rotation
+        #: vector, then the position).
+        self.selected = np.array(base + list(self.dof), dtype=int)
         self.n = skeleton.getNumDofs()
 
-    def _set(self, q, v=None, tau=None) -> None:
+    def _set(self, q, v=None, tau=None) -> Mapping | None:
+        q = np.asarray(q, dtype=float)
+        rates = None if v is None else np.asarray(v, dtype=float)
+        mapping = Mapping(angular_linear_world, q, rates) if len(self.selected) > len(self.dof) else None
+        if mapping is not None:
+            rotvec = Rotation.from_quat(q[3:7] / np.linalg.norm(q[3:7])).as_rotvec()
+            q = np.concatenate([rotvec, q[:3], q[7:]])
         for values, setter in ((q, self.skeleton.setPositions), (v, self.skeleton.setVelocities),
                                (tau, self.skeleton.setForces)):
             full = np.zeros(self.n)
             if values is not None:
-                full[self.dof] = values
+                if mapping is not None and values is v:
+                    values = mapping.velocity(values)
+                elif mapping is not None and values is tau:
+                    values = mapping.force(values)
+                full[self.selected] = values
             setter(full)
+        return mapping
+
+    def _mass(self) -> np.ndarray:
+        return np.array(self.skeleton.getMassMatrix())[np.ix_(self.selected, self.selected)]
 
     def mass_matrix(self, q):
-        self._set(q)
-        return np.array(self.skeleton.getMassMatrix())[np.ix_(self.dof, self.dof)]
+        mapping = self._set(q)
+        return self._mass() if mapping is None else mapping.mass_matrix(self._mass())
 
     def bias(self, q, v):
-        self._set(q, v)
-        return np.array(self.skeleton.getCoriolisAndGravityForces())[self.dof]
+        mapping = self._set(q, v)
+        bias = np.array(self.skeleton.getCoriolisAndGravityForces())[self.selected]
+        return bias if mapping is None else mapping.bias(self._mass(), bias)
 
     def forward(self, q, v, tau):
-        self._set(q, v, tau)
+        mapping = self._set(q, v, tau)
         self.skeleton.computeForwardDynamics()
-        return np.array(self.skeleton.getAccelerations())[self.dof]
+        acceleration = np.array(self.skeleton.getAccelerations())[self.selected]
+        return acceleration if mapping is None else mapping.acceleration(acceleration)
 
     def link_inertias(self):
-        self._set(np.zeros(len(self.dof)))
+        self._set(self.description.neutral())
         found = {}
         for k in range(self.skeleton.getNumBodyNodes()):
             node = self.skeleton.getBodyNode(k)
@@ -116,10 +148,10 @@ class DartModel(LoadedModel):
         return found
 
 
-class DartStepper:
+class DartStepper(Stepper):
     """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
 
-    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         dart = library.dartpy()
         loaded = load(scene.source, scene.description)
         skeleton = self.skeleton = loaded.skeleton
@@ -133,6 +165,7 @@ class DartStepper:
         skeleton.setPositions(positions)
         skeleton.setVelocities(velocities)
         skeleton.setForces(np.zeros(skeleton.getNumDofs()))
+        skeleton.setGravity(np.asarray(scene.gravity, dtype=float))
         if integrator == "world":
             self.world = dart.simulation.World()
             self.world.setGravity(np.asarray(scene.gravity, dtype=float))

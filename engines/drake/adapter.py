@@ -16,7 +16,7 @@ from engines.drake import library as drake
 from engines.drake import model
 from engines.errors import Unsupported, UserError
 from engines.model.stepping import run_model
-from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene, ModelSceneLike
 from engines.scene.tree import Tree, read_tree
 
 #: Drake's scheme names (``ResetIntegratorFromFlags``) by this adapter's integrator option value.
@@ -130,14 +130,14 @@ class DrakeEngine(Engine):
                 "keep the roll-pitch-yaw ball joint away from its singular pitch"
             )
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.DrakeStepper(
             scene, schedule.dt, SCHEMES[settings["integrator"]], not settings["error_control"], settings["accuracy"]))
 
     def model_import(self) -> ModelImport:
         return ModelImport(model.version, model.load)
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         if settings["plant"] == "discrete":
             raise Unsupported("drake/discrete: a model file is loaded into a continuous plant; use the "
                               "integrator variants (rk3, rk5, bs3, radau3, rk2, semi-explicit-euler)")

@@ -15,16 +15,17 @@ from __future__ import annotations
 
 import logging
 
-from typing import Any
 
 import numpy as np
 
 from engines.drake import library as drake
 from engines.model.description import ModelDescription
+from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
+from engines.model.scene import ModelScene
 
 NAME = "drake"
 
@@ -33,7 +34,8 @@ def version() -> str:
     return drake.version()
 
 
-def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
+def load(source: ModelSource, description: ModelDescription, gravity: float = GRAVITY) -> "DrakeModel":
+    """``gravity`` : m/s² along −z (set before ``Finalize()``, the only time Drake takes it)."""
     Parser = drake.Parser
     MultibodyPlant = drake.MultibodyPlant
 
@@ -46,14 +48,23 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
     logger.addHandler(warnings)
     try:
         Parser(plant).AddModelsFromString(text, "urdf" if source.format == "urdf" else "xml")
-        root = plant.GetFrameByName(description.root)
-        if root.body().index() != plant.world_body().index():  # Drake reads a link named "world" as the world
+        # A body's frame (a joint may share its name); none with a floating base.
+        root = plant.GetBodyByName(description.root).body_frame() if description.floating is None else None
+        if root is not None and root.body().index() != plant.world_body().index():  # "world" is the world
             plant.WeldFrames(plant.world_frame(), root)
         for index in plant.GetJointIndices():
             joint = plant.get_joint(index)
             if joint.num_velocities() == 1 and hasattr(joint, "set_default_damping"):
                 joint.set_default_damping(0.0)
-        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -GRAVITY])
+        # Drake's MJCF parser turns a joint's armature into its actuator's reflected inertia (rotor inertia ×
+        # gear ratio²): zeroed like every engine's armature.
+        reflected = 0
+        for index in plant.GetJointActuatorIndices():
+            actuator = plant.get_mutable_joint_actuator(index)
+            if actuator.default_rotor_inertia() != 0.0:
+                actuator.set_default_rotor_inertia(0.0)
+                reflected += 1
+        plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -gravity])
         plant.Finalize()
     except RuntimeError as exc:
         raise Refused(" ".join(str(exc).split())) from None
@@ -61,7 +72,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DrakeModel":
         logger.removeHandler(warnings)
         logger.setLevel(level)
         logger.propagate = propagate
-    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines))
+    notes = (*notes, *(f"drake warned: {line}" for line in warnings.lines),
+             *((f"reflected inertia (the MJCF's armature) of {reflected} actuators set to 0",) if reflected else ()))
     options = {"parser": "Parser.AddModelsFromString", "time_step": "0 (continuous plant)",
                "root": f"{description.root} welded to the world"}
     return DrakeModel(plant, description, options, notes)
@@ -87,9 +99,14 @@ class DrakeModel(LoadedModel):
         super().__init__(description, options, (*notes, "joint damping set to 0"))
         self.plant, self.context = plant, plant.CreateDefaultContext()
         names, self.qpos, self.dof = [], [], []
+        #: The floating joint's first position and velocity (quaternion w x y z, position; angular, linear).
+        self.base_q, self.base_v = -1, -1
         for index in plant.GetJointIndices():
             joint = plant.get_joint(index)
             if joint.num_velocities() == 0:
+                continue
+            if joint.num_velocities() == 6 and description.floating is not None and self.base_q < 0:
+                self.base_q, self.base_v = joint.position_start(), joint.velocity_start()
                 continue
             if joint.num_velocities() != 1 or joint.num_positions() != 1:
                 raise Refused(f"only 1-degree-of-freedom joints are compared; drake's {joint.name()} has more")
@@ -97,39 +114,55 @@ class DrakeModel(LoadedModel):
             self.qpos.append(joint.position_start())
             self.dof.append(joint.velocity_start())
         index = index_map(description, names)
-        self.qpos, self.dof = np.array(self.qpos)[index], np.array(self.dof)[index]
+        self.qpos, self.dof = np.array(self.qpos, dtype=int)[index], np.array(self.dof, dtype=int)[index]
+        if (self.base_q >= 0) != (description.floating is not None):
+            raise Refused("drake's plant has no floating joint for the floating base")
+        base = np.arange(self.base_v, self.base_v + 6) if self.base_q >= 0 else np.zeros(0, int)
+        #: Drake's velocity index of each of xval's (the base's six first).
+        self.selected = np.concatenate([base, self.dof]).astype(int)
         self.forces = plant.get_applied_generalized_force_input_port().FixValue(self.context, np.zeros(plant.num_velocities()))
 
-    def _set(self, q, v=None, tau=None) -> None:
+    def _set(self, q, v=None, tau=None) -> Mapping | None:
+        q = np.asarray(q, dtype=float)
+        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
         positions = np.zeros(self.plant.num_positions())
+        if mapping is not None:
+            quaternion = q[3:7] / np.linalg.norm(q[3:7])
+            positions[self.base_q:self.base_q + 7] = quaternion[3], *quaternion[:3], *q[:3]
+            q = q[7:]
         positions[self.qpos] = q
         velocities = np.zeros(self.plant.num_velocities())
         if v is not None:
-            velocities[self.dof] = v
+            velocities[self.selected] = v if mapping is None else mapping.velocity(v)
         self.plant.SetPositionsAndVelocities(self.context, np.concatenate([positions, velocities]))
         forces = np.zeros(self.plant.num_velocities())
         if tau is not None:
-            forces[self.dof] = tau
+            forces[self.selected] = tau if mapping is None else mapping.force(tau)
         self.forces.GetMutableData().set_value(forces)
+        return mapping
+
+    def _mass(self) -> np.ndarray:
+        return self.plant.CalcMassMatrix(self.context)[np.ix_(self.selected, self.selected)]
 
     def mass_matrix(self, q):
-        self._set(q)
-        return self.plant.CalcMassMatrix(self.context)[np.ix_(self.dof, self.dof)]
+        mapping = self._set(q)
+        return self._mass() if mapping is None else mapping.mass_matrix(self._mass())
 
     def bias(self, q, v):
-        self._set(q, v)
-        bias = self.plant.CalcBiasTerm(self.context) - self.plant.CalcGravityGeneralizedForces(self.context)
-        return bias[self.dof]
+        mapping = self._set(q, v)
+        bias = (self.plant.CalcBiasTerm(self.context) - self.plant.CalcGravityGeneralizedForces(self.context))[self.selected]
+        return bias if mapping is None else mapping.bias(self._mass(), bias)
 
     def forward(self, q, v, tau):
-        self._set(q, v, tau)
+        mapping = self._set(q, v, tau)
         derivatives = self.plant.EvalTimeDerivatives(self.context).get_vector().CopyToVector()
-        return derivatives[self.plant.num_positions():][self.dof]
+        acceleration = derivatives[self.plant.num_positions():][self.selected]
+        return acceleration if mapping is None else mapping.acceleration(acceleration)
 
     def link_inertias(self):
         BodyIndex = drake.BodyIndex
 
-        self._set(np.zeros(len(self.dof)))
+        self._set(self.description.neutral())
         found = {}
         for k in range(1, self.plant.num_bodies()):  # body 0 is the world
             body = self.plant.get_body(BodyIndex(k))
@@ -142,13 +175,13 @@ class DrakeModel(LoadedModel):
         return found
 
 
-class DrakeStepper:
+class DrakeStepper(Stepper):
     """Drake: the file's continuous MultibodyPlant (engines.drake.model) under a Simulator with the variant's
     integrator (``scheme``: Drake's name), fixed step dt or error control at ``accuracy`` with dt the largest step."""
 
-    def __init__(self, scene: Any, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
+    def __init__(self, scene: ModelScene, dt: float, scheme: str, fixed: bool, accuracy: float) -> None:
         ResetIntegratorFromFlags, Simulator = drake.ResetIntegratorFromFlags, drake.Simulator
-        loaded = load(scene.source, scene.description)
+        loaded = load(scene.source, scene.description, gravity=scene.g)
         plant = self.plant = loaded.plant
         self.simulator = Simulator(plant)
         self.context = self.simulator.get_mutable_context()

@@ -24,8 +24,8 @@ from typing import Any, Iterator, Mapping
 from engines.external import protocol
 from engines.adapter import INITIAL_STATE_TOLERANCE, Engine, RawRun, Schedule
 from engines.errors import UserError
-from engines.scene.scene import Scene
-from engines.scene.trajectory import Trajectory
+from engines.scene.scene import Scene, SceneLike
+from engines.scene.trajectory import Status, Trajectory
 
 #: The engine name every command engine shares; its variant is the label (``command/my-bead``).
 NAME = "command"
@@ -188,6 +188,10 @@ class CommandEngine(Engine):
     def version(self) -> str:
         return self.spec.version or "unversioned"
 
+    def program(self) -> tuple[list[str], str]:
+        """(argv, version) of the program, as the spec gives them (the version may be empty)."""
+        return list(self.spec.argv), self.spec.version
+
     #: The option a suite's tolerance axis sets (compare/suite/tolerance_axis.py), for a program that
     #: declares the capability "tolerance"; it reaches the program as ``options.tolerance``.
     tolerance_options = ("tolerance",)
@@ -205,13 +209,13 @@ class CommandEngine(Engine):
         settings.update(options or {})
         return settings
 
-    def _lacking(self, scene: Scene, missing: frozenset[str]) -> str:
+    def _lacking(self, scene: SceneLike, missing: frozenset[str]) -> str:
         if "3d" in missing:
             return (f"{self.spec.engine_id} declares no '3d' capability and cannot express the 3-D scene "
                     f"{scene.name!r}; add \"3d\" to its capabilities if the program handles it")
         return super()._lacking(scene, missing)
 
-    def simulate(self, scene: Scene, dt: float, *, variant: str | None = None,
+    def simulate(self, scene: SceneLike, dt: float, *, variant: str | None = None,
                  options: Mapping[str, Any] | None = None, sample_interval: float | None = None) -> Trajectory:
         """:meth:`Engine.simulate`, with a program killed at its deadline reported as ``timeout`` and one that
         exits with :data:`UNSUPPORTED_EXIT_CODE` as ``skipped``."""
@@ -236,7 +240,7 @@ class CommandEngine(Engine):
         try:
             result = run_program(self.spec, payload, _deadline.get())
         except CommandTimeout as exc:
-            self._outcome.value = ("timeout", str(exc))
+            self._outcome.value = (Status.TIMEOUT, str(exc))
             raise
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         raw = self._parse(scene, schedule, result)
@@ -251,7 +255,7 @@ class CommandEngine(Engine):
         label = self.spec.engine_id
         if result.returncode == UNSUPPORTED_EXIT_CODE:
             reason = result.last_stderr_line() or "it gave no reason on stderr"
-            self._outcome.value = ("skipped", f"{label} cannot express {scene.name!r}: {reason}")
+            self._outcome.value = (Status.SKIPPED, f"{label} cannot express {scene.name!r}: {reason}")
             raise CommandFailed(reason)
         if result.returncode != 0:
             raise CommandFailed(f"{label}: {self.spec.display} {result.exit_description()}{result.stderr_suffix()}")

@@ -2,16 +2,16 @@
 
 A :class:`ModelDescription` is a tree of :class:`Body` records joined by
 :class:`Joint` records, the root welded to the world (fixed base), gravity
-along −z. Bodies and joints are kept in depth-first order from the root,
-children in file order (Pinocchio's and MuJoCo's order); the moving joints
-in that order are the model's coordinates q (a continuous joint is one
-angle, never Pinocchio's (cos, sin)). SI units: kg, m, kg·m², rad.
+along −z, in depth-first order from the root (children in file order); the
+moving joints in that order are the coordinates q (a continuous joint is
+one angle). SI units: kg, m, kg·m², rad.
 
-Refused with a :class:`ModelError` naming the link or joint and the fix:
-negative or non-finite mass, an inertia that is not symmetric positive
-semidefinite, a joint type other than revolute / continuous / prismatic /
-fixed, a floating base, loops and several roots, mimic joints (unless the
-reader was told to treat them as independent joints).
+Refused with a :class:`ModelError` naming the link or joint and the fix: on
+a link that moves, a negative mass or an inertia not positive semidefinite
+(within PSD_TOLERANCE of the model's largest moment); joint types other than
+revolute / continuous / prismatic / fixed; loops, several roots; mimic joints
+unless read as independent. Accepted with a note: such mass properties on a
+link welded to the root (it cannot move), a moment negative within tolerance.
 """
 
 from __future__ import annotations
@@ -27,12 +27,15 @@ from engines.errors import UserError
 Vector = tuple[float, float, float]
 Matrix = tuple[Vector, Vector, Vector]
 
-#: Joint types a description holds; every other type is refused.
-JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed")
+#: Joint types a description holds; every other type is refused. "floating" (six degrees of freedom) only
+#: between the world and the base.
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating")
 #: Joint types that add a coordinate.
 MOVING = ("revolute", "continuous", "prismatic")
-#: Smallest principal moment accepted, relative to the largest (round-off in a file's decimals).
-PSD_TOLERANCE = 1e-9
+#: Most negative principal moment accepted, relative to the largest principal moment of any link of the model
+#: (round-off in a file's decimals, such as a lone product of inertia of 1e-20): a tenth of the parity check's
+#: tolerance, so what it accepts changes M by less than the check can see (compare/model/tolerance.py).
+PSD_TOLERANCE = 1e-7
 
 
 class ModelError(UserError):
@@ -62,8 +65,10 @@ class Inertial:
         """(3, 3) kg·m² about the COM, link axes."""
         return np.array(self.inertia, dtype=float)
 
-    def check(self, link: str) -> None:
-        """ModelError naming ``link`` unless the mass is finite ≥ 0 and the inertia symmetric PSD."""
+    def check(self, link: str, scale: float | None = None) -> str:
+        """ModelError naming ``link`` unless the mass is finite ≥ 0 and the inertia symmetric PSD, negative
+        principal moments allowed down to −PSD_TOLERANCE·``scale`` (kg·m², the model's largest principal
+        moment; default this inertia's own). Returns a note when a negative moment was accepted, else ""."""
         if not math.isfinite(self.mass) or self.mass < 0:
             raise ModelError(f"link {link}: mass {self.mass:g} kg is negative or not finite; "
                              f"give <inertial><mass value=…> a value ≥ 0")
@@ -74,19 +79,27 @@ class Inertial:
             raise ModelError(f"link {link}: the inertia is not a finite symmetric matrix; "
                              f"check <inertia ixx… izz>")
         moments = np.linalg.eigvalsh(matrix)
-        if moments[0] < -PSD_TOLERANCE * max(abs(moments[-1]), 1e-300):
+        allowed = PSD_TOLERANCE * max(abs(moments[-1]) if scale is None else scale, 1e-300)
+        if moments[0] < -allowed:
             raise ModelError(f"link {link}: the inertia is not positive semidefinite (principal moments "
                              f"{', '.join(f'{m:.4g}' for m in moments)} kg·m²); give <inertia> whose principal "
                              f"moments are ≥ 0 (e.g. ixx, iyy, izz ≥ 0 with small products)")
+        if moments[0] < 0:
+            return (f"link {link}: smallest principal moment of inertia {moments[0]:.3g} kg·m² is negative within "
+                    f"the tolerance ({PSD_TOLERANCE:g} of the model's largest, {allowed / PSD_TOLERANCE:.3g} kg·m²): "
+                    f"accepted as positive semidefinite")
+        return ""
 
 
 @dataclass(frozen=True)
 class Body:
-    """A rigid link. parent_joint : the joint whose child it is (None for the root)."""
+    """A rigid link. parent_joint : the joint whose child it is (None for the root). virtual : a massless
+    link the reader added between two joints of one MJCF body (no engine need have it; never compared)."""
 
     name: str
     parent_joint: str | None
     inertial: Inertial = field(default_factory=Inertial)
+    virtual: bool = False
 
 
 @dataclass(frozen=True)
@@ -127,9 +140,8 @@ class Joint:
 
     def check(self) -> None:
         if self.type not in JOINT_TYPES:
-            fix = ("the base is welded to the world; remove the floating joint" if self.type == "floating"
-                   else f"use one of {', '.join(JOINT_TYPES)}")
-            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; {fix}")
+            raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; "
+                             f"use one of {', '.join(t for t in JOINT_TYPES if t != 'floating')}")
         if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
             raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
         if self.moving:
@@ -144,7 +156,14 @@ class Joint:
 
 @dataclass(frozen=True)
 class ModelDescription:
-    """A fixed-base kinematic tree. bodies, joints : depth-first from ``root``."""
+    """A kinematic tree. bodies, joints : depth-first from ``root``.
+
+    A floating base is a joint of type "floating" from the root (the world: MuJoCo's ``world`` for an MJCF
+    free joint, a massless ``__world__`` added for a URDF read with a floating base) to the base link, the
+    first joint. Coordinates (Pinocchio's convention, the one inside xval): the configuration is (base
+    position (3,) m, base orientation quaternion x y z w, joint q) and the velocity (base linear velocity
+    (3,) m/s and angular velocity (3,) rad/s, both in the base frame, joint v); fixed base: joint q and v.
+    """
 
     name: str
     source: str
@@ -170,9 +189,46 @@ class ModelDescription:
             for end in (joint.parent, joint.child):
                 if end not in names:
                     raise ModelError(f"joint {joint.name}: link {end} is not declared; add a <link name=\"{end}\">")
-        for body in self.bodies:
-            body.inertial.check(body.name)
         _check_tree(self)
+        for k, joint in enumerate(self.joints):
+            if joint.type == "floating" and (k > 0 or joint.parent != self.root or self.body(self.root).inertial.mass):
+                raise ModelError(f"joint {joint.name}: a floating joint must join the world to the base; "
+                                 f"make it the root body's only joint (a free joint in a top-level body)")
+        object.__setattr__(self, "notes", (*self.notes, *(n for n in _inertia_notes(self) if n not in self.notes)))
+
+    @cached_property
+    def floating(self) -> Joint | None:
+        """The floating joint between the world and the base (None: the root is welded to the world)."""
+        return self.joints[0] if self.joints and self.joints[0].type == "floating" else None
+
+    @property
+    def base_dofs(self) -> int:
+        """6 with a floating base, else 0: the velocity entries before the joints'."""
+        return 6 if self.floating is not None else 0
+
+    @property
+    def nv(self) -> int:
+        """Velocity size: base_dofs + nq."""
+        return self.base_dofs + self.nq
+
+    @property
+    def nconfig(self) -> int:
+        """Configuration size: 7 (position, quaternion) with a floating base, + nq."""
+        return (7 if self.floating is not None else 0) + self.nq
+
+    @property
+    def dof_names(self) -> tuple[str, ...]:
+        """A name per velocity entry: the base's six (``BASE.vx`` … ``BASE.wz``), then the joints."""
+        base = () if self.floating is None else tuple(f"{self.floating.name}.{a}" for a in
+                                                      ("vx", "vy", "vz", "wx", "wy", "wz"))
+        return (*base, *(j.name for j in self.moving_joints))
+
+    def neutral(self) -> np.ndarray:
+        """(nconfig,) the zero configuration (the base at the origin, identity orientation)."""
+        q = np.zeros(self.nconfig)
+        if self.floating is not None:
+            q[6] = 1.0
+        return q
 
     @cached_property
     def moving_joints(self) -> tuple[Joint, ...]:
@@ -199,12 +255,32 @@ class ModelDescription:
 
     @cached_property
     def moving_links(self) -> tuple[str, ...]:
-        """Links with a moving joint between them and the world (the others cannot change the dynamics)."""
+        """Links with a moving joint between them and the world (the others cannot change the dynamics),
+        the virtual ones left out."""
         moving: set[str] = set()
         for joint in self.joints:  # depth-first: a parent is settled before its children
-            if joint.moving or joint.parent in moving:
+            if joint.moving or joint.type == "floating" or joint.parent in moving:
                 moving.add(joint.child)
-        return tuple(b.name for b in self.bodies if b.name in moving)
+        return tuple(b.name for b in self.bodies if b.name in moving and not b.virtual)
+
+
+def _inertia_notes(model: ModelDescription) -> list[str]:
+    """Check every link's mass properties against the model's inertia scale: ModelError for a link that
+    moves; a note for one welded to the root (which cannot change the dynamics) or a negative moment accepted."""
+    scale = max((float(np.abs(np.linalg.eigvalsh(b.inertial.inertia_matrix)).max())
+                 for b in model.bodies if np.all(np.isfinite(b.inertial.inertia_matrix))), default=0.0)
+    moving, notes = set(model.moving_links), []
+    for body in model.bodies:
+        try:
+            note = body.inertial.check(body.name, scale)
+        except ModelError as exc:
+            if body.name in moving:
+                raise
+            note = (f"{str(exc).split('; ')[0]}: accepted, the link is welded to the root (it cannot move, so it "
+                    f"cannot change the dynamics)")
+        if note:
+            notes.append(note)
+    return notes
 
 
 def _first_repeat(names: list[str]) -> str:

@@ -35,6 +35,7 @@ class ModelDynamics:
 
         scene = self.scene
         loaded = reference_import.load(scene.source, scene.description)
+        loaded.model.gravity.linear = np.asarray(scene.gravity, dtype=float)
         damping = np.zeros(loaded.model.nv)
         if scene.file_dynamics == "keep":
             for joint, dof in zip(scene.description.moving_joints, loaded.dof):

@@ -22,6 +22,14 @@ def rpy_matrix(rpy) -> np.ndarray:
     ])
 
 
+def matrix_rpy(r: np.ndarray) -> tuple[float, float, float]:
+    """Fixed-axis roll, pitch, yaw (rad) of a rotation matrix, the inverse of :func:`rpy_matrix`."""
+    pitch = float(np.arcsin(-np.clip(r[2, 0], -1.0, 1.0)))
+    if abs(r[2, 0]) < 1 - 1e-12:
+        return float(np.arctan2(r[2, 1], r[2, 2])), pitch, float(np.arctan2(r[1, 0], r[0, 0]))
+    return float(np.arctan2(-r[1, 2], r[1, 1])), pitch, 0.0
+
+
 def axis_rotation(axis, angle: float) -> np.ndarray:
     """Rotation by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
     k = np.asarray(axis, dtype=float)

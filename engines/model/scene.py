@@ -3,7 +3,8 @@
 A :class:`ModelScene` is a model file (``engines.model.source``), an initial
 state by joint name (SI: rad, m, rad/s, m/s; every joint not named starts at
 0), a duration and what to do with the file's joint damping, friction and
-armature (``file_dynamics``: "neutral" sets them to 0, "keep" leaves them).
+armature (``file_dynamics``: "neutral" sets them to 0, "keep" leaves them),
+and gravity g along −z (9.81 m/s² unless the scene's parameter ``g`` says).
 Contacts and joint limits are always off. What the catalog's particles are
 to its metrics, a model's link frames are here: ``frames`` are the moving
 links, whose origins (positions, velocities) every engine reports, computed
@@ -19,10 +20,11 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from engines.errors import Unsupported
 from engines.model.description import ModelDescription, ModelError
 from engines.model.loaded import GRAVITY
 from engines.model.source import ModelSource, resolve
@@ -33,16 +35,17 @@ FILE_DYNAMICS = ("neutral", "keep")
 DEFAULT_DURATION = 2.0
 
 
-def describe(source: ModelSource) -> ModelDescription:
+def describe(source: ModelSource, base: str = "fixed") -> ModelDescription:
     """The description of ``source`` (URDF or MJCF); ModelError naming what it cannot hold.
 
     A URDF's mimic joints are simulated as independent joints (their ``<mimic>`` dropped for every engine
-    alike: the tree's dynamics, no coupling), so the Panda's second finger is a joint of its own.
+    alike: the tree's dynamics, no coupling), so the Panda's second finger is a joint of its own. ``base`` :
+    a URDF's root "fixed" to the world or "floating" (an MJCF says its own: a free joint).
     """
     if source.format == "urdf":
         from engines.model.urdf import read as read_urdf
 
-        return read_urdf(source, mimic_independent=True)
+        return read_urdf(source, mimic_independent=True, floating=base == "floating")
     from engines.model.mjcf import read as read_mjcf
 
     return read_mjcf(source)
@@ -68,6 +71,10 @@ class ModelScene:
     #: sha256 of the file's text when the scene was made: the key of what is read from it (a file edited
     #: since is a different model).
     digest: str = ""
+    #: m/s², the gravity along −z (the catalog's parameter g; 0 for a model in free fall or in space).
+    g: float = GRAVITY
+    #: ((joint, value), …): joints welded at their initial value (rad or m), in every engine's text.
+    lock: tuple[tuple[str, float], ...] = ()
 
     #: What tells a model scene from a catalog one (engines refuse it without the "model" capability).
     is_model = True
@@ -79,11 +86,11 @@ class ModelScene:
 
     @property
     def source(self) -> ModelSource:
-        return _source(self.model, self.path, self.digest)
+        return _source(self.model, self.path, self.digest, self.lock)
 
     @property
     def description(self) -> ModelDescription:
-        return _description(self.model, self.path, self.digest)
+        return _description(self.model, self.path, self.digest, self.lock)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -112,7 +119,12 @@ class ModelScene:
 
     @property
     def gravity(self) -> tuple[float, float, float]:
-        return (0.0, 0.0, -GRAVITY)
+        return (0.0, 0.0, -self.g if self.g else 0.0)
+
+    @property
+    def _scale_gravity(self) -> float:
+        """g for the scales (E*, the speed): Earth's when g = 0, so that they stay defined."""
+        return self.g if self.g > 0 else GRAVITY
 
     @property
     def masses(self) -> np.ndarray:
@@ -127,16 +139,16 @@ class ModelScene:
 
     @property
     def characteristic_gravity(self) -> float:
-        return GRAVITY
+        return self._scale_gravity
 
     @property
     def characteristic_energy(self) -> float:
         """E* = (total mass of the moving links) · g · L, J."""
-        return float(self.masses.sum()) * GRAVITY * self.characteristic_length
+        return float(self.masses.sum()) * self._scale_gravity * self.characteristic_length
 
     @property
     def characteristic_speed(self) -> float:
-        return math.sqrt(GRAVITY * self.characteristic_length)
+        return math.sqrt(self._scale_gravity * self.characteristic_length)
 
     # -- states ----------------------------------------------------------------------------------
 
@@ -152,20 +164,52 @@ class ModelScene:
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at joint states q, v (n, nq)."""
-        return _kinematics(self.model, self.path, self.digest).frames(q, v)
+        return _kinematics(self.model, self.path, self.digest, self.lock).frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path, self.digest).energy(q, v)
+        return _kinematics(self.model, self.path, self.digest, self.lock).energy(q, v, self.g)
+
+    def conserved_joints(self) -> tuple[str, ...]:
+        """The moving joints on the (fixed) root whose momentum nothing changes: (M v)_j is the momentum of
+        everything joint j carries, about its axis (revolute, continuous) or along it (prismatic), and only
+        gravity acts on that subtree beside the joint: conserved when g = 0, or when the axis is parallel
+        (revolute) or perpendicular (prismatic) to gravity."""
+        description, out = self.description, []
+        for joint in description.moving_joints:
+            if joint.parent != description.root:
+                continue
+            axis = _root_axis(description, joint)
+            along = abs(axis[2])  # gravity is along −z
+            if self.g == 0 or (joint.type == "prismatic" and along < 1e-12) or \
+                    (joint.type != "prismatic" and along > 1 - 1e-12):
+                out.append(joint.name)
+        return tuple(out)
+
+    def momentum_drift(self, q: np.ndarray, v: np.ndarray) -> float | None:
+        """max over :meth:`conserved_joints` and samples of |p_j(t) − p_j(0)| / scale, p = M(q) v (n, nq) at
+        joint states q, v (n, nq); scale M·L·√(g·L) about an axis, M·√(g·L) along one (M the moving links'
+        mass, L the reach, g Earth's when the scene's is 0). None when no joint qualifies; 0 for one sample."""
+        names = self.conserved_joints()
+        if not names:
+            return None
+        if len(q) < 2:
+            return 0.0
+        momentum = _kinematics(self.model, self.path, self.digest, self.lock).momentum(q, v)
+        speed = float(self.masses.sum()) * self.characteristic_speed
+        worst = 0.0
+        for name in names:
+            k = self.joint_names.index(name)
+            scale = speed * (1.0 if self.description.joint(name).type == "prismatic" else self.characteristic_length)
+            worst = max(worst, float(np.abs(momentum[:, k] - momentum[0, k]).max()) / scale)
+        return worst
 
     # -- stepping ----------------------------------------------------------------------------------
 
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when this scene keeps the file's joint damping and ``engine``'s import cannot."""
         if self.file_dynamics == "keep":
-            from engines.errors import Unsupported
-
             raise Unsupported(f"{engine}: file_dynamics = \"keep\" is not supported here (its import sets joint "
                               f"damping to 0 before the model is finalised); use \"neutral\"")
 
@@ -175,13 +219,14 @@ class ModelScene:
     def content_hash(self) -> str:
         """The file's text, the initial state, the duration and file_dynamics: everything the physics depends on."""
         key = hashlib.sha256(self.digest.encode())
-        key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]).encode())
+        key.update(json.dumps([self.q0, self.v0, self.duration, self.file_dynamics]
+                              + ([] if self.g == GRAVITY else [self.g]) + ([list(self.lock)] if self.lock else [])).encode())
         return key.hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         return {"kind": "model", "name": self.name, "model": self.model, "path": self.path,
                 "q0": dict(self.q0), "v0": dict(self.v0), "duration": self.duration,
-                "file_dynamics": self.file_dynamics, "digest": self.digest,
+                "file_dynamics": self.file_dynamics, "digest": self.digest, "g": self.g, "lock": dict(self.lock),
                 "particles": [{"link": name, "mass": float(m)} for name, m in zip(self.frames, self.masses)],
                 "frame_parents": self.frame_parents()}
 
@@ -210,12 +255,22 @@ class ModelScene:
 
 def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[str, Any] | None = None,
                 v0: Mapping[str, Any] | None = None, duration: float = DEFAULT_DURATION,
-                file_dynamics: str = "neutral") -> ModelScene:
+                file_dynamics: str = "neutral", g: Any = GRAVITY, lock: Sequence[str] = ()) -> ModelScene:
     """A ModelScene from user units: q0 in degrees (revolute, continuous) or metres (prismatic), v0 in
     rad/s or m/s, by joint name; every moving joint not named starts at 0. ModelError naming the field."""
     source = resolve(model, base)
     digest = _digest(source.text)
     description = _description(model, str(source.path), digest)
+    if lock:
+        welded = _lock_values(model, description, q0 or {}, lock)
+        description = _description(model, str(source.path), digest, welded)
+        q0 = {k: value for k, value in (q0 or {}).items() if k not in dict(welded)}
+    else:
+        welded = ()
+    if description.floating is not None:
+        raise ModelError(f"model {model}: a floating base (joint {description.floating.name}) is not supported in "
+                         f"model scenes yet; use `xval model check` for its dynamics, or weld the base (remove the "
+                         f"free joint)")
     if description.nq == 0:
         raise ModelError(f"model {model}: it has no moving joints (revolute, continuous or prismatic); "
                          f"there is nothing to simulate")
@@ -224,6 +279,12 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
                          f"got {file_dynamics!r}")
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ModelError(f"model {model}: duration must be a positive number of seconds, got {duration!r}")
+    try:
+        gravity = float(g)
+    except (TypeError, ValueError):
+        gravity = math.nan
+    if not (math.isfinite(gravity) and gravity >= 0):
+        raise ModelError(f"model {model}: g must be a finite number of m/s² ≥ 0 (along −z), got {g!r}")
     joints = description.moving_joints
     rubbing = [j.name for j in joints if j.friction]
     if file_dynamics == "keep" and rubbing:
@@ -235,8 +296,24 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     q = tuple((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name])
               if j.name in given_q else (j.name, 0.0) for j in joints)
     v = tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
-    parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics}
-    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest)
+    parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
+                  **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {})}
+    return ModelScene(name, model, str(source.path), q, v, float(duration), file_dynamics, parameters, digest, gravity,
+                      welded)
+
+
+def _lock_values(model: str, description: ModelDescription, q0: Mapping[str, Any],
+                 lock: Sequence[str]) -> tuple[tuple[str, float], ...]:
+    """((joint, value in SI), …) for the joints to weld: each at its q0 (degrees or metres), else 0."""
+    joints = {j.name: j for j in description.moving_joints}
+    unknown = [name for name in lock if name not in joints]
+    if unknown:
+        raise ModelError(f"model {model}: lock names joint {unknown[0]!r}, which is not one of its moving joints: "
+                         f"{', '.join(joints)}")
+    angular = {name: joints[name].type != "prismatic" for name in lock}
+    given = _by_joint(model, "q0", {k: v for k, v in q0.items() if k in angular}, angular)
+    return tuple((name, math.radians(given.get(name, 0.0)) if angular[name] else given.get(name, 0.0))
+                 for name in lock)
 
 
 def _by_joint(model: str, what: str, values: Mapping[str, Any], angular: Mapping[str, bool]) -> dict[str, float]:
@@ -262,17 +339,24 @@ def _digest(text: str) -> str:
 
 
 @functools.lru_cache(maxsize=16)
-def _source(model: str, path: str, digest: str) -> ModelSource:
-    """The file as the scene was made from it; ModelError when it has been edited since."""
-    source = replace(resolve(path), label=model)
+def _source(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> ModelSource:
+    """The file as the scene was made from it, ``lock``'s joints welded; ModelError when it has been edited since."""
+    source = replace(resolve(path), label=model, lock=lock)
     if digest and _digest(source.text) != digest:
         raise ModelError(f"model {model}: {path} changed after the scene was made from it; run again")
     return source
 
 
 @functools.lru_cache(maxsize=16)
-def _description(model: str, path: str, digest: str) -> ModelDescription:
-    return describe(_source(model, path, digest))
+def _description(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> ModelDescription:
+    return describe(_source(model, path, digest, lock))
+
+
+def _root_axis(description: ModelDescription, joint) -> np.ndarray:
+    """(3,) a root joint's axis in the world (the root is the world frame; its joint frame turned by rpy)."""
+    from engines.model.kinematics import rpy_matrix
+
+    return rpy_matrix(joint.rpy) @ np.asarray(joint.axis, dtype=float)
 
 
 def _reach(description: ModelDescription) -> float:
@@ -287,8 +371,8 @@ def _reach(description: ModelDescription) -> float:
 
 
 @functools.lru_cache(maxsize=16)
-def _kinematics(model: str, path: str, digest: str) -> "FrameKinematics":
-    return FrameKinematics(_source(model, path, digest), _description(model, path, digest))
+def _kinematics(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = ()) -> "FrameKinematics":
+    return FrameKinematics(_source(model, path, digest, lock), _description(model, path, digest, lock))
 
 
 class FrameKinematics:
@@ -302,7 +386,8 @@ class FrameKinematics:
         self.pin = pin
         self.loaded = reference_import.load(source, description)
         model = self.loaded.model
-        self.frame_ids = [model.getFrameId(name) for name in description.moving_links]
+        # By name and type: URDF lets a link and a joint share a name, and each has a frame of that name.
+        self.frame_ids = [model.getFrameId(name, pin.FrameType.BODY) for name in description.moving_links]
 
     def frames(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         pin, loaded = self.pin, self.loaded
@@ -318,9 +403,16 @@ class FrameKinematics:
                 velocities[s, k] = pin.getFrameVelocity(model, data, frame, world).linear
         return positions, velocities
 
-    def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(n, nq) the generalised momenta M(q) v at joint states q, v (n, nq)."""
+        loaded = self.loaded
+        return np.array([loaded.mass_matrix(qk) @ vk for qk, vk in zip(q, v)])
+
+    def energy(self, q: np.ndarray, v: np.ndarray, g: float = GRAVITY) -> np.ndarray:
+        """(n,) J: kinetic plus potential energy in gravity g (m/s², along −z)."""
         pin, loaded = self.pin, self.loaded
         model, data = loaded.model, loaded.data
+        model.gravity.linear = np.array([0.0, 0.0, -g])
         out = np.empty(len(q))
         for s in range(len(q)):
             config, rates = loaded.configuration(q[s]), loaded._vector(v[s])

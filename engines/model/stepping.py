@@ -1,6 +1,6 @@
 """Stepping a model scene in an engine: one loop for every engine, each engine's own step.
 
-An engine adapter that runs model scenes builds a :class:`Stepper` from the
+An engine adapter that runs model scenes builds a :class:`Stepper` (a subclass of it) from the
 engine's import of the file (``engines/<engine>/model.py``), with its
 integrator and time step, and hands it to :func:`run_model`. The loop
 advances to each sample step (only that is timed), reads the joint state
@@ -13,16 +13,18 @@ every override goes into the run's settings.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from engines.adapter import RawRun, Schedule
 from engines.recorder import Recorder
+from engines.model.scene import ModelScene
 
 
-class Stepper(Protocol):
-    """An engine's model, ready to step at the schedule's dt from the scene's initial state.
+class Stepper:
+    """An engine's model, ready to step at the schedule's dt from the scene's initial state: the base of each
+    engine's stepper (engines/<engine>/model.py), which implements ``advance`` and ``state``.
 
     settings : what the run must record (import options, overrides, integrator).
     """
@@ -31,17 +33,25 @@ class Stepper(Protocol):
 
     def advance(self, steps: int) -> None:
         """Take ``steps`` steps of dt."""
+        raise NotImplementedError
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """(q, v) (nq,) each, in the model's joint order (rad or m, rad/s or m/s)."""
+        raise NotImplementedError
 
-    # Optional, for an engine whose joints can come apart (maximal coordinates, ours):
-    # ``constraint_violations() -> (n,)``, m: the largest joint violation at each state ``state`` returned,
-    # read once after the run (RawRun.constraint_violation). A reduced-coordinate engine has none: its
-    # joints hold by construction.
+    def steps_taken(self) -> int | None:
+        """Steps taken so far, for an integrator that chooses its own (error-controlled); None (the default):
+        the schedule's count."""
+        return None
+
+    def constraint_violations(self) -> np.ndarray | None:
+        """(n,) m: the largest joint violation at each state ``state`` returned, read once after the run
+        (RawRun.constraint_violation), for an engine whose joints can come apart (maximal coordinates,
+        ours); None (the default): a reduced-coordinate engine's joints hold by construction."""
+        return None
 
 
-def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
+def run_model(scene: ModelScene, schedule: Schedule, stepper: Stepper) -> RawRun:
     """Step ``scene`` (an engines.model.scene.ModelScene) to every sample of ``schedule`` through the one
     Recorder loop (it stops at a non-finite state).
     Positions and velocities are the link frames' (n, L, 3); ``joint_states`` (n, 2·nq) holds q then v;
@@ -58,19 +68,19 @@ def run_model(scene: Any, schedule: Schedule, stepper: Stepper) -> RawRun:
         good = np.flatnonzero(finite)
         positions[good], velocities[good] = scene.frame_states(q[good], v[good])
     # An error-controlled integrator takes steps of its own choosing: the stepper counts them.
-    taken = stepper.steps_taken() if hasattr(stepper, "steps_taken") else None
+    taken = stepper.steps_taken()
     raw = recorder.raw_run(positions=positions, velocities=velocities, settings=stepper.settings, steps=taken)
-    violation = stepper.constraint_violations() if hasattr(stepper, "constraint_violations") else None
+    violation = stepper.constraint_violations()
     return replace(raw, joint_states=states, constraint_violation=violation)
 
 
-def file_values(scene: Any) -> dict[str, dict[str, float]]:
+def file_values(scene: ModelScene) -> dict[str, dict[str, float]]:
     """The file's joint damping and friction by joint (what ``keep`` leaves in place), for the record."""
     return {j.name: {"damping": j.damping, "friction": j.friction} for j in scene.description.moving_joints
             if j.damping or j.friction}
 
 
-def common_settings(scene: Any, loaded: Any) -> dict[str, Any]:
+def common_settings(scene: ModelScene, loaded: Any) -> dict[str, Any]:
     """Settings every model run records: the import's options and notes, and what the file's joint
     damping and friction were (set to 0, or the damping kept; contacts and joint limits are off)."""
     return {
@@ -81,10 +91,18 @@ def common_settings(scene: Any, loaded: Any) -> dict[str, Any]:
         "file_dynamics": ("keep: the file's joint damping kept (no friction in the file)" if scene.file_dynamics == "keep"
                           else "neutral: joint damping, friction and armature set to 0"),
         "contacts": "off", "joint_limits": "off",
+        "unbounded_once_limits_off": unbounded_joints(scene),
     }
 
 
-def kept_damping(scene: Any) -> np.ndarray:
+def unbounded_joints(scene: ModelScene) -> list[str]:
+    """The prismatic joints the file limits: with limits off nothing stops them (a gripper's finger slides
+    away), so their links' errors say little; named in every run's settings."""
+    return [j.name for j in scene.description.moving_joints
+            if j.type == "prismatic" and (j.limits.lower is not None or j.limits.upper is not None)]
+
+
+def kept_damping(scene: ModelScene) -> np.ndarray:
     """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
     keep = scene.file_dynamics == "keep"
     return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])

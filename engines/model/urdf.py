@@ -3,28 +3,48 @@
 Readings of the URDF specification stated once: a link without
 ``<inertial>`` has mass 0 and inertia 0; a missing ``<origin>`` is the
 identity; a missing ``<axis>`` is (1, 0, 0), and an axis is normalised; a
-continuous joint has no position limits whatever ``<limit>`` says; the
-inertia is given about the centre of mass in the inertial frame, which
-``<inertial><origin rpy>`` rotates (the description stores it in link axes).
+continuous joint has no position limits whatever ``<limit>`` says; a
+``<limit>`` whose lower is above its upper is no limit (PyBullet's own
+convention, ``lower=1 upper=-1``; said in a note); the inertia is given about
+the centre of mass in the inertial frame, which ``<inertial><origin rpy>``
+rotates (the description stores it in link axes). A file that still holds
+xacro (``xacro:`` elements) is refused: it must be expanded first.
 """
 
 from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 
 import numpy as np
 
 from engines.model.description import Body, Inertial, Joint, Limits, ModelDescription, ModelError
 from engines.model.kinematics import rpy_matrix
-from engines.model.source import ModelSource
+from engines.model.source import ModelSource, unexpanded_xacro
 
 
-def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescription:
-    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold."""
+#: The world body and the joint a floating base adds above a URDF's root link (names no URDF link takes).
+WORLD, FLOATING = "__world__", "__floating_base__"
+
+
+def read(source: ModelSource, mimic_independent: bool = False, floating: bool = False) -> ModelDescription:
+    """The description of a URDF source; ModelError naming the link or joint for what it cannot hold.
+
+    floating : the root link joined to the world by a floating joint (``--base floating``); URDF's default,
+    and this one's, is the root welded to the world."""
     robot = source.root
+    _refuse_xacro(source.label, robot)
     links = robot.findall("link")
-    joints = [_joint(element) for element in robot.findall("joint")]
+    joints, notes = [], []
+    for element in robot.findall("joint"):
+        joint = _joint(element)
+        lo, hi = joint.limits.lower, joint.limits.upper
+        if lo is not None and hi is not None and lo > hi:
+            notes.append(f"joint {joint.name}: <limit lower=\"{lo:g}\" upper=\"{hi:g}\"> (lower above upper) is "
+                         f"PyBullet's convention for no limit: read as unlimited")
+            joint = replace(joint, limits=replace(joint.limits, lower=None, upper=None))
+        joints.append(joint)
     bodies = {}
     for element in links:
         name = _name(element, "link")
@@ -51,9 +71,23 @@ def read(source: ModelSource, mimic_independent: bool = False) -> ModelDescripti
     ordered_links += [n for n in bodies if n not in ordered_links]
     ordered_joints += [j for j in joints if j not in ordered_joints]
     body_records = tuple(Body(n, parent_of[n].name if n in parent_of else None, bodies[n][1]) for n in ordered_links)
+    if floating and len(roots) == 1:
+        body_records = (Body(WORLD, None), *(replace(b, parent_joint=FLOATING) if b.name == root else b
+                                             for b in body_records))
+        ordered_joints.insert(0, Joint(FLOATING, "floating", WORLD, root))
+        root = WORLD
     return ModelDescription(name=robot.get("name", source.path.stem), source=source.label, format="urdf",
-                            root=root, bodies=body_records, joints=tuple(ordered_joints),
+                            root=root, bodies=body_records, joints=tuple(ordered_joints), notes=tuple(notes),
                             mimic_independent=mimic_independent)
+
+
+#: The namespace of xacro, the ROS macro language whose files must be expanded into URDF before use.
+XACRO = "{http://www.ros.org/wiki/xacro}"
+
+
+def _refuse_xacro(label: str, robot: ET.Element) -> None:
+    if any(isinstance(e.tag, str) and e.tag.startswith(XACRO) for e in robot.iter()):
+        raise unexpanded_xacro(label)
 
 
 def _name(element: ET.Element, kind: str) -> str:
@@ -71,6 +105,9 @@ def _numbers(element: ET.Element | None, attribute: str, default: tuple[float, .
         values = tuple(float(v) for v in text.split())
     except ValueError:
         values = ()
+    if not values and ("$(" in text or "${" in text):
+        raise ModelError(f"{where}: {element.tag} {attribute}={text!r} is an unexpanded xacro substitution; "
+                         f"expand the file with xacro first")
     if len(values) != len(default) or not all(math.isfinite(v) for v in values):
         raise ModelError(f"{where}: {element.tag} {attribute}={text!r} is not {len(default)} finite numbers; fix it")
     return values
@@ -104,6 +141,9 @@ def _joint(element: ET.Element) -> Joint:
     name = _name(element, "joint")
     where = f"joint {name}"
     kind = element.get("type", "")
+    if kind == "floating":  # the one floating joint is the base's, asked for with --base floating
+        raise ModelError(f"{where}: type 'floating' is not supported; the base is welded to the world; "
+                         f"remove the floating joint")
     parent, child = element.find("parent"), element.find("child")
     if parent is None or child is None or not parent.get("link") or not child.get("link"):
         raise ModelError(f"{where}: needs <parent link=…> and <child link=…>; add them")

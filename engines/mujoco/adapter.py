@@ -22,7 +22,7 @@ from engines.mujoco.library import mj_rollout, mujoco
 from engines.mujoco import options as tables
 from engines.mujoco.options import MIN_INERTIA, MUJOCO_SOLIMP, MUJOCO_SOLREF
 from engines.recorder import Recorder
-from engines.scene.scene import Ellipse, Line, Pin, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Scene, ModelSceneLike
 from engines.scene.tree import Tree, read_tree
 
 #: Steps per rollout call: long enough that the per-call overhead is negligible against the steps,
@@ -326,13 +326,13 @@ class MuJoCoEngine(Engine):
     def version(self) -> str:
         return mujoco.mj_versionString()
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.MujocoStepper(scene, schedule.dt, settings["integrator"]))
 
     def model_import(self) -> ModelImport:
         return ModelImport(model.version, model.load, frozenset({"balance_inertia"}), model.compiler_options)
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "hinge":
             raise Unsupported("mujoco: a model file is compiled in joint coordinates; the connect variants "
                               "build particle scenes from free bodies, use mujoco/hinge*")

@@ -13,16 +13,17 @@ disabled (no joint limits or contacts), so forward dynamics are the tree's.
 
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 
 from engines.model.description import ModelDescription
+from engines.model.floating import Mapping, linear_world_angular_body
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings, kept_damping
+from engines.model.stepping import common_settings, kept_damping, Stepper
 from engines.mujoco.library import mujoco
+from engines.model.scene import ModelScene
 
 NAME = "mujoco"
 
@@ -44,7 +45,14 @@ def load(source: ModelSource, description: ModelDescription, balance_inertia: bo
     if source.format == "urdf":
         text = _with_compiler(text, options)
     try:
-        model = mujoco.MjModel.from_xml_string(text)
+        if source.format == "urdf" and description.floating is not None:
+            # MuJoCo welds a URDF's root: a free joint added to it in the spec, before compiling.
+            spec = mujoco.MjSpec.from_string(text)
+            spec.worldbody.first_body().add_freejoint(name=description.floating.name)
+            model = spec.compile()
+            options = {**options, "floating_base": "a free joint added to the root body (MjSpec.add_freejoint)"}
+        else:
+            model = mujoco.MjModel.from_xml_string(text)
     except ValueError as exc:
         raise Refused(" ".join(str(exc).split())) from None
     return MujocoModel(model, description, options, notes)
@@ -74,61 +82,83 @@ class MujocoModel(LoadedModel):
         super().__init__(description, options, (*notes, "joint damping, friction loss, armature and stiffness "
                                                 "set to 0; constraints (limits, contacts) disabled"))
         self.model, self.data = model, mujoco.MjData(model)
-        names = [model.joint(k).name for k in range(model.njnt)]
-        if model.nq != model.nv or model.nq != model.njnt:
-            raise Refused(f"only 1-degree-of-freedom joints are compared; mujoco has nq={model.nq}, nv={model.nv}")
-        self.index = index_map(description, names)
-        self.qpos = model.jnt_qposadr[self.index]
-        self.dof = model.jnt_dofadr[self.index]
+        kinds = mujoco.mjtJoint
+        free = [k for k in range(model.njnt) if model.jnt_type[k] == int(kinds.mjJNT_FREE)]
+        single = [k for k in range(model.njnt) if model.jnt_type[k] in (int(kinds.mjJNT_HINGE), int(kinds.mjJNT_SLIDE))]
+        if len(single) + len(free) != model.njnt or len(free) != (description.floating is not None):
+            raise Refused(f"only hinge and slide joints and one free joint for a floating base are compared; "
+                          f"mujoco has {model.njnt} joints, {len(free)} free")
+        self.index = index_map(description, [model.joint(k).name for k in single])
+        self.qpos = model.jnt_qposadr[single][self.index]
+        self.dof = model.jnt_dofadr[single][self.index]
+        #: The free joint's first qpos and qvel entries (position, quaternion w x y z; linear, angular).
+        self.base_q = int(model.jnt_qposadr[free[0]]) if free else -1
+        base = np.arange(model.jnt_dofadr[free[0]], model.jnt_dofadr[free[0]] + 6) if free else np.zeros(0, int)
+        #: MuJoCo's velocity index of each of xval's (the base's six first).
+        self.selected = np.concatenate([base, self.dof]).astype(int)
 
-    def _set(self, q, v=None, tau=None) -> None:
-        d = self.data
+    def _mapping(self, q, v=None) -> Mapping | None:
+        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v) if self.base_q >= 0 else None
+
+    def _set(self, q, v=None, tau=None) -> Mapping | None:
+        d, q = self.data, np.asarray(q, dtype=float)
+        mapping = self._mapping(q, None if v is None else np.asarray(v, dtype=float))
         d.qpos[:] = 0.0
         d.qvel[:] = 0.0
         d.qfrc_applied[:] = 0.0
+        if mapping is not None:
+            d.qpos[self.base_q:self.base_q + 7] = *q[:3], q[6], *q[3:6]
+            q = q[7:]
         d.qpos[self.qpos] = q
         if v is not None:
-            d.qvel[self.dof] = v
+            d.qvel[self.selected] = v if mapping is None else mapping.velocity(v)
         if tau is not None:
-            d.qfrc_applied[self.dof] = tau
+            d.qfrc_applied[self.selected] = tau if mapping is None else mapping.force(tau)
+        return mapping
 
-    def mass_matrix(self, q):
-        self._set(q)
-        mujoco.mj_forward(self.model, self.data)
+    def _full_mass(self) -> np.ndarray:
         full = np.zeros((self.model.nv, self.model.nv))
         mujoco.mj_fullM(self.model, self.data, full)
-        return full[np.ix_(self.dof, self.dof)]
+        return full[np.ix_(self.selected, self.selected)]
+
+    def mass_matrix(self, q):
+        mapping = self._set(q)
+        mujoco.mj_forward(self.model, self.data)
+        return self._full_mass() if mapping is None else mapping.mass_matrix(self._full_mass())
 
     def bias(self, q, v):
-        self._set(q, v)
+        mapping = self._set(q, v)
         mujoco.mj_forward(self.model, self.data)
-        return self.data.qfrc_bias[self.dof].copy()
+        bias = self.data.qfrc_bias[self.selected].copy()
+        return bias if mapping is None else mapping.bias(self._full_mass(), bias)
 
     def forward(self, q, v, tau):
-        self._set(q, v, tau)
+        mapping = self._set(q, v, tau)
         mujoco.mj_forward(self.model, self.data)
-        return self.data.qacc[self.dof].copy()
+        acceleration = self.data.qacc[self.selected].copy()
+        return acceleration if mapping is None else mapping.acceleration(acceleration)
 
     def link_inertias(self):
-        self._set(np.zeros(len(self.dof)))
+        self._set(self.description.neutral())
         mujoco.mj_kinematics(self.model, self.data)
         found = {}
         for k in range(1, self.model.nbody):  # body 0 is the world
             # ximat: the inertial frame's axes in the world; body_inertia: principal moments in it.
-            found[self.model.body(k).name] = world_inertia(
+            found[self.model.body(k).name or f"body{k}"] = world_inertia(  # unnamed: as engines.model.mjcf names it
                 self.model.body_mass[k], np.zeros(3), np.diag(self.model.body_inertia[k]),
                 self.data.ximat[k].reshape(3, 3), self.data.xipos[k])
         return found
 
 
-class MujocoStepper:
+class MujocoStepper(Stepper):
     """MuJoCo: the compiled file (engines.mujoco.model), ``mj_step`` with the variant's integrator."""
 
-    def __init__(self, scene: Any, dt: float, integrator: str) -> None:
+    def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         self.mujoco = mujoco
         loaded = load(scene.source, scene.description)
         self.model, self.data = loaded.model, loaded.data
         self.model.opt.timestep = dt
+        self.model.opt.gravity[:] = scene.gravity
         self.model.opt.integrator = int(getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}"))
         self.qpos, self.dof = loaded.qpos, loaded.dof
         self.model.dof_damping[self.dof] = kept_damping(scene)

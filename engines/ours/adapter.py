@@ -17,7 +17,7 @@ import ours
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported, UserError
 from engines.model.stepping import run_model
-from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene, ModelSceneLike
 
 _INTEGRATOR_ORDER = ("rk4", "midpoint", "symplectic-euler", "euler")
 
@@ -112,14 +112,14 @@ class OursEngine(Engine):
             except (Unsupported, ours.OursError):
                 continue
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         from engines.ours.model import OursStepper  # for cost: ours' rigid bodies load only for a model scene
 
         return run_model(scene, schedule, OursStepper(scene, schedule.dt, settings["method"], settings["integrator"], k_s=settings["k_s"],
                                                       k_d=settings["k_d"], tolerance=settings["tolerance"],
                                                       max_iterations=settings["max_iterations"]))
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         """A model file: ours' rigid bodies (engines/ours/model.py) with the variant's method and integrator."""
         from ours.rigid.method import resolve as rigid_pair
 

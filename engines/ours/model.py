@@ -17,6 +17,7 @@ from engines.errors import Unsupported
 from engines.model.description import ModelDescription
 from engines.model.inertia import combine, world_inertia
 from engines.model.kinematics import rpy_matrix
+from engines.model.stepping import Stepper, unbounded_joints
 from ours import OursError
 from ours.rigid import (
     Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, simulate,
@@ -94,7 +95,7 @@ def run(model: OursModel, q0: dict, v0: dict, dt: float, n_steps: int, sample_ev
     return result, q, v
 
 
-class OursStepper:
+class OursStepper(Stepper):
     """A model scene in ours (the Stepper of ``engines.model.stepping``): translate the description,
     start from the scene's joint state, step with the variant's method and integrator. Revolute angles
     are read continuously from sample to sample (ours' rows fix them only modulo 2π). Its joints are
@@ -102,7 +103,7 @@ class OursStepper:
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description)
+        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
         names = self.model.joint_names
         q0 = dict(zip(names, np.asarray(scene.initial_q, dtype=float)))
         v0 = dict(zip(names, np.asarray(scene.initial_v, dtype=float)))
@@ -116,7 +117,8 @@ class OursStepper:
                          "bodies": len(mech.bodies), "fused_links": {n: mech.bodies[b].name for n, (b, _, _) in
                                                                      self.model.carriers.items() if b >= 0 and
                                                                      mech.bodies[b].name != n},
-                         "contacts": "off", "joint_limits": "off", "file_dynamics": "neutral: joint damping, "
+                         "contacts": "off", "joint_limits": "off",
+                         "unbounded_once_limits_off": unbounded_joints(scene), "file_dynamics": "neutral: joint damping, "
                          "friction and armature left out", **self.run.settings}
 
     def advance(self, steps: int) -> None:

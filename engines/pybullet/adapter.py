@@ -23,7 +23,7 @@ from engines.pybullet.library import version as pybullet_version
 from engines.pybullet import options as tables
 from engines.pybullet.options import KEEPABLE, SOLVERS
 from engines.recorder import Recorder
-from engines.scene.scene import Line, Pin, Scene
+from engines.scene.scene import Line, Pin, Scene, ModelSceneLike
 from engines.scene.tree import ROOT, read_tree
 from engines.stdio import quiet_output
 
@@ -188,13 +188,13 @@ class PyBulletEngine(Engine):
                 f"bullet3 issues #3116 and #4621) and this scene needs {largest}; use pybullet/p2p"
             )
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.PyBulletStepper(scene, schedule.dt))
 
     def model_import(self) -> ModelImport:
         return ModelImport(model.version, model.load)
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "multibody":
             raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                               "build particle scenes from separate bodies, use pybullet/multibody")

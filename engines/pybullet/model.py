@@ -1,34 +1,37 @@
 """PyBullet's import of a model file: ``loadURDF`` (or ``loadMJCF``) in a DIRECT client of its own.
 
-Import options: useFixedBase = True, flags = URDF_USE_INERTIA_FROM_FILE
-(otherwise PyBullet recomputes inertia from collision shapes), gravity
-(0, 0, −9.81). Linear, angular and joint damping set to 0 and every joint
-motor disabled. M is ``calculateMassMatrix``, the bias
-``calculateInverseDynamics`` at zero acceleration. PyBullet has no
-forward-dynamics call: the acceleration is measured from one step of
-dt = 1e-3 (its multibody step is semi-implicit Euler, v₁ = v₀ + dt·a(q₀, v₀)).
-Its prints (C-level stdout, stderr) are kept out of the caller's output.
+Import options: useFixedBase (True unless the base floats), flags =
+URDF_USE_INERTIA_FROM_FILE (else it recomputes inertia from collision
+shapes), gravity (0, 0, −9.81), joint limits off (as in simulate). Linear,
+angular and joint damping 0, every joint motor disabled. M is
+``calculateMassMatrix``, the bias ``calculateInverseDynamics`` at zero
+acceleration, the acceleration measured from one step of dt = 1e-3 (its
+multibody step is semi-implicit Euler) on a fixed base, else M⁻¹(τ − b).
+MJCF: of the bodies ``loadMJCF`` returns (one per static geom besides the
+multibody) the one with joints; a root it floats though MuJoCo welds it is
+welded back (:class:`PyBulletModel`). Its floating base's conventions:
+engines/model/floating.py and :class:`PyBulletModel`. Its prints (C-level
+stdout, stderr) are kept out of the caller's output.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import replace
-from typing import Any, Iterator
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from engines.model.description import ModelDescription
+from engines.model.floating import rotation, skew
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
-from engines.model.stepping import common_settings
+from engines.model.stepping import common_settings, Stepper
 from engines.pybullet.library import pb
 from engines.pybullet.library import version as _pybullet_version
 from engines.stdio import quiet_output
+from engines.model.scene import ModelScene
 
 NAME = "pybullet"
 #: The step that measures an acceleration (s).
@@ -40,40 +43,44 @@ def version() -> str:
 
 
 def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
+    source = _without_limits(source)
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
+    if source.format == "urdf":
+        notes = (*notes, "joint limits off: every <limit> given lower 1 > upper -1, PyBullet's 'no limit' "
+                         "(a range such as lower = upper = 0 would lock the joint)")
     with quiet_output():
         client = pb.connect(pb.DIRECT)
     try:
         with quiet_output():
-            if source.format == "urdf":
-                with _as_file(text) as path:
-                    body = pb.loadURDF(path, useFixedBase=True, flags=pb.URDF_USE_INERTIA_FROM_FILE,
-                                       physicsClientId=client)
-            else:  # an MJCF file is loaded as it is (its includes resolve from its own folder)
-                bodies = pb.loadMJCF(str(source.path), flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
-                body = bodies[0] if len(bodies) == 1 else -1
-        if body < 0:
-            raise Refused("pybullet could not load the file (loadMJCF gave no single multibody)")
+            with source.engine_file(drop_mimic=description.mimic_independent) as path:
+                if source.format == "urdf":
+                    body = pb.loadURDF(path, useFixedBase=description.floating is None,
+                                       flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client)
+                else:
+                    body = _multibody(pb.loadMJCF(path, flags=pb.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client),
+                                      client)
     except (pb.error, Refused) as exc:
         pb.disconnect(client)
         raise Refused(str(exc)) from None
-    options = {"useFixedBase": "True", "flags": "URDF_USE_INERTIA_FROM_FILE"}
+    options = {"useFixedBase": str(description.floating is None), "flags": "URDF_USE_INERTIA_FROM_FILE"}
     return PyBulletModel(client, body, description, options, notes)
 
 
-@contextlib.contextmanager
-def _as_file(text: str) -> Iterator[str]:
-    """loadURDF reads a file: the stripped text (no meshes left to resolve) in a temporary one, removed after."""
-    handle, name = tempfile.mkstemp(suffix=".urdf", prefix="xval-model-")
-    try:
-        with os.fdopen(handle, "w") as stream:
-            stream.write(text)
-        yield name
-    finally:
-        os.unlink(name)
+def _multibody(bodies, client: int) -> int:
+    """The one body of ``loadMJCF``'s answer that has joints (the others are static geoms); Refused otherwise."""
+    jointed = [b for b in bodies if pb.getNumJoints(b, physicsClientId=client) > 0]
+    if len(jointed) != 1:
+        raise Refused(f"pybullet could not load the file: loadMJCF gave {len(bodies)} bodies, "
+                      f"{len(jointed)} of them with joints (one multibody expected)")
+    return jointed[0]
 
 
 class PyBulletModel(LoadedModel):
+    """PyBullet's multibody. A root that ``loadMJCF`` floats though the description welds it: M is the joints'
+    block of its (6 + n)² matrix, the bias the joints' rows of its inverse dynamics at the base's pose with the
+    base at rest, the acceleration M⁻¹(τ − b) (a step would let the base fall). A floating base: mapped to xval's
+    convention with T (its base velocity: angular then linear of the base's inertial frame, in its axes)."""
+
     engine = NAME
 
     def __init__(self, client: int, body: int, description: ModelDescription, options, notes=()):
@@ -93,22 +100,81 @@ class PyBulletModel(LoadedModel):
         for link in range(-1, self.n_joints):
             pb.changeDynamics(body, link, linearDamping=0, angularDamping=0, jointDamping=0, **kw)
         pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
+        size = len(pb.calculateMassMatrix(body, [0.0] * len(self.movable), **kw))
+        #: 6 when PyBullet's base is floating (a floating base, or an MJCF root PyBullet floats), else 0.
+        self.base = size - len(self.movable)
+        self.floating = description.floating is not None
+        if self.floating and not self.base:
+            raise Refused("pybullet's body has a fixed base for the floating base")
+        if self.base and not self.floating:
+            self.notes = (*self.notes, "loadMJCF gave the root a floating base: M, bias and acceleration are "
+                          "the fixed-base ones (joints' block and rows, base at rest)")
+        if self.floating:
+            self.notes = (*self.notes, "floating base: acceleration M⁻¹(τ − b) from PyBullet's own M and bias; "
+                          "calculateInverseDynamics given the base quaternion it reads as the pose (it takes "
+                          "extrinsic x-y-z angles as intrinsic X-Y-Z)")
+        #: PyBullet's velocity index of each of xval's (its base's six first).
+        self.selected = np.concatenate([np.arange(6 if self.floating else 0), self.base + self.index]).astype(int)
+        # PyBullet's base frame is the base link's inertial frame P (offset c, rotation Rc from the link frame B);
+        # its base velocity (angular, linear of P's origin), both in P's axes (measured, tests/test_floating_base.py).
+        info = pb.getDynamicsInfo(body, -1, **kw)
+        self.offset = np.array(info[3])
+        self.turn = np.array(pb.getMatrixFromQuaternion(info[4])).reshape(3, 3)
+        self.T = np.eye(len(self.selected))
+        if self.floating:
+            a = self.turn.T
+            self.T[:6, :6] = np.block([[np.zeros((3, 3)), a], [a, -a @ skew(self.offset)]])
 
     def _full(self, values) -> list[float]:
         full = np.zeros(len(self.movable))
         full[self.index] = values
         return full.tolist()
 
+    def _joints_of(self, q) -> np.ndarray:
+        return np.asarray(q, dtype=float)[7:] if self.floating else np.asarray(q, dtype=float)
+
+    def _pose(self, q) -> list[float]:
+        """PyBullet's base pose (P's position, quaternion x y z w) for xval's configuration q."""
+        if not self.floating:
+            position, orientation = pb.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+            return [*position, *orientation]
+        r = rotation(q[3:7])
+        return [*(np.asarray(q[:3]) + r @ self.offset), *Rotation.from_matrix(r @ self.turn).as_quat()]
+
+    def _engine_mass(self, q) -> np.ndarray:
+        full = np.array(pb.calculateMassMatrix(self.body, self._full(self._joints_of(q)), physicsClientId=self.client))
+        return full[np.ix_(self.selected, self.selected)]
+
     def mass_matrix(self, q):
-        full = np.array(pb.calculateMassMatrix(self.body, self._full(q), physicsClientId=self.client))
-        return full[np.ix_(self.index, self.index)]
+        return self.T.T @ self._engine_mass(q) @ self.T
 
     def bias(self, q, v):
-        zeros = [0.0] * len(self.movable)
-        tau = pb.calculateInverseDynamics(self.body, self._full(q), self._full(v), zeros, physicsClientId=self.client)
-        return np.array(tau)[self.index]
+        size = self.base + len(self.movable)
+        joints = self._full(self._joints_of(q))
+        if not self.base:
+            tau = np.array(pb.calculateInverseDynamics(self.body, joints, self._full(v), [0.0] * size,
+                                                       physicsClientId=self.client))
+            return tau[self.index]
+        velocity = np.zeros(size)
+        rates = self.T @ np.asarray(v, dtype=float)
+        velocity[self.selected] = rates
+        pose = self._pose(q)
+        # calculateInverseDynamics reads the base quaternion's extrinsic x-y-z angles as intrinsic X-Y-Z ones
+        # (measured: gravity lands in the wrong base axes otherwise): hand it the quaternion it reads as the pose.
+        pose[3:] = Rotation.from_euler("xyz", Rotation.from_quat(pose[3:]).as_euler("XYZ")).as_quat()
+        raw = np.array(pb.calculateInverseDynamics(self.body, pose + joints, velocity.tolist(), [0.0] * size,
+                                                   physicsClientId=self.client))
+        raw[:6] = np.concatenate([raw[3:6], raw[:3]])  # its base rows are linear first, its velocities angular first
+        if not self.floating:
+            return raw[self.selected]
+        # Its base's linear acceleration is P's classical one in P's axes, d/dt(v_P) + ω × v_P (measured).
+        classical = np.zeros(len(self.selected))
+        classical[3:6] = np.cross(rates[:3], rates[3:6])
+        return self.T.T @ (raw[self.selected] + self._engine_mass(q) @ classical)
 
     def forward(self, q, v, tau):
+        if self.base:
+            return np.linalg.solve(self.mass_matrix(q), np.asarray(tau) - self.bias(q, v))
         kw = {"physicsClientId": self.client}
         for joint, position, velocity in zip(self.joints, q, v):
             pb.resetJointState(self.body, joint, position, velocity, **kw)
@@ -138,14 +204,15 @@ class PyBulletModel(LoadedModel):
             pass
 
 
-class PyBulletStepper:
+class PyBulletStepper(Stepper):
     """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
 
-    def __init__(self, scene: Any, dt: float) -> None:
+    def __init__(self, scene: ModelScene, dt: float) -> None:
         self.pb, self.quiet = pb, quiet_output
-        loaded = self.loaded = load(_without_limits(scene.source), scene.description)
+        loaded = self.loaded = load(scene.source, scene.description)
         self.kw = {"physicsClientId": loaded.client}
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, **self.kw)
+        pb.setGravity(*scene.gravity, **self.kw)
         for joint, position, velocity in zip(loaded.joints, scene.initial_q, scene.initial_v):
             pb.resetJointState(loaded.body, joint, float(position), float(velocity), **self.kw)
         self.settings = {**common_settings(scene, loaded), "fixedTimeStep": dt, "numSubSteps": 0,
@@ -173,4 +240,4 @@ def _without_limits(source):
     for limit in root.iter("limit"):
         limit.set("lower", "1")
         limit.set("upper", "-1")
-    return replace(source, text=ET.tostring(root, encoding="unicode"))
+    return replace(source, text=ET.tostring(root, encoding="unicode"), keep_empty_ranges=True)

@@ -23,8 +23,9 @@ import scipy
 
 from engines.adapter import Engine, Option, RawRun, Schedule
 from engines.errors import Unsupported
+from engines.reference.ensemble import Estimate, members
 from engines.reference.mechanisms import Mechanism, empty_samples, mechanism_model
-from engines.scene.scene import Pin, Rod, Scene
+from engines.scene.scene import Pin, Rod, Scene, SceneLike
 from engines.scene.tree import read_tree
 
 if TYPE_CHECKING:  # imported on use: only model-file scenes need Pinocchio
@@ -370,6 +371,10 @@ class ReferenceBound:
     reference_error : m, the largest difference over the whole run.
     reference_horizon : s, the first sample time where the difference exceeds ``threshold``,
         None when it never does (the reference holds over the whole run).
+    horizon_interval : (low, high) s, where the horizon falls when the loose solve's tolerance is
+        scaled by each of HORIZON_FACTORS (a reference error halved or doubled); None without a horizon.
+    lyapunov : the largest Lyapunov exponent (1/s) from Benettin's ensemble (engines.reference.ensemble),
+        for a scene whose two solves part exponentially (growth_rate); None otherwise or when not asked.
     """
 
     rtol: float
@@ -381,6 +386,13 @@ class ReferenceBound:
     threshold: float
     reference_error: float
     reference_horizon: float | None
+    horizon_interval: tuple[float, float] | None = None
+    lyapunov: Estimate | None = None
+
+
+#: The factors the loose solve's tolerance is scaled by for the horizon's interval: a reference half or
+#: twice as accurate parts from the truth earlier or later by about ln 2 / λ.
+HORIZON_FACTORS = (0.5, 2.0)
 
 
 def reference_horizon(t: np.ndarray, difference: np.ndarray, threshold: float) -> float | None:
@@ -389,7 +401,8 @@ def reference_horizon(t: np.ndarray, difference: np.ndarray, threshold: float) -
     return float(t[above[0]]) if len(above) else None
 
 
-#: The cheap Lyapunov estimate (growth_rate) fits ln d(t) between these fractions of L: above the
+#: The cheap Lyapunov estimate (growth_rate; it decides whether a scene is chaotic, and so gets the
+#: ensemble's estimate, lyapunov_ensemble) fits ln d(t) between these fractions of L: above the
 #: round-off of two solves at rtol ~1e-12 and below where the difference saturates ...
 GROWTH_BAND = (1e-13, 1e-3)
 #: ... and only when d grows by at least this factor over the fit: a regular scene's two solves drift apart
@@ -447,9 +460,19 @@ def bound(
     difference = np.linalg.norm(loose - tight, axis=2).max(axis=1)
     if threshold is None:
         threshold = HORIZON_FRACTION * REFERENCE_ACCURACY * scene.characteristic_length
+    horizon = reference_horizon(times, difference, threshold)
+    interval = None
+    if horizon is not None:
+        # Each member's horizon; one that holds over the whole run counts as its last sample time.
+        members = [horizon]
+        for factor in HORIZON_FACTORS:
+            other = solve(scene, max(rtol * factor, MIN_RTOL), atol * factor).at(times)[0]
+            found = reference_horizon(times, np.linalg.norm(other - tight, axis=2).max(axis=1), threshold)
+            members.append(float(times[-1]) if found is None else found)
+        interval = (min(members), max(members))
     return ReferenceBound(
         rtol, atol, tight_rtol, tight_atol, times, difference, float(threshold),
-        float(difference.max()), reference_horizon(times, difference, threshold),
+        float(difference.max()), horizon, interval,
     )
 
 
@@ -462,12 +485,16 @@ def solve_and_bound(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFA
     """The reference at (rtol, atol) and its :func:`bound`, compared on up to BOUND_SAMPLES times."""
     solution = solve(scene, rtol, atol)
     n = min(BOUND_SAMPLES, max(2, round(scene.duration / 0.01) + 1))
-    return solution, bound(scene, rtol, atol, times=np.linspace(0.0, scene.duration, n), solution=solution)
+    found = bound(scene, rtol, atol, times=np.linspace(0.0, scene.duration, n), solution=solution)
+    if growth_rate(found.t, found.difference, scene.characteristic_length) is not None:
+        # A chaotic scene: its exponent as an ensemble's estimate (a second or two, kept with the bound).
+        found = replace(found, lyapunov=lyapunov_ensemble(scene, solution))
+    return solution, found
 
 
 #: The reference's own source (paths under engines/): part of the key of a kept solution, so an edit to it
 #: solves again.
-_SOURCES = ("reference/reference.py", "reference/mechanisms.py", "reference/kernels.py", "scene/scene.py",
+_SOURCES = ("reference/reference.py", "reference/ensemble.py", "reference/mechanisms.py", "reference/kernels.py", "scene/scene.py",
             "model/dynamics.py", "model/scene.py")
 #: A solution whose pickle is larger is solved again each run rather than kept (bytes).
 _LARGEST_KEPT = 64 * 2**20
@@ -519,7 +546,7 @@ def _keep(path: Path, solved: tuple[ReferenceSolution, ReferenceBound]) -> None:
     data = pickle.dumps(solved, protocol=pickle.HIGHEST_PROTOCOL)
     if len(data) > _LARGEST_KEPT:
         return
-    from engines.files import atomic_write
+    from ours.files import atomic_write
 
     with contextlib.suppress(OSError):  # a cache that cannot be written only costs the next run the solve
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -532,7 +559,7 @@ def is_kept(scene: Scene, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL
 
 
 def _kept_path(scene: Scene, rtol: float, atol: float) -> Path:
-    from engines.files import cache_dir  # the one user cache directory of xval
+    from ours.files import cache_dir  # the one user cache directory of xval
 
     key = hashlib.sha256()
     for part in (scene.content_hash, repr(float(rtol)), repr(float(atol)), _code_digest()):
@@ -556,12 +583,15 @@ def _code_digest() -> str:
 
 def lyapunov_exponent(
     scene: Scene, duration: float | None = None, interval: float = 0.1, separation: float = 1e-8,
-    rtol: float = 1e-11,
+    rtol: float = 1e-11, start: np.ndarray | None = None, direction: np.ndarray | None = None,
 ) -> float:
-    """Largest Lyapunov exponent estimate (1/s) of ``scene`` over ``duration`` s (default its own).
+    """Largest Lyapunov exponent estimate (1/s) of ``scene`` over ``duration`` s (default its own):
+    one orbit's, which moves by ±15 % with round-off (engines.reference.ensemble has the estimate
+    with its interval).
 
-    Benettin's method on the reference's reduced state y (angles and rates): a copy started
-    ``separation`` away (relative to |y0|, along a fixed direction) is integrated beside y, and
+    Benettin's method on the reference's reduced state y (angles and rates), from ``start`` (default
+    the scene's initial state): a copy started ``separation`` away (relative to |y0|, along
+    ``direction``, a unit vector, default all components equal) is integrated beside y, and
     every ``interval`` s the log of its growth is added up and the copy pulled back to
     ``separation``. The estimate is that sum over the time. A regular scene (the bead, a
     spherical pendulum) gives a value that falls towards 0 like ln(growth)/time; a chaotic one
@@ -572,9 +602,9 @@ def lyapunov_exponent(
     duration = scene.duration if duration is None else float(duration)
     if not duration > 0 or not interval > 0:
         raise ValueError("lyapunov_exponent: duration and interval must be positive")
-    y = model.initial_state(scene)
+    y = model.initial_state(scene) if start is None else np.asarray(start, dtype=float)
     n = len(y)
-    direction = np.ones(n) / math.sqrt(n)
+    direction = np.ones(n) / math.sqrt(n) if direction is None else np.asarray(direction, dtype=float)
     d0 = separation * max(1.0, float(np.linalg.norm(y)))
     z = y + d0 * direction
 
@@ -593,6 +623,26 @@ def lyapunov_exponent(
         z = y + (z - y) * (d0 / gap)
         elapsed += step
     return total / elapsed
+
+
+def lyapunov_ensemble(scene: Scene, solution: ReferenceSolution | None = None,
+                      duration: float | None = None) -> Estimate:
+    """The largest Lyapunov exponent (1/s) of ``scene`` from the ensemble of :func:`members`.
+
+    Each member is Benettin's estimate (:func:`lyapunov_exponent`) over ``duration``
+    s (default the scene's) from the state the reference ``solution`` (solved here when None) reaches at
+    its start time, along a direction drawn from its seed.
+    """
+    duration = scene.duration if duration is None else float(duration)
+    if solution is None:
+        solution = solve(scene)
+    out = []
+    for separation, interval, start, seed in members():
+        y0 = np.asarray(solution.ode(np.array([start * scene.duration])), dtype=float).reshape(-1)
+        direction = np.random.default_rng(seed).standard_normal(len(y0))
+        out.append(lyapunov_exponent(scene, duration, interval, separation, start=y0,
+                                     direction=direction / np.linalg.norm(direction)))
+    return Estimate.of(out)
 
 
 class ReferenceEngine(Engine):
@@ -630,17 +680,17 @@ class ReferenceEngine(Engine):
     def _check(self, scene: Scene, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
-    def _check_model(self, scene: Any, settings: Mapping[str, Any]) -> None:
+    def _check_model(self, scene: SceneLike, settings: Mapping[str, Any]) -> None:
         model_for(scene)
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return self._solved(scene, schedule, settings, model=False)
 
-    def _run_model(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+    def _run_model(self, scene: SceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         """A model file: Pinocchio's ABA (model_for) solved the same way; its joint states, no constraint forces."""
         return self._solved(scene, schedule, settings, model=True)
 
-    def _solved(self, scene: Any, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
+    def _solved(self, scene: SceneLike, schedule: Schedule, settings: Mapping[str, Any], model: bool) -> RawRun:
         solution = solve(scene, settings["rtol"], settings["atol"])
         positions, velocities, forces = solution.at(schedule.times)
         return RawRun(

@@ -9,6 +9,7 @@ parameter raises :class:`SceneError` naming the valid ones.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -355,6 +356,37 @@ def unit_warnings(name: str, overrides: Mapping[str, Any] | None = None) -> list
     return lines
 
 
+#: The environment variable that moves every catalog scene's initial angles and rates by this many ulps
+#: (an integer; unset or 0: not at all). The quote test's second pass sets it (tests/test_docs_figures.py):
+#: a machine whose round-off differs gives figures that differ by about as much, so a figure that moves
+#: past its declared tolerance here would on another machine too.
+ROUNDOFF_ULPS = "XVAL_ROUNDOFF_ULPS"
+#: The units of the parameters that set a scene's initial state (not its physics: masses, lengths, g).
+_STATE_UNITS = ("deg", "rad/s")
+
+
+def _perturbed(entry: SceneBuilder, values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` with each nonzero initial angle and rate moved up by ``$XVAL_ROUNDOFF_ULPS`` ulps."""
+    raw = os.environ.get(ROUNDOFF_ULPS, "").strip()
+    try:
+        ulps = int(raw or 0)
+    except ValueError:
+        raise SceneError(f"{ROUNDOFF_ULPS} must be an integer number of ulps, got {raw!r}") from None
+    if not ulps:
+        return values
+    known = {p.name: p for p in entry.parameters}
+    return {name: moved_by_ulps(value, ulps) if known[name].unit in _STATE_UNITS and not known[name].integer and value
+            else value for name, value in values.items()}
+
+
+def moved_by_ulps(value: float, ulps: int) -> float:
+    """``value`` moved by ``ulps`` units in its last place (up for ulps > 0, down for ulps < 0)."""
+    value = float(value)
+    for _ in range(abs(ulps)):
+        value = math.nextafter(value, math.copysign(math.inf, ulps))
+    return value
+
+
 def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
     """Build catalog scene ``name`` with ``overrides`` (strings or numbers) on top of the defaults.
 
@@ -369,6 +401,7 @@ def build(name: str, overrides: Mapping[str, Any] | None = None) -> Scene:
                 f"{name}: unknown parameter {key!r}; its parameters are: {', '.join(known)}"
             )
         values[key] = known[key].parse(raw, name)
+    values = _perturbed(entry, values)
     try:
         return entry.build(**values, parameters=values)
     except SceneError as exc:  # a rule only the built scene can check (a speed from omega0 and radius)

@@ -1,10 +1,10 @@
 """The sizes and magnitudes xval accepts, each with its reason.
 
 A scene or case outside these ranges is refused when it is read (SceneError /
-UserError naming the field and the allowed range), before anything runs: the
-audit of issue 21 found values far outside them (a 400-link chain,
-``omega0 = 1e300``, ``duration = 1e12``, ``radius = 1e-300``) hanging the
-reference solver or overflowing to nonsense rather than failing.
+UserError naming the field and the allowed range), before anything runs: values far
+outside them (a 400-link chain, ``omega0 = 1e300``, ``duration = 1e12``,
+``radius = 1e-300``) would hang the reference solver or overflow to nonsense
+rather than fail.
 
 The ranges are wide: every scene in suites/ and tests/ sits well inside them
 (the largest is the 128-link chain of suites/stiff.toml; the smallest length

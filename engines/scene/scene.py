@@ -14,7 +14,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar, Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -288,6 +288,61 @@ def ellipse_distance(x: Any, z: Any, semi_x: float, semi_z: float) -> np.ndarray
 
 Constraint = Pin | Rod | Line | Ellipse
 CONSTRAINT_KINDS: dict[str, type] = {"pin": Pin, "rod": Rod, "line": Line, "ellipse": Ellipse}
+
+
+class SceneLike(Protocol):
+    """What the harness and every engine read of a scene, catalog (:class:`Scene`) or model file
+    (engines.model.scene.ModelScene) alike.
+
+    particles : the point masses (a model's: its link frames); constraints : empty for a model.
+    requires : the capabilities an engine needs to run it; is_model : a model file, run through
+    ``Engine._run_model``. Lengths in m, energies in J, speeds in m/s, duration in s.
+    """
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def duration(self) -> float: ...
+    @property
+    def particles(self) -> Sequence[Any]: ...
+    @property
+    def constraints(self) -> Sequence[Any]: ...
+    @property
+    def gravity(self) -> Vector: ...
+    @property
+    def requires(self) -> frozenset[str]: ...
+    @property
+    def is_model(self) -> bool: ...
+    @property
+    def is_planar(self) -> bool: ...
+    @property
+    def masses(self) -> np.ndarray: ...
+    @property
+    def initial_positions(self) -> np.ndarray: ...
+    @property
+    def initial_velocities(self) -> np.ndarray: ...
+    @property
+    def characteristic_length(self) -> float: ...
+    @property
+    def characteristic_energy(self) -> float: ...
+    @property
+    def characteristic_speed(self) -> float: ...
+    @property
+    def content_hash(self) -> str: ...
+    def to_dict(self) -> dict[str, Any]: ...
+    def with_duration(self, duration: float) -> "SceneLike": ...
+
+
+class ModelSceneLike(SceneLike, Protocol):
+    """A model scene (engines.model.scene.ModelScene) as an engine's ``_check_model`` / ``_run_model`` get it.
+
+    file_dynamics : "neutral" (damping, friction, armature 0) or "keep" (the file's).
+    """
+
+    @property
+    def file_dynamics(self) -> str: ...
+    def refuse_kept_dynamics(self, engine: str) -> None:
+        """Unsupported when the scene keeps the file's joint damping, which ``engine``'s import cannot."""
 
 
 @dataclass(frozen=True, eq=False)

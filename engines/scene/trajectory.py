@@ -7,14 +7,36 @@ compute them the same way for every engine.
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
 
-from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene
+from engines.scene.scene import Ellipse, Line, Pin, Rod, Scene, SceneLike
 
-STATUSES = ("ok", "unstable", "failed", "skipped", "timeout")
+
+
+class Status(str, enum.Enum):
+    """How a run, and the case around it, ended (the JSON spelling is the value): one enum from an
+    engine's RunInfo up to the case record (compare.results.record).
+
+    ok : ran to the end inside the bounds (did not blow up; see the record's ``consistent`` for "is right").
+    unstable : a non-finite state, or energy drift / constraint error past the suite's bounds.
+    failed : the engine raised or its process died.
+    timeout : ran past the case timeout and was killed.
+    skipped : left out (the engine cannot express the scene, or is not installed); message says why.
+    """
+
+    OK = "ok"
+    UNSTABLE = "unstable"
+    FAILED = "failed"
+    TIMEOUT = "timeout"
+    SKIPPED = "skipped"
+
+    def __str__(self) -> str:  # f"{status}" gives "ok", as the JSON does
+        return self.value
+
 
 
 @dataclass(frozen=True)
@@ -28,7 +50,7 @@ class RunInfo:
     cpu_time : s, this thread's CPU time of the run (the adapter's stepping loop's when it measures it),
         see engines.adapter.loop_cpu_time;
         what the timing gate compares, since a busy neighbour stretches wall time, not CPU time.
-    status : one of ``STATUSES``; message : why, when not ok.
+    status : how the run ended (a string given is read as its :class:`Status`); message : why, when not ok.
     settings : every option used, and every engine default overridden.
     """
 
@@ -38,10 +60,14 @@ class RunInfo:
     dt: float
     steps: int = 0
     wall_time: float = 0.0
-    status: str = "ok"
+    status: Status = Status.OK
     message: str = ""
+    #: Free-form: every engine's own option names and values.
     settings: Mapping[str, Any] = field(default_factory=dict)
     cpu_time: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", Status(self.status))
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -51,7 +77,7 @@ class RunInfo:
             "dt": self.dt,
             "steps": self.steps,
             "wall_time": self.wall_time,
-            "status": self.status,
+            "status": self.status.value,
             "message": self.message,
             "settings": dict(self.settings),
             "cpu_time": self.cpu_time,
@@ -128,19 +154,20 @@ def total_energy(scene: Scene, positions: np.ndarray, velocities: np.ndarray) ->
     return kinetic_energy(scene, velocities) + potential_energy(scene, positions)
 
 
-def trajectory_energy(scene: Any, trajectory: Trajectory) -> np.ndarray:
+def trajectory_energy(scene: SceneLike, trajectory: Trajectory) -> np.ndarray:
     """(n_samples,) J: a catalog scene's point-mass energy (:func:`total_energy`), or a model scene's from its
     joint states (``scene.energy``: rotational kinetic energy included; NaN without joint states)."""
-    if not scene.is_model:
+    if isinstance(scene, Scene):
         return total_energy(scene, trajectory.positions, trajectory.velocities)
+    model: Any = scene  # an engines.model.scene.ModelScene (a layer above this one)
     states = trajectory.joint_states
     if states is None:
         return np.full(trajectory.n_samples, np.nan)
     nq = states.shape[1] // 2
-    return scene.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
+    return model.energy(states[:, :nq], states[:, nq:]) if len(states) else np.zeros(0)
 
 
-def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def constraint_vectors(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples, n_constraints, 3) m: first particle minus the other end (anchor or particle b).
 
     Distance kinds (Pin, Rod) only; a Line or Ellipse has no other end, so its rows are NaN.
@@ -154,7 +181,7 @@ def constraint_vectors(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return out
 
 
-def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def constraint_errors(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples, n_constraints) m: the distance form whatever a solver uses inside.
 
     |‖a − b‖ − l| for a Pin or Rod; the particle's Euclidean distance from
@@ -169,14 +196,14 @@ def constraint_errors(scene: Scene, positions: np.ndarray) -> np.ndarray:
     return out
 
 
-def max_constraint_error(scene: Scene, positions: np.ndarray) -> np.ndarray:
+def max_constraint_error(scene: SceneLike, positions: np.ndarray) -> np.ndarray:
     """(n_samples,) m: the largest constraint error at each sample (0 with no constraints)."""
     if not scene.constraints:
         return np.zeros(positions.shape[0])
     return constraint_errors(scene, positions).max(axis=1)
 
 
-def trajectory_constraint_error(scene: Any, trajectory: Trajectory) -> np.ndarray:
+def trajectory_constraint_error(scene: SceneLike, trajectory: Trajectory) -> np.ndarray:
     """(n_samples,) m: the largest constraint error at each sample: the distance form of the scene's
     constraints (:func:`max_constraint_error`) or the engine's reported ``constraint_violation``,
     whichever is larger (a NaN in either stays NaN)."""

@@ -6,7 +6,7 @@ differs across machines (BLAS, CPU instruction sets, numpy / scipy builds),
 amplified a little by sensitive scenes. Timing is noisy everywhere, so it is
 judged by a factor *and* the spread of the repeats (see :mod:`compare.gate.gate`).
 
-Details: docs/architecture.md, "Module notes", ``compare/suite/tolerance.py``.
+Details: docs/gate.md, "Module notes", ``compare/suite/gate_rules.py``.
 """
 
 from __future__ import annotations

@@ -1,0 +1,80 @@
+"""The one floating-base convention inside xval (Pinocchio's), and each engine's mapped to it.
+
+xval's configuration is (p (3,) m, quaternion x y z w, joint q) with p and the
+quaternion the base frame's pose in the world; its velocity is (v (3,) m/s,
+ω (3,) rad/s, joint v), the base origin's linear velocity and the base's
+angular velocity, both in the base frame. An engine whose velocity is
+u = T(q) v (its own order and frames; T invertible, depending on the pose only)
+has, with Ṫ v from Ṙ = R [ω]×:
+
+    M = Tᵀ M_e T,   b = Tᵀ (b_e + M_e Ṫ v),   a = T⁻¹ (a_e − Ṫ v),   τ_e = T⁻ᵀ τ.
+
+Each layout below is what tests/test_floating_base.py measured by
+invariants (½ vᵀ M v against the links' kinetic energy, the base rows of M v
+against the total momentum), not a reading of its documentation.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+def linear_world_angular_body(r: np.ndarray) -> np.ndarray:
+    """u = (R v, ω): the linear velocity in the world, the angular in the body (MuJoCo's free joint)."""
+    return np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]])
+
+
+def angular_linear_world(r: np.ndarray) -> np.ndarray:
+    """u = (R ω, R v): angular first, both in the world (Drake's floating body, DART's FreeJoint as measured,
+    though DART's documentation says the body frame)."""
+    return np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]])
+
+
+def rotation(quaternion_xyzw) -> np.ndarray:
+    """(3, 3) rotation of a quaternion (x, y, z, w), normalised first."""
+    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def skew(w) -> np.ndarray:
+    """[w]×, so that skew(w) @ u = w × u."""
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+class Mapping:
+    """An engine's velocity u = T v at one configuration q (xval's, (7 + n,)) and velocity v ((6 + n,) or None).
+
+    block : the engine's base layout, R -> (6, 6), linear in R (one of the functions above).
+    T : (6 + n, 6 + n), the base block then the identity on the joints.
+    """
+
+    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None) -> None:
+        r = rotation(q[3:7])
+        n = len(q) - 7
+        self.T = np.eye(6 + n)
+        self.T[:6, :6] = block(r)
+        self.Tdot_v = np.zeros(6 + n)
+        if v is not None:
+            # Ṫ: R replaced by Ṙ = R [ω]×, the constant blocks (identities) dropped (block is affine in R).
+            self.Tdot_v[:6] = (block(r @ skew(v[3:6])) - block(np.zeros((3, 3)))) @ v[:6]
+
+    def velocity(self, v: np.ndarray) -> np.ndarray:
+        return self.T @ v
+
+    def mass_matrix(self, m_engine: np.ndarray) -> np.ndarray:
+        return self.T.T @ m_engine @ self.T
+
+    def bias(self, m_engine: np.ndarray, b_engine: np.ndarray) -> np.ndarray:
+        return self.T.T @ (b_engine + m_engine @ self.Tdot_v)
+
+    def force(self, tau: np.ndarray) -> np.ndarray:
+        """The engine's generalised force for xval's τ."""
+        return np.linalg.solve(self.T.T, tau)
+
+    def acceleration(self, a_engine: np.ndarray) -> np.ndarray:
+        return np.linalg.solve(self.T, a_engine - self.Tdot_v)
