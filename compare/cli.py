@@ -27,7 +27,7 @@ from engines.errors import UserError
 COMMAND_MODULES = {
     name: f"compare.commands.{name}"
     for name in ("scenes", "engines", "simulate", "score", "run", "show", "verdict", "baseline", "gate", "stability",
-                 "history", "probe", "model")
+                 "history", "probe", "model", "grad")
 }
 
 

@@ -178,7 +178,8 @@ HOMES = ("mujoco", "mjx", "pybullet", "pymunk", "drake", "dart", "ours")
 #: (engines/mujoco/builder.py), with MuJoCo's one import of the library.
 HOME_USES = {"mjx": {"engines.mujoco.builder", "engines.mujoco.library", "engines.mujoco.library.mujoco",
                      *(f"engines.mujoco.builder.{name}" for name in ("HINGE_INERTIA_RATIO", "HingeModel", "check_hinge",
-                                                                     "hinge_model", "read_hinge_samples", "tree_depth"))}}
+                                                                     "hinge_model", "hinge_readout", "read_hinge_samples",
+                                                                     "tree_depth"))}}
 #: Each home's engine library (top-level import names): imported only by that home's library.py.
 LIBRARIES = {"mujoco": {"mujoco"}, "mjx": {"jax", "mujoco.mjx"}, "pybullet": {"pybullet"}, "pymunk": {"pymunk"},
              "drake": {"pydrake"}, "dart": {"dartpy"}}
@@ -327,7 +328,8 @@ def test_model_scenes_reach_adapters_through_one_dispatch():
 #: engine's home uses all of these. Homes share a rank: test_no_engine_home_imports_another says which of
 #: them may use another.
 ENGINE_PARTS = {"errors": 0, "stdio": 0, "files": 1, "scene": 1, "adapter": 2, "recorder": 3, "external": 4,
-                "registry": 5, "model": 6, "reference": 7, **dict.fromkeys(HOMES, 8)}
+                "registry": 5, "model": 6, "reference": 7, "gradients": 3,
+                **dict.fromkeys(HOMES, 8)}
 
 
 def test_no_import_in_engines_points_back_up_or_across():
@@ -370,7 +372,7 @@ def test_a_model_import_uses_only_its_own_engine_s_home():
 #: functions included). The record and its metrics are the vocabulary every stage speaks; the suite names
 #: metrics and bounds in that vocabulary; run measures cases into records, and reads a finished run back
 #: with the suite kept beside it (compare.run.results); then what reads runs back.
-STAGES = {"results": 0, "suite": 1, "run": 2, "gate": 3, "stability": 3, "history": 3}
+STAGES = {"results": 0, "gradients": 0, "suite": 1, "run": 2, "gate": 3, "stability": 3, "history": 3}
 
 
 def test_no_import_in_compare_runs_from_a_lower_stage_to_a_higher_one():

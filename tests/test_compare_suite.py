@@ -75,7 +75,7 @@ def test_unknown_top_level_key():
     bad(GOOD.replace("duration = 1.0", "durations = 1.0"),
         "s.toml:2: durations: unknown key; valid keys are: name, description, duration, sample_interval, "
         "delta, repeats, timeout, dt, reference, bounds, tolerances, gate, scenes, engines, stability, gainmap, verdict, "
-        "tolerance")
+        "tolerance, gradients")
 
 
 def test_missing_required_key():
@@ -106,7 +106,7 @@ def test_unknown_tolerance_metric():
     bad(GOOD + "\n[tolerances]\nspeed = 1.0\n",
         "s.toml:13: tolerances.speed: unknown key; valid keys are: position_error_linf, position_error_rms, "
         "position_error_final, divergence_time, energy_drift, constraint_error, constraint_force_error, "
-        "observed_order, momentum_drift, cost_per_simulated_second")
+        "observed_order, momentum_drift, gradient_error, gradient_wrong, cost_per_simulated_second")
 
 
 def test_a_results_suite_toml_refuses_an_unknown_tolerance_as_the_suite_reader_does(tmp_path):

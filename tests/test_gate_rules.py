@@ -134,7 +134,7 @@ def test_gate_table_overrides_and_legacy_tolerances():
     [
         ({"nosuch": 1}, "suite.toml: gate.nosuch: unknown key; valid keys are: timing_factor, position_error_linf, "
                         "position_error_rms, position_error_final, divergence_time, energy_drift, constraint_error, "
-                        "constraint_force_error, observed_order, momentum_drift"),
+                        "constraint_force_error, observed_order, momentum_drift, gradient_error, gradient_wrong"),
         ({"timing_factor": 1}, "suite.toml: gate.timing_factor: must be a number > 1 (a slowdown factor), got 1; write e.g. timing_factor = 1.5"),
         ({"energy_drift": -0.1}, "suite.toml: gate.energy_drift: must be a number ≥ 0, got -0.1; write e.g. energy_drift = 0.1"),
         ({"energy_drift": {"rtol": "big"}}, "suite.toml: gate.energy_drift.rtol: must be a number ≥ 0, got 'big'; write e.g. rtol = 0.1"),

@@ -60,6 +60,8 @@ def test_the_baseline_carries_every_gated_field_and_an_order_for_every_ours_swee
     for metric in declared.gated():
         if metric.name == "momentum_drift":
             continue  # null by definition on planar scenes, which the smoke suite's two are
+        if metric.name.startswith("gradient_"):
+            continue  # taken only in a suite with [gradients], which the smoke suite has not
         present = [c for c in ok if metric.name in c["metrics"]]
         assert len(present) == len(ok), f"{len(ok) - len(present)} ok cases lack {metric.name}; {REGENERATE}"
     for case in ok:

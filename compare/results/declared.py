@@ -151,6 +151,15 @@ _BUILT_IN = (
            compute=lambda inputs: _momentum_drift(inputs),
            description="max |L_z(t) − L_z(0)| / L*, L_z about the Pins' vertical line, L* = M·L·√(g·L) "
                        "(null where L_z is not conserved or is zero by symmetry: planar scenes)"),
+    # A suite's [gradients] wrt (compare/gradients/measure.py, docs/gradients.md): null without it.
+    Metric("gradient_error", "", "lower", True, Tolerance(DEFAULT_RTOL, 1e-9), title="gradient error",
+           description="‖J − J_ref‖_F / ‖J_ref‖_F of d outputs(T) / d [gradients] wrt against the reference's"),
+    Metric("gradient_self_consistency", "", "lower",
+           description="the engine's own derivatives against differences of its own rollouts (null when the "
+                       "Jacobian is those differences)"),
+    Metric("gradient_wrong", "", "lower", True, Tolerance(0.0, 0.5),
+           description="1 when the gradient's class is wrong or nan (it does not converge to the reference as dt "
+                       "halves), 0 when correct or chaotic"),
 )
 
 

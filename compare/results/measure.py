@@ -53,6 +53,8 @@ class CaseOutcome:
     cpu_times: list[float] = field(default_factory=list)
     calibrations: list[float] = field(default_factory=list)
     output: EngineOutput = field(default_factory=EngineOutput)
+    #: The gradient metrics of a suite with [gradients] (compare.gradients.measure.gradient_metrics), or {}.
+    gradients: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.status = Status(self.status)
@@ -256,7 +258,7 @@ def _measured(record: CaseRecord, scene: SceneLike, outcome: CaseOutcome, trajec
     status = decide_status(host=host, run=CaseStatus(info.status, info.message), finite=bool(finite.all()),
                            exceeded=bounds_exceeded(metrics, settings.bounds, scene),
                            notes=(reference_note, warning_note(heard)))
-    values = {**metrics.to_dict(), **extras}
+    values = {**metrics.to_dict(), **extras, **outcome.gradients}
     if horizon is not None and n:
         # Past the horizon the reference is not trusted: judge the errors within it, keep the whole run's too.
         values.update(within_horizon(scene, trajectory, ref_positions, ref_forces, scheduled, horizon,

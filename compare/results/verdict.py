@@ -24,12 +24,12 @@ from compare.results.sweep import ORDER_METRIC, VariantSweep
 #: The target error of "cost to reach", as a fraction of L.
 TARGET_FRACTION = 1e-6
 #: Problem kinds, in the order they are listed (worst first).
-PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "hidden dissipation")
+PROBLEM_KINDS = ("inconsistent", "failed", "timeout", "unstable", "wrong gradient", "hidden dissipation")
 #: Severity ranks, most severe first (Problem.severity indexes this): a wrong answer, then a run that never
 #: finished, then a blow-up at a time step below the suite's largest (a method that should hold there), then a
 #: blow-up only at the largest dt (where an explicit method is expected to fail; listed, but collapsed).
 SEVERITIES = ("wrong answer", "failed or timed out", "unstable below the largest dt", "unstable only at the largest dt")
-_SEVERITY_OF_KIND = {"inconsistent": 0, "failed": 1, "timeout": 1, "unstable": 2, "hidden dissipation": 2}
+_SEVERITY_OF_KIND = {"inconsistent": 0, "wrong gradient": 0, "failed": 1, "timeout": 1, "unstable": 2, "hidden dissipation": 2}
 
 
 def family(engine: str) -> str:
@@ -609,6 +609,12 @@ def problems(sweeps: Sequence[VariantSweep]) -> list[Problem]:
                 text += f": {message}"
             found.append(Problem(sweep.scene_id, sweep.engine, kind, text, dts, tuple(r.case.id for r in hit),
                                  largest_only=kind == "unstable" and dts == (largest,)))
+        wrong = sorted((r for r in sweep.records if (r.metrics or {}).get("gradient_wrong") == 1), key=lambda r: -r.case.dt)
+        if wrong:  # [gradients]: d outputs / d wrt does not converge to the reference's (docs/gradients.md)
+            dts = tuple(r.case.dt for r in wrong)
+            found.append(Problem(sweep.scene_id, sweep.engine, "wrong gradient",
+                                 f"wrong gradient at dt {_dts(dts)} s: it does not converge to the reference's",
+                                 dts, tuple(r.case.id for r in wrong)))
     return ranked(found)
 
 

@@ -52,6 +52,8 @@ class CaseTask:
     memory_limit: int | None = None
     #: An outside program's spec (engines.external.command.spec_of), so any worker, here or on another machine, can run it.
     command: Mapping[str, Any] | None = None
+    #: [gradients] wrt: after the runs, the case's gradient metrics (compare.gradients.measure.gradient_metrics).
+    gradient_wrt: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -153,8 +155,13 @@ def simulate(task: CaseTask) -> CaseOutcome:
             first = first or trajectory
             if trajectory.info.status is not Status.OK:
                 break  # repeating a failed or unstable run would only time the failure
+    gradients: dict[str, Any] = {}
+    if task.gradient_wrt and first is not None and first.info.status is Status.OK:
+        from compare.gradients.measure import gradient_metrics
+
+        gradients = gradient_metrics(engine, task.variant, task.options, task.scene, task.dt, task.gradient_wrt)
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
-                       calibrations=calibrations[:len(cpu_times)])
+                       calibrations=calibrations[:len(cpu_times)], gradients=gradients)
 
 
 def _command_deadline(task: CaseTask) -> Any:

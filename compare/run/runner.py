@@ -280,6 +280,7 @@ class _Dispatcher:
             isolate=self.isolate,
             memory_limit=self.memory_limit,
             command=spec_of(case.engine.engine),
+            gradient_wrt=self.suite.gradient_wrt,
         )
 
     def submit_references(self, scene_ids: list[str]) -> dict[cf.Future, tuple[str, str]]:

@@ -54,6 +54,7 @@ TOP_LEVEL_KEYS = {
     "gainmap": "a table for the gain map (compare/suite/plans.py): scene, engines, x, y, x_values, y_values, dt",
     "verdict": "a table with tolerance (a fraction of L) for the consistency verdict",
     "tolerance": "a list of tolerances or a table {from, to, per_decade} (compare/suite/tolerance_axis.py)",
+    "gradients": "a table with wrt, a list of scene parameters (docs/gradients.md)",
 }
 REQUIRED_KEYS = ("dt", "scenes", "engines")
 SCENE_KEYS = ("id", "scene", "parameters", "model", "q0", "v0", "file_dynamics", "lock")
@@ -92,6 +93,8 @@ class Suite:
     verdict_tolerance: float = DEFAULT_TOLERANCE
     #: The tolerance axis (compare/suite/tolerance_axis.py): swept by error-controlled variants instead of dt.
     tolerances: tuple[float, ...] = ()
+    #: [gradients] wrt: the scene parameters each case's gradient metrics are taken with respect to.
+    gradient_wrt: tuple[str, ...] = ()
 
     def engine_names(self) -> set[str]:
         """The names of the engines this suite runs (``mujoco``, ``ours``; the reference is always one)."""
@@ -112,6 +115,8 @@ class Suite:
         }
         if self.tolerances:  # only then, so suites without the axis keep their fingerprints
             physics["tolerances"] = list(self.tolerances)
+        if self.gradient_wrt:  # likewise: a suite without [gradients] keeps its fingerprint
+            physics["gradient_wrt"] = list(self.gradient_wrt)
         text = json.dumps(physics, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -269,6 +274,15 @@ class _Reader:
             raise self.error(key, f"must be a non-empty string, got {_describe(value)}")
         return value
 
+    def gradients(self, value: Any) -> tuple[str, ...]:
+        """``[gradients] wrt = ["theta1", "g"]``: parameter names (each scene refuses those it lacks, case by case)."""
+        if value is None:
+            return ()
+        wrt = self.table("gradients", value, ("wrt",)).get("wrt")
+        if not isinstance(wrt, list) or not wrt or not all(isinstance(w, str) and w for w in wrt):
+            raise self.error("gradients.wrt", f"must be a non-empty list of parameter names, got {_describe(wrt)}")
+        return tuple(wrt)
+
     def table(self, key: str, value: Any, allowed: tuple[str, ...]) -> dict[str, Any]:
         if not isinstance(value, dict):
             raise self.error(key, f"must be a table, got {_describe(value)}")
@@ -320,6 +334,7 @@ class _Reader:
         stability = read_stability(self, data.get("stability"), scenes, engines, dts)
         gainmap = read_gainmap(self, data.get("gainmap"), scenes, self.expand)
         verdict_tolerance = read_verdict(self, data.get("verdict"))
+        gradient_wrt = self.gradients(data.get("gradients"))
         return Suite(
             name=name,
             description=description,
@@ -340,6 +355,7 @@ class _Reader:
             stability=stability,
             gainmap=gainmap,
             verdict_tolerance=verdict_tolerance,
+            gradient_wrt=gradient_wrt,
             tolerances=read_tolerances(self, data.get("tolerance")),
         )
 

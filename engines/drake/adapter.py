@@ -205,6 +205,14 @@ class DrakeEngine(Engine):
         plant.Finalize()
         return DrakeModel(scene, plant, tree, bodies, joints, inertia)
 
+    def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+                 wrt: list[str]) -> tuple[np.ndarray, str] | None:
+        """AutoDiffXd through the plant and its fixed-step integrator (engines/drake/gradients.py); None for
+        error-controlled and discrete variants."""
+        from engines.drake import gradients
+
+        return gradients.jacobian(self, scene, variant, options, dt, wrt, SCHEMES)
+
     # -- running -----------------------------------------------------------------------
 
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:

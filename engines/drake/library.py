@@ -17,12 +17,13 @@ if importlib.util.find_spec("pydrake") is None:
 
 #: The pydrake names xval uses, by the module that defines them.
 _MODULES = {
+    "pydrake.autodiffutils": ("AutoDiffXd", "ExtractGradient", "ExtractValue", "InitializeAutoDiff"),
     "pydrake.math": ("RigidTransform", "RollPitchYaw", "RotationMatrix"),
     "pydrake.multibody.plant": ("DiscreteContactApproximation", "MultibodyPlant"),
     "pydrake.multibody.tree": ("BallRpyJoint", "BodyIndex", "FixedOffsetFrame", "RevoluteJoint", "RotationalInertia",
                                "SpatialInertia"),
     "pydrake.multibody.parsing": ("Parser",),
-    "pydrake.systems.analysis": ("ResetIntegratorFromFlags", "Simulator"),
+    "pydrake.systems.analysis": ("ResetIntegratorFromFlags", "Simulator", "Simulator_"),
 }
 _WHERE = {name: module for module, names in _MODULES.items() for name in names}
 

@@ -1,1 +1,1 @@
-"""MJX's home: its adapter (MuJoCo's model, stepped in JAX)."""
+"""MJX's home: its adapter (MuJoCo's model, stepped in JAX) and its own derivatives (gradients.py)."""

@@ -37,9 +37,8 @@ MJX_INTEGRATORS = ("Euler", "RK4", "implicitfast")
 #: process. Deeper scenes are left out with this reason unless max_depth is raised.
 MAX_DEPTH = 8
 
-#: Compiled stepping loops of this process, by (model structure, x64); and the x64 mode JAX last traced in.
+#: Compiled stepping loops of this process, by (model structure, x64).
 _compiled: dict[tuple, Any] = {}
-_last_trace_x64: list[bool] = []
 
 
 class MJXEngine(Engine):
@@ -101,6 +100,13 @@ class MJXEngine(Engine):
                 f"(11.9 s of CPU at depth 8, growing faster than the depth); set option max_depth = {depth} to run it anyway"
             )
 
+    def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+                 wrt: list[str]) -> tuple[np.ndarray, str] | None:
+        """jax.jacfwd through the stepping loop, float64 or float32 (engines/mjx/gradients.py)."""
+        from engines.mjx import gradients
+
+        return gradients.jacobian(self, scene, variant, options, dt, wrt)
+
     def build(self, scene: Scene, dt: float, settings: Mapping[str, Any]) -> HingeModel:
         """The MuJoCo adapter's hinge model with this integrator and inertia."""
         return hinge_model(scene, dt, settings["integrator"], settings["inertia_ratio"])
@@ -125,11 +131,7 @@ class MJXEngine(Engine):
             record["jit_cache_hit"] = compiled is not None
             t0 = time.perf_counter()
             if compiled is None:
-                if _last_trace_x64 and _last_trace_x64[-1] != x64:
-                    # JAX's trace caches outlive a change of x64 mode: an inner jit (MJX's RK4 calls jnp.tril)
-                    # traced in float64 is reused in float32 and fails to lower. Start the traces afresh.
-                    jax.clear_caches()
-                _last_trace_x64[:] = [x64]
+                library.trace_in(jax, x64)
                 compiled = _compiled[key] = jax.jit(_advance).lower(mx, dx, np.int32(1)).compile()
             record["jit_compile_time"] = 0.0 if record["jit_cache_hit"] else time.perf_counter() - t0
             outputs = []

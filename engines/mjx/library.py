@@ -49,6 +49,19 @@ def _persistent_cache(jax) -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
+#: The x64 mode JAX last traced in, in this process (trace_in).
+_last_trace_x64: list[bool] = []
+
+
+def trace_in(jax, x64: bool) -> None:
+    """Call before a trace in this x64 mode (the adapter's stepping loop, gradients.py's jacfwd): JAX's trace
+    caches outlive a change of x64 mode, and an inner jit (MJX's RK4 calls jnp.tril) traced in float64 is
+    reused in float32 and fails to lower, so the traces start afresh when the mode changes."""
+    if _last_trace_x64 and _last_trace_x64[-1] != x64:
+        jax.clear_caches()
+    _last_trace_x64[:] = [x64]
+
+
 def version() -> str:
     """``mujoco-mjx X, jax Y`` from the installed distributions' metadata."""
     return f"mujoco-mjx {importlib.metadata.version('mujoco-mjx')}, jax {importlib.metadata.version('jax')}"

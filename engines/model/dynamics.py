@@ -50,6 +50,18 @@ class ModelDynamics:
         a = pin.aba(loaded.model, loaded.data, loaded.configuration(q), rates, -damping * rates)[loaded.dof]
         return np.concatenate([v, a])
 
+    def derivatives(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q̈ (nq,), ∂q̈/∂q (nq, nq), ∂q̈/∂v (nq, nq)) at y = (q, v): Pinocchio's computeABADerivatives (analytic),
+        the file's joint damping τ = −d·v included when the scene keeps it; for the variational equations."""
+        pin, loaded, damping = self._model
+        n = len(y) // 2
+        rates = loaded._vector(y[n:])
+        by_q, by_v, minv = pin.computeABADerivatives(loaded.model, loaded.data, loaded.configuration(y[:n]), rates,
+                                                     -damping * rates)
+        minv = np.triu(minv) + np.triu(minv, 1).T  # Pinocchio fills the upper triangle
+        dof = np.ix_(loaded.dof, loaded.dof)
+        return loaded.data.ddq[loaded.dof].copy(), by_q[dof], (by_v - minv * damping)[dof]
+
     def evaluate(self, scene: ModelScene, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Link frame positions (n, L, 3) m and velocities (n, L, 3) m/s at states (n, 2·nq); no constraint forces."""
         n = states.shape[1] // 2

@@ -452,6 +452,14 @@ class MuJoCoEngine(Engine):
             message=message, settings=self._record(model, settings, inertia, schedule.dt),
         )
 
+    def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+                 wrt: list[str]) -> tuple[np.ndarray, str] | None:
+        """mjd_transitionFD's one-step Jacobians chained over the run (Euler and implicit hinges); None for RK4,
+        which it refuses (engines/mujoco/gradients.py)."""
+        from engines.mujoco import gradients  # numpy alone; imported when gradients are asked for
+
+        return gradients.jacobian(self, scene, variant, options, dt, wrt, hinge_velocities)
+
     def _record(self, model: mujoco.MjModel, settings: Mapping[str, Any], inertia: np.ndarray, dt: float) -> dict:
         """The settings a reader needs to reproduce the run, read back from the compiled model."""
         record: dict[str, Any] = {

@@ -14,11 +14,13 @@ from typing import Any
 import numpy as np
 
 from engines.mujoco.adapter import ENGINE, constraint_tree, hinge_velocities, read_samples, without_timestep
+from engines.mujoco.gradients import hinge_readout
 from engines.mujoco.library import mujoco
 from engines.mujoco.options import HINGE_INERTIA_RATIO
 from engines.scene.scene import Scene
 
-__all__ = ["HINGE_INERTIA_RATIO", "HingeModel", "check_hinge", "hinge_model", "read_hinge_samples", "tree_depth"]
+__all__ = ["HINGE_INERTIA_RATIO", "HingeModel", "check_hinge", "hinge_model", "hinge_readout", "read_hinge_samples",
+           "tree_depth"]
 
 
 @dataclass(frozen=True)

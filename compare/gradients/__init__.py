@@ -1,0 +1,1 @@
+"""Gradients: engines' Jacobians of their outputs against the reference's, classed (measure.py)."""
