@@ -34,6 +34,7 @@ from engines.scene.catalog import CATALOG
 
 from engines.files import atomic_write_text, check_writable
 
+from compare.results.record import engine_output_lines
 from compare.results.store import results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
@@ -69,6 +70,7 @@ def environment() -> jinja2.Environment:
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
     env.filters["packed"] = lambda text: packed_text(str(text))
     env.filters["numbers"] = unbroken_numbers
+    env.filters["engine_output"] = engine_output_lines
     return env
 
 
