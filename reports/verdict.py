@@ -186,17 +186,13 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}",
-<<<<<<< HEAD
                      width=width, height=height, y_extent=errors,
-                     picks=[(b.point.cost, b.point.error, b.point.engine) for b in verdict.best if b.point is not None],
-=======
                      picks=[(b.reading.budget, b.reading.error, b.reading.engine) for b in verdict.best
                             if b.reading is not None],
->>>>>>> main
                      label=f"Scene {scene.scene_id}: max position error against stepping cost, log–log, every ok run "
                            f"of {len(series)} variants, the Pareto front as a staircase and the target 1e-6·L "
                            f"as a dotted line")
-    picked = {b.point.engine for b in verdict.best if b.point is not None}
+    picked = {b.reading.engine for b in verdict.best if b.reading is not None}
     # Each family's pick and each wrong answer named at its finest dt (where a plateau shows).
     labels = [(*min(s.points)[:2], f"{s.name}: wrong answer" if s.name in wrong else s.name)
               for s in by_dt if s.points and (s.name in wrong or s.name in picked)]
