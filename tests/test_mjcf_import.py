@@ -171,3 +171,19 @@ def test_the_medium_s_fluid_forces_are_left_out_of_mujoco_s_accelerations():
     rows = {e.engine: e for e in check(str(path), engines=("mujoco", "drake"), states=10).engines}
     assert {name: row.agrees for name, row in rows.items()} == {"mujoco": True, "drake": True}
     assert "the medium's density, viscosity and wind set to 0 (the file's fluid forces left out)" in rows["mujoco"].notes
+
+
+def test_a_hinge_an_engine_puts_elsewhere_is_named_with_both_places():
+    """Measured with Drake 1.51: of two hinges in one body at (0, 0, 1), its MJCF parser puts the first through
+    the world's origin. M₀₀ (j1 about x at q = 0) is then I_xx + m·d² with d the COM's distance from that axis:
+    0.01 + 0.2² + 0.7² = 0.54 instead of 0.01 + 0.2² + 0.3² = 0.14 (kg·m²), as the reference has it. The
+    diagnosis names the joint and both places; MuJoCo agrees. If a later Drake places it right, its row agrees
+    and this test says so."""
+    path = FIXTURES / "two_hinges.xml"
+    source, model = read_description(str(path))
+    assert importer("pinocchio").load(source, model).mass_matrix(np.zeros(2))[0, 0] == pytest.approx(0.14, rel=1e-12)
+    assert importer("drake").load(source, model).mass_matrix(np.zeros(2))[0, 0] == pytest.approx(0.54, rel=1e-12)
+    rows = {e.engine: e for e in check(str(path), engines=("mujoco", "drake"), states=10).engines}
+    assert rows["mujoco"].agrees and not rows["drake"].agrees
+    assert rows["drake"].diagnosis == ("joint j1: drake puts its axis through (0, 0, 0) m at q = 0, the file "
+                                       "through (0, 0, 1) m",)

@@ -7,6 +7,8 @@ file's links are combined the same way before comparing, and when the
 group differs, known importer habits (dropping the inertia of massless
 links, giving links 1 kg and 1 kg·m²) are tried on its suspicious members
 to name them. Only links that move count: the rest cannot change M or b.
+An engine that says where it put its hinges (``LoadedModel.joint_origins``)
+has each axis compared with the file's (:func:`misplaced_joints`).
 A difference counts when it can change an entry of M by more than
 DIAGNOSED (a tenth of the check's tolerance) of M's scale S_M: an inertia
 by ΔI, a mass by Δm·L², a centre of mass by about m·L·Δc (L the reach);
@@ -196,3 +198,32 @@ def unexplained(model: ModelDescription, quantity: str, row: int) -> str:
     joint = model.moving_joints[row]
     return (f"cause not found: largest difference at joint {joint.name}, link {joint.child} "
             f"(in {QUANTITY_NAMES[quantity]})")
+
+
+def misplaced_joints(model: ModelDescription, engine: str, origins: dict[str, np.ndarray] | None) -> list[str]:
+    """A line per revolute (continuous) joint whose axis the engine put off the file's, at q = 0: farther than
+    RELATIVE times the reach from it (any point of the axis will do, so the distance is to the line)."""
+    from engines.model.kinematics import link_poses
+
+    if not origins:
+        return []
+    poses, reach = link_poses(model), _reach(model)
+    lines = []
+    for joint in model.moving_joints:
+        if joint.name not in origins:
+            continue
+        rotation, where = poses[joint.child]
+        axis = rotation @ np.asarray(joint.axis, dtype=float)
+        offset = np.asarray(origins[joint.name], dtype=float) - where
+        if np.linalg.norm(np.cross(offset, axis)) > RELATIVE * reach:
+            put = ", ".join(f"{x:.3g}" for x in origins[joint.name])
+            lines.append(f"joint {joint.name}: {engine} puts its axis through ({put}) m at q = 0, the file through "
+                         f"({', '.join(f'{x:.3g}' for x in where)}) m")
+    return lines
+
+
+def _reach(model: ModelDescription) -> float:
+    """m: the largest distance of a link frame from the root at q = 0 (1 m for a model with none)."""
+    from engines.model.kinematics import link_poses
+
+    return max((float(np.linalg.norm(p)) for _, p in link_poses(model).values()), default=0.0) or 1.0

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from compare.model import isolation
-from compare.model.diagnosis import Finding, diagnose, sentences, unexplained
+from compare.model.diagnosis import Finding, diagnose, misplaced_joints, sentences, unexplained
 from compare.model.tolerance import TOLERANCE, amplification
 from engines.adapter import ModelImport
 from engines.model import source as sources
@@ -319,8 +319,8 @@ def _one(name, source, model, sample, expected, balance_inertia,
                             options=loaded.options, notes=loaded.notes), []
     bounds = {"mass_matrix": TOLERANCE, "bias": TOLERANCE, "forward": forward_tolerance}
     agrees = all(differences[q] <= bounds[q] for q in QUANTITIES)
-    lines = sentences({name: findings})
-    if not agrees and not findings:
+    lines = sentences({name: findings}) + misplaced_joints(model, name, loaded.joint_origins())
+    if not agrees and not lines:
         worst = max(QUANTITIES, key=lambda q: differences[q] / bounds[q])
         lines = [f"{name}: {unexplained(model, worst, _largest_at(got[worst], expected[worst]))}"]
     return EngineParity(name, version, True, agrees, differences["mass_matrix"], differences["bias"],

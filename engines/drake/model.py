@@ -190,6 +190,12 @@ class DrakeModel(LoadedModel):
         acceleration = derivatives[self.plant.num_positions():][self.selected]
         return acceleration if mapping is None else mapping.acceleration(acceleration)
 
+    def joint_origins(self) -> dict[str, np.ndarray]:
+        self._set(self.description.neutral())
+        return {j.name: np.asarray(self.plant.GetJointByName(j.name).frame_on_child()
+                                   .CalcPoseInWorld(self.context).translation())
+                for j in self.description.moving_joints if j.type != "prismatic"}
+
     def link_inertias(self):
         BodyIndex = drake.BodyIndex
 

@@ -58,6 +58,12 @@ class LoadedModel(ABC):
         (a link it fused into another is missing; the survivor holds the group)."""
 
 
+    def joint_origins(self) -> dict[str, np.ndarray] | None:
+        """Revolute (continuous) joint name -> a point on its axis (3,) m in the world at the neutral
+        configuration, as the engine placed it; None (the default) when the engine does not say."""
+        return None
+
+
 def index_map(description: ModelDescription, engine_names: list[str]) -> np.ndarray:
     """For each of the description's moving joints, its index in the engine's list of joint names."""
     where = {name: k for k, name in enumerate(engine_names)}
