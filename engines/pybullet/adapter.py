@@ -199,9 +199,6 @@ class PyBulletEngine(Engine):
             raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                               "build particle scenes from separate bodies, use pybullet/multibody")
         scene.refuse_kept_dynamics(self.name)
-        if scene.floating_base:
-            raise Unsupported("pybullet: a floating base is not stepped here yet (its base is the base link's "
-                              "inertial frame, mapped for `xval model check` only); weld the base to run the joints")
 
     def _check_options(self, settings: Mapping[str, Any]) -> None:
         # A bad option value is the user's mistake (UserError), not a scene PyBullet cannot express

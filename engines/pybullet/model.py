@@ -224,7 +224,15 @@ class PyBulletStepper(Stepper):
         self.kw = {"physicsClientId": loaded.client}
         pb.setPhysicsEngineParameter(fixedTimeStep=dt, numSubSteps=0, **self.kw)
         pb.setGravity(*scene.gravity, **self.kw)
-        for joint, position, velocity in zip(loaded.joints, scene.initial_q, scene.initial_v):
+        q0, v0 = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
+        if loaded.floating:  # its base is the base link's inertial frame P: placed, and moving, as xval's base says
+            pose, turn = loaded._pose(q0), rotation(q0[3:7])
+            pb.resetBasePositionAndOrientation(loaded.body, pose[:3], pose[3:], **self.kw)
+            pb.resetBaseVelocity(loaded.body, turn @ (v0[:3] + np.cross(v0[3:6], loaded.offset)), turn @ v0[3:6],
+                                 **self.kw)
+            q0, v0 = q0[7:], v0[6:]
+        self._turn = np.asarray(scene.initial_q, dtype=float)[3:7]
+        for joint, position, velocity in zip(loaded.joints, q0, v0):
             pb.resetJointState(loaded.body, joint, float(position), float(velocity), **self.kw)
         self.settings = {**common_settings(scene, loaded), "fixedTimeStep": dt, "numSubSteps": 0,
                          "motors": "velocity motors disabled (force 0)",
@@ -238,8 +246,22 @@ class PyBulletStepper(Stepper):
                 step(**self.kw)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        states = self.pb.getJointStates(self.loaded.body, self.loaded.joints, **self.kw)
-        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        loaded, kw = self.loaded, self.kw
+        states = self.pb.getJointStates(loaded.body, loaded.joints, **kw)
+        q, v = np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        if not loaded.floating:
+            return q, v
+        # P's pose and velocity (its origin's, angular; both in the world) as the base link's, in its frame.
+        position, orientation = self.pb.getBasePositionAndOrientation(loaded.body, **kw)
+        linear, angular = (np.asarray(x, dtype=float) for x in self.pb.getBaseVelocity(loaded.body, **kw))
+        turn = np.array(self.pb.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ loaded.turn.T
+        spin = turn.T @ angular
+        quaternion = Rotation.from_matrix(turn).as_quat()
+        if quaternion @ self._turn < 0:  # q and −q are one turn: keep it continuous between reads
+            quaternion = -quaternion
+        self._turn = quaternion
+        base = np.concatenate([np.asarray(position) - turn @ loaded.offset, quaternion])
+        return np.concatenate([base, q]), np.concatenate([turn.T @ linear - np.cross(spin, loaded.offset), spin, v])
 
 
 def _without_limits(source):
