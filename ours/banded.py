@@ -10,6 +10,8 @@ Lagrangian form uses for its mass matrix.
 from __future__ import annotations
 
 import math
+
+import numpy as np
 from typing import Any
 
 from numba import njit
@@ -63,9 +65,11 @@ def cholesky_banded(band, n, b):
             for k in range(lo, j):
                 s -= band[i, i - k] * band[j, j - k]
             if j == i:
-                if not s > 0.0:
+                # .real and np.sqrt, not math.sqrt: the same code on complex entries (ours.sensitivity's
+                # complex step, whose real parts are this run's own), with no comparison on a perturbed part.
+                if not s.real > 0.0:
                     return False
-                band[i, 0] = math.sqrt(s)
+                band[i, 0] = np.sqrt(s)
             else:
                 band[i, i - j] = s / band[j, 0]
     return True
