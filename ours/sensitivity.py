@@ -1,15 +1,13 @@
-"""Forward sensitivities of a run: d (q, v)(T) / d (q, v)(0) along given directions, by complex step through
+"""Forward sensitivities of a run: d (q, v)(t) / d (q, v)(0) along given directions, by complex step through
 the compiled step itself.
 
-Each direction (dq0, dv0) starts the compiled loop (``ours.kernel.run_perturbed``: the very step functions of
-``ours.kernel.run``, typed for complex128) from (q0 + i h dq0, v0 + i h dv0) with h = 1e-30. Every operation of
-the step is real-analytic arithmetic (the banded Cholesky's square root is numpy's, which takes complex; its
-tests and the Newton iterations' stops read real parts only), so the imaginary part of the state at T, over h,
-is the derivative of what the kernel computes, exact to round-off: no difference is taken, so no cancellation,
-whatever h. The real parts are the real run's bit for bit, so every branch (a Newton iteration's count, a
-singular matrix) goes as it does there, and the derivative is that of the run itself. A complex step carries a
-derivative through the program's own arithmetic, as forward-mode automatic differentiation does with dual
-numbers (Martins, Sturdza and Alonso, 2003, show the two equivalent): xval names its method ``autodiff``.
+Each direction (dq0, dv0) starts ``ours.kernel.run_perturbed`` (``run``'s own step, typed for complex128) from
+(q0 + i h dq0, v0 + i h dv0), h = 1e-30. The step is real-analytic arithmetic (numpy's square root in the
+Cholesky; tests and Newton stops read real parts only), so Im(state)/h is the derivative of what the kernel
+computes, exact to round-off (no difference, no cancellation). The real parts are the real run's bit for bit,
+so every branch goes as there. Like forward-mode automatic differentiation with dual numbers (Martins, Sturdza
+and Alonso, 2003, show the two equivalent), it carries the derivative through the arithmetic; each direction
+costs one complex run.
 
 Covered: every cure (plain, baumgarte, projection, rattle) with every integrator of the maximal-coordinate
 kernel. Not covered: ``lagrangian`` (its own kernel): :class:`~ours.errors.OursError`.
@@ -46,14 +44,21 @@ class Sensitivities:
     dv: np.ndarray
     steps: int
     status: str
+    #: (S,) the steps of the samples (0, every ``sample_every`` steps and the last; without it 0 and the last),
+    #: and (S, k, P, dim) dq, dv there (NaN past an early stop).
+    sample_steps: np.ndarray
+    sample_dq: np.ndarray
+    sample_dv: np.ndarray
 
 
 def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: int, *, method: str = "baumgarte",
                           integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
                           tolerance: float = DEFAULT_TOLERANCE,
-                          max_iterations: int = DEFAULT_MAX_ITERATIONS) -> Sensitivities:
+                          max_iterations: int = DEFAULT_MAX_ITERATIONS,
+                          sample_every: int | None = None) -> Sensitivities:
     """Run ``system`` from (q0, v0) (P, dim) for ``n_steps`` steps of ``dt`` s, as ours.simulate does with the
-    same settings, and carry the directions dq0, dv0 (k, P, dim) along: one complex run per direction."""
+    same settings, and carry the directions dq0, dv0 (k, P, dim) along: one complex run per direction, sampled
+    as ours.simulate samples (every ``sample_every`` steps and the last)."""
     chosen, scheme = resolve_pair(method, integrator)
     if chosen.code == LAGRANGIAN:
         raise OursError("forward_sensitivities: method 'lagrangian' steps in link angles with its own kernel, "
@@ -72,19 +77,32 @@ def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: 
     work = kernel.workspace(system.n_particles, system.n_constraints, system.dim, p.bandwidth, scheme.stages,
                             np.complex128)
     k = len(dq0)
+    stride = n_steps if sample_every is None else _count(sample_every, "sample_every")
+    marks = np.unique(np.r_[np.arange(0, n_steps, stride), n_steps])
     dq, dv = np.empty_like(dq0), np.empty_like(dv0)
-    end_q, end_v, steps, status = q.astype(complex), v.astype(complex), 0, 0
+    sample_dq = np.full((len(marks), k, *q.shape), np.nan)
+    sample_dv = np.full_like(sample_dq, np.nan)
+    end_q, end_v, steps, status = q.astype(complex), v.astype(complex), 0, OK
     for direction in range(max(k, 1)):
         zq, zv = q.astype(complex), v.astype(complex)
         if k:
             zq += 1j * STEP * dq0[direction]
             zv += 1j * STEP * dv0[direction]
-        steps, status = kernel.run_perturbed(chosen.code, scheme.code, scheme.A, scheme.b, zq, zv, p.model, work,
-                                             ks, kd, dt, n_steps, float(tolerance), int(max_iterations))
+            sample_dq[0, direction], sample_dv[0, direction] = dq0[direction], dv0[direction]
+        steps, status = 0, OK
+        for s, (start, stop) in enumerate(zip(marks[:-1], marks[1:]), 1):
+            taken, status = kernel.run_perturbed(chosen.code, scheme.code, scheme.A, scheme.b, zq, zv, p.model,
+                                                 work, ks, kd, dt, int(stop - start), float(tolerance),
+                                                 int(max_iterations))
+            steps += taken
+            if status != OK:
+                break
+            if k:
+                sample_dq[s, direction], sample_dv[s, direction] = zq.imag / STEP, zv.imag / STEP
         if k:
             dq[direction], dv[direction] = zq.imag / STEP, zv.imag / STEP
         end_q, end_v = zq, zv
     q_end, v_end = end_q.real.copy(), end_v.real.copy()
     if status == OK and not (np.isfinite(q_end).all() and np.isfinite(v_end).all()):
         status = NON_FINITE
-    return Sensitivities(q_end, v_end, dq, dv, int(steps), STATUS_TEXT[int(status)])
+    return Sensitivities(q_end, v_end, dq, dv, int(steps), STATUS_TEXT[int(status)], marks, sample_dq, sample_dv)

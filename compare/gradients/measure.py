@@ -49,7 +49,8 @@ class GradientCase:
     reference); column_errors, column_classes : (k,) per parameter; horizon : s or None;
     reference_error : the reference's own relative error at T; growth : ‖J_ref(T)‖_F / ‖J_ref(0)‖_F (None when
     J_ref(0) = 0), whose log over T is a finite-time Lyapunov estimate (1/s); first_nonfinite : (s, parameter) of
-    the first sample whose Jacobian holds a NaN or an infinity, or None; times (n,) s, error_over_time (n,) : the
+    the first sample whose Jacobian holds a NaN or an infinity, at dt, else at dt/2 (a finite Jacobian at dt can
+    sit beside a NaN at dt/2), or None; times (n,) s, error_over_time (n,) : the
     error at every sample, when the engine's Jacobian is known there (differences of rollouts).
     """
 
@@ -161,7 +162,9 @@ def engine_case(engine: Engine, variant: str | None, options: Mapping[str, Any] 
     return GradientCase(scene.name, f"{engine.name}/{variant}", dt, scene.duration, list(wrt), output_columns(scene),
                         answer.jacobian, reference, error, answer.method, consistency, klass, bound.horizon, error_half,
                         [float(e) for e in per], classes, _reference_error(bound, answer.time),
-                        _growth(bound, answer.time), first_nonfinite(answer, list(wrt)), answer.times, over_time)
+                        _growth(bound, answer.time),
+                        first_nonfinite(answer, list(wrt)) or first_nonfinite(half, list(wrt)), answer.times,
+                        over_time)
 
 
 def first_nonfinite(answer: EngineJacobian, wrt: list[str]) -> tuple[float, str] | None:

@@ -177,8 +177,9 @@ class OursEngine(Engine):
         return None if gains is None else largest_stable_dt(*gains)
 
     def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
-                 wrt: list[str]) -> tuple[np.ndarray, str] | None:
-        """Forward sensitivities by complex step through ours' compiled step (engines/ours/gradients.py)."""
+                 wrt: list[str]) -> tuple[Any, ...] | None:
+        """Forward sensitivities by complex step through ours' compiled step, with J at every sample as well
+        (engines/ours/gradients.py)."""
         from engines.ours import gradients
 
         return gradients.jacobian(self, scene, variant, options, dt, wrt, _to_system)
