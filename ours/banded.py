@@ -9,11 +9,9 @@ Lagrangian form uses for its mass matrix.
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
 from typing import Any
 
+import numpy as np
 from numba import njit
 
 
