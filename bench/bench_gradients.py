@@ -22,15 +22,16 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 import numpy as np  # noqa: E402
 
 import ours  # noqa: E402
+from bench_ours import fastest  # noqa: E402
 from engines.ours.adapter import _to_system  # noqa: E402
 from engines.scene import catalog  # noqa: E402
 from ours.sensitivity import forward_sensitivities  # noqa: E402
@@ -44,12 +45,7 @@ DIRECTIONS = (1, 2, 4, 8)
 def best_cpu(work, repeats: int) -> float:
     """s: the least thread CPU time of ``repeats`` calls of ``work()`` (one uncounted call first: compiles)."""
     work()
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.thread_time()
-        work()
-        best = min(best, time.thread_time() - start)
-    return best
+    return fastest(work, repeats)
 
 
 def ours_rows(repeats: int) -> list[dict]:

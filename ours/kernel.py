@@ -436,6 +436,15 @@ def rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
 
 
 @llvm_inlined
+def _feedback(method, k_s, k_d):
+    """(k_s, k_d) the step applies: only baumgarte feeds C and Ċ back (its λ at a sample includes the
+    feedback it applied); 0 for the other methods."""
+    if method == _BAUMGARTE:
+        return k_s, k_d
+    return 0.0, 0.0
+
+
+@llvm_inlined
 def step_once(method, integrator, A, b, h, q, v, model, work, ks, kd, tolerance, max_iterations):
     """One step of the integrator and the cure in place (ks, kd: the Baumgarte gains, 0 for other methods);
     returns OK, SINGULAR or NOT_CONVERGED."""
@@ -469,9 +478,7 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
     G, band = work[0], work[1]
-    # Only baumgarte feeds C and Ċ back; its λ at a sample includes the feedback it applied.
-    ks = k_s if method == _BAUMGARTE else 0.0
-    kd = k_d if method == _BAUMGARTE else 0.0
+    ks, kd = _feedback(method, k_s, k_d)
     h = dt
 
     _record(q, v, model, ks, kd, G, band, out_q[0], out_v[0], out_lam[0])
@@ -501,16 +508,12 @@ def run_perturbed(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_s
     branch (a singular matrix, a Newton iteration's stop) goes as it does there. ``work`` : :func:`workspace`
     in complex128. Returns (steps taken, status); a non-finite state is left to the caller to find.
     """
-    ks = k_s if method == _BAUMGARTE else 0.0
-    kd = k_d if method == _BAUMGARTE else 0.0
-    status = OK
-    step = 0
-    while step < n_steps:
+    ks, kd = _feedback(method, k_s, k_d)
+    for step in range(n_steps):
         status = step_once(method, integrator, A, b, dt, q, v, model, work, ks, kd, tolerance, max_iterations)
-        step += 1
         if status != OK:
-            break
-    return step, status
+            return step + 1, status
+    return n_steps, OK
 
 
 @compiled
