@@ -1,14 +1,19 @@
-"""Keeping what an engine's C library prints (PyBullet, DART) out of xval's output: fds 1 and 2 silenced,
-or, in a child process that keeps what its engine printed (:func:`capture_into`), sent to a file."""
+"""Keeping what an engine's C library prints (PyBullet, DART, MuJoCo) out of xval's output: fds 1 and 2
+silenced (:func:`quiet_output`); or, in a child process that keeps what its engine printed
+(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`)."""
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
 import os
+import re
 import sys
+import tempfile
 import threading
-from typing import Iterator
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, BinaryIO, Iterator
 
 _LIBC = ctypes.CDLL(None)
 _quiet_lock = threading.Lock()
@@ -82,3 +87,106 @@ def capture_into(path: str) -> None:
 def flush_all() -> None:
     """Flush Python's streams and C's stdio, so what was printed reaches the file descriptors now."""
     _flush_all()
+
+
+#: Lines an EngineOutput keeps from the start and from the end of what was printed.
+KEPT_LINES = 5
+#: Characters kept of each kept line (DART's lines are ~150; a binary dump would be unbounded).
+LINE_CHARS = 300
+
+
+@dataclass(frozen=True)
+class EngineOutput:
+    """What an engine's library printed during one case: the line count, its first and last lines.
+
+    lines : how many lines (a last line without a newline counts). first : the first KEPT_LINES; last : the
+    last KEPT_LINES after those (no line is in both), each cut to LINE_CHARS characters, read as UTF-8.
+    """
+
+    lines: int = 0
+    first: tuple[str, ...] = ()
+    last: tuple[str, ...] = ()
+
+    def __bool__(self) -> bool:
+        return self.lines > 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"lines": self.lines, "first": list(self.first), "last": list(self.last)}
+
+    @classmethod
+    def of(cls, data: Any) -> "EngineOutput":
+        """From :meth:`to_dict`'s document (a record's ``engine_output``); an empty one for anything else."""
+        if not isinstance(data, dict) or not isinstance(data.get("lines"), int):
+            return cls()
+        return cls(data["lines"], tuple(str(s) for s in data.get("first") or ()),
+                   tuple(str(s) for s in data.get("last") or ()))
+
+    def describe(self) -> list[str]:
+        """The kept lines for a person: first, ``… N more lines …``, last."""
+        skipped = self.lines - len(self.first) - len(self.last)
+        gap = [f"… {skipped} more line{'s' if skipped != 1 else ''} …"] if skipped > 0 else []
+        return [*self.first, *gap, *self.last]
+
+
+#: A terminal's colour and cursor codes (DART colours its warnings): not kept.
+_ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+def _summary(file: BinaryIO) -> EngineOutput:
+    """The EngineOutput of the text in ``file`` (read from its start, line by line: never held whole)."""
+    file.seek(0)
+    count = 0
+    first: list[str] = []
+    last: deque[str] = deque(maxlen=KEPT_LINES)
+    for raw in file:
+        line = _ANSI.sub("", raw[:4 * LINE_CHARS].decode("utf-8", "replace")).rstrip("\r\n")[:LINE_CHARS]
+        count += 1
+        if len(first) < KEPT_LINES:
+            first.append(line)
+        else:
+            last.append(line)
+    return EngineOutput(count, tuple(first), tuple(last))
+
+
+class Captured:
+    """What :func:`capture_output` yields: ``output`` is filled in when the block ends."""
+
+    output: EngineOutput = EngineOutput()
+
+
+@contextlib.contextmanager
+def capture_output() -> Iterator[Captured]:
+    """Send file descriptors 1 and 2 to a temporary file for the duration, and summarise what reached it.
+
+    Catches what C and C++ libraries write (DART's per-step warnings, MuJoCo's, PyBullet's) and what Python
+    writes to sys.stdout / sys.stderr meanwhile (a warning an engine lets through is printed there). Inside
+    a capture already active in this process (another thread's case, not isolated), the inner one keeps
+    nothing: the text goes to the outer capture; so does the text of a :func:`quiet_output` block inside one.
+    """
+    global _quiet_depth
+    captured = Captured()
+    with _quiet_lock:
+        outer = _quiet_depth > 0
+        _quiet_depth += 1
+        if not outer:
+            _flush_all()
+            file = tempfile.TemporaryFile()
+            for fd in (1, 2):
+                try:
+                    _saved_fds[fd] = os.dup(fd)
+                except OSError:
+                    continue
+                os.dup2(file.fileno(), fd)
+    try:
+        yield captured
+    finally:
+        with _quiet_lock:
+            _quiet_depth -= 1
+            if not outer:
+                _flush_all()
+                for fd, saved in _saved_fds.items():
+                    os.dup2(saved, fd)
+                    os.close(saved)
+                _saved_fds.clear()
+                with file:
+                    captured.output = _summary(file)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Callable, Iterable, Sequence, TypeGuard
 
 from compare.results.record import CaseRecord, Status
+from compare.results.series import SERIES_DIGITS
 from compare.results.sweep import ORDER_METRIC, VariantSweep
 from compare.results.table import estimate_text, scene_reference
 from compare.results.verdict import points
@@ -31,6 +32,9 @@ REFERENCE_STYLE = {"color": REFERENCE_COLOUR, "width": 5}
 CLIP_FACTOR = 10.0
 #: Significant digits of the numbers in a figure spec (the stored series keep 6).
 DIGITS = 4
+#: The relative resolution of a stored series (SERIES_DIGITS = 6 significant digits, each value within 5e-6 of
+#: itself): a difference of two stored values below this fraction of their size may be round-off.
+SERIES_RESOLUTION = 10.0 ** (1 - SERIES_DIGITS)
 
 
 @dataclass(frozen=True)
@@ -60,6 +64,21 @@ class Ceilings:
     def for_scene(cls, length: float, energy_bound: float, constraint_bound: float, force: float = math.inf) -> "Ceilings":
         """CLIP_FACTOR × (L, the energy bound, the constraint bound · L); ``force`` : N (CLIP_FACTOR × m g)."""
         return cls(CLIP_FACTOR * length, CLIP_FACTOR * energy_bound, CLIP_FACTOR * constraint_bound * length, force)
+
+
+@dataclass(frozen=True)
+class Thinning:
+    """How a plot's time series are thinned: points per trace (LTTB), significant digits (None: DIGITS), and points
+    per trace of a variant outside ``named`` (None: ``limit``), drawn for context. A big suite's page thins more
+    (reports.render.LAZY_SERIES)."""
+
+    limit: int = MAX_POINTS
+    digits: int | None = None
+    muted_limit: int | None = None
+    named: frozenset[str] = frozenset()
+
+    def points(self, engine: str) -> int:
+        return self.limit if self.muted_limit is None or engine in self.named else self.muted_limit
 
 
 def plot_text(value: Any) -> str:
@@ -136,7 +155,7 @@ def _group(trace: dict[str, Any], engine: str, titled: set[str]) -> dict[str, An
 # -- across the dt sweep ------------------------------------------------------------
 
 
-def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[float], list[list[Any]]]:
+def sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[float], list[list[Any]]]:
     """The ``ok`` cases of ``sweep`` that a log-log plot can show: (x, error m, [variant, dt]); x is dt, or for
     "cost" the variant's modelled cost per simulated second (compare.results.cost: monotone in dt)."""
     if x_key == "cost":
@@ -160,12 +179,12 @@ def _sweep_points(sweep: VariantSweep, x_key: str) -> tuple[list[float], list[fl
 
 def _sweep_traces(scene: SceneResults, palette: Palette, x_key: str, name: Callable[[VariantSweep], str],
                   hovertemplate: str) -> tuple[list[dict[str, Any]], str]:
-    """One lines+markers trace per variant through its dt sweep (see :func:`_sweep_points`), grouped by
+    """One lines+markers trace per variant through its dt sweep (see :func:`sweep_points`), grouped by
     family, and a note naming the variants left out; ``name(sweep)`` is the legend text."""
     traces, missing = [], []
     titled: set[str] = set()
     for sweep in _by_family(scene.sweeps, lambda s: s.engine):
-        xs, ys, custom = _sweep_points(sweep, x_key)
+        xs, ys, custom = sweep_points(sweep, x_key)
         if not xs:
             missing.append(sweep.engine)
             continue
@@ -301,6 +320,49 @@ def _blowup_marker(t: float, y: float, colour: str, axis: tuple[str, str], engin
     }
 
 
+#: Blow-ups of one panel closer in t than this fraction of the run share one label ("3 runs blew up at
+#: t = 1.9–2 s"): several runs that blow up near the end would otherwise print their labels over each other.
+BLOWUP_CLUSTER = 0.06
+
+
+def place_blowup_labels(markers: list[dict[str, Any]], duration: float) -> None:
+    """Label the blow-up markers of a figure so that no two labels overlap, in place.
+
+    Per panel (y axis) and kind ("blew up" / "non-finite"), markers along t closer than BLOWUP_CLUSTER ×
+    ``duration`` (s; the markers' own span when 0) to the first of their cluster share one label on that
+    first marker, which names how many runs and over which t; every × keeps its own hover text. Successive
+    labels take the next corner (BLOWUP_CORNERS), in dark text (a variant's own shade can be pale on white),
+    not clipped at the axis (a label near the end of the run stays readable past it)."""
+    span = duration or max((m["x"][0] for m in markers), default=0.0)
+    gap = BLOWUP_CLUSTER * span
+    clusters: list[list[dict[str, Any]]] = []
+    def kind(marker: dict[str, Any]) -> str:  # "blew up at", "non-finite after"
+        return str(marker["text"][0]).partition(" t = ")[0]
+
+    for marker in sorted(markers, key=lambda m: (m["yaxis"], kind(m), m["x"][0])):
+        last = clusters[-1] if clusters else None
+        if (last is not None and last[0]["yaxis"] == marker["yaxis"] and kind(last[0]) == kind(marker)
+                and marker["x"][0] - last[0]["x"][0] <= gap):
+            last.append(marker)
+        else:
+            clusters.append([marker])
+    seen: dict[str, int] = {}
+    for cluster in sorted(clusters, key=lambda c: c[0]["x"][0]):  # along t, within each panel
+        first = cluster[0]
+        k = seen[first["yaxis"]] = seen.get(first["yaxis"], -1) + 1
+        first["textposition"] = BLOWUP_CORNERS[k % len(BLOWUP_CORNERS)]
+        first["textfont"] = {**first["textfont"], "color": "#333"}
+        first["cliponaxis"] = False
+        if len(cluster) > 1:
+            low, high = first["x"][0], max(m["x"][0] for m in cluster)
+            when = f"{low:.3g} s" if f"{low:.3g}" == f"{high:.3g}" else f"{low:.3g}–{high:.3g} s"
+            first["text"] = [f"{len(cluster)} runs {kind(first)} t = {when}"]
+            for other in cluster[1:]:
+                other["mode"] = "markers"
+                other["cliponaxis"] = False
+                del other["text"], other["textposition"]
+
+
 def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: float | None = None,
                 named: set[str] | None = None, limit: int = MAX_POINTS, digits: int | None = None,
                 muted_limit: int | None = None) -> Plot | None:
@@ -313,6 +375,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     if not chosen:
         return None
     traces, markers = [], []
+    duration = float(scene.scene.get("duration") or 0.0)
     panel_values: list[list[Any]] = [[] for _ in SERIES_PANELS]
     for index, sweep, record in chosen:
         series = record.series or {}
@@ -338,7 +401,7 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
                 markers.append(_blowup_marker(blew, ceiling, colour, axis, sweep.engine))
             elif record.status is Status.UNSTABLE and panel == 0:
                 # Cut at its first non-finite state before passing the ceiling: mark where it stops.
-                end = last_finite(series["t"], values, float(scene.scene.get("duration") or 0.0))
+                end = last_finite(series["t"], values, duration)
                 if end is not None:
                     markers.append(_blowup_marker(end[0], end[1], colour, axis, sweep.engine,
                                                   "non-finite after t = {t:.3g} s"))
@@ -351,20 +414,12 @@ def time_series(scene: SceneResults, palette: Palette, ceilings: Ceilings, dt: f
     layout = _layout(len(chosen), height=720, xaxis=_axis("t / s", "linear", anchor="y3"), **axes)
     layout["legend"]["tracegroupgap"] = 0  # a group per variant (its three panels): no gap between them
     horizon = next((r.reference_horizon for _, _, r in chosen if r.reference_horizon is not None), None)
-    duration = float(scene.scene.get("duration") or 0.0)
     if horizon is not None and horizon < duration:
         # Past the horizon the reference's own two solves disagree (chaos): errors there are not the engine's.
         layout["shapes"] = [{"type": "rect", "xref": "x", "yref": "paper", "x0": horizon, "x1": duration,
                              "y0": 0, "y1": 1, "fillcolor": "#888888", "opacity": 0.15, "line": {"width": 0},
                              "layer": "below"}]
-    # Labels of blow-ups near one another would print over each other: each takes the next corner, in dark text
-    # (a variant's own shade can be pale on white).
-    seen: dict[str, int] = {}
-    for marker in sorted(markers, key=lambda m: m["x"][0]):  # along t, within each panel
-        k = seen[marker["yaxis"]] = seen.get(marker["yaxis"], -1) + 1
-        marker["textposition"] = BLOWUP_CORNERS[k % len(BLOWUP_CORNERS)]
-        marker["textfont"] = {**marker["textfont"], "color": "#333"}
-        marker["cliponaxis"] = False  # a label near t = end stays readable past the axis
+    place_blowup_labels(markers, duration)
     figure = emphasise({"data": traces + markers, "layout": layout}, [t.get("meta") for t in traces + markers],
                        named_variants(scene) if named is None else named)
     caption = (f"Every variant at the dt of the scene's table (first {dt:.3g} s; the dt selector switches this plot "
@@ -399,8 +454,29 @@ MAX_PATH_PARTICLES = 4
 MAX_FORCE_PANELS = 3
 
 
-def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings) -> Plot | None:
-    """‖F‖ (N) of each constraint (up to MAX_FORCE_PANELS, stacked) against t at the chosen dt, over the reference's."""
+def _force_difference(forces: Sequence[Any], reference: Sequence[Any], n_constraints: int) -> list[Any]:
+    """max over the first ``n_constraints`` constraints of ‖F_k − F_k^ref‖ (N) per sample; None where either is
+    missing (a sample past the reference's, a non-finite force)."""
+    out: list[Any] = []
+    for k, sample in enumerate(forces):
+        theirs = reference[k] if k < len(reference) else None
+        worst: float | None = None
+        for c in range(n_constraints):
+            f = None if sample is None or c >= len(sample) else sample[c]
+            r = None if theirs is None or c >= len(theirs) else theirs[c]
+            if f is None or r is None or any(v is None for v in (*f, *r)):
+                worst = None
+                break
+            d = math.sqrt(sum((a - b) ** 2 for a, b in zip(f, r)))
+            worst = d if worst is None else max(worst, d)
+        out.append(worst)
+    return out
+
+
+def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings, thin: Thinning = Thinning()) -> Plot | None:
+    """‖F‖ (N) of each constraint (up to MAX_FORCE_PANELS, stacked) against t at the chosen dt, over the reference's,
+    and below them the largest difference from the reference's force, max_k ‖F_k − F_k^ref‖ (N, log axis when it
+    spans decades): at a small dt the ‖F‖ lines lie on one another, their differences do not."""
     chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine)
               if (c[2].series or {}).get("constraint_forces")]
     if not chosen:
@@ -409,38 +485,70 @@ def constraint_forces(scene: SceneResults, palette: Palette, ceilings: Ceilings)
                                               for c in chosen))
     if n_constraints == 0:
         return None
-    traces, markers = [], []
+    traces, markers, differences = [], [], []
     reference = next((c[2].series.get("reference_constraint_forces") for c in chosen
                       if c[2].series.get("reference_constraint_forces")), None)
     t_reference = next((c[2].series["t"] for c in chosen if c[2].series.get("reference_constraint_forces")), None)
-    domains = [[k / n_constraints + 0.04, (k + 1) / n_constraints - 0.02] for k in reversed(range(n_constraints))]
+    n_panels = n_constraints + (reference is not None)
+    domains = [[k / n_panels + 0.04, (k + 1) / n_panels - 0.02] for k in reversed(range(n_panels))]
     for k in range(n_constraints):
         axis = ("x", "y" if k == 0 else f"y{k + 1}")
         if reference is not None and t_reference is not None:
-            t, values = decimate(t_reference, _norms(reference, k))
+            t, values = decimate(t_reference, _norms(reference, k), limit=thin.limit)
             traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                           "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values), "line": REFERENCE_STYLE,
+                           "showlegend": k == 0, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
+                           "line": REFERENCE_STYLE,
                            "xaxis": axis[0], "yaxis": axis[1], "hoverinfo": "skip"})
         for index, sweep, record in chosen:
             values, blew = clip(record.series["t"], _norms(record.series["constraint_forces"], k), ceilings.force)
-            t, values = decimate(record.series["t"][:len(values)], values)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-                "legendgroup": f"v{index}", "showlegend": k == 0, "x": _rounded(t), "y": _rounded(values),
+                "legendgroup": f"v{index}", "showlegend": k == 0, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
                 "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": axis[0], "yaxis": axis[1],
                 "hovertemplate": f"%{{fullData.name}}<br>constraint {k}<br>t = %{{x:.3g}} s<br>‖F‖ = %{{y:.3g}} N<extra></extra>",
             })
             if blew is not None:
                 markers.append(_blowup_marker(blew, ceilings.force, palette.colour(sweep.engine), axis, sweep.engine))
+    if reference is not None:
+        axis = ("x", f"y{n_panels}")
+        # The stored forces keep 6 significant digits: a difference below 1e-5 of the largest force is not
+        # resolved, and is drawn at that floor rather than as a gap (a zero on a log axis) or as round-off.
+        floor = SERIES_RESOLUTION * max((v for k in range(n_constraints) for v in _norms(reference, k) if v), default=0.0)
+        for index, sweep, record in chosen:
+            own = record.series.get("reference_constraint_forces") or reference
+            difference = [None if d is None else max(d, floor)
+                          for d in _force_difference(record.series["constraint_forces"], own, n_constraints)]
+            values, blew = clip(record.series["t"], difference, ceilings.force)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
+            differences.extend(values)
+            traces.append({
+                "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
+                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t, thin.digits), "y": _rounded(values, thin.digits),
+                "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": axis[0], "yaxis": axis[1],
+                "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>max ‖F − F<sup>ref</sup>‖ = %{y:.3g} N<extra></extra>",
+            })
+            if blew is not None:
+                markers.append(_blowup_marker(blew, ceilings.force, palette.colour(sweep.engine), axis, sweep.engine))
+    place_blowup_labels(markers, float(scene.scene.get("duration") or 0.0))
     axes = {("yaxis" if k == 0 else f"yaxis{k + 1}"): _axis(f"‖F{k}‖ / N", "linear", domain=domains[k])
             for k in range(n_constraints)}
-    figure = {"data": traces + markers,
-              "layout": _layout(len(chosen) + 1, height=220 * n_constraints + 120,
-                                xaxis=_axis("t / s", "linear", anchor=f"y{n_constraints}" if n_constraints > 1 else "y"),
-                                **axes)}
+    if reference is not None:
+        axes[f"yaxis{n_panels}"] = _axis("max ‖F − F<sup>ref</sup>‖ / N", _axis_type(differences),
+                                         domain=domains[n_panels - 1])
+    layout = _layout(len(chosen) + 1, height=200 * n_panels + 120,
+                     xaxis=_axis("t / s", "linear", anchor=f"y{n_panels}" if n_panels > 1 else "y"), **axes)
+    layout["legend"]["tracegroupgap"] = 0  # a group per variant (its panels): no gap between them, no scrolling
+    figure = {"data": traces + markers, "layout": layout}
     caption = (f"The magnitude of the force each constraint exerts on its (first) particle, at dt = "
                f"{scene.chosen_dt:.3g} s, over the reference's (wide grey line); only the variants whose engine "
                "reports constraint forces.")
+    if reference is not None:
+        caption += (" The lowest panel is each variant's largest difference from the reference's force over the "
+                    "constraints, max ‖F − Fʳᵉᶠ‖ (N): where the lines above lie on one another, it tells them apart. "
+                    f"It is taken from the stored forces (6 significant digits), which cannot resolve a difference "
+                    f"below {SERIES_RESOLUTION:g} of the largest reference force: such a difference is drawn at that "
+                    f"floor, {floor:.2g} N (the case's constraint-force error, in the table, is exact).")
     return Plot("force", "Constraint forces", caption, figure)
 
 
@@ -492,13 +600,19 @@ def phase_curve(t: Sequence[float], positions: Sequence[Any], velocities: Sequen
     return thetas, omegas
 
 
-def _thin(xs: list[Any], ys: list[Any]) -> tuple[list[Any], list[Any]]:
-    """Every k-th point of a curve that is not a function of x (a phase curve), at most MAX_POINTS of them."""
-    step = max(1, math.ceil(len(xs) / MAX_POINTS))
-    return xs[::step], ys[::step]
+def _thin(xs: list[Any], ys: list[Any], limit: int = MAX_POINTS) -> tuple[list[Any], list[Any]]:
+    """Every k-th point of a curve that is not a function of x (a phase curve, a path), at most ``limit`` of them
+    and always the last (where a run ends)."""
+    step = max(1, math.ceil(len(xs) / limit))
+    if step == 1:
+        return xs, ys
+    keep = list(range(0, len(xs), step))
+    if keep[-1] != len(xs) - 1:
+        keep.append(len(xs) - 1)
+    return [xs[k] for k in keep], [ys[k] for k in keep]
 
 
-def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
+def phase_plot(scene: SceneResults, palette: Palette, thin: Thinning = Thinning()) -> Plot | None:
     """Angle against angular velocity of the first pinned particle (pendulum scenes), every variant and the reference."""
     pin = _pendulum_pin(scene)
     chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
@@ -512,16 +626,17 @@ def phase_plot(scene: SceneResults, palette: Palette) -> Plot | None:
     if first.get("reference_positions"):
         theta, omega = phase_curve(first["t"], first["reference_positions"], first.get("reference_velocities"),
                                    particle, anchor, planar)
-        theta, omega = _thin(theta, omega)
+        theta, omega = _thin(theta, omega, thin.limit)
         traces.append({"type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                       "x": _rounded(theta), "y": _rounded(omega), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
+                       "x": _rounded(theta, thin.digits), "y": _rounded(omega, thin.digits), "line": REFERENCE_STYLE, "hoverinfo": "skip"})
     titled: set[str] = set()
     for _index, sweep, record in chosen:
         series = record.series
-        theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor, planar))
+        theta, omega = _thin(*phase_curve(series["t"], series["positions"], series.get("velocities"), particle, anchor,
+                                          planar), thin.points(sweep.engine))
         traces.append(_group({
             "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
-            "x": _rounded(theta), "y": _rounded(omega),
+            "x": _rounded(theta, thin.digits), "y": _rounded(omega, thin.digits),
             "line": {**palette.style(sweep.engine), "width": 1.5},
             "hovertemplate": "%{fullData.name}<br>θ = %{x:.3g} rad<br>ω = %{y:.3g} rad/s<extra></extra>",
         }, sweep.engine, titled))
@@ -571,8 +686,11 @@ def _clip_path(xs: list[Any], zs: list[Any], box: float) -> tuple[list[Any], lis
     return out_x, out_z
 
 
-def paths(scene: SceneResults, palette: Palette) -> Plot | None:
-    """Particle paths in the x–z plane at the chosen dt, drawn over the reference's (wide grey line)."""
+def paths(scene: SceneResults, palette: Palette, thin: Thinning = Thinning()) -> Plot | None:
+    """Particle paths in the x–z plane at the chosen dt, drawn over the reference's (wide grey line), and below
+    them each variant's position error against t (m, the stored series: max over particles of ‖p − pʳᵉᶠ‖ at full
+    precision, where positions are stored to 6 digits): where the paths lie on one another (a small dt), the
+    errors tell the variants apart."""
     chosen = [c for c in _by_family(_chosen_cases(scene), lambda c: c[1].engine) if (c[2].series or {}).get("positions")]
     if not chosen:
         return None
@@ -580,39 +698,54 @@ def paths(scene: SceneResults, palette: Palette) -> Plot | None:
     # A chain's every link would be hundreds of traces: its first particle and its tip tell the story.
     drawn = list(range(n_particles)) if n_particles <= MAX_PATH_PARTICLES else [0, n_particles - 1]
     box = CLIP_FACTOR * scene.length
-    traces = []
+    traces, apart = [], []
+    distances: list[Any] = []
     reference, source = _reference_positions(scene)
     if reference:
         for particle in drawn:
-            xs, zs = _particle_xz(reference, particle)
+            xs, zs = _thin(*_particle_xz(reference, particle), thin.limit)
             traces.append({
                 "type": "scatter", "mode": "lines", "name": "reference", "legendgroup": "reference",
-                "showlegend": particle == drawn[0], "x": _rounded(xs), "y": _rounded(zs), "line": REFERENCE_STYLE,
+                "showlegend": particle == drawn[0], "x": _rounded(xs, thin.digits), "y": _rounded(zs, thin.digits), "line": REFERENCE_STYLE,
                 "hoverinfo": "skip",
             })
     for index, sweep, record in chosen:
         for particle in drawn:
-            xs, zs = _clip_path(*_particle_xz(record.series["positions"], particle), box)
+            xs, zs = _thin(*_clip_path(*_particle_xz(record.series["positions"], particle), box), thin.points(sweep.engine))
             traces.append({
                 "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
                 "legendgroup": f"v{index}", "showlegend": particle == drawn[0],
-                "x": _rounded(xs), "y": _rounded(zs), "line": {**palette.style(sweep.engine), "width": 1.5},
+                "x": _rounded(xs, thin.digits), "y": _rounded(zs, thin.digits), "line": {**palette.style(sweep.engine), "width": 1.5},
                 "hovertemplate": f"%{{fullData.name}}<br>particle {particle}<br>x = %{{x:.3g}} m<br>z = %{{y:.3g}} m<extra></extra>",
             })
-    figure = {
-        "data": traces,
-        "layout": _layout(
-            len(chosen) + bool(reference),
-            height=560,
-            xaxis=_axis("x / m", "linear", zeroline=False),
-            # Equal scales, so a circle of the wire looks like a circle.
-            yaxis=_axis("z / m", "linear", zeroline=False, scaleanchor="x", scaleratio=1),
-        ),
-    }
+        if record.series.get("position_error"):
+            values, _ = clip(record.series["t"], list(record.series["position_error"]), box)
+            t, values = decimate(record.series["t"][:len(values)], values, limit=thin.points(sweep.engine))
+            distances.extend(values)
+            apart.append({
+                "type": "scatter", "mode": "lines", "name": plot_text(_label(sweep, record)),
+                "legendgroup": f"v{index}", "showlegend": False, "x": _rounded(t, thin.digits),
+                "y": _rounded(values, thin.digits),
+                "line": {**palette.style(sweep.engine), "width": 1.5}, "xaxis": "x2", "yaxis": "y2",
+                "hovertemplate": "%{fullData.name}<br>t = %{x:.3g} s<br>position error = %{y:.3g} m<extra></extra>",
+            })
+    # Equal scales, so a circle of the wire looks like a circle.
+    axes: dict[str, Any] = {"xaxis": _axis("x / m", "linear", zeroline=False),
+                            "yaxis": _axis("z / m", "linear", zeroline=False, scaleanchor="x", scaleratio=1)}
+    if apart:
+        axes["yaxis"]["domain"] = [0.36, 1.0]
+        axes["xaxis2"] = _axis("t / s", "linear", anchor="y2")
+        axes["yaxis2"] = _axis("position error / m", _axis_type(distances), domain=[0.0, 0.24], anchor="x2")
+    layout = _layout(len(chosen) + bool(reference), height=800 if apart else 560, **axes)
+    layout["legend"]["tracegroupgap"] = 0  # a group per variant (its particles, its distance): no gap, no scrolling
+    figure = {"data": traces + apart, "layout": layout}
     under = f"the wide grey line is {source}" if reference else "no reference path is stored in these results"
     which = "Every particle" if len(drawn) == n_particles else f"The first and the last of the {n_particles} particles"
     caption = (f"{which} of every variant at dt = {scene.chosen_dt:.3g} s in the x–z plane; {under}. "
                f"A path is cut where it leaves ±{box:.3g} m (a blow-up). Click a legend entry to hide a variant.")
+    if apart:
+        caption += (" Below: each variant's position error against t, max over particles of ‖p − pʳᵉᶠ‖ (m; "
+                    "logarithmic when it spans decades): where the paths lie on one another, it tells them apart.")
     return Plot("path", "Particle paths (x–z plane)", caption, figure)
 
 

@@ -74,6 +74,8 @@ class ReportData:
     counts: dict[str, int]
     problems: list[CaseRecord] = field(default_factory=list)
     settings: RunSettings = field(default_factory=RunSettings)
+    #: The cases whose engine printed something while they ran (CaseRecord.engine_output), in scene order.
+    printed: list[CaseRecord] = field(default_factory=list)
 
     @property
     def n_cases(self) -> int:
@@ -134,7 +136,8 @@ def arrange(path: Path, header: dict[str, Any], records: list[CaseRecord], dt: f
             )
         )
     problems = [r for s in scenes for sw in s.sweeps for r in sw.records if r.status in PROBLEMS]
-    return ReportData(path, header, scenes, status_counts(records), problems, settings)
+    printed = [r for s in scenes for sw in s.sweeps for r in sw.records if r.engine_output]
+    return ReportData(path, header, scenes, status_counts(records), problems, settings, printed)
 
 
 def load_report_data(directory: str | Path, dt: float | None = None) -> ReportData:

@@ -100,12 +100,12 @@ def _cell(view: SceneVerdictView, name: str) -> FamilyCell | None:
         if family(item.engine) == name and item.severity < 3:
             counts[item.severity_name] = counts.get(item.severity_name, 0) + 1
     problems = sorted(counts.items(), key=lambda pair: SEVERITIES.index(pair[0]))
-    if best.point is None:
+    if best.reading is None:
         note = "no ok run" if best.cheapest is None else f"none within the budget (cheapest {si(best.cheapest, 's/s')})"
         return FamilyCell("", "", "", problems, note)
-    reach = next((r for r in verdict.reaches if r.engine == best.point.engine), None)
+    reach = next((r for r in verdict.reaches if r.engine == best.reading.engine), None)
     reached = "–" if reach is None else (si(reach.cost, "s/s") if reach.cost is not None else "not reached")
-    return FamilyCell(best.point.engine.split("/", 1)[-1], si(best.point.error, "m"), reached, problems)
+    return FamilyCell(best.reading.engine.split("/", 1)[-1], si(best.reading.error, "m"), reached, problems)
 
 
 def _largest_only(problems: Sequence[ProblemItem]) -> list[tuple[str, list[str]]]:
@@ -158,10 +158,10 @@ def reconcile(view: SceneVerdictView, parity: dict[str, Any] | None, tolerance: 
     agreeing = {row["engine"] for row in parity["rows"] if row["agrees"]}
     lines = []
     for best in view.verdict.best:
-        if best.family not in agreeing or best.point is None or best.point.error <= tolerance:
+        if best.family not in agreeing or best.reading is None or best.reading.error <= tolerance:
             continue
         text = (f"{best.family} agrees with {parity['reference'] or 'the model reference'} on this file's mass matrix, "
-                f"bias and accelerations, yet {best.point.engine} is {si(best.point.error, 'm')} off at equal cost: ")
+                f"bias and accelerations, yet {best.reading.engine} is {si(best.reading.error, 'm')} off at equal cost: ")
         if horizon is not None and duration is not None and horizon < duration:
             text += (f"the reference itself is reliable only to t = {si(horizon, 's')} (its horizon; the motion is "
                      "chaotic), so this is chaos, not a fault of the import")

@@ -34,6 +34,7 @@ from engines.scene.catalog import CATALOG
 
 from engines.files import atomic_write_text, check_writable
 
+from compare.results.record import engine_output_lines
 from compare.results.store import results_inputs
 from compare.results.metrics import ORDER_CEILING, ORDER_FLOOR, ORDER_MIN_POINTS
 from compare.suite.reader import RunSettings
@@ -43,7 +44,9 @@ from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
 from reports.gradients import gradient_views
-from reports.figures import CLIP_FACTOR, Ceilings, Plot, scene_plots, time_series
+from reports.figures import (
+    CLIP_FACTOR, Ceilings, Plot, Thinning, constraint_forces, paths, phase_plot, scene_plots, time_series,
+)
 from reports.load import ReportData, load_report_data
 from reports.pack import pack, packed_text, template_values
 from reports.palette import Palette
@@ -68,6 +71,7 @@ def environment() -> jinja2.Environment:
     env.filters["g3"] = lambda v: "–" if v is None else f"{v:.3g}"
     env.filters["packed"] = lambda text: packed_text(str(text))
     env.filters["numbers"] = unbroken_numbers
+    env.filters["engine_output"] = engine_output_lines
     return env
 
 
@@ -93,9 +97,9 @@ LAZY_SCENES = 8
 #: In such a suite, the time series at a scene's other dts (shown when the dt selector asks): points per trace
 #: (LTTB keeps peaks and blow-ups), significant digits, and points per trace of a variant drawn grey (one the
 #: verdict does not name: context, not evidence).
-LAZY_SERIES = (40, 3, 10)
+LAZY_SERIES = (30, 3, 8)
 #: Points per grey trace of the time series at the chosen dt in such a suite.
-LAZY_CHOSEN_MUTED = 20
+LAZY_CHOSEN_MUTED = 12
 
 
 def page_context(data: ReportData, focus: str | None = None, lazy: bool | None = None) -> dict[str, Any]:
@@ -186,11 +190,19 @@ def page_context(data: ReportData, focus: str | None = None, lazy: bool | None =
 def _lighter(plots: list[Plot], scene: Any, number: int, palette: Palette, ceilings: Ceilings,
              named: set[str]) -> list[Plot]:
     """``plots`` with the time series at the chosen dt at LAZY_SERIES' digits and a grey variant thinned to
-    LAZY_CHOSEN_MUTED points (a big suite's page; the named variants keep every point)."""
+    LAZY_CHOSEN_MUTED points (a big suite's page; the named variants keep every point), and the constraint forces,
+    phase curves and paths thinned as the time series at the other dts are (LAZY_SERIES)."""
     digits = LAZY_SERIES[1]
-    lighter = time_series(scene, palette, ceilings, None, named, MAX_POINTS, digits, LAZY_CHOSEN_MUTED)
-    ts = f"s{number}-ts"
-    return [replace(lighter, id=ts) if p.id == ts and lighter is not None else p for p in plots]
+    thin = Thinning(LAZY_SERIES[0], digits, LAZY_SERIES[2], frozenset(named))
+    lighter = {"ts": time_series(scene, palette, ceilings, None, named, MAX_POINTS, digits, LAZY_CHOSEN_MUTED),
+               "force": constraint_forces(scene, palette, ceilings, thin), "path": paths(scene, palette, thin),
+               "phase": phase_plot(scene, palette, thin)}
+    out = []
+    for plot in plots:
+        kind = plot.id.split("-", 1)[1]
+        light = lighter.get(kind)
+        out.append(replace(light, id=plot.id) if light is not None else plot)
+    return out
 
 
 def model_leads(verdicts: list[Any], scenes: list[dict[str, Any]], tolerance: float) -> dict[int, dict[str, Any]]:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from compare.stability.gainmap import load_gainmap
-from compare.stability.search import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, load_stability
+from compare.stability.search import BOUNDED, SKIPPED, STABLE_AT_LARGEST, UNDECIDED, UNSTABLE_AT_SMALLEST, load_stability
 
 from reports.figures import Plot, _axis, _layout, plot_text
 from reports.palette import FAMILY_COLOURS as PALETTE  # one colour per scene here (not per engine)
@@ -49,7 +49,21 @@ def _cell(result: dict[str, Any]) -> dict[str, str]:
     if verdict == UNSTABLE_AT_SMALLEST:
         return {"text": f"< {result['smallest_unstable_dt']:.3g}", "status": "unstable",
                 "title": f"unstable even at the smallest dt tried{note}; {result.get('reason', '')}"}
+    if verdict == UNDECIDED:
+        return {"text": "undecided", "status": "timeout",
+                "title": f"a trial at {result.get('undecided_dt') or 0:.4g} s timed out twice: the boundary is "
+                         f"{_bracket(result)}{note}; {result.get('reason', '')}"}
     return {"text": "skipped", "status": "skipped", "title": result.get("reason", "")}
+
+
+def _bracket(result: dict[str, Any]) -> str:
+    """Where an undecided pair's boundary lies, as far as its decided trials say."""
+    lo, hi = result.get("largest_stable_dt"), result.get("smallest_unstable_dt")
+    if lo is not None and hi is not None:
+        return f"between {lo:.3g} and {hi:.3g} s"
+    if lo is not None:
+        return f"at or above {lo:.3g} s"
+    return f"below {hi:.3g} s" if hi is not None else "unknown"
 
 
 def _by_pair(document: dict[str, Any]) -> dict[tuple[str, str], dict[str, Any]]:
@@ -93,6 +107,8 @@ def stability_bars(document: dict[str, Any]) -> ExtraPlot | None:
                 y, pattern, text = result["largest_stable_dt"], "/", "stable at the largest dt tried"
             elif verdict == UNSTABLE_AT_SMALLEST and dt_min:
                 y, pattern, text = dt_min / 2, "x", f"UNSTABLE even at {dt_min:g} s"
+            elif verdict == UNDECIDED:
+                y, pattern, text = result.get("largest_stable_dt"), ".", f"undecided: {_bracket(result)}"
             else:
                 y, pattern, text = None, "", "skipped" if verdict == SKIPPED else "not searched"
             ys.append(y)
@@ -162,10 +178,11 @@ def gain_heatmaps(document: dict[str, Any]) -> list[ExtraPlot]:
                 "line": {"color": "black", "width": 3}, "colorscale": [[0, "black"], [1, "black"]],
                 "name": "theory: ρ = 1", "showlegend": True, "hoverinfo": "skip",
             })
-        stable = [[None if s is None else (1 if s == "ok" else 0) for s in row] for row in grid["status"]]
+        # A cell that timed out twice decides nothing: blank, like one not run (compare.stability.trial.timed_retry).
+        stable = [[None if s in (None, "timeout") else (1 if s == "ok" else 0) for s in row] for row in grid["status"]]
         panels = [
             ("stability", stable, [[0, "#f4a582"], [0.5, "#f4a582"], [0.5, "#92c5de"], [1, "#92c5de"]],
-             "measured: blue = ok, orange = unstable", {"zmin": 0, "zmax": 1, "showscale": False}),
+             "measured: blue = ok, orange = unstable, blank = undecided (timed out twice)", {"zmin": 0, "zmax": 1, "showscale": False}),
             ("constraint error", [[_log10(v) for v in row] for row in grid["constraint_error"]], "Viridis",
              "log10 constraint error / m", {}),
             ("energy drift", [[_log10(v) for v in row] for row in grid["energy_drift"]], "Viridis",

@@ -37,12 +37,14 @@ class Series:
 
 #: SVG stroke-dasharray of each plotly dash name.
 DASH_ARRAYS = {"solid": "", "dash": "6 4", "dot": "2 3", "dashdot": "6 3 2 3", "longdash": "10 4"}
+#: What a screen reader says of each line style.
+DASH_WORDS = {"solid": "solid", "dash": "dashed", "dot": "dotted", "dashdot": "dash-dotted", "longdash": "long-dashed"}
 
 
 def marker(symbol: str, x: float, y: float, r: float, inner: str = "") -> str:
     """One marker of shape ``symbol`` (a plotly name) centred at (x, y), radius about ``r`` px, ``inner`` inside it."""
     if symbol == "circle":
-        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
+        return f'<circle cx="{x:.0f}" cy="{y:.0f}" r="{r}">{inner}</circle>'
     shapes = {
         "square": [(-0.85, -0.85), (0.85, -0.85), (0.85, 0.85), (-0.85, 0.85)],
         "diamond": [(0, -1.2), (1.2, 0), (0, 1.2), (-1.2, 0)],
@@ -55,8 +57,8 @@ def marker(symbol: str, x: float, y: float, r: float, inner: str = "") -> str:
     }
     corners = shapes.get(symbol)
     if corners is None:
-        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="{r}">{inner}</circle>'
-    points = " ".join(f"{x + r * dx:.1f},{y + r * dy:.1f}" for dx, dy in corners)
+        return f'<circle cx="{x:.0f}" cy="{y:.0f}" r="{r}">{inner}</circle>'
+    points = " ".join(f"{x + r * dx:.0f},{y + r * dy:.0f}" for dx, dy in corners)
     return f'<polygon points="{points}">{inner}</polygon>'
 
 
@@ -73,16 +75,29 @@ def _tick_label(exponent: int) -> str:
     return f'10<tspan dy="-0.5em" font-size="0.75em">{exponent}</tspan>'
 
 
+def key_svg(symbol: str, dash: str, colour: str, muted: bool = False) -> Markup:
+    """A legend key drawn as the plot draws its series: a short line in its dash with its marker shape on it, in
+    ``colour`` (``currentColor``, so a muted key turns grey by CSS and back with "all variants in colour")."""
+    dasharray = DASH_ARRAYS.get(dash, "")
+    said = f"key: {DASH_WORDS.get(dash, dash)} line, {symbol} markers"
+    return Markup(f'<svg class="key{" muted" if muted else ""}" width="26" height="12" viewBox="0 0 26 12" '
+                  f'role="img" aria-label="{_escape(said)}" fill="currentColor" stroke="currentColor" style="color: {_escape(colour)}; '
+                  f'--own: {_escape(colour)}"><line x1="1" y1="6" x2="25" y2="6" stroke-width="1.5"'
+                  + (f' stroke-dasharray="{dasharray}"' if dasharray else "") + f'/>{marker(symbol, 13, 6, 3.6)}</svg>')
+
+
 def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *, x_title: str, y_title: str,
                target: float | None = None, target_label: str = "", width: int = 720, height: int = 420,
-               element_id: str = "", label: str = "", picks: Sequence[tuple[float, float, str]] = ()) -> Markup:
+               element_id: str = "", label: str = "", picks: Sequence[tuple[float, float, str]] = (),
+               y_extent: Sequence[float] = ()) -> Markup:
     """An SVG log–log plot: ``series`` as dots (one ``<g>`` per series, ``data-series`` = its index; muted ones
     grey and drawn first, under the others), ``front`` as a black staircase (step after each point), an
     optional dotted horizontal line at ``target``; each series' points joined in order (a work-precision line);
     ``picks`` (x, y, name) labelled beside their point. ``label``: what a screen reader says the plot shows
-    (its ``aria-label``; default: the axes' titles)."""
+    (its ``aria-label``; default: the axes' titles). ``y_extent``: values the y axis must span besides the
+    points (two plots side by side given each other's errors share their y axis)."""
     xs = [p[0] for s in series for p in s.points if p[0] > 0]
-    ys = [p[1] for s in series for p in s.points if p[1] > 0]
+    ys = [p[1] for s in series for p in s.points if p[1] > 0] + [y for y in y_extent if y > 0]
     if target is not None and target > 0:
         ys.append(target)
     if not xs or not ys:
@@ -129,7 +144,7 @@ def loglog_svg(series: Sequence[Series], front: Sequence[tuple[float, float]], *
         )
         drawn = [(px(x), py(y)) for x, y, _ in s.points if x > 0 and y > 0]
         dash = DASH_ARRAYS.get(s.dash, "")
-        line = (f'<polyline points="{" ".join(f"{a:.1f},{b:.1f}" for a, b in drawn)}" fill="none" '
+        line = (f'<polyline points="{" ".join(f"{a:.0f},{b:.0f}" for a, b in drawn)}" fill="none" '
                 f'stroke-width="{1 if s.muted else 1.5}"' + (f' stroke-dasharray="{dash}"' if dash else "") + "/>"
                 if len(drawn) > 1 else "")
         if s.muted:

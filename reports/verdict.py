@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from compare.results.sweep import VariantSweep
 from compare.results.verdict import (
     SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
 )
@@ -22,7 +23,8 @@ from reports.emphasis import named_by
 from reports.load import ReportData, SceneResults
 from reports.numbers import si
 from reports.palette import Palette
-from reports.svgplot import Series, loglog_svg
+from reports.figures import sweep_points
+from reports.svgplot import Series, key_svg, loglog_svg
 
 #: Text of a heat-map cell per status.
 #: Text of a heat-map cell per status (no glyph that needs an emoji font: "T" for a timeout).
@@ -102,21 +104,26 @@ class SceneVerdictView:
 
 @dataclass(frozen=True)
 class LegendEntry:
-    """One variant in the Pareto plot's legend: its series index in the SVG, label, colour, and whether it is
-    muted (grey until "all variants in colour")."""
+    """One variant in the verdict plots' legend: its series index in both SVGs, label, colour, whether it is
+    muted (grey until "all variants in colour"), its key (line style and marker, as drawn) and its observed
+    order ("3.98", or "–" when none could be fitted)."""
 
     index: int
     engine: str
     colour: str
     muted: bool = False
+    key: Markup = Markup("")
+    order: str = "–"
 
 
 @dataclass(frozen=True)
 class ParetoPlot:
-    """The verdict's plot: inline SVG and its legend, grouped by engine family (family, entries)."""
+    """The verdict's plots: the work–precision diagram (inline SVG), error against dt beside it (same series,
+    same y axis; "" when no variant has a dt sweep) and their one legend, grouped by engine family."""
 
     svg: Markup
     legend: list[tuple[str, list[LegendEntry]]]
+    dt_svg: Markup = Markup("")
 
     @property
     def muted(self) -> bool:
@@ -124,43 +131,78 @@ class ParetoPlot:
         return any(entry.muted for _, entries in self.legend for entry in entries)
 
 
+def _order_text(sweep: VariantSweep) -> str:
+    """The observed order of ``sweep`` (the slope of log error against log dt over its asymptotic range)."""
+    fit = sweep.order
+    return "–" if fit is None or fit.order is None else f"{fit.order:.2f}"
+
+
+#: Size (px of the viewBox) of each verdict plot; two side by side with their legend fit a 1400-px screen.
+VERDICT_PLOT = (500, 400)
+
+
 def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette: Palette,
                 named: set[str] | None = None) -> ParetoPlot | None:
-    """Every ok (cost, error) point of every competing variant, and the Pareto front; None when there is none.
+    """The verdict's two plots of every competing variant, None when neither has a point: error against cost
+    (every ok run, each variant's runs joined in dt order, the Pareto front) and error against dt (each
+    variant's observed order in the legend), one shared legend.
 
     named : the variants in colour (default: every one); the others grey, as the plotly plots mute theirs,
-    unless that would grey all or none.
+    unless that would grey all or none. A variant that converges to the wrong answer is in colour too, and
+    named on the dt plot: its plateau is the evidence.
     """
     competing = {r.engine for r in verdict.reaches}
     sweeps = [s for s in scene.sweeps if s.engine in competing]
     drawn = [s.engine for s in sweeps if points(s)]
     mute = named is not None and any(e in named for e in drawn) and any(e not in named for e in drawn)
+    wrong = {p.engine for p in verdict.problems if p.kind == "inconsistent"}
     order: dict[str, int] = {}
     for sweep in sweeps:
         order.setdefault(family(sweep.engine), len(order))
     sweeps.sort(key=lambda s: order[family(s.engine)])  # a family's variants together
     series: list[Series] = []
+    by_dt: list[Series] = []
     groups: dict[str, list[LegendEntry]] = {}
     for sweep in sweeps:
         pts = points(sweep)
-        if not pts:
+        dts, errors, _ = sweep_points(sweep, "dt")
+        if not pts and not dts:
             continue
         colour = palette.colour(sweep.engine)
-        muted = mute and sweep.engine not in named  # type: ignore[operator]
+        symbol, dash = palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]
+        muted = mute and sweep.engine not in named and sweep.engine not in wrong  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
             (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
-            for p in pts], muted, palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]))
-        groups.setdefault(family(sweep.engine), []).append(LegendEntry(len(series) - 1, sweep.engine, colour, muted))
-    if not series:
+            for p in pts], muted, symbol, dash))
+        by_dt.append(Series(sweep.engine, colour, family(sweep.engine), [
+            (dt, error, f"{sweep.engine}: dt {dt:.3g} s, error {error:.3g} m")
+            for dt, error in zip(dts, errors)], muted, symbol, dash))
+        groups.setdefault(family(sweep.engine), []).append(LegendEntry(
+            len(series) - 1, sweep.engine, colour, muted, key_svg(symbol, dash, colour, muted), _order_text(sweep)))
+    if not any(s.points for s in series) and not any(s.points for s in by_dt):
         return None
+    errors = [y for s in series + by_dt for _, y, _ in s.points]
+    width, height = VERDICT_PLOT
     svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}",
-                     picks=[(b.point.cost, b.point.error, b.point.engine) for b in verdict.best if b.point is not None],
+                     width=width, height=height, y_extent=errors,
+                     picks=[(b.reading.budget, b.reading.error, b.reading.engine) for b in verdict.best
+                            if b.reading is not None],
                      label=f"Scene {scene.scene_id}: max position error against stepping cost, log–log, every ok run "
                            f"of {len(series)} variants, the Pareto front as a staircase and the target 1e-6·L "
                            f"as a dotted line")
-    return ParetoPlot(svg, list(groups.items()))
+    picked = {b.reading.engine for b in verdict.best if b.reading is not None}
+    # Each family's pick and each wrong answer named at its finest dt (where a plateau shows).
+    labels = [(*min(s.points)[:2], f"{s.name}: wrong answer" if s.name in wrong else s.name)
+              for s in by_dt if s.points and (s.name in wrong or s.name in picked)]
+    dt_svg = loglog_svg(by_dt, [], x_title="time step dt / s", y_title="max position error / m",
+                        target=verdict.target, target_label="1e-6·L", element_id=f"dtplot-{number}",
+                        width=width, height=height, y_extent=errors, picks=labels,
+                        label=f"Scene {scene.scene_id}: max position error against the time step dt, log–log, every "
+                              f"ok run of {len(by_dt)} variants; each variant's observed order, the slope, is in the "
+                              f"legend") if any(s.points for s in by_dt) else Markup("")
+    return ParetoPlot(svg, list(groups.items()), dt_svg)
 
 
 def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> str:

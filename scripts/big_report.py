@@ -18,7 +18,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from reports.render import write_report  # noqa: E402
+from reports.render import LAZY_CHOSEN_MUTED, LAZY_SCENES, LAZY_SERIES, write_report  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "scripts"))
+from quoted import load_quotes, report  # noqa: E402
 
 RADII = (0.5, 1.0, 1.5, 2.0, 2.5)
 ANGLES = (20, 45, 60, 90, 120)
@@ -49,24 +52,51 @@ def suite_text() -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The figures that need the suite run and rendered (minutes): tests/test_docs_figures.py checks only that the
+#: doc quotes them.
+SLOW = {"cases", "report_mb", "mb_per_scene"}
+
+
+def measure(directory: Path, report_only: bool = False) -> dict[str, float]:
+    """Run the suite into DIRECTORY/results (unless ``report_only``) and render it: cases, MB, MB per scene, s."""
+    results = directory / "results"
+    if not report_only:
+        directory.mkdir(parents=True, exist_ok=True)
+        suite = directory / "big.toml"
+        suite.write_text(suite_text())
+        xval = Path(sys.executable).with_name("xval")
+        subprocess.run([str(xval), "run", str(suite), "--output", str(results)], check=True, cwd=ROOT,
+                       stdout=subprocess.DEVNULL)
+    written = write_report(results, directory / "report.html")
+    scenes = len(RADII) * len(ANGLES)
+    return {"cases": len(list((results / "cases").glob("*.json"))), "report_mb": written.size / 1e6,
+            "mb_per_scene": written.size / 1e6 / scenes, "render_s": written.seconds}
+
+
+def figures(quick: bool = False, directory: Path = Path("/tmp/big"), report_only: bool = False) -> dict[str, float]:
+    """The figures docs/report.md quotes: the big-suite settings of reports/render.py and, unless ``quick``, the
+    measured report (see :func:`measure`)."""
+    found: dict[str, float] = {"lazy_scenes": LAZY_SCENES, "lazy_points": LAZY_SERIES[0],
+                               "lazy_digits": LAZY_SERIES[1], "lazy_grey_points": LAZY_SERIES[2],
+                               "lazy_chosen_grey_points": LAZY_CHOSEN_MUTED}
+    if not quick:
+        found.update(measure(directory, report_only))
+    return found
+
+
+QUOTES = load_quotes(__file__)
+ROWS: list = []
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("directory", type=Path)
     parser.add_argument("--report-only", action="store_true", help="render the results already in DIRECTORY/results")
     args = parser.parse_args()
-    results = args.directory / "results"
-    if not args.report_only:
-        args.directory.mkdir(parents=True, exist_ok=True)
-        suite = args.directory / "big.toml"
-        suite.write_text(suite_text())
-        xval = Path(sys.executable).with_name("xval")
-        subprocess.run([str(xval), "run", str(suite), "--output", str(results)], check=True, cwd=ROOT,
-                       stdout=subprocess.DEVNULL)
-    written = write_report(results, args.directory / "report.html")
-    cases = len(list((results / "cases").glob("*.json")))
-    scenes = len(RADII) * len(ANGLES)
-    print(f"cases {cases}; report {written.size / 1e6:.2f} MB, {written.size / 1e6 / scenes:.3f} MB per scene; "
-          f"rendered in {written.seconds:.1f} s")
+    found = figures(False, args.directory, args.report_only)
+    print(f"cases {found['cases']}; report {found['report_mb']:.2f} MB, {found['mb_per_scene']:.3f} MB per scene; "
+          f"rendered in {found['render_s']:.1f} s")
+    report(found, QUOTES, ROWS)
 
 
 if __name__ == "__main__":

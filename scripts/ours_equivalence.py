@@ -94,15 +94,23 @@ def compare(path, scenes=None) -> tuple[int, dict[str, float], list[str]]:
     return count, worst, failures
 
 
+def save(path, runs) -> None:
+    """Write every (key, arrays) of ``runs`` to the .npz at ``path`` (as ``key|name``) and say how many."""
+    data, count = {}, 0
+    for key, arrays in runs:
+        count += 1
+        data.update({f"{key}|{name}": a for name, a in arrays.items()})
+    np.savez_compressed(path, **data)
+    print(f"saved {count} runs to {path}")
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 2 or argv[0] not in ("save", "check"):
         print(__doc__)
         return 2
     mode, path = argv
     if mode == "save":
-        data = {f"{key}|{name}": a for key, arrays in runs() for name, a in arrays.items()}
-        np.savez_compressed(path, **data)
-        print(f"saved {len(data) // 4} runs to {path}")
+        save(path, runs())
         return 0
     count, worst, failures = compare(path)
     print(f"checked {count} runs; largest relative difference: "

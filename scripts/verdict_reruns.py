@@ -73,7 +73,7 @@ def main(directories: list[str]) -> None:
                 changed = [b for j, b in enumerate(run["equal_cost"]["best"])
                            if any(v["equal-cost best"][j] != named(run)["equal-cost best"][j] for v in views)]
                 print(f"  {name}: budget {budget:.3g} s/s; " + "; ".join(
-                    f"{b['engine']} dt {b['dt']:.3g} s, cost {b['cost']:.3g} s/s, error {b['error']:.3g} m"
+                    f"{b['engine']} error {b['error']:.3g} m [{b['error_interval'][0]:.3g}, {b['error_interval'][1]:.3g}]"
                     + (f" (ties: {', '.join(b['ties'])})" if b["ties"] else "")
                     for b in changed if b["engine"] is not None))
         print("  same in every run: " + "; ".join(f"{key} {value}" for key, value in same.items())

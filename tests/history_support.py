@@ -45,7 +45,8 @@ def real_run(output: Path) -> Results:
 
 def scaled(record: CaseRecord, error: float = 1.0, timing: float = 1.0, tight: bool = False) -> CaseRecord:
     """``record`` with its position errors × error and its timings × timing (steps per second ÷ timing);
-    ``tight``: its three repeats set to the median wall time × (0.99, 1, 1.01) first."""
+    ``tight``: its three repeats set to the median wall time × (0.99, 1, 1.01) first, and its CPU times to
+    50 ms × the same (a case long enough for its own timing to be gated, compare.gate.gate.CASE_RESOLUTION)."""
     metrics = dict(record.metrics)
     if not metrics:
         return record
@@ -60,7 +61,12 @@ def scaled(record: CaseRecord, error: float = 1.0, timing: float = 1.0, tight: b
     repeats = record.wall_times
     if tight and record.metrics.get("wall_time"):
         repeats = tuple(record.metrics["wall_time"] * f for f in (0.99, 1.0, 1.01))
-    return dataclasses.replace(record, metrics=metrics, wall_times=tuple(w * timing for w in repeats))
+    # The CPU times move with the wall times (the code got slower, the machine did not: calibrations stay).
+    cpu = record.cpu_times
+    if cpu and tight:
+        cpu = tuple(0.05 * f for f in (0.99, 1.0, 1.01))[:len(cpu)]
+    return dataclasses.replace(record, metrics=metrics, wall_times=tuple(w * timing for w in repeats),
+                               cpu_times=None if cpu is None else tuple(c * timing for c in cpu if c is not None))
 
 
 def synthetic(base: Results, index: int, error: float = 1.0, timing: float | Callable[[CaseRecord], float] = 1.0,

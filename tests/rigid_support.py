@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ours.rigid import Body, Joint, Mechanism
+from ours.rigid import Body, Joint, Mechanism, rotation_of
 
 G = 9.81
 #: The compound double pendulum: two links hinged about y, hanging along −z; link i has mass m,
@@ -49,3 +49,15 @@ def chain(n: int, kind: str = "revolute") -> Mechanism:
     joints = tuple(Joint(f"j{i}", kind, i - 1, i, [0.0, 0.0, 0.0 if i == 0 else -0.1], np.eye(3), [0.0, 1.0, 0.0])
                    for i in range(n))
     return Mechanism(bodies, joints, [0.0, 0.0, -G])
+
+
+def branching_tree(rng: np.random.Generator) -> Mechanism:
+    """A root with three branches of every joint kind (revolute, ball, prismatic, fixed) at random frames and
+    masses drawn from ``rng`` (tests/test_ours_rigid.py's dense-solve check, scripts/rigid_equivalence.py)."""
+    kinds = ["revolute", "ball", "prismatic", "fixed", "revolute", "ball"]
+    parents = [-1, 0, 0, 1, 0, 4]
+    bodies = tuple(Body(f"b{i}", 0.5 + i * 0.1, rng.normal(size=3) * 0.1, np.diag([0.01, 0.02, 0.025]) * (1 + i))
+                   for i in range(6))
+    joints = tuple(Joint(f"j{i}", kinds[i], parents[i], i, rng.normal(size=3) * 0.3, rotation_of(rng.normal(size=4)),
+                         rng.normal(size=3)) for i in range(6))
+    return Mechanism(bodies, joints)

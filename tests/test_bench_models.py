@@ -35,7 +35,7 @@ def test_a_short_run_prints_a_row_for_every_engine_against_its_peer():
         cost, ratio, peer = float(rows[engine_id][4]), float(rows[engine_id][5]), rows[engine_id][6]
         assert math.isfinite(cost) and cost > 0
         assert peer == bench.PEERS[kind] and peer.startswith("mujoco/")
-        # The ratio is this row's cost over its peer's, as both are printed (to 0.01 µs and 0.01).
+        # The ratio is this row's cost over its peer's, as both are printed (to 0.001 µs and 0.01).
         assert ratio == pytest.approx(cost / float(rows[peer][4]), rel=5e-3, abs=6e-3), (engine_id, rows[engine_id])
         if engine_id == peer:
             assert ratio == 1.0

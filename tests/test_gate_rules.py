@@ -233,3 +233,75 @@ def test_a_damaged_baseline_entry_is_one_error_naming_the_file_the_case_and_the_
     (tmp_path / "b.json").write_text(json.dumps(document))
     with pytest.raises(UserError, match=rf"^--baseline: {re.escape(str(tmp_path))}/b\.json: case .*: {message}.*; make it again"):
         load_baseline(tmp_path / "b.json")
+
+
+# -- timing through the variant's per-step cost, against a window's distribution ------------------------
+
+DTS = (5e-3, 2.5e-3, 1.25e-3)
+#: s of CPU per step of the made-up variant (30-60 µs cases, as ours' cheapest variants on the smoke suite).
+PER_STEP = 5e-8
+
+
+def timed(dt: float, runs: list[float], calibration: float = 3e-3, repeat_spread: float = 0.02,
+          seconds: float = 0.01) -> BaselineEntry:
+    """An ok case of variant e/v at ``dt`` whose runs cost PER_STEP/dt × each of ``runs`` per simulated second
+    (oldest first; the last one's two repeats are kept as its cpu), its stepping lasting ``seconds`` (10 ms:
+    under the resolution alone, three of them over it together)."""
+    cost = PER_STEP / dt * runs[-1]
+    cpu = (cost, cost * (1 + repeat_spread))
+    per_run = tuple(PER_STEP / dt * r / calibration for r in runs)
+    timing = Timing(cost, cpu, (min(cpu), max(cpu)), cpu=cpu, calibration=(calibration, calibration),
+                    runs=len(runs) if len(runs) > 1 else None, seconds=seconds, per_run=per_run if len(runs) > 1 else None)
+    return BaselineEntry("bead", "h", "e/v", "e/v", "v", {}, dt, (0, 0, 0), "1.0", Status.OK, "", None, None, "",
+                         timing)
+
+
+def gate_timing(window: list[list[float]], current: list[float], seconds: float = 0.01) -> list[str]:
+    """The gated timing outcomes of the variant's cases ("shown" when not gated): each case's window runs
+    against the current run."""
+    from compare.gate.gate import variant_timings
+
+    base = {f"k{k}": timed(dt, runs, seconds=seconds) for k, (dt, runs) in enumerate(zip(DTS, window))}
+    now = {f"k{k}": timed(dt, [factor], seconds=seconds) for k, (dt, factor) in enumerate(zip(DTS, current))}
+    variants = variant_timings(base, now, SETTINGS.timing_factor)
+    changes = [timing_change(base[k].timing, now[k].timing, SETTINGS.timing_factor, True, "", variants.get("e/v"))
+               for k in base]
+    return [change.outcome if change.gated else "shown" for change in changes]
+
+
+#: Five runs whose costs wander by up to 25 % (each case on its own), as unchanged runs on a shared machine do.
+WINDOW = [[1.0, 1.2, 0.9, 1.1, 1.0], [1.1, 0.95, 1.0, 1.25, 1.0], [0.9, 1.0, 1.15, 1.0, 1.05]]
+
+
+def test_cases_below_the_resolution_are_judged_by_their_variants_per_step_cost():
+    # Every case 2× slower: the variant's per-step cost doubled, past max(1.5, the window's spread): worse.
+    assert gate_timing(WINDOW, [2.0, 2.0, 2.0]) == ["worse"] * 3
+    # One case 1.7× on its own (a disturbed case of 60 µs): the median over the variant's cases does not follow it.
+    assert gate_timing(WINDOW, [1.7, 1.0, 1.0]) == ["unchanged"] * 3
+    # The whole variant 1.3× slower: inside the factor.
+    assert gate_timing(WINDOW, [1.3, 1.3, 1.3]) == ["unchanged"] * 3
+
+
+def test_a_variant_whose_cases_step_less_than_the_resolution_together_is_shown_not_gated():
+    # Three cases of 1 ms: 3 ms in all, under CASE_RESOLUTION (20 ms); even 2× slower cannot fail the gate.
+    assert gate_timing(WINDOW, [2.0, 2.0, 2.0], seconds=1e-3) == ["shown"] * 3
+
+
+def test_a_window_is_compared_by_its_median_and_spread_not_its_best_run():
+    # The window's best run cost 0.6 of its median; 1.4× the median is 2.3× that best run, yet unchanged.
+    window = [[0.6, 1.0, 1.0, 1.0, 1.4]] * 3
+    assert gate_timing(window, [1.4, 1.4, 1.4]) == ["unchanged"] * 3
+    # Past the window's own spread (1.67×, its cheapest run from its median) and the factor: worse.
+    assert gate_timing(window, [1.9, 1.9, 1.9]) == ["worse"] * 3
+
+
+def test_a_case_above_the_resolution_is_gated_on_its_own_against_the_window():
+    from compare.gate.gate import CASE_RESOLUTION
+
+    long = 10 * CASE_RESOLUTION  # s of stepping: 10× the resolution
+    base = timed(DTS[0], [1.0, 1.1, 0.9, 1.0, 1.05], seconds=long)
+    for factor, verdict in ((1.3, "unchanged"), (2.0, "worse"), (0.5, "better")):
+        change = timing_change(base.timing, timed(DTS[0], [factor], seconds=long).timing, 1.5, True, "")
+        assert change.gated
+        assert change.outcome == verdict
+        assert ("median of 5 runs" in change.note) == (verdict != "unchanged")

@@ -14,7 +14,7 @@ from ours.rigid import (
     ROWS, Body, Joint, Mechanism, angular_momentum, energy, frames, initial_state, joint_coordinates, pack,
     rotation_of, simulate, workspace,
 )
-from rigid_support import DOUBLE, G, chain, compound_double_pendulum, reduced_double_pendulum
+from rigid_support import DOUBLE, G, branching_tree, chain, compound_double_pendulum, reduced_double_pendulum
 
 
 def _two_links(kind: str, seed: int = 1) -> tuple[Mechanism, np.ndarray]:
@@ -89,13 +89,8 @@ def test_tree_solve_equals_a_dense_solve_on_a_branching_tree():
     from ours.rigid import kernel
 
     rng = np.random.default_rng(3)
-    kinds = ["revolute", "ball", "prismatic", "fixed", "revolute", "ball"]
-    parents = [-1, 0, 0, 1, 0, 4]
-    bodies = tuple(Body(f"b{i}", 0.5 + i * 0.1, rng.normal(size=3) * 0.1, np.diag([0.01, 0.02, 0.025]) * (1 + i))
-                   for i in range(6))
-    joints = tuple(Joint(f"j{i}", kinds[i], parents[i], i, rng.normal(size=3) * 0.3, rotation_of(rng.normal(size=4)),
-                         rng.normal(size=3)) for i in range(6))
-    mech = Mechanism(bodies, joints)
+    mech = branching_tree(rng)
+    bodies = mech.bodies
     y = initial_state(mech, {"j0": 0.4, "j2": 0.1, "j4": -0.3}, {"j0": 1.0, "j2": -0.5, "j4": 2.0})
     for b in range(6):  # spin the ball joints' children too: J u = 0 is not needed for the solve
         y[13 * b + 10:13 * b + 13] += rng.normal(size=3) * 0.1
@@ -251,3 +246,14 @@ def test_a_free_spin_about_a_hinge_reads_back_unwrapped():
     q, v = joint_coordinates(mech, run.y)
     np.testing.assert_allclose(q[:, 0], 0.5 + 10.0 * run.t, rtol=0, atol=1e-9)
     np.testing.assert_allclose(v[:, 0], 10.0, rtol=0, atol=1e-9)
+
+
+def test_written_out_blocks_are_what_their_generator_writes():
+    """ours/rigid/blocks.py is generated (python -m ours.rigid.generate): an edit by hand, or a generator
+    changed without rewriting the file, fails here."""
+    from ours.rigid import generate
+
+    from ours.rigid import kernel
+
+    assert generate.TARGET.read_text(encoding="utf-8") == generate.source()
+    assert kernel.BLOCKS_DIGEST == generate.digest(generate.source())  # numba's cache of the kernel follows

@@ -43,15 +43,17 @@ GOLDEN = {
         "tables": ["summary sortable filterable"],
         # work-precision and error-vs-dt: the 3 variants with ok cases; time series: 4 variants with samples
         # x 3 panels and the × where broken/blow-up stops; constraint forces: the reference's + the 3 variants whose engines report them (the
-        # broken engine returns none); phase plot and paths: the reference + 4 variants, 1 particle.
-        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 13), ("s0-force", 4), ("s0-phase", 5), ("s0-path", 5)],
+        # broken engine returns none) and, below (issue 44), those 3 variants' difference from the reference's;
+        # phase plot: the reference + 4 variants, 1 particle; paths: the same, and below (issue 44) the 4
+        # variants' distance from the reference.
+        "plots": [("s0-wp", 3), ("s0-dt", 3), ("s0-ts", 13), ("s0-force", 7), ("s0-phase", 5), ("s0-path", 9)],
     },
     "scene-1": {
         "heading": "Scene spherical",
         "rows": [("reference/dop853", "ok"), ("mujoco/hinge-rk4", "ok"),
                  ("broken/blow-up", "unstable"), ("broken/raise", "failed")],
         "tables": ["summary sortable filterable", "skipped"],
-        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 10), ("s1-force", 3), ("s1-phase", 4), ("s1-path", 4)],
+        "plots": [("s1-wp", 2), ("s1-dt", 2), ("s1-ts", 10), ("s1-force", 5), ("s1-phase", 4), ("s1-path", 7)],
     },
 }
 
@@ -244,8 +246,9 @@ def test_a_single_case_renders(small_results, tmp_path):
     assert [s.id for s in page.sections] == ["top", "summary", "verdict", "run", "scene-0", "problems", "how-to-read"]
     assert page.section("scene-0").tables[0].rows[1][:2] == ["pymunk/pin", "ok"]
     # One point: nothing to fit an order to, but every plot still draws its one variant;
-    # the force, phase and paths plots add the reference's, stored in the record beside the engine's.
-    assert [n for _, n in page.plots] == [1, 1, 3, 2, 2, 2]
+    # the force, phase and paths plots add the reference's, stored in the record beside the engine's, and the
+    # force and paths plots (issue 44) the variant's difference from it.
+    assert [n for _, n in page.plots] == [1, 1, 3, 3, 2, 3]
 
 
 def test_only_failures_and_skips_render(small_results, tmp_path):
@@ -454,3 +457,44 @@ def test_the_page_needs_no_emoji_font_and_its_inline_plots_are_named(small_resul
     assert _EMOJI.findall(html) == []
     svgs = re.findall(r"<svg\b[^>]*>", html)
     assert svgs and all(re.search(r'aria-label="[^"]{20,}"', svg) for svg in svgs)
+
+
+def test_the_verdict_draws_error_against_dt_beside_the_work_precision_with_each_order(small_results):
+    from reports.palette import Palette
+    from reports.verdict import verdict_views
+
+    data = load_report_data(small_results)
+    view = verdict_views(data, Palette(s.engine for scene in data.scenes for s in scene.sweeps))[0]
+    orders = {e.engine: e.order for _, entries in view.pareto.legend for e in entries}
+    # The orders the plotly plot's legend gives (test_error_vs_dt_legend_gives_the_observed_order): pymunk's
+    # first-order stepping, and no fit for RK4, whose errors sit below the fit's floor.
+    assert re.fullmatch(r"1\.\d\d", orders["pymunk/pin"]) and orders["mujoco/hinge-rk4"] == "–", orders
+    dt_svg, wp_svg = str(view.pareto.dt_svg), str(view.pareto.svg)
+    assert 'id="dtplot-0"' in dt_svg and "max position error against the time step dt" in dt_svg
+    # One y axis for both plots: the same decades, so a variant's errors sit at the same heights side by side.
+    ticks = re.compile(r'text-anchor="end">10<tspan[^>]*>(-?\d+)</tspan>')
+    assert ticks.findall(dt_svg) == ticks.findall(wp_svg) != []
+    # Each variant's dt sweep: one marker per ok run (mujoco's three dts).
+    mujoco = re.search(r'<g class="series[^"]*" data-series="\d+" data-variant="mujoco/hinge-rk4".*?</g>', dt_svg).group(0)
+    assert mujoco.count("<title>") == 3 and "dt 0.001 s" in mujoco
+
+
+def test_forces_and_paths_draw_the_difference_from_the_reference(small_page, small_results):
+    data = load_report_data(small_results)
+    bead = data.scenes[0]
+    record = bead.case_at(next(s for s in bead.sweeps if s.engine == "mujoco/hinge-rk4"), bead.chosen_dt)
+    specs = small_page.figure_specs()
+    # Paths: below the x–z plane, each variant's position error against t; its largest value is the case's max
+    # position error (the same samples; 4 significant digits in the spec).
+    [distance] = [t for t in specs["s0-path"]["data"] if t.get("yaxis") == "y2" and t["name"] == "mujoco/hinge-rk4"]
+    assert max(distance["y"]) == pytest.approx(record.metrics["position_error_linf"], rel=1e-3)
+    assert specs["s0-path"]["layout"]["legend"]["tracegroupgap"] == 0  # one group per variant: no gaps to scroll
+    # Forces: below ‖F‖, the largest difference from the reference's force, from the stored forces (6 significant
+    # digits a component, so within 1e-5·max‖F‖ of exact, and drawn at that floor when below it); its maximum is
+    # the case's constraint-force error.
+    [difference] = [t for t in specs["s0-force"]["data"] if t.get("yaxis") == "y2" and t["name"] == "mujoco/hinge-rk4"]
+    forces = [t for t in specs["s0-force"]["data"] if t.get("yaxis") == "y" and t["name"] == "reference"][0]["y"]
+    resolution = 1e-5 * max(forces)
+    assert min(v for v in difference["y"] if v is not None) >= resolution * (1 - 1e-3)
+    assert abs(max(difference["y"]) - record.metrics["constraint_force_error"]) <= resolution + 1e-3 * max(difference["y"])
+    assert specs["s0-force"]["layout"]["legend"]["tracegroupgap"] == 0

@@ -407,3 +407,73 @@ def test_the_engine_filter_filters_the_plots_too(wrong_page):
     set_filter("")
     assert len(wrong_page.evaluate('document.getElementById("s0-dt").data.filter(function (t) { return t.visible !== false; })')) == 3
     assert_offline_and_clean(wrong_page)
+
+
+def test_the_verdict_shows_error_against_dt_beside_the_work_precision_readable_without_colour(wrong_page):
+    wrong_page.evaluate("window.scrollTo(0, 0)")
+    boxes = wrong_page.evaluate("""(function () {
+      function box(selector) { var b = document.querySelector(selector).getBoundingClientRect();
+        return {left: b.left, right: b.right, top: b.top, width: b.width}; }
+      return {wp: box("#pareto-0"), dt: box("#dtplot-0"), legend: box(".pareto-legend[data-for=pareto-0]")};
+    })()""")
+    # Side by side on a 1400-px screen, on one level, each wide enough to read (≥ 400 px), the legend beside them.
+    wp, dt, legend = boxes["wp"], boxes["dt"], boxes["legend"]
+    assert wp["right"] <= dt["left"] and dt["right"] <= legend["left"] and legend["right"] <= SCREEN[0], boxes
+    assert abs(wp["top"] - dt["top"]) < 1 and wp["width"] >= 400 and dt["width"] >= 400, boxes
+    assert "against the time step dt" in wrong_page.evaluate('document.getElementById("dtplot-0").getAttribute("aria-label")')
+    # Without colour: each legend key draws its variant's marker shape and line style as both plots draw them.
+    keys = wrong_page.evaluate("""Array.from(document.querySelectorAll(".pareto-legend[data-for=pareto-0] .legend-item")).map(function (item) {
+      var i = item.getAttribute("data-series"), key = item.querySelector("svg.key");
+      function drawn(id) { var g = document.querySelector("#" + id + ' g.series[data-series="' + i + '"]');
+        var m = g && g.querySelector("circle, polygon"), l = g && g.querySelector("polyline");
+        return m ? [m.tagName, l ? l.getAttribute("stroke-dasharray") : null] : null; }
+      return {name: item.querySelector(".name").textContent, order: item.querySelector(".order").textContent,
+              key: [key.querySelector("circle, polygon").tagName, key.querySelector("line").getAttribute("stroke-dasharray")],
+              wp: drawn("pareto-0"), dt: drawn("dtplot-0")};
+    })""")
+    assert {k["name"] for k in keys} == {"mujoco/hinge-rk4", "pymunk/pin"}, keys
+    for key in keys:
+        for plot in ("wp", "dt"):
+            assert key[plot] is None or key[plot][0] == key["key"][0], key
+            assert key[plot] is None or key[plot][1] in (None, key["key"][1]), key
+    # The order printed per variant: a plateau at 5 cm has none (a dash) or one near 0; RK4 below the fit's floor: none.
+    orders = {k["name"]: k["order"] for k in keys}
+    assert orders["mujoco/hinge-rk4"] == "–" and (orders["pymunk/pin"] == "–" or abs(float(orders["pymunk/pin"])) < 0.5)
+    # The wrong answer is in colour against dt and named there.
+    grey = "rgb(196, 196, 196)"
+    assert wrong_page.evaluate('getComputedStyle(document.querySelector("#dtplot-0 g.series[data-variant=\\"pymunk/pin\\"]")).fill') != grey
+    assert "pymunk/pin: wrong answer" in wrong_page.evaluate(
+        'Array.from(document.querySelectorAll("#dtplot-0 text.pick")).map(function (t) { return t.textContent; })')
+    # One legend click hides a variant in both plots, a second shows it again.
+    hidden = ('["pareto-0", "dtplot-0"].map(function (id) { return document.querySelector("#" + id +'
+              ' \' g.series[data-variant="mujoco/hinge-rk4"]\').style.display; })')
+    click = ('Array.from(document.querySelectorAll(".pareto-legend[data-for=pareto-0] .legend-item")).find(function (b) {'
+             ' return b.textContent.indexOf("mujoco/hinge-rk4") >= 0; }).click()')
+    wrong_page.evaluate(click)
+    assert wrong_page.evaluate(hidden) == ["none", "none"]
+    wrong_page.evaluate(click)
+    assert wrong_page.evaluate(hidden) == ["", ""]
+    assert_offline_and_clean(wrong_page)
+
+
+def test_forces_and_paths_legends_never_scroll_and_differences_are_drawn(tmp_path_factory):
+    from report_support import SUITE
+
+    results = run_suite_once(tmp_path_factory.getbasetemp(), SUITE, edit=lambda _: MANY)
+    report = write_report(results, tmp_path_factory.mktemp("many-legends") / "many.html").path
+    with Page(report, tmp_path_factory.mktemp("profile-many-legends")) as page:
+        page.await_promise('window.xvalGoTo("s0-force", null).then(function () { return true; })')
+        for plot in ("s0-force", "s0-path"):
+            legend = page.evaluate(f'(function () {{ var g = document.querySelector("#{plot} .legend");'
+                                   f' return [g.querySelector(".scrollbox").getBBox().height,'
+                                   f' Number(g.querySelector("rect.bg").getAttribute("height")),'
+                                   f' g.querySelectorAll(".traces").length]; }})()')
+            assert legend[2] >= 20 and legend[0] <= legend[1] + 1, (plot, legend)  # 20+ entries, none scrolled away
+            # The difference from the reference has its own panel (the bead has one constraint, one particle: the
+            # second), drawn for every variant.
+            panels = page.evaluate(f'document.getElementById("{plot}").data.filter(function (t) {{'
+                                   ' return t.yaxis === "y2" && !t.showlegend && t.mode === "lines"; }).length')
+            assert panels >= 20, (plot, panels)
+        page.screenshot(ARTIFACTS / "report-many-forces.png",
+                        top=page.evaluate('document.getElementById("s0-force").getBoundingClientRect().top + scrollY'))
+        assert_offline_and_clean(page)

@@ -169,3 +169,28 @@ def test_the_verdict_plot_names_its_picks_without_overlap_and_has_an_accessible_
     assert svg.count("<polygon") == 1 and svg.count("<circle") == 1  # one marker shape per family
     baselines = [float(y) for y in re.findall(r'<text class="pick" x="[^"]+" y="([^"]+)"', svg)]
     assert len(baselines) == 2 and abs(baselines[0] - baselines[1]) >= 13  # the second label moved below the first
+
+
+def test_blow_ups_near_one_another_share_one_label():
+    from reports.figures import _blowup_marker, place_blowup_labels
+
+    # Three runs blow up in the last 2 % of a 2 s run, one early; the early one and a non-finite cut keep their own.
+    markers = [_blowup_marker(t, 10.0, "#000", ("x", "y"), f"v/{k}") for k, t in enumerate((1.99, 1.96, 0.5, 1.97))]
+    markers.append(_blowup_marker(1.98, 3.0, "#000", ("x", "y"), "v/cut", "non-finite after t = {t:.3g} s"))
+    place_blowup_labels(markers, 2.0)
+    labels = sorted(m["text"][0] for m in markers if "text" in m)
+    assert labels == ["3 runs blew up at t = 1.96–1.99 s", "blew up at t = 0.5 s", "non-finite after t = 1.98 s"]
+    # Every run keeps its ×, and its own hover text names it.
+    assert len(markers) == 5 and all(m["marker"]["symbol"] == "x" for m in markers)
+    assert sorted(m["hovertemplate"].split("<br>")[0] for m in markers) == ["v/0", "v/1", "v/2", "v/3", "v/cut"]
+    # Labels along t take successive corners, so the cluster's and the cut's do not print over each other.
+    assert len({m["textposition"] for m in markers if "text" in m}) == 3
+
+
+def test_a_legend_key_draws_the_line_style_and_marker_shape():
+    from reports.svgplot import key_svg
+
+    key = str(key_svg("square", "dash", "#0072b2"))
+    assert 'stroke-dasharray="6 4"' in key and "<polygon" in key and "color: #0072b2" in key
+    assert 'class="key muted"' in str(key_svg("circle", "solid", "#0072b2", muted=True))
+    assert "stroke-dasharray" not in str(key_svg("circle", "solid", "#0072b2")) and "<circle" in str(key_svg("circle", "solid", "#0072b2"))

@@ -19,6 +19,7 @@ from compare.run.runner import run_suite
 from compare.stability.search import (
     BOUNDED,
     STABLE_AT_LARGEST,
+    UNDECIDED,
     UNSTABLE_AT_SMALLEST,
     Trial,
     SearchSettings,
@@ -72,6 +73,46 @@ def test_search_edges_stable_at_largest_and_unstable_at_smallest():
     verdict, lo, hi, trials = search(threshold_trial(1e-6), SearchSettings(1e-2, 1e-4))
     assert (verdict, lo, hi) == (UNSTABLE_AT_SMALLEST, None, 1e-4)
     assert trials[-1].dt == 1e-4  # the smallest dt was tried, not skipped over
+
+
+def test_a_timed_out_trial_leaves_the_boundary_undecided_where_the_search_stood():
+    """A machine too loaded to finish a trial in time says nothing about stability: the bracket known so far
+    is kept, and the dt that timed out is neither stable nor unstable."""
+    def trial(dt):
+        if 2e-3 < dt < 6e-3:
+            return Trial(dt, "timeout", "ran past the timeout")
+        return Trial(dt, "ok" if dt <= 1e-3 else "unstable")
+
+    verdict, lo, hi, trials = search(trial, SearchSettings(1e-2, 1e-4))
+    assert (verdict, lo, hi) == (UNDECIDED, None, 1e-2)
+    assert [t.status for t in trials] == ["unstable", "timeout"]
+
+
+#: A bead run by the test engines of tests/compare_engines.py: ``pause`` answers after PAUSE s (6 s),
+#: ``sleep`` never. Trials get 4 s, then 4 × 4 s (a new case host warms the variant up first: the paused
+#: trial takes 2 × 6 s).
+SLOW_SUITE = """
+name = "slow-stability"
+duration = 0.2
+dt = [1e-2]
+timeout = 4
+scenes = [{ id = "bead", scene = "bead" }]
+engines = [{ id = "compare_engines:MISBEHAVING/pause" }, { id = "compare_engines:MISBEHAVING/sleep" }]
+[stability]
+dt_max = 1e-2
+dt_min = 1e-2
+"""
+
+
+def test_a_trial_past_its_limit_is_run_again_longer_then_undecided_never_unstable(tmp_path):
+    path = run_stability(parse_suite(SLOW_SUITE), tmp_path)
+    results = {r["engine"]: r for r in load_stability(path.parent)["results"]}
+    paused = results["compare_engines:MISBEHAVING/pause"]
+    # 12 s is past the 4 s limit and within the retry's 16 s: decided, and stable.
+    assert (paused["verdict"], paused["largest_stable_dt"]) == (STABLE_AT_LARGEST, 1e-2)
+    asleep = results["compare_engines:MISBEHAVING/sleep"]
+    assert (asleep["verdict"], asleep["undecided_dt"], asleep["smallest_unstable_dt"]) == (UNDECIDED, 1e-2, None)
+    assert asleep["trials"][-1]["message"] == "ran past 4 s, then past 16 s: undecided, not unstable"
 
 
 # -- theory ------------------------------------------------------------------------------------

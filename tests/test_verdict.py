@@ -74,7 +74,13 @@ def test_equal_cost_budget_is_the_most_every_family_spent():
     ])
     budget, best = best_at_equal_cost(runs)
     assert budget == 5e-3  # family b's dearest run; family a's 1e-2 s/s run is over it
-    assert [(b.family, b.point.engine, b.point.dt) for b in best] == [("a", "a/x", 0.01), ("b", "b/y", 0.01)]
+    # Each family's error is read from its curve at the budget, not taken from a run near it: a/x between
+    # (1e-3 s/s, 1e-5 m) and (1e-2 s/s, 1e-8 m), at log share log10(5) of the decade; b/y its dearest run's.
+    assert [(b.family, b.engine) for b in best] == [("a", "a/x"), ("b", "b/y")]
+    assert best[0].reading.error == pytest.approx(1e-5 * 1e-3 ** math.log10(5), rel=1e-9)
+    assert best[1].reading.error == pytest.approx(1e-4, rel=1e-9) and best[1].reading.how == "at its finest"
+    # The interval: these records carry no CPU times, so each cost is good to RESOLUTION = 1.7 either side.
+    assert best[0].reading.low < best[0].reading.error < best[0].reading.high
 
 
 def test_focus_comparison_is_the_ratio_of_the_costs_to_reach_the_target():
@@ -193,7 +199,9 @@ def test_equal_cost_falls_back_to_where_every_family_has_a_run():
     ])
     budget, best = best_at_equal_cost(runs)
     assert budget == 1e-2
-    assert [(b.family, b.point.dt) for b in best] == [("a", 0.01), ("b", 0.1)]
+    # a at its best run's error (the budget is past its dearest run); b at its cheapest run's.
+    assert [(b.family, b.reading.how) for b in best] == [("a", "at its finest"), ("b", "interpolated")]
+    assert [b.reading.error for b in best] == pytest.approx([1e-4, 1e-3], rel=1e-12)
 
 
 def test_a_side_that_never_reaches_the_target_is_represented_by_its_closest_variant():

@@ -188,7 +188,14 @@ def test_equal_cost_counts_a_run_a_rerun_may_put_within_the_budget():
     found = sweeps([record(row, [row["per_step"] * row["steps"]]) for row in rows])
     budget, best = best_at_equal_cost(found)
     assert budget == pytest.approx(1e-3)
-    assert [(b.family, b.point.dt) for b in best] == [("a", 0.001), ("b", 0.001), ("c", 0.01)]
+    # Errors dt², so each curve falls as cost⁻². a at its dearest run (1e-3 s/s, 1e-6 m); b between its runs
+    # of 1.2e-4 and 1.2e-3 s/s, c between those of 2.5e-4 and 2.5e-3 s/s: every family reads its own curve
+    # at the budget, and a run of b or c within noise of the budget no longer decides anything.
+    errors = {b.family: b.reading.error for b in best}
+    assert errors["a"] == pytest.approx(1e-6, rel=1e-9)
+    assert errors["b"] == pytest.approx(1e-4 * (1e-2) ** (math.log10(1e-3 / 1.2e-4)), rel=1e-9)
+    assert errors["c"] == pytest.approx(1e-4 * (1e-2) ** (math.log10(1e-3 / 2.5e-4)), rel=1e-9)
+    assert errors["a"] < errors["b"] < errors["c"]
 
 
 def test_a_run_without_cpu_times_gets_the_same_resolution_as_a_modelled_one():
@@ -222,3 +229,36 @@ def test_a_points_cost_and_steps_go_by_the_runs_own_steps_on_the_tolerance_axis_
         found = point(case, model)
         assert found is not None and found.rate == pytest.approx(rate, rel=1e-12)
         assert found.cost == pytest.approx(1e-6 * rate, rel=1e-12)
+
+
+def at_equal_cost(verdict: SceneVerdict) -> list[tuple[str, str | None, tuple[str, ...]]]:
+    """What the equal-cost pick names: per family its variant and the variants tied with it."""
+    return [(b.family, b.engine, b.ties) for b in verdict.best]
+
+
+def perturbed(seed: int) -> Callable[[dict[str, Any]], list[float]]:
+    """Every case's CPU times scaled by its own factor drawn from [0.8, 1.2] (seeded): ±20 % on each cost."""
+    import random
+
+    factors: dict[str, float] = {}
+
+    def times(row: dict[str, Any]) -> list[float]:
+        key = f"{row['scene']}|{row['engine']}|{row['dt']}"
+        factor = factors.setdefault(key, random.Random(f"{seed}|{key}").uniform(0.8, 1.2))
+        return [t * factor for t in row["cpu_times"]]
+    return times
+
+
+@pytest.mark.parametrize("scene", ["bead", "double-pendulum"])
+def test_the_equal_cost_pick_does_not_jump_with_the_costs(scene):
+    """Each family's error is read from its curve at the budget, so costs moved ±20 % case by case (and every
+    recorded run, each single repeat, a case slowed 52×) name the same variants with the same ties; the
+    named variant's error stays within the interval the base run gives it."""
+    base = verdicts(RUNS[0])[scene]
+    assert all(b.reading is not None and b.reading.low <= b.reading.error <= b.reading.high for b in base.best)
+    cases = [*((f"run 1, costs ±20 % (seed {seed})", (0, perturbed(seed))) for seed in range(20)), *variants()]
+    for label, (k, times) in cases:
+        other = verdicts(RUNS[k], times)[scene]
+        assert at_equal_cost(other) == at_equal_cost(base), label
+        for mine, theirs in zip(base.best, other.best):
+            assert overlap((mine.reading.low, mine.reading.high), (theirs.reading.low, theirs.reading.high)), label

@@ -21,6 +21,7 @@ from engines.external.command import command_engine
 from engines.errors import UserError
 from engines.scene.limits import check_case_size
 from engines.scene.trajectory import trajectory_constraint_error, trajectory_energy
+from engines.stdio import capture_output
 
 
 def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
@@ -63,10 +64,14 @@ def parse_bounds(pairs: tuple[str, ...]) -> Bounds:
               help="CSV file to write, or - for standard output (the summary then goes to standard error).")
 @click.option("--lock", "lock", multiple=True, metavar="JOINT",
               help="With --model: weld JOINT at its initial value (repeatable), e.g. a gripper's fingers.")
+@click.option("--verbose", "-v", is_flag=True,
+              help="Also show what the engine's library printed while it ran (its first and last lines).")
 def command(scene_name, model, engine_id, dt, duration, params, options, sample_interval, program, forces, bounds,
-            output, lock) -> None:
+            output, lock, verbose) -> None:
     """Simulate SCENE with one engine and write one CSV row per sample.
 
+    What the engine's library prints while it runs (C/C++ warnings, Python
+    warnings) is caught and counted in the summary line; --verbose shows it.
     Exit code 0 when the run ends ok, 1 when it ends unstable (a non-finite
     state, or past the bounds) or failed (the CSV still holds the samples up
     to the end; for --command, the line names the command, its exit code and
@@ -96,9 +101,11 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
     engine.check(scene, variant, engine_options)
     path = check_writable(output)
 
-    trajectory = engine.simulate(
-        scene, float(dt), variant=variant, options=engine_options, sample_interval=sample_interval
-    )
+    # What the engine prints is caught, so standard output carries the CSV alone (--output -).
+    with capture_output() as captured:
+        trajectory = engine.simulate(
+            scene, float(dt), variant=variant, options=engine_options, sample_interval=sample_interval
+        )
     if trajectory.n_samples:
         text = trajectory_csv(scene, trajectory, forces=forces)
     else:  # failed before its first sample: the header alone
@@ -124,7 +131,13 @@ def command(scene_name, model, engine_id, dt, duration, params, options, sample_
         summary = f"no --engine given: ran the reference ({info.variant}). " + summary
     if message:
         summary += f" ({message})"
+    printed = captured.output
+    if printed:
+        summary += (f"; the engine printed {printed.lines} line{'s' if printed.lines != 1 else ''}"
+                    + (":" if verbose else " (--verbose shows them)"))
     click.echo(summary, err=str(path) == STDOUT)
+    if verbose and printed:
+        click.echo("\n".join(f"    {line}" for line in printed.describe()), err=str(path) == STDOUT)
     if status != "ok":
         raise click.exceptions.Exit(1)
 

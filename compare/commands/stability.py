@@ -9,7 +9,8 @@ import click
 from compare.cli import jobs_option, output_path, timeout_option
 
 from compare.stability.gainmap import plan_gainmap, run_gainmap
-from compare.stability.search import BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, PairResult, plan_stability, run_stability
+from compare.stability.search import BOUNDED, STABLE_AT_LARGEST, UNDECIDED, UNSTABLE_AT_SMALLEST, PairResult, plan_stability, run_stability
+from compare.stability.trial import RETRY_FACTOR
 from compare.suite.reader import load_suite
 
 
@@ -22,6 +23,10 @@ def describe(result: PairResult) -> str:
         text = f"stable at the largest dt tried, {result.largest_stable_dt:.3g} s"
     elif result.verdict == UNSTABLE_AT_SMALLEST:
         text = f"UNSTABLE even at the smallest dt tried, {result.smallest_unstable_dt:.3g} s"
+    elif result.verdict == UNDECIDED:
+        text = (f"undecided: the trial at {result.undecided_dt:.3g} s timed out twice (stable at "
+                f"{_or_none(result.largest_stable_dt)}, unstable at {_or_none(result.smallest_unstable_dt)}); "
+                f"raise --timeout")
     else:
         text = f"skipped ({result.reason})"
     if result.analytic_dt is not None:
@@ -29,12 +34,17 @@ def describe(result: PairResult) -> str:
     return head + text
 
 
+def _or_none(dt: float | None) -> str:
+    return "none tried" if dt is None else f"{dt:.3g} s"
+
+
 @click.command("stability")
 @click.argument("suite_path", metavar="SUITE")
 @click.option("--output", required=True, metavar="DIR", callback=output_path,
               help="Directory for stability.json and gainmap.json (created; may hold an 'xval run' of the suite).")
 @jobs_option("Pairs searched at once")
-@timeout_option(help="Seconds per trial run before it is killed and counted unstable (default: the suite's).")
+@timeout_option(help=f"Seconds per trial run before it is killed and run again with {RETRY_FACTOR:g}x the limit; a "
+                   "second timeout leaves the boundary undecided, never unstable (default: the suite's).")
 @click.option("--force", is_flag=True, help="Replace stability.json / gainmap.json already in DIR.")
 @click.option("--search/--no-search", default=True, help="Run the stability search (default: yes).")
 @click.option("--gain-map/--no-gain-map", "gain_map", default=True,

@@ -54,6 +54,10 @@ class Timing:
     cpu : each repeat's CPU cost, and calibration : the calibration kernel's CPU s timed beside
     it (None: not recorded; the gate then uses its wall-time rule).
     runs : how many runs a window's timing was made of (None for one run's).
+    seconds : s of CPU of the case's fastest repeat (a window: the median over its runs), None when not
+        recorded: how long the timed stepping lasted, which says whether one case's timing can be trusted.
+    per_run : each run's calibrated cost, least CPU cost / least calibration (1/s of simulated time: CPU s per
+        simulated s in units of the calibration kernel), oldest first; one value for one run's timing.
     """
 
     cost: float
@@ -62,6 +66,8 @@ class Timing:
     cpu: tuple[float, ...] | None = None
     calibration: tuple[float, ...] | None = None
     runs: int | None = None
+    seconds: float | None = None
+    per_run: tuple[float, ...] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"cost": self.cost, "repeats": list(self.repeats), "spread": list(self.spread)}
@@ -69,14 +75,27 @@ class Timing:
             out["cpu"], out["calibration"] = list(self.cpu), list(self.calibration)
         if self.runs is not None:
             out["runs"] = self.runs
+        if self.seconds is not None:
+            out["seconds"] = self.seconds
+        if self.per_run is not None:
+            out["per_run"] = list(self.per_run)
         return out
+
+    @property
+    def calibrated_runs(self) -> tuple[float, ...]:
+        """:attr:`per_run`, or this one run's calibrated cost from cpu and calibration; () without them."""
+        if self.per_run:
+            return self.per_run
+        if self.cpu and self.calibration:
+            return (min(self.cpu) / min(self.calibration),)
+        return ()
 
     @classmethod
     def from_json(cls, data: Any, where: str) -> "Timing":
         if not isinstance(data, dict):
             raise EntryError(f"{where}: field timing must be an object or null, got {data!r}"[:300])
         cpu, calibration = data.get("cpu"), data.get("calibration")
-        runs = data.get("runs")
+        runs, seconds, per_run = data.get("runs"), data.get("seconds"), data.get("per_run")
         return cls(
             cost=_number(data.get("cost"), f"{where}: field timing.cost"),
             repeats=_numbers(data.get("repeats", ()), f"{where}: field timing.repeats"),
@@ -85,6 +104,8 @@ class Timing:
             calibration=None if cpu is None or calibration is None
             else _numbers(calibration, f"{where}: field timing.calibration"),
             runs=None if runs is None else int(_number(runs, f"{where}: field timing.runs")),
+            seconds=None if seconds is None else _number(seconds, f"{where}: field timing.seconds"),
+            per_run=None if per_run is None else _numbers(per_run, f"{where}: field timing.per_run"),
         )
 
 
@@ -219,7 +240,8 @@ def timing_of(record: CaseRecord) -> Timing | None:
         # what the timing gate compares when both sides have them.
         return Timing(cost, per_repeat, (min(per_repeat), max(per_repeat)),
                       cpu=tuple(float(c) * cost / wall for c in cpu_times if c is not None),
-                      calibration=tuple(float(c) for c in calibrations if c is not None))
+                      calibration=tuple(float(c) for c in calibrations if c is not None),
+                      seconds=float(min(c for c in cpu_times if c is not None)))
     return Timing(cost, per_repeat, (min(per_repeat), max(per_repeat)))
 
 

@@ -64,12 +64,20 @@ def _best(values: Sequence[Any], rule: Any) -> Any:
 
 
 def _window_timing(timings: Sequence[Timing | None]) -> Timing | None:
-    """The window's timing: median of the runs' costs; repeats and spread over every repeat of every run."""
+    """The window's timing: median of the runs' costs; repeats and spread over every repeat of every run;
+    each run's calibrated cost (``per_run``: the distribution the timing gate compares with, not its best
+    run), the median of the runs' CPU seconds, and the latest calibrated run's repeats."""
     timed = [t for t in timings if t]
     if not timed:
         return None
     repeats = tuple(c for t in timed for c in t.repeats or (t.cost,))
-    return Timing(statistics.median(t.cost for t in timed), repeats, (min(repeats), max(repeats)), runs=len(timed))
+    calibrated = [t for t in timed if t.calibrated_runs]
+    seconds = [t.seconds for t in timed if t.seconds is not None]
+    latest = calibrated[-1] if calibrated else None
+    return Timing(statistics.median(t.cost for t in timed), repeats, (min(repeats), max(repeats)),
+                  cpu=latest.cpu if latest else None, calibration=latest.calibration if latest else None,
+                  runs=len(timed), seconds=statistics.median(seconds) if seconds else None,
+                  per_run=tuple(v for t in calibrated for v in t.calibrated_runs) or None)
 
 
 def combine(entries: Sequence[BaselineEntry], current_version: str | None) -> BaselineEntry:

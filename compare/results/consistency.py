@@ -87,7 +87,9 @@ def _local_order(fine: tuple[float, float], coarse: tuple[float, float]) -> floa
 
 
 def _order_text(order: float) -> str:
-    return "nan" if math.isnan(order) else f"{order:.2f}"
+    """The order at 2 decimals; a plateau's tiny negative order reads "0.00", not "-0.00"."""
+    text = "nan" if math.isnan(order) else f"{order:.2f}"
+    return "0.00" if text == "-0.00" else text
 
 
 def _span(axis: str, coarse: float, fine: float) -> str:

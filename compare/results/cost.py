@@ -100,14 +100,19 @@ class CostModel:
         return f"{self.per_step:.2g} s/step [{self.low:.2g}, {self.high:.2g}]"
 
 
-def _theil_sen(costs: Sequence[CaseCost]) -> tuple[float, float]:
-    """(slope s/step, intercept s) of T = a + c·n over ``costs`` by Theil–Sen, as scipy.stats.theilslopes
-    gives them (slope: the median of the slopes between cases of different n; intercept: median T − slope ·
-    median n), without its per-call overhead (the jackknife calls this once per case)."""
-    slopes = [(b.cpu_min - a.cpu_min) / (b.steps - a.steps)
-              for k, a in enumerate(costs) for b in costs[k + 1:] if b.steps != a.steps]
+def theil_sen(xs: Sequence[float], ys: Sequence[float]) -> tuple[float, float]:
+    """(slope, intercept) of y = intercept + slope·x by Theil–Sen, as scipy.stats.theilslopes gives them
+    (slope: the median of the slopes between points of different x; intercept: median y − slope · median x),
+    without its per-call overhead. At least two distinct x."""
+    slopes = [(ys[j] - ys[i]) / (xs[j] - xs[i]) for i in range(len(xs)) for j in range(i + 1, len(xs)) if xs[j] != xs[i]]
     slope = statistics.median(slopes)
-    return slope, statistics.median(c.cpu_min for c in costs) - slope * statistics.median(c.steps for c in costs)
+    return slope, statistics.median(ys) - slope * statistics.median(xs)
+
+
+def _theil_sen(costs: Sequence[CaseCost]) -> tuple[float, float]:
+    """(slope s/step, intercept s) of T = a + c·n over ``costs`` by :func:`theil_sen` (the jackknife calls
+    this once per case)."""
+    return theil_sen([c.steps for c in costs], [c.cpu_min for c in costs])
 
 
 def _widened(per_step: float, low: float, high: float) -> tuple[float, float]:

@@ -20,6 +20,7 @@ import numpy as np
 from engines.adapter import join_messages, scheduled_times, warning_note
 from engines.scene.scene import SceneLike
 from engines.scene.trajectory import Status, Trajectory
+from engines.stdio import EngineOutput
 
 from compare.results.declared import MetricInputs, computed_extras
 from compare.results.metrics import Bounds, CaseMetrics, case_metrics
@@ -40,6 +41,7 @@ class CaseOutcome:
     status, message : what the host saw: ``ok`` when the trajectory's own status applies; else
         ``failed`` (raised outside the engine, its process died) or ``timeout``.
     elapsed : s, wall time of the whole case (model building and all repeats).
+    output : what the engine's library printed meanwhile (fds 1 and 2, warnings printed), captured in the host.
     """
 
     case_id: str
@@ -50,6 +52,7 @@ class CaseOutcome:
     elapsed: float = 0.0
     cpu_times: list[float] = field(default_factory=list)
     calibrations: list[float] = field(default_factory=list)
+    output: EngineOutput = field(default_factory=EngineOutput)
     #: The gradient metrics of a suite with [gradients] (compare.gradients.measure.gradient_metrics), or {}.
     gradients: dict[str, Any] = field(default_factory=dict)
     #: Their series for the report (compare.gradients.measure.gradient_series: name -> array), or {}.
@@ -218,6 +221,7 @@ def _timing(outcome: CaseOutcome) -> dict[str, Any]:
         "wall_times": tuple(float(w) for w in outcome.wall_times),
         "cpu_times": tuple(jsonable(outcome.cpu_times)),  # s of CPU per repeat: what the timing gate compares,
         "calibrations": tuple(jsonable(outcome.calibrations)),  # in units of this kernel's CPU time, beside each
+        "engine_output": outcome.output.to_dict() if outcome.output else None,  # what its library printed
     }
 
 

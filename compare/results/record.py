@@ -18,6 +18,7 @@ from typing import Any, Iterable, Mapping, TypedDict, Union
 
 from engines.errors import UserError
 from engines.scene.trajectory import Status  # the one status enum, from an engine's RunInfo up to the record
+from engines.stdio import EngineOutput
 
 from compare.results.declared import METRICS, current_names
 from compare.results.series import SeriesView
@@ -140,6 +141,8 @@ class CaseRecord:
         calibration kernel timed beside each repeat (what the timing gate compares). None: not
         recorded (a skipped case, or a file older than them).
     series : name -> values; a record the runner holds keeps its rounded arrays in a SeriesView.
+    engine_output : what the engine's library printed during the case (engines.stdio.EngineOutput.to_dict:
+        ``lines``, ``first``, ``last``), captured in its case host; None when it printed nothing.
     scene : free-form, the scene's own document (engines.scene.scene.Scene.to_dict()), kept for the report.
     extra : free-form, fields of the file this xval does not know (kept, written back as they were).
     """
@@ -162,6 +165,7 @@ class CaseRecord:
     reference_horizon: float | None = None
     cpu_times: tuple[float | None, ...] | None = None
     calibrations: tuple[float | None, ...] | None = None
+    engine_output: Mapping[str, Any] | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
 
     # -- views ------------------------------------------------------------------------------
@@ -241,6 +245,8 @@ class CaseRecord:
             document["cpu_times"] = list(self.cpu_times)
         if self.calibrations is not None:
             document["calibrations"] = list(self.calibrations)
+        if self.engine_output is not None:
+            document["engine_output"] = dict(self.engine_output)
         return document
 
     @classmethod
@@ -303,14 +309,24 @@ class CaseRecord:
             reference_horizon=reader.optional_number(data, "reference_horizon"),
             cpu_times=reader.optional_numbers(data, "cpu_times"),
             calibrations=reader.optional_numbers(data, "calibrations"),
+            engine_output=reader.optional_mapping(data, "engine_output"),
             extra={k: v for k, v in data.items() if k not in known},
         )
+
+
+def engine_output_lines(record: CaseRecord) -> list[str]:
+    """What ``record``'s engine printed, as kept (``engine printed N lines:``, first lines, … , last lines); []
+    when it printed nothing."""
+    output = EngineOutput.of(record.engine_output)
+    if not output:
+        return []
+    return [f"engine printed {output.lines} line{'s' if output.lines != 1 else ''}:", *output.describe()]
 
 
 _KNOWN_FIELDS = (
     "schema_version", "case", "status", "message", "metrics", "run_info", "wall_times", "elapsed", "scene",
     "scene_hash", "characteristic", "series", "reference", "finished", "consistent", "consistency",
-    "reference_horizon", "cpu_times", "calibrations",
+    "reference_horizon", "cpu_times", "calibrations", "engine_output",
 )
 
 

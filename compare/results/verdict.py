@@ -13,8 +13,9 @@ Details: docs/report.md, "Module notes", ``compare/results/verdict.py``.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass, field
-from typing import Iterable, Sequence, TypeGuard
+from typing import Iterable, Mapping, Sequence, TypeGuard
 
 from compare.results.cost import CostModel, modelled, step_rate
 from compare.results.record import PROBLEMS, CaseRecord, Status
@@ -227,85 +228,190 @@ def cost_to_reach(sweep: VariantSweep, target: float) -> Reach:
 
 
 @dataclass(frozen=True)
-class Best:
-    """A family's most accurate run within the common budget (``point`` None: none of its runs fits).
+class AtBudget:
+    """One variant's error at a budget (s/s), read from its error–cost curve (:func:`error_at_budget`).
 
-    ties : the family's other variants whose best run within the budget is as accurate within the
-    reference's error bars (so no one of them is called the most accurate).
+    error : m, in [low, high] (the cost model's interval carried through the curve); error_bar : m, the
+    reference's own (0 when unknown); how : "interpolated" (between two of its runs), "extrapolated" (the
+    budget is under its cheapest run, within that run's cost interval: along its first segment's slope) or
+    "at its finest" (the budget is past its dearest run: the error of that run, no better).
+    """
+
+    engine: str
+    budget: float
+    error: float
+    low: float
+    high: float
+    error_bar: float = 0.0
+    how: str = "interpolated"
+
+    @property
+    def family(self) -> str:
+        return family(self.engine)
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """(low, high) m, widened by the reference's error bar."""
+        return self.low - self.error_bar, self.high + self.error_bar
+
+    def describe(self) -> str:
+        """``error 1.2e-05 m [4.1e-06, 3.4e-05]``."""
+        return f"error {self.error:.2e} m [{self.low:.2g}, {self.high:.2g}]"
+
+
+def _curve_error(costs: Sequence[float], errors: Sequence[float], cost: float) -> tuple[float, str]:
+    """(m, how) the curve's error at ``cost`` (s/s): linear in log error against log cost between the runs
+    (``costs`` ascending); under the cheapest, along the first segment when its error falls with cost
+    (flat otherwise); past the dearest, the dearest run's error."""
+    x, ys = math.log(cost), [math.log(e) for e in errors]
+    xs = [math.log(c) for c in costs]
+    if x >= xs[-1]:
+        return errors[-1], "at its finest"
+    if x < xs[0]:
+        slope = (ys[1] - ys[0]) / (xs[1] - xs[0]) if len(xs) > 1 and xs[1] > xs[0] else 0.0
+        return math.exp(ys[0] + min(slope, 0.0) * (x - xs[0])), "extrapolated"
+    k = max(i for i in range(len(xs)) if xs[i] <= x)
+    share = (x - xs[k]) / (xs[k + 1] - xs[k]) if xs[k + 1] > xs[k] else 0.0
+    return math.exp(ys[k] + share * (ys[k + 1] - ys[k])), "interpolated"
+
+
+def error_at_budget(curve: Sequence[Point], budget: float) -> AtBudget | None:
+    """A variant's error at ``budget`` (s/s) from its Points, or None when even its cheapest run's cost
+    interval starts above the budget.
+
+    A variant's costs are its cost model's c × rate with c within [low, high] (compare.results.cost): the
+    true curve is the measured one shifted along cost by a factor r in [low/c, high/c]. Read at the
+    budget, that gives the error interval: the curve's least and greatest error over costs budget/r. The
+    error itself is read at the budget, so a small change of the costs moves it a little, never from one
+    run to another.
+    """
+    if not curve:
+        return None
+    ordered = sorted(curve, key=lambda p: p.cost)
+    cheapest = ordered[0]
+    if cheapest.interval[0] > budget:
+        return None
+    down = statistics.median(p.interval[0] / p.cost for p in ordered)  # ≤ 1
+    up = statistics.median(p.interval[1] / p.cost for p in ordered)  # ≥ 1
+    costs, errors = [p.cost for p in ordered], [p.error for p in ordered]
+    error, how = _curve_error(costs, errors, budget)
+    lo_cost, hi_cost = budget / up, budget / down
+    read = [error] + [_curve_error(costs, errors, c)[0] for c in (lo_cost, hi_cost, *costs) if lo_cost <= c <= hi_cost]
+    bar = statistics.median(p.error_bar for p in ordered)
+    return AtBudget(cheapest.engine, budget, error, min(read), max(read), bar, how)
+
+
+def _overlap(a: AtBudget, b: AtBudget) -> bool:
+    return a.interval[0] <= b.interval[1] and b.interval[0] <= a.interval[1]
+
+
+def tied_with(most: AtBudget, readings: Sequence[AtBudget]) -> list[AtBudget]:
+    """``most`` and every reading linked to it by overlapping error intervals, directly or through others,
+    in the order given (the chain :func:`cheapest_tie` makes of cost intervals)."""
+    linked, grown = [most], True
+    while grown:
+        grown = False
+        for reading in readings:
+            if reading not in linked and any(_overlap(reading, member) for member in linked):
+                linked.append(reading)
+                grown = True
+    return [r for r in readings if r in linked]
+
+
+@dataclass(frozen=True)
+class Best:
+    """A family's variant named most accurate at the common budget, its error there, and its ties.
+
+    reading : the named variant's error at the budget (None: no variant of the family can run within it);
+    ties : the family's other variants whose error intervals link up with the most accurate one's, so the
+    data cannot order them. The tie is named by its member listed first in the suite (no timing in that
+    choice); cheapest : s/s, the family's cheapest run when none fits.
     """
 
     family: str
-    point: Point | None
-    cheapest: float | None = None  # s/s, the family's cheapest run when none fits
+    reading: AtBudget | None
+    cheapest: float | None = None
     ties: tuple[str, ...] = ()
 
+    @property
+    def engine(self) -> str | None:
+        return None if self.reading is None else self.reading.engine
 
-def _same_error(a: Point, b: Point) -> bool:
-    """Whether two errors differ by no more than their reference error bars together."""
-    return abs(a.error - b.error) <= a.error_bar + b.error_bar
+
+def _budget(by_family: Mapping[str, Sequence[Point]]) -> float | None:
+    """s/s, the common budget (docs/report.md, "Module notes"), or None when no family has a run."""
+    ranges = [(min(p.cost for p in ps), max(p.cost for p in ps)) for ps in by_family.values() if ps]
+    if not ranges:
+        return None
+    common_top = min(high for _, high in ranges)
+    every_family = max(low for low, _ in ranges)
+    return common_top if every_family <= common_top else every_family
 
 
-def _fits(p: Point, budget: float) -> bool:
-    """Whether ``p`` may cost no more than ``budget`` (s/s): the low end of its cost interval is within it, so
-    a rerun may put it either side. Deciding on the cost itself let a run 1 % under the budget in one run
-    and over it in the next change a family's pick; its interval spans that noise."""
-    return p.interval[0] <= budget
+def most_accurate(readings: Sequence[AtBudget]) -> tuple[AtBudget, tuple[str, ...]]:
+    """(the named reading, the variants tied with it) among ``readings`` (suite order, at least one)."""
+    most = min(readings, key=lambda r: (r.error, r.engine))
+    tie = tied_with(most, readings)
+    return tie[0], tuple(r.engine for r in tie[1:])
 
 
 def best_at_equal_cost(sweeps: Sequence[VariantSweep]) -> tuple[float | None, list[Best]]:
-    """(budget s/s, per family in suite order its most accurate run that may cost ≤ budget (:func:`_fits`));
-    see docs/report.md, "Module notes".
+    """(budget s/s, per family in suite order its variant most accurate at the budget, read from each
+    variant's error–cost curve (:func:`error_at_budget`)); see docs/report.md, "Module notes".
 
     A family with no ok run gets ``Best(family, None)``.
     """
-    by_family: dict[str, list[Point]] = {name: [] for name in families(sweeps)}
+    curves: dict[str, list[list[Point]]] = {name: [] for name in families(sweeps)}
     for sweep in competitors(sweeps):
-        by_family[family(sweep.engine)].extend(points(sweep))
-    ranges = [(min(p.cost for p in ps), max(p.cost for p in ps)) for ps in by_family.values() if ps]
-    if not ranges:
-        return None, [Best(name, None) for name in by_family]
-    common_top = min(high for _, high in ranges)
-    every_family = max(low for low, _ in ranges)
-    budget = common_top if every_family <= common_top else every_family
+        curves[family(sweep.engine)].append(points(sweep))
+    budget = _budget({name: [p for curve in cs for p in curve] for name, cs in curves.items()})
+    if budget is None:
+        return None, [Best(name, None) for name in curves]
     result = []
-    for name, ps in by_family.items():
-        within = [p for p in ps if _fits(p, budget)]
-        if within:
-            winner = min(within, key=lambda p: (p.error, p.cost))
-            ties = sorted({p.engine for p in within if p.engine != winner.engine and _same_error(p, winner)})
-            result.append(Best(name, winner, ties=tuple(ties)))
+    for name, cs in curves.items():
+        readings = [r for curve in cs if (r := error_at_budget(curve, budget)) is not None]
+        if readings:
+            named, ties = most_accurate(readings)
+            result.append(Best(name, named, ties=ties))
         else:
-            result.append(Best(name, None, min((p.cost for p in ps), default=None)))
+            result.append(Best(name, None, min((p.cost for c in cs for p in c), default=None)))
     return budget, result
 
 
 @dataclass(frozen=True)
 class EqualCost:
-    """Two families compared over the cost range where both have runs ([low, high] s/s; None: no overlap).
+    """Two sides compared at the top of the cost range where both have runs (``high`` s/s; None: no overlap).
 
-    focus / other : each side's most accurate run that may cost ≤ high (:func:`_fits`). ratio : other error / focus error
-    (> 1: the focus is more accurate); tie : the errors agree within the reference's error bars.
+    focus / other : each side's variant most accurate there (:func:`most_accurate`), its error read from its
+    curve. ratio : other error / focus error (> 1: the focus is more accurate); tie : their error
+    intervals overlap.
     """
 
     low: float | None
     high: float | None
-    focus: Point | None
-    other: Point | None
+    focus: AtBudget | None
+    other: AtBudget | None
     ratio: float | None
     tie: bool
 
 
-def equal_cost(focus_points: Sequence[Point], other_points: Sequence[Point]) -> EqualCost:
-    """The focus family's and the other families' most accurate runs within their shared cost range."""
+def equal_cost(focus_curves: Sequence[Sequence[Point]], other_curves: Sequence[Sequence[Point]]) -> EqualCost:
+    """The focus side's and the other side's most accurate variants at the top of their shared cost range
+    (each side: a Point list per variant)."""
+    focus_points = [p for c in focus_curves for p in c]
+    other_points = [p for c in other_curves for p in c]
     if not focus_points or not other_points:
         return EqualCost(None, None, None, None, None, False)
     low = max(min(p.cost for p in focus_points), min(p.cost for p in other_points))
     high = min(max(p.cost for p in focus_points), max(p.cost for p in other_points))
     if low > high:
         return EqualCost(None, None, None, None, None, False)
-    mine = min((p for p in focus_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
-    theirs = min((p for p in other_points if _fits(p, high)), key=lambda p: (p.error, p.cost))
-    return EqualCost(low, high, mine, theirs, theirs.error / mine.error, _same_error(mine, theirs))
+    sides = []
+    for curves in (focus_curves, other_curves):
+        readings = [r for c in curves if (r := error_at_budget(c, high)) is not None]
+        sides.append(most_accurate(readings)[0])
+    mine, theirs = sides
+    return EqualCost(low, high, mine, theirs, theirs.error / mine.error, _overlap(mine, theirs))
 
 
 @dataclass(frozen=True)
@@ -368,12 +474,14 @@ class Comparison:
         better, worse = (same.focus, same.other) if same.ratio >= 1 else (same.other, same.focus)
         if same.tie:
             return f"; at equal cost (≤ {same.high:.2g} s/s) {same.focus.engine} and {same.other.engine} tie"
-        stuck = self.plateau_of(better.engine)
-        reach = self.focus if worse.engine == self.focus.engine else self.other  # type: ignore[union-attr]
-        if stuck is not None and reach is not None and reach.best_error is not None and reach.best_error < stuck:
-            where = f" at {reach.describe()}" if reach.cost is not None else ""
-            return (f"; {better.engine} stops at {stuck:.2g} m, {worse.engine} keeps converging "
-                    f"(to {reach.best_error:.2g} m){where}")
+        # A side stuck on a plateau that the other converges past: that, not a ratio at one budget, is the news.
+        for stuck_side, going in ((better, worse), (worse, better)):
+            stuck = self.plateau_of(stuck_side.engine)
+            reach = self.focus if going.engine == self.focus.engine else self.other  # type: ignore[union-attr]
+            if stuck is not None and reach is not None and reach.best_error is not None and reach.best_error < stuck:
+                where = f" at {reach.describe()}" if reach.cost is not None else ""
+                return (f"; {stuck_side.engine} stops at {stuck:.2g} m, {going.engine} keeps converging "
+                        f"(to {reach.best_error:.2g} m){where}")
         factor = same.ratio if same.ratio >= 1 else 1 / same.ratio
         return f"; at equal cost (≤ {same.high:.2g} s/s) {better.engine} is {factor:.3g}× more accurate"
 
@@ -442,8 +550,8 @@ def _comparison(sweeps: Sequence[VariantSweep], reaches: Sequence[Reach], focus:
         (mine_low, mine_high), (their_low, their_high) = best_mine.interval, best_theirs.interval  # type: ignore[misc]
         low, high = their_low / mine_high, their_high / max(mine_low, 1e-300)
     competing = competitors(sweeps)
-    same = equal_cost([p for s in competing if family(s.engine) == focus for p in points(s)],
-                      [p for s in competing if family(s.engine) != focus for p in points(s)])
+    same = equal_cost([points(s) for s in competing if family(s.engine) == focus],
+                      [points(s) for s in competing if family(s.engine) != focus])
     return Comparison(focus, target, best_mine, best_theirs, ratio, low, high, mine_ties, their_ties, same)
 
 

@@ -14,7 +14,7 @@ import textwrap
 from typing import Any, Sequence
 
 from compare.results.table import scene_reference
-from compare.results.verdict import SEVERITIES, Point, Problem, Reach, SceneVerdict
+from compare.results.verdict import SEVERITIES, AtBudget, Point, Problem, Reach, SceneVerdict
 
 #: Longest problem text printed in the terminal (the report and the case files have the whole message).
 LINE = 140
@@ -68,15 +68,16 @@ def _rankings(verdict: SceneVerdict) -> list[str]:
             lines.append(f"    {winner.reach.engine:<{width}}  {winner.reach.describe()}"
                          + (f"; tie: {', '.join(winner.ties)}" if winner.ties else ""))
     if verdict.budget is not None:
-        lines.append(f"  most accurate at equal cost (≤ {verdict.budget:.2g} s per simulated s, within a cost's interval):")
-        width = max((len(b.point.engine) for b in verdict.best if b.point is not None), default=0)
+        lines.append(f"  most accurate at equal cost ({verdict.budget:.2g} s per simulated s; each variant's error read "
+                     "from its error-cost curve, with the interval its cost's gives; a tie goes by its member "
+                     "listed first):")
+        width = max((len(b.reading.engine) for b in verdict.best if b.reading is not None), default=0)
         for best in verdict.best:
-            if best.point is None:
+            if best.reading is None:
                 cheapest = "no ok run" if best.cheapest is None else f"cheapest run {best.cheapest:.2g} s/s"
                 lines.append(f"    {best.family}: none within the budget ({cheapest})")
             else:
-                p = best.point
-                lines.append(f"    {p.engine:<{width}}  {p.step} error {p.error:.2e} m  cost {p.cost:.2e} s/s"
+                lines.append(f"    {best.reading.engine:<{width}}  {best.reading.describe()}"
                              + (f"; tie: {', '.join(best.ties)}" if best.ties else ""))
     else:
         lines.append("  no ok run with an error and a cost")
@@ -92,6 +93,11 @@ def _interval(low: float | None, high: float | None) -> list[float] | None:
 def _point(p: Point) -> dict[str, Any]:
     return {"engine": p.engine, "dt": p.dt, "tolerance": p.tolerance, "error": p.error, "error_bar": p.error_bar,
             "cost": p.cost, "cost_interval": list(p.interval), "case": p.case_id}
+
+
+def _at_budget(r: AtBudget) -> dict[str, Any]:
+    return {"engine": r.engine, "error": r.error, "error_interval": [r.low, r.high], "error_bar": r.error_bar,
+            "how": r.how}
 
 
 def _reach(r: Reach) -> dict[str, Any]:
@@ -121,8 +127,8 @@ def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
                     for w in verdict.winners],
         "equal_cost": {
             "budget": verdict.budget,
-            "best": [{"family": b.family, **(_point(b.point) if b.point else {"engine": None}), "ties": list(b.ties)}
-                     for b in verdict.best],
+            "best": [{"family": b.family, **(_at_budget(b.reading) if b.reading else {"engine": None}),
+                      "ties": list(b.ties)} for b in verdict.best],
         },
         "comparison": None if comparison is None else {
             "focus_family": comparison.focus_family,

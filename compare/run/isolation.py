@@ -26,6 +26,7 @@ from typing import Any, Mapping
 from engines.adapter import Engine, scheduled_times
 from engines.scene.scene import SceneLike
 from engines.scene.trajectory import Status, Trajectory
+from engines.stdio import capture_output
 
 from compare.results.measure import CaseOutcome
 
@@ -403,14 +404,18 @@ def _host_loop(requests: Any, replies: Any) -> None:
         except (EOFError, OSError):
             return
         out_of_memory = False
-        try:
-            _limit_memory(task.memory_limit)
-            outcome = _run_in_host(task)
-        except BaseException as exc:  # anything the engine throws is this case's result
-            out_of_memory = isinstance(exc, MemoryError)
-            outcome = _failure(task, exc)
-        finally:
-            _limit_memory(None)
+        # What the engine prints is this case's, kept with its answer: never the terminal's (docs/architecture.md).
+        with capture_output() as captured:
+            try:
+                _limit_memory(task.memory_limit)
+                outcome = _run_in_host(task)
+            except BaseException as exc:  # anything the engine throws is this case's result
+                out_of_memory = isinstance(exc, MemoryError)
+                outcome = _failure(task, exc)
+            finally:
+                _limit_memory(None)
+        if isinstance(outcome, CaseOutcome):
+            outcome.output = captured.output
         # A process that hit its limit may be in any state: it says so with its answer and exits, so
         # the driver starts a new host for the next case rather than send it to one on its way out.
         exiting = out_of_memory or _HIT_LIMIT.is_set()
@@ -494,13 +499,15 @@ def execute(task: CaseTask) -> CaseOutcome:
     """Run ``task`` in this thread's case host (unless ``task.isolate`` is False); never raises for the engine's sake."""
     start = time.perf_counter()
     if not task.isolate:
-        try:
-            warm_up(task)  # as a case host does: the variant's one-off costs stay out of its first case's stepping
-            return simulate(task)
-        except Exception as exc:
-            outcome = _failure(task, exc)
-            outcome.elapsed = time.perf_counter() - start
-            return outcome
+        with capture_output() as captured:
+            try:
+                warm_up(task)  # as a case host does: the variant's one-off costs stay out of its first case's stepping
+                outcome = simulate(task)
+            except Exception as exc:
+                outcome = _failure(task, exc)
+                outcome.elapsed = time.perf_counter() - start
+        outcome.output = captured.output
+        return outcome
     outcome = _ask_host(task)
     if not outcome.elapsed:  # as HostPool: the host's own measure, else (no answer) the time waited here
         outcome.elapsed = time.perf_counter() - start

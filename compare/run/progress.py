@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 from typing import Any, Protocol, TextIO
 
-from compare.results.record import PROBLEMS, CaseRecord, Status
+from compare.results.record import PROBLEMS, CaseRecord, Status, engine_output_lines
 
 
 class Progress(Protocol):
@@ -62,6 +62,9 @@ class PlainProgress:
         self.done += 1
         width = len(str(self.total))
         print(f"[{self.done:>{width}}/{self.total}] {describe(record)}", file=self.stream, flush=True)
+        # --verbose is the one mode that shows what the engine printed (kept in the record in every mode).
+        for line in engine_output_lines(record):
+            print(f"    {line}", file=self.stream, flush=True)
 
     def stop(self) -> None:
         pass

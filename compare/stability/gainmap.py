@@ -23,7 +23,7 @@ import numpy as np
 
 from compare.results.store import now
 from compare.run.runner import default_jobs
-from compare.stability.trial import check_output, document_head, load_document, run_trial, write_document
+from compare.stability.trial import check_output, document_head, load_document, run_trial, timed_retry, write_document
 from compare.suite.plans import GainMapPlan
 from compare.suite.reader import EngineSpec, Suite
 
@@ -86,7 +86,9 @@ def run_gainmap(
     def one(cell: tuple[int, int, int]):
         k, a, b = cell
         engine = _cell_engine(plan.engines[k], plan.x, plan.x_values[a], plan.y, plan.y_values[b])
-        return cell, run_trial(plan.scene, engine, plan.dt, suite, timeout, plan.sample_interval)
+        trial = timed_retry(lambda dt, limit: run_trial(plan.scene, engine, dt, suite, limit, plan.sample_interval),
+                            timeout)
+        return cell, trial(plan.dt)
 
     maps: dict[str, dict[str, Any]] = {}
     for engine in plan.engines:

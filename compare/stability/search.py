@@ -5,8 +5,11 @@ Criterion (the same one ``xval run`` applies to every case, see
 when the engine delivers every scheduled sample over the scene's duration
 with a finite state, its energy drift stays ≤ ``bounds.energy_drift`` · E*
 and its constraint error ≤ ``bounds.constraint_error`` · L. Anything else
-(non-finite state, a bound exceeded, the engine raised, died or timed out)
-is not stable.
+(non-finite state, a bound exceeded, the engine raised or died) is not
+stable. A trial that runs past its time limit decides nothing: it is run
+once more with RETRY_FACTOR times the limit (a loaded machine only made it
+slow), and a second timeout leaves the pair *undecided* between the dts
+known so far, never unstable there.
 
 Details: docs/running.md, "Module notes", ``compare/stability/search.py``.
 """
@@ -26,7 +29,7 @@ from compare.results.store import jsonable, now
 from compare.run.plan import skip_reason
 from compare.run.runner import default_jobs
 from compare.stability.trial import (
-    Trial, check_output, document_head, load_document, run_trial, write_document,
+    RETRY_FACTOR, Trial, check_output, document_head, load_document, run_trial, timed_retry, write_document,
 )
 from compare.suite.plans import SearchSettings, StabilityPlan
 from compare.suite.reader import EngineSpec, SceneSpec, Suite
@@ -36,9 +39,10 @@ FILE_NAME = "stability.json"
 SCHEMA = "xval-stability"
 SCHEMA_VERSION = 2
 #: Verdicts of one pair.
-BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED = (
-    "bounded", "stable-at-largest", "unstable-at-smallest", "skipped",
+BOUNDED, STABLE_AT_LARGEST, UNSTABLE_AT_SMALLEST, SKIPPED, UNDECIDED = (
+    "bounded", "stable-at-largest", "unstable-at-smallest", "skipped", "undecided",
 )
+
 
 
 def criterion_text(bounds: Bounds) -> str:
@@ -46,7 +50,8 @@ def criterion_text(bounds: Bounds) -> str:
     return (
         "stable at dt = every scheduled sample delivered over the scene's duration with a finite state, "
         f"energy drift ≤ {bounds.energy_drift:g} E* and constraint error ≤ {bounds.constraint_error:g} L; "
-        "unstable = a non-finite state, a bound exceeded, or the engine failed or timed out"
+        "unstable = a non-finite state, a bound exceeded, or the engine failed; a trial past its time limit "
+        f"(twice: the limit, then {RETRY_FACTOR:g}× it) decides nothing, and the pair is undecided"
     )
 
 
@@ -54,9 +59,11 @@ def criterion_text(bounds: Bounds) -> str:
 class PairResult:
     """The search's answer for one scene × engine variant.
 
-    verdict : bounded, stable-at-largest, unstable-at-smallest or skipped.
+    verdict : bounded, stable-at-largest, unstable-at-smallest, undecided or skipped.
     largest_stable_dt : s, the largest dt found stable (None when none was).
     smallest_unstable_dt : s, the smallest dt found unstable above it (None when none was).
+    undecided_dt : s, the dt whose trial timed out twice (verdict undecided: the boundary lies between
+        largest_stable_dt, or below, and smallest_unstable_dt, or above), else None.
     analytic_dt : s, the linear theory's limit where one exists (ours/baumgarte), else None.
     trials : the runs it made, in the order they ran.
     """
@@ -69,6 +76,7 @@ class PairResult:
     reason: str = ""
     analytic_dt: float | None = None
     trials: tuple[Trial, ...] = ()
+    undecided_dt: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return jsonable(asdict(self))
@@ -77,16 +85,37 @@ class PairResult:
 # -- the search itself (pure: the trial is a function of dt) ---------------------------------
 
 
+class _Undecided(Exception):
+    """A trial timed out: the search stops where it stands."""
+
+
 def search(trial: Callable[[float], Trial], settings: SearchSettings) -> tuple[str, float | None, float | None, list[Trial]]:
     """(verdict, largest stable dt, smallest unstable dt, trials) for one pair; the search:
-    docs/running.md, "Module notes"."""
+    docs/running.md, "Module notes". A trial with status ``timeout`` ends it ``undecided``, with the
+    bracket known so far (:func:`timed_retry` gives the trial its second chance first)."""
     trials: list[Trial] = []
+    known: list[float | None] = [None, None]  # largest stable, smallest unstable so far
 
     def stable(dt: float) -> bool:
         result = trial(dt)
         trials.append(result)
+        if result.status == "timeout":
+            raise _Undecided
+        if result.stable:
+            known[0] = max(dt, known[0] or dt)
+        else:
+            known[1] = min(dt, known[1] or dt)
         return result.stable
 
+    try:
+        return _bisect(stable, settings, trials)
+    except _Undecided:
+        return UNDECIDED, known[0], known[1], trials
+
+
+def _bisect(stable: Callable[[float], bool], settings: SearchSettings,
+            trials: list[Trial]) -> tuple[str, float | None, float | None, list[Trial]]:
+    """The bracketing and bisection of :func:`search` on the predicate ``stable`` (which records the trials)."""
     if stable(settings.dt_max):
         return STABLE_AT_LARGEST, settings.dt_max, None, trials
     hi, lo = settings.dt_max, None
@@ -163,12 +192,14 @@ def run_stability(
         if reason is not None:
             return PairResult(scene.id, engine.label, SKIPPED, reason=reason)
         verdict, lo, hi, trials = search(
-            lambda dt: run_trial(scene, engine, dt, suite, timeout, stability.settings.sample_interval),
+            timed_retry(lambda dt, limit: run_trial(scene, engine, dt, suite, limit, stability.settings.sample_interval),
+                        timeout),
             stability.settings,
         )
         last_unstable = next((t for t in reversed(trials) if not t.stable), None)
         why = "" if last_unstable is None else f"at dt = {last_unstable.dt:.4g} s: {last_unstable.status} ({last_unstable.message})"
-        return PairResult(scene.id, engine.label, verdict, lo, hi, why, analytic_dt(engine), tuple(trials))
+        undecided = trials[-1].dt if verdict == UNDECIDED else None
+        return PairResult(scene.id, engine.label, verdict, lo, hi, why, analytic_dt(engine), tuple(trials), undecided)
 
     save()
     pairs = [(s, e) for s in stability.scenes for e in stability.engines]

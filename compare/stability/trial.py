@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -45,6 +45,11 @@ class Trial:
 
 # -- one trial through the runner's isolation -------------------------------------------------
 
+#: A trial that timed out runs once more with this many times the limit; a second timeout decides nothing
+#: (the search's pair is undecided, the gain map's cell blank), never unstable: a loaded machine is slow.
+RETRY_FACTOR = 4.0
+
+
 
 def run_trial(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite, timeout: float,
               sample_interval: float | None = None) -> Trial:
@@ -68,6 +73,21 @@ def run_trial(scene_spec: SceneSpec, engine: EngineSpec, dt: float, suite: Suite
     )
     outcome: CaseOutcome = execute(task)
     return classify(scene, outcome, dt, sample_interval, suite.bounds)
+
+
+def timed_retry(trial: Callable[[float, float], Trial], timeout: float) -> Callable[[float], Trial]:
+    """The trial at dt, run once more with RETRY_FACTOR × ``timeout`` (s) when it ran past ``timeout``: the
+    second run's Trial (a ``timeout`` again says so in its message)."""
+    def run(dt: float) -> Trial:
+        first = trial(dt, timeout)
+        if first.status != "timeout":
+            return first
+        second = trial(dt, RETRY_FACTOR * timeout)
+        if second.status != "timeout":
+            return second
+        return replace(second, message=f"ran past {timeout:g} s, then past {RETRY_FACTOR * timeout:g} s: "
+                                        f"undecided, not unstable")
+    return run
 
 
 def classify(scene, outcome: CaseOutcome, dt: float, sample_interval: float, bounds: Bounds) -> Trial:

@@ -12,11 +12,25 @@ from __future__ import annotations
 
 import math
 
-from ours.banded import compiled, inlined
+from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
+from ours.rigid.blocks import (
+    fold_sweep_ball, fold_sweep_fixed, fold_sweep_prismatic, fold_sweep_revolute,
+    fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
+    sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute, targets_ball,
+    targets_fixed, targets_prismatic, targets_revolute,
+)
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
+
+#: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
+#: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
+#: must change this file too, or the compiled step would keep the old blocks.
+BLOCKS_DIGEST = "ee530e6a3418e8bea3936de6d0b3ff4cd537acdde657f9ed5a3e22b098359fe6"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
+#: Below this (|θ|/2)² (half-angles under 0.01 rad), exp(θ/2)'s cos and sin(x)/x come from their Taylor series
+#: to x⁸: the first term left out is below 3e-27 of the sum, far under round-off.
+SMALL_HALF_ANGLE_SQUARED = 1e-4
 PLAIN, BAUMGARTE, PROJECTION = 0, 1, 2
 
 
@@ -33,7 +47,7 @@ def _rot(R, b, v0, v1, v2):
             R[b, 2, 0] * v0 + R[b, 2, 1] * v1 + R[b, 2, 2] * v2)
 
 
-@compiled
+@llvm_inlined
 def rotations(y, nb, R):
     """R[b] (3, 3) from each body's quaternion, normalised on the fly (its norm does not matter)."""
     for b in range(nb):
@@ -77,7 +91,16 @@ def _set_row(JA, JB, k, r, a, b):
         JB[k, r, c] = b[c]
 
 
-@compiled
+@inlined
+def _set_moment(JA, JB, k, r, a, b):
+    """The angular half (columns 3–5) of row r of joint k: JA = a, JB = b (3 floats each). The linear half
+    of a point row (±e) and of a torque row (0) never changes: ``ours.rigid.workspace`` writes it once."""
+    for c in range(3):
+        JA[k, r, 3 + c] = a[c]
+        JB[k, r, 3 + c] = b[c]
+
+
+@llvm_inlined
 def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     """Three rows C = (x_A + r_A) − (x_B + r_B): the anchors coincide (m)."""
     tA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
@@ -88,16 +111,16 @@ def _point_rows(k, r0, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
         e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
         ra = _cross(rA[0], rA[1], rA[2], e0, e1, e2)
         rb = _cross(rB[0], rB[1], rB[2], e0, e1, e2)
-        _set_row(JA, JB, k, r0 + i, (e0, e1, e2, ra[0], ra[1], ra[2]), (-e0, -e1, -e2, -rb[0], -rb[1], -rb[2]))
+        _set_moment(JA, JB, k, r0 + i, (ra[0], ra[1], ra[2]), (-rb[0], -rb[1], -rb[2]))
         C[k, r0 + i] = xA[i] + rA[i] - xB[i] - rB[i]
         gam[k, r0 + i] = cA[i] - cB[i]
 
 
-@compiled
+@llvm_inlined
 def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
     """One row C = p · w, p fixed in the parent, w in the child (both world, unit): they stay perpendicular."""
     n = _cross(p[0], p[1], p[2], w[0], w[1], w[2])
-    _set_row(JA, JB, k, r, (0.0, 0.0, 0.0, n[0], n[1], n[2]), (0.0, 0.0, 0.0, -n[0], -n[1], -n[2]))
+    _set_moment(JA, JB, k, r, (n[0], n[1], n[2]), (-n[0], -n[1], -n[2]))
     C[k, r] = p[0] * w[0] + p[1] * w[1] + p[2] * w[2]
     pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
     wd = _cross(wB[0], wB[1], wB[2], w[0], w[1], w[2])
@@ -109,7 +132,7 @@ def _dot_row(k, r, p, w, wA, wB, C, JA, JB, gam):
     gam[k, r] = g
 
 
-@compiled
+@llvm_inlined
 def _slide_row(k, r, p, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     """One row C = p · d, d = (x_B + r_B) − (x_A + r_A), p fixed in the parent: no slip across p (m)."""
     d = (xB[0] + rB[0] - xA[0] - rA[0], xB[1] + rB[1] - xA[1] - rA[1], xB[2] + rB[2] - xA[2] - rA[2])
@@ -130,7 +153,7 @@ def _slide_row(k, r, p, xA, rA, vA, wA, xB, rB, vB, wB, C, JA, JB, gam):
     gam[k, r] = g
 
 
-@compiled
+@llvm_inlined
 def joint_rows(y, model, R, C, JA, JB, gam):
     """Every joint's rows at state y (R from :func:`rotations`): C (nj, 6), JA / JB (nj, 6, 6) the
     Jacobians on the parent's and the child's u = (v, ω), gam (nj, 6) = J̇u (the velocity product)."""
@@ -163,6 +186,14 @@ def joint_rows(y, model, R, C, JA, JB, gam):
 
 
 # --- the tree solve -------------------------------------------------------------------------
+#
+# The system [[M, Jᵀ], [J, 0]] [u; λ] = [f; c] is eliminated one joint at a time, deepest first: joint k
+# joins its child body B (whose block D_B already holds what B's own child joints folded into it) to its
+# parent A. With D_B = L_B L_Bᵀ, Y_k = L_B⁻¹ J_Bᵀ (stored row by row, (r, 6), in X[B]) and
+# S_k = J_B D_B⁻¹ J_Bᵀ = Y_kᵀ Y_k = L_k L_kᵀ (r × r, in D[nb + k]), eliminating u_B and then λ_k adds
+# J_Aᵀ S_k⁻¹ J_A = Z_kᵀ Z_k to D_A, with Z_k = L_k⁻¹ J_A (stored column by column, (6, r), in X[nb + k]).
+# Only forward substitutions build the factor (Y and Z, not D⁻¹ J), and every block is a constant
+# size for the common joints, so the loops unroll.
 
 @inlined
 def _cholesky(D, i, n):
@@ -183,127 +214,150 @@ def _cholesky(D, i, n):
 
 
 @inlined
-def _chol_solve(D, i, n, x, j, c, scale):
-    """x[j, c, :n] ← scale · (L Lᵀ)⁻¹ x[j, c, :n] in place, with L in D[i]."""
+def _forward(D, i, n, x, j, c):
+    """x[j, c, :n] ← L⁻¹ x[j, c, :n] in place, with L in D[i]."""
     for r in range(n):
         s = x[j, c, r]
         for m in range(r):
             s -= D[i, r, m] * x[j, c, m]
         x[j, c, r] = s * D[i, r, r]
+
+
+@inlined
+def _backward(D, i, n, x, j, c):
+    """x[j, c, :n] ← L⁻ᵀ x[j, c, :n] in place, with L in D[i]."""
     for r in range(n - 1, -1, -1):
         s = x[j, c, r]
         for m in range(r + 1, n):
             s -= D[i, m, r] * x[j, c, m]
         x[j, c, r] = s * D[i, r, r]
-    if scale != 1.0:
-        for r in range(n):
-            x[j, c, r] *= scale
 
 
-@inlined
-def _coupling(i, p, nb, JA, JB, r, c):
-    """H[i, p][r, c]: a body i below its inbound joint p (Jᵀ on the child), or a joint i below its parent body p."""
-    if i < nb:
-        return JB[p - nb, c, r]
-    return JA[i - nb, r, c]
-
-
-@inlined
-def _eliminate(D, X, H, JA, JB, nb, i, p, di, dp):
-    """Factor node i's reduced block (negated first for a joint) and, below a parent p (dp > 0), fold
-    it into the parent's: X[i] = (D_i⁻¹ H_{i,p})ᵀ, D_p −= H_{i,p}ᵀ D_i⁻¹ H_{i,p}. False if not definite."""
-    sign = 1.0 if i < nb else -1.0
-    if sign < 0.0:
-        for r in range(di):
-            for c in range(di):
-                D[i, r, c] = -D[i, r, c]
-    if not _cholesky(D, i, di):
-        return False
-    for c in range(dp):  # row c of X[i] = D_i⁻¹ (column c of H_{i,p})
-        for r in range(di):
-            X[i, c, r] = H[c, r] = _coupling(i, p, nb, JA, JB, r, c)
-        _chol_solve(D, i, di, X, i, c, sign)
-    for r in range(dp):  # lower triangle only (the Cholesky reads no more)
-        for c in range(r + 1):
-            s = 0.0
-            for m in range(di):
-                s += H[r, m] * X[i, c, m]
-            D[p, r, c] -= s
-    return True
-
-
-@compiled
-def tree_factor(y, model, work):
-    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it leaves first; False if singular."""
+@llvm_inlined
+def assemble(model, work):
+    """D's body blocks ← [[m 1, 0], [0, I_w]] with I_w = R I_b Rᵀ (R in work[0]), lower triangles."""
     mass, inertia, nb = model[0], model[1], model[0].shape[0]
-    rows, order, up = model[11], model[12], model[13]
-    R, JA, JB, D, X, H = work[0], work[2], work[3], work[5], work[6], work[11]
-    nn = order.shape[0]
-    for i in range(nn):
-        for r in range(6):
-            for c in range(6):
-                D[i, r, c] = 0.0
+    R, D = work[0], work[5]
     for b in range(nb):
+        for r in range(6):
+            for c in range(r + 1):
+                D[b, r, c] = 0.0
         for r in range(3):
             D[b, r, r] = mass[b]
-        for r in range(3):  # I_w = R I_b Rᵀ
-            for c in range(3):
+        for r in range(3):  # I_w = R (I_b Rᵀ)
+            for c in range(r + 1):
                 s = 0.0
                 for m in range(3):
-                    for n in range(3):
-                        s += R[b, r, m] * inertia[b, m, n] * R[b, c, n]
+                    s += R[b, r, m] * (inertia[b, m, 0] * R[b, c, 0] + inertia[b, m, 1] * R[b, c, 1]
+                                       + inertia[b, m, 2] * R[b, c, 2])
                 D[b, 3 + r, 3 + c] = s
-    for idx in range(nn):
-        i = order[idx]
-        p = up[i]
-        di = 6 if i < nb else rows[i - nb]
-        dp = 0 if p < 0 else (6 if p < nb else rows[p - nb])
-        # the common pairs with their sizes as constants, so that the compiler unrolls the small loops
-        if di == 6 and dp == 5:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 6, 5)
-        elif di == 5 and dp == 6:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, 5, 6)
+
+
+@llvm_inlined
+def eliminate(model, work):
+    """Factor the assembled system (work[5], rows in work[2:4]) joint by joint, deepest first; False if singular."""
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
+    JA, JB, D, X = work[2], work[3], work[5], work[6]
+    for idx in range(order.shape[0]):
+        k = order[idx]
+        A, B = parent[k], child[k]
+        t = kind[k]  # written out per kind, every block entry a local (ours.rigid.generate)
+        if t == REVOLUTE:
+            ok = fold_revolute(D, X, JA, JB, nb, k, A, B)
+        elif t == PRISMATIC:
+            ok = fold_prismatic(D, X, JA, JB, nb, k, A, B)
+        elif t == BALL:
+            ok = fold_ball(D, X, JA, JB, nb, k, A, B)
         else:
-            ok = _eliminate(D, X, H, JA, JB, nb, i, p, di, dp)
+            ok = fold_fixed(D, X, JA, JB, nb, k, A, B)
         if not ok:
+            return False
+    for idx in range(free.shape[0]):  # bodies with no inbound joint: their block is the last to factor
+        if not _cholesky(D, free[idx], 6):
             return False
     return True
 
 
-@inlined
-def _subtract_coupling(X, i, x, dst, src, n_dst, n_src, transpose):
-    """x[dst] −= L x[src] with L = X[i] (n_dst, n_src), or Xᵢᵀ when ``transpose``: one sweep of the tree solve."""
-    for r in range(n_dst):
-        s = 0.0
-        for m in range(n_src):
-            s += (X[i, m, r] if transpose else X[i, r, m]) * x[src, 0, m]
-        x[dst, 0, r] -= s
+@llvm_inlined
+def tree_factor(y, model, work):
+    """Assemble [[M, Jᵀ], [J, 0]] at y (rows already in work) and factor it; False if singular."""
+    assemble(model, work)
+    return eliminate(model, work)
 
 
-@compiled
-def tree_solve(model, work, x):
-    """Solve the factored system in place: x (nodes, 1, 6) holds the right side on entry."""
-    nb, dims, order, up = model[0].shape[0], model[3], model[12], model[13]
-    D, X = work[5], work[6]
-    nn = order.shape[0]
-    for idx in range(nn):  # forward: y_p −= L_{p,i} y_i, children first
-        i = order[idx]
-        p = up[i]
-        if p >= 0:
-            _subtract_coupling(X, i, x, p, i, dims[p], dims[i], False)
-    for i in range(nn):
-        sign = 1.0 if i < nb else -1.0
-        if dims[i] == 6:  # constant sizes: unrolled
-            _chol_solve(D, i, 6, x, i, 0, sign)
-        elif dims[i] == 5:
-            _chol_solve(D, i, 5, x, i, 0, sign)
+@llvm_inlined
+def factor_and_sweep(model, work, x):
+    """:func:`eliminate` and the forward half of :func:`tree_solve` of the right side x in one pass (each joint's
+    blocks are swept while still in registers); :func:`sweep_up` finishes the solve. False if singular."""
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
+    JA, JB, D, X = work[2], work[3], work[5], work[6]
+    for idx in range(order.shape[0]):
+        k = order[idx]
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:
+            ok = fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            ok = fold_sweep_prismatic(D, X, JA, JB, x, nb, k, A, B)
+        elif t == BALL:
+            ok = fold_sweep_ball(D, X, JA, JB, x, nb, k, A, B)
         else:
-            _chol_solve(D, i, dims[i], x, i, 0, sign)
-    for idx in range(nn - 1, -1, -1):  # backward: x_i −= L_{p,i}ᵀ x_p, parents first
-        i = order[idx]
-        p = up[i]
-        if p >= 0:
-            _subtract_coupling(X, i, x, i, p, dims[i], dims[p], True)
+            ok = fold_sweep_fixed(D, X, JA, JB, x, nb, k, A, B)
+        if not ok:
+            return False
+    for idx in range(free.shape[0]):
+        b = free[idx]
+        if not _cholesky(D, b, 6):
+            return False
+        _forward(D, b, 6, x, b, 0)
+        _backward(D, b, 6, x, b, 0)
+    return True
+
+
+@llvm_inlined
+def sweep_down(model, work, x):
+    """The forward half of the tree solve (children first), and the bodies no joint holds solved."""
+    nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
+    D, X = work[5], work[6]
+    for idx in range(order.shape[0]):
+        k = order[idx]
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:
+            sweep_down_revolute(D, X, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            sweep_down_prismatic(D, X, x, nb, k, A, B)
+        elif t == BALL:
+            sweep_down_ball(D, X, x, nb, k, A, B)
+        else:
+            sweep_down_fixed(D, X, x, nb, k, A, B)
+    for idx in range(free.shape[0]):
+        b = free[idx]
+        _forward(D, b, 6, x, b, 0)
+        _backward(D, b, 6, x, b, 0)
+
+
+@llvm_inlined
+def sweep_up(model, work, x):
+    """The backward half of the tree solve (parents first): u and λ."""
+    nb, kind, parent, child, order = model[0].shape[0], model[4], model[5], model[6], model[12]
+    D, X = work[5], work[6]
+    for idx in range(order.shape[0] - 1, -1, -1):
+        k = order[idx]
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:
+            sweep_up_revolute(D, X, x, nb, k, A, B)
+        elif t == PRISMATIC:
+            sweep_up_prismatic(D, X, x, nb, k, A, B)
+        elif t == BALL:
+            sweep_up_ball(D, X, x, nb, k, A, B)
+        else:
+            sweep_up_fixed(D, X, x, nb, k, A, B)
+
+
+@llvm_inlined
+def tree_solve(model, work, x):
+    """Solve the factored system in place: x (nodes, 1, 6) holds the right side [f; c] on entry, [u; λ] on exit."""
+    sweep_down(model, work, x)
+    sweep_up(model, work, x)
 
 
 # --- dynamics --------------------------------------------------------------------------------
@@ -320,20 +374,15 @@ def _row_rate(y, model, JA, JB, k, r):
     return cdot
 
 
-@compiled
-def derivative(y, model, work, ks, kd, ydot):
-    """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
+@llvm_inlined
+def forces(y, model, work):
+    """work[7]'s body entries ← (m g, −ω × I_w ω) at y (R in work[0])."""
     mass, inertia, gravity, nb = model[0], model[1], model[2], model[0].shape[0]
-    rows = model[11]
-    R, C, JA, JB, gam, sol, lam = work[0], work[1], work[2], work[3], work[4], work[7], work[8]
-    rotations(y, nb, R)
-    joint_rows(y, model, R, C, JA, JB, gam)
-    if not tree_factor(y, model, work):
-        return SINGULAR
+    R, sol = work[0], work[7]
     for b in range(nb):
         o = 13 * b
         w0, w1, w2 = y[o + 10], y[o + 11], y[o + 12]
-        # angular momentum I_w ω = R I_b Rᵀ ω (D holds the factor by now, not I_w)
+        # angular momentum I_w ω = R I_b Rᵀ ω (from R: D holds the factor once eliminated)
         l0 = R[b, 0, 0] * w0 + R[b, 1, 0] * w1 + R[b, 2, 0] * w2
         l1 = R[b, 0, 1] * w0 + R[b, 1, 1] * w1 + R[b, 2, 1] * w2
         l2 = R[b, 0, 2] * w0 + R[b, 1, 2] * w1 + R[b, 2, 2] * w2
@@ -345,10 +394,29 @@ def derivative(y, model, work, ks, kd, ydot):
         for r in range(3):
             sol[b, 0, r] = mass[b] * gravity[r]
         sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5] = -g0, -g1, -g2
-    for k in range(rows.shape[0]):
-        for r in range(rows[k]):
-            sol[nb + k, 0, r] = -gam[k, r] - ks * C[k, r] - kd * _row_rate(y, model, JA, JB, k, r)
-    tree_solve(model, work, sol)
+
+
+@llvm_inlined
+def row_targets(y, model, work, ks, kd):
+    """work[7]'s joint entries ← −J̇u − k_s C − k_d J u (the rows' right side, Baumgarte's terms included)."""
+    nb, kind, parent, child = model[0].shape[0], model[4], model[5], model[6]
+    C, JA, JB, gam, sol = work[1], work[2], work[3], work[4], work[7]
+    for k in range(kind.shape[0]):
+        A, B, t = parent[k], child[k], kind[k]
+        if t == REVOLUTE:  # written out per kind, J's zeros skipped (ours.rigid.generate)
+            targets_revolute(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        elif t == PRISMATIC:
+            targets_prismatic(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        elif t == BALL:
+            targets_ball(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+        else:
+            targets_fixed(y, C, JA, JB, gam, sol, nb, k, A, B, ks, kd)
+
+
+@llvm_inlined
+def rates(y, model, work, ydot):
+    """ydot ← (v, ½ (0, ω) ⊗ Q, u̇) with u̇ from the solved work[7]; λ (nj, 6) into work[8]."""
+    nb, rows, sol, lam = model[0].shape[0], model[11], work[7], work[8]
     for b in range(nb):
         o = 13 * b
         ydot[o], ydot[o + 1], ydot[o + 2] = y[o + 7], y[o + 8], y[o + 9]
@@ -364,39 +432,62 @@ def derivative(y, model, work, ks, kd, ydot):
     for k in range(rows.shape[0]):
         for r in range(rows[k]):
             lam[k, r] = -sol[nb + k, 0, r]
+
+
+@llvm_inlined
+def derivative(y, model, work, ks, kd, ydot):
+    """ydot = (v, ½ (0, ω) ⊗ Q, u̇) at y; λ (nj, 6) in work[8]. Returns a status code."""
+    nb, R = model[0].shape[0], work[0]
+    rotations(y, nb, R)
+    joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+    forces(y, model, work)
+    row_targets(y, model, work, ks, kd)
+    assemble(model, work)
+    if not factor_and_sweep(model, work, work[7]):
+        return SINGULAR
+    sweep_up(model, work, work[7])
+    rates(y, model, work, ydot)
     return OK
 
 
 @inlined
 def _rotate_quaternion(y, o, t0, t1, t2):
     """Q ← exp(θ/2) ⊗ Q for the world rotation vector θ = (t0, t1, t2), then Q normalised."""
-    angle = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-    if angle > 0.0:
-        s = math.sin(0.5 * angle) / angle
-        a0, a1, a2, a3 = math.cos(0.5 * angle), s * t0, s * t1, s * t2
+    square = t0 * t0 + t1 * t1 + t2 * t2  # |θ|²
+    if square > 0.0:
+        x2 = 0.25 * square  # (|θ|/2)²
+        if x2 < SMALL_HALF_ANGLE_SQUARED:  # a step's turn: the series, exact to round-off, without sqrt, sin, cos
+            s = 0.5 * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
+            a0 = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
+        else:
+            angle = math.sqrt(square)
+            s = math.sin(0.5 * angle) / angle
+            a0 = math.cos(0.5 * angle)
+        a1, a2, a3 = s * t0, s * t1, s * t2
         b0, b1, b2, b3 = y[o], y[o + 1], y[o + 2], y[o + 3]
         c1, c2, c3 = _cross(a1, a2, a3, b1, b2, b3)
         y[o] = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
         y[o + 1] = a0 * b1 + b0 * a1 + c1
         y[o + 2] = a0 * b2 + b0 * a2 + c2
         y[o + 3] = a0 * b3 + b0 * a3 + c3
-    n = math.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
+    inverse = 1.0 / math.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
     for i in range(4):
-        y[o + i] /= n
+        y[o + i] *= inverse
 
 
-@compiled
-def _constraint_norm(model, work):
-    """max |C| over every row (m for anchors and slides, cosines for the orientation rows)."""
-    rows, C = model[11], work[1]
-    worst = 0.0
-    for k in range(rows.shape[0]):
-        for r in range(rows[k]):
-            worst = max(worst, abs(C[k, r]))
-    return worst
+@llvm_inlined
+def kick_drift(y, nb, ydot, h):
+    """Symplectic Euler: u += h u̇, then x += h v and Q ← exp(h ω / 2) ⊗ Q, renormalised."""
+    for b in range(nb):
+        o = 13 * b
+        for r in range(6):
+            y[o + 7 + r] += h * ydot[o + 7 + r]
+        for r in range(3):
+            y[o + r] += h * y[o + 7 + r]
+        _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
 
 
-@compiled
+@llvm_inlined
 def _correction(y, model, work, velocity, tolerance):
     """Returns max |e| with e = C (positions) or J u (velocity); when it exceeds ``tolerance``, also
     work[7] ← −W Jᵀ (J W Jᵀ)⁻¹ e for each body, through the factor in work (the tree system with no force
@@ -416,7 +507,7 @@ def _correction(y, model, work, velocity, tolerance):
     return worst
 
 
-@compiled
+@llvm_inlined
 def project(y, model, work, tolerance, max_iterations):
     """Positions onto C(q) = 0, then velocities onto J u = 0, both in the mass metric: Δ = −W Jᵀ (J W Jᵀ)⁻¹ e
     (e = C, rotations by the exponential map and quaternions renormalised; then e = J u), repeated until
@@ -449,7 +540,7 @@ def project(y, model, work, tolerance, max_iterations):
     return OK
 
 
-@compiled
+@llvm_inlined
 def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iterations):
     """One step of h seconds in place; returns a status code. work[9] (stages, n), work[10] (n,) scratch."""
     nb = model[0].shape[0]
@@ -459,21 +550,17 @@ def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iteratio
         status = derivative(y, model, work, ks, kd, K[0])
         if status != OK:
             return status
-        for b in range(nb):
-            o = 13 * b
-            for r in range(6):
-                y[o + 7 + r] += h * K[0, o + 7 + r]
-            for r in range(3):
-                y[o + r] += h * y[o + 7 + r]
-            _rotate_quaternion(y, o + 3, h * y[o + 10], h * y[o + 11], h * y[o + 12])
+        kick_drift(y, nb, K[0], h)
     else:
         s = bw.shape[0]
         for i in range(s):
             for e in range(n):
-                acc = y[e]
-                for j in range(i):
-                    acc += h * A[i, j] * K[j, e]
-                ys[e] = acc
+                ys[e] = y[e]
+            for j in range(i):  # the tableau's zeros skipped (RK4's stages each read one K)
+                a = h * A[i, j]
+                if a != 0.0:
+                    for e in range(n):
+                        ys[e] += a * K[j, e]
             status = derivative(ys, model, work, ks, kd, K[i])
             if status != OK:
                 return status
@@ -486,9 +573,11 @@ def step(method, code, A, bw, y, model, work, ks, kd, h, tolerance, max_iteratio
         status = project(y, model, work, tolerance, max_iterations)
         if status != OK:
             return status
+    spread = 0.0  # y − y is 0 for a finite number and NaN for inf or NaN: one reduction the compiler vectorises
     for e in range(n):
-        if not math.isfinite(y[e]):
-            return NON_FINITE
+        spread += y[e] - y[e]
+    if spread != 0.0:
+        return NON_FINITE
     return OK
 
 

@@ -6,6 +6,7 @@ COM velocity v, world angular velocity ω. :func:`initial_state` builds y from j
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import weakref
@@ -45,19 +46,16 @@ def pack(mech: Mechanism) -> tuple:
         FA[k] = j.origin_rotation @ j.frame
         FB[k] = j.frame
     rows = np.array([ROWS[j.kind] for j in mech.joints], dtype=np.int64)
-    up = np.full(nb + nj, -1, dtype=np.int64)
-    for k, j in enumerate(mech.joints):
-        up[j.child] = nb + k
-        up[nb + k] = j.parent  # -1 for the world: the joint is a root of the elimination
-    depth = np.zeros(nb + nj, dtype=np.int64)  # edges from the node to its root
+    depth = np.zeros(nj, dtype=np.int64)  # joints from the world (or a free body) down to joint k
+    inbound = {j.child: k for k, j in enumerate(mech.joints)}
     for k in mech.topological_joints():
-        j = mech.joints[k]
-        depth[nb + k] = depth[j.parent] + 1 if j.parent >= 0 else 0
-        depth[j.child] = depth[nb + k] + 1
-    order = np.argsort(-depth, kind="stable").astype(np.int64)  # leaves first, each node before its parent
+        above = mech.joints[k].parent
+        depth[k] = depth[inbound[above]] + 1 if above in inbound else 0
+    order = np.argsort(-depth, kind="stable").astype(np.int64)  # deepest first: each joint before its parent's
+    free = np.array([b for b in range(nb) if b not in inbound], dtype=np.int64)  # bodies no joint holds
     dims = np.concatenate([np.full(nb, 6, dtype=np.int64), rows])
     return (mass, inertia, np.array(mech.gravity, dtype=float), dims, kind, parent, child, la, lb, FA, FB,
-            rows, order, up)
+            rows, order, free)
 
 
 _PACKED: "weakref.WeakKeyDictionary[Mechanism, tuple]" = weakref.WeakKeyDictionary()
@@ -74,12 +72,17 @@ def packed(mech: Mechanism) -> tuple:
 
 
 def workspace(mech: Mechanism, stages: int) -> tuple:
-    """Scratch arrays of the kernel (nothing in it allocates)."""
+    """Scratch arrays of the kernel (nothing in it allocates), with the constant entries of the joints'
+    Jacobians J_A, J_B (work[2], work[3]) written once."""
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
-    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6)), np.zeros((nj, 6)),
+    JA, JB = np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6))
+    for k, j in enumerate(mech.joints):  # the point rows' linear half, ±e, is constant: the kernel never writes it
+        if j.kind != "prismatic":
+            JA[k, :3, :3], JB[k, :3, :3] = np.eye(3), -np.eye(3)
+    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), JA, JB, np.zeros((nj, 6)),
             np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb), np.zeros((6, 6)))
+            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -339,10 +342,24 @@ def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return distance, angle
 
 
+def _compiled_run(args: tuple, y: np.ndarray, model: tuple, work: tuple, out: np.ndarray):
+    """``kernel.run``'s machine code for these argument types, called without numba's dispatch: the
+    dispatcher types every argument at every call (a microsecond for the model's and the work's tuples
+    of arrays), which a caller advancing a sample at a time, ten steps of a robot, pays on each sample.
+    The dispatcher itself when the compiled version is not found (a numba that keeps them elsewhere)."""
+    run = _kernel().run
+    values = (*args, y, model, work, 0.0, 0.0, 1.0, 1, 1, 1.0, 1, out)
+    try:
+        return run.overloads[tuple(run.typeof_pyval(v) for v in values)].entry_point
+    except (AttributeError, KeyError):
+        return run
+
+
 class Stepping:
     """A run that advances on request (for a caller that samples as it goes): the same compiled step
-    as :func:`simulate`. ``y`` (13 nb,) is the current state; ``status`` "ok" or why it stopped (then
-    ``y`` is left as it was when the step failed and :meth:`advance` does nothing more)."""
+    as :func:`simulate`. ``y`` (13 nb,) is the current state, stepped in place (set it with ``y[:] = ...``:
+    the compiled call holds this array); ``status`` "ok" or why it stopped (then ``y`` is left as it was
+    when the step failed and :meth:`advance` does nothing more)."""
 
     def __init__(self, mech: Mechanism, y0, dt: float, *, method: str = "baumgarte", integrator: str | None = None,
                  k_s: float | None = None, k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
@@ -358,12 +375,15 @@ class Stepping:
         self.y = np.array(y0, dtype=float).ravel()
         self._out = np.zeros((2, self.y.size))
         self.status, self.steps = "ok", 0
+        # everything but the step count bound once: a sample's call passes two numbers
+        self._run = functools.partial(_compiled_run(self._args, self.y, self._model, self._work, self._out),
+                                      *self._args, self.y, self._model, self._work, *self._gains, self._dt)
 
     def advance(self, steps: int) -> str:
         """Take ``steps`` steps of dt in place; returns the status."""
         if self.status == "ok" and steps > 0:
-            _, taken, status = _kernel().run(*self._args, self.y, self._model, self._work, *self._gains, self._dt,
-                                             int(steps), int(steps), self._tolerance, self._max_iterations, self._out)
+            steps = int(steps)
+            _, taken, status = self._run(steps, steps, self._tolerance, self._max_iterations, self._out)
             self.steps += int(taken)
             self.status = STATUS_TEXT[int(status)]
         return self.status
