@@ -62,7 +62,8 @@ def time_svg(lines: Sequence[Line], *, duration: float, y_title: str, label: str
     def py(y: float) -> float:
         return top + (y1 - math.log10(y)) / (y1 - y0) * plot_h
 
-    parts = [f'<svg class="gradient-plot" id="{_escape(element_id)}" viewBox="0 0 {width} {height}" role="img" '
+    parts = [f'<svg class="gradient-plot" id="{_escape(element_id)}" viewBox="0 0 {width} {height}" width="{width}" '
+             f'style="max-width: 100%; height: auto" role="img" '
              f'aria-label="{_escape(label)}" font-family="system-ui, sans-serif" font-size="12">',
              f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fbfbfb" stroke="#ccc"/>']
     step = max(1, math.ceil((y1 - y0) / 8))
