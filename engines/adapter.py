@@ -340,13 +340,14 @@ class Engine:
         return None
 
     def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
-                 wrt: list[str]) -> tuple[np.ndarray, str] | None:
+                 wrt: list[str]) -> tuple[Any, ...] | None:
         """The engine's own derivatives of a run's outputs at its last step, or None (the default).
 
         J : (m, k) d outputs / d parameters, outputs the CSV's state columns (p{i}_x..z v{i}_x..z, m and
         m/s; a model's q_<joint> v_<joint>), parameters ``wrt`` per SI unit (per radian for an angle), for ``scene`` run
         for its duration at ``dt`` with this variant and options; method : "analytic", "autodiff" or
-        "finite-difference" (its own, such as MuJoCo's chained one-step differences).
+        "finite-difference" (its own, such as MuJoCo's chained one-step differences). It may answer
+        (J, method, times, J over time) instead: times (n,) s, J at each (n, m, k), for the error over time.
         None means the engine has no derivatives of its own for this case, and the harness takes
         central differences of whole rollouts (engines/gradients.py), which every engine supports.
         """

@@ -118,20 +118,26 @@ def finite_difference_jacobian(engine: "Engine", scene: Scene, variant: str | No
 
 def engine_jacobian(engine: "Engine", scene: Scene, variant: str | None, options: Mapping[str, Any] | None,
                     dt: float, wrt: Sequence[str]) -> EngineJacobian:
-    """The engine's best answer: its own (``Engine.jacobian``) when it has one for this case, else
-    :func:`finite_difference_jacobian`."""
+    """The engine's best answer: its own (``Engine.jacobian``: (J, method), or (J, method, times, J over time))
+    when it has one for this case, else :func:`finite_difference_jacobian`."""
     check_wrt(scene, wrt)
     own = engine.jacobian(scene, variant, options, dt, list(wrt))
     if own is None:
         return finite_difference_jacobian(engine, scene, variant, options, dt, wrt)
-    jacobian, method = own
+    jacobian, method = own[0], own[1]
+    times, over_time = (own[2], own[3]) if len(own) == 4 else (None, None)  # optional: J at every sample
     if method not in METHODS:
         raise ValueError(f"{engine.name}.jacobian: method must be one of {', '.join(METHODS)}, got {method!r}")
     shape = (len(output_columns(scene)), len(wrt))
     if np.shape(jacobian) != shape:
         raise ValueError(f"{engine.name}.jacobian: J must have shape {shape} (outputs × parameters), got "
                          f"{np.shape(jacobian)}")
-    return EngineJacobian(np.asarray(jacobian, dtype=float), method, float(round(scene.duration / dt) * dt), own=True)
+    if over_time is not None and (np.shape(over_time)[1:] != shape or len(over_time) != len(times)):
+        raise ValueError(f"{engine.name}.jacobian: J over time must have shape (samples, {shape[0]}, {shape[1]}), "
+                         f"one per time, got {np.shape(over_time)} for {len(times)} times")
+    return EngineJacobian(np.asarray(jacobian, dtype=float), method, float(round(scene.duration / dt) * dt), own=True,
+                          times=None if times is None else np.asarray(times, dtype=float),
+                          over_time=None if over_time is None else np.asarray(over_time, dtype=float))
 
 
 # -- the chain rule for engines that differentiate their own step -------------------------------

@@ -67,9 +67,13 @@ def _closed_form(band):
 # ---- END SIZES ----
 
 
-def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int) -> tuple:
-    """Scratch arrays for :func:`run`, allocated here in Python because the compiled code has no allocator."""
-    z = np.zeros
+def workspace(P: int, C: int, dim: int, bandwidth: int, stages: int, dtype: type = np.float64) -> tuple:
+    """Scratch arrays for :func:`run`, allocated here in Python because the compiled code has no allocator
+    (complex128 for :func:`run_perturbed`'s complex step)."""
+
+    def z(shape):
+        return np.zeros(shape, dtype)
+
     rattle = (z((C, dim)), z((C, dim)), z((C, bandwidth + 1)), z(C), z(C), z((P, dim)))
     return (z((C, dim)), z((C, bandwidth + 1)), z(C), z((stages, P, dim)), z((stages, P, dim)),
             z((P, dim)), z((P, dim)), rattle)
@@ -186,17 +190,18 @@ def _entry(band, bandwidth, k, l):
 @compiled
 def solve_closed(band, n, bandwidth, x):
     """x ← A⁻¹ x for a symmetric positive-definite A of n ≤ 3 rows (lower band in ``band``), by Cramer's
-    rule; False when a leading minor is not positive (where Cholesky would fail)."""
+    rule; False when a leading minor is not positive (where Cholesky would fail). The tests read the real
+    parts: the same code serves ours.sensitivity's complex step."""
     a00 = band[0, 0]
     if n == 1:
-        if not a00 > 0.0:
+        if not a00.real > 0.0:
             return False
         x[0] = x[0] / a00
         return True
     a10, a11 = _entry(band, bandwidth, 1, 0), band[1, 0]
     m2 = a00 * a11 - a10 * a10
     if n == 2:
-        if not (a00 > 0.0 and m2 > 0.0):
+        if not (a00.real > 0.0 and m2.real > 0.0):
             return False
         r0, r1 = x[0], x[1]
         x[0] = (a11 * r0 - a10 * r1) / m2
@@ -207,7 +212,7 @@ def solve_closed(band, n, bandwidth, x):
     c10 = a21 * a20 - a10 * a22
     c20 = a10 * a21 - a11 * a20
     det = a00 * c00 + a10 * c10 + a20 * c20
-    if not (a00 > 0.0 and m2 > 0.0 and det > 0.0):
+    if not (a00.real > 0.0 and m2.real > 0.0 and det.real > 0.0):
         return False
     c11 = a00 * a22 - a20 * a20
     c21 = a10 * a20 - a00 * a21
@@ -430,6 +435,39 @@ def rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
     return ok
 
 
+@llvm_inlined
+def _feedback(method, k_s, k_d):
+    """(k_s, k_d) the step applies: only baumgarte feeds C and Ċ back (its λ at a sample includes the
+    feedback it applied); 0 for the other methods."""
+    if method == _BAUMGARTE:
+        return k_s, k_d
+    return 0.0, 0.0
+
+
+@llvm_inlined
+def step_once(method, integrator, A, b, h, q, v, model, work, ks, kd, tolerance, max_iterations):
+    """One step of the integrator and the cure in place (ks, kd: the Baumgarte gains, 0 for other methods);
+    returns OK, SINGULAR or NOT_CONVERGED."""
+    G, band, lam, Kq, Kv, qs, vs, rattle_work = work
+    status = OK
+    if integrator == _RATTLE:
+        status = rattle_step(q, v, h, model, tolerance, max_iterations, rattle_work)
+    elif integrator == _SYMPLECTIC_EULER:
+        if not acceleration(q, v, model, ks, kd, G, band, lam, Kv[0]):
+            status = SINGULAR
+        for p in range(_particles(q)):
+            for a in range(_dim(q)):
+                v[p, a] = v[p, a] + h * Kv[0, p, a]
+                q[p, a] = q[p, a] + h * v[p, a]
+    elif not rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
+        status = SINGULAR
+    if status == OK and method == _PROJECTION:
+        status = project_positions(q, model, tolerance, max_iterations, G, band, lam)
+        if status == OK and not project_velocities(q, v, model, G, band, lam):
+            status = SINGULAR
+    return status
+
+
 @compiled
 def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stride, tolerance, max_iterations,
         out_q, out_v, out_lam):
@@ -439,34 +477,16 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
     method, integrator : codes from ours.method / ours.integrator. A (s, s), b (s,) : Butcher table.
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
-    G, band, lam, Kq, Kv, qs, vs, rattle_work = work
-    # Only baumgarte feeds C and Ċ back; its λ at a sample includes the feedback it applied.
-    ks = k_s if method == _BAUMGARTE else 0.0
-    kd = k_d if method == _BAUMGARTE else 0.0
+    G, band = work[0], work[1]
+    ks, kd = _feedback(method, k_s, k_d)
     h = dt
-    P = _particles(q)
-    dim = _dim(q)
 
     _record(q, v, model, ks, kd, G, band, out_q[0], out_v[0], out_lam[0])
     n = 1
     status = OK
     step = 0
     while step < n_steps:
-        if integrator == _RATTLE:
-            status = rattle_step(q, v, h, model, tolerance, max_iterations, rattle_work)
-        elif integrator == _SYMPLECTIC_EULER:
-            if not acceleration(q, v, model, ks, kd, G, band, lam, Kv[0]):
-                status = SINGULAR
-            for p in range(P):
-                for a in range(dim):
-                    v[p, a] = v[p, a] + h * Kv[0, p, a]
-                    q[p, a] = q[p, a] + h * v[p, a]
-        elif not rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
-            status = SINGULAR
-        if status == OK and method == _PROJECTION:
-            status = project_positions(q, model, tolerance, max_iterations, G, band, lam)
-            if status == OK and not project_velocities(q, v, model, G, band, lam):
-                status = SINGULAR
+        status = step_once(method, integrator, A, b, h, q, v, model, work, ks, kd, tolerance, max_iterations)
         step += 1
         if status != OK:
             if not (_finite(q) and _finite(v)):
@@ -479,6 +499,21 @@ def run(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, stri
             _record(q, v, model, ks, kd, G, band, out_q[n], out_v[n], out_lam[n])
             n += 1
     return n, step, status
+
+
+@compiled
+def run_perturbed(method, integrator, A, b, q, v, model, work, k_s, k_d, dt, n_steps, tolerance, max_iterations):
+    """:func:`run`'s steps without its samples, on complex (q, v) (P, dim) in place, for a complex step
+    (ours.sensitivity): the same step functions, whose real parts are the real run's bit for bit, so every
+    branch (a singular matrix, a Newton iteration's stop) goes as it does there. ``work`` : :func:`workspace`
+    in complex128. Returns (steps taken, status); a non-finite state is left to the caller to find.
+    """
+    ks, kd = _feedback(method, k_s, k_d)
+    for step in range(n_steps):
+        status = step_once(method, integrator, A, b, dt, q, v, model, work, ks, kd, tolerance, max_iterations)
+        if status != OK:
+            return step + 1, status
+    return n_steps, OK
 
 
 @compiled

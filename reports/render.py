@@ -43,6 +43,7 @@ from reports.overview import import_findings, overview, reconcile
 from reports.parity import parity_view
 from reports.animation import animation_data
 from reports.decimate import MAX_POINTS
+from reports.gradients import gradient_views
 from reports.figures import (
     CLIP_FACTOR, Ceilings, Plot, Thinning, constraint_forces, paths, phase_plot, scene_plots, time_series,
 )
@@ -182,6 +183,7 @@ def page_context(data: ReportData, focus: str | None = None, lazy: bool | None =
         "packs": packs,
         "pack_of": pack_of,
         "stability": stability,
+        "gradients": gradient_views(data, palette),
     }
 
 

@@ -49,7 +49,8 @@ class GradientCase:
     reference); column_errors, column_classes : (k,) per parameter; horizon : s or None;
     reference_error : the reference's own relative error at T; growth : ‖J_ref(T)‖_F / ‖J_ref(0)‖_F (None when
     J_ref(0) = 0), whose log over T is a finite-time Lyapunov estimate (1/s); first_nonfinite : (s, parameter) of
-    the first sample whose Jacobian holds a NaN or an infinity, or None; times (n,) s, error_over_time (n,) : the
+    the first sample whose Jacobian holds a NaN or an infinity, at dt, else at dt/2 (a finite Jacobian at dt can
+    sit beside a NaN at dt/2), or None; times (n,) s, error_over_time (n,) : the
     error at every sample, when the engine's Jacobian is known there (differences of rollouts).
     """
 
@@ -161,7 +162,9 @@ def engine_case(engine: Engine, variant: str | None, options: Mapping[str, Any] 
     return GradientCase(scene.name, f"{engine.name}/{variant}", dt, scene.duration, list(wrt), output_columns(scene),
                         answer.jacobian, reference, error, answer.method, consistency, klass, bound.horizon, error_half,
                         [float(e) for e in per], classes, _reference_error(bound, answer.time),
-                        _growth(bound, answer.time), first_nonfinite(answer, list(wrt)), answer.times, over_time)
+                        _growth(bound, answer.time),
+                        first_nonfinite(answer, list(wrt)) or first_nonfinite(half, list(wrt)), answer.times,
+                        over_time)
 
 
 def first_nonfinite(answer: EngineJacobian, wrt: list[str]) -> tuple[float, str] | None:
@@ -212,16 +215,45 @@ def gradient_metrics(engine: Engine, variant: str | None, options: Mapping[str, 
     gradient_wrong (1 for wrong or nan), with respect to the parameters of ``wrt`` this scene has; {} (null
     metrics) when it has none of them, the reference's sensitivities do not cover it, or the differentiation
     raised: the case's own run and metrics stand."""
+    return gradient_measurement(engine, variant, options, scene, dt, wrt)[0]
+
+
+def gradient_measurement(engine: Engine, variant: str | None, options: Mapping[str, Any] | None, scene: Scene,
+                         dt: float, wrt: Sequence[str]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """(:func:`gradient_metrics`, :func:`gradient_series`): the metrics and the series the report draws; both {}
+    when the metrics are null."""
     from engines.errors import UserError
 
     names = [name for name in wrt if name in real_parameters(scene)]
     if not names:
-        return {}
+        return {}, {}
     try:
-        case = engine_case(engine, variant, options, scene, dt, names)
+        bound = bound_sensitivity(scene, names)
+        case = engine_case(engine, variant, options, scene, dt, names, bound)
     except UserError:  # the reference's sensitivities do not cover this scene
-        return {}
+        return {}, {}
     except Exception:  # noqa: BLE001 - the gradient's own trouble leaves its metrics null, not the case failed
-        return {}
-    return {"gradient_error": _number(case.error), "gradient_self_consistency": _number(case.self_consistency),
-            "gradient_wrong": float(case.klass in ("wrong", "nan"))}
+        return {}, {}
+    metrics = {"gradient_error": _number(case.error), "gradient_self_consistency": _number(case.self_consistency),
+               "gradient_wrong": float(case.klass in ("wrong", "nan"))}
+    return metrics, gradient_series(case, bound)
+
+
+def gradient_series(case: GradientCase, bound: SensitivityBound) -> dict[str, np.ndarray]:
+    """What the report's gradient section draws (reports/gradients.py), as a case record's series:
+
+    gradient_t (n,) s, the reference's samples; gradient_reference_norm (n,) ‖J_ref(t)‖_F (its growth);
+    gradient_reference_difference (n,) its two solves' relative difference (its own error, whose crossing of
+    JACOBIAN_HORIZON is the horizon); gradient_horizon (1,) s, only when there is one; gradient_error_t (p,) s and
+    gradient_error_over_time (p,), the engine's error at its samples when known there, else at T alone.
+    """
+    series = {"gradient_t": bound.t, "gradient_reference_norm": bound.growth,
+              "gradient_reference_difference": bound.difference}
+    if case.horizon is not None:
+        series["gradient_horizon"] = np.array([case.horizon])
+    if case.times is not None and case.error_over_time is not None:
+        series["gradient_error_t"], series["gradient_error_over_time"] = case.times, case.error_over_time
+    else:
+        series["gradient_error_t"] = np.array([round(case.duration / case.dt) * case.dt])
+        series["gradient_error_over_time"] = np.array([case.error])
+    return series

@@ -55,6 +55,8 @@ class CaseOutcome:
     output: EngineOutput = field(default_factory=EngineOutput)
     #: The gradient metrics of a suite with [gradients] (compare.gradients.measure.gradient_metrics), or {}.
     gradients: dict[str, Any] = field(default_factory=dict)
+    #: Their series for the report (compare.gradients.measure.gradient_series: name -> array), or {}.
+    gradient_series: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.status = Status(self.status)
@@ -267,7 +269,7 @@ def _measured(record: CaseRecord, scene: SceneLike, outcome: CaseOutcome, trajec
         record, status=status.status, message=status.message, metrics=jsonable(values),
         run_info=jsonable(info.to_dict()), reference=jsonable(solved),
         reference_horizon=None if horizon is None else float(horizon),
-        series=_series(series, trajectory, ref_positions, ref_forces, n),
+        series=_series(series, trajectory, ref_positions, ref_forces, n, outcome.gradient_series),
     )
 
 
@@ -292,8 +294,9 @@ def _reference_fields(reference: SampledReference, scene: SceneLike) -> tuple[Re
 
 
 def _series(series: Any, trajectory: Trajectory, ref_positions: np.ndarray, ref_forces: np.ndarray | None,
-            n: int) -> SeriesView:
-    """The record's stored series, downsampled and rounded (a SeriesView)."""
+            n: int, gradients: dict[str, Any] | None = None) -> SeriesView:
+    """The record's stored series, downsampled and rounded (a SeriesView); ``gradients``: the gradient
+    series ([gradients] suites), each downsampled on its own."""
     keep = downsample_indices(n)
     # Kept as rounded float arrays: ResultsDir.write_case writes them as lists, and making ~5,000 Python
     # floats a record here was most of the cost of writing it.
@@ -312,6 +315,9 @@ def _series(series: Any, trajectory: Trajectory, ref_positions: np.ndarray, ref_
         arrays["constraint_forces"] = trajectory.constraint_forces[keep]
         if ref_forces is not None and len(ref_forces) >= n:
             arrays["reference_constraint_forces"] = ref_forces[:n][keep]
+    for name, values in (gradients or {}).items():
+        values = np.asarray(values, dtype=float)
+        arrays[name] = values[downsample_indices(len(values))]
     return SeriesView(round_each(arrays))
 
 

@@ -156,12 +156,15 @@ def simulate(task: CaseTask) -> CaseOutcome:
             if trajectory.info.status is not Status.OK:
                 break  # repeating a failed or unstable run would only time the failure
     gradients: dict[str, Any] = {}
+    gradient_series: dict[str, Any] = {}
     if task.gradient_wrt and first is not None and first.info.status is Status.OK:
-        from compare.gradients.measure import gradient_metrics
+        from compare.gradients.measure import gradient_measurement
 
-        gradients = gradient_metrics(engine, task.variant, task.options, task.scene, task.dt, task.gradient_wrt)
+        gradients, gradient_series = gradient_measurement(engine, task.variant, task.options, task.scene, task.dt,
+                                                          task.gradient_wrt)
     return CaseOutcome(task.case_id, first, wall_times, elapsed=time.perf_counter() - start, cpu_times=cpu_times,
-                       calibrations=calibrations[:len(cpu_times)], gradients=gradients)
+                       calibrations=calibrations[:len(cpu_times)], gradients=gradients,
+                       gradient_series=gradient_series)
 
 
 def _command_deadline(task: CaseTask) -> Any:

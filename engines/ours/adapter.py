@@ -176,6 +176,14 @@ class OursEngine(Engine):
         gains = self._baumgarte_gains(variant, options)
         return None if gains is None else largest_stable_dt(*gains)
 
+    def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
+                 wrt: list[str]) -> tuple[Any, ...] | None:
+        """Forward sensitivities by complex step through ours' compiled step, with J at every sample as well
+        (engines/ours/gradients.py)."""
+        from engines.ours import gradients
+
+        return gradients.jacobian(self, scene, variant, options, dt, wrt, _to_system)
+
     def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         system, q0, v0, axes = _to_system(scene)
         compile_seconds = _ensure_compiled()  # before the clock starts: wall_time is stepping alone

@@ -1,0 +1,128 @@
+"""Cost of ours' forward sensitivities (ours/sensitivity.py) against its plain step and MuJoCo's mjd_transitionFD.
+
+The double pendulum released at (90°, 0°), dt 1e-3 s, STEPS steps, in one run:
+
+- ours' plain step: ``ours.simulate`` of STEPS steps (one sample at the end), per step;
+- ours' sensitivities for n directions (n = 1, 2, 4, 8: 8 is the whole state of two planar particles):
+  ``forward_sensitivities``, per step, and its ratio to the plain step beside the issue's budget of 2 + n
+  steps' worth;
+- MuJoCo (hinge, Euler; its state has 2 nv = 4 entries): ``mj_step`` in a Python loop, per step, and
+  ``mjd_transitionFD`` (centred, the whole 4 × 4 one-step Jacobian) followed by ``mj_step``, per step: what
+  its chained derivative (engines/mujoco/gradients.py) costs, and its ratio to its own step.
+
+Times are the minimum over REPEATS of the thread's CPU time (``time.thread_time``): the least disturbed run on
+a shared machine. Ratios are within one run and one engine; across machines, compare ratios only.
+
+    .venv/bin/python bench/bench_gradients.py [--repeats N] [--json PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+import numpy as np  # noqa: E402
+
+import ours  # noqa: E402
+from bench_ours import fastest  # noqa: E402
+from engines.ours.adapter import _to_system  # noqa: E402
+from engines.scene import catalog  # noqa: E402
+from ours.sensitivity import forward_sensitivities  # noqa: E402
+
+DT = 1e-3
+STEPS = 2000
+REPEATS = 7
+DIRECTIONS = (1, 2, 4, 8)
+
+
+def best_cpu(work, repeats: int) -> float:
+    """s: the least thread CPU time of ``repeats`` calls of ``work()`` (one uncounted call first: compiles)."""
+    work()
+    return fastest(work, repeats)
+
+
+def ours_rows(repeats: int) -> list[dict]:
+    scene = catalog.build("double-pendulum", {})
+    system, q0, v0, _ = _to_system(scene)
+    plain = best_cpu(lambda: ours.simulate(system, q0, v0, DT, STEPS, STEPS, method="baumgarte", integrator="rk4"),
+                     repeats) / STEPS
+    rows = [{"what": "ours baumgarte-rk4 step", "n": 0, "us_per_step": plain * 1e6, "steps_worth": 1.0,
+             "budget": None}]
+    rng = np.random.default_rng(0)
+    for n in DIRECTIONS:
+        dq, dv = rng.standard_normal((n, *q0.shape)), rng.standard_normal((n, *v0.shape))
+        cost = best_cpu(lambda dq=dq, dv=dv: forward_sensitivities(system, q0, v0, dq, dv, DT, STEPS,
+                                                                   method="baumgarte", integrator="rk4"),
+                        repeats) / STEPS
+        rows.append({"what": f"ours sensitivities, n = {n}", "n": n, "us_per_step": cost * 1e6,
+                     "steps_worth": cost / plain, "budget": 2 + n})
+    return rows
+
+
+def mujoco_rows(repeats: int) -> list[dict]:
+    try:
+        import mujoco
+    except ImportError:
+        return [{"what": "MuJoCo not installed", "n": None, "us_per_step": None, "steps_worth": None, "budget": None}]
+    from engines.mujoco.adapter import hinge_velocities
+    from engines.registry import resolve
+
+    engine, variant = resolve("mujoco/hinge")
+    scene = catalog.build("double-pendulum", {})
+    model, _, _ = engine.build(scene, DT, engine.resolve(variant, None))
+    n = 2 * model.nv + model.na
+    jacobian = np.empty((n, n))
+
+    def plain() -> None:
+        data = mujoco.MjData(model)
+        data.qvel[:] = hinge_velocities(scene, model)
+        for _ in range(STEPS):
+            mujoco.mj_step(model, data)
+
+    def chained() -> None:
+        data = mujoco.MjData(model)
+        data.qvel[:] = hinge_velocities(scene, model)
+        for _ in range(STEPS):
+            mujoco.mjd_transitionFD(model, data, 1e-6, True, jacobian, None, None, None)
+            mujoco.mj_step(model, data)
+
+    step = best_cpu(plain, repeats) / STEPS
+    fd = best_cpu(chained, repeats) / STEPS
+    return [{"what": "MuJoCo hinge Euler mj_step (Python loop)", "n": 0, "us_per_step": step * 1e6,
+             "steps_worth": 1.0, "budget": None},
+            {"what": f"MuJoCo mjd_transitionFD + mj_step, n = {n}", "n": n, "us_per_step": fd * 1e6,
+             "steps_worth": fd / step, "budget": 2 + n}]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=REPEATS)
+    parser.add_argument("--json", type=Path, default=ROOT / "results" / "bench" / "bench_gradients.json")
+    args = parser.parse_args()
+    rows = ours_rows(args.repeats) + mujoco_rows(args.repeats)
+    print(f"double pendulum, dt {DT} s, {STEPS} steps; min of {args.repeats} repeats of thread CPU time; "
+          f"load average {os.getloadavg()[0]:.2f}")
+    print(f"{'what':48} {'µs/step':>9} {'steps worth':>12} {'budget 2+n':>11}")
+    for row in rows:
+        us = "–" if row["us_per_step"] is None else f"{row['us_per_step']:.3g}"
+        worth = "–" if row["steps_worth"] is None else f"{row['steps_worth']:.3g}"
+        budget = "" if row["budget"] is None else f"{row['budget']}"
+        print(f"{row['what']:48} {us:>9} {worth:>12} {budget:>11}")
+    ours_full = next(r for r in rows if r["what"] == "ours sensitivities, n = 4")
+    fd = next((r for r in rows if r["what"].startswith("MuJoCo mjd_transitionFD")), None)
+    if fd is not None and fd["us_per_step"]:
+        print(f"ours' sensitivities for 4 directions against MuJoCo's mjd_transitionFD (4 × 4): "
+              f"{ours_full['us_per_step'] / fd['us_per_step']:.3g}× its time per step")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps({"rows": rows, "load_average": os.getloadavg()}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
