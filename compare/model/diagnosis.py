@@ -6,9 +6,8 @@ engine that fused welded links holds them under the survivor's name: the
 file's links are combined the same way before comparing, and when the
 group differs, known importer habits (dropping the inertia of massless
 links, giving links 1 kg and 1 kg·m²) are tried on its suspicious members
-to name them. Only links that move count: the rest cannot change M or b.
-An engine that says where it put its hinges (``LoadedModel.joint_origins``)
-has each axis compared with the file's (:func:`misplaced_joints`).
+to name them. Only links that move count: the rest cannot change M or b; an
+engine's hinge axes, when it says where they are, against the file's.
 A difference counts when it can change an entry of M by more than
 DIAGNOSED (a tenth of the check's tolerance) of M's scale S_M: an inertia
 by ΔI, a mass by Δm·L², a centre of mass by about m·L·Δc (L the reach);
