@@ -9,11 +9,15 @@ gets); the text is parsed with ``parseSkeletonString`` (so unresolvable
 stiffness set to 0. M is ``getMassMatrix``, the bias
 ``getCoriolisAndGravityForces``, the forward dynamics
 ``computeForwardDynamics`` (no constraint solver: limits are not enforced).
+MJCF: of readWorld's skeletons (one per static geom besides the model) the one
+with degrees of freedom; ``<freejoint>`` spelled ``<joint type="free">``, its
+FreeJoint's frames made the body's; the file's inertias set (:func:`_file_inertias`).
 """
 
 from __future__ import annotations
 
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -42,15 +46,34 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
 
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "mjcf":
+        text, freed = _free_joints_spelled_out(text)
         try:
-            with quiet_output(), source.engine_file() as path:
+            with quiet_output(), source.engine_file(text=text) as path:
                 world = dartpy.utils.MjcfParser.readWorld(dartpy.common.Uri(Path(path).as_uri()))
         except RuntimeError as exc:
             raise Refused(" ".join(str(exc).split())) from None
-        if world is None or world.getNumSkeletons() != 1:
-            raise Refused("MjcfParser.readWorld did not give one skeleton (DART printed the reason)")
+        if world is None:
+            raise Refused("MjcfParser.readWorld gave no world (DART printed the reason)")
+        skeletons = [world.getSkeleton(k) for k in range(world.getNumSkeletons())]
+        # Its parser makes each geom of the world body a skeleton of its own (no joint: a static geom, never a
+        # body); the model is the one skeleton with degrees of freedom.
+        jointed = [s for s in skeletons if s.getNumDofs() > 0]
+        if len(jointed) != 1:
+            raise Refused(f"MjcfParser.readWorld gave {len(skeletons)} skeletons, {len(jointed)} of them with "
+                          f"degrees of freedom (one expected)")
+        if len(skeletons) > 1:
+            notes = (*notes, f"{len(skeletons) - 1} skeleton{'s' if len(skeletons) > 2 else ''} of the world "
+                             f"body's static geoms left out (MjcfParser.readWorld makes one per geom)")
+        if freed:
+            notes = (*notes, "<freejoint> given to DART as <joint type=\"free\"> (its parser welds the body of a "
+                             "<freejoint>)")
+        named = _file_inertias(jointed[0], description)
+        if named:
+            notes = (*notes, f"mass, COM and inertia of {len(named)} of DART's {jointed[0].getNumBodyNodes()} "
+                             f"bodies set from the file (its MJCF parser ignores <inertial> and gives every body "
+                             f"an identity moment of inertia)")
         stated = {"loader": "MjcfParser.readWorld"}
-        return DartModel(world.getSkeleton(0), description, stated, notes)
+        return DartModel(jointed[0], description, stated, notes, named)
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
     floating = description.floating is not None
@@ -66,12 +89,45 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
     return DartModel(skeleton, description, stated, notes)
 
 
+def _free_joints_spelled_out(text: str) -> tuple[str, int]:
+    """The MJCF text with each ``<freejoint …/>`` written ``<joint type="free" …/>`` (DART 6.20's parser
+    welds a <freejoint>'s body to the world, and reads the long form), and how many there were."""
+    return re.subn(r"<freejoint\b", '<joint type="free"', text)
+
+
+def _file_inertias(skeleton, description: ModelDescription) -> dict[str, str]:
+    """Give each of the skeleton's body nodes the file's mass, COM and inertia (the description's, by body name):
+    DART 6.20's MJCF parser ignores <inertial> (measured on tests/fixtures/mjcf/quadruped.xml: every body 1 kg,
+    and every moment of inertia the identity, also when the mass comes from geoms). Only where DART's tree is
+    the file's body for body (not where it adds bodies for several joints in one body: frames differ). DART's
+    name of each body given -> the file's (an unnamed body is "Nonamed (k)" in DART, "body<id>" in the description)."""
+    dartpy = library.dartpy()
+    bodies = [b for b in description.bodies if not b.virtual and b.parent_joint is not None]
+    by_name = {b.name: b.inertial for b in bodies}
+    nodes = [skeleton.getBodyNode(k) for k in range(skeleton.getNumBodyNodes())]
+    if len(nodes) != len(bodies):
+        return {}  # its tree is not the file's body for body (several joints in one body): frames differ
+    given = {}
+    for k, node in enumerate(nodes):
+        name = node.getName()
+        if name not in by_name and name.startswith("Nonamed"):
+            name = bodies[k].name  # an unnamed body: both lists are the file's bodies in its order
+        if name in by_name:
+            inertial = by_name[name]
+            node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com, dtype=float),
+                                                    inertial.inertia_matrix))
+            given[node.getName()] = name
+    return given
+
+
 class DartModel(LoadedModel):
     engine = NAME
 
-    def __init__(self, skeleton, description: ModelDescription, options, notes=()):
+    def __init__(self, skeleton, description: ModelDescription, options, notes=(), named=None):
         super().__init__(description, options, (*notes, "damping, Coulomb friction and spring stiffness set to 0"))
         self.skeleton = skeleton
+        #: DART's name of a body -> the file's, where they differ (an unnamed MJCF body).
+        self.named = named or {}
         skeleton.setGravity([0.0, 0.0, -GRAVITY])
         names, dofs = [], []
         base: list[int] = []
@@ -81,6 +137,11 @@ class DartModel(LoadedModel):
                 continue
             if joint.getType() == "FreeJoint" and description.floating is not None and not base:
                 base = [joint.getIndexInSkeleton(i) for i in range(6)]
+                # Its MJCF parser puts the body's pose in the joint's parent transform (q = 0 is the file's
+                # pose); xval's q is the base frame's pose in the world: the joint's frames made the body's.
+                identity = library.dartpy().math.Isometry3()  # the identity
+                joint.setTransformFromParentBodyNode(identity)
+                joint.setTransformFromChildBodyNode(identity)
                 continue
             if joint.getNumDofs() != 1:
                 raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
@@ -143,7 +204,7 @@ class DartModel(LoadedModel):
             node = self.skeleton.getBodyNode(k)
             inertia = node.getInertia()  # moment about the COM, in the body frame
             pose = node.getWorldTransform()
-            found[node.getName()] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(),
+            found[self.named.get(node.getName(), node.getName())] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(),
                                                   pose.rotation(), pose.translation())
         return found
 

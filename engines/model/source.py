@@ -101,13 +101,13 @@ class ModelSource:
         return ET.tostring(root, encoding="unicode"), tuple(notes) + self.lock_notes()
 
     @contextlib.contextmanager
-    def engine_file(self, drop_mimic: bool = False) -> Iterator[str]:
-        """The path of a temporary file holding :meth:`engine_text` (removed on exit), for loaders that read
-        files only; its suffix is the format's (.urdf, .xml)."""
+    def engine_file(self, drop_mimic: bool = False, text: str | None = None) -> Iterator[str]:
+        """The path of a temporary file holding :meth:`engine_text` (or ``text``, an engine's rewrite of it;
+        removed on exit), for loaders that read files only; its suffix is the format's (.urdf, .xml)."""
         handle, name = tempfile.mkstemp(suffix=".urdf" if self.format == "urdf" else ".xml", prefix="xval-model-")
         try:
             with os.fdopen(handle, "w", encoding="utf-8") as stream:
-                stream.write(self.engine_text(drop_mimic)[0])
+                stream.write(self.engine_text(drop_mimic)[0] if text is None else text)
             yield name
         finally:
             os.unlink(name)
