@@ -82,12 +82,21 @@ def test_each_engines_floating_base_maps_to_the_one_convention_by_energy_and_mom
 @pytest.mark.parametrize("engine", ["mujoco", "drake", "dart"])
 def test_an_mjcf_free_joint_maps_to_the_one_convention_by_energy_and_momentum(engine):
     """The free joint as each MJCF parser makes it (DART's puts the body's pose in its FreeJoint's parent
-    transform; xval makes the joint's frames the body's). PyBullet's loadMJCF drops the inertias: left out."""
+    transform; xval makes the joint's frames the body's). DART's parser ignores <inertial>: its bodies are
+    given the file's here, so that the mapping alone is tested. PyBullet's loadMJCF drops the inertias."""
     assert_energy_and_momentum(engine, *read_description(str(MJCF)))
 
 
 def assert_energy_and_momentum(engine, source, model):
     loaded = importer(engine).load(source, model)
+    if engine == "dart" and source.format == "mjcf":
+        import dartpy
+
+        inertials = {body.name: body.inertial for body in model.bodies}
+        for k in range(loaded.skeleton.getNumBodyNodes()):
+            node = loaded.skeleton.getBodyNode(k)
+            inertial = inertials[node.getName()]
+            node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com), inertial.inertia_matrix))
     rng = np.random.default_rng(7)
     for _ in range(2):
         q, v = random_state(model, rng)
@@ -120,21 +129,21 @@ def test_the_urdf_quadruped_with_its_base_welded_checks_in_every_engine():
 
 
 def test_an_mjcf_free_joint_is_the_floating_base_and_checks():
-    """MuJoCo, Drake and DART agree with the reference; PyBullet compares (its MJCF import drops the inertias,
-    and the diagnosis says so). DART's MJCF parser makes the floor a skeleton of its own (left out), welds a
-    <freejoint>'s body (given the long form, <joint type="free">) and ignores <inertial> (set from the file):
-    its notes say each."""
+    """MuJoCo and Drake agree with the reference; PyBullet and DART compare, and the diagnosis names what their
+    MJCF imports do to the inertias (PyBullet drops them; DART's parser ignores <inertial>: 1 kg and 1 kg·m²).
+    DART's parser makes the floor a skeleton of its own (left out) and welds a <freejoint>'s body (given the
+    long form, <joint type="free">): its notes say both."""
     source, model = read_description(str(MJCF))
     assert model.floating is not None and model.floating.name == "root" and (model.nv, model.nconfig) == (14, 15)
     rows = {e.engine: e for e in check(str(MJCF), states=10).engines}
     assert {name: row.agrees for name, row in rows.items()} == {"mujoco": True, "pybullet": False, "drake": True,
-                                                                 "dart": True}
+                                                                 "dart": False}
     assert rows["pybullet"].loaded and all("pybullet drops the inertia" in line for line in rows["pybullet"].diagnosis)
-    assert rows["dart"].notes[:3] == (
+    assert rows["dart"].loaded and rows["dart"].diagnosis[0] == (
+        "link torso: mass 4 kg, inertia principal moments (0.05, 0.08, 0.1) kg·m² — dart gives it 1 kg and 1 kg·m²")
+    assert rows["dart"].notes[:2] == (
         "1 skeleton of the world body's static geoms left out (MjcfParser.readWorld makes one per geom)",
-        '<freejoint> given to DART as <joint type="free"> (its parser welds the body of a <freejoint>)',
-        "mass, COM and inertia of 9 of DART's 9 bodies set from the file (its MJCF parser ignores <inertial> and "
-        "gives every body an identity moment of inertia)")
+        '<freejoint> given to DART as <joint type="free"> (its parser welds the body of a <freejoint>)')
 
 
 def swinging_quadruped(g: float = 0.0, duration: float = 1.0):

@@ -9,9 +9,9 @@ gets); the text is parsed with ``parseSkeletonString`` (so unresolvable
 stiffness set to 0. M is ``getMassMatrix``, the bias
 ``getCoriolisAndGravityForces``, the forward dynamics
 ``computeForwardDynamics`` (no constraint solver: limits are not enforced).
-MJCF: of readWorld's skeletons (one per static geom besides the model) the one
-with degrees of freedom; ``<freejoint>`` spelled ``<joint type="free">``, its
-FreeJoint's frames made the body's; the file's inertias set (:func:`_file_inertias`).
+MJCF: readWorld's skeleton with degrees of freedom (the others are static
+geoms), ``<freejoint>`` spelled ``<joint type="free">``, its FreeJoint's frames
+made the body's; its parser's inertias (it ignores <inertial>) left as parsed.
 """
 
 from __future__ import annotations
@@ -67,13 +67,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
         if freed:
             notes = (*notes, "<freejoint> given to DART as <joint type=\"free\"> (its parser welds the body of a "
                              "<freejoint>)")
-        named = _file_inertias(jointed[0], description)
-        if named:
-            notes = (*notes, f"mass, COM and inertia of {len(named)} of DART's {jointed[0].getNumBodyNodes()} "
-                             f"bodies set from the file (its MJCF parser ignores <inertial> and gives every body "
-                             f"an identity moment of inertia)")
         stated = {"loader": "MjcfParser.readWorld"}
-        return DartModel(jointed[0], description, stated, notes, named)
+        return DartModel(jointed[0], description, stated, notes, _file_names(jointed[0], description))
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
     floating = description.floating is not None
@@ -95,29 +90,14 @@ def _free_joints_spelled_out(text: str) -> tuple[str, int]:
     return re.subn(r"<freejoint\b", '<joint type="free"', text)
 
 
-def _file_inertias(skeleton, description: ModelDescription) -> dict[str, str]:
-    """Give each of the skeleton's body nodes the file's mass, COM and inertia (the description's, by body name):
-    DART 6.20's MJCF parser ignores <inertial> (measured on tests/fixtures/mjcf/quadruped.xml: every body 1 kg,
-    and every moment of inertia the identity, also when the mass comes from geoms). Only where DART's tree is
-    the file's body for body (not where it adds bodies for several joints in one body: frames differ). DART's
-    name of each body given -> the file's (an unnamed body is "Nonamed (k)" in DART, "body<id>" in the description)."""
-    dartpy = library.dartpy()
-    bodies = [b for b in description.bodies if not b.virtual and b.parent_joint is not None]
-    by_name = {b.name: b.inertial for b in bodies}
-    nodes = [skeleton.getBodyNode(k) for k in range(skeleton.getNumBodyNodes())]
+def _file_names(skeleton, description: ModelDescription) -> dict[str, str]:
+    """DART's name of each unnamed MJCF body ("Nonamed (k)") -> the description's ("body<id>"), where DART's tree
+    is the file's body for body (both list the bodies in the file's order); {} otherwise."""
+    bodies = [b.name for b in description.bodies if not b.virtual and b.parent_joint is not None]
+    nodes = [skeleton.getBodyNode(k).getName() for k in range(skeleton.getNumBodyNodes())]
     if len(nodes) != len(bodies):
-        return {}  # its tree is not the file's body for body (several joints in one body): frames differ
-    given = {}
-    for k, node in enumerate(nodes):
-        name = node.getName()
-        if name not in by_name and name.startswith("Nonamed"):
-            name = bodies[k].name  # an unnamed body: both lists are the file's bodies in its order
-        if name in by_name:
-            inertial = by_name[name]
-            node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com, dtype=float),
-                                                    inertial.inertia_matrix))
-            given[node.getName()] = name
-    return given
+        return {}
+    return {dart: file for dart, file in zip(nodes, bodies) if dart != file and dart.startswith("Nonamed")}
 
 
 class DartModel(LoadedModel):
@@ -204,8 +184,9 @@ class DartModel(LoadedModel):
             node = self.skeleton.getBodyNode(k)
             inertia = node.getInertia()  # moment about the COM, in the body frame
             pose = node.getWorldTransform()
-            found[self.named.get(node.getName(), node.getName())] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(),
-                                                  pose.rotation(), pose.translation())
+            name = self.named.get(node.getName(), node.getName())
+            found[name] = world_inertia(node.getMass(), inertia.getLocalCOM(), inertia.getMoment(), pose.rotation(),
+                                        pose.translation())
         return found
 
 
