@@ -19,12 +19,16 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures" / "models"
 USER_FIXES = re.compile(r"not well-formed XML|unexpanded xacro|is not \d finite numbers")
 
 
-def pybullet_data_set() -> list[str]:
+def survey_script():
     spec = importlib.util.spec_from_file_location("scripts_model_survey", SCRIPT)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
-    return module.pybullet_data_set()
+    return module
+
+
+def pybullet_data_set() -> list[str]:
+    return survey_script().pybullet_data_set()
 
 
 def test_the_survey_of_pybullet_data(capsys):
@@ -45,6 +49,34 @@ def test_the_survey_of_pybullet_data(capsys):
     assert all(row["reason"] for row in rows if row["outcome"] != "agrees")
     assert all(row["engines"] for row in rows if row["outcome"] in ("disagrees", "crashed"))
     assert "checking: " in err  # progress on stderr, a line at each tenth when not a terminal
+
+
+def test_the_survey_of_gymnasiums_mujoco_assets(capsys):
+    """Every MJCF in gymnasium's envs/mujoco/assets (the folder, found as `model survey` finds files): xval never
+    fails, the JSON parses, every file MuJoCo compiles is checked (not refused), and every row that is not
+    "agrees" names its engines and a cause. ant.xml (a free joint) is compared in all four engines."""
+    import mujoco
+
+    script = survey_script()
+    models = script.gymnasium_set()
+    assert len(models) >= 14  # gymnasium 1.4.0
+    code, out, err = run_cli(capsys, "model", "survey", script.gymnasium_assets(), "--jobs", "2", "--states", "10",
+                             "--timeout", "120", "--format", "json")
+    report = json.loads(out)
+    rows = {row["model"]: row for row in report["files"]}
+    assert sorted(rows) == models
+    assert report["counts"]["failed"] == 0 and report["counts"]["crashed"] == 0 and code == 0, err
+    for model, row in rows.items():
+        try:
+            mujoco.MjModel.from_xml_path(model)
+        except ValueError:
+            continue
+        assert row["outcome"] != "refused", row
+        if row["outcome"] != "agrees":
+            assert row["engines"] and row["reason"], row
+    ant = rows[str(script.gymnasium_assets() / "ant.xml")]
+    assert (ant["outcome"], ant["moving_joints"]) == ("disagrees", 8)
+    assert ant["engines"] == ["pybullet", "dart"] and "dart holds 1 kg·m²" in ant["reason"], ant
 
 
 def test_a_folder_is_searched_and_an_engine_crash_is_a_crashed_row(capsys, tmp_path):
