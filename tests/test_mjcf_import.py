@@ -187,3 +187,28 @@ def test_a_hinge_an_engine_puts_elsewhere_is_named_with_both_places():
     assert rows["mujoco"].agrees and not rows["drake"].agrees
     assert rows["drake"].diagnosis == ("joint j1: drake puts its axis through (0, 0, 0) m at q = 0, the file "
                                        "through (0, 0, 1) m",)
+
+
+def test_gymnasiums_ant_is_compared_in_four_engines_and_each_disagreement_names_its_links():
+    """gymnasium's ant.xml (a free joint, geoms of density 5 kg/m³, four unnamed shins): MuJoCo and Drake agree
+    with the reference. PyBullet's loadMJCF takes each geom at 1000 kg/m³ (200× the file's masses) with no
+    inertia, splitting a body into a link per joint (``link1_N`` when unnamed) and one per geom: its links are
+    summed back into the file's bodies and named so. DART's parser keeps the geoms' masses with identity
+    moments of inertia."""
+    import gymnasium
+
+    path = Path(gymnasium.__file__).parent / "envs" / "mujoco" / "assets" / "ant.xml"
+    rows = {e.engine: e for e in check(str(path), states=10).engines}
+    assert {name: (row.loaded, row.agrees) for name, row in rows.items()} == {
+        "mujoco": (True, True), "pybullet": (True, False), "drake": (True, True), "dart": (True, False)}
+    legs = "front_left_leg, aux_1, front_right_leg, aux_2, back_leg, aux_3, right_back_leg, aux_4"
+    assert rows["pybullet"].diagnosis == (
+        "link torso: mass 0.327 kg, inertia 0.00818 kg·m² — pybullet gives it 65.4 kg and 0 kg·m²",
+        f"links {legs}: mass 0.0392 kg, inertia principal moments (0.000118, 0.000568, 0.000568) kg·m² — "
+        f"pybullet gives them 7.83 kg and 0 kg·m²",
+        "links body4, body7, body10, body13: mass 0.0676 kg, inertia principal moments (0.000209, 0.00267, "
+        "0.00267) kg·m² — pybullet gives them 13.5 kg and 0 kg·m²")
+    assert [line.split(" — ")[1] for line in rows["dart"].diagnosis] == [
+        "dart holds 1 kg·m² (the file: 0.00818 kg·m²)",
+        "dart holds 1 kg·m² (the file: principal moments (0.000118, 0.000568, 0.000568) kg·m²)",
+        "dart holds 1 kg·m² (the file: principal moments (0.000209, 0.00267, 0.00267) kg·m²)"]

@@ -9,9 +9,9 @@ acceleration, the acceleration measured from one step of dt = 1e-3 (its
 multibody step is semi-implicit Euler) on a fixed base, else M⁻¹(τ − b).
 MJCF: of the bodies ``loadMJCF`` returns (one per static geom besides the
 multibody) the one with joints; a root it floats though MuJoCo welds it is
-welded back (:class:`PyBulletModel`). Its floating base's conventions:
-engines/model/floating.py and :class:`PyBulletModel`. Its prints (C-level
-stdout, stderr) are kept out of the caller's output.
+welded back (:class:`PyBulletModel`); its links summed into the file's bodies
+for the diagnosis. Floating base: engines/model/floating.py and :class:`PyBulletModel`.
+Its prints (C-level stdout, stderr) are kept out of the caller's output.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from engines.model.description import ModelDescription
 from engines.model.floating import rotation, skew
-from engines.model.inertia import world_inertia
+from engines.model.inertia import LinkInertia, combine, world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
 from engines.model.stepping import common_settings, Stepper
@@ -195,18 +195,46 @@ class PyBulletModel(LoadedModel):
         after = np.array([state[1] for state in pb.getJointStates(self.body, self.joints, **kw)])
         return (after - np.asarray(v)) / STEP
 
-    def link_inertias(self):
+    def link_inertias(self) -> dict[str, LinkInertia]:
         kw = {"physicsClientId": self.client}
         for joint in self.joints:
             pb.resetJointState(self.body, joint, 0.0, 0.0, **kw)
-        found = {}
-        for link, name in enumerate(self.link_names):
+        parts: dict[str, list] = {}
+        if self.floating:  # the base is a moving link: placed as the description's neutral pose has it
+            pose = self._pose(self.description.neutral())
+            pb.resetBasePositionAndOrientation(self.body, pose[:3], pose[3:], **kw)
+            info = pb.getDynamicsInfo(self.body, -1, **kw)
+            rotation = np.array(pb.getMatrixFromQuaternion(pose[3:])).reshape(3, 3)
+            base = pb.getBodyInfo(self.body, **kw)[0].decode()
+            parts[base] = [world_inertia(info[0], np.zeros(3), np.diag(info[2]), rotation, pose[:3])]
+        for link, name in enumerate(self._file_names()):
             info = pb.getDynamicsInfo(self.body, link, **kw)
             state = pb.getLinkState(self.body, link, computeForwardKinematics=True, **kw)
             # state[0], state[1]: the inertial frame's world position and orientation; info[2]: its diagonal.
             rotation = np.array(pb.getMatrixFromQuaternion(state[1])).reshape(3, 3)
-            found[name] = world_inertia(info[0], np.zeros(3), np.diag(info[2]), rotation, state[0])
-        return found
+            parts.setdefault(name, []).append(world_inertia(info[0], np.zeros(3), np.diag(info[2]), rotation,
+                                                            state[0]))
+        return {name: combine(found) for name, found in parts.items()}
+
+    def _file_names(self) -> list[str]:
+        """The file's body each link belongs to. loadMJCF makes a body of one link per joint (named
+        ``link1_N`` when the body is unnamed) and one more per geom, welded to it (the first named as the body):
+        a link the file does not name is its moving joint's child body, or else part of its parent's."""
+        bodies = {body.name for body in self.description.bodies}
+        child = {joint.name: joint.child for joint in self.description.joints}
+        base = pb.getBodyInfo(self.body, physicsClientId=self.client)[0].decode()
+        names: list[str] = []
+        for link, name in enumerate(self.link_names):
+            if name not in bodies:
+                info = pb.getJointInfo(self.body, link, physicsClientId=self.client)
+                parent = info[16]
+                joint = info[1].decode()
+                if info[2] != pb.JOINT_FIXED and joint in child:
+                    name = child[joint]
+                else:
+                    name = base if parent < 0 else names[parent]
+            names.append(name)
+        return names
 
     def __del__(self):
         try:
