@@ -212,3 +212,16 @@ def test_gymnasiums_ant_is_compared_in_four_engines_and_each_disagreement_names_
         "dart holds 1 kg·m² (the file: 0.00818 kg·m²)",
         "dart holds 1 kg·m² (the file: principal moments (0.000118, 0.000568, 0.000568) kg·m²)",
         "dart holds 1 kg·m² (the file: principal moments (0.000209, 0.00267, 0.00267) kg·m²)"]
+
+
+def test_a_mass_scale_an_engine_does_not_apply_is_one_diagnosis_line():
+    """gymnasium's half_cheetah.xml says <compiler settotalmass="14">: MuJoCo scales every mass and inertia to
+    that total; Drake 1.51's parser ignores it (and warns), so every link is 1.51× the file's: one line says so."""
+    import gymnasium
+
+    path = Path(gymnasium.__file__).parent / "envs" / "mujoco" / "assets" / "half_cheetah.xml"
+    (drake,) = check(str(path), engines=("drake",), states=10).engines
+    assert drake.loaded and not drake.agrees
+    assert drake.diagnosis == ("links torso, bthigh, bshin, bfoot, fthigh, fshin, ffoot: 14 kg in all — drake scales "
+                               "every mass and inertia of them by 1.51 (one factor: a total mass or a density its "
+                               "parser does not apply, such as <compiler settotalmass>)",)

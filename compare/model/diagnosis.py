@@ -120,6 +120,9 @@ def diagnose(model: ModelDescription, engine: dict[str, LinkInertia], m_scale: f
             groups[head].append(body.name)
         elif body.name in moving and (joint is not None and joint.moving):
             findings.append(Finding((body.name,), file_says(model, body.name, file[body.name]), "has no body for {it}"))
+    scaled = _scaled(model, engine, file, scale)
+    if scaled is not None and not findings:
+        return [scaled]
     for head, members in groups.items():
         if head not in moving:
             continue
@@ -128,6 +131,24 @@ def diagnose(model: ModelDescription, engine: dict[str, LinkInertia], m_scale: f
             continue
         findings.extend(_explain(model, engine[head], members, file, scale))
     return findings
+
+
+def _scaled(model: ModelDescription, engine: dict[str, LinkInertia], file: dict[str, LinkInertia],
+            scale: Scales) -> Finding | None:
+    """One finding when every moving link's mass and inertia are the file's times one factor k ≠ 1 (a total
+    mass or a density the engine's parser does not apply: MuJoCo's <compiler settotalmass>), else None."""
+    links = [name for name in model.moving_links if name in engine and file[name].mass > 0]
+    total = sum(file[name].mass for name in links)
+    if len(links) < 2 or len(links) != len(model.moving_links) or total <= 0:
+        return None
+    k = sum(engine[name].mass for name in links) / total
+    if abs(k - 1) <= RELATIVE or any(any(differs(engine[name], replace(file[name], mass=k * file[name].mass,
+                                                                           inertia=k * file[name].inertia), scale))
+                                     for name in links):
+        return None
+    return Finding(tuple(links), f"{_number(total)} kg in all",
+                   f"scales every mass and inertia of {{it}} by {_number(k)} (one factor: a total mass or a density "
+                   f"its parser does not apply, such as <compiler settotalmass>)")
 
 
 def _survivor(model: ModelDescription, link: str, engine: dict[str, LinkInertia]) -> str | None:
