@@ -80,8 +80,10 @@ def parity_view(directory: Path, scene_id: str, scene: dict[str, Any] | None = N
     rows = []
     for entry in engines:
         loaded = bool(entry.get("loaded"))
-        cells = [{"value": entry.get(key) if loaded else None,
-                  "grade": grade(entry.get(key) if loaded else None, bounds[key])} for _, key in QUANTITIES]
+        # A loaded engine's null is a difference that was not finite (its M singular, its q̈ NaN).
+        values = [(float("inf") if entry.get(key) is None else entry.get(key)) if loaded else None
+                  for _, key in QUANTITIES]
+        cells = [{"value": value, "grade": grade(value, bounds[key])} for value, (_, key) in zip(values, QUANTITIES)]
         rows.append({"engine": entry.get("engine", "?"), "version": entry.get("version", ""), "cells": cells,
                      "agrees": bool(entry.get("agrees")), "message": entry.get("message", ""),
                      "diagnosis": list(entry.get("diagnosis", []))})

@@ -225,3 +225,25 @@ def test_a_mass_scale_an_engine_does_not_apply_is_one_diagnosis_line():
     assert drake.diagnosis == ("links torso, bthigh, bshin, bfoot, fthigh, fshin, ffoot: 14 kg in all — drake scales "
                                "every mass and inertia of them by 1.51 (one factor: a total mass or a density its "
                                "parser does not apply, such as <compiler settotalmass>)",)
+
+
+def test_an_engine_whose_mass_matrix_is_singular_is_compared_and_diagnosed_and_its_json_is_strict(capsys):
+    """gymnasium's humanoid.xml in PyBullet: loadMJCF drops the inertias, so its floating-base M is singular
+    (no q̈). The row is compared, not failed: its forward difference is inf in the table, null in the JSON (which
+    has no Infinity), and the diagnosis names every link whose inertia it dropped."""
+    import json
+
+    import gymnasium
+    from cli_support import run_cli
+
+    path = Path(gymnasium.__file__).parent / "envs" / "mujoco" / "assets" / "humanoid.xml"
+    code, out, err = run_cli(capsys, "model", "check", path, "--engine", "pybullet", "--states", "10",
+                             "--format", "json")
+
+    def no_constant(name):
+        raise ValueError(f"not JSON: {name}")
+
+    (row,) = json.loads(out, parse_constant=no_constant)["engines"]
+    assert code == 1 and row["loaded"] and not row["agrees"] and row["forward"] is None and row["message"] == ""
+    assert row["mass_matrix"] > 1e-3 and len(row["diagnosis"]) == 8
+    assert all(line.endswith("— pybullet drops the inertia") for line in row["diagnosis"]), row["diagnosis"]

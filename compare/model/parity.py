@@ -105,8 +105,18 @@ class ParityReport:
                               "diagnosis": list(self.model_reference.diagnosis)},
                 "states": self.states, "seed": self.seed, "tolerance": TOLERANCE,
                 "forward_tolerance": self.forward_tolerance if math.isfinite(self.forward_tolerance) else None,
-                "engines": [asdict(e) for e in self.engines], "notes": list(self.notes),
+                "engines": [_json_row(e) for e in self.engines], "notes": list(self.notes),
                 "diagnosis": list(self.diagnosis)}
+
+
+def _json_row(row: EngineParity) -> dict:
+    """An engine's row for JSON: a difference that is not finite (an engine's M singular, its q̈ NaN) is null
+    (JSON has no Infinity or NaN)."""
+    found = asdict(row)
+    for quantity in ("mass_matrix", "bias", "forward"):
+        if found[quantity] is not None and not math.isfinite(found[quantity]):
+            found[quantity] = None
+    return found
 
 
 def sample_states(model: ModelDescription, reference: LoadedModel, count: int, seed: int) -> States:

@@ -185,7 +185,10 @@ class PyBulletModel(LoadedModel):
 
     def forward(self, q, v, tau):
         if self.base:
-            return np.linalg.solve(self.mass_matrix(q), np.asarray(tau) - self.bias(q, v))
+            try:
+                return np.linalg.solve(self.mass_matrix(q), np.asarray(tau) - self.bias(q, v))
+            except np.linalg.LinAlgError:  # its M singular (links without inertia): no q̈; its M and links say why
+                return np.full(len(self.selected), np.nan)
         kw = {"physicsClientId": self.client}
         for joint, position, velocity in zip(self.joints, q, v):
             pb.resetJointState(self.body, joint, position, velocity, **kw)
