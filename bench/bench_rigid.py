@@ -154,7 +154,7 @@ def harness_scenes(steps: int):
     suite = load_suite(SUITE)
     kuka = next(s for s in suite.scenes if s.id == SCENE).scene.with_duration(steps * DT)
     return (("KUKA iiwa", kuka, suite.sample_interval),
-            ("A1 quadruped, floating base", quadruped_scene(steps * DT), suite.sample_interval))
+            ("A1 quadruped (floating base)", quadruped_scene(steps * DT), suite.sample_interval))
 
 
 def harness_rows(model: str, scene, sample_interval: float, runs: int = 5, rounds: int = 5) -> list[dict]:
