@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from compare.results.sweep import VariantSweep
 from compare.results.verdict import (
-    SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, points, scene_verdicts,
+    SEVERITIES, Problem, Reach, SceneVerdict, default_focus, families, family, lower_envelope, points, scene_verdicts,
 )
 
 import numpy as np
@@ -183,7 +183,7 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
         return None
     errors = [y for s in series + by_dt for _, y, _ in s.points]
     width, height = VERDICT_PLOT
-    svg = loglog_svg(series, [(p.cost, p.error) for p in verdict.front],
+    svg = loglog_svg(series, [(p.cost, p.error) for p in lower_envelope(verdict.front)],
                      x_title="stepping cost per simulated second / (s/s)", y_title="max position error / m",
                      target=verdict.target, target_label="1e-6·L", element_id=f"pareto-{number}",
                      width=width, height=height, y_extent=errors,

@@ -8,12 +8,15 @@ its interval, per run; then whether every family's winner and ties, the comparis
 equal-cost best are the same in every run, and whether every pair of ratio intervals overlaps. Last, the
 largest run-to-run ratio of one variant's per-step CPU cost (what compare.results.cost.RESOLUTION covers),
 and the verdict over all scenes: winners, ties and comparisons; the equal-cost best apart (a statement at
-one measured budget, so a run within noise of it can fall either side).
+one measured budget, so a run within noise of it can fall either side). Then whether the Pareto front (each
+point's variant and case, in order) is the same, and whether every entry of the JSON that names a variant,
+family or case is identical (text with its numbers masked), listing the first that differ.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -35,6 +38,32 @@ def named(scene: dict[str, Any]) -> dict[str, Any]:
         "comparison": None if c is None else (c["focus"], tuple(c["focus_ties"]), c["other"], tuple(c["other_ties"])),
         "equal-cost best": [(b["family"], b["engine"], tuple(b["ties"])) for b in scene["equal_cost"]["best"]],
     }
+
+
+def name_bearing(node: Any, names: set[str], path: str = "") -> dict[str, Any]:
+    """Every entry of a verdict document that names a variant, family or case, by its path: values that are a
+    name as they are, text that mentions one with its numbers masked (measured figures may move, names not)."""
+    found: dict[str, Any] = {}
+    if isinstance(node, dict):
+        for key, value in node.items():
+            found.update(name_bearing(value, names, f"{path}.{key}"))
+    elif isinstance(node, list):
+        for k, value in enumerate(node):
+            found.update(name_bearing(value, names, f"{path}[{k}]"))
+    elif isinstance(node, str) and (node in names or any(n in node for n in names)):
+        found[path] = node if node in names else re.sub(r"[-+]?\d[\d.eE+-]*", "#", node)
+    return found
+
+
+def names_in(documents: list[dict[str, Any]]) -> set[str]:
+    """The variant labels, families and case ids any of ``documents`` mentions."""
+    found: set[str] = set()
+    for doc in documents:
+        for scene in doc["scenes"]:
+            for model in scene["cost_models"] + scene["reach"]:
+                found.update((model["engine"], model["engine"].split("/", 1)[0]))
+            found.update(p["case"] for p in scene["front"])
+    return found
 
 
 def line(name: str, scene: dict[str, Any]) -> str:
@@ -89,6 +118,22 @@ def main(directories: list[str]) -> None:
         worst = max(spread, key=spread.__getitem__)
         print(f"largest run-to-run ratio of a per-step cost: {spread[worst]:.2f} ({worst[1]} on {worst[0]}, "
               f"{len(spread)} variants timed in every run)")
+    fronts = [[[(p["engine"], p["case"]) for p in scene["front"]] for scene in doc["scenes"]] for doc in documents]
+    jumped = [scene["scene"] for k, scene in enumerate(documents[0]["scenes"]) if any(f[k] != fronts[0][k] for f in fronts)]
+    print(f"Pareto front the same in every run: {not jumped}" + (f" (not on {', '.join(jumped)})" if jumped else ""))
+    for k in range(len(fronts[0])):
+        cases = [{case for _, case in f[k]} for f in fronts]
+        for case in sorted(set().union(*cases) - set.intersection(*cases)):
+            print(f"  on the front in {sum(case in c for c in cases)} of {len(cases)} runs: {case}")
+    names = names_in(documents)
+    # The front apart (above): one point more shifts every later index.
+    entries = [{path: v for path, v in name_bearing(doc, names).items() if ".front[" not in path} for doc in documents]
+    differing = sorted(path for path in set().union(*entries) if any(e.get(path) != entries[0].get(path) for e in entries))
+    for path in differing[:20]:
+        print(f"  differs: {path}: " + " | ".join(str(e.get(path)) for e in entries))
+    print(f"name-bearing entries besides the front identical in every run: {len(entries[0]) - len(differing)} of "
+          f"{len(entries[0])}"
+          f" -> {'yes' if not differing else 'no'}")
     print(f"winners, ties and comparisons the same in every run, ratio intervals overlapping: {agreed}")
     print(f"equal-cost best the same in every run: {not moved}" + (f" (not on {', '.join(moved)})" if moved else ""))
 

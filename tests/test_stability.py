@@ -89,13 +89,14 @@ def test_a_timed_out_trial_leaves_the_boundary_undecided_where_the_search_stood(
 
 
 #: A bead run by the test engines of tests/compare_engines.py: ``pause`` answers after PAUSE s (6 s),
-#: ``sleep`` never. Trials get 4 s, then 4 × 4 s (a new case host warms the variant up first: the paused
-#: trial takes 2 × 6 s).
+#: ``sleep`` never. Trials get 6 s, then 4 × 6 s (a new case host warms the variant up first: the paused
+#: trial sleeps 2 × 6 s, past the first limit on any machine, and the retry leaves 12 s for starting the host,
+#: which took more than 4 s at a load of 4× the cores).
 SLOW_SUITE = """
 name = "slow-stability"
 duration = 0.2
 dt = [1e-2]
-timeout = 4
+timeout = 6
 scenes = [{ id = "bead", scene = "bead" }]
 engines = [{ id = "compare_engines:MISBEHAVING/pause" }, { id = "compare_engines:MISBEHAVING/sleep" }]
 [stability]
@@ -108,11 +109,11 @@ def test_a_trial_past_its_limit_is_run_again_longer_then_undecided_never_unstabl
     path = run_stability(parse_suite(SLOW_SUITE), tmp_path)
     results = {r["engine"]: r for r in load_stability(path.parent)["results"]}
     paused = results["compare_engines:MISBEHAVING/pause"]
-    # 12 s is past the 4 s limit and within the retry's 16 s: decided, and stable.
+    # 12 s is past the 6 s limit and within the retry's 24 s: decided, and stable.
     assert (paused["verdict"], paused["largest_stable_dt"]) == (STABLE_AT_LARGEST, 1e-2)
     asleep = results["compare_engines:MISBEHAVING/sleep"]
     assert (asleep["verdict"], asleep["undecided_dt"], asleep["smallest_unstable_dt"]) == (UNDECIDED, 1e-2, None)
-    assert asleep["trials"][-1]["message"] == "ran past 4 s, then past 16 s: undecided, not unstable"
+    assert asleep["trials"][-1]["message"] == "ran past 6 s, then past 24 s: undecided, not unstable"
 
 
 # -- theory ------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ from compare.results.record import CaseRecord
 from compare.run.results import load_results
 from compare.results.sweep import sweeps
 from compare.results.verdict import (
-    best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, pareto_front, problems, scene_verdicts,
+    best_at_equal_cost, cost_to_reach, default_focus, family, focus_comparison, lower_envelope, pareto_front, problems, scene_verdicts,
 )
 from compare.results.verdict_format import clip, format_verdicts
 from report_support import run_suite_once
@@ -45,13 +45,27 @@ def test_family_is_the_label_before_the_first_slash():
     assert family("plain") == "plain"
 
 
-def test_pareto_front_keeps_only_the_undominated_runs_cheapest_first():
+def test_pareto_front_drops_only_the_certainly_beaten_runs_most_accurate_first():
+    # Changed by issue 45 (it pinned the classic front, cheapest first): a run leaves the front only when
+    # another is certainly cheaper (cost intervals apart; here each run's own, RESOLUTION either side) and
+    # errs no more, so runs within each other's timing noise all stay, listed by error.
     runs = sweeps([
         record("a/x", 0.1, 1e-1, 0.5, index=0), record("a/x", 0.01, 1e-2, 1.0, index=0),
         record("b/y", 0.1, 1e-3, 3.0, index=1), record("b/y", 0.01, 1e-4, 2.0, index=1),
+        record("c/z", 0.1, 1e-2, 10.0, index=2),  # b/y at 2 s/s ([1.2, 3.4]) is certainly cheaper and errs less
     ])
     front = pareto_front(runs)
-    assert [(p.engine, p.cost, p.error) for p in front] == [("a/x", 0.5, 1e-1), ("a/x", 1.0, 1e-2), ("b/y", 2.0, 1e-4)]
+    assert [(p.engine, p.cost, p.error) for p in front] == [
+        ("b/y", 2.0, 1e-4), ("b/y", 3.0, 1e-3), ("a/x", 1.0, 1e-2), ("a/x", 0.5, 1e-1)]
+    # The staircase drawn through it: the classic front at the measured costs, cheapest first.
+    assert [(p.engine, p.cost) for p in lower_envelope(front)] == [("a/x", 0.5), ("a/x", 1.0), ("b/y", 2.0)]
+
+
+def test_pareto_front_names_equal_errors_in_suite_order():
+    runs = sweeps([record("a/x", 0.1, 1e-3, 1.0, index=0), record("b/y", 0.1, 1e-3, 1.2, index=1)])
+    assert [p.engine for p in pareto_front(runs)] == ["a/x", "b/y"]
+    swapped = sweeps([record("a/x", 0.1, 1e-3, 1.2, index=0), record("b/y", 0.1, 1e-3, 1.0, index=1)])
+    assert [p.engine for p in pareto_front(swapped)] == ["a/x", "b/y"]
 
 
 def test_cost_to_reach_interpolates_on_the_log_log_curve():

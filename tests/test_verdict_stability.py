@@ -262,3 +262,23 @@ def test_the_equal_cost_pick_does_not_jump_with_the_costs(scene):
         assert at_equal_cost(other) == at_equal_cost(base), label
         for mine, theirs in zip(base.best, other.best):
             assert overlap((mine.reading.low, mine.reading.high), (theirs.reading.low, theirs.reading.high)), label
+
+
+def front(verdict: SceneVerdict) -> list[tuple[str, str]]:
+    """The Pareto front as `xval verdict --format json` names it: each point's variant and case, in order."""
+    return [(p.engine, p.case_id) for p in verdict.front]
+
+
+@pytest.mark.xfail(strict=True, reason="issue 45, open: a pair whose cost ratio sits near the intervals' edge "
+                   "(about 2.9, close to the dt grid's 3.16) still flips (bead 2 of 45 cases, double pendulum 29)")
+@pytest.mark.parametrize("scene", ["bead", "double-pendulum"])
+def test_the_pareto_front_does_not_jump_with_the_costs(scene):
+    """A run leaves the front only when another is certainly cheaper and errs no more, and the front is listed
+    by error then suite order: costs moved ±20 % case by case (and each recorded run, each single repeat, a
+    case slowed 52×) give the same points in the same order."""
+    base = front(verdicts(RUNS[0])[scene])
+    # ours' RK4 variants cost within each other's intervals: all of them stay.
+    assert {engine for engine, _ in base} >= {"ours/plain-rk4", "ours/projection-rk4", "ours/lagrangian-rk4"}
+    cases = [*((f"run 1, costs ±20 % (seed {seed})", (0, perturbed(seed))) for seed in range(20)), *variants()]
+    for label, (k, times) in cases:
+        assert front(verdicts(RUNS[k], times)[scene]) == base, label

@@ -111,18 +111,38 @@ def points(sweep: VariantSweep) -> list[Point]:
     return [p for p in found if p is not None]
 
 
-def pareto_front(sweeps: Iterable[VariantSweep]) -> list[Point]:
-    """The non-dominated Points of every competing variant, cheapest first (error falls along the list).
+def certainly_cheaper(a: Point, b: Point) -> bool:
+    """Whether ``a`` costs less than ``b`` whatever the timing noise: the high end of its cost interval is
+    below the low end of ``b``'s, or both are runs of one variant (one per-step cost) and ``a`` takes fewer
+    steps per simulated second (and costs less: a variant without a cost model has each run's own cost)."""
+    if a.engine == b.engine and 0 < a.rate < b.rate and a.cost < b.cost:
+        return True
+    return a.interval[1] < b.interval[0]
 
-    A point is on the front when no other point costs no more and errs strictly less,
-    or costs strictly less and errs no more.
+
+def pareto_front(sweeps: Iterable[VariantSweep]) -> list[Point]:
+    """The Points of every competing variant that no other point beats for certain, most accurate first.
+
+    A point leaves the front only when another is certainly cheaper (:func:`certainly_cheaper`) and errs no
+    more; points whose cost intervals overlap all stay, so which of them is on the front does not move with
+    the timing. Ordered by error, then by suite order of the variants (then the larger dt first): no timing
+    in the order either. Costs are not monotone along this list; :func:`lower_envelope` is the staircase.
     """
-    candidates = sorted((p for s in competitors(sweeps) for p in points(s)), key=lambda p: (p.cost, p.error))
-    front: list[Point] = []
-    for candidate in candidates:
-        if not front or candidate.error < front[-1].error:
-            front.append(candidate)
-    return front
+    rank = {s.engine: k for k, s in enumerate(competitors(sweeps))}
+    candidates = [(rank[s.engine], -p.dt, p) for s in competitors(sweeps) for p in points(s)]
+    kept = [(k, dt, p) for k, dt, p in candidates
+            if not any(q.error <= p.error and certainly_cheaper(q, p) for _, _, q in candidates)]
+    return [p for _, _, p in sorted(kept, key=lambda c: (c[2].error, c[0], c[1]))]
+
+
+def lower_envelope(front: Iterable[Point]) -> list[Point]:
+    """The classic Pareto staircase through ``front`` at its measured costs, cheapest first: each point errs
+    less than every cheaper one. For drawing only: at costs within each other's noise it can move."""
+    envelope: list[Point] = []
+    for candidate in sorted(front, key=lambda p: (p.cost, p.error)):
+        if not envelope or candidate.error < envelope[-1].error:
+            envelope.append(candidate)
+    return envelope
 
 
 @dataclass(frozen=True)
