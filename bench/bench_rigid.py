@@ -14,6 +14,9 @@
    stepping, per step), ours/baumgarte-symplectic-euler against mujoco/hinge and ours/baumgarte-rk4
    against mujoco/hinge-rk4, the four taken in turns; a run's figure is the least of 5 such rounds, and
    5 runs give the ratio's median and spread (least–most). Target ≤ 1.0× for both.
+4. A floating-base quadruped as the harness times it: pybullet_data's Unitree A1 (12 revolute joints) read with
+   ``base = "floating"``, the same pairs timed the same way. ours steps the free root as a plain rigid body (no
+   constraint row); MuJoCo as a free joint. Target ≤ 1.0× for both.
 
 Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
 compare ratios within a run, not across machines.
@@ -42,6 +45,8 @@ from rigid_support import chain  # noqa: E402
 SCALING_TARGET = 1.1
 KUKA_TARGET = 5.0
 HARNESS_TARGET = 1.0
+#: A real 12-joint quadruped whose URDF loads in ours and MuJoCo alike (laikago's links have no inertia).
+QUADRUPED = "pybullet_data:a1/a1.urdf"
 #: (ours, its MuJoCo peer) as bench/bench_models.py pairs them.
 HARNESS_PAIRS = (("ours/baumgarte-symplectic-euler", "mujoco/hinge"), ("ours/baumgarte-rk4", "mujoco/hinge-rk4"))
 VARIANTS = (("baumgarte", "rk4"), ("baumgarte", "symplectic-euler"), ("projection", "symplectic-euler"))
@@ -126,27 +131,50 @@ def kuka_rows(repeats: int, steps: int = 500) -> list[dict]:
     return rows
 
 
-def harness_rows(runs: int = 5, rounds: int = 5, steps: int = 2000) -> list[dict]:
-    """Per step as the harness times it: each run the least of ``rounds`` rounds taken in turns round the four
-    variants (2 s of the KUKA scene each), then the ratio's median and spread over ``runs`` runs."""
-    import math
+def quadruped_scene(duration: float):
+    """pybullet_data's Unitree A1 (12 revolute joints, full inertias) with its base floating, from the suite's
+    reading of a URDF with ``base = "floating"``: legs crouched and swinging, the base moving and turning, gravity
+    on (no contacts: it falls freely, which costs a step what standing would)."""
+    from engines.model.scene import model_scene
 
-    from bench_models import DT, SCENE, SUITE, engine_of, stepping
+    legs = ("FR", "FL", "RR", "RL")
+    q0 = {f"{leg}_{part}_joint": angle for leg in legs for part, angle in (("hip", 5), ("upper", 40), ("lower", -80))}
+    v0 = {f"{leg}_{part}_joint": rate * (1 + 0.2 * k) for k, leg in enumerate(legs)
+          for part, rate in (("hip", 1.0), ("upper", 2.0), ("lower", -3.0))}
+    return model_scene("a1", QUADRUPED, q0=q0, v0={**v0, "__floating_base__": [0.1, 0.0, 0.0, 0.2, 0.5, 0.1]},
+                       duration=duration, root_joint="floating")
+
+
+def harness_scenes(steps: int):
+    """(label, scene, sample interval) of each model the harness section times: the KUKA iiwa from
+    suites/models.toml and the floating-base quadruped, ``steps`` steps of dt 1e-3 s each."""
+    from bench_models import DT, SCENE, SUITE
     from compare.suite.reader import load_suite
 
     suite = load_suite(SUITE)
-    scene = next(s for s in suite.scenes if s.id == SCENE).scene.with_duration(steps * DT)
+    kuka = next(s for s in suite.scenes if s.id == SCENE).scene.with_duration(steps * DT)
+    return (("KUKA iiwa", kuka, suite.sample_interval),
+            ("A1 quadruped (floating base)", quadruped_scene(steps * DT), suite.sample_interval))
+
+
+def harness_rows(model: str, scene, sample_interval: float, runs: int = 5, rounds: int = 5) -> list[dict]:
+    """Per step as the harness times it: each run the least of ``rounds`` rounds taken in turns round the four
+    variants (the whole of ``scene`` each), then the ratio's median and spread over ``runs`` runs."""
+    import math
+
+    from bench_models import engine_of, stepping
+
     ids = [i for pair in HARNESS_PAIRS for i in pair]
     engines = {i: engine_of(i) for i in ids}
     for engine, variant in engines.values():  # numba loading ours' kernels, each engine's first calls
-        stepping(engine, variant, scene.with_duration(suite.sample_interval), suite.sample_interval)
+        stepping(engine, variant, scene.with_duration(sample_interval), sample_interval)
     ratios: dict[str, list[float]] = {ours: [] for ours, _ in HARNESS_PAIRS}
     last: dict[str, float] = {}
     for _ in range(runs):
         best = dict.fromkeys(ids, math.inf)
         for _ in range(rounds):
             for i, (engine, variant) in engines.items():
-                seconds, taken = stepping(engine, variant, scene, suite.sample_interval)
+                seconds, taken = stepping(engine, variant, scene, sample_interval)
                 best[i] = min(best[i], seconds / taken)
         for ours, peer in HARNESS_PAIRS:
             ratios[ours].append(best[ours] / best[peer])
@@ -154,9 +182,10 @@ def harness_rows(runs: int = 5, rounds: int = 5, steps: int = 2000) -> list[dict
     rows = []
     for ours, peer in HARNESS_PAIRS:
         r = sorted(ratios[ours])
-        rows.append({"section": "harness", "variant": ours, "peer": peer, "ratios": r, "median": float(np.median(r)),
-                     "us_per_step": last[ours] * 1e6, "peer_us_per_step": last[peer] * 1e6,
-                     "target": HARNESS_TARGET, "met": float(np.median(r)) <= HARNESS_TARGET})
+        rows.append({"section": "harness", "model": model, "variant": ours, "peer": peer, "ratios": r,
+                     "median": float(np.median(r)), "us_per_step": last[ours] * 1e6,
+                     "peer_us_per_step": last[peer] * 1e6, "target": HARNESS_TARGET,
+                     "met": float(np.median(r)) <= HARNESS_TARGET})
     return rows
 
 
@@ -177,13 +206,19 @@ def main(argv: list[str]) -> int:
     for row in kuka:
         print(f"{row['variant']:<34}{row['us_per_step']:8.2f}  {row['peer']:<14}{row['peer_us_per_step']:8.2f}"
               f"{row['ratio']:7.2f}×  {('met' if row['met'] else 'MISSED') if row['target'] else '(no target)'}")
-    harness = harness_rows(runs=3 if quick else 5)
-    print(f"\nKUKA iiwa as the harness times it (suites/models.toml kuka-iiwa, Engine.simulate, 2 s at dt 1e-3 s): "
-          f"each run the least of 5 rounds in turns; ratio over {len(harness[0]['ratios'])} runs")
-    print(f"{'variant':<34}{'µs':>7}  {'peer':<18}{'µs':>7}{'median':>8}  {'spread':<13}  target ≤ {HARNESS_TARGET:g}×")
-    for row in harness:
-        print(f"{row['variant']:<34}{row['us_per_step']:7.2f}  {row['peer']:<18}{row['peer_us_per_step']:7.2f}"
-              f"{row['median']:7.2f}×  {row['ratios'][0]:.2f}–{row['ratios'][-1]:.2f}×    {'met' if row['met'] else 'MISSED'}")
+    harness = []
+    for model, scene, sample_interval in harness_scenes(steps=2000):
+        rows_of_model = harness_rows(model, scene, sample_interval, runs=3 if quick else 5)
+        harness += rows_of_model
+        print(f"\n{model} as the harness times it ({scene.model}, {len(scene.joint_names)} joints; Engine.simulate, "
+              f"2 s at dt 1e-3 s): each run the least of 5 rounds in turns; ratio over "
+              f"{len(rows_of_model[0]['ratios'])} runs")
+        print(f"{'variant':<34}{'µs':>7}  {'peer':<18}{'µs':>7}{'median':>8}  {'spread':<13}  "
+              f"target ≤ {HARNESS_TARGET:g}×")
+        for row in rows_of_model:
+            print(f"{row['variant']:<34}{row['us_per_step']:7.2f}  {row['peer']:<18}{row['peer_us_per_step']:7.2f}"
+                  f"{row['median']:7.2f}×  {row['ratios'][0]:.2f}–{row['ratios'][-1]:.2f}×    "
+                  f"{'met' if row['met'] else 'MISSED'}")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {load:.1f} on {os.cpu_count()} CPUs")
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,7 +11,9 @@ Allocations: the kernel is compiled without numba's runtime (``ours.banded``: ``
 an array allocation does not compile, so a step cannot allocate; the Python side of a call
 (``Stepping.advance``, once per sample) is counted with tracemalloc.
 
-    .venv/bin/python bench/profile_rigid.py [--repeats 9]
+The A1 quadruped of bench/bench_rigid.py (its base floating) with ``--model a1``.
+
+    .venv/bin/python bench/profile_rigid.py [--repeats 9] [--model kuka|a1]
 """
 
 from __future__ import annotations
@@ -93,6 +95,19 @@ def kuka():
     return mech, initial_state(mech, {j.name: 0.3 for j in description.moving_joints})
 
 
+def a1():
+    """bench/bench_rigid.py's floating-base quadruped (the Unitree A1, 12 revolute joints) at its first state."""
+    from bench_rigid import quadruped_scene
+    from engines.ours.model import OursStepper
+
+    stepper = OursStepper(quadruped_scene(0.01), 1e-3, "baumgarte", "symplectic-euler")
+    return stepper.model.mechanism, stepper.run.y.copy()
+
+
+#: --model: (the mechanism and its state, its name in the table's title).
+MODELS = {"kuka": (kuka, "KUKA iiwa"), "a1": (a1, "A1 quadruped (floating base)")}
+
+
 def stage_seconds(mech, y0, repeats: int, n: int = 20_000) -> dict[str, float]:
     """s per call of each stage of the derivative (baumgarte gains), by differences of prefix loops."""
     model, work = pack(mech), workspace(mech, 1)
@@ -139,15 +154,17 @@ def python_allocations(mech, y0, calls: int = 200) -> float:
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=9, help="timed runs per figure; the least is kept")
+    parser.add_argument("--model", choices=tuple(MODELS), default="kuka", help="the model profiled (default kuka)")
     args = parser.parse_args(argv)
-    mech, y0 = kuka()
+    build, title = MODELS[args.model]
+    mech, y0 = build()
     resolve("baumgarte", "symplectic-euler")
     steps = {f"{m}-{i}": step_seconds(mech, y0, m, i, args.repeats)
              for m, i in (("baumgarte", "symplectic-euler"), ("plain", "symplectic-euler"),
                           ("projection", "symplectic-euler"), ("baumgarte", "rk4"), ("projection", "rk4"))}
     stages = stage_seconds(mech, y0, args.repeats)
     euler = steps["baumgarte-symplectic-euler"]
-    print(f"KUKA iiwa ({len(mech.bodies)} bodies, {len(mech.joints)} joints), dt 1e-3 s: thread CPU per call, "
+    print(f"{title} ({len(mech.bodies)} bodies, {len(mech.joints)} joints), dt 1e-3 s: thread CPU per call, "
           f"least of {args.repeats}; share = of one baumgarte-symplectic-euler step ({euler * 1e6:.2f} µs)")
     print("| stage | µs | share of a step |")
     print("|---|---|---|")

@@ -257,3 +257,63 @@ def test_written_out_blocks_are_what_their_generator_writes():
 
     assert generate.TARGET.read_text(encoding="utf-8") == generate.source()
     assert kernel.BLOCKS_DIGEST == generate.digest(generate.source())  # numba's cache of the kernel follows
+
+
+def test_paired_folds_give_the_single_folds_results_bit_for_bit():
+    """The elimination folds two independent joints at once (ours.rigid.generate's fold_pair): on a free body
+    with two siblings of every kind, and two grandchildren on different parents, every joint is folded in a
+    pair, and the derivative (u̇ and λ) is the one the single folds give, bit for bit."""
+    from ours.banded import compiled_fma
+    from ours.rigid import blocks, kernel
+
+    @compiled_fma
+    def single_folds(y, model, work, ks, kd, ydot):
+        """kernel.derivative with every joint folded alone, in the same order."""
+        nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
+        kernel.rotations(y, nb, work[0])
+        kernel.joint_rows(y, model, work[0], work[1], work[2], work[3], work[4])
+        kernel.forces(y, model, work)
+        kernel.row_targets(y, model, work, ks, kd)
+        kernel.assemble(model, work)
+        JA, JB, D, X, x = work[2], work[3], work[5], work[6], work[7]
+        for idx in range(order.shape[0]):
+            k = order[idx]
+            A, B, t = parent[k], child[k], kind[k]
+            if t == kernel.REVOLUTE:
+                blocks.fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B)
+            elif t == kernel.PRISMATIC:
+                blocks.fold_sweep_prismatic(D, X, JA, JB, x, nb, k, A, B)
+            elif t == kernel.BALL:
+                blocks.fold_sweep_ball(D, X, JA, JB, x, nb, k, A, B)
+            else:
+                blocks.fold_sweep_fixed(D, X, JA, JB, x, nb, k, A, B)
+        for idx in range(free.shape[0]):
+            b = free[idx]
+            kernel._cholesky(D, b, 6)
+            kernel._forward(D, b, 6, x, b, 0)
+            kernel._backward(D, b, 6, x, b, 0)
+        kernel.sweep_up(model, work, x)
+        kernel.rates(y, model, work, ydot)
+
+    rng = np.random.default_rng(7)
+    kinds = ["revolute", "revolute", "ball", "ball", "prismatic", "prismatic", "fixed", "fixed", "revolute", "revolute"]
+    parents = [0, 0, 0, 0, 0, 0, 0, 0, 1, 2]
+    bodies = tuple(Body(f"b{i}", 0.5 + i * 0.1, rng.normal(size=3) * 0.1, np.diag([0.01, 0.02, 0.025]) * (1 + i))
+                   for i in range(11))
+    joints = tuple(Joint(f"j{i}", kinds[i], parents[i], i + 1, rng.normal(size=3) * 0.3,
+                         rotation_of(rng.normal(size=4)), rng.normal(size=3)) for i in range(10))
+    mech = Mechanism(bodies, joints)
+    model = pack(mech)
+    order, parent, child = model[12], model[5], model[6]
+    assert [kinds[k] for k in order] == ["revolute"] * 2 + kinds[:8]  # deepest first, siblings side by side
+    assert all(parent[order[i]] != child[order[i + 1]] for i in range(0, 10, 2))  # so every joint is in a pair
+    y = initial_state(mech, {"j0": 0.4, "j4": 0.1, "j8": -0.3}, {"j0": 1.0, "j5": -0.5, "j9": 2.0})
+    y[10:13] += rng.normal(size=3)  # the free root turns
+    paired, single = np.zeros_like(y), np.zeros_like(y)
+    work = workspace(mech, 1)
+    assert kernel.derivative(y, model, work, 3.0, 4.0, paired) == 0
+    lam = work[8].copy()
+    work = workspace(mech, 1)
+    single_folds(y, model, work, 3.0, 4.0, single)
+    assert np.array_equal(paired, single) and np.array_equal(lam, work[8])
+    assert np.abs(paired).max() > 0 and np.abs(lam).max() > 0

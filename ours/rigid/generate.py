@@ -170,6 +170,44 @@ def fold(kind: str, sweep: bool = False) -> str:
     return "\n".join(lines)
 
 
+#: The locals and joint indices of a fold: renamed in the second fold of a pair.
+_FOLD_NAMES = re.compile(r"\b(?:[bysqzugw]\d+(?:_\d+)?|s|j|k|A|B)\b")
+
+
+def _statements(lines: list[str]) -> list[list[str]]:
+    """Lines grouped into the fold's statements (a line indented past the body's four spaces continues one)."""
+    out: list[list[str]] = []
+    for line in lines:
+        if line.startswith("        ") and out:
+            out[-1].append(line)
+        else:
+            out.append([line])
+    return out
+
+
+def fold_pair(kind: str) -> str:
+    """Two independent joints of one kind eliminated and swept at once (neither's parent body is the other's
+    child): each fold's statements are :func:`fold`'s, the two interleaved one for one. A fold is a chain of
+    square roots and divisions (the Cholesky pivots), each waiting on the last; written side by side, the
+    processor runs the two chains together. Each joint's arithmetic is its single fold's, in the same order
+    (the two add into a shared parent in the order the single folds would), so the results are the same bit
+    for bit."""
+    body = fold(kind, sweep=True).split("\n")[4:]  # after the decorator, the def, the docstring and j = nb + k
+    split = body.index("    if A >= 0:")
+    pre, inside = body[:split], body[split + 1:-1]
+
+    def second(lines: list[str]) -> list[str]:
+        return [_FOLD_NAMES.sub(lambda m: "p_" + m.group(0), line) for line in lines]
+
+    lines = [f"@llvm_inlined\ndef fold_sweep_{kind}_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):",
+             f'    """fold_sweep_{kind} of joint k and then of joint p_k, the two interleaved. False if not definite."""',
+             "    j = nb + k", "    p_j = nb + p_k"]
+    for one, two in zip(_statements(pre), _statements(second(pre)), strict=True):
+        lines += one + two
+    lines += ["    if A >= 0:", *inside, "    if p_A >= 0:", *second(inside), "    return True"]
+    return "\n".join(lines)
+
+
 def sweep_down(kind: str) -> str:
     form = ROW_FORMS[kind]
     r = len(form)
@@ -236,7 +274,7 @@ def targets(kind: str) -> str:
 def source() -> str:
     parts = [HEADER]
     for kind in ROW_FORMS:
-        parts += [fold(kind), fold(kind, sweep=True), sweep_down(kind), sweep_up(kind), targets(kind)]
+        parts += [fold(kind), fold(kind, sweep=True), fold_pair(kind), sweep_down(kind), sweep_up(kind), targets(kind)]
     return "\n\n\n".join(parts) + "\n"
 
 

@@ -14,7 +14,8 @@ import math
 
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.blocks import (
-    fold_sweep_ball, fold_sweep_fixed, fold_sweep_prismatic, fold_sweep_revolute,
+    fold_sweep_ball, fold_sweep_ball_pair, fold_sweep_fixed, fold_sweep_fixed_pair, fold_sweep_prismatic,
+    fold_sweep_prismatic_pair, fold_sweep_revolute, fold_sweep_revolute_pair,
     fold_ball, fold_fixed, fold_prismatic, fold_revolute, sweep_down_ball, sweep_down_fixed, sweep_down_prismatic,
     sweep_down_revolute, sweep_up_ball, sweep_up_fixed, sweep_up_prismatic, sweep_up_revolute, targets_ball,
     targets_fixed, targets_prismatic, targets_revolute,
@@ -24,7 +25,7 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 #: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
 #: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
 #: must change this file too, or the compiled step would keep the old blocks.
-BLOCKS_DIGEST = "ee530e6a3418e8bea3936de6d0b3ff4cd537acdde657f9ed5a3e22b098359fe6"
+BLOCKS_DIGEST = "8c5f4ad6c258fc01adc4ba56080eab00e67752563aa6505b81517bde06110023"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
@@ -291,9 +292,27 @@ def factor_and_sweep(model, work, x):
     blocks are swept while still in registers); :func:`sweep_up` finishes the solve. False if singular."""
     nb, kind, parent, child, order, free = model[0].shape[0], model[4], model[5], model[6], model[12], model[13]
     JA, JB, D, X = work[2], work[3], work[5], work[6]
-    for idx in range(order.shape[0]):
+    n, idx = order.shape[0], 0
+    while idx < n:
         k = order[idx]
         A, B, t = parent[k], child[k], kind[k]
+        idx += 1
+        if idx < n:  # the next joint of the same kind, and neither folds into the body the other eliminates:
+            p_k = order[idx]  # the two folds are independent, done at once (ours.rigid.generate's fold_pair)
+            p_A, p_B = parent[p_k], child[p_k]
+            if kind[p_k] == t and A != p_B and p_A != B:
+                idx += 1
+                if t == REVOLUTE:
+                    ok = fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B)
+                elif t == PRISMATIC:
+                    ok = fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B)
+                elif t == BALL:
+                    ok = fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B)
+                else:
+                    ok = fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B)
+                if not ok:
+                    return False
+                continue
         if t == REVOLUTE:
             ok = fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B)
         elif t == PRISMATIC:
