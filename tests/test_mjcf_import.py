@@ -247,3 +247,22 @@ def test_an_engine_whose_mass_matrix_is_singular_is_compared_and_diagnosed_and_i
     assert code == 1 and row["loaded"] and not row["agrees"] and row["forward"] is None and row["message"] == ""
     assert row["mass_matrix"] > 1e-3 and len(row["diagnosis"]) == 8
     assert all(line.endswith("— pybullet drops the inertia") for line in row["diagnosis"]), row["diagnosis"]
+
+
+def test_separate_trees_of_the_world_body_are_left_out_and_the_arm_is_compared():
+    """An arm with a separate free puck and a target on two slides (like pybullet_data's striker and
+    gymnasium's pusher): separate trees share no joint with the arm, so the check keeps the arm (the tree with
+    the most moving joints), says which trees it left out, and compares it in every engine instead of refusing
+    it; MuJoCo and Drake agree with the model reference. The actuator naming a target slide and the keyframe
+    (whose qpos holds the left-out joints) go with them, or MuJoCo would not compile the text."""
+    path = FIXTURES / "separate_trees.xml"
+    report = check(str(path), states=10)
+    assert report.moving_joints == ("shoulder_pan", "elbow")
+    assert all(e.loaded for e in report.engines), [(e.engine, e.message) for e in report.engines]
+    assert {e.engine: e.agrees for e in report.engines if e.engine in ("mujoco", "drake")} == \
+        {"mujoco": True, "drake": True}
+    assert "puck (joint puck_free); target (joints target_x, target_y) left out: each is a separate tree of the " \
+        "world body that shares no joint with the model (shoulder), so it cannot change its M, bias or q̈" \
+        in report.notes
+    source, model = read_description(str(path))
+    assert [b.name for b in model.bodies] == ["world", "shoulder", "forearm"]

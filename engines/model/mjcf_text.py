@@ -8,6 +8,11 @@ names (found relative to the file that names it, else to the main file's
 folder, as MuJoCo 4 does), recursively, and gives every ``<compiler>`` the
 effective mesh and texture folders as absolute paths (a ``<compiler>`` is
 added when the file has none), so the text loads the same from anywhere.
+:func:`main_tree` keeps one kinematic tree of the world body (the one with the
+most moving joints): a separate tree (a puck, a target on slides) shares no
+joint with it, so with contacts, equality constraints and tendons off it
+cannot change the model's M, bias or q̈, and engines that load one multibody
+(PyBullet, DART) would refuse the file.
 """
 
 from __future__ import annotations
@@ -68,3 +73,43 @@ def _absolute_assets(root: ET.Element, folder: Path) -> None:
     for compiler in compilers:
         compiler.attrib.pop("assetdir", None)
         compiler.attrib.update(absolute)
+
+
+#: Sections whose elements name joints, bodies, geoms or sites; an element naming a left-out one goes with it.
+REFERRING = ("actuator", "sensor", "equality", "tendon", "contact")
+
+
+def main_tree(text: str) -> tuple[str, str | None]:
+    """(MJCF ``text`` with only its main tree among the world body's trees with moving joints, a note naming
+    the trees and joints left out, or None when nothing was). The main tree has the most moving joints (ties:
+    the first in the file); trees without joints (welded to the world) stay. Elements that name anything left
+    out (actuators, sensors, equalities, tendons, contact pairs) go too, and keyframes (their qpos would no
+    longer fit)."""
+    root = ET.fromstring(text)
+    worlds = [(world, body) for world in root.iter("worldbody") for body in world.findall("body")]
+    counts = [sum(1 for e in body.iter() if e.tag in ("joint", "freejoint")) for _, body in worlds]
+    moving = [i for i, count in enumerate(counts) if count]
+    if len(moving) < 2:
+        return text, None
+    keep = max(moving, key=lambda i: (counts[i], -i))
+    left, names = [], set()
+    for i in moving:
+        if i == keep:
+            continue
+        world, body = worlds[i]
+        joints = [e.get("name") or "(unnamed)" for e in body.iter() if e.tag in ("joint", "freejoint")]
+        left.append(f"{body.get('name') or f'body {i + 1} of the world body'} (joint{'s' if len(joints) > 1 else ''} "
+                    f"{', '.join(joints)})")
+        names.update(e.get("name") for e in body.iter() if e.get("name"))
+        world.remove(body)
+    for section in [s for tag in REFERRING for s in root.iter(tag)]:
+        for element in list(section):
+            if any(value in names for e in element.iter() for value in e.attrib.values()):
+                section.remove(element)
+    for parent in list(root.iter()):
+        for child in [c for c in parent if c.tag == "keyframe"]:
+            parent.remove(child)
+    main = worlds[keep][1].get("name") or f"body {keep + 1} of the world body"
+    note = (f"{'; '.join(left)} left out: {'each' if len(left) > 1 else 'it'} is a separate tree of the world body "
+            f"that shares no joint with the model ({main}), so it cannot change its M, bias or q̈")
+    return ET.tostring(root, encoding="unicode"), note

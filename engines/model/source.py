@@ -8,7 +8,9 @@ of a URDF (and, when asked, every ``<mimic>``) before an engine sees it, so
 missing mesh files cannot stop an import; the notes say what was dropped
 (and blank lines before the XML declaration, which PyBullet reads). An MJCF keeps its geoms (MuJoCo derives inertias from them) and is made
 self-contained instead (``engines.model.mjcf_text``: includes inlined, asset
-folders absolute), so it loads the same from a string or a temporary file.
+folders absolute), so it loads the same from a string or a temporary file,
+and keeps only its main kinematic tree (a separate tree cannot change the
+model's dynamics; the notes name what was left out).
 :meth:`ModelSource.engine_file` is that text in a temporary file, for the
 loaders that read only files.
 """
@@ -64,15 +66,17 @@ class ModelSource:
         """The text engines load (URDF without <visual>/<collision>, MJCF self-contained) and notes saying
         what changed."""
         if self.format != "urdf":
-            from engines.model.mjcf_text import flatten
+            from engines.model.mjcf_text import flatten, main_tree
 
             text, count = flatten(self.text, self.path)
+            text, separate = main_tree(text)
             if self.lock:
                 from engines.model.lock import lock_mjcf
 
                 text = lock_mjcf(text, dict(self.lock))
             return text, ((f"{count} <include> element{'s' if count > 1 else ''} inlined (each file found relative "
-                           f"to the file that names it)",) if count else ()) + self.notes + self.lock_notes()
+                           f"to the file that names it)",) if count else ()) + ((separate,) if separate else ()) + \
+                self.notes + self.lock_notes()
         root = self.root
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
