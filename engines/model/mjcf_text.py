@@ -8,11 +8,10 @@ names (found relative to the file that names it, else to the main file's
 folder, as MuJoCo 4 does), recursively, and gives every ``<compiler>`` the
 effective mesh and texture folders as absolute paths (a ``<compiler>`` is
 added when the file has none), so the text loads the same from anywhere.
-:func:`main_tree` keeps one kinematic tree of the world body (the one with the
-most moving joints): a separate tree (a puck, a target on slides) shares no
-joint with it, so with contacts, equality constraints and tendons off it
-cannot change the model's M, bias or q̈, and engines that load one multibody
-(PyBullet, DART) would refuse the file.
+:func:`main_tree` keeps the world body's tree with the most moving joints: a
+separate tree (a puck, a target on slides) shares no joint with it, so with
+contacts, equalities and tendons off it cannot change the model's M, bias or
+q̈ (PyBullet and DART, which load one multibody, would refuse the file).
 """
 
 from __future__ import annotations
@@ -92,7 +91,8 @@ def main_tree(text: str) -> tuple[str, str | None]:
     if len(moving) < 2:
         return text, None
     keep = max(moving, key=lambda i: (counts[i], -i))
-    left, names = [], set()
+    left: list[str] = []
+    names: set[str] = set()
     for i in moving:
         if i == keep:
             continue
@@ -100,7 +100,7 @@ def main_tree(text: str) -> tuple[str, str | None]:
         joints = [e.get("name") or "(unnamed)" for e in body.iter() if e.tag in ("joint", "freejoint")]
         left.append(f"{body.get('name') or f'body {i + 1} of the world body'} (joint{'s' if len(joints) > 1 else ''} "
                     f"{', '.join(joints)})")
-        names.update(e.get("name") for e in body.iter() if e.get("name"))
+        names.update(e.get("name", "") for e in body.iter() if e.get("name"))
         world.remove(body)
     for section in [s for tag in REFERRING for s in root.iter(tag)]:
         for element in list(section):

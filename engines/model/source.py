@@ -8,9 +8,8 @@ of a URDF (and, when asked, every ``<mimic>``) before an engine sees it, so
 missing mesh files cannot stop an import; the notes say what was dropped
 (and blank lines before the XML declaration, which PyBullet reads). An MJCF keeps its geoms (MuJoCo derives inertias from them) and is made
 self-contained instead (``engines.model.mjcf_text``: includes inlined, asset
-folders absolute), so it loads the same from a string or a temporary file,
-and keeps only its main kinematic tree (a separate tree cannot change the
-model's dynamics; the notes name what was left out).
+folders absolute; it loads the same from anywhere) and keeps only its main
+kinematic tree (a separate one cannot change its dynamics; a note says so).
 :meth:`ModelSource.engine_file` is that text in a temporary file, for the
 loaders that read only files.
 """
