@@ -167,12 +167,17 @@ class ModelImport:
     options : the keyword options ``load`` takes that ``xval model check`` may pass (MuJoCo's
         ``balance_inertia``); the others are not given them.
     stated : ``stated(**options)`` -> the import settings a file was given, shown when the engine refused it.
+    describes : the file formats whose meaning this engine's compiler defines (MuJoCo's: "mjcf"), and
+        ``describe(source)`` -> such a file's engine-neutral ModelDescription (engines.model.description),
+        reached through ``engines.registry.describer``.
     """
 
     version: Callable[[], str]
     load: Callable[..., Any]
     options: frozenset[str] = frozenset()
     stated: Callable[..., dict[str, str]] = lambda **_: {}
+    describes: frozenset[str] = frozenset()
+    describe: Callable[[Any], Any] | None = None
 
 
 def refuse_ellipse(scene: Scene, why: str) -> None:

@@ -14,6 +14,7 @@ import functools
 import importlib
 import importlib.metadata
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Any
 
 from engines.adapter import Engine, api_version_problem, parse_engine_id
@@ -218,6 +219,23 @@ def get_engine(name: str) -> Engine:
     if found.engine is None:
         raise EngineUnavailable(f"engine {name!r} is unavailable: {found.reason}")
     return found.engine
+
+
+def describer(file_format: str) -> Callable[[Any], Any]:
+    """The reader of ``file_format`` files (``"mjcf"``) whose meaning an engine's compiler defines
+    (``ModelImport.describes``): ``describe(source)`` -> a ModelDescription. EngineUnavailable when no
+    model-check engine that reads it can load here."""
+    reasons = []
+    for name in MODEL_CHECK:
+        try:
+            found = get_engine(name).model_import()
+        except EngineUnavailable as exc:
+            reasons.append(str(exc))
+            continue
+        if file_format in found.describes and found.describe is not None:
+            return found.describe
+    raise EngineUnavailable(f"no engine that defines {file_format.upper()} files can load here"
+                            + (f" ({'; '.join(reasons)})" if reasons else ""))
 
 
 def load_path(target: str) -> Engine:

@@ -126,14 +126,8 @@ def test_no_import_cycles_between_modules():
 
 def folder_of(module: str) -> str:
     """The part of the house ``module`` belongs to: its folder under a package (``compare.results``,
-    ``engines.scene``), or itself when it sits at a package's top (``engines.adapter``, ``compare.cli``).
-    An engine home's library module (``engines.mujoco.library``: the one guarded import of a library
-    outside xval) is a part of its own: the MJCF reader of the shared
-    model layer uses MuJoCo's compiler through it (SHARED_USES), not MuJoCo's home."""
-    parts = module.split(".")
-    if len(parts) > 2 and parts[0] == "engines" and parts[1] in HOMES and parts[2] == "library":
-        return ".".join(parts[:3])
-    return ".".join(parts[:2])
+    ``engines.scene``), or itself when it sits at a package's top (``engines.adapter``, ``compare.cli``)."""
+    return ".".join(module.split(".")[:2])
 
 
 def folder_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
@@ -183,9 +177,9 @@ HOME_USES = {"mjx": {"engines.mujoco.builder", "engines.mujoco.library", "engine
 #: Each home's engine library (top-level import names): imported only by that home's library.py.
 LIBRARIES = {"mujoco": {"mujoco"}, "mjx": {"jax", "mujoco.mjx"}, "pybullet": {"pybullet"}, "pymunk": {"pymunk"},
              "drake": {"pydrake"}, "dart": {"dartpy"}}
-#: Shared modules that may use an engine home's library module: the MJCF reader reads a file with MuJoCo's
-#: own compiler (the format's reference reader), through MuJoCo's one import of it.
-SHARED_USES = {"engines.model.mjcf": {"engines.mujoco.library", "engines.mujoco.library.mujoco"}}
+#: Shared modules that may use an engine home's module: none. (The MJCF reader is MuJoCo's, in its home,
+#: reached through engines.registry.describer: MJCF means what MuJoCo's compiler makes of it.)
+SHARED_USES: dict[str, set[str]] = {}
 
 
 def home_of(module: str) -> str | None:

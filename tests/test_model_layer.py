@@ -140,7 +140,7 @@ MJCF = '<mujoco><worldbody><body name="b">{joints}<inertial pos="0 0 0" mass="1"
     ('<joint name="ball" type="ball"/>', r"^joint ball: type 'ball' is not supported; use hinge or slide joints$"),
 ])
 def test_the_mjcf_reader_refuses_what_the_description_cannot_hold(tmp_path, joints, message):
-    from engines.model import mjcf
+    from engines.mujoco import description as mjcf
 
     (tmp_path / "m.xml").write_text(MJCF.format(joints=joints))
     with pytest.raises(ModelError, match=message):

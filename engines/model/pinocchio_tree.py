@@ -1,6 +1,6 @@
 """A Pinocchio model built joint by joint from a :class:`ModelDescription` (the model reference of an MJCF).
 
-The description of an MJCF is MuJoCo's compiled model (engines/model/mjcf.py); Pinocchio's own MJCF
+The description of an MJCF is MuJoCo's compiled model (engines/mujoco/description.py); Pinocchio's own MJCF
 reader disagrees with it on real files (it ignores ``<default><geom mass=…>``: a dm_control-style
 acrobot's arms weigh 8.38 kg, the capsules' volume × 1000, where MuJoCo's compiler says 1 kg). Each
 moving joint is a 1-degree-of-freedom Pinocchio joint of its name (``JointModelRevoluteUnaligned`` for

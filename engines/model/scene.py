@@ -46,9 +46,10 @@ def describe(source: ModelSource, base: str = "fixed") -> ModelDescription:
         from engines.model.urdf import read as read_urdf
 
         return read_urdf(source, mimic_independent=True, floating=base == "floating")
-    from engines.model.mjcf import read as read_mjcf
+    # MJCF means what MuJoCo's compiler makes of it: the engine that declares the format reads it.
+    from engines.registry import describer
 
-    return read_mjcf(source)
+    return describer(source.format)(source)
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ import numpy as np
 from engines.adapter import Engine, ModelImport, RawRun, Schedule, refuse_ellipse
 from engines.errors import Unsupported, UserError
 from engines.model.stepping import run_model
-from engines.mujoco import model
+from engines.mujoco import description, model
 from engines.mujoco.library import mj_rollout, mujoco
 from engines.mujoco import options as tables
 from engines.mujoco.options import MIN_INERTIA, MUJOCO_SOLIMP, MUJOCO_SOLREF
@@ -330,7 +330,8 @@ class MuJoCoEngine(Engine):
         return run_model(scene, schedule, model.MujocoStepper(scene, schedule.dt, settings["integrator"]))
 
     def model_import(self) -> ModelImport:
-        return ModelImport(model.version, model.load, frozenset({"balance_inertia"}), model.compiler_options)
+        return ModelImport(model.version, model.load, frozenset({"balance_inertia"}), model.compiler_options,
+                           describes=frozenset({"mjcf"}), describe=description.read)
 
     def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
         if settings["formulation"] != "hinge":

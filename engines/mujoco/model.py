@@ -152,7 +152,7 @@ class MujocoModel(LoadedModel):
         found = {}
         for k in range(1, self.model.nbody):  # body 0 is the world
             # ximat: the inertial frame's axes in the world; body_inertia: principal moments in it.
-            found[self.model.body(k).name or f"body{k}"] = world_inertia(  # unnamed: as engines.model.mjcf names it
+            found[self.model.body(k).name or f"body{k}"] = world_inertia(  # unnamed: as engines.mujoco.description names it
                 self.model.body_mass[k], np.zeros(3), np.diag(self.model.body_inertia[k]),
                 self.data.ximat[k].reshape(3, 3), self.data.xipos[k])
         return found

@@ -26,7 +26,7 @@ KINDS = {0: "floating", 2: "prismatic", 3: "revolute"}  # mjJNT_FREE, mjJNT_SLID
 
 
 def read(source: ModelSource) -> ModelDescription:
-    from engines.mujoco.library import mujoco
+    from engines.mujoco.library import mujoco  # for cost: the library loads on first use
 
     text, _ = source.engine_text()
     try:
