@@ -155,3 +155,13 @@ def test_a_joint_that_moves_nothing_is_refused_before_any_engine_runs(tmp_path):
     (tmp_path / "m.urdf").write_text(text)
     with pytest.raises(ModelError, match=r"joint idle moves no mass or inertia \(M is singular\); give the links it moves an <inertial>$"):
         check(str(tmp_path / "m.urdf"), states=2)
+
+
+def test_mjcf_is_read_by_the_engine_that_declares_the_format_and_an_unread_format_is_refused():
+    """The shared model layer reaches MuJoCo's MJCF reader only through the registry (ModelImport.describes)."""
+    from engines.mujoco import description
+    from engines.registry import EngineUnavailable, describer
+
+    assert describer("mjcf") is description.read
+    with pytest.raises(EngineUnavailable, match="no engine that defines SDF files can load here"):
+        describer("sdf")
