@@ -196,7 +196,8 @@ def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: 
     for s, (start, stop) in enumerate(zip(run.marks[:-1], run.marks[1:]), 1):
         taken, status = kernel.run_tangent(run.code, scheme.code, scheme.A, scheme.b,
                                            q, v, p.model, work, run.ks, run.kd, run.dt, int(stop - start),
-                                           run.tolerance, run.max_iterations, dq, dv, moving, tangent_work)
+                                           run.tolerance, run.max_iterations, dq, dv, moving, run.dmodel is not None,
+                                           tangent_work)
         steps += taken
         if status != OK:
             break
