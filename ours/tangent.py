@@ -24,7 +24,7 @@ from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.kernel import (_PROJECTION, _RATTLE, _SYMPLECTIC_EULER, _axpy, _band_columns, _closed_form, _constraints,
                          _copy, _entry, _dim, _feedback, _pairs, _particles, acceleration, add_constraint_term, assemble,
-                         constraint_rate, constraint_value, solve_closed, solve_jwjt, violations)
+                         constraint_rate, constraint_value, solve_jwjt, violations)
 from ours.status import NOT_CONVERGED, OK, SINGULAR
 
 # ---- TANGENT (ours.specialize appends what follows to the kernel's text) ----

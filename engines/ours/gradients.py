@@ -11,7 +11,7 @@ rollouts.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -80,8 +80,10 @@ def directions(scene: Scene, wrt: Sequence[str], to_system: Any) -> tuple:
     moving = [not is_initial_condition(scene, name) for name in wrt]
     dmodel = None
     if any(moving):
+        def system_at(name: str) -> Callable[[float], Any]:
+            return lambda delta: to_system(perturbed(scene, name, delta))[0]
+
         dmodel = ModelDirections.stack([
-            ModelDirections.of(lambda delta, name=name: to_system(perturbed(scene, name, delta))[0],
-                               parameter_step(scene, name, MODEL_STEP))
-            if moves else ModelDirections.zeros(system, 1) for name, moves in zip(wrt, moving)])
+            ModelDirections.of(system_at(name), parameter_step(scene, name, MODEL_STEP)) if moves
+            else ModelDirections.zeros(system, 1) for name, moves in zip(wrt, moving)])
     return system, q0, v0, moved[:, :, axes], moved[:, :, [3 + a for a in axes]], dmodel, axes
