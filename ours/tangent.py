@@ -236,7 +236,7 @@ def acceleration_tangent(q, v, dq, dv, model, dmodel, moving, d, k_s, k_d, G, ba
     add_constraint_term_tangent(dacc, 1.0, inverse_mass, d_inverse_mass, ends, G, dG, lam, dlam)
 
 
-@compiled
+@llvm_inlined
 def rk_step_tangent(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs, dq, dv, dmodel, moving, tangent_work):
     """:func:`rk_step` (the same operations in the same order) and its derivative along every direction."""
     dG, dlam, dKq, dKv, dqs, dvs = (tangent_work[0], tangent_work[1], tangent_work[2], tangent_work[3],
