@@ -1,8 +1,9 @@
 """Cost of ours' forward sensitivities (ours/sensitivity.py) against its plain step and MuJoCo's mjd_transitionFD.
 
-The double pendulum released at (90°, 0°), dt 1e-3 s, STEPS steps, in one run:
+The double pendulum released at (90°, 0°), and a chain of 8 links (its J W Jᵀ solved by banded Cholesky, where
+the double pendulum's 2 × 2 is solved in closed form), dt 1e-3 s, STEPS steps, in one run:
 
-- ours' plain step, per variant (baumgarte-rk4, projection-rk4, rattle): ``ours.simulate`` of STEPS steps (one
+- ours' plain step, per variant (baumgarte-rk4, projection-rk4, rattle; on the chain baumgarte-rk4 and rattle): ``ours.simulate`` of STEPS steps (one
   sample at the end), per step;
 - ours' sensitivities for n directions (n = 1, 2, 4, 8: 8 is the whole state of two planar particles) by its
   tangent-linear step (``forward_sensitivities``: one run carries all n), per step, and its ratio to the same
@@ -63,23 +64,26 @@ def _row(what: str, n: int, work, plain: float, repeats: int) -> dict:
     return {"what": what, "n": n, "us_per_step": cost * 1e6, "steps_worth": cost / plain, "budget": 2 + n}
 
 
-def ours_rows(repeats: int) -> list[dict]:
-    scene = catalog.build("double-pendulum", {})
+def ours_rows(repeats: int, name: str = "double-pendulum", parameters: dict | None = None,
+              variants=VARIANTS, label: str = "ours") -> list[dict]:
+    """ours' rows on one catalog scene: per variant its plain step and its sensitivities for each n; for
+    baumgarte-rk4 on the double pendulum also physical parameters and the complex step."""
+    scene = catalog.build(name, parameters or {})
     system, q0, v0, _ = _to_system(scene)
     rng = np.random.default_rng(0)
     rows = []
-    for method, integrator in VARIANTS:
-        variant = method if method == integrator else f"{method}-{integrator}"
+    for method, integrator in variants:
+        variant = f"{label} " + (method if method == integrator else f"{method}-{integrator}")
         settings = {"method": method, "integrator": integrator}
         plain = best_cpu(lambda s=settings: ours.simulate(system, q0, v0, DT, STEPS, STEPS, **s), repeats) / STEPS
-        rows.append({"what": f"ours {variant} step", "n": 0, "us_per_step": plain * 1e6, "steps_worth": 1.0,
+        rows.append({"what": f"{variant} step", "n": 0, "us_per_step": plain * 1e6, "steps_worth": 1.0,
                      "budget": None})
         for n in DIRECTIONS:
             dq, dv = rng.standard_normal((n, *q0.shape)), rng.standard_normal((n, *v0.shape))
-            rows.append(_row(f"ours {variant} sensitivities, n = {n}", n,
+            rows.append(_row(f"{variant} sensitivities, n = {n}", n,
                              lambda dq=dq, dv=dv, s=settings: forward_sensitivities(system, q0, v0, dq, dv, DT, STEPS,
                                                                                     **s), plain, repeats))
-        if method != "baumgarte":
+        if method != "baumgarte" or name != "double-pendulum":
             continue
         moved = directions(scene, PHYSICAL, _to_system)
         rows.append(_row(f"  the same, n = {len(PHYSICAL)} physical ({', '.join(PHYSICAL)})", len(PHYSICAL),
@@ -133,15 +137,21 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=REPEATS)
     parser.add_argument("--json", type=Path, default=ROOT / "results" / "bench" / "bench_gradients.json")
     args = parser.parse_args()
-    rows = ours_rows(args.repeats) + mujoco_rows(args.repeats)
-    print(f"double pendulum, dt {DT} s, {STEPS} steps; min of {args.repeats} repeats of thread CPU time; "
+    rows = (ours_rows(args.repeats)
+            + ours_rows(args.repeats, "chain", {"n": 8}, (("baumgarte", "rk4"), ("rattle", "rattle")), "chain of 8: ours")
+            + mujoco_rows(args.repeats))
+    print(f"double pendulum (then a chain of 8), dt {DT} s, {STEPS} steps; min of {args.repeats} repeats of thread CPU time; "
           f"load average {os.getloadavg()[0]:.2f}")
-    print(f"{'what':52} {'µs/step':>9} {'steps worth':>12} {'budget 2+n':>11}")
+    print(f"{'what':58} {'µs/step':>9} {'steps worth':>12} {'budget 2+n':>11}")
     for row in rows:
         us = "–" if row["us_per_step"] is None else f"{row['us_per_step']:.3g}"
         worth = "–" if row["steps_worth"] is None else f"{row['steps_worth']:.3g}"
         budget = "" if row["budget"] is None else f"{row['budget']}"
-        print(f"{row['what']:52} {us:>9} {worth:>12} {budget:>11}")
+        print(f"{row['what']:58} {us:>9} {worth:>12} {budget:>11}")
+    over = [row["what"] for row in rows if row["budget"] is not None and row["what"].startswith(("ours", "chain"))
+            and "complex step" not in row["what"] and row["steps_worth"] > row["budget"]]
+    print("ours' tangent-linear sensitivities within 2 + n steps' worth: "
+          + ("every row" if not over else "not for " + "; ".join(over)))
     ours_full = next(r for r in rows if r["what"] == "ours baumgarte-rk4 sensitivities, n = 4")
     fd = next((r for r in rows if r["what"].startswith("MuJoCo mjd_transitionFD")), None)
     if fd is not None and fd["us_per_step"]:
