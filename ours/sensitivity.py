@@ -2,19 +2,13 @@
 
 A direction moves the initial state (dq0, dv0) and, for a physical parameter (g, a mass, a length), the model
 (:class:`ModelDirections`). :func:`forward_sensitivities` carries all k directions through one run of
-``run_tangent`` (``ours/tangent.py``, compiled beside a specialised copy of the kernel): the real step is
-computed once per step, with the kernel's own functions (its real state is ``ours.simulate``'s bit for bit), and
-each direction pays for its derivative alone, every solve with J W Jᵀ reusing the step's factorisation.
+``ours/tangent.py``'s step (the real step once, each direction its derivative alone);
+:func:`complex_step_sensitivities` computes the same derivatives independently, one complex run of the kernel's
+own step per direction (h = 1e-30: exact to round-off), the check the tests hold the first to. Every cure
+(plain, baumgarte, projection, rattle) with every integrator of the maximal-coordinate kernel; not
+``lagrangian`` (its own kernel): :class:`~ours.errors.OursError`.
 
-:func:`complex_step_sensitivities` computes the same derivatives independently, by complex step through the
-kernel's own step (``ours.kernel.run_perturbed``, typed for complex128): each direction starts from
-(q0 + i h dq0, v0 + i h dv0), with the model's arrays moved by i h along the direction, h = 1e-30, and
-Im(state)/h is the derivative of what the kernel computes, exact to round-off (no difference, no
-cancellation; Martins, Sturdza and Alonso, 2003). It costs one complex run per direction; the tests hold
-the tangent-linear step to it.
-
-Covered: every cure (plain, baumgarte, projection, rattle) with every integrator of the maximal-coordinate
-kernel. Not covered: ``lagrangian`` (its own kernel): :class:`~ours.errors.OursError`.
+Details: docs/ours.md, "Module notes", ``ours/sensitivity.py``.
 """
 
 from __future__ import annotations

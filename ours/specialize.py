@@ -3,7 +3,8 @@
 ``kernel_for(dim, sizes)`` returns ``ours.kernel``'s functions with the size functions of its SIZES
 block returning constants, so LLVM unrolls those loops; results are the generic kernel's bit for bit
 (but Cramer's rule for at most 3 constraints). The copy is written once per kernel source under the
-user cache directory, named by a hash of the source it depends on.
+user cache directory, named by a hash of the source it depends on. ``tangent_for`` is the same copy
+with ``ours/tangent.py``'s tangent-linear step appended, a module of its own.
 
 Details: docs/ours.md, "Module notes", ``ours/specialize.py``.
 """

@@ -1,19 +1,15 @@
-"""The tangent-linear step: the compiled step of ``ours.kernel`` with n directions carried beside it.
+"""The tangent-linear step: ``ours.kernel``'s step with n directions carried beside it.
 
-Each step computes the real step once, with the kernel's own functions (so the real parts are ``run``'s bit
-for bit, every branch taken as there), and each direction pays only for its derivative: after each solve of
-J W Jᵀ λ = r the factor (or, for at most 3 constraints, the closed form) is reused for every direction's
-dλ = (J W Jᵀ)⁻¹ (dr − d(J W Jᵀ) λ). A direction moves the initial state (dq, dv) and, for g, masses and
-lengths, the model's arrays (``dmodel``: the derivatives of inverse_mass, force, anchor, param and pair_w).
-The derivative of every iteration (Newton, SHAKE) is that of the iterates the run computes, as a complex
-step's would be (``ours.kernel.run_perturbed``, the independent check in the tests).
+The real step is computed once, with the kernel's own functions (its state is ``run``'s bit for bit); each
+direction pays only for its derivative, every solve with J W Jᵀ reusing the step's factorisation:
+dλ = (J W Jᵀ)⁻¹ (dr − d(J W Jᵀ) λ). A direction moves the state (dq, dv) and, for g, masses and lengths, the
+model's arrays (``dmodel``). Not run as it stands: ``ours.specialize.tangent_for`` appends what follows the
+TANGENT line to a specialised copy of the kernel; the imports are for reading and checking.
 
-This file is not run as it stands: ``ours.specialize.tangent_for`` appends what follows the TANGENT line to a
-specialised copy of ``ours.kernel``, whose sizes are constants; the imports below are for reading and checking.
+Shapes: n directions, P particles, C constraints, N band entries. dq, dv : (n, P, dim); dmodel :
+(d_inverse_mass (n, P), d_force (n, P, dim), d_anchor (n, C, dim), d_param (n, C, m), d_pair_w (n, N)).
 
-Shapes: n directions, P particles, C constraints, N band entries, s stages. dq, dv : (n, P, dim);
-dmodel : (d_inverse_mass (n, P), d_force (n, P, dim), d_anchor (n, C, dim), d_param (n, C, m),
-d_pair_w (n, N)); work : :func:`tangent_workspace`.
+Details: docs/ours.md, "Module notes", ``ours/tangent.py``.
 """
 
 from __future__ import annotations

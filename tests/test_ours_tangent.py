@@ -48,7 +48,7 @@ def _both(key: str, variant: str):
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_the_tangent_linear_step_is_the_complex_step_to_round_off(variant, key):
     """d (q, v)(t) / d p at every sample, every parameter of the scene: within 1e-10 relative of the complex step
-    (both exact to round-off; measured 1e-15 to 1e-13), and the real state the same bit for bit."""
+    (both exact to round-off; measured 1e-15 to 2e-14), and the real state the same bit for bit."""
     tangent, complex_step = _both(key, variant)
     assert tangent.status == complex_step.status == "ok"
     assert np.array_equal(tangent.q, complex_step.q) and np.array_equal(tangent.v, complex_step.v)
