@@ -14,7 +14,7 @@ Details: docs/ours.md, "Module notes", ``ours/sensitivity.py``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -133,8 +133,11 @@ class _Run:
     marks: np.ndarray
 
 
-def _prepare(caller: str, system: System, q0, v0, dq0, dv0, dt, n_steps, dmodel, method, integrator, k_s, k_d,
-             tolerance, max_iterations, sample_every) -> _Run:
+def _prepare(caller: str, system: System, q0, v0, dq0, dv0, dt, n_steps, *, dmodel: ModelDirections | None = None,
+             method: str = "baumgarte", integrator: str | None = None, k_s: float | None = None,
+             k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
+             max_iterations: int = DEFAULT_MAX_ITERATIONS, sample_every: int | None = None) -> _Run:
+    """The arguments both methods take, checked; the keywords' one home (their defaults are ours.simulate's)."""
     chosen, scheme = resolve_pair(method, integrator)
     if chosen.code == LAGRANGIAN:
         raise OursError(f"{caller}: method 'lagrangian' steps in link angles with its own kernel, "
@@ -162,18 +165,16 @@ def _result(run: _Run, q_end, v_end, dq, dv, steps, status, sample_dq, sample_dv
     return Sensitivities(q_end, v_end, dq, dv, int(steps), STATUS_TEXT[int(status)], run.marks, sample_dq, sample_dv)
 
 
-def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: int, *,
-                          dmodel: ModelDirections | None = None, method: str = "baumgarte",
-                          integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
-                          tolerance: float = DEFAULT_TOLERANCE,
-                          max_iterations: int = DEFAULT_MAX_ITERATIONS,
-                          sample_every: int | None = None) -> Sensitivities:
+def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: int, **settings: Any
+                          ) -> Sensitivities:
     """Run ``system`` from (q0, v0) (P, dim) for ``n_steps`` steps of ``dt`` s, as ours.simulate does with the
-    same settings, and carry the directions dq0, dv0 (k, P, dim) along, the model moving by ``dmodel`` along
-    each (None: the model does not move), all k in one tangent-linear run, sampled as ours.simulate samples
-    (every ``sample_every`` steps and the last)."""
-    run = _prepare("forward_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, dmodel, method, integrator, k_s,
-                   k_d, tolerance, max_iterations, sample_every)
+    same settings, and carry the directions dq0, dv0 (k, P, dim) along, all k in one tangent-linear run.
+
+    settings (keywords): dmodel, the model's :class:`ModelDirections` along each direction (default None: the
+    model does not move); method (default "baumgarte"), integrator, k_s, k_d, tolerance, max_iterations as
+    ours.simulate takes them; sample_every, steps between samples (default None: 0 and the last step only).
+    """
+    run = _prepare("forward_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, **settings)
     k = len(run.dq0)
     p = system.packed
     kernel = tangent_for(system.dim, sizes_of(system.n_particles, system.n_constraints, p.bandwidth, len(p.pair_k)))
@@ -212,16 +213,11 @@ def _complex_model(system: System, dmodel: ModelDirections | None, direction: in
     return tuple(moved)
 
 
-def complex_step_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: int, *,
-                               dmodel: ModelDirections | None = None, method: str = "baumgarte",
-                               integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
-                               tolerance: float = DEFAULT_TOLERANCE,
-                               max_iterations: int = DEFAULT_MAX_ITERATIONS,
-                               sample_every: int | None = None) -> Sensitivities:
-    """:func:`forward_sensitivities`' derivatives computed independently, by complex step: one complex run per
-    direction (the check the tests hold the tangent-linear step to)."""
-    run = _prepare("complex_step_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, dmodel, method, integrator,
-                   k_s, k_d, tolerance, max_iterations, sample_every)
+def complex_step_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: int, **settings: Any
+                               ) -> Sensitivities:
+    """:func:`forward_sensitivities`' derivatives (the same arguments) computed independently, by complex step: one
+    complex run per direction (the check the tests hold the tangent-linear step to)."""
+    run = _prepare("complex_step_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, **settings)
     kernel = _kernel(system)
     p = system.packed
     scheme = run.scheme
