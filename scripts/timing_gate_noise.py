@@ -1,9 +1,10 @@
 """Does the timing gate tell a busy neighbour from a regression? (docs/reliability.md quotes this.)
 
 1. Runs a small suite (2 scenes x 2 engines, dt 2e-4 s for 20 s, repeats = 3, timing_factor = 1.5)
-   once and makes it the baseline. Each case steps 1e5 times, so that every case's stepping lasts longer
-   than the gate's resolution (compare.gate.gate.CASE_RESOLUTION) on a machine several times faster
-   than this one, and each is gated on its own.
+   once and makes it the baseline. Each case steps 1e5 times, so that its stepping lasts longer than the
+   gate's resolution (compare.gate.gate.CASE_RESOLUTION) and it is gated on its own (the shortest,
+   pymunk's bead, steps ~70 ms of CPU on the 2-core machine the doc's figures come from; on a machine
+   fast enough to take it below, it is judged by its variant's two cases together, still gated).
 2. Starts busy-loop neighbours, PER_CORE per core (each bounded: it exits by itself after LOAD_SECONDS
    and is killed by pid at the end), and reruns the same suite RERUNS times, gating each rerun against
    the baseline twice: with the CPU-time rule (what ``xval gate`` does) and with the older wall-time
