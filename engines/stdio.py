@@ -1,6 +1,7 @@
 """Keeping what an engine's C library prints (PyBullet, DART, MuJoCo) out of xval's output: fds 1 and 2
 silenced (:func:`quiet_output`); or, in a child process that keeps what its engine printed
-(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`)."""
+(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`),
+in a case host into a file its driver holds too (:func:`output_file`), read back if the host dies mid-case."""
 
 from __future__ import annotations
 
