@@ -128,3 +128,17 @@ def test_each_case_keeps_only_its_own_lines_in_a_host_that_answered_then_was_kil
     assert len(hosts) == 2 and not any(alive(p) for p in hosts)
     # The pool's pipes and the hosts' output files are all closed: this process holds no new descriptor.
     assert open_files() <= before
+
+
+def test_a_case_run_by_an_executors_worker_keeps_what_it_printed_when_killed_at_its_timeout(capsys):
+    # On a cluster or a thread pool, each worker thread drives a host of its own (compare.run.isolation.execute):
+    # the same file, read the same way when the host is killed.
+    from compare.run.isolation import execute
+
+    task = CaseTask(case_id="hang", engine_id="compare_engines:PRINTING/hang", variant="hang", options={},
+                    scene=build("bead", {"duration": 0.2}), dt=1e-2, sample_interval=0.05, timeout=TIMEOUT)
+    before = open_files()
+    with capsys.disabled():  # as above: print reaches fd 1 in the host, as in xval's
+        outcome = execute(task)
+    assert outcome.status == "timeout" and outcome.output.to_dict() == KEPT
+    assert open_files() <= before
