@@ -39,13 +39,16 @@ def suite_text(modes, pidfile) -> str:
 
 
 def run(tmp_path, modes, *extra):
-    """``xval run`` of the stand-ins in ``modes``, with a temporary directory of its own (TMPDIR) and no
-    faulthandler (whose dump of a segfault, where enabled, joins the case's lines); returns the finished
-    process, the records by variant, the pids the stand-ins ran in, and the temporary directory."""
+    """``xval run`` of the stand-ins in ``modes``, with a temporary directory of its own (TMPDIR), no
+    faulthandler (whose dump of a segfault, where enabled, joins the case's lines) and Python's default
+    buffering (PYTHONUNBUFFERED would also unbuffer C's stdout, and hide a host that did not line-buffer
+    its own); returns the finished process, the records by variant, the pids the stand-ins ran in, and
+    the temporary directory."""
     pidfile, scratch, out = tmp_path / "pids", tmp_path / "tmp", tmp_path / "out"
     scratch.mkdir()
     (tmp_path / "suite.toml").write_text(suite_text(modes, pidfile))
-    env = {k: v for k, v in XVAL_ENV.items() if k != "PYTHONFAULTHANDLER"} | {"TMPDIR": str(scratch)}
+    env = {k: v for k, v in XVAL_ENV.items() if k not in ("PYTHONFAULTHANDLER", "PYTHONUNBUFFERED")}
+    env["TMPDIR"] = str(scratch)
     pids: list[int] = []
     try:
         done = subprocess.run(XVAL + ["run", str(tmp_path / "suite.toml"), "--output", str(out), "--jobs", "2",
