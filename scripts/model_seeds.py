@@ -1,0 +1,70 @@
+"""Whether any ``xval model check`` verdict changes with ``--seed``: the survey's two sets at seeds 0 to 4.
+
+Run: ``.venv/bin/python scripts/model_seeds.py`` (five surveys of both sets, 20 states each, 2 jobs: about
+five times ``scripts/model_survey.py``'s cost, minutes on 2 cores; the cost is in the engines' imports, one
+child process per engine and file, not in the states). The sets are scripts/model_survey.py's
+(:func:`pybullet_data_set`, :func:`gymnasium_set`). A file's verdict at a seed is its survey row's outcome
+and the engines it names (those that disagree, crashed): the same at every seed, or the file is listed with
+its verdict per seed. Prints per set the files and how many have one verdict at every seed.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from model_survey import gymnasium_assets, gymnasium_set, pybullet_data_set  # noqa: E402
+from quoted import Row, report  # noqa: E402
+
+from compare.model.survey import SurveyRow, survey  # noqa: E402
+
+DOC = "docs/models.md"
+SEEDS = range(5)
+#: States per check: the sample's scales (S_M, S_b, S_a) and the amplification come from these.
+STATES = 100
+SETS = ("pybullet_data", "gymnasium")
+#: Every figure is slow (five surveys): the quote test checks only that the doc has the rows.
+SLOW = {f"{name}.{key}" for name in SETS for key in ("files", "identical")}
+
+
+def verdict(row: SurveyRow) -> str:
+    """A file's verdict: its outcome and the engines it names."""
+    return f"{row.outcome} ({', '.join(row.engines)})" if row.engines else row.outcome
+
+
+def figures(quick: bool = False) -> dict[str, float]:
+    if quick:
+        return {}
+    import pybullet_data
+
+    found: dict[str, float] = {}
+    lines = []
+    for name, models, root in (("pybullet_data", pybullet_data_set(), pybullet_data.getDataPath()),
+                               ("gymnasium", gymnasium_set(), str(gymnasium_assets()))):
+        start = time.perf_counter()
+        verdicts = {seed: [verdict(row) for row in survey(models, states=STATES, seed=seed, timeout=60.0, jobs=2)]
+                    for seed in SEEDS}
+        print(f"{name}: {len(SEEDS)} surveys of {len(models)} files in {time.perf_counter() - start:.0f} s")
+        differing = [k for k in range(len(models)) if len({verdicts[s][k] for s in SEEDS}) > 1]
+        for k in differing:
+            print(f"  differs: {models[k].replace(root, name)}: "
+                  + "; ".join(f"seed {s}: {verdicts[s][k]}" for s in SEEDS))
+        lines.append(f"| {name} | {len(models)} | {len(models) - len(differing)} |")
+        found |= {f"{name}.files": float(len(models)), f"{name}.identical": float(len(models) - len(differing))}
+    print(f"\n| set | files | same verdict at seeds {SEEDS[0]}–{SEEDS[-1]} |\n|---|---|---|")
+    print("\n".join(lines))
+    return found
+
+
+QUOTES: list = []
+ROWS = [Row(DOC, name, (f"{name}.files", f"{name}.identical"), after="same verdict at seeds") for name in SETS]
+
+
+def main() -> None:
+    report(figures(), QUOTES, ROWS)
+
+
+if __name__ == "__main__":
+    main()
