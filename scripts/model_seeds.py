@@ -1,8 +1,8 @@
 """Whether any ``xval model check`` verdict changes with ``--seed``: the survey's two sets at seeds 0 to 4.
 
-Run: ``.venv/bin/python scripts/model_seeds.py`` (five surveys of both sets, 20 states each, 2 jobs: about
-five times ``scripts/model_survey.py``'s cost, minutes on 2 cores; the cost is in the engines' imports, one
-child process per engine and file, not in the states). The sets are scripts/model_survey.py's
+Run: ``.venv/bin/python scripts/model_seeds.py`` (five surveys of both sets at ``xval model check``'s default
+100 states, 2 jobs: 6 min on 2 shared cores, 2.6 min at 20 states; most of it is the engines' imports, one
+child process per engine and file, not the states). The sets are scripts/model_survey.py's
 (:func:`pybullet_data_set`, :func:`gymnasium_set`). A file's verdict at a seed is its survey row's outcome
 and the engines it names (those that disagree, crashed): the same at every seed, or the file is listed with
 its verdict per seed. Prints per set the files and how many have one verdict at every seed.
@@ -22,7 +22,8 @@ from compare.model.survey import SurveyRow, survey  # noqa: E402
 
 DOC = "docs/models.md"
 SEEDS = range(5)
-#: States per check: the sample's scales (S_M, S_b, S_a) and the amplification come from these.
+#: States per check, ``xval model check``'s default (the verdicts users see): the sample's scales (S_M, S_b, S_a)
+#: and the amplification come from these.
 STATES = 100
 SETS = ("pybullet_data", "gymnasium")
 #: Every figure is slow (five surveys): the quote test checks only that the doc has the rows.

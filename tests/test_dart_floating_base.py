@@ -119,3 +119,25 @@ def test_an_mjcf_free_joint_steps_in_dart_as_the_reference_once_its_bodies_have_
     run = run_model(scene, schedule, stepper)
     assert np.abs(run.positions - reference.positions).max() <= 1e-9 * scene.characteristic_length
     assert scene.momentum_drift(*scene.split(run.joint_states)) <= 1e-10
+
+
+def test_the_verdict_of_an_mjcf_free_joint_scene_leads_with_darts_import(tmp_path, capsys):
+    """DART runs the MJCF quadruped (no longer refused); its import ignores <inertial>, so the scene's verdict in
+    the report says first that DART disagrees with the model reference on the file, naming the links, and that
+    its error reflects the import, not the stepping; MuJoCo, which agrees, is not named."""
+    from cli_support import run_cli
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.2\ndt = [1e-3]\n[[scenes]]\nid = "free"\nmodel = "{MJCF}"\n'
+                     f'parameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2 }}\n'
+                     f'[[engines]]\nid = "dart/rk4"\n[[engines]]\nid = "mujoco/hinge-rk4"\n')
+    out = tmp_path / "run"
+    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
+    assert code == 0, err
+    code, _, err = run_cli(capsys, "report", out)
+    assert code == 0, err
+    article = (out / "report.html").read_text().split('<article class="verdict-scene"')[1].split("</article>")[0]
+    lead = article.split('<div class="import-lead">')[1].split("</div>")[0]
+    assert "<strong>dart</strong> disagrees with pinocchio" in lead and "torso" in lead, lead
+    assert "its error below reflects the import, not the stepping" in lead and "mujoco" not in lead
+    assert article.index('class="import-lead"') < article.index('class="answer"')

@@ -202,7 +202,8 @@ class DartModel(LoadedModel):
 
 
 class DartStepper(Stepper):
-    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
+    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``; with
+    a floating base in xval's coordinates, engines.dart.rk4); the state read in xval's convention (DartModel)."""
 
     def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         dart = library.dartpy()
