@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python scripts/model_seeds.py`` (five surveys of both sets at ``xval model check``'s default
 100 states, 2 jobs: 6 min on 2 shared cores, 2.6 min at 20 states; most of it is the engines' imports, one
 child process per engine and file, not the states). The sets are scripts/model_survey.py's
-(:func:`pybullet_data_set`, :func:`gymnasium_set`). A file's verdict at a seed is its survey row's outcome
+(``model_sets``). A file's verdict at a seed is its survey row's outcome
 and the engines it names (those that disagree, crashed): the same at every seed, or the file is listed with
 its verdict per seed. Prints per set the files and how many have one verdict at every seed.
 """
@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from model_survey import gymnasium_assets, gymnasium_set, pybullet_data_set  # noqa: E402
+from model_survey import model_sets  # noqa: E402
 from quoted import Row, report  # noqa: E402
 
 from compare.model.survey import SurveyRow, survey  # noqa: E402
@@ -35,27 +35,26 @@ def verdict(row: SurveyRow) -> str:
     return f"{row.outcome} ({', '.join(row.engines)})" if row.engines else row.outcome
 
 
-def figures(quick: bool = False) -> dict[str, float]:
-    if quick:
-        return {}
-    import pybullet_data
+def differing(models: list[str]) -> list[tuple[str, list[str]]]:
+    """Each file of ``models`` whose verdict is not the same at every seed, with its verdict per seed."""
+    verdicts = [[verdict(row) for row in survey(models, states=STATES, seed=seed, timeout=60.0, jobs=2)]
+                for seed in SEEDS]
+    return [(model, [v[k] for v in verdicts]) for k, model in enumerate(models) if len({v[k] for v in verdicts}) > 1]
 
+
+def figures(quick: bool = False) -> dict[str, float]:
     found: dict[str, float] = {}
-    lines = []
-    for name, models, root in (("pybullet_data", pybullet_data_set(), pybullet_data.getDataPath()),
-                               ("gymnasium", gymnasium_set(), str(gymnasium_assets()))):
+    table = [f"| set | files | same verdict at seeds {SEEDS[0]}–{SEEDS[-1]} |", "|---|---|---|"]
+    for name, models, root in [] if quick else model_sets():
         start = time.perf_counter()
-        verdicts = {seed: [verdict(row) for row in survey(models, states=STATES, seed=seed, timeout=60.0, jobs=2)]
-                    for seed in SEEDS}
+        changed = differing(models)
         print(f"{name}: {len(SEEDS)} surveys of {len(models)} files in {time.perf_counter() - start:.0f} s")
-        differing = [k for k in range(len(models)) if len({verdicts[s][k] for s in SEEDS}) > 1]
-        for k in differing:
-            print(f"  differs: {models[k].replace(root, name)}: "
-                  + "; ".join(f"seed {s}: {verdicts[s][k]}" for s in SEEDS))
-        lines.append(f"| {name} | {len(models)} | {len(models) - len(differing)} |")
-        found |= {f"{name}.files": float(len(models)), f"{name}.identical": float(len(models) - len(differing))}
-    print(f"\n| set | files | same verdict at seeds {SEEDS[0]}–{SEEDS[-1]} |\n|---|---|---|")
-    print("\n".join(lines))
+        for model, seen in changed:
+            print(f"  differs: {model.replace(root, name)}: " + "; ".join(f"seed {s}: {v}" for s, v in zip(SEEDS, seen)))
+        table.append(f"| {name} | {len(models)} | {len(models) - len(changed)} |")
+        found |= {f"{name}.files": float(len(models)), f"{name}.identical": float(len(models) - len(changed))}
+    if found:
+        print("\n" + "\n".join(table))
     return found
 
 
