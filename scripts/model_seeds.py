@@ -1,7 +1,7 @@
 """Whether any ``xval model check`` verdict changes with ``--seed``: the survey's two sets at seeds 0 to 4.
 
 Run: ``.venv/bin/python scripts/model_seeds.py`` (five surveys of both sets at ``xval model check``'s default
-100 states, 2 jobs: 6 min on 2 shared cores, 2.6 min at 20 states; most of it is the engines' imports, one
+100 states, 2 jobs: 4.5 to 6 min on 2 shared cores, 2.6 min at 20 states; most of it is the engines' imports, one
 child process per engine and file, not the states). The sets are scripts/model_survey.py's
 (``model_sets``). A file's verdict at a seed is its survey row's outcome
 and the engines it names (those that disagree, crashed): the same at every seed, or the file is listed with
