@@ -141,3 +141,24 @@ def test_the_verdict_of_an_mjcf_free_joint_scene_leads_with_darts_import(tmp_pat
     assert "<strong>dart</strong> disagrees with pinocchio" in lead and "torso" in lead, lead
     assert "its error below reflects the import, not the stepping" in lead and "mujoco" not in lead
     assert article.index('class="import-lead"') < article.index('class="answer"')
+
+
+def test_a_suite_runs_a_floating_urdf_in_dart_and_exports_its_momentum_drift(tmp_path, capsys):
+    """`base = "floating"`, g = 0, through `xval run` and `xval show`: both DART variants ok, momentum_drift exported
+    (dart/rk4 ≤ 1e-10 and on the reference to 1e-9 m; dart/world, first order, ≤ 1e-3)."""
+    import json
+
+    from cli_support import run_cli
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'duration = 0.3\ndt = [1e-3]\n[[scenes]]\nid = "free"\nmodel = "{URDF}"\nbase = "floating"\n'
+                     f'parameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2, '
+                     f'__floating_base__ = [0.1, 0, 0, 0, 0.5, 0] }}\n'
+                     f'[[engines]]\nid = "dart/rk4"\n[[engines]]\nid = "dart/world"\n')
+    code, _, err = run_cli(capsys, "run", suite, "--output", tmp_path / "run", "--jobs", "1")
+    assert code == 0, err
+    code, shown, err = run_cli(capsys, "show", tmp_path / "run", "--format", "json")
+    rows = {r["engine"]: r for r in json.loads(shown)}
+    assert {name: r["status"] for name, r in rows.items()} == {"dart/rk4": "ok", "dart/world": "ok"}
+    assert rows["dart/rk4"]["momentum_drift"] <= 1e-10 and rows["dart/rk4"]["position_error_linf"] <= 1e-9, rows
+    assert 1e-10 < rows["dart/world"]["momentum_drift"] <= 1e-3, rows
