@@ -7,7 +7,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from engines.model.dynamics import base_rate
+from engines.model.dynamics import configuration_rate
 
 
 def rk4(rate: Callable[[np.ndarray], np.ndarray], y: np.ndarray, dt: float) -> np.ndarray:
@@ -49,15 +49,15 @@ def floating_rk4_stepper(loaded: Any, dt: float) -> Callable[[], None]:
 
     DART's FreeJoint positions are a rotation vector, whose rate is not the angular velocity; xval's state
     (p, quaternion x y z w, joints; v, ω in the base frame, joint rates) has ṗ = R v and the quaternion's rate
-    ½ q ⊗ ω (engines.model.dynamics.base_rate), and v̇ is DART's forward dynamics mapped to xval's velocities
-    (DartModel.forward). The quaternion is normalised after each step (a projection that keeps the order).
-    """
+    ½ q ⊗ ω (engines.model.dynamics.configuration_rate, the reference's), and v̇ is DART's forward dynamics
+    mapped to xval's velocities (DartModel.forward). The quaternion is normalised after each step (a projection
+    that keeps the order)."""
     nconfig = loaded.description.nconfig
     zero = np.zeros(loaded.description.nv)
 
     def rate(y: np.ndarray) -> np.ndarray:
         q, v = y[:nconfig], y[nconfig:]
-        return np.concatenate([base_rate(q[:7], v[:6]), v[6:], loaded.forward(q, v, zero)])
+        return np.concatenate([configuration_rate(loaded.description, q, v), loaded.forward(q, v, zero)])
 
     def step() -> None:
         y = rk4(rate, np.concatenate(loaded.xval_state()), dt)
