@@ -35,6 +35,18 @@ def free_quadruped(g: float, duration: float, base_v=(0.1, 0.0, 0.2, 0.0, 0.5, 0
                        root_joint="floating")
 
 
+def run_suite(tmp_path: Path, capsys, scene: str, engines: tuple[str, ...]) -> Path:
+    """`xval run` of one scene (``scene``: its TOML lines after ``id``) for 0.2 s at dt 1e-3 in ``engines``; the run dir."""
+    from cli_support import run_cli
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text('duration = 0.2\ndt = [1e-3]\n[[scenes]]\nid = "free"\n' + scene
+                     + "".join(f'[[engines]]\nid = "{e}"\n' for e in engines))
+    code, _, err = run_cli(capsys, "run", suite, "--output", tmp_path / "run", "--jobs", "1")
+    assert code == 0, err
+    return tmp_path / "run"
+
+
 def simulate(engine_id: str, scene, dt: float):
     engine, variant = resolve(engine_id)
     return engine.simulate(scene, dt, variant=variant)
@@ -127,13 +139,8 @@ def test_the_verdict_of_an_mjcf_free_joint_scene_leads_with_darts_import(tmp_pat
     its error reflects the import, not the stepping; MuJoCo, which agrees, is not named."""
     from cli_support import run_cli
 
-    suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = 0.2\ndt = [1e-3]\n[[scenes]]\nid = "free"\nmodel = "{MJCF}"\n'
-                     f'parameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2 }}\n'
-                     f'[[engines]]\nid = "dart/rk4"\n[[engines]]\nid = "mujoco/hinge-rk4"\n')
-    out = tmp_path / "run"
-    code, _, err = run_cli(capsys, "run", suite, "--output", out, "--jobs", "1")
-    assert code == 0, err
+    out = run_suite(tmp_path, capsys, f'model = "{MJCF}"\nparameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2 }}\n',
+                    ("dart/rk4", "mujoco/hinge-rk4"))
     code, _, err = run_cli(capsys, "report", out)
     assert code == 0, err
     article = (out / "report.html").read_text().split('<article class="verdict-scene"')[1].split("</article>")[0]
@@ -150,14 +157,10 @@ def test_a_suite_runs_a_floating_urdf_in_dart_and_exports_its_momentum_drift(tmp
 
     from cli_support import run_cli
 
-    suite = tmp_path / "suite.toml"
-    suite.write_text(f'duration = 0.3\ndt = [1e-3]\n[[scenes]]\nid = "free"\nmodel = "{URDF}"\nbase = "floating"\n'
-                     f'parameters = {{ g = 0 }}\nv0 = {{ fl_hip = 3, br_knee = -2, '
-                     f'__floating_base__ = [0.1, 0, 0, 0, 0.5, 0] }}\n'
-                     f'[[engines]]\nid = "dart/rk4"\n[[engines]]\nid = "dart/world"\n')
-    code, _, err = run_cli(capsys, "run", suite, "--output", tmp_path / "run", "--jobs", "1")
-    assert code == 0, err
-    code, shown, err = run_cli(capsys, "show", tmp_path / "run", "--format", "json")
+    out = run_suite(tmp_path, capsys, f'model = "{URDF}"\nbase = "floating"\nparameters = {{ g = 0 }}\n'
+                    'v0 = { fl_hip = 3, br_knee = -2, __floating_base__ = [0.1, 0, 0, 0, 0.5, 0] }\n',
+                    ("dart/rk4", "dart/world"))
+    code, shown, err = run_cli(capsys, "show", out, "--format", "json")
     rows = {r["engine"]: r for r in json.loads(shown)}
     assert {name: r["status"] for name, r in rows.items()} == {"dart/rk4": "ok", "dart/world": "ok"}
     assert rows["dart/rk4"]["momentum_drift"] <= 1e-10 and rows["dart/rk4"]["position_error_linf"] <= 1e-9, rows
