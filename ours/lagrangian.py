@@ -18,7 +18,8 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, solve_banded
+from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
+from ours.errors import ModelError
 from ours.status import NON_FINITE, OK, SINGULAR
 
 
@@ -61,6 +62,32 @@ def _finite(x):
     return True
 
 
+@llvm_inlined
+def stage(A, h, i, theta, omega, Kt, Kw, ts, ws):
+    """Stage i's angles and rates: ts = θ + h Σ_j A_ij Kt_j, ws = θ̇ + h Σ_j A_ij Kw_j (terms in order of j, zero
+    entries skipped), and Kt_i = ws."""
+    n_links = theta.shape[0]
+    for k in range(n_links):
+        ts[k] = theta[k]
+        ws[k] = omega[k]
+    for j in range(i):
+        if A[i, j] != 0.0:
+            for k in range(n_links):
+                ts[k] += h * A[i, j] * Kt[j, k]
+                ws[k] += h * A[i, j] * Kw[j, k]
+    for k in range(n_links):
+        Kt[i, k] = ws[k]
+
+
+@llvm_inlined
+def combine(b, h, theta, omega, Kt, Kw):
+    """θ += h Σ_i b_i Kt_i, θ̇ += h Σ_i b_i Kw_i (in order of i)."""
+    for i in range(b.shape[0]):
+        for k in range(theta.shape[0]):
+            theta[k] += h * b[i] * Kt[i, k]
+            omega[k] += h * b[i] * Kw[i, k]
+
+
 @compiled
 def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, stride, out_q, out_v):
     """Step (θ, θ̇) with the explicit Runge–Kutta table (A, b), recording Cartesian samples.
@@ -72,7 +99,6 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
     tail : (n,) kg, μ_ii = Σ_{k ≥ i} m_k.  lengths : (n,) m.  gravity, anchor : (2,).
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
-    n_links = theta.shape[0]
     stages = b.shape[0]
     M, Kt, Kw, ts, ws = work
     h = dt
@@ -83,22 +109,10 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
     step = 0
     while step < n_steps:
         for i in range(stages):
-            for k in range(n_links):
-                ts[k] = theta[k]
-                ws[k] = omega[k]
-            for j in range(i):
-                if A[i, j] != 0.0:
-                    for k in range(n_links):
-                        ts[k] += h * A[i, j] * Kt[j, k]
-                        ws[k] += h * A[i, j] * Kw[j, k]
-            for k in range(n_links):
-                Kt[i, k] = ws[k]
+            stage(A, h, i, theta, omega, Kt, Kw, ts, ws)
             if not angular_acceleration(ts, ws, tail, lengths, gravity, M, Kw[i]):
                 status = SINGULAR
-        for i in range(stages):
-            for k in range(n_links):
-                theta[k] += h * b[i] * Kt[i, k]
-                omega[k] += h * b[i] * Kw[i, k]
+        combine(b, h, theta, omega, Kt, Kw)
         step += 1
         if not (_finite(theta) and _finite(omega)):
             status = NON_FINITE
@@ -116,8 +130,30 @@ def workspace(n: int, stages: int) -> tuple:
     return (z((n, n)), z((stages, n)), z((stages, n)), z(n), z(n))
 
 
+def check_chain(system) -> None:
+    """ModelError unless ``system`` is a planar chain hung from a fixed point (what this form steps)."""
+    why = system.why_not_a_chain()
+    if system.dim != 2 or why is not None:
+        raise ModelError(
+            "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; "
+            + (why and f"this system is not one: {why}" or f"this system is {system.dim}-D")
+        )
+
+
+def chain_arrays(system) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The chain's arrays :func:`run` reads: tail (n,) kg (μ_ii = Σ_{k ≥ i} m_k), lengths (n,) m, gravity (2,)
+    m/s², anchor (2,) m."""
+    masses = np.array(system.masses)
+    tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
+    lengths = np.array([c.length for c in system.constraints])
+    anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
+    return tail, lengths, np.array(system.gravity), anchor
+
+
 def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(θ, θ̇) of a planar chain from Cartesian (q0, v0) (n, 2): absolute link angles, rad and rad/s."""
+    """(θ, θ̇) of a planar chain from Cartesian (q0, v0) (n, 2): absolute link angles, rad and rad/s; ModelError
+    unless ``system`` is a planar chain."""
+    check_chain(system)
     theta = np.empty(system.n_particles)
     omega = np.empty(system.n_particles)
     anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)

@@ -139,9 +139,6 @@ def _prepare(caller: str, system: System, q0, v0, dq0, dv0, dt, n_steps, *, dmod
              max_iterations: int = DEFAULT_MAX_ITERATIONS, sample_every: int | None = None) -> _Run:
     """The arguments both methods take, checked; the keywords' one home (their defaults are ours.simulate's)."""
     chosen, scheme = resolve_pair(method, integrator)
-    if chosen.code == LAGRANGIAN:
-        raise OursError(f"{caller}: method 'lagrangian' steps in link angles with its own kernel, "
-                        "which is not differentiated; use plain, baumgarte, projection or rattle")
     q, v = _state(system, q0, "q0"), _state(system, v0, "v0")
     dq0, dv0 = np.ascontiguousarray(dq0, dtype=float), np.ascontiguousarray(dv0, dtype=float)
     if dq0.shape != dv0.shape or dq0.shape[1:] != q.shape:
@@ -176,6 +173,8 @@ def forward_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_steps: 
     """
     run = _prepare("forward_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, **settings)
     k = len(run.dq0)
+    if run.code == LAGRANGIAN:
+        return _lagrangian_sensitivities(system, run)
     p = system.packed
     kernel = tangent_for(system.dim, sizes_of(system.n_particles, system.n_constraints, p.bandwidth, len(p.pair_k)))
     scheme = run.scheme
@@ -218,6 +217,9 @@ def complex_step_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_st
     """:func:`forward_sensitivities`' derivatives (the same arguments) computed independently, by complex step: one
     complex run per direction (the check the tests hold the tangent-linear step to)."""
     run = _prepare("complex_step_sensitivities", system, q0, v0, dq0, dv0, dt, n_steps, **settings)
+    if run.code == LAGRANGIAN:
+        raise OursError("complex_step_sensitivities: method 'lagrangian' steps in link angles with its own kernel, "
+                        "which has no complex form; use plain, baumgarte, projection or rattle")
     kernel = _kernel(system)
     p = system.packed
     scheme = run.scheme
@@ -251,3 +253,43 @@ def complex_step_sensitivities(system: System, q0, v0, dq0, dv0, dt: float, n_st
             dq[direction], dv[direction] = zq.imag / STEP, zv.imag / STEP
         end_q, end_v = zq, zv
     return _result(run, end_q.real, end_v.real, dq, dv, steps, status, sample_dq, sample_dv)
+
+
+def _lagrangian_sensitivities(system: System, run: _Run) -> Sensitivities:
+    """:func:`forward_sensitivities` for the reduced-coordinate chain (``ours/lagrangian_tangent.py``): the
+    directions taken into link angles, carried by its tangent-linear step, and back to particles at each sample;
+    the model's directions become the chain's (d tail, d lengths, d gravity, d anchor)."""
+    from ours import lagrangian
+    from ours import lagrangian_tangent as tangent
+
+    k, scheme = len(run.dq0), run.scheme
+    theta, omega = lagrangian.chain_coordinates(system, run.q, run.v)
+    tail, lengths, gravity, anchor = lagrangian.chain_arrays(system)
+    dmodel = run.dmodel or ModelDirections.zeros(system, k)
+    masses = np.array(system.masses)
+    d_masses = -dmodel.inverse_mass * masses**2  # d(1/m) = −dm/m²
+    d_tail = np.ascontiguousarray(np.cumsum(d_masses[:, ::-1], axis=1)[:, ::-1])
+    d_lengths = np.ascontiguousarray(dmodel.param[:, :, 0] / (2.0 * lengths))  # param = l²
+    d_gravity = np.ascontiguousarray((dmodel.force[:, 0, :] - d_masses[:, :1] * gravity) / masses[0])  # f = m g
+    d_anchor = dmodel.anchor[:, 0, :]
+    dtheta, domega = (np.ascontiguousarray(x) for x in tangent.coordinates_tangent(run.q, run.v, run.dq0, run.dv0,
+                                                                                    anchor, d_anchor))
+    work = lagrangian.workspace(system.n_particles, scheme.stages)
+    tangent_work = tangent.tangent_workspace(k, system.n_particles, scheme.stages)
+    sample_dq = np.full((len(run.marks), k, *run.q.shape), np.nan)
+    sample_dv = np.full_like(sample_dq, np.nan)
+    sample_dq[0], sample_dv[0] = run.dq0, run.dv0
+    steps, status = 0, OK
+    for s, (start, stop) in enumerate(zip(run.marks[:-1], run.marks[1:]), 1):
+        taken, status = tangent.run_tangent(scheme.A, scheme.b, theta, omega, tail, lengths, gravity, work, run.dt,
+                                            int(stop - start), dtheta, domega, d_tail, d_lengths, d_gravity,
+                                            tangent_work)
+        steps += taken
+        if status != OK:
+            break
+        sample_dq[s], sample_dv[s] = tangent.cartesian_tangent(theta, omega, dtheta, domega, lengths, d_lengths,
+                                                               d_anchor)
+    q, v = np.empty_like(run.q), np.empty_like(run.v)
+    lagrangian.to_cartesian(theta, omega, lengths, anchor, q, v)
+    dq, dv = tangent.cartesian_tangent(theta, omega, dtheta, domega, lengths, d_lengths, d_anchor)
+    return _result(run, q, v, dq, dv, steps, status, sample_dq, sample_dv)

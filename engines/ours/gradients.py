@@ -4,9 +4,9 @@ Each parameter's direction in ours' state (the particles' positions and velociti
 state is the outputs themselves) comes from engines.gradients.initial_output_directions; g, masses and lengths
 also move ours' model (the packed arrays 1/m, m·g, l², …), whose derivative is taken from the scene's own
 builder (ours.sensitivity.ModelDirections.of: differences of the built System, no run). One tangent-linear run
-carries every parameter to T: the derivative of what ours computes, exact to round-off. Model files (ours'
-rigid bodies) have their own entry (:func:`model_jacobian`); the lagrangian method is left to differences of
-rollouts.
+carries every parameter to T, for every cure and integrator (the lagrangian method's in link angles): the
+derivative of what ours computes, exact to round-off. Model files (ours' rigid bodies) have their own entry
+(:func:`model_jacobian`).
 """
 
 from __future__ import annotations
@@ -44,12 +44,12 @@ def model_jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapp
 def particle_jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                       wrt: Sequence[str], to_system: Any) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
     """(J (6P, k), "analytic", times (n,) s, J at each (n, 6P, k)) by the tangent-linear step, sampled as
-    differences of rollouts are (every SAMPLE_INTERVAL); None for the lagrangian method (its own kernel) or a run
-    that stops early (differences of rollouts then say what it does)."""
+    differences of rollouts are (every SAMPLE_INTERVAL), for every cure and integrator, ``lagrangian`` too; None
+    for a run that stops early (differences of rollouts then say what it does)."""
     from ours.sensitivity import forward_sensitivities
 
     settings = engine.resolve(variant, options)
-    if settings["method"] == "lagrangian" or not wrt:
+    if not wrt:
         return None
     system, q0, v0, dq0, dv0, dmodel, axes = directions(scene, wrt, to_system)
     schedule = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL)
