@@ -3,10 +3,12 @@
 The double pendulum released at (90°, 0°), and a chain of 8 links (its J W Jᵀ solved by banded Cholesky, where
 the double pendulum's 2 × 2 is solved in closed form), dt 1e-3 s, STEPS steps, in one run:
 
-- ours' plain step, per variant (baumgarte-rk4, projection-rk4, rattle; on the chain baumgarte-rk4 and rattle): ``ours.simulate`` of STEPS steps (one
+- ours' plain step, per variant (baumgarte-rk4, projection-rk4, rattle, lagrangian-rk4; on the chain
+  baumgarte-rk4 and rattle): ``ours.simulate`` of STEPS steps (one
   sample at the end), per step;
 - ours' sensitivities for n directions (n = 1, 2, 4, 8: 8 is the whole state of two planar particles) by its
-  tangent-linear step (``forward_sensitivities``: one run carries all n), per step, and its ratio to the same
+  tangent-linear step (``forward_sensitivities``: one run carries all n; the lagrangian method's in link
+  angles), per step, and its ratio to the same
   variant's plain step beside the issue's budget of 2 + n steps' worth;
 - for baumgarte-rk4 also: n = 4 physical parameters (g, m1, m2, l1: the model moves as well as the state), and
   the complex step (``complex_step_sensitivities``: one complex run per direction, the method it replaced and the
@@ -54,7 +56,7 @@ def best_cpu(work, repeats: int) -> float:
     return fastest(work, repeats)
 
 
-VARIANTS = (("baumgarte", "rk4"), ("projection", "rk4"), ("rattle", "rattle"))
+VARIANTS = (("baumgarte", "rk4"), ("projection", "rk4"), ("rattle", "rattle"), ("lagrangian", "rk4"))
 PHYSICAL = ["g", "m1", "m2", "l1"]
 
 

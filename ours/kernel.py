@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, inlined, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
@@ -294,7 +294,7 @@ def project_velocities(q, v, model, G, band, mu):
     return True
 
 
-@llvm_inlined
+@inlined
 def velocity_rates(q, v, model, G, mu):
     """mu[k] = Ċ_k = J v (G receives the gradients at q)."""
     ends = model[2]
@@ -345,7 +345,7 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     return OK
 
 
-@llvm_inlined
+@inlined
 def rattle_begin(q, v, h, model, work):
     """RATTLE's start: G0 = the gradients at q_n, J_n W J_nᵀ factored (Cholesky) in the band, the drift
     q_new = q + h v + ½h² W f, Λ = 0; False when J_n W J_nᵀ is not positive definite."""
@@ -365,7 +365,7 @@ def rattle_begin(q, v, h, model, work):
     return True
 
 
-@llvm_inlined
+@inlined
 def shake_update(model, work):
     """One SHAKE iteration after :func:`violations` left C(q_new) in delta: delta ← −(J_n W J_nᵀ)⁻¹ C by the
     factor, Λ += delta, q_new += W J_nᵀ delta."""
@@ -379,7 +379,7 @@ def shake_update(model, work):
     add_constraint_term(q_new, 1.0, model[0], model[2], G0, delta)
 
 
-@llvm_inlined
+@inlined
 def rattle_kick(q, v, h, model, work):
     """v_{n+1/2} = v_n + h/2 W f + W J_nᵀ Λ / h, then the second half kick with f; q ← q_new."""
     inverse_mass, force = model[0], model[1]
@@ -454,7 +454,7 @@ def rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
     return ok
 
 
-@llvm_inlined
+@inlined
 def rk_stage(A, h, i, q, v, Kq, Kv, qs, vs):
     """Stage i's state: qs = q + h Σ_j A_ij Kq_j, vs = v + h Σ_j A_ij Kv_j (terms added in order of j, zero
     entries skipped), and Kq_i = vs."""
@@ -467,7 +467,7 @@ def rk_stage(A, h, i, q, v, Kq, Kv, qs, vs):
     _copy(Kq[i], vs)
 
 
-@llvm_inlined
+@inlined
 def rk_combine(b, h, q, v, Kq, Kv):
     """q += h Σ_i b_i Kq_i and v += h Σ_i b_i Kv_i (in order of i, zero weights skipped)."""
     for i in range(b.shape[0]):

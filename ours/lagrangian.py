@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, inlined, solve_banded
 from ours.errors import ModelError
 from ours.status import NON_FINITE, OK, SINGULAR
 
@@ -62,7 +62,7 @@ def _finite(x):
     return True
 
 
-@llvm_inlined
+@inlined
 def stage(A, h, i, theta, omega, Kt, Kw, ts, ws):
     """Stage i's angles and rates: ts = θ + h Σ_j A_ij Kt_j, ws = θ̇ + h Σ_j A_ij Kw_j (terms in order of j, zero
     entries skipped), and Kt_i = ws."""
@@ -79,7 +79,7 @@ def stage(A, h, i, theta, omega, Kt, Kw, ts, ws):
         Kt[i, k] = ws[k]
 
 
-@llvm_inlined
+@inlined
 def combine(b, h, theta, omega, Kt, Kw):
     """θ += h Σ_i b_i Kt_i, θ̇ += h Σ_i b_i Kw_i (in order of i)."""
     for i in range(b.shape[0]):

@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ours.banded import compiled, llvm_inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
-from ours.kernel import (_PROJECTION, _RATTLE, _SYMPLECTIC_EULER, _axpy, _band_columns, _closed_form, _constraints,
-                         _copy, _dim, _entry, _feedback, _pairs, _particles, acceleration, add_constraint_term,
-                         rattle_begin, rattle_kick, rk_combine, rk_stage, shake_update, solve_jwjt,
-                         velocity_rates, violations)
+from ours.kernel import (rk_stage, velocity_rates, _PROJECTION, _RATTLE, _SYMPLECTIC_EULER, _axpy, _band_columns, _closed_form, _constraints,
+                         _copy, _entry, _dim, _feedback, _pairs, _particles, acceleration, add_constraint_term, assemble,
+                         constraint_value, solve_jwjt, violations)
 from ours.status import NOT_CONVERGED, OK, SINGULAR
 
 # ---- TANGENT (ours.specialize appends what follows to the kernel's text) ----
@@ -33,9 +32,10 @@ def tangent_workspace(n: int, P: int, C: int, dim: int, stages: int) -> tuple:
     def z(shape):
         return np.zeros(shape)
 
-    # The inverse of J W Jᵀ where the kernel solves it in closed form (at most 3 constraints): ``prepare_solves``.
-    inverse = z((C, C) if C <= 3 else (0, 0))
-    return (z((n, C, dim)), z((n, C)), z((n, stages, P, dim)), z((n, stages, P, dim)), z((P, dim)), z((P, dim)),
+    # The inverse of J W Jᵀ where the kernel solves it in closed form (at most 3 constraints), else the
+    # reciprocals of its Cholesky factor's diagonal (one column): ``prepare_solves``.
+    inverse = z((C, C if C <= 3 else 1))
+    return (z((n, C, dim)), z((n, C)), z((stages, n, P, dim)), z((stages, n, P, dim)), z((P, dim)), z((P, dim)),
             z((n, C, dim)), z((n, P, dim)), z((n, C)), inverse)
 
 
@@ -107,11 +107,37 @@ def subtract_matrix_tangent(G, dG, pair_k, pair_l, pair_w, d_pair_w, lam, out):
 
 
 @llvm_inlined
+def reciprocals(band, n, inverse):
+    """inverse[i, 0] ← 1 / L[i, i] of the Cholesky factor in ``band``: every direction's solve then multiplies."""
+    for i in range(n):
+        # A failed factorisation (the step then stops as singular) may leave a zero: no division by it.
+        inverse[i, 0] = 1.0 / band[i, 0] if band[i, 0] != 0.0 else np.nan
+
+
+@llvm_inlined
+def solve_factored(band, n, b, inverse, x):
+    """x ← (L Lᵀ)⁻¹ x with L in ``band`` (bandwidth b) and its diagonal's reciprocals in inverse[:, 0]
+    (``ours.banded.solve_banded`` with the divisions done once per factorisation)."""
+    for i in range(n):
+        s = x[i]
+        for k in range(max(0, i - b), i):
+            s -= band[i, i - k] * x[k]
+        x[i] = s * inverse[i, 0]
+    for i in range(n - 1, -1, -1):
+        s = x[i]
+        for k in range(i + 1, min(n, i + b + 1)):
+            s -= band[k, k - i] * x[k]
+        x[i] = s * inverse[i, 0]
+
+
+@llvm_inlined
 def prepare_solves(band, inverse):
-    """After :func:`solve_jwjt` left ``band``: for the closed form (n ≤ 3, which keeps the matrix in ``band``) its
-    inverse (n, n), computed once for every direction; nothing for Cholesky, whose factor serves as it is."""
+    """After :func:`solve_jwjt` left ``band``: what :func:`resolve_jwjt` needs, computed once for every direction:
+    the inverse of J W Jᵀ (n ≤ 3, the closed form, which keeps the matrix in ``band``: inverse (n, n)), or the
+    reciprocals of its Cholesky factor's diagonal (inverse[:, 0])."""
     n, bandwidth = _constraints(band), _band_columns(band) - 1
     if not _closed_form(band):
+        reciprocals(band, n, inverse)
         return
     a00 = band[0, 0]
     if n == 1:
@@ -139,10 +165,10 @@ def prepare_solves(band, inverse):
 @llvm_inlined
 def resolve_jwjt(band, inverse, x):
     """x ← (J W Jᵀ)⁻¹ x with ``band`` as :func:`solve_jwjt` left it and ``inverse`` from :func:`prepare_solves`:
-    no second factorisation."""
+    no second factorisation, and no division."""
     n, bandwidth = _constraints(band), _band_columns(band) - 1
     if not _closed_form(band):
-        solve_banded(band, n, bandwidth, x)
+        solve_factored(band, n, bandwidth, inverse, x)
     elif n == 1:
         x[0] = inverse[0, 0] * x[0]
     elif n == 2:
@@ -205,7 +231,7 @@ def acceleration_tangent(q, v, dq, dv, model, dmodel, moving, d, k_s, k_d, G, ba
 
 @llvm_inlined
 def rk_step_tangent(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs, dq, dv, dmodel, moving, tangent_work):
-    """:func:`rk_step` (its stages, in its order) and its derivative along every direction."""
+    """:func:`rk_step` (the same operations in the same order) and its derivative along every direction."""
     dG, dlam, dKq, dKv, dqs, dvs = (tangent_work[0], tangent_work[1], tangent_work[2], tangent_work[3],
                                     tangent_work[4], tangent_work[5])
     inverse = tangent_work[9]
@@ -216,115 +242,145 @@ def rk_step_tangent(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs, 
             ok = False
         prepare_solves(band, inverse)
         for d in range(dq.shape[0]):
-            rk_stage(A, h, i, dq[d], dv[d], dKq[d], dKv[d], dqs, dvs)
+            _copy(dqs, dq[d])
+            _copy(dvs, dv[d])
+            for j in range(i):
+                if A[i, j] != 0.0:
+                    _axpy(dqs, dqs, h * A[i, j], dKq[j, d])
+                    _axpy(dvs, dvs, h * A[i, j], dKv[j, d])
+            _copy(dKq[i, d], dvs)
             acceleration_tangent(qs, vs, dqs, dvs, model, dmodel, moving, d, ks, kd, G, band, inverse, lam, dG[d],
-                                 dlam[d], dKv[d, i])
-    rk_combine(b, h, q, v, Kq, Kv)
-    for d in range(dq.shape[0]):
-        rk_combine(b, h, dq[d], dv[d], dKq[d], dKv[d])
+                                 dlam[d], dKv[i, d])
+    for i in range(b.shape[0]):
+        if b[i] != 0.0:
+            _axpy(q, q, h * b[i], Kq[i])
+            _axpy(v, v, h * b[i], Kv[i])
+            for d in range(dq.shape[0]):
+                _axpy(dq[d], dq[d], h * b[i], dKq[i, d])
+                _axpy(dv[d], dv[d], h * b[i], dKv[i, d])
     return ok
 
 
 @llvm_inlined
-def step_back(model, dmodel, G, dG, band, inverse, x, dx, y, dy):
-    """y −= W Jᵀ (J W Jᵀ)⁻¹ x (x solved in place), and along every direction d, dy[d] −= its derivative, with
-    dx (n, C) holding x's derivative (solved in place by the same factor); False when J W Jᵀ is singular.
-    Projection's Newton iterate (x = C, y = q) and its velocity projection (x = J v, y = v)."""
-    if not solve_jwjt(G, model, band, x):
-        return False
+def correct_directions(model, dmodel, G, dG, band, inverse, x, dx, target):
+    """After x ← (J W Jᵀ)⁻¹ x (its right side's derivative in dx (n, C)): dx ← its solution's derivative, by the
+    same factor, and target (n, P, dim) −= d(W Jᵀ x) along every direction."""
     prepare_solves(band, inverse)
     for d in range(dx.shape[0]):
         subtract_matrix_tangent(G, dG[d], model[7], model[8], model[9], dmodel[4][d], x, dx[d])
         resolve_jwjt(band, inverse, dx[d])
-        add_constraint_term_tangent(dy[d], -1.0, model[0], dmodel[0][d], model[2], G, dG[d], x, dx[d])
-    add_constraint_term(y, -1.0, model[0], model[2], G, x)
-    return True
-
-
-@llvm_inlined
-def constraint_tangents(q, dq, model, dmodel, G, dG, dc):
-    """dc[d, k] = dC_k and dG[d, k] = dg_k along every direction d at q (G : the gradients at q, set)."""
-    ends = model[2]
-    for d in range(dq.shape[0]):
-        for k in range(_constraints(ends)):
-            dc[d, k] = constraint_value_tangent(k, q, dq[d], ends, model[3], model[4], model[5], dmodel[2][d],
-                                                dmodel[3][d], G, dG[d])
+        add_constraint_term_tangent(target[d], -1.0, model[0], dmodel[0][d], model[2], G, dG[d], x, dx[d])
 
 
 @llvm_inlined
 def project_positions_tangent(q, model, tolerance, max_iterations, G, band, delta, dq, dmodel, dG, ddelta, inverse):
     """:func:`project_positions` and the derivative of each Newton iterate along every direction."""
+    inverse_mass, ends = model[0], model[2]
     for _ in range(max_iterations + 1):
         if violations(q, model, G, delta) <= tolerance:
             return OK
-        constraint_tangents(q, dq, model, dmodel, G, dG, ddelta)
-        if not step_back(model, dmodel, G, dG, band, inverse, delta, ddelta, q, dq):
+        for d in range(dq.shape[0]):
+            for k in range(_constraints(ends)):
+                ddelta[d, k] = constraint_value_tangent(k, q, dq[d], ends, model[3], model[4], model[5],
+                                                        dmodel[2][d], dmodel[3][d], G, dG[d])
+        if not solve_jwjt(G, model, band, delta):
             return SINGULAR
+        correct_directions(model, dmodel, G, dG, band, inverse, delta, ddelta, dq)
+        add_constraint_term(q, -1.0, inverse_mass, ends, G, delta)
     return NOT_CONVERGED
 
 
 @llvm_inlined
 def project_velocities_tangent(q, v, model, G, band, mu, dq, dv, dmodel, dG, dmu, inverse):
     """:func:`project_velocities` and its derivative along every direction."""
-    ends = model[2]
+    inverse_mass, ends = model[0], model[2]
     velocity_rates(q, v, model, G, mu)
-    constraint_tangents(q, dq, model, dmodel, G, dG, dmu)  # for dG; dmu is then the rates'
     for d in range(dq.shape[0]):
         for k in range(_constraints(ends)):
+            constraint_value_tangent(k, q, dq[d], ends, model[3], model[4], model[5], dmodel[2][d], dmodel[3][d],
+                                     G, dG[d])
             dmu[d, k] = constraint_rate_tangent(k, v, dv[d], ends, model[4], model[5], dmodel[3][d], G, dG[d])[1]
-    return step_back(model, dmodel, G, dG, band, inverse, mu, dmu, v, dv)
+    if solve_jwjt(G, model, band, mu):
+        correct_directions(model, dmodel, G, dG, band, inverse, mu, dmu, dv)
+        add_constraint_term(v, -1.0, inverse_mass, ends, G, mu)
+        return True
+    return False
 
 
 @llvm_inlined
 def rattle_step_tangent(q, v, h, model, tolerance, max_iterations, work, dq, dv, dmodel, moving, tangent_work):
-    """:func:`rattle_step` (its pieces, in its order) and the derivative of its SHAKE iterates and projection along
-    every direction; the Cholesky factor of J_n W J_nᵀ serves every direction's solve as it serves every
-    iteration."""
+    """:func:`rattle_step` and the derivative of its SHAKE iterates and projection along every direction; the
+    Cholesky factor of J_n W J_nᵀ serves every direction's solve as it serves every iteration."""
     inverse_mass, force, ends = model[0], model[1], model[2]
+    pair_k, pair_l, pair_w = model[7], model[8], model[9]
     G0, G, band, Lam, delta, q_new = work
     dG, ddelta, dG0, dq_new, dLam = tangent_work[0], tangent_work[1], tangent_work[6], tangent_work[7], tangent_work[8]
+    inverse = tangent_work[9]
     n = dq.shape[0]
+    P = _particles(q)
+    dim = _dim(q)
     C = _constraints(ends)
-    bandwidth = _band_columns(band) - 1
-    if not rattle_begin(q, v, h, model, work):
-        return SINGULAR
-    constraint_tangents(q, dq, model, dmodel, G0, dG0, dLam)  # for dG0
+    for k in range(C):
+        constraint_value(k, q, ends, model[3], model[4], model[5], G0)
     for d in range(n):
         for k in range(C):
+            constraint_value_tangent(k, q, dq[d], ends, model[3], model[4], model[5], dmodel[2][d], dmodel[3][d],
+                                     G0, dG0[d])
+    bandwidth = _band_columns(band) - 1
+    assemble(G0, pair_k, pair_l, pair_w, band)
+    if not cholesky_banded(band, C, bandwidth):
+        return SINGULAR
+    reciprocals(band, C, inverse)
+    for p in range(P):
+        for a in range(dim):
+            q_new[p, a] = q[p, a] + h * v[p, a] + 0.5 * h * h * inverse_mass[p] * force[p, a]
+    for d in range(n):
+        for p in range(P):
+            for a in range(dim):
+                dq_new[d, p, a] = dq[d, p, a] + h * dv[d, p, a]
+                if moving:
+                    dq_new[d, p, a] += 0.5 * h * h * (dmodel[0][d][p] * force[p, a] + inverse_mass[p] * dmodel[1][d][p, a])
+        for k in range(C):
             dLam[d, k] = 0.0
-        _axpy(dq_new[d], dq[d], h, dv[d])
-        if moving:
-            for p in range(_particles(q)):
-                for a in range(_dim(q)):
-                    dq_new[d, p, a] += 0.5 * h * h * (dmodel[0][d][p] * force[p, a]
-                                                      + inverse_mass[p] * dmodel[1][d][p, a])
+    for k in range(C):
+        Lam[k] = 0.0
     converged = False
     for _ in range(max_iterations + 1):
         if violations(q_new, model, G, delta) <= tolerance:
             converged = True
             break
-        constraint_tangents(q_new, dq_new, model, dmodel, G, dG, ddelta)
-        shake_update(model, work)
         for d in range(n):
             for k in range(C):
-                ddelta[d, k] = -ddelta[d, k]
-            subtract_matrix_tangent(G0, dG0[d], model[7], model[8], model[9], dmodel[4][d], delta, ddelta[d])
-            solve_banded(band, C, bandwidth, ddelta[d])
+                ddelta[d, k] = -constraint_value_tangent(k, q_new, dq_new[d], ends, model[3], model[4], model[5],
+                                                         dmodel[2][d], dmodel[3][d], G, dG[d])
+        for k in range(C):
+            delta[k] = -delta[k]
+        solve_banded(band, C, bandwidth, delta)
+        for d in range(n):
+            subtract_matrix_tangent(G0, dG0[d], pair_k, pair_l, pair_w, dmodel[4][d], delta, ddelta[d])
+            solve_factored(band, C, bandwidth, inverse, ddelta[d])
             for k in range(C):
                 dLam[d, k] += ddelta[d, k]
             add_constraint_term_tangent(dq_new[d], 1.0, inverse_mass, dmodel[0][d], ends, G0, dG0[d], delta,
                                         ddelta[d])
+        for k in range(C):
+            Lam[k] += delta[k]
+        add_constraint_term(q_new, 1.0, inverse_mass, ends, G0, delta)
     if not converged:
         return NOT_CONVERGED
-    rattle_kick(q, v, h, model, work)
+    for p in range(P):
+        for a in range(dim):
+            v[p, a] += h * inverse_mass[p] * force[p, a]
+    add_constraint_term(v, 1.0 / h, inverse_mass, ends, G0, Lam)
     for d in range(n):
         if moving:
-            for p in range(_particles(q)):
-                for a in range(_dim(q)):
+            for p in range(P):
+                for a in range(dim):
                     dv[d, p, a] += h * (dmodel[0][d][p] * force[p, a] + inverse_mass[p] * dmodel[1][d][p, a])
         add_constraint_term_tangent(dv[d], 1.0 / h, inverse_mass, dmodel[0][d], ends, G0, dG0[d], Lam, dLam[d])
         _copy(dq[d], dq_new[d])
-    if not project_velocities_tangent(q, v, model, G, band, delta, dq, dv, dmodel, dG, ddelta, tangent_work[9]):
+    _copy(q, q_new)
+    if not project_velocities_tangent(q, v, model, G, band, delta, dq, dv, dmodel, dG, ddelta, inverse):
         return SINGULAR
     return OK
 
@@ -345,7 +401,7 @@ def step_once_tangent(method, integrator, A, b, h, q, v, model, work, ks, kd, to
         prepare_solves(band, inverse)
         for d in range(dq.shape[0]):
             acceleration_tangent(q, v, dq[d], dv[d], model, dmodel, moving, d, ks, kd, G, band, inverse, lam, dG[d],
-                                 dlam[d], dKv[d, 0])
+                                 dlam[d], dKv[0, d])
         for p in range(_particles(q)):
             for a in range(_dim(q)):
                 v[p, a] = v[p, a] + h * Kv[0, p, a]
@@ -353,7 +409,7 @@ def step_once_tangent(method, integrator, A, b, h, q, v, model, work, ks, kd, to
         for d in range(dq.shape[0]):
             for p in range(_particles(q)):
                 for a in range(_dim(q)):
-                    dv[d, p, a] = dv[d, p, a] + h * dKv[d, 0, p, a]
+                    dv[d, p, a] = dv[d, p, a] + h * dKv[0, d, p, a]
                     dq[d, p, a] = dq[d, p, a] + h * dv[d, p, a]
     elif not rk_step_tangent(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs, dq, dv, dmodel, moving,
                              tangent_work):
