@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, solve_banded
 from ours.errors import ModelError
 from ours.status import NON_FINITE, OK, SINGULAR
 
@@ -62,32 +62,6 @@ def _finite(x):
     return True
 
 
-@inlined
-def stage(A, h, i, theta, omega, Kt, Kw, ts, ws):
-    """Stage i's angles and rates: ts = θ + h Σ_j A_ij Kt_j, ws = θ̇ + h Σ_j A_ij Kw_j (terms in order of j, zero
-    entries skipped), and Kt_i = ws."""
-    n_links = theta.shape[0]
-    for k in range(n_links):
-        ts[k] = theta[k]
-        ws[k] = omega[k]
-    for j in range(i):
-        if A[i, j] != 0.0:
-            for k in range(n_links):
-                ts[k] += h * A[i, j] * Kt[j, k]
-                ws[k] += h * A[i, j] * Kw[j, k]
-    for k in range(n_links):
-        Kt[i, k] = ws[k]
-
-
-@inlined
-def combine(b, h, theta, omega, Kt, Kw):
-    """θ += h Σ_i b_i Kt_i, θ̇ += h Σ_i b_i Kw_i (in order of i)."""
-    for i in range(b.shape[0]):
-        for k in range(theta.shape[0]):
-            theta[k] += h * b[i] * Kt[i, k]
-            omega[k] += h * b[i] * Kw[i, k]
-
-
 @compiled
 def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, stride, out_q, out_v):
     """Step (θ, θ̇) with the explicit Runge–Kutta table (A, b), recording Cartesian samples.
@@ -99,6 +73,7 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
     tail : (n,) kg, μ_ii = Σ_{k ≥ i} m_k.  lengths : (n,) m.  gravity, anchor : (2,).
     work : the arrays of :func:`workspace`. Returns (samples written, steps taken, status).
     """
+    n_links = theta.shape[0]
     stages = b.shape[0]
     M, Kt, Kw, ts, ws = work
     h = dt
@@ -109,10 +84,22 @@ def run(A, b, theta, omega, tail, lengths, gravity, anchor, work, dt, n_steps, s
     step = 0
     while step < n_steps:
         for i in range(stages):
-            stage(A, h, i, theta, omega, Kt, Kw, ts, ws)
+            for k in range(n_links):
+                ts[k] = theta[k]
+                ws[k] = omega[k]
+            for j in range(i):
+                if A[i, j] != 0.0:
+                    for k in range(n_links):
+                        ts[k] += h * A[i, j] * Kt[j, k]
+                        ws[k] += h * A[i, j] * Kw[j, k]
+            for k in range(n_links):
+                Kt[i, k] = ws[k]
             if not angular_acceleration(ts, ws, tail, lengths, gravity, M, Kw[i]):
                 status = SINGULAR
-        combine(b, h, theta, omega, Kt, Kw)
+        for i in range(stages):
+            for k in range(n_links):
+                theta[k] += h * b[i] * Kt[i, k]
+                omega[k] += h * b[i] * Kw[i, k]
         step += 1
         if not (_finite(theta) and _finite(omega)):
             status = NON_FINITE

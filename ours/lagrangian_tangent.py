@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ours.banded import compiled, llvm_inlined, solve_banded
-from ours.lagrangian import _finite, angular_acceleration, combine, stage
+from ours.lagrangian import _finite, angular_acceleration
 from ours.status import NON_FINITE, OK, SINGULAR
 
 
@@ -43,6 +43,28 @@ def acceleration_tangent(theta, omega, dtheta, domega, tail, lengths, gravity, d
             total -= (d_mu * cd - mu * sd * d_angle) * alpha[j]
         dalpha[i] = total
     solve_banded(M, n, n - 1, dalpha)
+
+
+@llvm_inlined
+def stage(A, h, i, theta, omega, Kt, Kw, ts, ws):
+    """Stage i of ``ours.lagrangian.run`` on (θ, θ̇) or a direction's (dθ, dθ̇), element by element with run's
+    arithmetic in run's order (bit for bit): ts = θ + h Σ_j A_ij Kt_j, ws likewise, Kt_i = ws."""
+    for k in range(theta.shape[0]):
+        angle, rate = theta[k], omega[k]
+        for j in range(i):
+            if A[i, j] != 0.0:
+                angle += h * A[i, j] * Kt[j, k]
+                rate += h * A[i, j] * Kw[j, k]
+        ts[k], ws[k], Kt[i, k] = angle, rate, rate
+
+
+@llvm_inlined
+def combine(b, h, theta, omega, Kt, Kw):
+    """θ += h Σ_i b_i Kt_i and θ̇ += h Σ_i b_i Kw_i, element by element in run's order of i."""
+    for k in range(theta.shape[0]):
+        for i in range(b.shape[0]):
+            theta[k] += h * b[i] * Kt[i, k]
+            omega[k] += h * b[i] * Kw[i, k]
 
 
 @compiled
