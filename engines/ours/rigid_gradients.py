@@ -26,8 +26,9 @@ KINEMATIC_STEP = 1e-4
 def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
     """(J (2 nq, k), "autodiff", times (n,) s, J at each (n, 2 nq, k)) for a fixed-base model scene, sampled as
-    differences of rollouts are (every SAMPLE_INTERVAL); None for a floating base, a method and integrator ours'
-    rigid bodies refuse, or a run that stops early. ``engine`` : ours' adapter; ``wrt`` : q0.JOINT, v0.JOINT."""
+    differences of rollouts are (every SAMPLE_INTERVAL); None for a floating base, a model or a method and
+    integrator ours' rigid bodies refuse, or a run that stops early. ``engine`` : ours' adapter; ``wrt`` : q0.JOINT, v0.JOINT."""
+    from engines.errors import Unsupported
     from engines.ours.model import GRAVITY, start_state, translate
     from ours import OursError
     from ours.rigid.method import resolve
@@ -38,7 +39,10 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
         resolve(settings["method"], settings["integrator"])
     except OursError:
         return None  # refused for rigid bodies: the run's own check says why
-    model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+    try:
+        model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+    except Unsupported:
+        return None  # a model ours cannot express: its runs are skipped, with the reason
     if model.base >= 0:
         return None
     schedule = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL)
