@@ -77,15 +77,15 @@ SLOW: set[str] = set()
 
 def main() -> None:
     f = figures()
-    print(f"{VARIANT} on the KUKA iiwa, T = 1 s, d (q, v)(T) / d ({', '.join(WRT)}):")
-    for dt in DTS:
-        print(f"  dt {dt:g} s: error {f[f'error|{dt:g}']:.2g}")
-    print(f"  observed order {f['order|2e-3']:.2f} (2e-3 to 1e-3 s), {f['order|1e-3']:.2f} (1e-3 to 5e-4 s); "
-          f"class correct at 1e-3: {bool(f['correct|0.001'])}, method autodiff: {bool(f['method_autodiff|0.001'])}")
-    print(f"  self-consistency at dt 1e-3: {f['self_consistency']:.2g} against differences at h = 1e-4 (the "
-          f"harness's), {f['self_consistency_quarter_step']:.2g} at h = 2.5e-5")
-    print(f"  every method and integrator: self-consistency at most {f['pairs|self_consistency_worst']:.2g} at "
-          f"h = 1e-4, {f['pairs|self_consistency_quarter_step_worst']:.2g} at h = 2.5e-5")
+    lines = [f"{VARIANT} on the KUKA iiwa, T = 1 s, d (q, v)(T) / d ({', '.join(WRT)}):",
+             *(f"  dt {dt:g} s: error {f[f'error|{dt:g}']:.2g}" for dt in DTS),
+             f"  observed order {f['order|2e-3']:.2f} (2e-3 to 1e-3 s), {f['order|1e-3']:.2f} (1e-3 to 5e-4 s); class "
+             f"correct at 1e-3: {bool(f['correct|0.001'])}, method autodiff: {bool(f['method_autodiff|0.001'])}",
+             f"  self-consistency at dt 1e-3: {f['self_consistency']:.2g} against differences at h = 1e-4 (the "
+             f"harness's), {f['self_consistency_quarter_step']:.2g} at h = 2.5e-5",
+             f"  every method and integrator: self-consistency at most {f['pairs|self_consistency_worst']:.2g} at "
+             f"h = 1e-4, {f['pairs|self_consistency_quarter_step_worst']:.2g} at h = 2.5e-5"]
+    print("\n".join(lines))
     report(f, QUOTES, ROWS)
 
 
