@@ -95,11 +95,6 @@ class DartEngine(Engine):
         """Import dartpy in this process, so that case hosts forked from it inherit it."""
         library.dartpy()
 
-    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
-        if scene.floating_base:
-            raise Unsupported("dart: a floating base is not stepped here yet (its MJCF parser welds a free joint's "
-                              "body to the world); weld the base to run the joints")
-
     def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.DartStepper(scene, schedule.dt, settings["integrator"]))
 

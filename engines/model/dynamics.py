@@ -31,6 +31,15 @@ def base_rate(pose: np.ndarray, v: np.ndarray) -> np.ndarray:
                            [-0.5 * vector @ angular]])
 
 
+def configuration_rate(description, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """q̇ (nconfig,) of a model (engines.model.description.ModelDescription) at xval's q (nconfig,), v (nv,): v
+    itself, a floating base's pose moving by :func:`base_rate`. The reference's and any engine's integrator in
+    xval's coordinates (engines/dart/rk4.py) share it."""
+    if description.floating is None:
+        return v
+    return np.concatenate([base_rate(q[:7], v[:6]), v[6:]])
+
+
 class ModelDynamics:
     """ẏ = f(y) for y = (q, v) (nconfig + nv,) of ``scene``: q̇ from v and Pinocchio's ABA acceleration."""
 
@@ -61,9 +70,7 @@ class ModelDynamics:
         q, v = y[:n], y[n:]
         rates = loaded._vector(v)
         a = pin.aba(loaded.model, loaded.data, loaded.configuration(q), rates, -damping * rates)[loaded.dof]
-        if loaded.description.floating is None:
-            return np.concatenate([v, a])
-        return np.concatenate([base_rate(q[:7], v[:6]), v[6:], a])
+        return np.concatenate([configuration_rate(loaded.description, q, v), a])
 
     def derivatives(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q̈ (nq,), ∂q̈/∂q (nq, nq), ∂q̈/∂v (nq, nq)) at y = (q, v): Pinocchio's computeABADerivatives (analytic),
