@@ -9,7 +9,9 @@ what the kernel computes, exact to round-off, with no difference taken; the real
 (every branch as there; they differ from it at most in the last bit, where a fused multiply-add meets a
 complex product). The twin of ``ours.sensitivity`` for particles; each direction costs one complex run.
 
-Covered: every method (plain, baumgarte, projection) with every integrator ours' rigid bodies offer.
+Covered: every method (plain, baumgarte, projection) with every integrator ours' rigid bodies offer. The
+projection's stop reads the real residual: along a direction that pulls the joints apart, the derivative is that
+of the iterations the real run took (along the joints' own coordinates it matches differences of rollouts).
 """
 
 from __future__ import annotations
