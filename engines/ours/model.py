@@ -96,6 +96,11 @@ def placed(model: OursModel, y: np.ndarray, pose: np.ndarray, velocity: np.ndarr
     return out
 
 
+def of_scene(scene) -> OursModel:
+    """ours' Mechanism for a model scene: its description translated under the scene's gravity."""
+    return translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+
+
 def start_state(model: OursModel, scene) -> np.ndarray:
     """y0 (13 nb,): the model scene's initial joint state (q0, v0, and the floating base's pose and velocity) in
     ours' maximal coordinates."""
@@ -150,7 +155,7 @@ class OursStepper(Stepper):
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+        self.model = of_scene(scene)
         floating = self.model.base >= 0
         start_q = np.asarray(scene.initial_q, dtype=float)
         mech = self.model.mechanism
