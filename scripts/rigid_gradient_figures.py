@@ -60,7 +60,8 @@ def figures(quick: bool = False) -> dict[str, float]:
     for method, integrator in valid_pairs():  # every method and integrator: own derivatives against own differences
         engine, variant = registry.resolve(f"ours/{method}-{integrator}")
         own = engine.jacobian(scene, variant, None, 1e-3, WRT)[0]
-        harness.append(relative_error(own, finite_difference_jacobian(engine, scene, variant, None, 1e-3, WRT).jacobian))
+        harness.append(relative_error(own, finite_difference_jacobian(engine, scene, variant, None, 1e-3,
+                                                                      WRT).jacobian))
         quarter.append(relative_error(own, finite_difference_jacobian(engine, scene, variant, None, 1e-3, WRT,
                                                                       relative=STEP / 4).jacobian))
     f["pairs|self_consistency_worst"], f["pairs|self_consistency_quarter_step_worst"] = max(harness), max(quarter)

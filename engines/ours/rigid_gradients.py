@@ -51,8 +51,12 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
     if model.base >= 0:
         return None
     schedule = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL)
-    directions = np.array([central_difference(lambda delta, name=name: start_state(model, perturbed(scene, name, delta)),
-                                              INITIAL_STEP) for name in wrt])
+
+    def start(name: str, delta: float) -> np.ndarray:
+        return start_state(model, perturbed(scene, name, delta))
+
+    directions = np.array([central_difference(lambda delta, name=name: start(name, delta), INITIAL_STEP)
+                           for name in wrt])
     result = forward_sensitivities(
         model.mechanism, start_state(model, scene), directions, dt, schedule.n_steps, schedule.stride,
         method=settings["method"], integrator=settings["integrator"], k_s=settings["k_s"], k_d=settings["k_d"],
