@@ -249,11 +249,10 @@ def main(argv: list[str]) -> int:
                   f"{row['median']:7.2f}×  {row['ratios'][0]:.2f}–{row['ratios'][-1]:.2f}×    "
                   f"{'met' if row['met'] else 'MISSED'}")
     sensitivity = sensitivity_rows(repeats)
-    print("\nKUKA iiwa forward sensitivities (dt 1e-3 s): one direction's complex run against the real step, per step")
-    print(f"{'variant':<34}{'real µs':>8}{'complex µs':>12}{'steps worth':>13}")
-    for row in sensitivity:
-        print(f"{row['variant']:<34}{row['us_per_step']:8.2f}{row['complex_us_per_step']:12.2f}"
-              f"{row['steps_worth']:12.2f}×")
+    print("\n".join(["\nKUKA iiwa forward sensitivities (dt 1e-3 s): one direction's complex run against the real step, "
+                     "per step", f"{'variant':<34}{'real µs':>8}{'complex µs':>12}{'steps worth':>13}",
+                     *(f"{r['variant']:<34}{r['us_per_step']:8.2f}{r['complex_us_per_step']:12.2f}"
+                       f"{r['steps_worth']:12.2f}×" for r in sensitivity)]))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {load:.1f} on {os.cpu_count()} CPUs")
     path.parent.mkdir(parents=True, exist_ok=True)
