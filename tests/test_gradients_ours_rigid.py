@@ -58,6 +58,21 @@ def test_kuka_rk4_gradient_error_falls_at_fourth_order(kuka):
     assert all(3.5 <= order <= 4.5 for order in orders), (errors, orders)
 
 
+@pytest.mark.parametrize("method", ["plain", "baumgarte", "projection"])
+@pytest.mark.parametrize("integrator, order", [("midpoint", 2), ("rk4", 4)])
+def test_every_method_converges_at_its_integrators_order_on_the_kuka(kuka, method, integrator, order):
+    """From dt 1e-3 to 5e-4 s the error against the reference falls at the integrator's order within 0.3 (measured
+    1.99 to 2.04 for midpoint, 4.01 to 4.05 for RK4), whatever the drift cure. The first-order steps are left out:
+    on this arm they are not yet in their asymptotic range at these steps."""
+    scene, bound = kuka
+    variant = f"{method}-{integrator}"
+    engine, _ = registry.resolve(f"ours/{variant}")
+    reference = bound.sensitivity.jacobian(np.array([1.0]))[0]
+    coarse, fine = (relative_error(engine.jacobian(scene, variant, None, dt, KUKA_WRT)[0], reference)
+                    for dt in (1e-3, 5e-4))
+    assert abs(math.log2(coarse / fine) - order) <= 0.3, (coarse, fine)
+
+
 @pytest.mark.parametrize("method, integrator", valid_pairs())
 def test_every_method_and_integrator_is_self_consistent_on_the_kuka(method, integrator):
     """Against central differences (with Richardson) of ours' own rollouts at a quarter of the harness's step:
