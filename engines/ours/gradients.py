@@ -5,8 +5,8 @@ state is the outputs themselves) comes from engines.gradients.initial_output_dir
 also move ours' model (the packed arrays 1/m, m·g, l², …), whose derivative is taken from the scene's own
 builder (ours.sensitivity.ModelDirections.of: differences of the built System, no run). One tangent-linear run
 carries every parameter to T, for every cure and integrator (the lagrangian method's in link angles): the
-derivative of what ours computes, exact to round-off. Model files (ours' rigid bodies) have their own entry
-(:func:`model_jacobian`).
+derivative of what ours computes, exact to round-off. Model files (ours' rigid bodies) are
+engines/ours/rigid_gradients.py's (:func:`model_jacobian`).
 """
 
 from __future__ import annotations
@@ -37,8 +37,10 @@ def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[st
 
 def model_jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                    wrt: Sequence[str]) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
-    """A model file (ours' rigid bodies): none of its own yet, so differences of rollouts answer."""
-    return None
+    """A model file: ours' rigid bodies' own derivatives (engines/ours/rigid_gradients.py)."""
+    from engines.ours import rigid_gradients
+
+    return rigid_gradients.jacobian(engine, scene, variant, options, dt, wrt)
 
 
 def particle_jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,

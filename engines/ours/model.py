@@ -96,6 +96,22 @@ def placed(model: OursModel, y: np.ndarray, pose: np.ndarray, velocity: np.ndarr
     return out
 
 
+def of_scene(scene) -> OursModel:
+    """ours' Mechanism for a model scene: its description translated under the scene's gravity."""
+    return translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+
+
+def start_state(model: OursModel, scene) -> np.ndarray:
+    """y0 (13 nb,): the model scene's initial joint state (q0, v0, and the floating base's pose and velocity) in
+    ours' maximal coordinates."""
+    start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
+    floating = model.base >= 0
+    q0 = dict(zip(model.joint_names, start_q[7:] if floating else start_q))
+    v0 = dict(zip(model.joint_names, start_v[6:] if floating else start_v))
+    y0 = initial_state(model.mechanism, q0, v0)
+    return placed(model, y0, start_q[:7], start_v[:6]) if floating else y0
+
+
 def base_state(model: OursModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The floating base's pose (7,) (p m, quaternion x y z w) and velocity (6,) (linear m/s and angular rad/s of
     the base frame, in the base frame) at the state y (13 nb,)."""
@@ -139,19 +155,13 @@ class OursStepper(Stepper):
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
-        names = self.model.joint_names
+        self.model = of_scene(scene)
         floating = self.model.base >= 0
-        start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
-        q0 = dict(zip(names, start_q[7:] if floating else start_q))
-        v0 = dict(zip(names, start_v[6:] if floating else start_v))
+        start_q = np.asarray(scene.initial_q, dtype=float)
         mech = self.model.mechanism
-        y0 = initial_state(mech, q0, v0)
-        if floating:
-            y0 = placed(self.model, y0, start_q[:7], start_v[:6])
-        self.run = Stepping(mech, y0, dt, method=method, integrator=integrator, **options)
+        self.run = Stepping(mech, start_state(self.model, scene), dt, method=method, integrator=integrator, **options)
         self._turn = start_q[3:7] if floating else np.zeros(4)
-        self._last = np.array([q0[n] for n in names])
+        self._last = (start_q[7:] if floating else start_q)[:len(self.model.joint_names)].copy()
         self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
         #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
         self._read: list[np.ndarray] = []
