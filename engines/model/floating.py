@@ -20,6 +20,8 @@ from typing import Callable
 
 import numpy as np
 
+from engines.model.kinematics import quaternion_rotation
+
 def linear_world_angular_body(r: np.ndarray) -> np.ndarray:
     """u = (R v, ω): the linear velocity in the world, the angular in the body (MuJoCo's free joint)."""
     return np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]])
@@ -31,14 +33,7 @@ def angular_linear_world(r: np.ndarray) -> np.ndarray:
     return np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]])
 
 
-def rotation(quaternion_xyzw) -> np.ndarray:
-    """(3, 3) rotation of a quaternion (x, y, z, w), normalised first."""
-    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+rotation = quaternion_rotation
 
 
 def skew(w) -> np.ndarray:
