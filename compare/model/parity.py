@@ -1,7 +1,7 @@
 """Dynamics parity: each engine's M(q), b(q, v) and a(q, v, tau) against Pinocchio's at sampled states.
 
 States: a floating base anywhere within 1 m of the origin in any orientation (engines/model/floating.py);
-a ball joint in any orientation (a uniform unit quaternion); q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
+a ball joint in any orientation (a uniform unit quaternion, its pitch kept 5° from ±90°: PITCH_MARGIN); q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
 joint without them (±1 m for a prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
 a* uniform in ±1 rad/s² (m/s²), so every joint's reference acceleration is
 of order one. Per quantity the relative difference is the largest
@@ -141,11 +141,27 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
     columns = iter(drawn.T)
     for joint in model.moving_joints:  # a ball joint in any orientation (drawn after the rest: the draws of a
         where = model.slots[joint.name][0]  # model without one are what they always were)
-        q[:, where] = _unit_quaternions(rng, count) if joint.type == "ball" else next(columns)[:, None]
+        q[:, where] = _ball_quaternions(rng, count) if joint.type == "ball" else next(columns)[:, None]
     v = rng.uniform(-1.0, 1.0, (count, model.nv))
     target = rng.uniform(-1.0, 1.0, (count, model.nv))
     tau = np.array([reference.mass_matrix(qk) @ ak + reference.bias(qk, vk) for qk, vk, ak in zip(q, v, target)])
     return States(q, v, tau)
+
+
+#: rad: a ball joint's sampled orientation keeps its pitch (URDF's roll-pitch-yaw of the child frame in the joint
+#: frame) this far from ±90°, where Drake's BallRpyJoint is singular (it raises "has reached a singularity").
+PITCH_MARGIN = math.radians(5.0)
+
+
+def _ball_quaternions(rng: np.random.Generator, count: int) -> np.ndarray:
+    """(count, 4) uniform unit quaternions, each redrawn while its pitch is within PITCH_MARGIN of ±90°."""
+    out = _unit_quaternions(rng, count)
+    while True:
+        x, y, z, w = out.T
+        near = np.abs(2 * (w * y - x * z)) > math.cos(PITCH_MARGIN)  # |sin(pitch)| = |−R[2, 0]|
+        if not near.any():
+            return out
+        out[near] = _unit_quaternions(rng, int(near.sum()))
 
 
 def _unit_quaternions(rng: np.random.Generator, count: int) -> np.ndarray:
@@ -245,7 +261,10 @@ def _describe(source: sources.ModelSource, base: str) -> tuple[ModelDescription,
 
     isolation.report("stage", "reading the file")
     model = describe(source, base)
-    return model, (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
+    balls = (f"ball joint{'s' if len(model.balls) > 1 else ''} {', '.join(j.name for j in model.balls)}: sampled in "
+             f"any orientation, the pitch kept {math.degrees(PITCH_MARGIN):g}° from ±90° (Drake's BallRpyJoint is "
+             f"singular there)",) if model.balls else ()
+    return model, (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1], *balls)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""The one floating-base convention inside xval (Pinocchio's), and each engine's mapped to it.
+"""The one floating-base convention inside xval (Pinocchio's), and each engine's mapped to it (ball joints too).
 
 xval's configuration is (p (3,) m, quaternion x y z w, joint q) with p and the
 quaternion the base frame's pose in the world; its velocity is (v (3,) m/s,
@@ -48,6 +48,13 @@ class Mapping:
     T : (6 + n, 6 + n), the base block then the identity on the joints.
     """
 
+    @classmethod
+    def identity(cls, size: int) -> "Mapping":
+        """T = I (a fixed base), for ball joints' blocks to be set in (:func:`with_balls`)."""
+        mapping = cls.__new__(cls)
+        mapping.T, mapping.Tdot_v = np.eye(size), np.zeros(size)
+        return mapping
+
     def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None) -> None:
         r = rotation(q[3:7])
         n = len(q) - 7
@@ -73,3 +80,17 @@ class Mapping:
 
     def acceleration(self, a_engine: np.ndarray) -> np.ndarray:
         return np.linalg.solve(self.T, a_engine - self.Tdot_v)
+
+
+def with_balls(description, q: np.ndarray, mapping: Mapping | None) -> Mapping | None:
+    """``mapping`` (None: a fixed base's identity) with each ball joint's block R(Q), for an engine whose ball
+    velocity is the angular velocity in the joint's parent frame (u = R(Q) ω, R(Q) the child frame's rotation
+    in the joint frame; Drake's BallRpyJoint as measured). Ṫ v adds nothing: Ṙ ω = R [ω]× ω = 0. None when the
+    description has no ball joint and no base."""
+    if not description.balls:
+        return mapping
+    out = Mapping.identity(description.nv) if mapping is None else mapping
+    for joint in description.balls:
+        where_q, where_v = description.slots[joint.name]
+        out.T[where_v, where_v] = rotation(q[where_q])
+    return out
