@@ -69,6 +69,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
                              "<freejoint>)")
         stated = {"loader": "MjcfParser.readWorld"}
         return DartModel(jointed[0], description, stated, notes, _file_names(jointed[0], description))
+    if description.balls:
+        raise Refused("DART's URDF reader (urdfdom) has no spherical joint; DART compares ball joints from an MJCF")
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
     floating = description.floating is not None
@@ -100,6 +102,16 @@ def _file_names(skeleton, description: ModelDescription) -> dict[str, str]:
     return {dart: file for dart, file in zip(nodes, bodies) if dart != file and dart.startswith("Nonamed")}
 
 
+def ball_positions(description: ModelDescription, q: np.ndarray) -> np.ndarray:
+    """xval's configuration with each ball joint's quaternion (4 entries) replaced by its rotation vector (3)."""
+    parts = [q[:description.nconfig - description.nq]]
+    for joint in description.moving_joints:
+        where = description.slots[joint.name][0]
+        values = q[where]
+        parts.append(Rotation.from_quat(values / np.linalg.norm(values)).as_rotvec() if joint.type == "ball" else values)
+    return np.concatenate(parts)
+
+
 class DartModel(LoadedModel):
     engine = NAME
 
@@ -123,14 +135,18 @@ class DartModel(LoadedModel):
                 joint.setTransformFromParentBodyNode(identity)
                 joint.setTransformFromChildBodyNode(identity)
                 continue
-            if joint.getNumDofs() != 1:
-                raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
-            joint.setDampingCoefficient(0, 0.0)
-            joint.setCoulombFriction(0, 0.0)
-            joint.setSpringStiffness(0, 0.0)
+            if joint.getNumDofs() != 1 and joint.getType() != "BallJoint":
+                raise Refused(f"only 1-degree-of-freedom and ball joints are compared; DART's {joint.getName()} is "
+                              f"a {joint.getType()}")
+            for i in range(joint.getNumDofs()):
+                joint.setDampingCoefficient(i, 0.0)
+                joint.setCoulombFriction(i, 0.0)
+                joint.setSpringStiffness(i, 0.0)
             names.append(joint.getName())
-            dofs.append(joint.getIndexInSkeleton(0))
-        self.dof = np.array(dofs, dtype=int)[index_map(description, names)]
+            dofs.append([joint.getIndexInSkeleton(i) for i in range(joint.getNumDofs())])
+        # A BallJoint (its MJCF parser's ball): positions the rotation vector, velocities the child's angular
+        # velocity in the child frame, xval's (measured, tests/test_ball_joint.py).
+        self.dof = np.array([i for k in index_map(description, names) for i in dofs[k]], dtype=int)
         if bool(base) != (description.floating is not None):
             raise Refused("DART's skeleton has no FreeJoint for the floating base (its MJCF parser welds a free "
                           "joint's body to the world)")
@@ -144,6 +160,8 @@ class DartModel(LoadedModel):
         q = np.asarray(q, dtype=float)
         rates = None if v is None else np.asarray(v, dtype=float)
         mapping = Mapping(angular_linear_world, q, rates) if len(self.selected) > len(self.dof) else None
+        if self.description.balls:  # each ball's quaternion as DART's rotation vector
+            q = ball_positions(self.description, q)
         if mapping is not None:
             rotvec = Rotation.from_quat(q[3:7] / np.linalg.norm(q[3:7])).as_rotvec()
             q = np.concatenate([rotvec, q[:3], q[7:]])

@@ -106,6 +106,11 @@ class ModelScene:
         return self.description.floating is not None
 
     @property
+    def ball_joints(self) -> tuple[str, ...]:
+        """The model's ball joints (a quaternion in q, three velocities each), by name."""
+        return tuple(j.name for j in self.description.balls)
+
+    @property
     def config_names(self) -> tuple[str, ...]:
         """A name per configuration entry, the order of q and of the CSV's ``q_`` columns: with a floating
         base ``BASE.x``, ``.y``, ``.z`` (m) and ``BASE.qx``, ``.qy``, ``.qz``, ``.qw`` first, then the joints (a
