@@ -157,7 +157,7 @@ class Joint:
     def check(self) -> None:
         if self.type not in JOINT_TYPES:
             raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; "
-                             f"use one of {', '.join(t for t in JOINT_TYPES if t != 'floating')}")
+                             f"use one of {', '.join(t for t in JOINT_TYPES if t not in ('floating', 'ball'))}")
         if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
             raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
         if self.moving and self.type != "ball":
