@@ -266,7 +266,7 @@ class BallJoints:
     Measured (tests/test_ball_joint.py): its quaternion (x y z w) and angular velocity live in the child's
     inertial frame, whose axes A (``getDynamicsInfo``'s local inertial orientation: the file's inertial rpy
     times the principal axes it finds) turn the link frame: q_pb = A⁻¹ q A, u_pb = A⁻¹ ω, τ_pb = A⁻¹ τ.
-    ``calculateMassMatrix`` is 20 % off the reference with ball joints whatever the layout of its positions
+    ``calculateMassMatrix`` is a third off the reference with ball joints whatever the layout of its positions
     (x y z w, w x y z, rotation vectors; ball_chain.urdf), so M⁻¹ and the bias come from its forward dynamics,
     one 1e-3 s step per column (semi-implicit Euler: (v' − v)/dt is its acceleration at the state)."""
 

@@ -150,8 +150,8 @@ def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None)
     for values, what in ((q, "q"), (v, "v")):
         for name in values or {}:
             if name not in known:
-                raise ModelError(f"{what}.{name}: no revolute, prismatic or ball joint of that name; choose from "
-                                 f"{sorted(known)}")
+                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name, nor a ball joint; "
+                                 f"choose from {sorted(known)}")
     nb = len(mech.bodies)
     R = [np.eye(3) for _ in range(nb)]
     p = [np.zeros(3) for _ in range(nb)]  # body frame origins
