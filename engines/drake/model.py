@@ -108,10 +108,11 @@ def _drake_balls(text: str, notes: tuple[str, ...]) -> tuple[str, tuple[str, ...
 
     ET.register_namespace("drake", DRAKE_NS)
     root = ET.fromstring(text)
-    names = []
+    names: list[str] = []
     for joint in root.findall("joint"):
         if joint.get("type") == "spherical":
-            joint.tag, names = f"{{{DRAKE_NS}}}joint", [*names, joint.get("name", "?")]
+            joint.tag = f"{{{DRAKE_NS}}}joint"
+            names.append(joint.get("name", "?"))
             joint.set("type", "ball")
             for extra in joint.findall("axis") + joint.findall("limit"):
                 joint.remove(extra)
@@ -142,7 +143,9 @@ class DrakeModel(LoadedModel):
                  "quaternion and child-frame angular velocity",) if description.balls else ()
         super().__init__(description, options, (*notes, "joint damping set to 0", *balls))
         self.plant, self.context = plant, plant.CreateDefaultContext()
-        names, self.qpos, self.dof = [], [], []
+        names: list[str] = []
+        positions: list[list[int]] = []
+        rates: list[list[int]] = []
         #: The floating joint's first position and velocity (quaternion w x y z, position; angular, linear).
         self.base_q, self.base_v = -1, -1
         for index in plant.GetJointIndices():
@@ -157,18 +160,18 @@ class DrakeModel(LoadedModel):
                 raise Refused(f"only 1-degree-of-freedom and ball joints are compared; drake's {joint.name()} is "
                               f"{joint.type_name()}")
             names.append(joint.name())
-            self.qpos.append([joint.position_start() + k for k in range(joint.num_positions())])
-            self.dof.append([joint.velocity_start() + k for k in range(joint.num_velocities())])
+            positions.append([joint.position_start() + k for k in range(joint.num_positions())])
+            rates.append([joint.velocity_start() + k for k in range(joint.num_velocities())])
         index = index_map(description, names)
         for joint, k in zip(description.moving_joints, index):
-            if (joint.type == "ball") != (len(self.dof[k]) == 3):
-                raise Refused(f"drake's joint {joint.name} has {len(self.dof[k])} degrees of freedom; the file's "
+            if (joint.type == "ball") != (len(rates[k]) == 3):
+                raise Refused(f"drake's joint {joint.name} has {len(rates[k])} degrees of freedom; the file's "
                               f"has {joint.nv}")
         #: Per moving joint, Drake's position entries (a ball's roll, pitch, yaw); Drake's velocity index of each of
         #: xval's joint velocity entries (a ball's: the angular velocity in the joint's parent frame, measured).
-        self.joint_q = [self.qpos[k] for k in index]
-        self.qpos = np.array([i for k in index for i in self.qpos[k]], dtype=int)
-        self.dof = np.array([i for k in index for i in self.dof[k]], dtype=int)
+        self.joint_q = [positions[k] for k in index]
+        self.qpos = np.array([i for k in index for i in positions[k]], dtype=int)
+        self.dof = np.array([i for k in index for i in rates[k]], dtype=int)
         self._last: dict[str, np.ndarray] = {}  # each ball's quaternion as last read (kept continuous)
         if (self.base_q >= 0) != (description.floating is not None):
             raise Refused("drake's plant has no floating joint for the floating base")

@@ -89,10 +89,10 @@ class PinocchioModel(LoadedModel):
         self.joint_ids = [ids[k] for k in index_map(description, names)]
         if description.floating is not None and not base:
             raise Refused("pinocchio's model has no free-flyer joint for the floating base")
-        for joint, chosen in zip(description.moving_joints, self.joint_ids):
-            if int(model.nvs[chosen]) != joint.nv:
-                raise Refused(f"pinocchio's joint {joint.name} has {int(model.nvs[chosen])} degrees of freedom; "
-                              f"the file's has {joint.nv}")
+        for moving, chosen in zip(description.moving_joints, self.joint_ids):
+            if int(model.nvs[chosen]) != moving.nv:
+                raise Refused(f"pinocchio's joint {moving.name} has {int(model.nvs[chosen])} degrees of freedom; "
+                              f"the file's has {moving.nv}")
         #: Pinocchio's velocity index of each of xval's (the base's six first, when floating).
         self.dof = np.array(base + [int(model.idx_vs[j]) + k for j in self.joint_ids for k in range(int(model.nvs[j]))],
                             dtype=int)

@@ -218,7 +218,7 @@ class ModelScene:
         (revolute) or perpendicular (prismatic) to gravity. A ball joint on the root: the angular momentum of
         what it carries about its centre, in the world (``J.Lx``, ``J.Ly``, ``J.Lz``): every component when
         g = 0, else the vertical one (gravity's torque about the centre is horizontal)."""
-        description, out = self.description, []
+        description, out = self.description, list[str]()
         for joint in description.moving_joints:
             if joint.parent != description.root:
                 continue
