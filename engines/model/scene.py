@@ -394,45 +394,39 @@ def _base_state(model: str, description: ModelDescription, q0: Mapping[str, Any]
     frame; default at rest). ModelError naming the field."""
     if description.floating is None:
         return (), ()
-    name = description.floating.name
-    out = []
-    for what, given, default in (("q0", q0, (0, 0, 0, 0, 0, 0, 1.0)), ("v0", v0, (0.0,) * 6)):
-        raw = given.get(name, default)
-        try:
-            values = np.array(raw, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            values = np.zeros(0)
-        if len(values) != len(default) or not np.all(np.isfinite(values)) or \
-                (what == "q0" and np.linalg.norm(values[3:]) == 0):
-            form = "[x, y, z, qx, qy, qz, qw] (m, a nonzero quaternion)" if what == "q0" else \
-                "[vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base frame)"
-            raise ModelError(f"model {model}: {what}.{name} (the floating base) must be {form}, got {raw!r}")
-        if what == "q0":
-            values[3:] /= np.linalg.norm(values[3:])
-        parts = BASE_CONFIG if what == "q0" else BASE_VELOCITY
-        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(parts, values)))
-    return out[0], out[1]
+    return _listed_state(model, description.floating.name, "the floating base", q0, v0, (BASE_CONFIG, BASE_VELOCITY),
+                         ("[x, y, z, qx, qy, qz, qw] (m, a nonzero quaternion)",
+                          "[vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base frame)"))
 
 
 def _ball_state(model: str, name: str, q0: Mapping[str, Any],
                 v0: Mapping[str, Any]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
     """A ball joint's initial entries by name: q0.J = [qx, qy, qz, qw] (a quaternion, normalised here; default
     the identity), v0.J = [wx, wy, wz] (rad/s, the child's angular velocity in its own frame; default 0)."""
+    return _listed_state(model, name, "a ball joint", q0, v0, (BALL_CONFIG, BALL_VELOCITY),
+                         ("[qx, qy, qz, qw] (a nonzero quaternion)", "[wx, wy, wz] (rad/s, in the child link's frame)"))
+
+
+def _listed_state(model: str, name: str, what_it_is: str, q0: Mapping[str, Any], v0: Mapping[str, Any],
+                  parts: tuple[Sequence[str], Sequence[str]],
+                  forms: tuple[str, str]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
+    """The initial entries of a joint given as lists, q0.NAME and v0.NAME (``parts``: the names of their entries;
+    the configuration ends with a quaternion x y z w, normalised here; defaults: zeros, the identity quaternion).
+    ModelError naming the field and its ``forms``."""
     out = []
-    for what, given, default, parts in (("q0", q0, (0, 0, 0, 1.0), BALL_CONFIG), ("v0", v0, (0.0,) * 3, BALL_VELOCITY)):
+    for what, given, names, form in (("q0", q0, parts[0], forms[0]), ("v0", v0, parts[1], forms[1])):
+        default = (0.0,) * (len(names) - 1) + (1.0,) if what == "q0" else (0.0,) * len(names)
         raw = given.get(name, default)
         try:
             values = np.array(raw, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             values = np.zeros(0)
         if len(values) != len(default) or not np.all(np.isfinite(values)) or \
-                (what == "q0" and np.linalg.norm(values) == 0):
-            form = "[qx, qy, qz, qw] (a nonzero quaternion)" if what == "q0" else \
-                "[wx, wy, wz] (rad/s, in the child link's frame)"
-            raise ModelError(f"model {model}: {what}.{name} (a ball joint) must be {form}, got {raw!r}")
+                (what == "q0" and np.linalg.norm(values[-4:]) == 0):
+            raise ModelError(f"model {model}: {what}.{name} ({what_it_is}) must be {form}, got {raw!r}")
         if what == "q0":
-            values /= np.linalg.norm(values)
-        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(parts, values)))
+            values[-4:] /= np.linalg.norm(values[-4:])
+        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(names, values)))
     return out[0], out[1]
 
 
