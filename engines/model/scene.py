@@ -410,15 +410,18 @@ def _ball_state(model: str, name: str, q0: Mapping[str, Any],
 def _listed_state(model: str, name: str, what_it_is: str, q0: Mapping[str, Any], v0: Mapping[str, Any],
                   parts: tuple[Sequence[str], Sequence[str]],
                   forms: tuple[str, str]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
-    """The initial entries of a joint given as lists, q0.NAME and v0.NAME (``parts``: the names of their entries;
+    """The initial entries of a joint given as lists (or as text, numbers apart by commas or spaces), q0.NAME and
+    v0.NAME (``parts``: the names of their entries;
     the configuration ends with a quaternion x y z w, normalised here; defaults: zeros, the identity quaternion).
     ModelError naming the field and its ``forms``."""
     out = []
     for what, given, names, form in (("q0", q0, parts[0], forms[0]), ("v0", v0, parts[1], forms[1])):
         default = (0.0,) * (len(names) - 1) + (1.0,) if what == "q0" else (0.0,) * len(names)
         raw = given.get(name, default)
+        # From the command line a list is text: "0.1,0.2,0.3,0.9" or "[0.1, 0.2, 0.3, 0.9]".
+        listed = raw.strip("[]() ").replace(",", " ").split() if isinstance(raw, str) else raw
         try:
-            values = np.array(raw, dtype=float).reshape(-1)
+            values = np.array(listed, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             values = np.zeros(0)
         if len(values) != len(default) or not np.all(np.isfinite(values)) or \
