@@ -274,3 +274,14 @@ def test_a_suite_runs_ball_joints_in_every_engine_that_steps_them(tmp_path, caps
     assert {name: r["status"] for name, r in rows.items()} == {**{name: "ok" for name in bounds}, "dart/rk4": "skipped"}
     assert all(rows[name]["position_error_linf"] <= bound for name, bound in bounds.items()), rows
     assert rows["dart/rk4"]["message"].startswith("dart: ball joints (shoulder, wrist) are not stepped here yet")
+
+
+def test_a_difference_nothing_explains_names_the_joint_of_its_velocity_entry():
+    """The diagnosis's last resort names the joint and link of the velocity entry that differs most: a ball's
+    three entries are its joint's, the entries after it the next joints'."""
+    from compare.model.diagnosis import unexplained
+
+    _, model = read_description(str(URDF))
+    assert [unexplained(model, "mass_matrix", row) for row in (2, 3, 6)] == [
+        f"cause not found: largest difference at joint {joint}, link {link} (in M)"
+        for joint, link in (("shoulder", "upper"), ("elbow", "lower"), ("wrist", "hand"))]
