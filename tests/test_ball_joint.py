@@ -148,10 +148,14 @@ def test_model_check_compares_ball_joints_in_every_engine_that_has_them():
     report = check(str(MJCF), states=10)
     mjcf = {e.engine: e for e in report.engines}
     assert {n: e.agrees for n, e in mjcf.items()} == {"mujoco": True, "pybullet": False, "drake": True, "dart": False}
-    assert mjcf["pybullet"].message.startswith("pybullet: loadMJCF makes no joint of an MJCF ball joint")
+    assert mjcf["pybullet"].message.startswith("loadMJCF makes no joint of an MJCF ball joint")
     # DART loads and compares it; its parser ignores <inertial> (1 kg, 1 kg·m²), which the diagnosis names.
     assert mjcf["dart"].loaded and "dart gives it 1 kg and 1 kg·m²" in mjcf["dart"].diagnosis[0]
     assert any("pitch kept 5° from ±90°" in note for note in report.notes)
+    free = {e.engine: e for e in check(str(URDF), states=10, base="floating").engines}  # a floating base as well
+    assert {n: e.agrees for n, e in free.items()} == {"mujoco": True, "pybullet": False, "drake": True, "dart": False}
+    assert free["pybullet"].message == ("ball joints are compared on a fixed base only (its multibody's floating "
+                                        "base with spherical joints is not mapped here)")
 
 
 def test_pybullet_datas_spherical_joint_limit_is_checked_not_refused():

@@ -159,7 +159,7 @@ class DartModel(LoadedModel):
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         q = np.asarray(q, dtype=float)
         rates = None if v is None else np.asarray(v, dtype=float)
-        mapping = Mapping(angular_linear_world, q, rates) if len(self.selected) > len(self.dof) else None
+        mapping = Mapping(angular_linear_world, q, rates, self.description.nv) if len(self.selected) > len(self.dof) else None
         if self.description.balls:  # each ball's quaternion as DART's rotation vector
             q = ball_positions(self.description, q)
         if mapping is not None:

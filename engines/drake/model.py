@@ -184,7 +184,8 @@ class DrakeModel(LoadedModel):
         """Drake's (positions, velocities) for xval's q (nconfig,) and v (nv,) (zero when None), and the
         floating base's mapping (None with a fixed base)."""
         q = np.asarray(q, dtype=float)
-        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
+        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float),
+                          self.description.nv) if self.base_q >= 0 else None
         mapping = with_balls(self.description, q, mapping)
         positions = np.zeros(self.plant.num_positions())
         if self.base_q >= 0:
@@ -218,7 +219,8 @@ class DrakeModel(LoadedModel):
         if self.base_q >= 0:
             pose = positions[self.base_q:self.base_q + 7]  # (w x y z, p)
             q = np.concatenate([pose[4:7], pose[1:4], pose[:1], q])
-        mapping = with_balls(self.description, q, Mapping(angular_linear_world, q) if self.base_q >= 0 else None)
+        mapping = with_balls(self.description, q, Mapping(angular_linear_world, q, nv=self.description.nv)
+                             if self.base_q >= 0 else None)
         return q, v.copy() if mapping is None else np.linalg.solve(mapping.T, v)
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:

@@ -42,10 +42,11 @@ def skew(w) -> np.ndarray:
 
 
 class Mapping:
-    """An engine's velocity u = T v at one configuration q (xval's, (7 + n,)) and velocity v ((6 + n,) or None).
+    """An engine's velocity u = T v at one configuration q (xval's, (nconfig,)) and velocity v ((nv,) or None).
 
     block : the engine's base layout, R -> (6, 6), linear in R (one of the functions above).
-    T : (6 + n, 6 + n), the base block then the identity on the joints.
+    nv : the velocity's size (default nconfig − 1: one entry per joint coordinate; give it with ball joints).
+    T : (nv, nv), the base block then the identity on the joints.
     """
 
     @classmethod
@@ -55,12 +56,13 @@ class Mapping:
         mapping.T, mapping.Tdot_v = np.eye(size), np.zeros(size)
         return mapping
 
-    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None) -> None:
+    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None,
+                 nv: int | None = None) -> None:
         r = rotation(q[3:7])
-        n = len(q) - 7
-        self.T = np.eye(6 + n)
+        size = len(q) - 1 if nv is None else nv  # nv: the velocity's size, when a ball joint's quaternion is in q
+        self.T = np.eye(size)
         self.T[:6, :6] = block(r)
-        self.Tdot_v = np.zeros(6 + n)
+        self.Tdot_v = np.zeros(size)
         if v is not None:
             # Ṫ: R replaced by Ṙ = R [ω]×, the constant blocks (identities) dropped (block is affine in R).
             self.Tdot_v[:6] = (block(r @ skew(v[3:6])) - block(np.zeros((3, 3)))) @ v[:6]

@@ -116,7 +116,8 @@ class MujocoModel(LoadedModel):
         self.selected = np.concatenate([base, self.dof]).astype(int)
 
     def _mapping(self, q, v=None) -> Mapping | None:
-        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v) if self.base_q >= 0 else None
+        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v, self.description.nv) \
+            if self.base_q >= 0 else None
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         d, q = self.data, np.asarray(q, dtype=float)
@@ -197,4 +198,4 @@ class MujocoStepper(Stepper):
         pose = self.data.qpos[start:start + 7]
         config = np.concatenate([pose[:3], pose[4:7], pose[3:4], q])
         rates = self.data.qvel[self.loaded.selected]
-        return config, np.linalg.solve(Mapping(linear_world_angular_body, config).T, rates)
+        return config, np.linalg.solve(Mapping(linear_world_angular_body, config, nv=len(rates)).T, rates)

@@ -45,7 +45,7 @@ def version() -> str:
 
 def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
     if description.balls and source.format != "urdf":
-        raise Refused("pybullet: loadMJCF makes no joint of an MJCF ball joint (measured: a ball at the root leaves "
+        raise Refused("loadMJCF makes no joint of an MJCF ball joint (measured: a ball at the root leaves "
                       "one body without joints); ball joints are compared from a URDF's spherical joints")
     source = _without_limits(source)
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
@@ -272,7 +272,7 @@ class BallJoints:
 
     def __init__(self, loaded: "PyBulletModel") -> None:
         if loaded.base:
-            raise Refused("pybullet: ball joints are compared on a fixed base only (its multibody's floating base "
+            raise Refused("ball joints are compared on a fixed base only (its multibody's floating base "
                           "with spherical joints is not mapped here)")
         self.loaded, self.kw = loaded, {"physicsClientId": loaded.client}
         infos = [pb.getJointInfo(loaded.body, k, **self.kw) for k in loaded.joints]
