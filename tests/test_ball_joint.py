@@ -182,7 +182,7 @@ def test_a_3d_double_pendulum_on_a_ball_joint_conserves_energy_and_its_vertical_
     to ≤ 1e-10 E* and the vertical angular momentum about the pivot (gravity's torque about it is horizontal)
     to ≤ 1e-10 over 1 s; MuJoCo and ours (RK4, dt 1e-3: ours' ball a point constraint between bodies) follow it
     to ≤ 1e-9 L and Drake's RK3 (BallRpyJoint; the motion stays far from pitch ±90°) to ≤ 1e-6 L; DART says in
-    one line that it does not step ball joints."""
+    one line that it does not step ball joints, PyBullet that it has no MJCF ball."""
     from engines.errors import Unsupported
     from engines.reference.reference import ENGINE as REFERENCE
     from engines.registry import resolve
@@ -206,6 +206,10 @@ def test_a_3d_double_pendulum_on_a_ball_joint_conserves_energy_and_its_vertical_
         assert np.abs(run.positions - reference.positions).max() <= bound * reach, engine_id
     engine, variant = resolve("dart/rk4")
     with pytest.raises(Unsupported, match=r"^dart: ball joints \(shoulder\) are not stepped here yet"):
+        engine.check(scene, variant)
+    engine, variant = resolve("pybullet")
+    with pytest.raises(Unsupported, match=r"^pybullet: ball joints \(shoulder\) are stepped from a URDF's spherical "
+                                          r"joints on a fixed base only \(its loadMJCF makes no ball"):
         engine.check(scene, variant)
 
 
@@ -289,3 +293,30 @@ def test_a_difference_nothing_explains_names_the_joint_of_its_velocity_entry():
     assert [unexplained(model, "mass_matrix", row) for row in (2, 3, 6)] == [
         f"cause not found: largest difference at joint {joint}, link {link} (in M)"
         for joint, link in (("shoulder", "upper"), ("elbow", "lower"), ("wrist", "hand"))]
+
+
+def test_a_free_chain_of_ball_joints_holds_its_momentum_in_zero_gravity():
+    """The URDF chain with a floating base (`base = "floating"`) in g = 0: the total linear and angular momentum
+    hold to ≤ 1e-10 over 1 s in the reference and in ours' and MuJoCo's RK4 at dt 1e-3, which follow the
+    reference to ≤ 1e-9 m (Drake's RK3 to ≤ 1e-6 m); PyBullet says in one line that it does not map a floating
+    base with spherical joints."""
+    from engines.errors import Unsupported
+    from engines.model.scene import model_scene
+    from engines.reference.reference import ENGINE as REFERENCE
+    from engines.registry import resolve
+
+    scene = model_scene("free", str(URDF), q0={"shoulder": [0.3, 0.1, 0.2, 0.9], "elbow": 40, "wrist": [0, 0.3, 0, 1]},
+                        v0={"shoulder": [1.0, -0.5, 2.0], "elbow": -1.0, "wrist": [0, 0, 3]}, duration=1.0, g=0.0,
+                        root_joint="floating")
+    assert scene.conserved_momenta() == ("px", "py", "pz", "Lx", "Ly", "Lz")
+    reference = REFERENCE.simulate(scene, 1e-3)
+    assert scene.momentum_drift(*scene.split(reference.joint_states)) <= 1e-10
+    for engine_id, bound in (("ours/projection-rk4", 1e-9), ("mujoco/hinge-rk4", 1e-9), ("drake/rk3", 1e-6)):
+        engine, variant = resolve(engine_id)
+        run = engine.simulate(scene, 1e-3, variant=variant)
+        assert np.abs(run.positions - reference.positions).max() <= bound, engine_id
+        if bound < 1e-6:
+            assert scene.momentum_drift(*scene.split(run.joint_states)) <= 1e-10, engine_id
+    engine, variant = resolve("pybullet")
+    with pytest.raises(Unsupported, match=r"^pybullet: ball joints \(shoulder, wrist\) are stepped from a URDF's"):
+        engine.check(scene, variant)

@@ -111,6 +111,11 @@ class ModelScene:
         return tuple(j.name for j in self.description.balls)
 
     @property
+    def file_format(self) -> str:
+        """The model file's format: "urdf" or "mjcf"."""
+        return self.description.format
+
+    @property
     def config_names(self) -> tuple[str, ...]:
         """A name per configuration entry, the order of q and of the CSV's ``q_`` columns: with a floating
         base ``BASE.x``, ``.y``, ``.z`` (m) and ``BASE.qx``, ``.qy``, ``.qz``, ``.qw`` first, then the joints (a

@@ -349,6 +349,10 @@ class ModelSceneLike(SceneLike, Protocol):
     def ball_joints(self) -> tuple[str, ...]:
         """The model's ball joints (a quaternion in q, three velocities each), by name."""
         ...
+    @property
+    def file_format(self) -> str:
+        """The model file's format: "urdf" or "mjcf"."""
+        ...
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when the scene keeps the file's joint damping, which ``engine``'s import cannot."""
 
