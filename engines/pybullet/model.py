@@ -340,7 +340,10 @@ class BallJoints:
         rest = np.zeros(n)
         free = self.forward(q, rest, rest)
         inverse = np.array([self.forward(q, rest, e) - free for e in np.eye(n)]).T
-        return np.linalg.inv(inverse)
+        try:
+            return np.linalg.inv(inverse)
+        except np.linalg.LinAlgError:  # its M singular (an inertia it dropped): compared as not finite, diagnosed
+            return np.full((n, n), np.nan)
 
     def bias(self, q, v) -> np.ndarray:
         return -self.mass_matrix(q) @ self.forward(q, v, np.zeros(len(v)))
