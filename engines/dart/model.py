@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engines.dart import library
-from engines.dart.rk4 import rk4_stepper
+from engines.dart.rk4 import floating_rk4_stepper, rk4_stepper
 from engines.model.description import ModelDescription
 from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
@@ -147,6 +147,7 @@ class DartModel(LoadedModel):
         # A BallJoint (its MJCF parser's ball): positions the rotation vector, velocities the child's angular
         # velocity in the child frame, xval's (measured, tests/test_ball_joint.py).
         self.dof = np.array([i for k in index_map(description, names) for i in dofs[k]], dtype=int)
+        self._quaternions: dict[str, np.ndarray] = {}  # each ball's quaternion as last read
         if bool(base) != (description.floating is not None):
             raise Refused("DART's skeleton has no FreeJoint for the floating base (its MJCF parser welds a free "
                           "joint's body to the world)")
@@ -176,6 +177,35 @@ class DartModel(LoadedModel):
                 full[self.selected] = values
             setter(full)
         return mapping
+
+    def xval_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """xval's (q (nconfig,), v (nv,)) of the skeleton's state: the inverse of :meth:`_set`."""
+        positions, velocities = np.asarray(self.skeleton.getPositions()), np.asarray(self.skeleton.getVelocities())
+        q, rates = self._joint_configuration(positions[self.dof]), velocities[self.selected]
+        if len(self.selected) == len(self.dof):
+            return q, rates.copy()
+        base = self.selected[:6]  # the FreeJoint's (rotation vector, position)
+        quaternion = Rotation.from_rotvec(positions[base[:3]]).as_quat()
+        config = np.concatenate([positions[base[3:]], quaternion, q])
+        return config, np.linalg.solve(Mapping(angular_linear_world, config, nv=len(rates)).T, rates)
+
+    def _joint_configuration(self, values: np.ndarray) -> np.ndarray:
+        """xval's joint configuration of DART's joint positions (description order): each BallJoint's rotation
+        vector as a quaternion x y z w, kept continuous between reads (q and −q are one turn)."""
+        if not self.description.balls:
+            return values.copy()
+        parts, at = [], 0
+        for joint in self.description.moving_joints:
+            part = values[at:at + joint.nv]
+            at += joint.nv
+            if joint.type == "ball":
+                part = Rotation.from_rotvec(part).as_quat()
+                last = self._quaternions.get(joint.name)
+                if last is not None and part @ last < 0:
+                    part = -part
+                self._quaternions[joint.name] = part
+            parts.append(part)
+        return np.concatenate(parts)
 
     def _mass(self) -> np.ndarray:
         return np.array(self.skeleton.getMassMatrix())[np.ix_(self.selected, self.selected)]
@@ -209,7 +239,8 @@ class DartModel(LoadedModel):
 
 
 class DartStepper(Stepper):
-    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
+    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``; with
+    a floating base in xval's coordinates, engines.dart.rk4); the state read in xval's convention (DartModel)."""
 
     def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         dart = library.dartpy()
@@ -217,14 +248,10 @@ class DartStepper(Stepper):
         skeleton = self.skeleton = loaded.skeleton
         for k in range(skeleton.getNumJoints()):
             skeleton.getJoint(k).setLimitEnforcement(False)
-        self.dof = loaded.dof
-        for dof, damping in zip(self.dof, kept_damping(scene)):
+        self.loaded = loaded
+        for dof, damping in zip(loaded.dof, kept_damping(scene)):
             skeleton.getDof(int(dof)).setDampingCoefficient(float(damping))
-        positions, velocities = np.zeros(skeleton.getNumDofs()), np.zeros(skeleton.getNumDofs())
-        positions[self.dof], velocities[self.dof] = scene.initial_q, scene.initial_v
-        skeleton.setPositions(positions)
-        skeleton.setVelocities(velocities)
-        skeleton.setForces(np.zeros(skeleton.getNumDofs()))
+        loaded._set(scene.initial_q, scene.initial_v)  # a floating base mapped from xval's convention; no forces
         skeleton.setGravity(np.asarray(scene.gravity, dtype=float))
         if integrator == "world":
             self.world = dart.simulation.World()
@@ -236,7 +263,10 @@ class DartStepper(Stepper):
             # DART's forward dynamics treats joint damping implicitly over the skeleton's time step
             # (a dt·d term in the articulated inertia); RK4 needs the acceleration itself: step 0.
             skeleton.setTimeStep(0.0)
-            self.step = rk4_stepper(skeleton, dt)
+            # A rotation vector's rate is not the angular velocity: a floating base or a ball joint is integrated
+            # in xval's coordinates (quaternions), the others in DART's own.
+            quaternions = scene.description.floating is not None or bool(scene.description.balls)
+            self.step = floating_rk4_stepper(loaded, dt) if quaternions else rk4_stepper(skeleton, dt)
         self.settings = {**common_settings(scene, loaded), "integrator": integrator, "position_limits": "not enforced"}
 
     def advance(self, steps: int) -> None:
@@ -244,5 +274,4 @@ class DartStepper(Stepper):
             self.step()
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.asarray(self.skeleton.getPositions())[self.dof].copy(),
-                np.asarray(self.skeleton.getVelocities())[self.dof].copy())
+        return self.loaded.xval_state()

@@ -35,8 +35,10 @@ def quaternion_rate(quaternion: np.ndarray, angular: np.ndarray) -> np.ndarray:
 
 
 def configuration_rate(description, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """q̇ (nconfig,) for xval's q and v: the floating base's :func:`base_rate`, each ball joint's
-    :func:`quaternion_rate` (its v is the child's angular velocity in the child frame), the other joints' v."""
+    """q̇ (nconfig,) of a model (engines.model.description.ModelDescription) at xval's q (nconfig,), v (nv,): a
+    floating base's pose moving by :func:`base_rate`, each ball joint's quaternion by :func:`quaternion_rate` (its
+    v is the child's angular velocity in the child frame), the other joints' v itself. The reference's and any
+    engine's integrator in xval's coordinates (engines/dart/rk4.py) share it."""
     if description.floating is None and not description.balls:
         return v
     parts = [base_rate(q[:7], v[:6])] if description.floating is not None else []
