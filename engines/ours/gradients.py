@@ -5,7 +5,8 @@ positions and velocities on the scene's axes: ours' state is the outputs themsel
 engines.gradients.initial_output_directions, and one complex run per parameter carries it to T, exact to
 round-off: the derivative of what ours computes. g, masses and lengths change ours' System rather than its
 state: those columns are central differences of rollouts (engines.gradients.finite_difference_jacobian), as for
-every engine. Model files (ours' rigid bodies) and the lagrangian method are left to differences of rollouts.
+every engine. Model files (ours' rigid bodies) are engines/ours/rigid_gradients.py's; the lagrangian method is left
+to differences of rollouts.
 """
 
 from __future__ import annotations
@@ -24,13 +25,17 @@ from engines.scene.scene import Scene
 def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str], to_system: Any) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
     """(J (6P, k), "autodiff", times (n,) s, J at each (n, 6P, k)) by complex step for the initial-condition
-    columns, sampled as differences of rollouts are (every SAMPLE_INTERVAL); None for a model scene, the lagrangian
-    method, a run that stops early, or no initial-condition parameter among ``wrt``. ``engine`` : ours' adapter;
-    to_system : its map from a scene to (System, q0, v0, axes)."""
+    columns, sampled as differences of rollouts are (every SAMPLE_INTERVAL); a model scene's from
+    engines/ours/rigid_gradients.py; None for the lagrangian method, a run that stops early, or no initial-condition
+    parameter among ``wrt``. ``engine`` : ours' adapter; to_system : its map from a scene to (System, q0, v0, axes)."""
     from ours.sensitivity import forward_sensitivities
 
+    if scene.is_model:  # ours' rigid bodies
+        from engines.ours import rigid_gradients
+
+        return rigid_gradients.jacobian(engine, scene, variant, options, dt, wrt)
     settings = engine.resolve(variant, options)
-    if scene.is_model or settings["method"] == "lagrangian":
+    if settings["method"] == "lagrangian":
         return None
     initial = [name for name in wrt if is_initial_condition(scene, name)]
     if not initial:

@@ -98,6 +98,26 @@ def placed(model: OursModel, y: np.ndarray, pose: np.ndarray, velocity: np.ndarr
     return out
 
 
+def of_scene(scene) -> OursModel:
+    """ours' Mechanism for a model scene: its description translated under the scene's gravity."""
+    return translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+
+
+def start_state(model: OursModel, scene) -> np.ndarray:
+    """y0 (13 nb,): the model scene's initial joint state (q0, v0, and the floating base's pose and velocity; a ball
+    joint's quaternion and child-frame rates) in ours' maximal coordinates."""
+    start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
+    floating, description = model.base >= 0, scene.description
+    q0, v0 = {}, {}
+    for name in model.joint_names:
+        where_q, where_v = description.slots[name]
+        ball = description.joint(name).type == "ball"
+        q0[name] = np.roll(start_q[where_q], 1) if ball else float(start_q[where_q][0])  # x y z w -> w x y z
+        v0[name] = start_v[where_v] if ball else float(start_v[where_v][0])
+    y0 = initial_state(model.mechanism, q0, v0)
+    return placed(model, y0, start_q[:7], start_v[:6]) if floating else y0
+
+
 def base_state(model: OursModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The floating base's pose (7,) (p m, quaternion x y z w) and velocity (6,) (linear m/s and angular rad/s of
     the base frame, in the base frame) at the state y (13 nb,)."""
@@ -141,26 +161,17 @@ class OursStepper(Stepper):
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
-        names = self.model.joint_names
+        self.model = of_scene(scene)
         floating = self.model.base >= 0
-        start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
-        description = scene.description
+        start_q = np.asarray(scene.initial_q, dtype=float)
+        description, names = scene.description, self.model.joint_names
         #: Per moving joint (description order): a ball joint or not.
         self._balls = [description.joint(n).type == "ball" for n in names]
-        q0, v0 = {}, {}
-        for name, ball in zip(names, self._balls):
-            where_q, where_v = description.slots[name]
-            q0[name] = np.roll(start_q[where_q], 1) if ball else float(start_q[where_q][0])  # x y z w -> w x y z
-            v0[name] = start_v[where_v] if ball else float(start_v[where_v][0])
         mech = self.model.mechanism
-        y0 = initial_state(mech, q0, v0)
-        if floating:
-            y0 = placed(self.model, y0, start_q[:7], start_v[:6])
-        self.run = Stepping(mech, y0, dt, method=method, integrator=integrator, **options)
+        self.run = Stepping(mech, start_state(self.model, scene), dt, method=method, integrator=integrator, **options)
         self._turn = start_q[3:7] if floating else np.zeros(4)
-        self._last = np.array([q0[n] for n, ball in zip(names, self._balls) if not ball])
-        self._quaternions = {n: np.roll(q0[n], -1) for n, ball in zip(names, self._balls) if ball}
+        self._last = np.array([start_q[description.slots[n][0]][0] for n, ball in zip(names, self._balls) if not ball])
+        self._quaternions = {n: start_q[description.slots[n][0]].copy() for n, ball in zip(names, self._balls) if ball}
         self._revolute = np.array([mech.joints[k].kind == "revolute" for k in mech.moving_joints], dtype=bool)
         #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
         self._read: list[np.ndarray] = []

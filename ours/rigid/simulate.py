@@ -71,18 +71,21 @@ def packed(mech: Mechanism) -> tuple:
     return model
 
 
-def workspace(mech: Mechanism, stages: int) -> tuple:
+def workspace(mech: Mechanism, stages: int, dtype: type = np.float64) -> tuple:
     """Scratch arrays of the kernel (nothing in it allocates), with the constant entries of the joints'
-    Jacobians J_A, J_B (work[2], work[3]) written once."""
+    Jacobians J_A, J_B (work[2], work[3]) written once; complex128 for ``ours.rigid.sensitivity``'s complex step."""
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
-    JA, JB = np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6))
+
+    def z(*shape):
+        return np.zeros(shape, dtype)
+
+    JA, JB = z(nj, 6, 6), z(nj, 6, 6)
     for k, j in enumerate(mech.joints):  # the point rows' linear half, ±e, is constant: the kernel never writes it
         if j.kind != "prismatic":
             JA[k, :3, :3], JB[k, :3, :3] = np.eye(3), -np.eye(3)
-    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), JA, JB, np.zeros((nj, 6)),
-            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
+    return (z(nb, 3, 3), z(nj, 6), JA, JB, z(nj, 6), z(nn, 6, 6), z(nn, 6, 6), z(nn, 1, 6), z(nj, 6),
+            z(max(stages, 1), 13 * nb), z(13 * nb))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -322,12 +325,34 @@ def _kernel():
 _warmed: set[tuple] = set()
 
 
-def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
-             integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
-             tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidResult:
-    """Simulate ``mech`` from y0 (13 nb,) for n_steps steps of dt s; samples at step 0, every
-    sample_every steps and the last. method: plain, baumgarte, projection; integrator: euler,
-    symplectic-euler, midpoint, rk4 (default). k_s (1/s²), k_d (1/s): Baumgarte gains (default 100, 2√k_s)."""
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A run's checked settings, as the kernel's ``run`` takes them: args (method code, integrator code, A, b);
+    stages of the integrator; y (13 nb,) the start; dt s; n_steps; stride (steps between samples); n_samples;
+    ks (1/s²), kd (1/s) the gains (0 unless baumgarte); tolerance; max_iterations; settings (as RigidResult's)."""
+
+    args: tuple
+    stages: int
+    y: np.ndarray
+    dt: float
+    n_steps: int
+    stride: int
+    n_samples: int
+    ks: float
+    kd: float
+    tolerance: float
+    max_iterations: int
+    settings: dict[str, Any]
+
+    def times(self, written: int) -> np.ndarray:
+        """(written,) s: the times of the first ``written`` samples (step 0, every stride steps, the last)."""
+        return np.minimum(np.arange(self.n_samples) * self.stride, self.n_steps)[:written] * self.dt
+
+
+def prepare(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
+            integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
+            tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> Prepared:
+    """:func:`simulate`'s arguments checked (OursError / ModelError naming the field) and resolved."""
     code, scheme = resolve(method, integrator)
     y = np.array(y0, dtype=float).ravel()
     if y.shape != (13 * len(mech.bodies),) or not np.isfinite(y).all():
@@ -342,25 +367,37 @@ def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1
         ks = kd = 0.0
     tolerance = _positive(tolerance, "tolerance", "1e-12 is near round-off for joints of order 1 m")
     max_iterations = _count(max_iterations, "max_iterations")
-    kernel = _kernel()
-    model = pack(mech)
-    work = workspace(mech, scheme.stages)
     n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    out = np.full((n_samples, y.size), np.nan)
-    args = (code, scheme.code, scheme.A, scheme.b)
-    if args[:2] not in _warmed:  # compile (or load from numba's cache) before the clock starts
-        kernel.run(*args, y.copy(), model, work, ks, kd, dt, 1, 1, tolerance, max_iterations, out[:2].copy())
-        _warmed.add(args[:2])
-    start = time.perf_counter()
-    written, steps, status = kernel.run(*args, y, model, work, ks, kd, dt, n_steps, stride, tolerance,
-                                        max_iterations, out)
-    wall_time = time.perf_counter() - start
     settings = {"method": method, "integrator": scheme.name, "tolerance": tolerance, "max_iterations": max_iterations}
     if code == BAUMGARTE:
         settings.update(k_s=ks, k_d=kd)
-    t = np.minimum(np.arange(n_samples) * stride, n_steps)[:written] * dt
-    return RigidResult(t=t, y=out[:written], steps=int(steps), wall_time=wall_time,
-                       status=STATUS_TEXT[int(status)], settings=settings)
+    return Prepared((code, scheme.code, scheme.A, scheme.b), scheme.stages, y, dt, n_steps, stride, n_samples, ks, kd,
+                    tolerance, max_iterations, settings)
+
+
+def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
+             integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
+             tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidResult:
+    """Simulate ``mech`` from y0 (13 nb,) for n_steps steps of dt s; samples at step 0, every
+    sample_every steps and the last. method: plain, baumgarte, projection; integrator: euler,
+    symplectic-euler, midpoint, rk4 (default). k_s (1/s²), k_d (1/s): Baumgarte gains (default 100, 2√k_s)."""
+    run = prepare(mech, y0, dt, n_steps, sample_every, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
+                  tolerance=tolerance, max_iterations=max_iterations)
+    kernel = _kernel()
+    model = pack(mech)
+    work = workspace(mech, run.stages)
+    y, args = run.y, run.args
+    out = np.full((run.n_samples, y.size), np.nan)
+    if args[:2] not in _warmed:  # compile (or load from numba's cache) before the clock starts
+        kernel.run(*args, y.copy(), model, work, run.ks, run.kd, run.dt, 1, 1, run.tolerance, run.max_iterations,
+                   out[:2].copy())
+        _warmed.add(args[:2])
+    start = time.perf_counter()
+    written, steps, status = kernel.run(*args, y, model, work, run.ks, run.kd, run.dt, run.n_steps, run.stride,
+                                        run.tolerance, run.max_iterations, out)
+    wall_time = time.perf_counter() - start
+    return RigidResult(t=run.times(written), y=out[:written], steps=int(steps), wall_time=wall_time,
+                       status=STATUS_TEXT[int(status)], settings=run.settings)
 
 
 def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
