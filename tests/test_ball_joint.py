@@ -83,18 +83,24 @@ def random_state(model, rng):
     return q, rng.uniform(-1, 1, model.nv)
 
 
+def give_file_inertias(skeleton, model):
+    """Each DART body the file's mass and inertia, its centre moved into DART's body frame (an MJCF body's frame;
+    the description's link frame sits at the joint's anchor)."""
+    import dartpy
+
+    inertials = {body.name: body.inertial for body in model.bodies}
+    for k in range(skeleton.getNumBodyNodes()):
+        node = skeleton.getBodyNode(k)
+        inertial = inertials[node.getName()]
+        anchor = np.asarray(node.getParentJoint().getTransformFromChildBodyNode().translation())
+        node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com) + anchor,
+                                                inertial.inertia_matrix))
+
+
 def assert_energy_and_momentum(engine, source, model):
     loaded = importer(engine).load(source, model)
-    if engine == "dart":  # its MJCF parser ignores <inertial>: the file's given (in its body frame, the joint's
-        import dartpy  # anchor off the link frame), so that the mapping alone is tested
-
-        inertials = {body.name: body.inertial for body in model.bodies}
-        for k in range(loaded.skeleton.getNumBodyNodes()):
-            node = loaded.skeleton.getBodyNode(k)
-            inertial = inertials[node.getName()]
-            anchor = np.asarray(node.getParentJoint().getTransformFromChildBodyNode().translation())
-            node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com) + anchor,
-                                                    inertial.inertia_matrix))
+    if engine == "dart":  # its MJCF parser ignores <inertial>: the file's given, so that the mapping alone is tested
+        give_file_inertias(loaded.skeleton, model)
     rng = np.random.default_rng(7)
     root = next(j for j in model.moving_joints if j.parent == model.root)
     assert root.type == "ball"
@@ -218,8 +224,6 @@ def test_dart_steps_an_mjcf_ball_joint_as_the_reference_once_its_bodies_have_the
     `dart/rk4` (xval's coordinates, the ball's quaternion by ½ q ⊗ ω) to ≤ 1e-10 L at dt 1e-3, falling 16×
     when dt halves (measured 5.9e-12 and 3.5e-13 L); `dart/world` (its semi-implicit Euler in its rotation
     vector) at first order (6.7e-4 and 3.4e-4 L)."""
-    import dartpy
-
     from engines.adapter import Schedule
     from engines.dart.model import DartStepper
     from engines.model.stepping import run_model
@@ -228,13 +232,7 @@ def test_dart_steps_an_mjcf_ball_joint_as_the_reference_once_its_bodies_have_the
     scene = ball_pendulum()
     reference = REFERENCE.simulate(scene, dt)
     stepper = DartStepper(scene, dt, integrator)
-    inertials = {body.name: body.inertial for body in scene.description.bodies}
-    for k in range(stepper.skeleton.getNumBodyNodes()):
-        node = stepper.skeleton.getBodyNode(k)
-        inertial = inertials[node.getName()]
-        anchor = np.asarray(node.getParentJoint().getTransformFromChildBodyNode().translation())
-        node.setInertia(dartpy.dynamics.Inertia(inertial.mass, np.asarray(inertial.com) + anchor,
-                                                inertial.inertia_matrix))
+    give_file_inertias(stepper.skeleton, scene.description)
     start_q, start_v = stepper.state()
     np.testing.assert_allclose(start_q, scene.initial_q, atol=1e-12)
     np.testing.assert_allclose(start_v, scene.initial_v, atol=1e-12)
