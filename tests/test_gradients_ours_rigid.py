@@ -22,6 +22,11 @@ from ours.rigid import initial_state, simulate, valid_pairs
 from ours.rigid.sensitivity import forward_sensitivities
 from rigid_support import compound_double_pendulum
 
+# The complex-typed rigid kernel takes minutes of CPU to compile in a fresh numba cache: one worker compiles it
+# (one xdist group, Makefile's --dist loadgroup) and the rest load it from the cache; the first test's limit
+# allows for that compile on a loaded machine.
+pytestmark = [pytest.mark.xdist_group("ours-rigid-complex"), pytest.mark.timeout(1500)]
+
 KUKA_WRT = ["q0.lbr_iiwa_joint_2", "v0.lbr_iiwa_joint_4", "q0.lbr_iiwa_joint_6"]
 
 

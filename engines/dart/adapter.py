@@ -95,6 +95,11 @@ class DartEngine(Engine):
         """Import dartpy in this process, so that case hosts forked from it inherit it."""
         library.dartpy()
 
+    def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
+        if scene.ball_joints and scene.file_format == "urdf":
+            raise Unsupported(f"dart: its URDF reader (urdfdom) has no spherical joint ({', '.join(scene.ball_joints)}); "
+                              f"DART steps ball joints from an MJCF")
+
     def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.DartStepper(scene, schedule.dt, settings["integrator"]))
 

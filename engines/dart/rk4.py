@@ -44,14 +44,14 @@ def rk4_stepper(skeleton: Any, dt: float) -> Callable[[], None]:
 
 
 def floating_rk4_stepper(loaded: Any, dt: float) -> Callable[[], None]:
-    """A function that advances a floating-base model (engines.dart.model.DartModel) one RK4 step of ``dt`` s in
-    xval's coordinates (docs/models.md, "Floating bases"), as the reference integrates it.
+    """A function that advances a floating-base model, or one with ball joints (engines.dart.model.DartModel), one
+    RK4 step of ``dt`` s in xval's coordinates (docs/models.md, "Floating bases"), as the reference integrates it.
 
     DART's FreeJoint positions are a rotation vector, whose rate is not the angular velocity; xval's state
     (p, quaternion x y z w, joints; v, ω in the base frame, joint rates) has ṗ = R v and the quaternion's rate
     ½ q ⊗ ω (engines.model.dynamics.configuration_rate, the reference's), and v̇ is DART's forward dynamics
-    mapped to xval's velocities (DartModel.forward). The quaternion is normalised after each step (a projection
-    that keeps the order)."""
+    mapped to xval's velocities (DartModel.forward); a BallJoint's rotation vector likewise, its quaternion's rate
+    ½ q ⊗ ω. Each quaternion is normalised after each step (a projection that keeps the order)."""
     nconfig = loaded.description.nconfig
     zero = np.zeros(loaded.description.nv)
 
@@ -59,9 +59,15 @@ def floating_rk4_stepper(loaded: Any, dt: float) -> Callable[[], None]:
         q, v = y[:nconfig], y[nconfig:]
         return np.concatenate([configuration_rate(loaded.description, q, v), loaded.forward(q, v, zero)])
 
+    description = loaded.description
+    # Every quaternion of the configuration: the base's, each ball joint's.
+    turns = ([slice(3, 7)] if description.floating is not None else []) + \
+        [description.slots[joint.name][0] for joint in description.balls]
+
     def step() -> None:
         y = rk4(rate, np.concatenate(loaded.xval_state()), dt)
-        y[3:7] /= np.linalg.norm(y[3:7])
+        for where in turns:
+            y[where] /= np.linalg.norm(y[where])
         loaded._set(y[:nconfig], y[nconfig:])
 
     return step

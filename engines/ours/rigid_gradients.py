@@ -30,7 +30,7 @@ READOUT_STEP = 1e-2
 def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
     """(J (2 nq, k), "autodiff", times (n,) s, J at each (n, 2 nq, k)) for a fixed-base model scene, sampled as
-    differences of rollouts are (every SAMPLE_INTERVAL); None for a floating base, a model or a method and
+    differences of rollouts are (every SAMPLE_INTERVAL); None for a floating base or ball joints, a model or a method and
     integrator ours' rigid bodies refuse, or a run that stops early. ``engine`` : ours' adapter; ``wrt`` : the
     model's q0.JOINT, v0.JOINT."""
     from engines.errors import Unsupported
@@ -48,7 +48,7 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
         model = of_scene(scene)
     except Unsupported:
         return None  # a model ours cannot express: its runs are skipped, with the reason
-    if model.base >= 0:
+    if model.base >= 0 or scene.description.balls:  # a quaternion in q: left to differences of rollouts
         return None
     schedule = Schedule.make(scene.duration, dt, SAMPLE_INTERVAL)
 

@@ -132,15 +132,29 @@ def _coordinate(values, joint, default=0.0) -> float:
     return number
 
 
+def _ball_coordinate(values, joint, size: int) -> np.ndarray | None:
+    """A ball joint's given quaternion (w, x, y, z; normalised) or rate (3,), None when not given."""
+    if joint.name not in (values or {}):
+        return None
+    value = np.asarray(values[joint.name], dtype=float).reshape(-1)
+    if value.shape != (size,) or not np.isfinite(value).all() or (size == 4 and not np.linalg.norm(value)):
+        raise ModelError(f"joint {joint.name}: a ball joint's {'quaternion' if size == 4 else 'rate'} must be "
+                         f"{size} finite numbers{' (nonzero)' if size == 4 else ''}, got {values[joint.name]!r}")
+    return value / np.linalg.norm(value) if size == 4 else value
+
+
 def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None) -> np.ndarray:
     """y (13 nb,) from joint coordinates q and rates v (by joint name: rad and rad/s for revolute,
-    m and m/s for prismatic; missing = 0). Fixed and ball joints start aligned and at rest;
+    m and m/s for prismatic; for a ball joint a unit quaternion (w, x, y, z), the child frame's rotation in
+    the joint frame, and the child's angular velocity relative to the parent in the child frame (3,) rad/s;
+    missing = 0, a ball aligned and at rest). Fixed joints start aligned and at rest;
     a body with no inbound joint starts at the origin, at rest."""
-    known = {j.name for j in mech.joints if DOFS[j.kind] == 1}
+    known = {j.name for j in mech.joints if DOFS[j.kind] >= 1}
     for values, what in ((q, "q"), (v, "v")):
         for name in values or {}:
             if name not in known:
-                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name; choose from {sorted(known)}")
+                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name, nor a ball joint; "
+                                 f"choose from {sorted(known)}")
     nb = len(mech.bodies)
     R = [np.eye(3) for _ in range(nb)]
     p = [np.zeros(3) for _ in range(nb)]  # body frame origins
@@ -156,6 +170,7 @@ def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None)
         angle = rate = 0.0
         if DOFS[j.kind] == 1:
             angle, rate = _coordinate(q, j), _coordinate(v, j)
+        turn, spin = (_ball_coordinate(q, j, 4), _ball_coordinate(v, j, 3)) if j.kind == "ball" else (None, None)
         c = j.child
         R[c], p[c], w[c] = Rj, pj, wp.copy()
         vel[c] = vp + np.cross(wp, pj - pp)
@@ -165,6 +180,9 @@ def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None)
         elif j.kind == "prismatic":
             p[c] = pj + angle * axis
             vel[c] = vp + np.cross(wp, p[c] - pp) + rate * axis
+        elif j.kind == "ball":
+            R[c] = Rj if turn is None else Rj @ rotation_of(turn)
+            w[c] = wp if spin is None else wp + R[c] @ spin
     y = np.zeros(13 * nb)
     for b, body in enumerate(mech.bodies):
         o = 13 * b
@@ -257,6 +275,32 @@ def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.nd
         revolute = [mech.joints[k].kind == "revolute" for k in mech.moving_joints]
         q[:, revolute] = np.unwrap(q[:, revolute], axis=0)
     return q, v
+
+
+def ball_coordinates(mech: Mechanism, y: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Ball joint name -> (quaternion (..., 4) w x y z of the child frame in the joint frame, sign as computed;
+    the child's angular velocity relative to the parent, in the child frame (..., 3) rad/s) at states y."""
+    y = np.asarray(y, dtype=float)
+    s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
+    _, R = frames(mech, y)
+    out = {}
+    for j in mech.joints:
+        if j.kind != "ball":
+            continue
+        c = j.child
+        if j.parent >= 0:
+            Rp, wp = R[..., j.parent, :, :], s[..., j.parent, 10:13]
+        else:
+            Rp, wp = np.broadcast_to(np.eye(3), y.shape[:-1] + (3, 3)), np.zeros(y.shape[:-1] + (3,))
+        rel = np.swapaxes(Rp @ j.origin_rotation, -1, -2) @ R[..., c, :, :]
+        out[j.name] = (_quaternions(rel), np.einsum("...ji,...j->...i", R[..., c, :, :], s[..., c, 10:13] - wp))
+    return out
+
+
+def _quaternions(matrices: np.ndarray) -> np.ndarray:
+    """(..., 4) w x y z of rotation matrices (..., 3, 3)."""
+    flat = matrices.reshape(-1, 3, 3)
+    return np.array([quaternion(m) for m in flat]).reshape(matrices.shape[:-2] + (4,))
 
 
 @dataclass(frozen=True, eq=False)
