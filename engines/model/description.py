@@ -1,11 +1,9 @@
 """The engine-neutral model description: what a URDF or MJCF file says, validated on construction.
 
-A :class:`ModelDescription` is a tree of :class:`Body` records joined by
-:class:`Joint` records, the root welded to the world (fixed base), gravity
-along −z, in depth-first order from the root (children in file order); the
-moving joints in that order are the coordinates q (a continuous joint is
-one angle, a ball joint a unit quaternion x y z w with three velocities: the
-child's angular velocity in its own frame, Pinocchio's JointModelSpherical).
+A :class:`ModelDescription` is a tree of :class:`Body` records joined by :class:`Joint` records, the root
+welded to the world (fixed base), gravity along −z, depth-first from the root (children in file order); the
+moving joints in that order are the coordinates q (a continuous joint one angle, a ball joint a unit quaternion
+x y z w with three velocities: the child's angular velocity in its own frame, Pinocchio's JointModelSpherical).
 SI units: kg, m, kg·m², rad.
 
 Refused with a :class:`ModelError` naming the link or joint and the fix: on

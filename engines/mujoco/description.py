@@ -1,10 +1,9 @@
 """The description of an MJCF file: what MuJoCo's compiler makes of it (MJCF is MuJoCo's own format).
 
-MJCF's meaning depends on its compiler (defaults classes, angle units,
-inertias from geoms, frames as quat, euler or axisangle), so the description
-is read from MuJoCo's compiled model of the self-contained text
-(``ModelSource.engine_text``): each body a link, its one joint (hinge: revolute, or continuous when
-unlimited; slide: prismatic; none: fixed). A link frame sits at its
+MJCF's meaning depends on its compiler (defaults classes, angle units, inertias from geoms, frames as quat,
+euler or axisangle), so the description is read from MuJoCo's compiled model of the self-contained text
+(``ModelSource.engine_text``): each body a link, its one joint (hinge: revolute, or continuous when unlimited;
+slide: prismatic; none: fixed). A link frame sits at its
 joint's anchor (a hinge may pass through any point of its body). A body
 with several joints (a planar root: slide x, slide z, hinge y) becomes a
 chain: one massless link per joint but the last, named ``BODY/JOINT``

@@ -9,9 +9,8 @@ acceleration, the acceleration measured from one step of dt = 1e-3 (its
 multibody step is semi-implicit Euler) on a fixed base, else M⁻¹(τ − b).
 MJCF: of the bodies ``loadMJCF`` returns (one per static geom besides the
 multibody) the one with joints; a root it floats though MuJoCo welds it is
-welded back (:class:`PyBulletModel`); its links summed into the file's bodies
-for the diagnosis. Floating base: engines/model/floating.py and :class:`PyBulletModel`. Ball joints
-(URDF ``spherical``, JOINT_SPHERICAL): :class:`BallJoints`.
+welded back (:class:`PyBulletModel`); its links summed into the file's bodies for the diagnosis. Floating
+base: engines/model/floating.py and :class:`PyBulletModel`; ball joints (``spherical``): :class:`BallJoints`.
 Its prints (C-level stdout, stderr) are kept out of the caller's output.
 """
 
