@@ -7,8 +7,7 @@ operation of the step is arithmetic that complex numbers carry (numpy's square r
 sign, a small angle and the projection's stop read real parts or magnitudes), so Im(y)/h is the derivative of
 what the kernel computes, exact to round-off, with no difference taken; the real parts follow the real run
 (every branch as there; they differ from it at most in the last bit, where a fused multiply-add meets a
-complex product). Each direction costs one complex run (particles share one real step across directions:
-``ours.sensitivity``'s tangent-linear step; ``ours.sensitivity.complex_step_sensitivities`` is this method's twin).
+complex product). Each direction costs one complex run (particles' ``ours.sensitivity`` shares one real step).
 
 Covered: every method (plain, baumgarte, projection) with every integrator ours' rigid bodies offer. The
 projection's stop reads the real residual: along a direction that pulls the joints apart, the derivative is that
