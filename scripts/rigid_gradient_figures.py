@@ -59,6 +59,10 @@ def figures(quick: bool = False) -> dict[str, float]:
             own = engine.jacobian(scene, variant, None, dt, WRT)[0]
             fine = finite_difference_jacobian(engine, scene, variant, None, dt, WRT, relative=STEP / 4).jacobian
             f["self_consistency_quarter_step"] = relative_error(own, fine)
+    if quick:  # every pair's self-consistency and orders: tests/test_gradients_ours_rigid.py asserts them
+        f["order|2e-3"] = math.log2(f["error|0.002"] / f["error|0.001"])
+        f["order|1e-3"] = math.log2(f["error|0.001"] / f["error|0.0005"])
+        return f
     harness, quarter = [], []
     for method, integrator in valid_pairs():  # every method and integrator: own derivatives against own differences
         engine, variant = registry.resolve(f"ours/{method}-{integrator}")
@@ -85,7 +89,9 @@ def figures(quick: bool = False) -> dict[str, float]:
 D = "docs/gradients.md"
 ROWS: list[Row] = []
 QUOTES: list[Quote] = load_quotes(__file__)
-SLOW: set[str] = set()
+#: Left out of ``figures(quick=True)``: every method and integrator, twelve Jacobians and 24 difference sweeps.
+SLOW: set[str] = {"pairs|self_consistency_worst", "pairs|self_consistency_quarter_step_worst", "orders|midpoint_low",
+                  "orders|midpoint_high", "orders|rk4_low", "orders|rk4_high"}
 
 
 def main() -> None:

@@ -39,7 +39,18 @@ def load(name: str):
     return module
 
 
-@pytest.mark.parametrize("name", SCRIPTS)
+#: Scripts that need ours' complex-typed rigid kernel: run in the worker that compiles it (one xdist group, as
+#: tests/test_gradients_ours_rigid.py), with a limit that allows that compile in a fresh cache on a loaded machine.
+COMPLEX_RIGID = {"rigid_gradient_figures"}
+
+
+def _marked(name: str):
+    if name in COMPLEX_RIGID:
+        return pytest.param(name, marks=[pytest.mark.xdist_group("ours-rigid-complex"), pytest.mark.timeout(1500)])
+    return name
+
+
+@pytest.mark.parametrize("name", [_marked(name) for name in SCRIPTS])
 def test_quoted_figures_match_their_script(name):
     module = load(name)
     from quoted import problems
