@@ -82,6 +82,7 @@ class MJXEngine(Engine):
         "flag.contact": "disable (default enable): the scenes have nothing to collide",
         "jax_enable_x64": "on for float64 variants (JAX's default is off: float32)",
         "impl": "jax (put_model's default picks by device; JAX on a CPU)",
+        "xla_cpu_use_fusion_emitters": "off (jaxlib's default on): their cost grows exponentially with the tree's depth",
     }
 
     def version(self) -> str:

@@ -3,9 +3,9 @@
 Forward mode through ``fori_loop(mjx.step)`` (a ``while_loop`` for a traced step count, which forward mode
 differentiates and reverse mode would not) gives d x(t + n·dt) / d x(t) · e for MJX's state x = (qpos, qvel),
 one direction e at a time: the loop body (one step and its tangent) compiles once, for any n and any direction.
-A single direction compiles faster and runs faster than ``jax.jacfwd`` (the same tangents, vmapped over all
-directions): on the chain of 8, float64 RK4, 40 s of CPU and 0.7 ms a step against 56 s and 34 ms
-(scripts/mjx_chain_gradients.py). The run is differentiated one sample interval at a time and the interval
+A single direction compiles in less time than ``jax.jacfwd`` (the same tangents, vmapped over all directions)
+and runs slower: the compile is most of the cost of a Jacobian over a few seconds (scripts/mjx_chain_gradients.py
+prints both on the chain of 8). The run is differentiated one sample interval at a time and the interval
 Jacobians multiplied, so the Jacobian is known at every sample and the first one holding a NaN or an infinity
 is named (:func:`transition_over_time`). The chain rule (engines.gradients.chained_jacobian, with MuJoCo's
 readout of the same model) turns it into d outputs(T) / d p for initial-condition parameters; g, masses and
