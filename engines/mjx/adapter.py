@@ -103,7 +103,7 @@ class MJXEngine(Engine):
 
     def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                  wrt: list[str]) -> tuple[np.ndarray, str] | None:
-        """jax.jacfwd through the stepping loop, float64 or float32 (engines/mjx/gradients.py)."""
+        """Forward mode (jax.jvp) through the stepping loop, float64 or float32 (engines/mjx/gradients.py)."""
         from engines.mjx import gradients
 
         return gradients.jacobian(self, scene, variant, options, dt, wrt)

@@ -95,7 +95,7 @@ def _tangent_of_steps(jax, mjx, nq: int):
 
 def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str] | None:
-    """(J (6P, k), "autodiff"): jacfwd for initial-condition parameters, differences of rollouts for the rest;
+    """(J (6P, k), "autodiff"): forward mode for initial-condition parameters, differences of rollouts for the rest;
     None when no parameter of ``wrt`` is an initial condition."""
     if scene.is_model:  # a model's own derivatives are not chained here yet: differences of rollouts
         return None

@@ -68,7 +68,7 @@ _last_trace_x64: list[bool] = []
 
 
 def trace_in(jax, x64: bool) -> None:
-    """Call before a trace in this x64 mode (the adapter's stepping loop, gradients.py's jacfwd): JAX's trace
+    """Call before a trace in this x64 mode (the adapter's stepping loop, gradients.py's forward mode): JAX's trace
     caches outlive a change of x64 mode, and an inner jit (MJX's RK4 calls jnp.tril) traced in float64 is
     reused in float32 and fails to lower, so the traces start afresh when the mode changes."""
     if _last_trace_x64 and _last_trace_x64[-1] != x64:
