@@ -4,7 +4,8 @@ docs/gradients.md quotes what this prints. On the chain of 8 (catalog ``chain``,
 
 1. per precision (``mjx/hinge-rk4``, ``mjx/hinge-rk4-f32``): the Jacobian by theta0 from MJX's own forward
    mode (engines/mjx/gradients.py) against central differences of MJX's own rollouts (self-consistency) and
-   against the reference's variational equations (error), the samples (every 0.01 s) whose Jacobian holds a
+   against the reference's variational equations (error, at dt and dt/2, and the class ``xval grad`` gives:
+   compare.gradients.measure.engine_case), the samples (every 0.01 s) whose Jacobian holds a
    NaN or an infinity, and the CPU time of the compile and of the run;
 2. the cost of the choices made (float64 RK4): one MJX step of the chain of 4, 6 and 8 links compiled with
    XLA's CPU fusion emitters, and of 8 without them (engines/mjx/library.py's COMPILER_OPTIONS); the tangents
@@ -48,29 +49,29 @@ def _scene():
 
 
 def measure_variant(variant: str) -> dict[str, float]:
-    """Self-consistency, error, non-finite samples and CPU times of MJX's own Jacobian (``variant``)."""
+    """Self-consistency, error (at dt and dt/2), class, non-finite samples and CPU times of MJX's own Jacobian."""
+    from compare.gradients.measure import engine_case
     from engines import registry
-    from engines.gradients import finite_difference_jacobian
     from engines.mjx import gradients
-    from engines.reference.sensitivity import reference_jacobian, relative_error
 
     scene = _scene()
     engine, _ = registry.resolve(f"mjx/{variant}")
     start = time.process_time()
-    own, method = engine.jacobian(scene, variant, None, DT, WRT)  # compile, then run
+    gradients.transition_over_time(engine, scene, variant, None, DT)  # compile, then run
     first = time.process_time() - start
     start = time.process_time()
     _, transition = gradients.transition_over_time(engine, scene, variant, None, DT)  # run only: compiled
     run = time.process_time() - start
-    differences = finite_difference_jacobian(engine, scene, variant, None, DT, WRT).jacobian
+    case = engine_case(engine, variant, None, scene, DT, WRT)  # as xval grad: at dt and dt/2, and its own rollouts
     finite = [bool(np.isfinite(p).all()) for p in transition.product]
-    found = {"method_autodiff": float(method == "autodiff"), "self": float(relative_error(own, differences)),
-             "error": float(relative_error(own, reference_jacobian(scene, WRT, scene.duration))),
-             "nonfinite_samples": float(len(finite) - sum(finite)), "samples": float(len(finite)),
-             "compile_cpu": first - run, "run_cpu": run}
-    print(f"mjx/{variant}: method {method}, self-consistency {found['self']:.1e}, error {found['error']:.1e}, "
-          f"{found['nonfinite_samples']:.0f} of {found['samples']:.0f} samples non-finite (first: "
-          f"{transition.first_nonfinite}), compile {found['compile_cpu']:.0f} s CPU, run {run:.0f} s CPU", flush=True)
+    found = {"method_autodiff": float(case.method == "autodiff"), "self": float(case.self_consistency),
+             "error": float(case.error), "error_half": float(case.error_half),
+             "correct": float(case.klass == "correct"), "nonfinite_samples": float(len(finite) - sum(finite)),
+             "samples": float(len(finite)), "compile_cpu": first - run, "run_cpu": run}
+    print(f"mjx/{variant}: method {case.method}, self-consistency {found['self']:.1e}, error {found['error']:.1e} "
+          f"(dt/2: {found['error_half']:.1e}), class {case.klass}, {found['nonfinite_samples']:.0f} of "
+          f"{found['samples']:.0f} samples non-finite (first: {transition.first_nonfinite}), compile "
+          f"{found['compile_cpu']:.0f} s CPU, run {run:.0f} s CPU", flush=True)
     return found
 
 
@@ -141,8 +142,8 @@ def measure_cost() -> dict[str, float]:
     return found
 
 
-SLOW = ({f"{p}.{k}" for p in VARIANTS for k in ("method_autodiff", "self", "error", "nonfinite_samples", "samples",
-                                                "compile_cpu", "run_cpu")}
+SLOW = ({f"{p}.{k}" for p in VARIANTS for k in ("method_autodiff", "self", "error", "error_half", "correct",
+                                                "nonfinite_samples", "samples", "compile_cpu", "run_cpu")}
         | {f"{c}.{k}" for c in ("step_emitters_4", "step_emitters_6", "step_emitters_8", "step", "jacfwd", "jvp")
            for k in ("compile_cpu", "ms_per_step")} | {"jvp.ms_per_jacobian_step"})
 
