@@ -10,17 +10,20 @@ docs/gradients.md quotes what this prints. On the chain of 8 (catalog ``chain``,
 2. the cost of the choices made (float64 RK4): one MJX step of the chain of 4, 6 and 8 links compiled with
    XLA's CPU fusion emitters, and of 8 without them (engines/mjx/library.py's COMPILER_OPTIONS); the tangents
    of all 16 directions at once (``jax.jacfwd``) against one direction at a time (``jax.jvp``, what
-   gradients.py does).
+   gradients.py does);
+3. MuJoCo C's RK4 on the same question with MJX's point-mass inertia (1e-9 of m·L²) and its own (1e-12): where
+   the float64 error's floor comes from (quick, checked by the quote test on every run).
 
-All its figures are SLOW (minutes of XLA compiles on a CPU; one compile at a time): the quote test checks that
+MJX's figures are SLOW (minutes of XLA compiles on a CPU; one compile at a time): the quote test checks that
 the doc still quotes them. Times are CPU seconds of this process (compiles, JAX's persistent cache off) and wall
 milliseconds a step (runs, the fastest of REPEATS), on whatever machine and load it runs; they move with both.
 
-    python scripts/mjx_chain_gradients.py
+    python scripts/mjx_chain_gradients.py [--quick]
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -148,15 +151,31 @@ SLOW = ({f"{p}.{k}" for p in VARIANTS for k in ("method_autodiff", "self", "erro
            for k in ("compile_cpu", "ms_per_step")} | {"jvp.ms_per_jacobian_step"})
 
 
+def measure_mujoco() -> dict[str, float]:
+    """MuJoCo C's RK4 (``mujoco/hinge-rk4``, differences of its rollouts) on the same question, with MJX's
+    point-mass inertia (1e-9 of m·L²) and with its own default (1e-12): errors at dt and dt/2 (quick: ~1 s)."""
+    from compare.gradients.measure import engine_case
+    from engines import registry
+
+    engine, variant = registry.resolve("mujoco/hinge-rk4")
+    found = {}
+    for label, ratio in (("mujoco_1e-9", 1e-9), ("mujoco_1e-12", 1e-12)):
+        case = engine_case(engine, variant, {"inertia_ratio": ratio}, _scene(), DT, WRT)
+        found[f"{label}.error"], found[f"{label}.error_half"] = float(case.error), float(case.error_half)
+        print(f"mujoco/hinge-rk4, inertia_ratio {ratio:g}: error {case.error:.2e} (dt/2: {case.error_half:.2e}), "
+              f"class {case.klass}", flush=True)
+    return found
+
+
 def figures(quick: bool = False) -> dict[str, float]:
-    """Every figure of the module docstring's two parts (none when ``quick``: they are all SLOW)."""
+    """Every figure of the module docstring (only MuJoCo C's when ``quick``: MJX's are all SLOW)."""
+    found = measure_mujoco()
     if quick:
-        return {}
+        return found
     from engines.mjx import library
 
     jax, _ = library.jax_mjx()
     jax.config.update("jax_enable_compilation_cache", False)  # every compile timed is a compile, not a load
-    found = {}
     for precision, variant in VARIANTS.items():  # one compile at a time
         found.update({f"{precision}.{k}": v for k, v in measure_variant(variant).items()})
     found.update(measure_cost())
@@ -168,7 +187,9 @@ ROWS: list = []
 
 
 def main() -> None:
-    report(figures(), QUOTES, ROWS)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="MuJoCo C's figures only (seconds), not MJX's")
+    report(figures(quick=parser.parse_args().quick), QUOTES, ROWS)
 
 
 if __name__ == "__main__":
