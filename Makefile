@@ -55,8 +55,9 @@ stiff: $(STAMP)
 	$(XVAL) report results/stiff
 
 # -rs: every skip and its reason are printed (XVAL_CI=1, as .ci/run sets, makes a skip a failure).
+# --dist loadgroup: tests marked with one xdist_group run in one worker (a kernel compiled once, not per worker).
 test: $(STAMP)
-	$(PY) -m pytest -n $(JOBS) -q -rs
+	$(PY) -m pytest -n $(JOBS) --dist loadgroup -q -rs
 
 # ours against its yardsticks and peers: one table, and results/bench/bench_ours.json; then ours' rigid
 # bodies: N-scaling on chains and the KUKA against MuJoCo (results/bench/bench_rigid.json); then every

@@ -17,6 +17,9 @@
 4. A floating-base quadruped as the harness times it: pybullet_data's Unitree A1 (12 revolute joints) read with
    ``base = "floating"``, the same pairs timed the same way. ours steps the free root as a plain rigid body (no
    constraint row); MuJoCo as a free joint. Target ≤ 1.0× for both.
+5. KUKA iiwa forward sensitivities (``ours.rigid.sensitivity``): one direction's complex run per step, in steps'
+   worth of the real step, for baumgarte-rk4 and baumgarte-symplectic-euler. No target: the issue's budget for n
+   directions is 2 + n steps' worth, and each direction is one complex run (docs/gradients.md, "Cost").
 
 Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
 compare ratios within a run, not across machines.
@@ -131,6 +134,32 @@ def kuka_rows(repeats: int, steps: int = 500) -> list[dict]:
     return rows
 
 
+def sensitivity_rows(repeats: int, steps: int = 500) -> list[dict]:
+    """The KUKA from rest at 0.3 rad per joint: the real step (Stepping) against one direction carried by complex
+    step (forward_sensitivities, compiled before timing), thread CPU per step, the least of ``repeats``."""
+    from engines.model.source import resolve
+    from engines.model.urdf import read
+    from engines.ours.model import translate
+    from ours.rigid.sensitivity import forward_sensitivities
+
+    description = read(resolve("pybullet_data:kuka_iiwa/model.urdf"))
+    mech = translate(description).mechanism
+    y0 = initial_state(mech, {j.name: 0.3 for j in description.moving_joints})
+    direction = np.random.default_rng(0).normal(size=(1, y0.size))
+    rows = []
+    for method, integrator in (("baumgarte", "rk4"), ("baumgarte", "symplectic-euler")):
+        real = ours_step_seconds(mech, y0, method, integrator, steps, repeats)
+
+        def carried(method=method, integrator=integrator):
+            forward_sensitivities(mech, y0, direction, 1e-3, steps, steps, method=method, integrator=integrator)
+
+        carried()  # compile, or load from numba's cache
+        complex_step = fastest(carried, repeats) / steps
+        rows.append({"section": "sensitivity", "variant": f"{method}-{integrator}", "us_per_step": real * 1e6,
+                     "complex_us_per_step": complex_step * 1e6, "steps_worth": complex_step / real, "met": True})
+    return rows
+
+
 def quadruped_scene(duration: float):
     """pybullet_data's Unitree A1 (12 revolute joints, full inertias) with its base floating, from the suite's
     reading of a URDF with ``base = "floating"``: legs crouched and swinging, the base moving and turning, gravity
@@ -219,10 +248,15 @@ def main(argv: list[str]) -> int:
             print(f"{row['variant']:<34}{row['us_per_step']:7.2f}  {row['peer']:<18}{row['peer_us_per_step']:7.2f}"
                   f"{row['median']:7.2f}×  {row['ratios'][0]:.2f}–{row['ratios'][-1]:.2f}×    "
                   f"{'met' if row['met'] else 'MISSED'}")
+    sensitivity = sensitivity_rows(repeats)
+    print("\n".join(["\nKUKA iiwa forward sensitivities (dt 1e-3 s): one direction's complex run against the real step, "
+                     "per step", f"{'variant':<34}{'real µs':>8}{'complex µs':>12}{'steps worth':>13}",
+                     *(f"{r['variant']:<34}{r['us_per_step']:8.2f}{r['complex_us_per_step']:12.2f}"
+                       f"{r['steps_worth']:12.2f}×" for r in sensitivity)]))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {load:.1f} on {os.cpu_count()} CPUs")
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"rows": rows + kuka + harness, "load_average": load}, indent=1))
+    path.write_text(json.dumps({"rows": rows + kuka + harness + sensitivity, "load_average": load}, indent=1))
     return 0 if all(r["met"] for r in rows + kuka + harness) else 1
 
 

@@ -1,6 +1,7 @@
 """Keeping what an engine's C library prints (PyBullet, DART, MuJoCo) out of xval's output: fds 1 and 2
 silenced (:func:`quiet_output`); or, in a child process that keeps what its engine printed
-(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`)."""
+(:func:`capture_into`), sent to a file; or captured and summarised for a case's record (:func:`capture_output`),
+in a case host into a file its driver holds too (:func:`output_file`), read back if the host dies mid-case."""
 
 from __future__ import annotations
 
@@ -154,14 +155,53 @@ class Captured:
     output: EngineOutput = EngineOutput()
 
 
+def output_file() -> BinaryIO:
+    """A file without a name for :func:`capture_output` to write into (removed when its last holder closes it).
+
+    A case host's driver makes one before it forks the host: the host captures each case into it, and when
+    the host dies mid-case (a segfault, a timeout's kill) the driver reads what the case printed from it
+    (:func:`left_in`). Having no name, it outlives no process that holds it, even a ``kill -9``'d one.
+    """
+    return tempfile.TemporaryFile()
+
+
+def left_in(file: BinaryIO) -> EngineOutput:
+    """The EngineOutput of what ``file`` holds (:func:`output_file`; what a capture into it kept when its process
+    died before the capture ended); empty when it holds nothing."""
+    if os.fstat(file.fileno()).st_size == 0:
+        return EngineOutput()
+    return _summary(file)
+
+
+def _empty(file: BinaryIO) -> None:
+    """Truncate ``file`` and put its (shared) offset at 0, so fds 1 and 2, dup'ed from it, write from its start."""
+    file.seek(0)
+    file.truncate()
+
+
+def line_buffered() -> None:
+    """Flush C's stdout at every line, and Python's sys.stdout: a process that dies (a segfault, a timeout's
+    SIGKILL) then loses at most a part line, not a buffer of what it printed. For a case host, whose fds 1
+    and 2 go to a file (a file is fully buffered by default). glibc keeps line buffering whatever stdout
+    points at; elsewhere this may do nothing."""
+    with contextlib.suppress(Exception):
+        sys.stdout.reconfigure(line_buffering=True)  # type: ignore[union-attr]  # a TextIOWrapper
+    with contextlib.suppress(ValueError, AttributeError, OSError):
+        stdout = ctypes.c_void_p.in_dll(_LIBC, "stdout")
+        _LIBC.setvbuf(stdout, None, 1, 0)  # _IOLBF, the buffer C already has (glibc: only a flag)
+
+
 @contextlib.contextmanager
-def capture_output() -> Iterator[Captured]:
-    """Send file descriptors 1 and 2 to a temporary file for the duration, and summarise what reached it.
+def capture_output(into: BinaryIO | None = None) -> Iterator[Captured]:
+    """Send file descriptors 1 and 2 to a file for the duration, and summarise what reached it.
 
     Catches what C and C++ libraries write (DART's per-step warnings, MuJoCo's, PyBullet's) and what Python
     writes to sys.stdout / sys.stderr meanwhile (a warning an engine lets through is printed there). Inside
     a capture already active in this process (another thread's case, not isolated), the inner one keeps
     nothing: the text goes to the outer capture; so does the text of a :func:`quiet_output` block inside one.
+
+    into : the file to write to (:func:`output_file`), emptied at the start and again once summarised, so it
+        holds only what the block in progress printed; None: a temporary file of its own.
     """
     global _quiet_depth
     captured = Captured()
@@ -170,7 +210,8 @@ def capture_output() -> Iterator[Captured]:
         _quiet_depth += 1
         if not outer:
             _flush_all()
-            file = tempfile.TemporaryFile()
+            file = tempfile.TemporaryFile() if into is None else into
+            _empty(file)
             for fd in (1, 2):
                 try:
                     _saved_fds[fd] = os.dup(fd)
@@ -188,5 +229,10 @@ def capture_output() -> Iterator[Captured]:
                     os.dup2(saved, fd)
                     os.close(saved)
                 _saved_fds.clear()
-                with file:
+                try:
                     captured.output = _summary(file)
+                finally:
+                    if into is None:
+                        file.close()
+                    else:
+                        _empty(file)  # what the host holds between cases: nothing (see output_file)

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ours.banded import cholesky_banded, compiled, llvm_inlined, solve_banded
+from ours.banded import cholesky_banded, compiled, inlined, llvm_inlined, solve_banded
 from ours.constraint import DISTANCE, ELLIPSE, LINE
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
@@ -287,14 +287,20 @@ def violations(q, model, G, out):
 @llvm_inlined
 def project_velocities(q, v, model, G, band, mu):
     """v ← v − W Jᵀ (J W Jᵀ)⁻¹ J v: the nearest velocity (in the mass metric) with J v = 0."""
-    inverse_mass, ends = model[0], model[2]
+    velocity_rates(q, v, model, G, mu)
+    if not solve_jwjt(G, model, band, mu):
+        return False
+    add_constraint_term(v, -1.0, model[0], model[2], G, mu)
+    return True
+
+
+@inlined
+def velocity_rates(q, v, model, G, mu):
+    """mu[k] = Ċ_k = J v (G receives the gradients at q)."""
+    ends = model[2]
     for k in range(_constraints(ends)):
         constraint_value(k, q, ends, model[3], model[4], model[5], G)
         mu[k] = constraint_rate(k, v, ends, model[4], model[5], G)[1]
-    if not solve_jwjt(G, model, band, mu):
-        return False
-    add_constraint_term(v, -1.0, inverse_mass, ends, G, mu)
-    return True
 
 
 @compiled
@@ -322,45 +328,67 @@ def rattle_step(q, v, h, model, tolerance, max_iterations, work):
     per step; it contracts by O((hω)²) per iteration). Then the second half kick
     and v projected so that J(q_{n+1}) v_{n+1} = 0.
     """
-    inverse_mass, force, ends = model[0], model[1], model[2]
-    pair_k, pair_l, pair_w = model[7], model[8], model[9]
-    G0, G, band, Lam, delta, q_new = work
-    P = _particles(q)
-    dim = _dim(q)
-    C = _constraints(ends)
-    for k in range(C):
-        constraint_value(k, q, ends, model[3], model[4], model[5], G0)
-    bandwidth = _band_columns(band) - 1
-    assemble(G0, pair_k, pair_l, pair_w, band)
-    if not cholesky_banded(band, C, bandwidth):
+    G, band, delta, q_new = work[1], work[2], work[4], work[5]
+    if not rattle_begin(q, v, h, model, work):
         return SINGULAR
-    for p in range(P):
-        for a in range(dim):
-            q_new[p, a] = q[p, a] + h * v[p, a] + 0.5 * h * h * inverse_mass[p] * force[p, a]
-    for k in range(C):
-        Lam[k] = 0.0
     converged = False
     for _ in range(max_iterations + 1):
         if violations(q_new, model, G, delta) <= tolerance:
             converged = True
             break
-        for k in range(C):
-            delta[k] = -delta[k]
-        solve_banded(band, C, bandwidth, delta)
-        for k in range(C):
-            Lam[k] += delta[k]
-        add_constraint_term(q_new, 1.0, inverse_mass, ends, G0, delta)
+        shake_update(model, work)
     if not converged:
         return NOT_CONVERGED
-    # v_{n+1/2} = v_n + h/2 W f + W J_nᵀ Λ / h, then the second half kick with f.
-    for p in range(P):
-        for a in range(dim):
-            v[p, a] += h * inverse_mass[p] * force[p, a]
-    add_constraint_term(v, 1.0 / h, inverse_mass, ends, G0, Lam)
-    _copy(q, q_new)
+    rattle_kick(q, v, h, model, work)
     if not project_velocities(q, v, model, G, band, delta):
         return SINGULAR
     return OK
+
+
+@inlined
+def rattle_begin(q, v, h, model, work):
+    """RATTLE's start: G0 = the gradients at q_n, J_n W J_nᵀ factored (Cholesky) in the band, the drift
+    q_new = q + h v + ½h² W f, Λ = 0; False when J_n W J_nᵀ is not positive definite."""
+    inverse_mass, force, ends = model[0], model[1], model[2]
+    G0, band, Lam, q_new = work[0], work[2], work[3], work[5]
+    C = _constraints(ends)
+    for k in range(C):
+        constraint_value(k, q, ends, model[3], model[4], model[5], G0)
+    assemble(G0, model[7], model[8], model[9], band)
+    if not cholesky_banded(band, C, _band_columns(band) - 1):
+        return False
+    for p in range(_particles(q)):
+        for a in range(_dim(q)):
+            q_new[p, a] = q[p, a] + h * v[p, a] + 0.5 * h * h * inverse_mass[p] * force[p, a]
+    for k in range(C):
+        Lam[k] = 0.0
+    return True
+
+
+@inlined
+def shake_update(model, work):
+    """One SHAKE iteration after :func:`violations` left C(q_new) in delta: delta ← −(J_n W J_nᵀ)⁻¹ C by the
+    factor, Λ += delta, q_new += W J_nᵀ delta."""
+    G0, band, Lam, delta, q_new = work[0], work[2], work[3], work[4], work[5]
+    C = _constraints(model[2])
+    for k in range(C):
+        delta[k] = -delta[k]
+    solve_banded(band, C, _band_columns(band) - 1, delta)
+    for k in range(C):
+        Lam[k] += delta[k]
+    add_constraint_term(q_new, 1.0, model[0], model[2], G0, delta)
+
+
+@inlined
+def rattle_kick(q, v, h, model, work):
+    """v_{n+1/2} = v_n + h/2 W f + W J_nᵀ Λ / h, then the second half kick with f; q ← q_new."""
+    inverse_mass, force = model[0], model[1]
+    G0, Lam, q_new = work[0], work[3], work[5]
+    for p in range(_particles(q)):
+        for a in range(_dim(q)):
+            v[p, a] += h * inverse_mass[p] * force[p, a]
+    add_constraint_term(v, 1.0 / h, inverse_mass, model[2], G0, Lam)
+    _copy(q, q_new)
 
 
 @compiled
@@ -419,20 +447,33 @@ def rk_step(A, b, h, q, v, model, ks, kd, G, band, lam, Kq, Kv, qs, vs):
     """
     ok = True
     for i in range(b.shape[0]):
-        _copy(qs, q)
-        _copy(vs, v)
-        for j in range(i):
-            if A[i, j] != 0.0:
-                _axpy(qs, qs, h * A[i, j], Kq[j])
-                _axpy(vs, vs, h * A[i, j], Kv[j])
-        _copy(Kq[i], vs)
+        rk_stage(A, h, i, q, v, Kq, Kv, qs, vs)
         if not acceleration(qs, vs, model, ks, kd, G, band, lam, Kv[i]):
             ok = False
+    rk_combine(b, h, q, v, Kq, Kv)
+    return ok
+
+
+@inlined
+def rk_stage(A, h, i, q, v, Kq, Kv, qs, vs):
+    """Stage i's state: qs = q + h Σ_j A_ij Kq_j, vs = v + h Σ_j A_ij Kv_j (terms added in order of j, zero
+    entries skipped), and Kq_i = vs."""
+    _copy(qs, q)
+    _copy(vs, v)
+    for j in range(i):
+        if A[i, j] != 0.0:
+            _axpy(qs, qs, h * A[i, j], Kq[j])
+            _axpy(vs, vs, h * A[i, j], Kv[j])
+    _copy(Kq[i], vs)
+
+
+@inlined
+def rk_combine(b, h, q, v, Kq, Kv):
+    """q += h Σ_i b_i Kq_i and v += h Σ_i b_i Kv_i (in order of i, zero weights skipped)."""
     for i in range(b.shape[0]):
         if b[i] != 0.0:
             _axpy(q, q, h * b[i], Kq[i])
             _axpy(v, v, h * b[i], Kv[i])
-    return ok
 
 
 @llvm_inlined

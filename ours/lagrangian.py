@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ours.banded import cholesky_banded, compiled, solve_banded
+from ours.errors import ModelError
 from ours.status import NON_FINITE, OK, SINGULAR
 
 
@@ -116,8 +117,30 @@ def workspace(n: int, stages: int) -> tuple:
     return (z((n, n)), z((stages, n)), z((stages, n)), z(n), z(n))
 
 
+def check_chain(system) -> None:
+    """ModelError unless ``system`` is a planar chain hung from a fixed point (what this form steps)."""
+    why = system.why_not_a_chain()
+    if system.dim != 2 or why is not None:
+        raise ModelError(
+            "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; "
+            + (why and f"this system is not one: {why}" or f"this system is {system.dim}-D")
+        )
+
+
+def chain_arrays(system) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The chain's arrays :func:`run` reads: tail (n,) kg (μ_ii = Σ_{k ≥ i} m_k), lengths (n,) m, gravity (2,)
+    m/s², anchor (2,) m."""
+    masses = np.array(system.masses)
+    tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
+    lengths = np.array([c.length for c in system.constraints])
+    anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
+    return tail, lengths, np.array(system.gravity), anchor
+
+
 def chain_coordinates(system, q0: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(θ, θ̇) of a planar chain from Cartesian (q0, v0) (n, 2): absolute link angles, rad and rad/s."""
+    """(θ, θ̇) of a planar chain from Cartesian (q0, v0) (n, 2): absolute link angles, rad and rad/s; ModelError
+    unless ``system`` is a planar chain."""
+    check_chain(system)
     theta = np.empty(system.n_particles)
     omega = np.empty(system.n_particles)
     anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)

@@ -141,21 +141,12 @@ def simulate(
     if chosen.code == LAGRANGIAN:
         from ours import lagrangian  # imports numba: only when a run needs it
 
-        why = system.why_not_a_chain()
-        if system.dim != 2 or why is not None:
-            raise ModelError(
-                "method 'lagrangian' needs a planar (2-D) chain hung from a fixed point; "
-                + (why and f"this system is not one: {why}" or f"this system is {system.dim}-D")
-            )
-        theta, omega = lagrangian.chain_coordinates(system, q, v)
-        masses = np.array(system.masses)
-        tail = np.ascontiguousarray(np.cumsum(masses[::-1])[::-1])
-        lengths = np.array([c.length for c in system.constraints])
-        anchor = np.asarray(system.constraints[0].ends()[2], dtype=float)
+        theta, omega = lagrangian.chain_coordinates(system, q, v)  # ModelError unless a planar chain
+        tail, lengths, gravity, anchor = lagrangian.chain_arrays(system)
         work = lagrangian.workspace(system.n_particles, scheme.stages)
         start = time.perf_counter()
         written, steps, status = lagrangian.run(
-            scheme.A, scheme.b, theta, omega, tail, lengths, np.array(system.gravity), anchor, work,
+            scheme.A, scheme.b, theta, omega, tail, lengths, gravity, anchor, work,
             dt, n_steps, stride, out_q, out_v,
         )
         wall_time = time.perf_counter() - start

@@ -3,7 +3,8 @@
 ``kernel_for(dim, sizes)`` returns ``ours.kernel``'s functions with the size functions of its SIZES
 block returning constants, so LLVM unrolls those loops; results are the generic kernel's bit for bit
 (but Cramer's rule for at most 3 constraints). The copy is written once per kernel source under the
-user cache directory, named by a hash of the source it depends on.
+user cache directory, named by a hash of the source it depends on. ``tangent_for`` is the same copy
+with ``ours/tangent.py``'s tangent-linear step appended, a module of its own.
 
 Details: docs/ours.md, "Module notes", ``ours/specialize.py``.
 """
@@ -68,21 +69,36 @@ def _source(dim: int, sizes: tuple[int, int, int, int] | None = None) -> str:
     return f"# Generated from ours/kernel.py by ours.specialize; do not edit.\n{head}{sizes_text}{tail}"
 
 
+_TANGENT = "# ---- TANGENT (ours.specialize appends what follows to the kernel's text) ----"
+
+
 def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> ModuleType:
     """``ours.kernel`` specialised for ``dim`` (2 or 3) coordinates per particle, and for the sizes
     (P, C, bandwidth, band entries) when given (see :func:`sizes_of`)."""
-    key = (dim, sizes)
+    return _load("kernel", dim, sizes, _source(dim, sizes))
+
+
+def tangent_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> ModuleType:
+    """:func:`kernel_for`'s copy with ``ours.tangent``'s tangent-linear step appended (its text after the TANGENT
+    line, which calls the kernel's functions by name): a module of its own, so the plain kernel's compiled code
+    and cache stay as they are."""
+    tangent = (Path(__file__).parent / "tangent.py").read_text(encoding="utf-8").split(_TANGENT, 1)[1]
+    return _load("tangent", dim, sizes, _source(dim, sizes) + f"\n\n{_TANGENT}\n{tangent}")
+
+
+def _load(kind: str, dim: int, sizes: tuple[int, int, int, int] | None, source: str) -> ModuleType:
+    """The module of ``source``, written once under the cache directory and imported once per process."""
+    key = (kind, dim, sizes)
     module = _loaded.get(key)
     if module is not None:
         return module
-    source = _source(dim, sizes)
     # The kernel calls ours.banded and ours.constraint, whose edits numba's cache would not notice
     # (it checks only the calling file): their text is part of the name, so an edit makes a new copy.
     here = Path(__file__).parent
     depends = "".join((here / f).read_text(encoding="utf-8") for f in ("banded.py", "constraint.py", "status.py"))
     digest = hashlib.sha256((source + depends).encode()).hexdigest()[:16]
     shape = "" if sizes is None else "_p{}c{}b{}n{}".format(*sizes)
-    name = f"ours_kernel_d{dim}{shape}_{digest}"
+    name = f"ours_{kind}_d{dim}{shape}_{digest}"
     folder = cache_dir() / "ours"
     path = folder / f"{name}.py"
     if not path.exists() or path.read_text(encoding="utf-8") != source:

@@ -160,6 +160,7 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
     for sweep in sweeps:
         order.setdefault(family(sweep.engine), len(order))
     sweeps.sort(key=lambda s: order[family(s.engine)])  # a family's variants together
+    on_front = {p.case_id: p.margin for p in verdict.front}
     series: list[Series] = []
     by_dt: list[Series] = []
     groups: dict[str, list[LegendEntry]] = {}
@@ -172,8 +173,8 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
         symbol, dash = palette.symbol(sweep.engine), palette.style(sweep.engine)["dash"]
         muted = mute and sweep.engine not in named and sweep.engine not in wrong  # type: ignore[operator]
         series.append(Series(sweep.engine, colour, family(sweep.engine), [
-            (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s")
-            for p in pts], muted, symbol, dash))
+            (p.cost, p.error, f"{p.engine}: dt {p.dt:.3g} s, error {p.error:.3g} m, cost {p.cost:.3g} s/s"
+             + _front_text(on_front, p.case_id)) for p in pts], muted, symbol, dash))
         by_dt.append(Series(sweep.engine, colour, family(sweep.engine), [
             (dt, error, f"{sweep.engine}: dt {dt:.3g} s, error {error:.3g} m")
             for dt, error in zip(dts, errors)], muted, symbol, dash))
@@ -203,6 +204,14 @@ def pareto_plot(scene: SceneResults, number: int, verdict: SceneVerdict, palette
                               f"ok run of {len(by_dt)} variants; each variant's observed order, the slope, is in the "
                               f"legend") if any(s.points for s in by_dt) else Markup("")
     return ParetoPlot(svg, list(groups.items()), dt_svg)
+
+
+def _front_text(on_front: dict[str, float | None], case_id: str) -> str:
+    """A hover's note of the point's place on the Pareto front and its margin (docs/metrics.md)."""
+    if case_id not in on_front:
+        return ""
+    margin = on_front[case_id]
+    return "; on the front" + ("" if margin is None else f", margin {margin:.2g}")
 
 
 def _evidence(problem: Problem, number: int, scene: SceneResults, variants: dict[str, int]) -> str:

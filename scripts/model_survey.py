@@ -49,15 +49,20 @@ def gymnasium_set() -> list[str]:
     return sorted(str(p) for p in gymnasium_assets().rglob("*.xml") if b"<mujoco" in p.read_bytes())
 
 
+def model_sets() -> list[tuple[str, list[str], str]]:
+    """Each set's (name, files, root folder): the root is replaced by the name when a file is printed."""
+    import pybullet_data
+
+    return [("pybullet_data", pybullet_data_set(), pybullet_data.getDataPath()),
+            ("gymnasium", gymnasium_set(), str(gymnasium_assets()))]
+
+
 def figures(quick: bool = False) -> dict[str, float]:
     if quick:
         return {}
-    import pybullet_data
-
     found: dict[str, float] = {}
     lines = []
-    for name, models, root in (("pybullet_data", pybullet_data_set(), pybullet_data.getDataPath()),
-                               ("gymnasium", gymnasium_set(), str(gymnasium_assets()))):
+    for name, models, root in model_sets():
         rows = survey(models, states=100, seed=0, timeout=60.0, jobs=2)
         for row in rows:
             print(f"{row.model.replace(root, name)}: {row.outcome} {', '.join(row.engines)} {row.reason[:160]}")

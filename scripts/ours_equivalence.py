@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import Callable, Iterable
 
 import numpy as np
 
@@ -104,20 +105,33 @@ def save(path, runs) -> None:
     print(f"saved {count} runs to {path}")
 
 
-def main(argv: list[str]) -> int:
+def save_or_check(argv: list[str], usage: str, runs: Callable[[], Iterable[tuple[str, dict]]],
+                  check: Callable[[str], tuple[str, list[str]]]) -> int:
+    """The command line of an equivalence script: ``save PATH`` writes ``runs()`` to PATH (:func:`save`), exit 0;
+    ``check PATH`` prints ``check(PATH)``'s summary line and its first 20 failures, exit 1 when there is one;
+    anything else prints ``usage``, exit 2."""
     if len(argv) != 2 or argv[0] not in ("save", "check"):
-        print(__doc__)
+        print(usage)
         return 2
     mode, path = argv
     if mode == "save":
         save(path, runs())
         return 0
-    count, worst, failures = compare(path)
-    print(f"checked {count} runs; largest relative difference: "
-          + ", ".join(f"{k} {v:.3g}" for k, v in worst.items()))
+    summary, failures = check(path)
+    print(summary)
     for line in failures[:20]:
         print("  " + line)
     return 1 if failures else 0
+
+
+def _check(path: str) -> tuple[str, list[str]]:
+    count, worst, failures = compare(path)
+    return (f"checked {count} runs; largest relative difference: "
+            + ", ".join(f"{k} {v:.3g}" for k, v in worst.items())), failures
+
+
+def main(argv: list[str]) -> int:
+    return save_or_check(argv, __doc__ or "", runs, _check)
 
 
 if __name__ == "__main__":

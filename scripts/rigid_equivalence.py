@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "scripts"))
 
 from ours.rigid import Mechanism, initial_state, simulate, valid_pairs  # noqa: E402
-from ours_equivalence import _rel, save  # noqa: E402  (_rel: max |new − old| / max |old|, NaN = NaN)
+from ours_equivalence import _rel, save_or_check  # noqa: E402  (_rel: max |new − old| / max |old|, NaN = NaN)
 from rigid_support import branching_tree, chain, compound_double_pendulum  # noqa: E402
 
 DTS = (1e-3, 1e-2)
@@ -91,20 +91,14 @@ def compare(path, names=None) -> tuple[int, float, int, list[str]]:
     return count, worst, identical, failures
 
 
-def main(argv: list[str]) -> int:
-    if len(argv) != 2 or argv[0] not in ("save", "check"):
-        print(__doc__)
-        return 2
-    mode, path = argv
-    if mode == "save":
-        save(path, runs())
-        return 0
+def _check(path: str) -> tuple[str, list[str]]:
     count, worst, identical, failures = compare(path)
-    print(f"checked {count} runs; {identical} bit-identical; largest relative difference of the states {worst:.3g}"
-          f" (tolerance {TOLERANCE:g})")
-    for line in failures[:20]:
-        print("  " + line)
-    return 1 if failures else 0
+    return (f"checked {count} runs; {identical} bit-identical; largest relative difference of the states "
+            f"{worst:.3g} (tolerance {TOLERANCE:g})"), failures
+
+
+def main(argv: list[str]) -> int:
+    return save_or_check(argv, __doc__ or "", runs, _check)
 
 
 if __name__ == "__main__":

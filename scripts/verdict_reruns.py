@@ -9,8 +9,10 @@ equal-cost best are the same in every run, and whether every pair of ratio inter
 largest run-to-run ratio of one variant's per-step CPU cost (what compare.results.cost.RESOLUTION covers),
 and the verdict over all scenes: winners, ties and comparisons; the equal-cost best apart (a statement at
 one measured budget, so a run within noise of it can fall either side). Then whether the Pareto front (each
-point's variant and case, in order) is the same, and whether every entry of the JSON that names a variant,
-family or case is identical (text with its numbers masked), listing the first that differ.
+point's variant and case, in order) is the same, listing each point on it in only some runs with its margin
+where it is on it (the front is decided by measured costs: docs/metrics.md), and whether every other entry
+of the JSON that names a variant, family or case is identical (text with its numbers masked), listing the
+first that differ.
 """
 
 from __future__ import annotations
@@ -123,8 +125,10 @@ def main(directories: list[str]) -> None:
     print(f"Pareto front the same in every run: {not jumped}" + (f" (not on {', '.join(jumped)})" if jumped else ""))
     for k in range(len(fronts[0])):
         cases = [{case for _, case in f[k]} for f in fronts]
+        margins = [{p["case"]: p.get("margin") for p in doc["scenes"][k]["front"]} for doc in documents]
         for case in sorted(set().union(*cases) - set.intersection(*cases)):
-            print(f"  on the front in {sum(case in c for c in cases)} of {len(cases)} runs: {case}")
+            where = ", ".join("none" if m.get(case) is None else f"{m[case]:.2f}" for m in margins if case in m)
+            print(f"  on the front in {sum(case in c for c in cases)} of {len(cases)} runs: {case} (margin {where})")
     names = names_in(documents)
     # The front apart (above): one point more shifts every later index.
     entries = [{path: v for path, v in name_bearing(doc, names).items() if ".front[" not in path} for doc in documents]

@@ -16,8 +16,10 @@ pool's worker, and kills it.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
+import sys
 import time
 from pathlib import Path
 from typing import Any, Mapping
@@ -109,3 +111,49 @@ class OwnTimesEngine(MisbehavingEngine):
 
 
 OWN_TIMES = OwnTimesEngine()
+
+
+#: Lines the printing stand-in writes before it does what its variant says.
+PRINTED = 40
+PRINTING_MODES = ("segfault", "hang", "answer")
+
+
+def printed_line(k: int) -> str:
+    """The printing stand-in's line ``k`` (0-based), as kept in a record (no newline)."""
+    return f"stand-in engine line {k} through {('printf', 'fd 2', 'print')[k % 3]}"
+
+
+class PrintingEngine(MisbehavingEngine):
+    """Prints PRINTED lines as an engine's library does, on fds 1 and 2 (C stdio's printf, buffered by C; a write(2);
+    Python's print, buffered by Python; the last line through printf), then: segfault: reads address 0, so
+    the kernel sends SIGSEGV; hang: sleeps for an hour; answer: answers like ``exact``.
+    pidfile: a file it appends its process id to before printing, so a test can check the process ended."""
+
+    name = "printing"
+    needs_warm_up = False  # so each case prints its lines once, as its own
+    options = {"mode": Option("mode", "answer", "what it does once it has printed", kind="str",
+                              choices=PRINTING_MODES),
+               "pidfile": Option("pidfile", "", "a file to append this process's id to ('' for none)", kind="str")}
+    variants = {mode: {"mode": mode} for mode in PRINTING_MODES}
+
+    def _run(self, scene: Scene, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
+        if settings["pidfile"]:
+            with open(settings["pidfile"], "a") as pids:
+                pids.write(f"{os.getpid()}\n")
+        libc = ctypes.CDLL(None)
+        for k in range(PRINTED):
+            line = printed_line(k)
+            if k % 3 == 0:
+                libc.printf(b"%s\n", line.encode())
+            elif k % 3 == 1:
+                os.write(2, f"{line}\n".encode())
+            else:
+                print(line, file=sys.stdout)
+        if settings["mode"] == "segfault":
+            ctypes.string_at(0)
+        if settings["mode"] == "hang":
+            time.sleep(3600)
+        return super()._run(scene, schedule, {"mode": "exact"})
+
+
+PRINTING = PrintingEngine()

@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 SCRIPTS_DIR = Path(__file__).resolve().parent.parent / "scripts"
-SCRIPTS = ["gradient_figures", "ours_claims", "rigid_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco", "defaults_pybullet", "defaults_pymunk", "reference_horizon", "model_findings", "dart_findings", "model_scene_findings", "history_trend_rates", "model_survey", "gate_window_rates", "big_report", "mjx_chain_gradients"]
+SCRIPTS = ["gradient_figures", "rigid_gradient_figures", "ours_claims", "rigid_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco", "defaults_pybullet", "defaults_pymunk", "reference_horizon", "model_findings", "dart_findings", "model_scene_findings", "history_trend_rates", "model_survey", "model_seeds", "gate_window_rates", "timing_gate_noise", "big_report", "ball_joints", "mjx_chain_gradients"]
 
 
 def load(name: str):

@@ -162,8 +162,7 @@ def test_in_zero_gravity_a_free_quadruped_swinging_its_legs_holds_its_momentum_a
     (momentum_drift, relative to M·√(g·L) and M·L·√(g·L)) hold to ≤ 1e-10 over 1 s in the reference (ABA under
     DOP853, the quaternion's rate ½ q ⊗ ω) and in ours' RK4 at dt 1e-3 (a free rigid body in maximal
     coordinates); the base, at rest at t = 0, turns and moves as the legs swing. MuJoCo's RK4 and Drake step it
-    too and follow the reference; DART says why it does not."""
-    from engines.errors import Unsupported
+    too and follow the reference (DART steps it as well: tests/test_dart_floating_base.py)."""
     from engines.reference.reference import ENGINE as REFERENCE
     from engines.registry import resolve
 
@@ -185,10 +184,6 @@ def test_in_zero_gravity_a_free_quadruped_swinging_its_legs_holds_its_momentum_a
         if engine_id.startswith("ours"):
             assert scene.momentum_drift(*scene.split(run.joint_states)) <= 1e-10
         assert np.abs(run.positions - reference.positions).max() <= bound * reach, engine_id
-    engine, variant = resolve("dart/rk4")
-    with pytest.raises(Unsupported, match=r"^dart: a floating base is not stepped here yet .*; weld the base to run "
-                                          r"the joints$"):
-        engine.check(scene, variant)
 
 
 def test_a_floating_base_s_initial_state_is_checked_in_one_line():

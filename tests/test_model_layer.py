@@ -136,15 +136,14 @@ def test_the_mujoco_compiler_options_are_stated():
 MJCF = '<mujoco><worldbody><body name="b">{joints}<inertial pos="0 0 0" mass="1" diaginertia="1 1 1"/></body></worldbody></mujoco>'
 
 
-@pytest.mark.parametrize("joints, message", [
-    ('<joint name="ball" type="ball"/>', r"^joint ball: type 'ball' is not supported; use hinge or slide joints$"),
-])
-def test_the_mjcf_reader_refuses_what_the_description_cannot_hold(tmp_path, joints, message):
+def test_the_mjcf_reader_holds_a_ball_joint(tmp_path):
+    """Issue 42 turned this refusal ("type 'ball' is not supported") into a ball joint: a quaternion in q, three
+    velocities (tests/test_ball_joint.py checks the dynamics)."""
     from engines.mujoco import description as mjcf
 
-    (tmp_path / "m.xml").write_text(MJCF.format(joints=joints))
-    with pytest.raises(ModelError, match=message):
-        mjcf.read(source.resolve(str(tmp_path / "m.xml")))
+    (tmp_path / "m.xml").write_text(MJCF.format(joints='<joint name="ball" type="ball"/>'))
+    model = mjcf.read(source.resolve(str(tmp_path / "m.xml")))
+    assert [(j.name, j.type, j.nq, j.nv) for j in model.moving_joints] == [("ball", "ball", 4, 3)]
 
 
 def test_a_joint_that_moves_nothing_is_refused_before_any_engine_runs(tmp_path):

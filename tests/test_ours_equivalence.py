@@ -10,21 +10,11 @@ all five scenes: ``scripts/ours_equivalence.py check tests/golden/ours_trajector
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("ours_equivalence", ROOT / "scripts" / "ours_equivalence.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+import ours_equivalence as script  # scripts/ is on the tests' path (tests/conftest.py)
+from conftest import ROOT
 
 
 def test_trajectories_match_those_saved_from_main():
-    script = _script()
     count, worst, failures = script.compare(ROOT / "tests" / "golden" / "ours_trajectories.npz",
                                             scenes={"double-pendulum", "chain8", "spherical"})
     # 16 variants × 7 time steps on each planar scene; the 3-D one has no Lagrangian form (13 variants).

@@ -10,21 +10,11 @@ the KUKA are held to it (the script checks all four scenes:
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("rigid_equivalence", ROOT / "scripts" / "rigid_equivalence.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+import rigid_equivalence as script  # scripts/ is on the tests' path (tests/conftest.py)
+from conftest import ROOT
 
 
 def test_rigid_trajectories_match_those_saved_before_the_speed_work():
-    script = _script()
     count, worst, _, failures = script.compare(ROOT / "tests" / "golden" / "rigid_trajectories.npz",
                                                names={"tree", "kuka"})
     assert count == 2 * 12 * 2  # two scenes × 3 methods × 4 integrators × 2 time steps

@@ -166,7 +166,7 @@ def _split(program: str) -> list[str]:
 
 def _model_scene(model: str, overrides: dict[str, str], duration: str | None, lock: tuple[str, ...] = ()):
     """The model scene of ``--model`` with ``--param q0.JOINT=VALUE`` / ``v0.JOINT=VALUE`` (degrees or metres,
-    rad/s or m/s), ``--param g=VALUE`` (m/s²) and ``--param base=floating`` (a URDF's root); UserError naming a
+    rad/s or m/s; a ball joint's or floating base's a list, ``q0.J=0,0,0.38,0.92``), ``--param g=VALUE`` (m/s²) and ``--param base=floating`` (a URDF's root); UserError naming a
     parameter that is none of these."""
     from engines.model.scene import DEFAULT_DURATION, model_scene
     from engines.model.loaded import GRAVITY

@@ -214,15 +214,18 @@ QUANTITY_NAMES = {"mass_matrix": "M", "bias": "the bias", "forward": "the forwar
 
 def unexplained(model: ModelDescription, quantity: str, row: int) -> str:
     """The line of a disagreement no link's mass properties explain: where its largest difference is.
-    row : the index of the moving joint (q's order) whose entry differs most."""
-    joint = model.moving_joints[row]
+    row : the velocity entry (v's order: a floating base's six, then the joints', a ball's three) that differs most."""
+    entry = model.dof_names[row]
+    joints = [j for j in (model.floating, *model.moving_joints) if j is not None]
+    joint = next((j for j in joints if entry == j.name), None) or next(j for j in joints if entry.startswith(f"{j.name}."))
     return (f"cause not found: largest difference at joint {joint.name}, link {joint.child} "
             f"(in {QUANTITY_NAMES[quantity]})")
 
 
 def misplaced_joints(model: ModelDescription, engine: str, origins: dict[str, np.ndarray] | None) -> list[str]:
     """A line per revolute (continuous) joint whose axis the engine put off the file's, at q = 0: farther than
-    RELATIVE times the reach from it (any point of the axis will do, so the distance is to the line)."""
+    RELATIVE times the reach from it (any point of the axis will do, so the distance is to the line); a ball
+    joint's centre, likewise."""
     from engines.model.kinematics import link_poses
 
     if not origins:
@@ -235,10 +238,13 @@ def misplaced_joints(model: ModelDescription, engine: str, origins: dict[str, np
         rotation, where = poses[joint.child]
         axis = rotation @ np.asarray(joint.axis, dtype=float)
         offset = np.asarray(origins[joint.name], dtype=float) - where
-        if np.linalg.norm(np.cross(offset, axis)) > RELATIVE * reach:
+        # A ball joint has a centre, not an axis: the distance is to that point.
+        off = np.linalg.norm(offset) if joint.type == "ball" else np.linalg.norm(np.cross(offset, axis))
+        if off > RELATIVE * reach:
             put = ", ".join(f"{x:.3g}" for x in origins[joint.name])
-            lines.append(f"joint {joint.name}: {engine} puts its axis through ({put}) m at q = 0, the file through "
-                         f"({', '.join(f'{x:.3g}' for x in where)}) m")
+            what = "centre at" if joint.type == "ball" else "axis through"
+            lines.append(f"joint {joint.name}: {engine} puts its {what} ({put}) m at q = 0, the file "
+                         f"{what.split()[-1]} ({', '.join(f'{x:.3g}' for x in where)}) m")
     return lines
 
 

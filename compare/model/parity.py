@@ -1,7 +1,7 @@
 """Dynamics parity: each engine's M(q), b(q, v) and a(q, v, tau) against Pinocchio's at sampled states.
 
 States: a floating base anywhere within 1 m of the origin in any orientation (engines/model/floating.py);
-q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
+a ball joint in any orientation (a uniform unit quaternion, its pitch kept 5° from ±90°: PITCH_MARGIN); q uniform within each joint's limits (the inner 90 %: PyBullet's limit constraints stay idle) or ±π for a
 joint without them (±1 m for a prismatic one); v uniform in ±1 rad/s (m/s); tau = M_ref a* + b_ref with
 a* uniform in ±1 rad/s² (m/s²), so every joint's reference acceleration is
 of order one. Per quantity the relative difference is the largest
@@ -50,7 +50,7 @@ class CheckCrashed(Exception):
 
 @dataclass(frozen=True)
 class States:
-    """q, v, tau : (N, nq) in the description's joint order (rad, m; rad/s, m/s; N·m, N)."""
+    """q (N, nconfig), v and tau (N, nv) in the description's order (rad, m, quaternions; rad/s, m/s; N·m, N)."""
 
     q: np.ndarray
     v: np.ndarray
@@ -121,8 +121,9 @@ def _json_row(row: EngineParity) -> dict:
 
 def sample_states(model: ModelDescription, reference: LoadedModel, count: int, seed: int) -> States:
     rng = np.random.default_rng(seed)
-    lower, upper = np.empty(model.nq), np.empty(model.nq)
-    for k, joint in enumerate(model.moving_joints):
+    scalar = [j for j in model.moving_joints if j.type != "ball"]
+    lower, upper = np.empty(len(scalar)), np.empty(len(scalar))
+    for k, joint in enumerate(scalar):
         lo, hi = joint.limits.lower, joint.limits.upper
         if lo is not None and hi is not None and math.isfinite(lo) and math.isfinite(hi) and hi > lo:
             middle, half = (lo + hi) / 2, 0.45 * (hi - lo)
@@ -130,15 +131,43 @@ def sample_states(model: ModelDescription, reference: LoadedModel, count: int, s
         else:
             reach = math.pi if joint.type != "prismatic" else 1.0
             lower[k], upper[k] = -reach, reach
-    q = rng.uniform(lower, upper, (count, model.nq))
-    if model.floating is not None:  # the base anywhere within 1 m, in any orientation (a uniform unit quaternion)
-        quaternions = rng.normal(size=(count, 4))
-        quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
-        q = np.concatenate([rng.uniform(-1.0, 1.0, (count, 3)), quaternions, q], axis=1)
+    drawn = rng.uniform(lower, upper, (count, len(scalar)))
+    if model.floating is not None:  # the base anywhere within 1 m, in any orientation
+        quaternions = _unit_quaternions(rng, count)
+        base = np.concatenate([rng.uniform(-1.0, 1.0, (count, 3)), quaternions], axis=1)
+    q = np.empty((count, model.nconfig))
+    if model.floating is not None:
+        q[:, :7] = base
+    columns = iter(drawn.T)
+    for joint in model.moving_joints:  # a ball joint in any orientation (drawn after the rest: the draws of a
+        where = model.slots[joint.name][0]  # model without one are what they always were)
+        q[:, where] = _ball_quaternions(rng, count) if joint.type == "ball" else next(columns)[:, None]
     v = rng.uniform(-1.0, 1.0, (count, model.nv))
     target = rng.uniform(-1.0, 1.0, (count, model.nv))
     tau = np.array([reference.mass_matrix(qk) @ ak + reference.bias(qk, vk) for qk, vk, ak in zip(q, v, target)])
     return States(q, v, tau)
+
+
+#: rad: a ball joint's sampled orientation keeps its pitch (URDF's roll-pitch-yaw of the child frame in the joint
+#: frame) this far from ±90°, where Drake's BallRpyJoint is singular (it raises "has reached a singularity").
+PITCH_MARGIN = math.radians(5.0)
+
+
+def _ball_quaternions(rng: np.random.Generator, count: int) -> np.ndarray:
+    """(count, 4) uniform unit quaternions, each redrawn while its pitch is within PITCH_MARGIN of ±90°."""
+    out = _unit_quaternions(rng, count)
+    while True:
+        x, y, z, w = out.T
+        near = np.abs(2 * (w * y - x * z)) > math.cos(PITCH_MARGIN)  # |sin(pitch)| = |−R[2, 0]|
+        if not near.any():
+            return out
+        out[near] = _unit_quaternions(rng, int(near.sum()))
+
+
+def _unit_quaternions(rng: np.random.Generator, count: int) -> np.ndarray:
+    """(count, 4) quaternions uniform over the rotations (normalised Gaussian 4-vectors)."""
+    quaternions = rng.normal(size=(count, 4))
+    return quaternions / np.linalg.norm(quaternions, axis=1, keepdims=True)
 
 
 def _require_invertible(model: ModelDescription, reference: LoadedModel, label: str) -> None:
@@ -232,7 +261,10 @@ def _describe(source: sources.ModelSource, base: str) -> tuple[ModelDescription,
 
     isolation.report("stage", "reading the file")
     model = describe(source, base)
-    return model, (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1])
+    balls = (f"ball joint{'s' if len(model.balls) > 1 else ''} {', '.join(j.name for j in model.balls)}: sampled in "
+             f"any orientation, the pitch kept {math.degrees(PITCH_MARGIN):g}° from ±90° (Drake's BallRpyJoint is "
+             f"singular there)",) if model.balls else ()
+    return model, (*model.notes, *source.engine_text(drop_mimic=model.mimic_independent)[1], *balls)
 
 
 @dataclass(frozen=True)

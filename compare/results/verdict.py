@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Iterable, Mapping, Sequence, TypeGuard
 
 from compare.results.cost import CostModel, modelled, step_rate
@@ -74,6 +74,8 @@ class Point:
     cost_high: float | None = None
     error_bar: float = 0.0
     rate: float = 0.0
+    #: On the front only (:func:`pareto_front`): how far costs must move for this point to leave it, or None.
+    margin: float | None = None
 
     @property
     def family(self) -> str:
@@ -121,18 +123,31 @@ def certainly_cheaper(a: Point, b: Point) -> bool:
 
 
 def pareto_front(sweeps: Iterable[VariantSweep]) -> list[Point]:
-    """The Points of every competing variant that no other point beats for certain, most accurate first.
+    """The Points of every competing variant that no other point beats for certain, most accurate first, each
+    with its :func:`front_margin`.
 
     A point leaves the front only when another is certainly cheaper (:func:`certainly_cheaper`) and errs no
-    more; points whose cost intervals overlap all stay, so which of them is on the front does not move with
-    the timing. Ordered by error, then by suite order of the variants (then the larger dt first): no timing
-    in the order either. Costs are not monotone along this list; :func:`lower_envelope` is the staircase.
+    more; points whose cost intervals overlap all stay. Ordered by error, then by suite order of the variants
+    (then the larger dt first): no timing in the order. Membership is still decided by measured costs: a point
+    whose margin is within the run-to-run spread of per-step costs can fall either side in a rerun (see
+    docs/metrics.md). Costs are not monotone along this list; :func:`lower_envelope` is the staircase.
     """
     rank = {s.engine: k for k, s in enumerate(competitors(sweeps))}
     candidates = [(rank[s.engine], -p.dt, p) for s in competitors(sweeps) for p in points(s)]
-    kept = [(k, dt, p) for k, dt, p in candidates
-            if not any(q.error <= p.error and certainly_cheaper(q, p) for _, _, q in candidates)]
+    everyone = [q for _, _, q in candidates]
+    kept = [(k, dt, replace(p, margin=front_margin(p, everyone))) for k, dt, p in candidates
+            if not any(q.error <= p.error and certainly_cheaper(q, p) for q in everyone)]
     return [p for _, _, p in sorted(kept, key=lambda c: (c[2].error, c[0], c[1]))]
+
+
+def front_margin(p: Point, others: Iterable[Point]) -> float | None:
+    """The factor by which costs must move for ``p`` to leave the front: over the other variants' points that
+    err no more, the least ratio of the high end of their cost interval to the low end of ``p``'s (≥ 1 while
+    none is certainly cheaper). None when no other variant's point errs no more: then nothing timed can beat
+    it (its own variant's runs are ordered by their steps). A margin of 1.2 means one cost moving 1.2× ends
+    it; per-step costs move up to about 2× between runs on a shared machine (docs/metrics.md)."""
+    ratios = [q.interval[1] / p.interval[0] for q in others if q.engine != p.engine and q.error <= p.error]
+    return min(ratios) if ratios else None
 
 
 def lower_envelope(front: Iterable[Point]) -> list[Point]:

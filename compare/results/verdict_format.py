@@ -92,7 +92,7 @@ def _interval(low: float | None, high: float | None) -> list[float] | None:
 
 def _point(p: Point) -> dict[str, Any]:
     return {"engine": p.engine, "dt": p.dt, "tolerance": p.tolerance, "error": p.error, "error_bar": p.error_bar,
-            "cost": p.cost, "cost_interval": list(p.interval), "case": p.case_id}
+            "cost": p.cost, "cost_interval": list(p.interval), "margin": p.margin, "case": p.case_id}
 
 
 def _at_budget(r: AtBudget) -> dict[str, Any]:

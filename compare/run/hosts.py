@@ -170,10 +170,10 @@ class HostPool:
         self._finish(job, answer)
 
     def _kill(self, slot: _Slot) -> None:
-        job = slot.jobs.popleft()
-        slot.host.close(kill=True)
+        job, host = slot.jobs.popleft(), slot.host
+        host.close(kill=True)
         self._ended(slot)
-        self._finish(job, timed_out(job.task, job.started))
+        self._finish(job, timed_out(job.task, job.started, host))
 
     @staticmethod
     def _finish(job: _Job, answer: Any) -> None:

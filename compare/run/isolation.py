@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import faulthandler
 import multiprocessing
 import os
 import signal
@@ -21,12 +22,12 @@ import threading
 import time
 import traceback
 from dataclasses import dataclass, replace
-from typing import Any, Mapping
+from typing import Any, BinaryIO, Mapping
 
 from engines.adapter import Engine, scheduled_times
 from engines.scene.scene import SceneLike
 from engines.scene.trajectory import Status, Trajectory
-from engines.stdio import capture_output
+from engines.stdio import EngineOutput, capture_output, left_in, line_buffered, output_file
 
 from compare.results.measure import CaseOutcome
 
@@ -382,22 +383,31 @@ def _run_in_host(task: Any) -> Any:
     return simulate(task)
 
 
-#: The driver's ends of the pipes of every host this process runs. A fork copies them all into the new
-#: host, which closes them first: a host holding the write end of its own request pipe, or a sibling's,
-#: would keep that host from seeing EOF when its driver closes the pipe or is killed (an orphan blocked
-#: in recv() forever, or a run that waits for a host that never ends).
+#: The driver's ends of the pipes of every host this process runs, and their output files. A fork copies
+#: them all into the new host, which closes them first: a host holding the write end of its own request
+#: pipe, or a sibling's, would keep that host from seeing EOF when its driver closes the pipe or is killed
+#: (an orphan blocked in recv() forever, or a run that waits for a host that never ends); a sibling's
+#: output file would stay on disk (unnamed, but full) until every host that holds it ends.
 _DRIVER_ENDS: set[Any] = set()
 #: Held from a host's pipes' creation to its fork, so a host forked by another thread at the same time
 #: never inherits ends it does not know of.
 _FORKING = threading.Lock()
 
 
-def _host_loop(requests: Any, replies: Any) -> None:
-    """The case host: run each task received until its driver closes the pipe (or dies)."""
+def _host_loop(requests: Any, replies: Any, output: BinaryIO) -> None:
+    """The case host: run each task received until its driver closes the pipe (or dies).
+
+    output : the file (engines.stdio.output_file) each task's printing goes to, which its driver reads
+        when the host dies mid-task; emptied once the task's answer has its summary.
+    """
     for end in list(_DRIVER_ENDS):
-        end.close()
+        if end is not output:
+            end.close()
     _DRIVER_ENDS.clear()
     _become_host()
+    line_buffered()  # a host that dies keeps its last lines in ``output``, not in a buffer that dies with it
+    if faulthandler.is_enabled():  # its dump goes where it was pointed (pytest: a copy of stderr): to the case's
+        faulthandler.enable(file=2)
     while True:
         try:
             task = requests.recv()
@@ -405,7 +415,7 @@ def _host_loop(requests: Any, replies: Any) -> None:
             return
         out_of_memory = False
         # What the engine prints is this case's, kept with its answer: never the terminal's (docs/architecture.md).
-        with capture_output() as captured:
+        with capture_output(output) as captured:
             try:
                 _limit_memory(task.memory_limit)
                 outcome = _run_in_host(task)
@@ -428,7 +438,13 @@ def _host_loop(requests: Any, replies: Any) -> None:
 
 
 class CaseHost:
-    """A case host process and its driver's ends of its two pipes (the driver: the process that forked it)."""
+    """A case host process, its driver's ends of its two pipes (the driver: the process that forked it) and the
+    file its tasks print into (engines.stdio.output_file, held by both).
+
+    left : once closed, what the task it was running when it ended had printed (empty after an answer).
+    """
+
+    left: EngineOutput = EngineOutput()
 
     def __init__(self) -> None:
         self.owner = os.getpid()  # a forked child inherits this object (thread-locals survive fork) but not the host
@@ -436,9 +452,10 @@ class CaseHost:
         with _FORKING:
             self.requests, child_requests = context.Pipe(duplex=False)[::-1]
             child_replies, self.replies = context.Pipe(duplex=False)[::-1]
-            _DRIVER_ENDS.update((self.requests, self.replies))
+            self.output = output_file()
+            _DRIVER_ENDS.update((self.requests, self.replies, self.output))
             # daemon: it is killed when its driver exits, rather than waited for.
-            self.process = context.Process(target=_host_loop, args=(child_requests, child_replies),
+            self.process = context.Process(target=_host_loop, args=(child_requests, child_replies, self.output),
                                            daemon=True, name="xval-case-host")
             self.process.start()
         try:
@@ -455,10 +472,14 @@ class CaseHost:
             except OSError:
                 self.process.kill()
         with _FORKING:  # listed until closed: a host forked meanwhile by another thread closes its copies
-            _DRIVER_ENDS.difference_update((self.requests, self.replies))
+            _DRIVER_ENDS.difference_update((self.requests, self.replies, self.output))
             self.requests.close()
             self.replies.close()
         self.process.join(timeout=10)
+        if not self.output.closed:  # a second close finds it read already
+            with self.output:
+                # A host that answered left it empty; one killed or dead mid-task left what that task printed.
+                self.left = left_in(self.output)
 
 
 _local = threading.local()  # one host per worker thread, so threads never share a pipe
@@ -525,7 +546,7 @@ def _ask_host(task: Any) -> Any:
     if not host.replies.poll(task.timeout):
         host.close(kill=True)
         _local.host = None
-        return timed_out(task, start)
+        return timed_out(task, start, host)
     try:
         answer, exiting = host.replies.recv()
     except (EOFError, OSError):
@@ -555,18 +576,20 @@ def send(host: CaseHost | None, task: Any) -> CaseHost:
     return host
 
 
-def timed_out(task: Any, start: float) -> CaseOutcome:
+def timed_out(task: Any, start: float, host: CaseHost | None = None) -> CaseOutcome:
     """The ``timeout`` outcome of a task whose host gave no answer within ``task.timeout`` (and was killed);
     a case's message says how to give it longer; a reference's, quoted in its scene's case records, does not.
-    start : time.perf_counter() when its host began it."""
+    start : time.perf_counter() when its host began it. host : the killed host, closed: what the task
+    printed before it was killed is kept as the outcome's output."""
     hint = "" if isinstance(task, ReferenceTask) else "; raise --timeout if it is only slow"
     return CaseOutcome(task.case_id, None, status=Status.TIMEOUT, elapsed=time.perf_counter() - start,
-                       message=f"ran past the timeout of {task.timeout:g} s and was killed{hint}")
+                       message=f"ran past the timeout of {task.timeout:g} s and was killed{hint}",
+                       output=host.left if host is not None else EngineOutput())
 
 
 def died(task: Any, host: CaseHost, start: float) -> CaseOutcome:
     """The ``failed`` outcome of a task whose host died before answering (``host`` closed, so its exit
-    code is known). start : time.perf_counter() when its host began it."""
+    code is known, and what the task printed before it died). start : time.perf_counter() when its host began it."""
     return CaseOutcome(task.case_id, None, status=Status.FAILED, elapsed=time.perf_counter() - start,
                        message=f"the engine's process died ({_signal_name(host.process.exitcode)}) before "
-                               f"returning a result")
+                               f"returning a result", output=host.left)

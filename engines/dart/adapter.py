@@ -96,9 +96,9 @@ class DartEngine(Engine):
         library.dartpy()
 
     def _check_model(self, scene: ModelSceneLike, settings: Mapping[str, Any]) -> None:
-        if scene.floating_base:
-            raise Unsupported("dart: a floating base is not stepped here yet (its MJCF parser welds a free joint's "
-                              "body to the world); weld the base to run the joints")
+        if scene.ball_joints and scene.file_format == "urdf":
+            raise Unsupported(f"dart: its URDF reader (urdfdom) has no spherical joint ({', '.join(scene.ball_joints)}); "
+                              f"DART steps ball joints from an MJCF")
 
     def _run_model(self, scene: ModelSceneLike, schedule: Schedule, settings: Mapping[str, Any]) -> RawRun:
         return run_model(scene, schedule, model.DartStepper(scene, schedule.dt, settings["integrator"]))

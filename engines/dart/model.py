@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engines.dart import library
-from engines.dart.rk4 import rk4_stepper
+from engines.dart.rk4 import floating_rk4_stepper, rk4_stepper
 from engines.model.description import ModelDescription
 from engines.model.floating import Mapping, angular_linear_world
 from engines.model.inertia import world_inertia
@@ -69,6 +69,8 @@ def load(source: ModelSource, description: ModelDescription) -> "DartModel":
                              "<freejoint>)")
         stated = {"loader": "MjcfParser.readWorld"}
         return DartModel(jointed[0], description, stated, notes, _file_names(jointed[0], description))
+    if description.balls:
+        raise Refused("DART's URDF reader (urdfdom) has no spherical joint; DART compares ball joints from an MJCF")
     loader = dartpy.utils.DartLoader()
     options = dartpy.utils.DartLoader.Options()
     floating = description.floating is not None
@@ -100,6 +102,16 @@ def _file_names(skeleton, description: ModelDescription) -> dict[str, str]:
     return {dart: file for dart, file in zip(nodes, bodies) if dart != file and dart.startswith("Nonamed")}
 
 
+def ball_positions(description: ModelDescription, q: np.ndarray) -> np.ndarray:
+    """xval's configuration with each ball joint's quaternion (4 entries) replaced by its rotation vector (3)."""
+    parts = [q[:description.nconfig - description.nq]]
+    for joint in description.moving_joints:
+        where = description.slots[joint.name][0]
+        values = q[where]
+        parts.append(Rotation.from_quat(values / np.linalg.norm(values)).as_rotvec() if joint.type == "ball" else values)
+    return np.concatenate(parts)
+
+
 class DartModel(LoadedModel):
     engine = NAME
 
@@ -123,14 +135,19 @@ class DartModel(LoadedModel):
                 joint.setTransformFromParentBodyNode(identity)
                 joint.setTransformFromChildBodyNode(identity)
                 continue
-            if joint.getNumDofs() != 1:
-                raise Refused(f"only 1-degree-of-freedom joints are compared; DART's {joint.getName()} has more")
-            joint.setDampingCoefficient(0, 0.0)
-            joint.setCoulombFriction(0, 0.0)
-            joint.setSpringStiffness(0, 0.0)
+            if joint.getNumDofs() != 1 and joint.getType() != "BallJoint":
+                raise Refused(f"only 1-degree-of-freedom and ball joints are compared; DART's {joint.getName()} is "
+                              f"a {joint.getType()}")
+            for i in range(joint.getNumDofs()):
+                joint.setDampingCoefficient(i, 0.0)
+                joint.setCoulombFriction(i, 0.0)
+                joint.setSpringStiffness(i, 0.0)
             names.append(joint.getName())
-            dofs.append(joint.getIndexInSkeleton(0))
-        self.dof = np.array(dofs, dtype=int)[index_map(description, names)]
+            dofs.append([joint.getIndexInSkeleton(i) for i in range(joint.getNumDofs())])
+        # A BallJoint (its MJCF parser's ball): positions the rotation vector, velocities the child's angular
+        # velocity in the child frame, xval's (measured, tests/test_ball_joint.py).
+        self.dof = np.array([i for k in index_map(description, names) for i in dofs[k]], dtype=int)
+        self._quaternions: dict[str, np.ndarray] = {}  # each ball's quaternion as last read
         if bool(base) != (description.floating is not None):
             raise Refused("DART's skeleton has no FreeJoint for the floating base (its MJCF parser welds a free "
                           "joint's body to the world)")
@@ -143,7 +160,9 @@ class DartModel(LoadedModel):
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         q = np.asarray(q, dtype=float)
         rates = None if v is None else np.asarray(v, dtype=float)
-        mapping = Mapping(angular_linear_world, q, rates) if len(self.selected) > len(self.dof) else None
+        mapping = Mapping(angular_linear_world, q, rates, self.description.nv) if len(self.selected) > len(self.dof) else None
+        if self.description.balls:  # each ball's quaternion as DART's rotation vector
+            q = ball_positions(self.description, q)
         if mapping is not None:
             rotvec = Rotation.from_quat(q[3:7] / np.linalg.norm(q[3:7])).as_rotvec()
             q = np.concatenate([rotvec, q[:3], q[7:]])
@@ -158,6 +177,35 @@ class DartModel(LoadedModel):
                 full[self.selected] = values
             setter(full)
         return mapping
+
+    def xval_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """xval's (q (nconfig,), v (nv,)) of the skeleton's state: the inverse of :meth:`_set`."""
+        positions, velocities = np.asarray(self.skeleton.getPositions()), np.asarray(self.skeleton.getVelocities())
+        q, rates = self._joint_configuration(positions[self.dof]), velocities[self.selected]
+        if len(self.selected) == len(self.dof):
+            return q, rates.copy()
+        base = self.selected[:6]  # the FreeJoint's (rotation vector, position)
+        quaternion = Rotation.from_rotvec(positions[base[:3]]).as_quat()
+        config = np.concatenate([positions[base[3:]], quaternion, q])
+        return config, np.linalg.solve(Mapping(angular_linear_world, config, nv=len(rates)).T, rates)
+
+    def _joint_configuration(self, values: np.ndarray) -> np.ndarray:
+        """xval's joint configuration of DART's joint positions (description order): each BallJoint's rotation
+        vector as a quaternion x y z w, kept continuous between reads (q and −q are one turn)."""
+        if not self.description.balls:
+            return values.copy()
+        parts, at = [], 0
+        for joint in self.description.moving_joints:
+            part = values[at:at + joint.nv]
+            at += joint.nv
+            if joint.type == "ball":
+                part = Rotation.from_rotvec(part).as_quat()
+                last = self._quaternions.get(joint.name)
+                if last is not None and part @ last < 0:
+                    part = -part
+                self._quaternions[joint.name] = part
+            parts.append(part)
+        return np.concatenate(parts)
 
     def _mass(self) -> np.ndarray:
         return np.array(self.skeleton.getMassMatrix())[np.ix_(self.selected, self.selected)]
@@ -191,7 +239,8 @@ class DartModel(LoadedModel):
 
 
 class DartStepper(Stepper):
-    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``)."""
+    """DART: the file's Skeleton (engines.dart.model) in a World (``world``) or RK4 over its dynamics (``rk4``; with
+    a floating base in xval's coordinates, engines.dart.rk4); the state read in xval's convention (DartModel)."""
 
     def __init__(self, scene: ModelScene, dt: float, integrator: str) -> None:
         dart = library.dartpy()
@@ -199,14 +248,10 @@ class DartStepper(Stepper):
         skeleton = self.skeleton = loaded.skeleton
         for k in range(skeleton.getNumJoints()):
             skeleton.getJoint(k).setLimitEnforcement(False)
-        self.dof = loaded.dof
-        for dof, damping in zip(self.dof, kept_damping(scene)):
+        self.loaded = loaded
+        for dof, damping in zip(loaded.dof, kept_damping(scene)):
             skeleton.getDof(int(dof)).setDampingCoefficient(float(damping))
-        positions, velocities = np.zeros(skeleton.getNumDofs()), np.zeros(skeleton.getNumDofs())
-        positions[self.dof], velocities[self.dof] = scene.initial_q, scene.initial_v
-        skeleton.setPositions(positions)
-        skeleton.setVelocities(velocities)
-        skeleton.setForces(np.zeros(skeleton.getNumDofs()))
+        loaded._set(scene.initial_q, scene.initial_v)  # a floating base mapped from xval's convention; no forces
         skeleton.setGravity(np.asarray(scene.gravity, dtype=float))
         if integrator == "world":
             self.world = dart.simulation.World()
@@ -218,7 +263,10 @@ class DartStepper(Stepper):
             # DART's forward dynamics treats joint damping implicitly over the skeleton's time step
             # (a dt·d term in the articulated inertia); RK4 needs the acceleration itself: step 0.
             skeleton.setTimeStep(0.0)
-            self.step = rk4_stepper(skeleton, dt)
+            # A rotation vector's rate is not the angular velocity: a floating base or a ball joint is integrated
+            # in xval's coordinates (quaternions), the others in DART's own.
+            quaternions = scene.description.floating is not None or bool(scene.description.balls)
+            self.step = floating_rk4_stepper(loaded, dt) if quaternions else rk4_stepper(skeleton, dt)
         self.settings = {**common_settings(scene, loaded), "integrator": integrator, "position_limits": "not enforced"}
 
     def advance(self, steps: int) -> None:
@@ -226,5 +274,4 @@ class DartStepper(Stepper):
             self.step()
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        return (np.asarray(self.skeleton.getPositions())[self.dof].copy(),
-                np.asarray(self.skeleton.getVelocities())[self.dof].copy())
+        return self.loaded.xval_state()

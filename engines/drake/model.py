@@ -20,7 +20,8 @@ import numpy as np
 
 from engines.drake import library as drake
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping, angular_linear_world
+from engines.model.floating import Mapping, angular_linear_world, rotation, with_balls
+from engines.model.kinematics import matrix_rpy, rpy_matrix
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -42,6 +43,8 @@ def load(source: ModelSource, description: ModelDescription, gravity: float = GR
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "mjcf":
         text, notes = _named(text, description.name, notes)
+    elif description.balls:
+        text, notes = _drake_balls(text, notes)
     plant = MultibodyPlant(0.0)
     logger, warnings = logging.getLogger("drake"), _Collect()
     level, propagate = logger.level, logger.propagate
@@ -94,6 +97,30 @@ class _Collect(logging.Handler):
             self.lines.append(text.split(": warning: ", 1)[-1][:300])
 
 
+#: The namespace of Drake's URDF extensions (``<drake:joint type="ball">``).
+DRAKE_NS = "http://drake.mit.edu"
+
+
+def _drake_balls(text: str, notes: tuple[str, ...]) -> tuple[str, tuple[str, ...]]:
+    """A URDF text whose spherical joints (PyBullet's extension, which Drake's parser refuses) are Drake's own
+    ball joints, ``<drake:joint type="ball">`` (a BallRpyJoint), said in a note."""
+    import xml.etree.ElementTree as ET
+
+    ET.register_namespace("drake", DRAKE_NS)
+    root = ET.fromstring(text)
+    names: list[str] = []
+    for joint in root.findall("joint"):
+        if joint.get("type") == "spherical":
+            joint.tag = f"{{{DRAKE_NS}}}joint"
+            names.append(joint.get("name", "?"))
+            joint.set("type", "ball")
+            for extra in joint.findall("axis") + joint.findall("limit"):
+                joint.remove(extra)
+    return ET.tostring(root, encoding="unicode"), (*notes, f"spherical joint{'s' if len(names) > 1 else ''} "
+                                                          f"{', '.join(names)} given to Drake as <drake:joint "
+                                                          f"type=\"ball\"> (its parser has no spherical type)")
+
+
 def _named(text: str, name: str, notes: tuple[str, ...]) -> tuple[str, tuple[str, ...]]:
     """An MJCF text whose <mujoco> has a model name (Drake's parser refuses one without: "must have a name
     attribute"), the description's name given when the file has none, said in a note."""
@@ -111,9 +138,14 @@ class DrakeModel(LoadedModel):
     engine = NAME
 
     def __init__(self, plant, description: ModelDescription, options, notes=()):
-        super().__init__(description, options, (*notes, "joint damping set to 0"))
+        balls = ("ball joints are Drake's BallRpyJoint: roll, pitch, yaw of the child frame in the joint frame (singular "
+                 "at pitch ±90°) and, as measured, the angular velocity in the joint frame; mapped to xval's "
+                 "quaternion and child-frame angular velocity",) if description.balls else ()
+        super().__init__(description, options, (*notes, "joint damping set to 0", *balls))
         self.plant, self.context = plant, plant.CreateDefaultContext()
-        names, self.qpos, self.dof = [], [], []
+        names: list[str] = []
+        positions: list[list[int]] = []
+        rates: list[list[int]] = []
         #: The floating joint's first position and velocity (quaternion w x y z, position; angular, linear).
         self.base_q, self.base_v = -1, -1
         for index in plant.GetJointIndices():
@@ -123,13 +155,24 @@ class DrakeModel(LoadedModel):
             if joint.num_velocities() == 6 and description.floating is not None and self.base_q < 0:
                 self.base_q, self.base_v = joint.position_start(), joint.velocity_start()
                 continue
-            if joint.num_velocities() != 1 or joint.num_positions() != 1:
-                raise Refused(f"only 1-degree-of-freedom joints are compared; drake's {joint.name()} has more")
+            ball = joint.type_name() == "ball_rpy"
+            if not ball and (joint.num_velocities() != 1 or joint.num_positions() != 1):
+                raise Refused(f"only 1-degree-of-freedom and ball joints are compared; drake's {joint.name()} is "
+                              f"{joint.type_name()}")
             names.append(joint.name())
-            self.qpos.append(joint.position_start())
-            self.dof.append(joint.velocity_start())
+            positions.append([joint.position_start() + k for k in range(joint.num_positions())])
+            rates.append([joint.velocity_start() + k for k in range(joint.num_velocities())])
         index = index_map(description, names)
-        self.qpos, self.dof = np.array(self.qpos, dtype=int)[index], np.array(self.dof, dtype=int)[index]
+        for joint, k in zip(description.moving_joints, index):
+            if (joint.type == "ball") != (len(rates[k]) == 3):
+                raise Refused(f"drake's joint {joint.name} has {len(rates[k])} degrees of freedom; the file's "
+                              f"has {joint.nv}")
+        #: Per moving joint, Drake's position entries (a ball's roll, pitch, yaw); Drake's velocity index of each of
+        #: xval's joint velocity entries (a ball's: the angular velocity in the joint's parent frame, measured).
+        self.joint_q = [positions[k] for k in index]
+        self.qpos = np.array([i for k in index for i in positions[k]], dtype=int)
+        self.dof = np.array([i for k in index for i in rates[k]], dtype=int)
+        self._last: dict[str, np.ndarray] = {}  # each ball's quaternion as last read (kept continuous)
         if (self.base_q >= 0) != (description.floating is not None):
             raise Refused("drake's plant has no floating joint for the floating base")
         base = np.arange(self.base_v, self.base_v + 6) if self.base_q >= 0 else np.zeros(0, int)
@@ -141,13 +184,16 @@ class DrakeModel(LoadedModel):
         """Drake's (positions, velocities) for xval's q (nconfig,) and v (nv,) (zero when None), and the
         floating base's mapping (None with a fixed base)."""
         q = np.asarray(q, dtype=float)
-        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float)) if self.base_q >= 0 else None
+        mapping = Mapping(angular_linear_world, q, None if v is None else np.asarray(v, dtype=float),
+                          self.description.nv) if self.base_q >= 0 else None
+        mapping = with_balls(self.description, q, mapping)
         positions = np.zeros(self.plant.num_positions())
-        if mapping is not None:
+        if self.base_q >= 0:
             quaternion = q[3:7] / np.linalg.norm(q[3:7])
             positions[self.base_q:self.base_q + 7] = quaternion[3], *quaternion[:3], *q[:3]
-            q = q[7:]
-        positions[self.qpos] = q
+        for joint, where in zip(self.description.moving_joints, self.joint_q):
+            values = q[self.description.slots[joint.name][0]]
+            positions[where] = matrix_rpy(rotation(values)) if joint.type == "ball" else values
         velocities = np.zeros(self.plant.num_velocities())
         if v is not None:
             velocities[self.selected] = v if mapping is None else mapping.velocity(v)
@@ -155,13 +201,27 @@ class DrakeModel(LoadedModel):
 
     def xval_state(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """xval's (q, v) of Drake's state x (positions then velocities): the inverse of :meth:`plant_state`."""
+        from scipy.spatial.transform import Rotation
+
         positions, velocities = x[:self.plant.num_positions()], x[self.plant.num_positions():]
-        q, v = positions[self.qpos], velocities[self.selected]
-        if self.base_q < 0:
-            return q.copy(), v.copy()
-        pose = positions[self.base_q:self.base_q + 7]  # (w x y z, p)
-        config = np.concatenate([pose[4:7], pose[1:4], pose[:1], q])
-        return config, np.linalg.solve(Mapping(angular_linear_world, config).T, v)
+        parts, v = [], velocities[self.selected]
+        for joint, where in zip(self.description.moving_joints, self.joint_q):
+            if joint.type != "ball":
+                parts.append(positions[where])
+                continue
+            quaternion = Rotation.from_matrix(rpy_matrix(positions[where])).as_quat()
+            last = self._last.get(joint.name)
+            if last is not None and quaternion @ last < 0:  # q and −q are one turn: keep it continuous between reads
+                quaternion = -quaternion
+            self._last[joint.name] = quaternion
+            parts.append(quaternion)
+        q = np.concatenate(parts) if parts else np.zeros(0)
+        if self.base_q >= 0:
+            pose = positions[self.base_q:self.base_q + 7]  # (w x y z, p)
+            q = np.concatenate([pose[4:7], pose[1:4], pose[:1], q])
+        mapping = with_balls(self.description, q, Mapping(angular_linear_world, q, nv=self.description.nv)
+                             if self.base_q >= 0 else None)
+        return q, v.copy() if mapping is None else np.linalg.solve(mapping.T, v)
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         x, mapping = self.plant_state(q, v)

@@ -1,15 +1,15 @@
 """The engine-neutral model description: what a URDF or MJCF file says, validated on construction.
 
-A :class:`ModelDescription` is a tree of :class:`Body` records joined by
-:class:`Joint` records, the root welded to the world (fixed base), gravity
-along −z, in depth-first order from the root (children in file order); the
-moving joints in that order are the coordinates q (a continuous joint is
-one angle). SI units: kg, m, kg·m², rad.
+A :class:`ModelDescription` is a tree of :class:`Body` records joined by :class:`Joint` records, the root
+welded to the world (fixed base), gravity along −z, depth-first from the root (children in file order); the
+moving joints in that order are the coordinates q (a continuous joint one angle, a ball joint a unit quaternion
+x y z w with three velocities: the child's angular velocity in its own frame, Pinocchio's JointModelSpherical).
+SI units: kg, m, kg·m², rad.
 
 Refused with a :class:`ModelError` naming the link or joint and the fix: on
 a link that moves, a negative mass or an inertia not positive semidefinite
 (within PSD_TOLERANCE of the model's largest moment); joint types other than
-revolute / continuous / prismatic / fixed; loops, several roots; mimic joints
+revolute / continuous / prismatic / ball / fixed; loops, several roots; mimic joints
 unless read as independent. Accepted with a note: such mass properties on a
 link welded to the root (it cannot move), a moment negative within tolerance.
 """
@@ -29,9 +29,13 @@ Matrix = tuple[Vector, Vector, Vector]
 
 #: Joint types a description holds; every other type is refused. "floating" (six degrees of freedom) only
 #: between the world and the base.
-JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating")
+JOINT_TYPES = ("revolute", "continuous", "prismatic", "ball", "fixed", "floating")
 #: Joint types that add a coordinate.
-MOVING = ("revolute", "continuous", "prismatic")
+MOVING = ("revolute", "continuous", "prismatic", "ball")
+#: A ball joint's configuration entries (a unit quaternion) and velocity entries (the child's angular velocity
+#: in the child's frame, rad/s), each name prefixed by the joint's.
+BALL_CONFIG = ("qx", "qy", "qz", "qw")
+BALL_VELOCITY = ("wx", "wy", "wz")
 #: Most negative principal moment accepted, relative to the largest principal moment of any link of the model
 #: (round-off in a file's decimals, such as a lone product of inertia of 1e-20): a tenth of the parity check's
 #: tolerance, so what it accepts changes M by less than the check can see (compare/model/tolerance.py).
@@ -116,7 +120,7 @@ class Limits:
 class Joint:
     """A joint: the child's frame is at ``xyz``/``rpy`` in the parent's frame at q = 0.
 
-    type : one of JOINT_TYPES. axis : (3,) unit vector in the child (= joint) frame.
+    type : one of JOINT_TYPES. axis : (3,) unit vector in the child (= joint) frame (a ball joint has none).
     rpy : rad, fixed-axis roll, pitch, yaw (R = Rz(y) Ry(p) Rx(r)). damping, friction :
     what the file says (N·m·s/rad, N·m); the dynamics compared here leave them out.
     mimic : the joint this one mimics, when the file says so.
@@ -138,13 +142,23 @@ class Joint:
     def moving(self) -> bool:
         return self.type in MOVING
 
+    @property
+    def nq(self) -> int:
+        """Its configuration entries: 4 for a ball joint (a quaternion x y z w), 1 for another moving joint, else 0."""
+        return 4 if self.type == "ball" else int(self.moving)
+
+    @property
+    def nv(self) -> int:
+        """Its velocity entries: 3 for a ball joint (angular velocity in the child frame), 1 for another moving one."""
+        return 3 if self.type == "ball" else int(self.moving)
+
     def check(self) -> None:
         if self.type not in JOINT_TYPES:
             raise ModelError(f"joint {self.name}: type {self.type!r} is not supported; "
-                             f"use one of {', '.join(t for t in JOINT_TYPES if t != 'floating')}")
+                             f"use one of {', '.join(t for t in JOINT_TYPES if t not in ('floating', 'ball'))}")
         if not all(math.isfinite(c) for c in (*self.xyz, *self.rpy)):
             raise ModelError(f"joint {self.name}: <origin> is not finite; give finite xyz and rpy")
-        if self.moving:
+        if self.moving and self.type != "ball":
             norm = math.sqrt(sum(c * c for c in self.axis))
             if not math.isfinite(norm) or abs(norm - 1.0) > 1e-9:
                 raise ModelError(f"joint {self.name}: the axis must be a unit vector, got {self.axis}; "
@@ -163,6 +177,8 @@ class ModelDescription:
     first joint. Coordinates (Pinocchio's convention, the one inside xval): the configuration is (base
     position (3,) m, base orientation quaternion x y z w, joint q) and the velocity (base linear velocity
     (3,) m/s and angular velocity (3,) rad/s, both in the base frame, joint v); fixed base: joint q and v.
+    A ball joint's q is its quaternion x y z w (the child frame's orientation in the joint's frame at q = 0)
+    and its v the child's angular velocity in the child's frame (:attr:`slots` says where each joint sits).
     """
 
     name: str
@@ -208,8 +224,8 @@ class ModelDescription:
 
     @property
     def nv(self) -> int:
-        """Velocity size: base_dofs + nq."""
-        return self.base_dofs + self.nq
+        """Velocity size: base_dofs + the joints' (one each, three for a ball joint)."""
+        return self.base_dofs + sum(j.nv for j in self.moving_joints)
 
     @property
     def nconfig(self) -> int:
@@ -218,16 +234,38 @@ class ModelDescription:
 
     @property
     def dof_names(self) -> tuple[str, ...]:
-        """A name per velocity entry: the base's six (``BASE.vx`` … ``BASE.wz``), then the joints."""
+        """A name per velocity entry: the base's six (``BASE.vx`` … ``BASE.wz``), then the joints (a ball
+        joint's three ``J.wx``, ``J.wy``, ``J.wz``)."""
         base = () if self.floating is None else tuple(f"{self.floating.name}.{a}" for a in
                                                       ("vx", "vy", "vz", "wx", "wy", "wz"))
-        return (*base, *(j.name for j in self.moving_joints))
+        return (*base, *(n for j in self.moving_joints for n in _entry_names(j, BALL_VELOCITY)))
+
+    @property
+    def joint_config_names(self) -> tuple[str, ...]:
+        """A name per joint configuration entry (after the base's): the joint's, or ``J.qx`` … ``J.qw``."""
+        return tuple(n for j in self.moving_joints for n in _entry_names(j, BALL_CONFIG))
+
+    @cached_property
+    def balls(self) -> tuple[Joint, ...]:
+        """The ball joints, in q's order."""
+        return tuple(j for j in self.moving_joints if j.type == "ball")
+
+    @cached_property
+    def slots(self) -> dict[str, tuple[slice, slice]]:
+        """Moving joint name -> (its entries of the configuration, of the velocity), the base's counted."""
+        out, at_q, at_v = {}, 7 if self.floating is not None else 0, self.base_dofs
+        for joint in self.moving_joints:
+            out[joint.name] = (slice(at_q, at_q + joint.nq), slice(at_v, at_v + joint.nv))
+            at_q, at_v = at_q + joint.nq, at_v + joint.nv
+        return out
 
     def neutral(self) -> np.ndarray:
-        """(nconfig,) the zero configuration (the base at the origin, identity orientation)."""
+        """(nconfig,) the zero configuration (the base at the origin, every orientation the identity)."""
         q = np.zeros(self.nconfig)
         if self.floating is not None:
             q[6] = 1.0
+        for joint in self.balls:
+            q[self.slots[joint.name][0].stop - 1] = 1.0
         return q
 
     @cached_property
@@ -237,7 +275,8 @@ class ModelDescription:
 
     @property
     def nq(self) -> int:
-        return len(self.moving_joints)
+        """The joints' configuration size (the base's left out): one per joint, four per ball joint."""
+        return sum(j.nq for j in self.moving_joints)
 
     def body(self, name: str) -> Body:
         return self._bodies[name]
@@ -281,6 +320,10 @@ def _inertia_notes(model: ModelDescription) -> list[str]:
         if note:
             notes.append(note)
     return notes
+
+
+def _entry_names(joint: Joint, parts: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(f"{joint.name}.{a}" for a in parts) if joint.type == "ball" else (joint.name,)
 
 
 def _first_repeat(names: list[str]) -> str:

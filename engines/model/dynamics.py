@@ -3,7 +3,7 @@
 :class:`ModelDynamics` has the shape of the catalog's reduced-coordinate
 models (engines/reference/reference.py integrates it with DOP853): the state is
 y = (q, v) in xval's order (a floating base's pose and velocity first, its
-quaternion's rate ½ q ⊗ ω: :func:`base_rate`), ``rhs`` is (q̇, aba(q, v, τ)) with τ
+quaternion's rate ½ q ⊗ ω: :func:`base_rate`; a ball joint's the same), ``rhs`` is (q̇, aba(q, v, τ)) with τ
 the file's joint damping (−d·v) when the scene keeps it (friction, being
 non-smooth, is left out of the reference and said so), and ``evaluate``
 turns states into the link frames' positions and velocities. It holds only
@@ -25,10 +25,27 @@ def base_rate(pose: np.ndarray, v: np.ndarray) -> np.ndarray:
     normalises it)."""
     from engines.model.floating import rotation
 
-    quaternion, linear, angular = pose[3:7], v[:3], v[3:6]
+    return np.concatenate([rotation(pose[3:7]) @ v[:3], quaternion_rate(pose[3:7], v[3:6])])
+
+
+def quaternion_rate(quaternion: np.ndarray, angular: np.ndarray) -> np.ndarray:
+    """d/dt of a quaternion (x y z w) turning at ``angular`` rad/s in its own (body) frame: ½ q ⊗ (ω, 0)."""
     vector, scalar = quaternion[:3], quaternion[3]
-    return np.concatenate([rotation(quaternion) @ linear, 0.5 * (scalar * angular + np.cross(vector, angular)),
-                           [-0.5 * vector @ angular]])
+    return np.concatenate([0.5 * (scalar * angular + np.cross(vector, angular)), [-0.5 * vector @ angular]])
+
+
+def configuration_rate(description, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """q̇ (nconfig,) of a model (engines.model.description.ModelDescription) at xval's q (nconfig,), v (nv,): a
+    floating base's pose moving by :func:`base_rate`, each ball joint's quaternion by :func:`quaternion_rate` (its
+    v is the child's angular velocity in the child frame), the other joints' v itself. The reference's and any
+    engine's integrator in xval's coordinates (engines/dart/rk4.py) share it."""
+    if description.floating is None and not description.balls:
+        return v
+    parts = [base_rate(q[:7], v[:6])] if description.floating is not None else []
+    for joint in description.moving_joints:
+        where_q, where_v = description.slots[joint.name]
+        parts.append(quaternion_rate(q[where_q], v[where_v]) if joint.type == "ball" else v[where_v])
+    return np.concatenate(parts)
 
 
 class ModelDynamics:
@@ -51,8 +68,8 @@ class ModelDynamics:
         loaded.model.gravity.linear = np.asarray(scene.gravity, dtype=float)
         damping = np.zeros(loaded.model.nv)
         if scene.file_dynamics == "keep":
-            for joint, dof in zip(scene.description.moving_joints, loaded.dof):
-                damping[dof] = joint.damping
+            for joint in scene.description.moving_joints:
+                damping[loaded.dof[scene.description.slots[joint.name][1]]] = joint.damping
         return pin, loaded, damping
 
     def rhs(self, _t: float, y: np.ndarray) -> np.ndarray:
@@ -61,18 +78,17 @@ class ModelDynamics:
         q, v = y[:n], y[n:]
         rates = loaded._vector(v)
         a = pin.aba(loaded.model, loaded.data, loaded.configuration(q), rates, -damping * rates)[loaded.dof]
-        if loaded.description.floating is None:
-            return np.concatenate([v, a])
-        return np.concatenate([base_rate(q[:7], v[:6]), v[6:], a])
+        return np.concatenate([configuration_rate(loaded.description, q, v), a])
 
     def derivatives(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q̈ (nq,), ∂q̈/∂q (nq, nq), ∂q̈/∂v (nq, nq)) at y = (q, v): Pinocchio's computeABADerivatives (analytic),
         the file's joint damping τ = −d·v included when the scene keeps it; for the variational equations."""
         pin, loaded, damping = self._model
-        if loaded.description.floating is not None:  # a quaternion in q: its derivatives live in the tangent space
-            from engines.errors import Unsupported
+        if loaded.description.floating is not None or loaded.description.balls:  # a quaternion in q: its
+            from engines.errors import Unsupported  # derivatives live in the tangent space
 
-            raise Unsupported("reference: derivatives of a floating-base model are not computed yet")
+            what = "a floating-base model" if loaded.description.floating is not None else "a model with ball joints"
+            raise Unsupported(f"reference: derivatives of {what} are not computed yet")
         n = len(y) // 2
         rates = loaded._vector(y[n:])
         by_q, by_v, minv = pin.computeABADerivatives(loaded.model, loaded.data, loaded.configuration(y[:n]), rates,

@@ -1,4 +1,4 @@
-"""The one floating-base convention inside xval (Pinocchio's), and each engine's mapped to it.
+"""The one floating-base convention inside xval (Pinocchio's), and each engine's mapped to it (ball joints too).
 
 xval's configuration is (p (3,) m, quaternion x y z w, joint q) with p and the
 quaternion the base frame's pose in the world; its velocity is (v (3,) m/s,
@@ -20,6 +20,8 @@ from typing import Callable
 
 import numpy as np
 
+from engines.model.kinematics import quaternion_rotation
+
 def linear_world_angular_body(r: np.ndarray) -> np.ndarray:
     """u = (R v, ω): the linear velocity in the world, the angular in the body (MuJoCo's free joint)."""
     return np.block([[r, np.zeros((3, 3))], [np.zeros((3, 3)), np.eye(3)]])
@@ -31,14 +33,7 @@ def angular_linear_world(r: np.ndarray) -> np.ndarray:
     return np.block([[np.zeros((3, 3)), r], [r, np.zeros((3, 3))]])
 
 
-def rotation(quaternion_xyzw) -> np.ndarray:
-    """(3, 3) rotation of a quaternion (x, y, z, w), normalised first."""
-    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+rotation = quaternion_rotation
 
 
 def skew(w) -> np.ndarray:
@@ -47,18 +42,27 @@ def skew(w) -> np.ndarray:
 
 
 class Mapping:
-    """An engine's velocity u = T v at one configuration q (xval's, (7 + n,)) and velocity v ((6 + n,) or None).
+    """An engine's velocity u = T v at one configuration q (xval's, (nconfig,)) and velocity v ((nv,) or None).
 
     block : the engine's base layout, R -> (6, 6), linear in R (one of the functions above).
-    T : (6 + n, 6 + n), the base block then the identity on the joints.
+    nv : the velocity's size (default nconfig − 1: one entry per joint coordinate; give it with ball joints).
+    T : (nv, nv), the base block then the identity on the joints.
     """
 
-    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None) -> None:
+    @classmethod
+    def identity(cls, size: int) -> "Mapping":
+        """T = I (a fixed base), for ball joints' blocks to be set in (:func:`with_balls`)."""
+        mapping = cls.__new__(cls)
+        mapping.T, mapping.Tdot_v = np.eye(size), np.zeros(size)
+        return mapping
+
+    def __init__(self, block: Callable[[np.ndarray], np.ndarray], q: np.ndarray, v: np.ndarray | None = None,
+                 nv: int | None = None) -> None:
         r = rotation(q[3:7])
-        n = len(q) - 7
-        self.T = np.eye(6 + n)
+        size = len(q) - 1 if nv is None else nv  # nv: the velocity's size, when a ball joint's quaternion is in q
+        self.T = np.eye(size)
         self.T[:6, :6] = block(r)
-        self.Tdot_v = np.zeros(6 + n)
+        self.Tdot_v = np.zeros(size)
         if v is not None:
             # Ṫ: R replaced by Ṙ = R [ω]×, the constant blocks (identities) dropped (block is affine in R).
             self.Tdot_v[:6] = (block(r @ skew(v[3:6])) - block(np.zeros((3, 3)))) @ v[:6]
@@ -78,3 +82,17 @@ class Mapping:
 
     def acceleration(self, a_engine: np.ndarray) -> np.ndarray:
         return np.linalg.solve(self.T, a_engine - self.Tdot_v)
+
+
+def with_balls(description, q: np.ndarray, mapping: Mapping | None) -> Mapping | None:
+    """``mapping`` (None: a fixed base's identity) with each ball joint's block R(Q), for an engine whose ball
+    velocity is the angular velocity in the joint's parent frame (u = R(Q) ω, R(Q) the child frame's rotation
+    in the joint frame; Drake's BallRpyJoint as measured). Ṫ v adds nothing: Ṙ ω = R [ω]× ω = 0. None when the
+    description has no ball joint and no base."""
+    if not description.balls:
+        return mapping
+    out = Mapping.identity(description.nv) if mapping is None else mapping
+    for joint in description.balls:
+        where_q, where_v = description.slots[joint.name]
+        out.T[where_v, where_v] = rotation(q[where_q])
+    return out

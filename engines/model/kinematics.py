@@ -1,7 +1,8 @@
 """Link frames of a :class:`ModelDescription` at a configuration, computed from what the file says.
 
 Poses are (R, p): R (3, 3) the link frame's axes in the world, p (3,) m its
-origin. q : (nq,) in the description's moving-joint order (rad or m).
+origin. q : (nq,) the joints' configuration in the description's moving-joint order (rad or m; a ball
+joint's quaternion x y z w), the floating base's pose left out.
 """
 
 from __future__ import annotations
@@ -37,17 +38,31 @@ def axis_rotation(axis, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
 
 
+def quaternion_rotation(quaternion_xyzw) -> np.ndarray:
+    """(3, 3) rotation of a quaternion (x, y, z, w), normalised first."""
+    x, y, z, w = np.asarray(quaternion_xyzw, dtype=float) / np.linalg.norm(quaternion_xyzw)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
 def link_poses(model: ModelDescription, q=None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Link name -> (R, p) in the world at ``q`` (zeros when None); the root at the world's origin."""
-    values = dict(zip((j.name for j in model.moving_joints), np.zeros(model.nq) if q is None else q))
+    q = model.neutral()[model.nconfig - model.nq:] if q is None else np.asarray(q, dtype=float)
+    start = model.nconfig - model.nq  # the slots count the base's seven entries, which q leaves out
+    values = {name: q[where.start - start:where.stop - start] for name, (where, _) in model.slots.items()}
     poses = {model.root: (np.eye(3), np.zeros(3))}
     for joint in model.joints:  # depth-first: the parent's pose is known
         r_parent, p_parent = poses[joint.parent]
         r = r_parent @ rpy_matrix(joint.rpy)
         p = p_parent + r_parent @ np.asarray(joint.xyz, dtype=float)
         if joint.type in ("revolute", "continuous"):
-            r = r @ axis_rotation(joint.axis, values[joint.name])
+            r = r @ axis_rotation(joint.axis, values[joint.name][0])
         elif joint.type == "prismatic":
-            p = p + r @ (np.asarray(joint.axis, dtype=float) * values[joint.name])
+            p = p + r @ (np.asarray(joint.axis, dtype=float) * values[joint.name][0])
+        elif joint.type == "ball":
+            r = r @ quaternion_rotation(values[joint.name])
         poses[joint.child] = (r, p)
     return poses

@@ -1,7 +1,8 @@
 """Pinocchio's model of a file: the reference of the parity check and of model scenes.
 
 A URDF is read by Pinocchio's own reader (``buildModelFromXML``, no geometry), with no root joint or a
-``JointModelFreeFlyer`` for ``--base floating``; welded links merged into their joint's body. An MJCF's
+``JointModelFreeFlyer`` for ``--base floating``; welded links merged into their joint's body; a URDF with
+``spherical`` joints (which Pinocchio's reader, urdfdom, does not know) is built like an MJCF's. An MJCF's
 reference is built joint by joint from the description, MuJoCo's compiled model
 (engines/model/pinocchio_tree.py: MuJoCo's compiler says what its format means, and Pinocchio's
 ``buildModelFromMJCF`` ignores ``<default>`` geom masses). Pinocchio's algorithms are the independent
@@ -30,7 +31,10 @@ def version() -> str:
 def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel":
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     try:
-        if source.format == "urdf" and description.floating is not None:
+        if source.format == "urdf" and description.balls:  # Pinocchio's URDF reader has no spherical joint
+            model = build(description)
+            notes = (*notes, BALL_NOTE)
+        elif source.format == "urdf" and description.floating is not None:
             model = pin.buildModelFromXML(text, pin.JointModelFreeFlyer())
         elif source.format == "urdf":
             model = pin.buildModelFromXML(text)
@@ -39,7 +43,9 @@ def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel"
             notes = (*notes, MJCF_NOTE)
     except (RuntimeError, ValueError) as exc:
         raise Refused(" ".join(str(exc).split())) from None
-    options = {"builder": "buildModelFromXML" if source.format == "urdf" else "joint by joint from MuJoCo's compiled model",
+    builder = "buildModelFromXML" if source.format == "urdf" and not description.balls else \
+        "joint by joint from the description" if source.format == "urdf" else "joint by joint from MuJoCo's compiled model"
+    options = {"builder": builder,
                "root_joint": "none (fixed base)" if description.floating is None else "JointModelFreeFlyer"}
     return PinocchioModel(model, description, options, notes)
 
@@ -48,6 +54,11 @@ def load(source: ModelSource, description: ModelDescription) -> "PinocchioModel"
 MJCF_NOTE = ("the reference's model of an MJCF is MuJoCo's compiled model (MJCF is MuJoCo's format; Pinocchio's "
              "own MJCF reader ignores <default> geom masses) built joint by joint; Pinocchio's crba, rnea and aba "
              "compute its dynamics")
+
+
+#: What the reference of a URDF with spherical joints is, in the check's notes.
+BALL_NOTE = ("the reference's model of a URDF with spherical joints is built joint by joint from xval's reading of "
+             "the file (Pinocchio's URDF reader, urdfdom, has no spherical joint): JointModelSpherical for each")
 
 
 class PinocchioModel(LoadedModel):
@@ -60,43 +71,52 @@ class PinocchioModel(LoadedModel):
         model.gravity.linear = np.array([0.0, 0.0, -GRAVITY])
         super().__init__(description, options, (*notes, "armature, damping and friction set to 0"))
         self.model, self.data = model, model.createData()
-        # One entry per degree of freedom: its name, and (Pinocchio joint, index within it).
-        names, slots = [], []
+        # Per moving joint: its Pinocchio joint (the description's slots say where xval keeps its entries).
+        names, ids = [], []
         base: list[int] = []
         for joint in range(1, model.njoints):
             name = model.names[joint]
-            count = int(model.nvs[joint])
-            if model.joints[joint].shortname() == "JointModelFreeFlyer" and description.floating is not None:
+            kind = model.joints[joint].shortname()
+            if kind == "JointModelFreeFlyer" and description.floating is not None:
                 base = [int(model.idx_vs[joint]) + k for k in range(6)]
                 self.base_q = int(model.idx_qs[joint])
                 continue
-            if count != 1:
-                raise Refused(f"only 1-degree-of-freedom joints are compared; pinocchio's {name} has {count}")
+            if int(model.nvs[joint]) != 1 and kind != "JointModelSpherical":
+                raise Refused(f"only 1-degree-of-freedom and spherical joints are compared; pinocchio's {name} has "
+                              f"{int(model.nvs[joint])}")
             names.append(name)
-            slots.append((joint, 0))
-        chosen = [slots[k] for k in index_map(description, names)]
-        self.joint_ids = [joint for joint, _ in chosen]
+            ids.append(joint)
+        self.joint_ids = [ids[k] for k in index_map(description, names)]
         if description.floating is not None and not base:
             raise Refused("pinocchio's model has no free-flyer joint for the floating base")
+        for moving, chosen in zip(description.moving_joints, self.joint_ids):
+            if int(model.nvs[chosen]) != moving.nv:
+                raise Refused(f"pinocchio's joint {moving.name} has {int(model.nvs[chosen])} degrees of freedom; "
+                              f"the file's has {moving.nv}")
         #: Pinocchio's velocity index of each of xval's (the base's six first, when floating).
-        self.dof = np.array(base + [model.idx_vs[joint] + k for joint, k in chosen], dtype=int)
-        # Where each coordinate sits in the configuration; continuous: (cos, sin), two numbers for one angle.
-        self.qslot = [model.idx_qs[joint] + k for joint, k in chosen]
-        self.circle = [model.nqs[joint] == 2 and model.nvs[joint] == 1 for joint, _ in chosen]
+        self.dof = np.array(base + [int(model.idx_vs[j]) + k for j in self.joint_ids for k in range(int(model.nvs[j]))],
+                            dtype=int)
+        # Where each joint's configuration sits; continuous: (cos, sin), two numbers for one angle; ball: the
+        # same quaternion x y z w.
+        self.qslot = [int(model.idx_qs[j]) for j in self.joint_ids]
+        self.circle = [model.nqs[j] == 2 and model.nvs[j] == 1 for j in self.joint_ids]
 
     def configuration(self, q) -> np.ndarray:
-        """xval's configuration (nconfig,) as Pinocchio's (model.nq,): the base's pose as it is (the same
-        convention), each continuous joint's angle as (cos, sin)."""
+        """xval's configuration (nconfig,) as Pinocchio's (model.nq,): the base's pose and each ball joint's
+        quaternion as they are (the same convention, normalised), each continuous joint's angle as (cos, sin)."""
         config = pin.neutral(self.model)
         q = np.asarray(q, dtype=float)
         if self.description.floating is not None:
             config[self.base_q:self.base_q + 7] = np.concatenate([q[:3], q[3:7] / np.linalg.norm(q[3:7])])
-            q = q[7:]
-        for start, angle, circle in zip(self.qslot, q, self.circle):
-            if circle:
-                config[start:start + 2] = np.cos(angle), np.sin(angle)
+        slots = self.description.slots
+        for joint, start, circle in zip(self.description.moving_joints, self.qslot, self.circle):
+            values = q[slots[joint.name][0]]
+            if joint.type == "ball":
+                config[start:start + 4] = values / np.linalg.norm(values)
+            elif circle:
+                config[start:start + 2] = np.cos(values[0]), np.sin(values[0])
             else:
-                config[start] = angle
+                config[start] = values[0]
         return config
 
     def _vector(self, values) -> np.ndarray:

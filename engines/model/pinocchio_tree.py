@@ -1,11 +1,12 @@
-"""A Pinocchio model built joint by joint from a :class:`ModelDescription` (the model reference of an MJCF).
+"""A Pinocchio model built joint by joint from a :class:`ModelDescription` (the reference of an MJCF or ball joints).
 
 The description of an MJCF is MuJoCo's compiled model (engines/mujoco/description.py); Pinocchio's own MJCF
 reader disagrees with it on real files (it ignores ``<default><geom mass=…>``: a dm_control-style
 acrobot's arms weigh 8.38 kg, the capsules' volume × 1000, where MuJoCo's compiler says 1 kg). Each
 moving joint is a 1-degree-of-freedom Pinocchio joint of its name (``JointModelRevoluteUnaligned`` for
 revolute and continuous, ``JointModelPrismaticUnaligned``) at the joint's origin in its parent joint's
-frame; a floating base is a ``JointModelFreeFlyer`` at the world's origin; a fixed joint's child is
+frame; a ball joint a ``JointModelSpherical`` there (q the quaternion x y z w, v the angular velocity in
+the child's frame: xval's convention); a floating base is a ``JointModelFreeFlyer`` at the world's origin; a fixed joint's child is
 appended to the body of the joint above it, as Pinocchio's readers do. Every link is a BODY frame.
 """
 
@@ -41,6 +42,8 @@ def build(description: ModelDescription) -> pin.Model:
         if joint.type == "floating":
             kind = pin.JointModelFreeFlyer()
             origin = pin.SE3.Identity()  # the configuration is the base's pose in the world
+        elif joint.type == "ball":
+            kind = pin.JointModelSpherical()
         else:
             kind = _MODELS[joint.type](np.asarray(joint.axis, dtype=float))
         index = model.addJoint(parent, kind, origin, joint.name)

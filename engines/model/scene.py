@@ -25,7 +25,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from engines.errors import Unsupported
-from engines.model.description import ModelDescription, ModelError
+from engines.model.description import BALL_CONFIG, BALL_VELOCITY, ModelDescription, ModelError
 from engines.model.loaded import GRAVITY
 from engines.model.source import ModelSource, resolve
 
@@ -106,15 +106,27 @@ class ModelScene:
         return self.description.floating is not None
 
     @property
+    def ball_joints(self) -> tuple[str, ...]:
+        """The model's ball joints (a quaternion in q, three velocities each), by name."""
+        return tuple(j.name for j in self.description.balls)
+
+    @property
+    def file_format(self) -> str:
+        """The model file's format: "urdf" or "mjcf"."""
+        return self.description.format
+
+    @property
     def config_names(self) -> tuple[str, ...]:
         """A name per configuration entry, the order of q and of the CSV's ``q_`` columns: with a floating
-        base ``BASE.x``, ``.y``, ``.z`` (m) and ``BASE.qx``, ``.qy``, ``.qz``, ``.qw`` first, then the joints."""
-        return (*_base_names(self.description, BASE_CONFIG), *self.joint_names)
+        base ``BASE.x``, ``.y``, ``.z`` (m) and ``BASE.qx``, ``.qy``, ``.qz``, ``.qw`` first, then the joints (a
+        ball joint's quaternion ``J.qx`` … ``J.qw``)."""
+        return (*_base_names(self.description, BASE_CONFIG), *self.description.joint_config_names)
 
     @property
     def velocity_names(self) -> tuple[str, ...]:
         """A name per velocity entry, the order of v and of the CSV's ``v_`` columns: with a floating base
-        ``BASE.vx`` … ``BASE.wz`` (m/s, rad/s, in the base frame) first, then the joints."""
+        ``BASE.vx`` … ``BASE.wz`` (m/s, rad/s, in the base frame) first, then the joints (a ball joint's
+        ``J.wx``, ``J.wy``, ``J.wz``, rad/s in the child frame)."""
         return self.description.dof_names
 
     def split(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,10 +220,15 @@ class ModelScene:
         """The moving joints on the (fixed) root whose momentum nothing changes: (M v)_j is the momentum of
         everything joint j carries, about its axis (revolute, continuous) or along it (prismatic), and only
         gravity acts on that subtree beside the joint: conserved when g = 0, or when the axis is parallel
-        (revolute) or perpendicular (prismatic) to gravity."""
-        description, out = self.description, []
+        (revolute) or perpendicular (prismatic) to gravity. A ball joint on the root: the angular momentum of
+        what it carries about its centre, in the world (``J.Lx``, ``J.Ly``, ``J.Lz``): every component when
+        g = 0, else the vertical one (gravity's torque about the centre is horizontal)."""
+        description, out = self.description, list[str]()
         for joint in description.moving_joints:
             if joint.parent != description.root:
+                continue
+            if joint.type == "ball":
+                out.extend(f"{joint.name}.L{a}" for a in ("xyz" if self.g == 0 else "z"))
                 continue
             axis = _root_axis(description, joint)
             along = abs(axis[2])  # gravity is along −z
@@ -222,7 +239,7 @@ class ModelScene:
 
     def momentum_drift(self, q: np.ndarray, v: np.ndarray) -> float | None:
         """max over :meth:`conserved_momenta` and samples of |p_j(t) − p_j(0)| / scale at states q (n, nconfig),
-        v (n, nv): p = M(q) v for a root joint; with a floating base, the total linear momentum and the angular
+        v (n, nv): p = M(q) v for a root joint (a root ball joint's rows turned into the world); with a floating base, the total linear momentum and the angular
         momentum about the world origin, in the world. Scale M·L·√(g·L) about an axis, M·√(g·L) along one (M
         the moving links' mass, L the reach, g Earth's when the scene's is 0). None when nothing qualifies; 0
         for one sample."""
@@ -240,10 +257,16 @@ class ModelScene:
                     scale = speed * (1.0 if name.startswith("p") else self.characteristic_length)
                     worst = max(worst, float(np.abs(momentum[:, k] - momentum[0, k]).max()) / scale)
             return worst
+        description = self.description
         for name in names:
-            k = self.joint_names.index(name)
-            scale = speed * (1.0 if self.description.joint(name).type == "prismatic" else self.characteristic_length)
-            worst = max(worst, float(np.abs(momentum[:, k] - momentum[0, k]).max()) / scale)
+            if name in description.slots:
+                series = momentum[:, description.slots[name][1].start]
+                along = description.joint(name).type == "prismatic"
+            else:  # a root ball joint's angular momentum, one world component
+                joint, part = name.rsplit(".", 1)
+                series, along = _ball_momentum(description, joint, q, momentum)[:, "xyz".index(part[-1])], False
+            scale = speed * (1.0 if along else self.characteristic_length)
+            worst = max(worst, float(np.abs(series - series[0]).max()) / scale)
         return worst
 
     # -- stepping ----------------------------------------------------------------------------------
@@ -336,14 +359,21 @@ def model_scene(name: str, model: str, *, base: Path | None = None, q0: Mapping[
     if file_dynamics == "keep" and rubbing:
         raise ModelError(f"model {model}: file_dynamics = \"keep\" with joint friction ({', '.join(rubbing)}): the "
                          f"reference has no Coulomb friction; use \"neutral\" (friction and damping set to 0)")
-    angular = {j.name: j.type != "prismatic" for j in joints}
+    angular = {j.name: j.type != "prismatic" for j in joints if j.type != "ball"}
     base_q, base_v = _base_state(model, description, q0 or {}, v0 or {})
     floating = () if description.floating is None else (description.floating.name,)
-    given_q = _by_joint(model, "q0", {k: x for k, x in (q0 or {}).items() if k not in floating}, angular)
-    given_v = _by_joint(model, "v0", {k: x for k, x in (v0 or {}).items() if k not in floating}, angular)
-    q = base_q + tuple((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name])
-                       if j.name in given_q else (j.name, 0.0) for j in joints)
-    v = base_v + tuple((j.name, given_v.get(j.name, 0.0)) for j in joints)
+    whole = (*floating, *(j.name for j in description.balls))  # given as lists, checked apart
+    given_q = _by_joint(model, "q0", {k: x for k, x in (q0 or {}).items() if k not in whole}, angular)
+    given_v = _by_joint(model, "v0", {k: x for k, x in (v0 or {}).items() if k not in whole}, angular)
+    q, v = base_q, base_v
+    for j in joints:
+        if j.type == "ball":
+            ball_q, ball_v = _ball_state(model, j.name, q0 or {}, v0 or {})
+            q, v = q + ball_q, v + ball_v
+            continue
+        q += ((j.name, math.radians(given_q[j.name]) if angular[j.name] else given_q[j.name]) if j.name in given_q
+              else (j.name, 0.0),)
+        v += ((j.name, given_v.get(j.name, 0.0)),)
     parameters = {"model": model, "q0": dict(q0 or {}), "v0": dict(v0 or {}), "file_dynamics": file_dynamics,
                   **({} if gravity == GRAVITY else {"g": gravity}), **({"lock": list(lock)} if lock else {}),
                   **({"base": root_joint} if root_joint != "fixed" else {})}
@@ -369,23 +399,42 @@ def _base_state(model: str, description: ModelDescription, q0: Mapping[str, Any]
     frame; default at rest). ModelError naming the field."""
     if description.floating is None:
         return (), ()
-    name = description.floating.name
+    return _listed_state(model, description.floating.name, "the floating base", q0, v0, (BASE_CONFIG, BASE_VELOCITY),
+                         ("[x, y, z, qx, qy, qz, qw] (m, a nonzero quaternion)",
+                          "[vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base frame)"))
+
+
+def _ball_state(model: str, name: str, q0: Mapping[str, Any],
+                v0: Mapping[str, Any]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
+    """A ball joint's initial entries by name: q0.J = [qx, qy, qz, qw] (a quaternion, normalised here; default
+    the identity), v0.J = [wx, wy, wz] (rad/s, the child's angular velocity in its own frame; default 0)."""
+    return _listed_state(model, name, "a ball joint", q0, v0, (BALL_CONFIG, BALL_VELOCITY),
+                         ("[qx, qy, qz, qw] (a nonzero quaternion)", "[wx, wy, wz] (rad/s, in the child link's frame)"))
+
+
+def _listed_state(model: str, name: str, what_it_is: str, q0: Mapping[str, Any], v0: Mapping[str, Any],
+                  parts: tuple[Sequence[str], Sequence[str]],
+                  forms: tuple[str, str]) -> tuple[tuple[tuple[str, float], ...], tuple[tuple[str, float], ...]]:
+    """The initial entries of a joint given as lists (or as text, numbers apart by commas or spaces), q0.NAME and
+    v0.NAME (``parts``: the names of their entries;
+    the configuration ends with a quaternion x y z w, normalised here; defaults: zeros, the identity quaternion).
+    ModelError naming the field and its ``forms``."""
     out = []
-    for what, given, default in (("q0", q0, (0, 0, 0, 0, 0, 0, 1.0)), ("v0", v0, (0.0,) * 6)):
+    for what, given, names, form in (("q0", q0, parts[0], forms[0]), ("v0", v0, parts[1], forms[1])):
+        default = (0.0,) * (len(names) - 1) + (1.0,) if what == "q0" else (0.0,) * len(names)
         raw = given.get(name, default)
+        # From the command line a list is text: "0.1,0.2,0.3,0.9" or "[0.1, 0.2, 0.3, 0.9]".
+        listed = raw.strip("[]() ").replace(",", " ").split() if isinstance(raw, str) else raw
         try:
-            values = np.array(raw, dtype=float).reshape(-1)
+            values = np.array(listed, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             values = np.zeros(0)
         if len(values) != len(default) or not np.all(np.isfinite(values)) or \
-                (what == "q0" and np.linalg.norm(values[3:]) == 0):
-            form = "[x, y, z, qx, qy, qz, qw] (m, a nonzero quaternion)" if what == "q0" else \
-                "[vx, vy, vz, wx, wy, wz] (m/s, rad/s, in the base frame)"
-            raise ModelError(f"model {model}: {what}.{name} (the floating base) must be {form}, got {raw!r}")
+                (what == "q0" and np.linalg.norm(values[-4:]) == 0):
+            raise ModelError(f"model {model}: {what}.{name} ({what_it_is}) must be {form}, got {raw!r}")
         if what == "q0":
-            values[3:] /= np.linalg.norm(values[3:])
-        parts = BASE_CONFIG if what == "q0" else BASE_VELOCITY
-        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(parts, values)))
+            values[-4:] /= np.linalg.norm(values[-4:])
+        out.append(tuple((f"{name}.{a}", float(x)) for a, x in zip(names, values)))
     return out[0], out[1]
 
 
@@ -397,6 +446,10 @@ def _lock_values(model: str, description: ModelDescription, q0: Mapping[str, Any
     if unknown:
         raise ModelError(f"model {model}: lock names joint {unknown[0]!r}, which is not one of its moving joints: "
                          f"{', '.join(joints)}")
+    balls = [name for name in lock if joints[name].type == "ball"]
+    if balls:
+        raise ModelError(f"model {model}: lock names ball joint {balls[0]!r}; only revolute, continuous and "
+                         f"prismatic joints can be locked, so leave it out of lock")
     angular = {name: joints[name].type != "prismatic" for name in lock}
     given = _by_joint(model, "q0", {k: v for k, v in q0.items() if k in angular}, angular)
     return tuple((name, math.radians(given.get(name, 0.0)) if angular[name] else given.get(name, 0.0))
@@ -438,6 +491,17 @@ def _source(model: str, path: str, digest: str, lock: tuple[tuple[str, float], .
 def _description(model: str, path: str, digest: str, lock: tuple[tuple[str, float], ...] = (),
                  root_joint: str = "fixed") -> ModelDescription:
     return describe(_source(model, path, digest, lock), root_joint)
+
+
+def _ball_momentum(description: ModelDescription, name: str, q: np.ndarray, momentum: np.ndarray) -> np.ndarray:
+    """(n, 3) kg·m²/s: a root ball joint's rows of M v (the angular momentum of what it carries about its
+    centre, in the child frame) turned into the world by the joint frame and the joint's rotation."""
+    from engines.model.kinematics import quaternion_rotation, rpy_matrix
+
+    joint = description.joint(name)
+    where_q, where_v = description.slots[name]
+    frame = rpy_matrix(joint.rpy)
+    return np.array([frame @ quaternion_rotation(qk[where_q]) @ mk[where_v] for qk, mk in zip(q, momentum)])
 
 
 def _root_axis(description: ModelDescription, joint) -> np.ndarray:

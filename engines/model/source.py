@@ -80,6 +80,7 @@ class ModelSource:
         dropped = {"visual": 0, "collision": 0, "mimic": 0}
         missing: set[str] = set()
         widened = [] if self.keep_empty_ranges else _widen_empty_ranges(root)
+        cones = _drop_ball_limits(root)
         for parent in root.iter():
             for child in list(parent):
                 if child.tag in ("visual", "collision") or (drop_mimic and child.tag == "mimic"):
@@ -90,6 +91,9 @@ class ModelSource:
         if widened:
             notes.append(f"{', '.join(widened)}: lower above upper (no limit, PyBullet's convention) given to every "
                          f"engine as lower {-NO_LIMIT:g}, upper {NO_LIMIT:g} (Drake refuses lower > upper)")
+        if cones:
+            notes.append(f"{', '.join(cones)}: the spherical joint's <limit> (a cone) removed (limits are off; "
+                         f"MuJoCo refuses a ball joint's range that does not start at 0)")
         if dropped["visual"] or dropped["collision"]:
             note = (f"dynamics need no geometry: {dropped['visual']} <visual> and {dropped['collision']} "
                     f"<collision> elements removed before import")
@@ -148,6 +152,17 @@ def _widen_empty_ranges(root: ET.Element) -> list[str]:
             limit.set("upper", f"{NO_LIMIT:g}")
             widened.append(f"joint {joint.get('name', '?')}")
     return widened
+
+
+def _drop_ball_limits(root: ET.Element) -> list[str]:
+    """Remove the <limit> of every spherical joint (PyBullet's cone: lower, upper, twist); the joints' names."""
+    dropped = []
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if joint.get("type") == "spherical" and limit is not None:
+            joint.remove(limit)
+            dropped.append(f"joint {joint.get('name', '?')}")
+    return dropped
 
 
 def unexpanded_xacro(model: str) -> ModelError:

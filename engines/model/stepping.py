@@ -103,6 +103,7 @@ def unbounded_joints(scene: ModelScene) -> list[str]:
 
 
 def kept_damping(scene: ModelScene) -> np.ndarray:
-    """(nq,) N·m·s/rad (N·s/m): the file's joint damping in the model's joint order when kept, else 0."""
+    """(nv − base,) N·m·s/rad (N·s/m): the file's joint damping per joint velocity entry (a ball joint's on each
+    of its three) in the model's joint order when kept, else 0."""
     keep = scene.file_dynamics == "keep"
-    return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints])
+    return np.array([j.damping if keep else 0.0 for j in scene.description.moving_joints for _ in range(j.nv)])

@@ -7,7 +7,9 @@ continuous joint has no position limits whatever ``<limit>`` says; a
 ``<limit>`` whose lower is above its upper is no limit (PyBullet's own
 convention, ``lower=1 upper=-1``; said in a note); the inertia is given about
 the centre of mass in the inertial frame, which ``<inertial><origin rpy>``
-rotates (the description stores it in link axes). A file that still holds
+rotates (the description stores it in link axes); ``type="spherical"``
+(PyBullet's extension) is a ball joint, its axis and its cone limits
+(``lower``, ``upper``, ``twist``) left out as every limit is. A file that still holds
 xacro (``xacro:`` elements) is refused: it must be expanded first.
 """
 
@@ -141,6 +143,8 @@ def _joint(element: ET.Element) -> Joint:
     name = _name(element, "joint")
     where = f"joint {name}"
     kind = element.get("type", "")
+    if kind == "spherical":  # PyBullet's ball joint
+        kind = "ball"
     if kind == "floating":  # the one floating joint is the base's, asked for with --base floating
         raise ModelError(f"{where}: type 'floating' is not supported; the base is welded to the world; "
                          f"remove the floating joint")

@@ -1,17 +1,17 @@
 """The description of an MJCF file: what MuJoCo's compiler makes of it (MJCF is MuJoCo's own format).
 
-MJCF's meaning depends on its compiler (defaults classes, angle units,
-inertias from geoms, frames as quat, euler or axisangle), so the description
-is read from MuJoCo's compiled model of the self-contained text
-(``ModelSource.engine_text``): each body a link, its one joint (hinge: revolute, or continuous when
-unlimited; slide: prismatic; none: fixed). A link frame sits at its
+MJCF's meaning depends on its compiler (defaults classes, angle units, inertias from geoms, frames as quat,
+euler or axisangle), so the description is read from MuJoCo's compiled model of the self-contained text
+(``ModelSource.engine_text``): each body a link, its one joint (hinge: revolute, or continuous when unlimited;
+slide: prismatic; none: fixed). A link frame sits at its
 joint's anchor (a hinge may pass through any point of its body). A body
 with several joints (a planar root: slide x, slide z, hinge y) becomes a
 chain: one massless link per joint but the last, named ``BODY/JOINT``
 (marked ``virtual``), the body itself the child of its last joint; MuJoCo
 applies a body's joints in that order, each in the frame the previous ones
 moved. A free joint is the floating base (type "floating", from the world;
-it has no anchor). Refused: ball joints.
+it has no anchor); a ball joint is a ball (its quaternion turns the link
+about its anchor; MuJoCo's qpos w x y z, xval's x y z w).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from engines.model.description import Body, Inertial, Joint, Limits, ModelDescri
 from engines.model.kinematics import matrix_rpy
 from engines.model.source import ModelSource
 
-KINDS = {0: "floating", 2: "prismatic", 3: "revolute"}  # mjJNT_FREE, mjJNT_SLIDE, mjJNT_HINGE
+KINDS = {0: "floating", 1: "ball", 2: "prismatic", 3: "revolute"}  # mjJNT_FREE, _BALL, _SLIDE, _HINGE
 
 
 def read(source: ModelSource) -> ModelDescription:
@@ -39,10 +39,6 @@ def read(source: ModelSource) -> ModelDescription:
     for k in range(1, m.nbody):
         count = int(m.body_jntnum[k])
         ids = list(range(m.body_jntadr[k], m.body_jntadr[k] + count))
-        for joint_id in ids:
-            if m.jnt_type[joint_id] not in KINDS:
-                raise ModelError(f"joint {m.joint(joint_id).name or names[k]}: type 'ball' is not supported; "
-                                 f"use hinge or slide joints")
         parent = m.body_parentid[k]
         rotation = _quat_matrix(m.body_quat[k])
         anchors = [np.asarray(m.jnt_pos[j], dtype=float) for j in ids] or [np.zeros(3)]
@@ -64,7 +60,7 @@ def read(source: ModelSource) -> ModelDescription:
         above = names[parent]
         for i, (joint_id, link) in enumerate(zip(ids, links)):
             hinge = m.jnt_type[joint_id] == 3
-            limited = bool(m.jnt_limited[joint_id]) and m.jnt_type[joint_id] != 0
+            limited = bool(m.jnt_limited[joint_id]) and m.jnt_type[joint_id] > 1  # a free or ball joint has no range
             kind = KINDS[int(m.jnt_type[joint_id])] if not hinge else ("revolute" if limited else "continuous")
             lo, hi = (float(x) for x in m.jnt_range[joint_id]) if limited else (None, None)
             name = m.joint(joint_id).name or f"{names[k]}_joint{i}"

@@ -92,13 +92,23 @@ class MujocoModel(LoadedModel):
         mujoco.mj_setConst(model, self.data)
         kinds = mujoco.mjtJoint
         free = [k for k in range(model.njnt) if model.jnt_type[k] == int(kinds.mjJNT_FREE)]
-        single = [k for k in range(model.njnt) if model.jnt_type[k] in (int(kinds.mjJNT_HINGE), int(kinds.mjJNT_SLIDE))]
-        if len(single) + len(free) != model.njnt or len(free) != (description.floating is not None):
-            raise Refused(f"only hinge and slide joints and one free joint for a floating base are compared; "
-                          f"mujoco has {model.njnt} joints, {len(free)} free")
-        self.index = index_map(description, [model.joint(k).name for k in single])
-        self.qpos = model.jnt_qposadr[single][self.index]
-        self.dof = model.jnt_dofadr[single][self.index]
+        joints = [k for k in range(model.njnt) if model.jnt_type[k] != int(kinds.mjJNT_FREE)]
+        if len(free) != (description.floating is not None):
+            raise Refused(f"only one free joint, for a floating base, is compared; mujoco has {len(free)} free joints")
+        chosen = [joints[k] for k in index_map(description, [model.joint(k).name for k in joints])]
+        ball = int(kinds.mjJNT_BALL)
+        for joint, k in zip(description.moving_joints, chosen):
+            if (joint.type == "ball") != (model.jnt_type[k] == ball):
+                raise Refused(f"mujoco's joint {joint.name} is {'a ball' if model.jnt_type[k] == ball else 'not a ball'}; "
+                              f"the file's is {joint.type}")
+        #: MuJoCo's qpos index of each of xval's joint configuration entries: a ball's quaternion x y z w read from
+        #: MuJoCo's w x y z; its qvel index of each joint velocity entry (a ball's: the child's angular velocity
+        #: in the child's frame, as xval's, measured by tests/test_ball_joint.py).
+        self.qpos = np.array([i for k in chosen for i in ([model.jnt_qposadr[k] + n for n in (1, 2, 3, 0)]
+                                                          if model.jnt_type[k] == ball else [model.jnt_qposadr[k]])],
+                             dtype=int)
+        self.dof = np.array([model.jnt_dofadr[k] + n for k in chosen for n in range(3 if model.jnt_type[k] == ball else 1)],
+                            dtype=int)
         #: The free joint's first qpos and qvel entries (position, quaternion w x y z; linear, angular).
         self.base_q = int(model.jnt_qposadr[free[0]]) if free else -1
         base = np.arange(model.jnt_dofadr[free[0]], model.jnt_dofadr[free[0]] + 6) if free else np.zeros(0, int)
@@ -106,12 +116,13 @@ class MujocoModel(LoadedModel):
         self.selected = np.concatenate([base, self.dof]).astype(int)
 
     def _mapping(self, q, v=None) -> Mapping | None:
-        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v) if self.base_q >= 0 else None
+        return Mapping(linear_world_angular_body, np.asarray(q, dtype=float), v, self.description.nv) \
+            if self.base_q >= 0 else None
 
     def _set(self, q, v=None, tau=None) -> Mapping | None:
         d, q = self.data, np.asarray(q, dtype=float)
         mapping = self._mapping(q, None if v is None else np.asarray(v, dtype=float))
-        d.qpos[:] = 0.0
+        d.qpos[:] = self.model.qpos0  # a ball joint's unit quaternion where xval's q does not reach
         d.qvel[:] = 0.0
         d.qfrc_applied[:] = 0.0
         if mapping is not None:
@@ -187,4 +198,4 @@ class MujocoStepper(Stepper):
         pose = self.data.qpos[start:start + 7]
         config = np.concatenate([pose[:3], pose[4:7], pose[3:4], q])
         rates = self.data.qvel[self.loaded.selected]
-        return config, np.linalg.solve(Mapping(linear_world_angular_body, config).T, rates)
+        return config, np.linalg.solve(Mapping(linear_world_angular_body, config, nv=len(rates)).T, rates)

@@ -178,7 +178,7 @@ class OursEngine(Engine):
 
     def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                  wrt: list[str]) -> tuple[Any, ...] | None:
-        """Forward sensitivities by complex step through ours' compiled step, with J at every sample as well
+        """Forward sensitivities by ours' tangent-linear step for every parameter, with J at every sample as well
         (engines/ours/gradients.py)."""
         from engines.ours import gradients
 

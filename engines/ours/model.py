@@ -4,7 +4,9 @@ Links welded by fixed joints are fused into the link they hang from (mass proper
 parallel-axis theorem, ``engines.model.inertia``), and links welded to the root belong to the world
 (when the base is fixed); continuous joints are revolute. A floating base is a body with no joint above it
 (free, as maximal coordinates have it): its pose and velocity are its rigid body's state, mapped to xval's
-convention (engines/model/floating.py) here. ours never reads the file. A moving group with no
+convention (engines/model/floating.py) here; a ball joint is ours' ball (a point constraint between two bodies),
+its quaternion and child-frame angular velocity passed as they are (x y z w read as ours' w x y z). ours never
+reads the file. A moving group with no
 mass, or whose inertia is not positive definite, is refused naming its links: maximal coordinates
 give every moving body its own mass matrix, which must be invertible.
 """
@@ -22,8 +24,8 @@ from engines.model.kinematics import rpy_matrix
 from engines.model.stepping import Stepper, unbounded_joints
 from ours import OursError
 from ours.rigid import (
-    Body, Joint, Mechanism, Stepping, frames, initial_state, joint_coordinates, joint_errors, quaternion, rotation_of,
-    simulate,
+    Body, Joint, Mechanism, Stepping, ball_coordinates, frames, initial_state, joint_coordinates, joint_errors,
+    quaternion, rotation_of, simulate,
 )
 
 GRAVITY = (0.0, 0.0, -9.81)
@@ -96,6 +98,26 @@ def placed(model: OursModel, y: np.ndarray, pose: np.ndarray, velocity: np.ndarr
     return out
 
 
+def of_scene(scene) -> OursModel:
+    """ours' Mechanism for a model scene: its description translated under the scene's gravity."""
+    return translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
+
+
+def start_state(model: OursModel, scene) -> np.ndarray:
+    """y0 (13 nb,): the model scene's initial joint state (q0, v0, and the floating base's pose and velocity; a ball
+    joint's quaternion and child-frame rates) in ours' maximal coordinates."""
+    start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
+    floating, description = model.base >= 0, scene.description
+    q0, v0 = {}, {}
+    for name in model.joint_names:
+        where_q, where_v = description.slots[name]
+        ball = description.joint(name).type == "ball"
+        q0[name] = np.roll(start_q[where_q], 1) if ball else float(start_q[where_q][0])  # x y z w -> w x y z
+        v0[name] = start_v[where_v] if ball else float(start_v[where_v][0])
+    y0 = initial_state(model.mechanism, q0, v0)
+    return placed(model, y0, start_q[:7], start_v[:6]) if floating else y0
+
+
 def base_state(model: OursModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The floating base's pose (7,) (p m, quaternion x y z w) and velocity (6,) (linear m/s and angular rad/s of
     the base frame, in the base frame) at the state y (13 nb,)."""
@@ -139,20 +161,18 @@ class OursStepper(Stepper):
 
     def __init__(self, scene, dt: float, method: str, integrator: str, **options) -> None:
         self.scene = scene
-        self.model = translate(scene.description, gravity=tuple(getattr(scene, "gravity", GRAVITY)))
-        names = self.model.joint_names
+        self.model = of_scene(scene)
         floating = self.model.base >= 0
-        start_q, start_v = np.asarray(scene.initial_q, dtype=float), np.asarray(scene.initial_v, dtype=float)
-        q0 = dict(zip(names, start_q[7:] if floating else start_q))
-        v0 = dict(zip(names, start_v[6:] if floating else start_v))
+        start_q = np.asarray(scene.initial_q, dtype=float)
+        description, names = scene.description, self.model.joint_names
+        #: Per moving joint (description order): a ball joint or not.
+        self._balls = [description.joint(n).type == "ball" for n in names]
         mech = self.model.mechanism
-        y0 = initial_state(mech, q0, v0)
-        if floating:
-            y0 = placed(self.model, y0, start_q[:7], start_v[:6])
-        self.run = Stepping(mech, y0, dt, method=method, integrator=integrator, **options)
+        self.run = Stepping(mech, start_state(self.model, scene), dt, method=method, integrator=integrator, **options)
         self._turn = start_q[3:7] if floating else np.zeros(4)
-        self._last = np.array([q0[n] for n in names])
-        self._revolute = np.array([j.kind == "revolute" for j in mech.joints], dtype=bool)
+        self._last = np.array([start_q[description.slots[n][0]][0] for n, ball in zip(names, self._balls) if not ball])
+        self._quaternions = {n: start_q[description.slots[n][0]].copy() for n, ball in zip(names, self._balls) if ball}
+        self._revolute = np.array([mech.joints[k].kind == "revolute" for k in mech.moving_joints], dtype=bool)
         #: (13 nb,) the state behind each (q, v) that :meth:`state` returned; NaN once stepping failed.
         self._read: list[np.ndarray] = []
         self.settings = {"model": scene.model, "import": "engines.model description, translated by engines.ours.model",
@@ -170,13 +190,15 @@ class OursStepper(Stepper):
         floating = self.model.base >= 0
         if self.run.status != "ok":
             self._read.append(np.full(len(self.run.y), np.nan))
-            nan = np.full(len(self._last), np.nan)
-            return np.full(len(nan) + 7 * floating, np.nan), np.full(len(nan) + 6 * floating, np.nan)
+            description = self.scene.description
+            return np.full(description.nconfig, np.nan), np.full(description.nv, np.nan)
         self._read.append(self.run.y.copy())
         q, v = joint_coordinates(self.model.mechanism, self.run.y)
         turns = np.round((self._last - q) / (2 * np.pi))
         q[self._revolute] += 2 * np.pi * turns[self._revolute]
         self._last = q.copy()
+        if self._quaternions:
+            q, v = self._with_balls(q, v)
         if floating:
             pose, rates = base_state(self.model, self.run.y)
             if pose[3:7] @ self._turn < 0:  # q and −q are one turn: keep the quaternion continuous between reads
@@ -184,6 +206,27 @@ class OursStepper(Stepper):
             self._turn = pose[3:7].copy()
             return np.concatenate([pose, q]), np.concatenate([rates, v])
         return q, v
+
+    def _with_balls(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joints' (q, v) in the description's layout: each ball joint's quaternion (x y z w, kept continuous
+        between reads) and child-frame rates put in place among the 1-degree-of-freedom joints' values."""
+        balls = ball_coordinates(self.model.mechanism, self.run.y)
+        scalar_q, scalar_v = iter(q), iter(v)
+        parts_q: list[float] = []
+        parts_v: list[float] = []
+        for name, ball in zip(self.model.joint_names, self._balls):
+            if not ball:
+                parts_q.append(next(scalar_q))
+                parts_v.append(next(scalar_v))
+                continue
+            turn, spin = balls[name]
+            turn = np.roll(turn, -1)  # w x y z -> x y z w
+            if turn @ self._quaternions[name] < 0:  # q and −q are one turn
+                turn = -turn
+            self._quaternions[name] = turn
+            parts_q.extend(turn)
+            parts_v.extend(spin)
+        return np.array(parts_q), np.array(parts_v)
 
     def constraint_violations(self) -> np.ndarray:
         """(n,) m: at each state :meth:`state` returned, in order, the largest joint violation (NaN once stepping

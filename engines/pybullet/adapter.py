@@ -198,6 +198,10 @@ class PyBulletEngine(Engine):
         if settings["formulation"] != "multibody":
             raise Unsupported("pybullet: a model file is loaded as one multibody (loadURDF); the p2p variants "
                               "build particle scenes from separate bodies, use pybullet/multibody")
+        if scene.ball_joints and (scene.floating_base or scene.file_format != "urdf"):
+            raise Unsupported(f"pybullet: ball joints ({', '.join(scene.ball_joints)}) are stepped from a URDF's "
+                              f"spherical joints on a fixed base only (its loadMJCF makes no ball; a floating base "
+                              f"with spherical joints is not mapped here)")
         scene.refuse_kept_dynamics(self.name)
 
     def _check_options(self, settings: Mapping[str, Any]) -> None:

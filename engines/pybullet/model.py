@@ -9,8 +9,8 @@ acceleration, the acceleration measured from one step of dt = 1e-3 (its
 multibody step is semi-implicit Euler) on a fixed base, else M⁻¹(τ − b).
 MJCF: of the bodies ``loadMJCF`` returns (one per static geom besides the
 multibody) the one with joints; a root it floats though MuJoCo welds it is
-welded back (:class:`PyBulletModel`); its links summed into the file's bodies
-for the diagnosis. Floating base: engines/model/floating.py and :class:`PyBulletModel`.
+welded back (:class:`PyBulletModel`); its links summed into the file's bodies for the diagnosis. Floating
+base: engines/model/floating.py and :class:`PyBulletModel`; ball joints (``spherical``): :class:`BallJoints`.
 Its prints (C-level stdout, stderr) are kept out of the caller's output.
 """
 
@@ -43,6 +43,9 @@ def version() -> str:
 
 
 def load(source: ModelSource, description: ModelDescription) -> "PyBulletModel":
+    if description.balls and source.format != "urdf":
+        raise Refused("loadMJCF makes no joint of an MJCF ball joint (measured: a ball at the root leaves "
+                      "one body without joints); ball joints are compared from a URDF's spherical joints")
     source = _without_limits(source)
     text, notes = source.engine_text(drop_mimic=description.mimic_independent)
     if source.format == "urdf":
@@ -102,7 +105,9 @@ class PyBulletModel(LoadedModel):
         pb.setJointMotorControlArray(body, self.movable, pb.VELOCITY_CONTROL, forces=[0.0] * len(self.movable), **kw)
         size = len(pb.calculateMassMatrix(body, [0.0] * len(self.movable), **kw))
         #: 6 when PyBullet's base is floating (a floating base, or an MJCF root PyBullet floats), else 0.
-        self.base = size - len(self.movable)
+        self.base = size - sum(3 if infos[k][2] == pb.JOINT_SPHERICAL else 1 for k in self.movable)
+        #: The ball joints' mapping (None without ball joints).
+        self.balls = BallJoints(self) if description.balls else None
         self.floating = description.floating is not None
         if self.floating and not self.base:
             raise Refused("pybullet's body has a fixed base for the floating base")
@@ -149,9 +154,13 @@ class PyBulletModel(LoadedModel):
         return full[np.ix_(self.selected, self.selected)]
 
     def mass_matrix(self, q):
+        if self.balls is not None:
+            return self.balls.mass_matrix(q)
         return self.T.T @ self._engine_mass(q) @ self.T
 
     def bias(self, q, v):
+        if self.balls is not None:
+            return self.balls.bias(q, v)
         size = self.base + len(self.movable)
         joints = self._full(self._joints_of(q))
         if not self.base:
@@ -184,6 +193,8 @@ class PyBulletModel(LoadedModel):
         return self.T.T @ (raw[self.selected] + self._engine_mass(q) @ classical)
 
     def forward(self, q, v, tau):
+        if self.balls is not None:
+            return self.balls.forward(q, v, tau)
         if self.base:
             try:
                 return np.linalg.solve(self.mass_matrix(q), np.asarray(tau) - self.bias(q, v))
@@ -200,7 +211,9 @@ class PyBulletModel(LoadedModel):
 
     def link_inertias(self) -> dict[str, LinkInertia]:
         kw = {"physicsClientId": self.client}
-        for joint in self.joints:
+        if self.balls is not None:
+            self.balls.reset(self.description.neutral(), np.zeros(self.description.nv))
+        for joint in ([] if self.balls is not None else self.joints):
             pb.resetJointState(self.body, joint, 0.0, 0.0, **kw)
         parts: dict[str, list] = {}
         if self.floating:  # the base is a moving link: placed as the description's neutral pose has it
@@ -246,6 +259,95 @@ class PyBulletModel(LoadedModel):
             pass
 
 
+class BallJoints:
+    """PyBullet's ball joints (JOINT_SPHERICAL) mapped to xval's convention, on a fixed base.
+
+    Measured (tests/test_ball_joint.py): its quaternion (x y z w) and angular velocity live in the child's
+    inertial frame, whose axes A (``getDynamicsInfo``'s local inertial orientation: the file's inertial rpy
+    times the principal axes it finds) turn the link frame: q_pb = A⁻¹ q A, u_pb = A⁻¹ ω, τ_pb = A⁻¹ τ.
+    ``calculateMassMatrix`` is a third off the reference with ball joints whatever the layout of its positions
+    (x y z w, w x y z, rotation vectors; ball_chain.urdf), so M⁻¹ and the bias come from its forward dynamics,
+    one 1e-3 s step per column (semi-implicit Euler: (v' − v)/dt is its acceleration at the state)."""
+
+    def __init__(self, loaded: "PyBulletModel") -> None:
+        if loaded.base:
+            raise Refused("ball joints are compared on a fixed base only (its multibody's floating base "
+                          "with spherical joints is not mapped here)")
+        self.loaded, self.kw = loaded, {"physicsClientId": loaded.client}
+        infos = [pb.getJointInfo(loaded.body, k, **self.kw) for k in loaded.joints]
+        description = loaded.description
+        self.turns = []  # per moving joint in description order: A (3, 3), or None for a 1-dof joint
+        for joint, info in zip(description.moving_joints, infos):
+            if (info[2] == pb.JOINT_SPHERICAL) != (joint.type == "ball"):
+                raise Refused(f"pybullet's joint {joint.name} is {'' if info[2] == pb.JOINT_SPHERICAL else 'not '}"
+                              f"spherical; the file's is {joint.type}")
+            frame = pb.getDynamicsInfo(loaded.body, info[0], **self.kw)[4]
+            self.turns.append(np.array(pb.getMatrixFromQuaternion(frame)).reshape(3, 3) if joint.type == "ball" else None)
+        self.T = np.eye(description.nv)  # xval's v = T u_pb
+        for joint, turn in zip(description.moving_joints, self.turns):
+            if turn is not None:
+                where = description.slots[joint.name][1]
+                self.T[where, where] = turn
+        for k, turn in zip(loaded.joints, self.turns):  # no motor: a spherical joint's takes force 0
+            if turn is not None:
+                pb.setJointMotorControlMultiDof(loaded.body, k, pb.POSITION_CONTROL, [0, 0, 0, 1],
+                                                targetVelocity=[0, 0, 0], force=[0, 0, 0], **self.kw)
+
+    def _entries(self, values, configuration: bool):
+        """Per joint, PyBullet's entries of xval's q (configuration) or v, τ (turned by A⁻¹)."""
+        description, out = self.loaded.description, []
+        for joint, turn in zip(description.moving_joints, self.turns):
+            where = description.slots[joint.name][0 if configuration else 1]
+            part = np.asarray(values[where], dtype=float)
+            if turn is not None and configuration:
+                a = Rotation.from_matrix(turn)
+                part = (a.inv() * Rotation.from_quat(part) * a).as_quat()
+            elif turn is not None:
+                part = turn.T @ part
+            out.append([float(x) for x in part])
+        return out
+
+    def reset(self, q, v) -> None:
+        for k, position, rate in zip(self.loaded.joints, self._entries(q, True), self._entries(v, False)):
+            pb.resetJointStateMultiDof(self.loaded.body, k, position, rate, **self.kw)
+
+    def read(self) -> tuple[np.ndarray, np.ndarray]:
+        """xval's (q, v) of PyBullet's joint state."""
+        states = pb.getJointStatesMultiDof(self.loaded.body, self.loaded.joints, **self.kw)
+        q, u = [], []
+        for state, turn in zip(states, self.turns):
+            if turn is not None:
+                a = Rotation.from_matrix(turn)
+                q.extend((a * Rotation.from_quat(state[0]) * a.inv()).as_quat())
+            else:
+                q.extend(state[0])
+            u.extend(state[1])
+        return np.array(q), self.T @ np.array(u)
+
+    def forward(self, q, v, tau) -> np.ndarray:
+        self.reset(q, v)
+        for k, force in zip(self.loaded.joints, self._entries(tau, False)):
+            pb.setJointMotorControlMultiDof(self.loaded.body, k, pb.TORQUE_CONTROL, force=force, **self.kw)
+        with quiet_output():
+            pb.stepSimulation(**self.kw)
+        after = np.array([x for s in pb.getJointStatesMultiDof(self.loaded.body, self.loaded.joints, **self.kw)
+                          for x in s[1]])
+        return self.T @ (after - np.linalg.solve(self.T, v)) / STEP
+
+    def mass_matrix(self, q) -> np.ndarray:
+        n = self.loaded.description.nv
+        rest = np.zeros(n)
+        free = self.forward(q, rest, rest)
+        inverse = np.array([self.forward(q, rest, e) - free for e in np.eye(n)]).T
+        try:
+            return np.linalg.inv(inverse)
+        except np.linalg.LinAlgError:  # its M singular (an inertia it dropped): compared as not finite, diagnosed
+            return np.full((n, n), np.nan)
+
+    def bias(self, q, v) -> np.ndarray:
+        return -self.mass_matrix(q) @ self.forward(q, v, np.zeros(len(v)))
+
+
 class PyBulletStepper(Stepper):
     """PyBullet: the file's multibody (engines.pybullet.model), ``stepSimulation`` at fixedTimeStep dt."""
 
@@ -263,7 +365,9 @@ class PyBulletStepper(Stepper):
                                  **self.kw)
             q0, v0 = q0[7:], v0[6:]
         self._turn = np.asarray(scene.initial_q, dtype=float)[3:7]
-        for joint, position, velocity in zip(loaded.joints, q0, v0):
+        if loaded.balls is not None:
+            loaded.balls.reset(q0, v0)
+        for joint, position, velocity in zip([] if loaded.balls is not None else loaded.joints, q0, v0):
             pb.resetJointState(loaded.body, joint, float(position), float(velocity), **self.kw)
         self.settings = {**common_settings(scene, loaded), "fixedTimeStep": dt, "numSubSteps": 0,
                          "motors": "velocity motors disabled (force 0)",
@@ -278,6 +382,8 @@ class PyBulletStepper(Stepper):
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         loaded, kw = self.loaded, self.kw
+        if loaded.balls is not None:
+            return loaded.balls.read()
         states = self.pb.getJointStates(loaded.body, loaded.joints, **kw)
         q, v = np.array([s[0] for s in states]), np.array([s[1] for s in states])
         if not loaded.floating:

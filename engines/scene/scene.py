@@ -345,6 +345,14 @@ class ModelSceneLike(SceneLike, Protocol):
     def floating_base(self) -> bool:
         """True when the model's base is free (a floating joint between the world and its root link)."""
         ...
+    @property
+    def ball_joints(self) -> tuple[str, ...]:
+        """The model's ball joints (a quaternion in q, three velocities each), by name."""
+        ...
+    @property
+    def file_format(self) -> str:
+        """The model file's format: "urdf" or "mjcf"."""
+        ...
     def refuse_kept_dynamics(self, engine: str) -> None:
         """Unsupported when the scene keeps the file's joint damping, which ``engine``'s import cannot."""
 

@@ -10,12 +10,13 @@ constraint rows, and the solve eliminates along the tree in O(n). The compiled k
 from ours.rigid.method import INTEGRATORS, METHODS, valid_pairs
 from ours.rigid.model import DOFS, ROWS, Body, Joint, Mechanism
 from ours.rigid.simulate import (
-    RigidResult, angular_momentum, energy, frames, initial_state, joint_coordinates, joint_errors, pack, quaternion,
+    RigidResult, angular_momentum, ball_coordinates, energy, frames, initial_state, joint_coordinates, joint_errors, pack, quaternion,
     rotation, rotation_of, simulate, Stepping, workspace,
 )
 
 __all__ = [
     "DOFS", "INTEGRATORS", "METHODS", "ROWS", "Body", "Joint", "Mechanism", "RigidResult", "angular_momentum",
+    "ball_coordinates",
     "energy", "frames", "initial_state", "joint_coordinates", "joint_errors", "pack", "quaternion", "rotation",
     "rotation_of", "simulate", "Stepping", "valid_pairs", "workspace",
 ]

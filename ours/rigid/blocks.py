@@ -2,12 +2,14 @@
 
 The per-joint steps of the tree solve for each joint kind (``ours.rigid.kernel`` documents the factor:
 Y_k in X[B], S_k = L_k L_kᵀ in D[nb + k], Z_k in X[nb + k]), every block entry a local, and the entries
-of Y and Z that the rows' form makes zero neither computed, stored nor read.
+of Y and Z that the rows' form makes zero neither computed, stored nor read. The pivots' square roots are
+numpy's and their positivity tests read real parts, so the same code runs on complex entries
+(``ours.rigid.sensitivity``'s complex step), and on real ones as before.
 """
 
 from __future__ import annotations
 
-import math
+import numpy as np
 
 from ours.banded import llvm_inlined_fma as llvm_inlined
 
@@ -18,44 +20,44 @@ def fold_ball(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then ball joint k (3 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -114,20 +116,20 @@ def fold_ball(D, X, JA, JB, nb, k, A, B):
     s2_1 = y2_2 * y1_2 + y2_3 * y1_3 + y2_4 * y1_4 + y2_5 * y1_5
     s2_2 = y2_2 * y2_2 + y2_3 * y2_3 + y2_4 * y2_4 + y2_5 * y2_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -192,44 +194,44 @@ def fold_sweep_ball(D, X, JA, JB, x, nb, k, A, B):
     """fold_ball and sweep_down_ball in one pass. False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -288,20 +290,20 @@ def fold_sweep_ball(D, X, JA, JB, x, nb, k, A, B):
     s2_1 = y2_2 * y1_2 + y2_3 * y1_3 + y2_4 * y1_4 + y2_5 * y1_5
     s2_2 = y2_2 * y2_2 + y2_3 * y2_3 + y2_4 * y2_4 + y2_5 * y2_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -395,34 +397,34 @@ def fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_j = nb + p_k
     s = D[B, 0, 0]
     p_s = D[p_B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
-    p_b0_0 = 1.0 / math.sqrt(p_s)
+    b0_0 = 1.0 / np.sqrt(s)
+    p_b0_0 = 1.0 / np.sqrt(p_s)
     b1_0 = (D[B, 1, 0]) * b0_0
     p_b1_0 = (D[p_B, 1, 0]) * p_b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
     p_s = D[p_B, 1, 1] - p_b1_0 * p_b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
-    p_b1_1 = 1.0 / math.sqrt(p_s)
+    b1_1 = 1.0 / np.sqrt(s)
+    p_b1_1 = 1.0 / np.sqrt(p_s)
     b2_0 = (D[B, 2, 0]) * b0_0
     p_b2_0 = (D[p_B, 2, 0]) * p_b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     p_b2_1 = (D[p_B, 2, 1] - p_b2_0 * p_b1_0) * p_b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
     p_s = D[p_B, 2, 2] - p_b2_0 * p_b2_0 - p_b2_1 * p_b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
-    p_b2_2 = 1.0 / math.sqrt(p_s)
+    b2_2 = 1.0 / np.sqrt(s)
+    p_b2_2 = 1.0 / np.sqrt(p_s)
     b3_0 = (D[B, 3, 0]) * b0_0
     p_b3_0 = (D[p_B, 3, 0]) * p_b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
@@ -431,12 +433,12 @@ def fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b3_2 = (D[p_B, 3, 2] - p_b3_0 * p_b2_0 - p_b3_1 * p_b2_1) * p_b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
     p_s = D[p_B, 3, 3] - p_b3_0 * p_b3_0 - p_b3_1 * p_b3_1 - p_b3_2 * p_b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
-    p_b3_3 = 1.0 / math.sqrt(p_s)
+    b3_3 = 1.0 / np.sqrt(s)
+    p_b3_3 = 1.0 / np.sqrt(p_s)
     b4_0 = (D[B, 4, 0]) * b0_0
     p_b4_0 = (D[p_B, 4, 0]) * p_b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
@@ -447,12 +449,12 @@ def fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b4_3 = (D[p_B, 4, 3] - p_b4_0 * p_b3_0 - p_b4_1 * p_b3_1 - p_b4_2 * p_b3_2) * p_b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
     p_s = D[p_B, 4, 4] - p_b4_0 * p_b4_0 - p_b4_1 * p_b4_1 - p_b4_2 * p_b4_2 - p_b4_3 * p_b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
-    p_b4_4 = 1.0 / math.sqrt(p_s)
+    b4_4 = 1.0 / np.sqrt(s)
+    p_b4_4 = 1.0 / np.sqrt(p_s)
     b5_0 = (D[B, 5, 0]) * b0_0
     p_b5_0 = (D[p_B, 5, 0]) * p_b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
@@ -465,12 +467,12 @@ def fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b5_4 = (D[p_B, 5, 4] - p_b5_0 * p_b4_0 - p_b5_1 * p_b4_1 - p_b5_2 * p_b4_2 - p_b5_3 * p_b4_3) * p_b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
     p_s = D[p_B, 5, 5] - p_b5_0 * p_b5_0 - p_b5_1 * p_b5_1 - p_b5_2 * p_b5_2 - p_b5_3 * p_b5_3 - p_b5_4 * p_b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
-    p_b5_5 = 1.0 / math.sqrt(p_s)
+    b5_5 = 1.0 / np.sqrt(s)
+    p_b5_5 = 1.0 / np.sqrt(p_s)
     D[B, 0, 0] = b0_0
     D[p_B, 0, 0] = p_b0_0
     D[B, 1, 0] = b1_0
@@ -587,34 +589,34 @@ def fold_sweep_ball_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_s2_2 = p_y2_2 * p_y2_2 + p_y2_3 * p_y2_3 + p_y2_4 * p_y2_4 + p_y2_5 * p_y2_5
     s = s0_0
     p_s = p_s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
-    p_q0_0 = 1.0 / math.sqrt(p_s)
+    q0_0 = 1.0 / np.sqrt(s)
+    p_q0_0 = 1.0 / np.sqrt(p_s)
     q1_0 = (s1_0) * q0_0
     p_q1_0 = (p_s1_0) * p_q0_0
     s = s1_1 - q1_0 * q1_0
     p_s = p_s1_1 - p_q1_0 * p_q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
-    p_q1_1 = 1.0 / math.sqrt(p_s)
+    q1_1 = 1.0 / np.sqrt(s)
+    p_q1_1 = 1.0 / np.sqrt(p_s)
     q2_0 = (s2_0) * q0_0
     p_q2_0 = (p_s2_0) * p_q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     p_q2_1 = (p_s2_1 - p_q2_0 * p_q1_0) * p_q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
     p_s = p_s2_2 - p_q2_0 * p_q2_0 - p_q2_1 * p_q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
-    p_q2_2 = 1.0 / math.sqrt(p_s)
+    q2_2 = 1.0 / np.sqrt(s)
+    p_q2_2 = 1.0 / np.sqrt(p_s)
     D[j, 0, 0] = q0_0
     D[p_j, 0, 0] = p_q0_0
     D[j, 1, 0] = q1_0
@@ -872,44 +874,44 @@ def fold_revolute(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then revolute joint k (5 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -989,35 +991,35 @@ def fold_revolute(D, X, JA, JB, nb, k, A, B):
     s4_3 = y4_3 * y3_3 + y4_4 * y3_4 + y4_5 * y3_5
     s4_4 = y4_3 * y4_3 + y4_4 * y4_4 + y4_5 * y4_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -1115,44 +1117,44 @@ def fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B):
     """fold_revolute and sweep_down_revolute in one pass. False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -1232,35 +1234,35 @@ def fold_sweep_revolute(D, X, JA, JB, x, nb, k, A, B):
     s4_3 = y4_3 * y3_3 + y4_4 * y3_4 + y4_5 * y3_5
     s4_4 = y4_3 * y4_3 + y4_4 * y4_4 + y4_5 * y4_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -1393,34 +1395,34 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_j = nb + p_k
     s = D[B, 0, 0]
     p_s = D[p_B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
-    p_b0_0 = 1.0 / math.sqrt(p_s)
+    b0_0 = 1.0 / np.sqrt(s)
+    p_b0_0 = 1.0 / np.sqrt(p_s)
     b1_0 = (D[B, 1, 0]) * b0_0
     p_b1_0 = (D[p_B, 1, 0]) * p_b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
     p_s = D[p_B, 1, 1] - p_b1_0 * p_b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
-    p_b1_1 = 1.0 / math.sqrt(p_s)
+    b1_1 = 1.0 / np.sqrt(s)
+    p_b1_1 = 1.0 / np.sqrt(p_s)
     b2_0 = (D[B, 2, 0]) * b0_0
     p_b2_0 = (D[p_B, 2, 0]) * p_b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     p_b2_1 = (D[p_B, 2, 1] - p_b2_0 * p_b1_0) * p_b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
     p_s = D[p_B, 2, 2] - p_b2_0 * p_b2_0 - p_b2_1 * p_b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
-    p_b2_2 = 1.0 / math.sqrt(p_s)
+    b2_2 = 1.0 / np.sqrt(s)
+    p_b2_2 = 1.0 / np.sqrt(p_s)
     b3_0 = (D[B, 3, 0]) * b0_0
     p_b3_0 = (D[p_B, 3, 0]) * p_b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
@@ -1429,12 +1431,12 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b3_2 = (D[p_B, 3, 2] - p_b3_0 * p_b2_0 - p_b3_1 * p_b2_1) * p_b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
     p_s = D[p_B, 3, 3] - p_b3_0 * p_b3_0 - p_b3_1 * p_b3_1 - p_b3_2 * p_b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
-    p_b3_3 = 1.0 / math.sqrt(p_s)
+    b3_3 = 1.0 / np.sqrt(s)
+    p_b3_3 = 1.0 / np.sqrt(p_s)
     b4_0 = (D[B, 4, 0]) * b0_0
     p_b4_0 = (D[p_B, 4, 0]) * p_b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
@@ -1445,12 +1447,12 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b4_3 = (D[p_B, 4, 3] - p_b4_0 * p_b3_0 - p_b4_1 * p_b3_1 - p_b4_2 * p_b3_2) * p_b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
     p_s = D[p_B, 4, 4] - p_b4_0 * p_b4_0 - p_b4_1 * p_b4_1 - p_b4_2 * p_b4_2 - p_b4_3 * p_b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
-    p_b4_4 = 1.0 / math.sqrt(p_s)
+    b4_4 = 1.0 / np.sqrt(s)
+    p_b4_4 = 1.0 / np.sqrt(p_s)
     b5_0 = (D[B, 5, 0]) * b0_0
     p_b5_0 = (D[p_B, 5, 0]) * p_b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
@@ -1463,12 +1465,12 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b5_4 = (D[p_B, 5, 4] - p_b5_0 * p_b4_0 - p_b5_1 * p_b4_1 - p_b5_2 * p_b4_2 - p_b5_3 * p_b4_3) * p_b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
     p_s = D[p_B, 5, 5] - p_b5_0 * p_b5_0 - p_b5_1 * p_b5_1 - p_b5_2 * p_b5_2 - p_b5_3 * p_b5_3 - p_b5_4 * p_b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
-    p_b5_5 = 1.0 / math.sqrt(p_s)
+    b5_5 = 1.0 / np.sqrt(s)
+    p_b5_5 = 1.0 / np.sqrt(p_s)
     D[B, 0, 0] = b0_0
     D[p_B, 0, 0] = p_b0_0
     D[B, 1, 0] = b1_0
@@ -1627,34 +1629,34 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_s4_4 = p_y4_3 * p_y4_3 + p_y4_4 * p_y4_4 + p_y4_5 * p_y4_5
     s = s0_0
     p_s = p_s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
-    p_q0_0 = 1.0 / math.sqrt(p_s)
+    q0_0 = 1.0 / np.sqrt(s)
+    p_q0_0 = 1.0 / np.sqrt(p_s)
     q1_0 = (s1_0) * q0_0
     p_q1_0 = (p_s1_0) * p_q0_0
     s = s1_1 - q1_0 * q1_0
     p_s = p_s1_1 - p_q1_0 * p_q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
-    p_q1_1 = 1.0 / math.sqrt(p_s)
+    q1_1 = 1.0 / np.sqrt(s)
+    p_q1_1 = 1.0 / np.sqrt(p_s)
     q2_0 = (s2_0) * q0_0
     p_q2_0 = (p_s2_0) * p_q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     p_q2_1 = (p_s2_1 - p_q2_0 * p_q1_0) * p_q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
     p_s = p_s2_2 - p_q2_0 * p_q2_0 - p_q2_1 * p_q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
-    p_q2_2 = 1.0 / math.sqrt(p_s)
+    q2_2 = 1.0 / np.sqrt(s)
+    p_q2_2 = 1.0 / np.sqrt(p_s)
     q3_0 = (s3_0) * q0_0
     p_q3_0 = (p_s3_0) * p_q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
@@ -1663,12 +1665,12 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q3_2 = (p_s3_2 - p_q3_0 * p_q2_0 - p_q3_1 * p_q2_1) * p_q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
     p_s = p_s3_3 - p_q3_0 * p_q3_0 - p_q3_1 * p_q3_1 - p_q3_2 * p_q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
-    p_q3_3 = 1.0 / math.sqrt(p_s)
+    q3_3 = 1.0 / np.sqrt(s)
+    p_q3_3 = 1.0 / np.sqrt(p_s)
     q4_0 = (s4_0) * q0_0
     p_q4_0 = (p_s4_0) * p_q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
@@ -1679,12 +1681,12 @@ def fold_sweep_revolute_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q4_3 = (p_s4_3 - p_q4_0 * p_q3_0 - p_q4_1 * p_q3_1 - p_q4_2 * p_q3_2) * p_q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
     p_s = p_s4_4 - p_q4_0 * p_q4_0 - p_q4_1 * p_q4_1 - p_q4_2 * p_q4_2 - p_q4_3 * p_q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
-    p_q4_4 = 1.0 / math.sqrt(p_s)
+    q4_4 = 1.0 / np.sqrt(s)
+    p_q4_4 = 1.0 / np.sqrt(p_s)
     D[j, 0, 0] = q0_0
     D[p_j, 0, 0] = p_q0_0
     D[j, 1, 0] = q1_0
@@ -2038,44 +2040,44 @@ def fold_prismatic(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then prismatic joint k (5 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -2155,35 +2157,35 @@ def fold_prismatic(D, X, JA, JB, nb, k, A, B):
     s4_3 = y4_0 * y3_0 + y4_1 * y3_1 + y4_2 * y3_2 + y4_3 * y3_3 + y4_4 * y3_4 + y4_5 * y3_5
     s4_4 = y4_0 * y4_0 + y4_1 * y4_1 + y4_2 * y4_2 + y4_3 * y4_3 + y4_4 * y4_4 + y4_5 * y4_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -2271,44 +2273,44 @@ def fold_sweep_prismatic(D, X, JA, JB, x, nb, k, A, B):
     """fold_prismatic and sweep_down_prismatic in one pass. False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -2388,35 +2390,35 @@ def fold_sweep_prismatic(D, X, JA, JB, x, nb, k, A, B):
     s4_3 = y4_0 * y3_0 + y4_1 * y3_1 + y4_2 * y3_2 + y4_3 * y3_3 + y4_4 * y3_4 + y4_5 * y3_5
     s4_4 = y4_0 * y4_0 + y4_1 * y4_1 + y4_2 * y4_2 + y4_3 * y4_3 + y4_4 * y4_4 + y4_5 * y4_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -2539,34 +2541,34 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_j = nb + p_k
     s = D[B, 0, 0]
     p_s = D[p_B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
-    p_b0_0 = 1.0 / math.sqrt(p_s)
+    b0_0 = 1.0 / np.sqrt(s)
+    p_b0_0 = 1.0 / np.sqrt(p_s)
     b1_0 = (D[B, 1, 0]) * b0_0
     p_b1_0 = (D[p_B, 1, 0]) * p_b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
     p_s = D[p_B, 1, 1] - p_b1_0 * p_b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
-    p_b1_1 = 1.0 / math.sqrt(p_s)
+    b1_1 = 1.0 / np.sqrt(s)
+    p_b1_1 = 1.0 / np.sqrt(p_s)
     b2_0 = (D[B, 2, 0]) * b0_0
     p_b2_0 = (D[p_B, 2, 0]) * p_b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     p_b2_1 = (D[p_B, 2, 1] - p_b2_0 * p_b1_0) * p_b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
     p_s = D[p_B, 2, 2] - p_b2_0 * p_b2_0 - p_b2_1 * p_b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
-    p_b2_2 = 1.0 / math.sqrt(p_s)
+    b2_2 = 1.0 / np.sqrt(s)
+    p_b2_2 = 1.0 / np.sqrt(p_s)
     b3_0 = (D[B, 3, 0]) * b0_0
     p_b3_0 = (D[p_B, 3, 0]) * p_b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
@@ -2575,12 +2577,12 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b3_2 = (D[p_B, 3, 2] - p_b3_0 * p_b2_0 - p_b3_1 * p_b2_1) * p_b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
     p_s = D[p_B, 3, 3] - p_b3_0 * p_b3_0 - p_b3_1 * p_b3_1 - p_b3_2 * p_b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
-    p_b3_3 = 1.0 / math.sqrt(p_s)
+    b3_3 = 1.0 / np.sqrt(s)
+    p_b3_3 = 1.0 / np.sqrt(p_s)
     b4_0 = (D[B, 4, 0]) * b0_0
     p_b4_0 = (D[p_B, 4, 0]) * p_b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
@@ -2591,12 +2593,12 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b4_3 = (D[p_B, 4, 3] - p_b4_0 * p_b3_0 - p_b4_1 * p_b3_1 - p_b4_2 * p_b3_2) * p_b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
     p_s = D[p_B, 4, 4] - p_b4_0 * p_b4_0 - p_b4_1 * p_b4_1 - p_b4_2 * p_b4_2 - p_b4_3 * p_b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
-    p_b4_4 = 1.0 / math.sqrt(p_s)
+    b4_4 = 1.0 / np.sqrt(s)
+    p_b4_4 = 1.0 / np.sqrt(p_s)
     b5_0 = (D[B, 5, 0]) * b0_0
     p_b5_0 = (D[p_B, 5, 0]) * p_b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
@@ -2609,12 +2611,12 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b5_4 = (D[p_B, 5, 4] - p_b5_0 * p_b4_0 - p_b5_1 * p_b4_1 - p_b5_2 * p_b4_2 - p_b5_3 * p_b4_3) * p_b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
     p_s = D[p_B, 5, 5] - p_b5_0 * p_b5_0 - p_b5_1 * p_b5_1 - p_b5_2 * p_b5_2 - p_b5_3 * p_b5_3 - p_b5_4 * p_b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
-    p_b5_5 = 1.0 / math.sqrt(p_s)
+    b5_5 = 1.0 / np.sqrt(s)
+    p_b5_5 = 1.0 / np.sqrt(p_s)
     D[B, 0, 0] = b0_0
     D[p_B, 0, 0] = p_b0_0
     D[B, 1, 0] = b1_0
@@ -2773,34 +2775,34 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_s4_4 = p_y4_0 * p_y4_0 + p_y4_1 * p_y4_1 + p_y4_2 * p_y4_2 + p_y4_3 * p_y4_3 + p_y4_4 * p_y4_4 + p_y4_5 * p_y4_5
     s = s0_0
     p_s = p_s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
-    p_q0_0 = 1.0 / math.sqrt(p_s)
+    q0_0 = 1.0 / np.sqrt(s)
+    p_q0_0 = 1.0 / np.sqrt(p_s)
     q1_0 = (s1_0) * q0_0
     p_q1_0 = (p_s1_0) * p_q0_0
     s = s1_1 - q1_0 * q1_0
     p_s = p_s1_1 - p_q1_0 * p_q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
-    p_q1_1 = 1.0 / math.sqrt(p_s)
+    q1_1 = 1.0 / np.sqrt(s)
+    p_q1_1 = 1.0 / np.sqrt(p_s)
     q2_0 = (s2_0) * q0_0
     p_q2_0 = (p_s2_0) * p_q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     p_q2_1 = (p_s2_1 - p_q2_0 * p_q1_0) * p_q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
     p_s = p_s2_2 - p_q2_0 * p_q2_0 - p_q2_1 * p_q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
-    p_q2_2 = 1.0 / math.sqrt(p_s)
+    q2_2 = 1.0 / np.sqrt(s)
+    p_q2_2 = 1.0 / np.sqrt(p_s)
     q3_0 = (s3_0) * q0_0
     p_q3_0 = (p_s3_0) * p_q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
@@ -2809,12 +2811,12 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q3_2 = (p_s3_2 - p_q3_0 * p_q2_0 - p_q3_1 * p_q2_1) * p_q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
     p_s = p_s3_3 - p_q3_0 * p_q3_0 - p_q3_1 * p_q3_1 - p_q3_2 * p_q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
-    p_q3_3 = 1.0 / math.sqrt(p_s)
+    q3_3 = 1.0 / np.sqrt(s)
+    p_q3_3 = 1.0 / np.sqrt(p_s)
     q4_0 = (s4_0) * q0_0
     p_q4_0 = (p_s4_0) * p_q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
@@ -2825,12 +2827,12 @@ def fold_sweep_prismatic_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q4_3 = (p_s4_3 - p_q4_0 * p_q3_0 - p_q4_1 * p_q3_1 - p_q4_2 * p_q3_2) * p_q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
     p_s = p_s4_4 - p_q4_0 * p_q4_0 - p_q4_1 * p_q4_1 - p_q4_2 * p_q4_2 - p_q4_3 * p_q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
-    p_q4_4 = 1.0 / math.sqrt(p_s)
+    q4_4 = 1.0 / np.sqrt(s)
+    p_q4_4 = 1.0 / np.sqrt(p_s)
     D[j, 0, 0] = q0_0
     D[p_j, 0, 0] = p_q0_0
     D[j, 1, 0] = q1_0
@@ -3164,44 +3166,44 @@ def fold_fixed(D, X, JA, JB, nb, k, A, B):
     """Eliminate body B, then fixed joint k (6 rows) into A (A < 0: the world). False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -3293,44 +3295,44 @@ def fold_fixed(D, X, JA, JB, nb, k, A, B):
     s5_4 = y5_3 * y4_3 + y5_4 * y4_4 + y5_5 * y4_5
     s5_5 = y5_3 * y5_3 + y5_4 * y5_4 + y5_5 * y5_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     q5_0 = (s5_0) * q0_0
     q5_1 = (s5_1 - q5_0 * q1_0) * q1_1
     q5_2 = (s5_2 - q5_0 * q2_0 - q5_1 * q2_1) * q2_2
     q5_3 = (s5_3 - q5_0 * q3_0 - q5_1 * q3_1 - q5_2 * q3_2) * q3_3
     q5_4 = (s5_4 - q5_0 * q4_0 - q5_1 * q4_1 - q5_2 * q4_2 - q5_3 * q4_3) * q4_4
     s = s5_5 - q5_0 * q5_0 - q5_1 * q5_1 - q5_2 * q5_2 - q5_3 * q5_3 - q5_4 * q5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q5_5 = 1.0 / math.sqrt(s)
+    q5_5 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -3446,44 +3448,44 @@ def fold_sweep_fixed(D, X, JA, JB, x, nb, k, A, B):
     """fold_fixed and sweep_down_fixed in one pass. False if not definite."""
     j = nb + k
     s = D[B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
+    b0_0 = 1.0 / np.sqrt(s)
     b1_0 = (D[B, 1, 0]) * b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
+    b1_1 = 1.0 / np.sqrt(s)
     b2_0 = (D[B, 2, 0]) * b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
+    b2_2 = 1.0 / np.sqrt(s)
     b3_0 = (D[B, 3, 0]) * b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
     b3_2 = (D[B, 3, 2] - b3_0 * b2_0 - b3_1 * b2_1) * b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
+    b3_3 = 1.0 / np.sqrt(s)
     b4_0 = (D[B, 4, 0]) * b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
     b4_2 = (D[B, 4, 2] - b4_0 * b2_0 - b4_1 * b2_1) * b2_2
     b4_3 = (D[B, 4, 3] - b4_0 * b3_0 - b4_1 * b3_1 - b4_2 * b3_2) * b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
+    b4_4 = 1.0 / np.sqrt(s)
     b5_0 = (D[B, 5, 0]) * b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
     b5_2 = (D[B, 5, 2] - b5_0 * b2_0 - b5_1 * b2_1) * b2_2
     b5_3 = (D[B, 5, 3] - b5_0 * b3_0 - b5_1 * b3_1 - b5_2 * b3_2) * b3_3
     b5_4 = (D[B, 5, 4] - b5_0 * b4_0 - b5_1 * b4_1 - b5_2 * b4_2 - b5_3 * b4_3) * b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
+    b5_5 = 1.0 / np.sqrt(s)
     D[B, 0, 0] = b0_0
     D[B, 1, 0] = b1_0
     D[B, 1, 1] = b1_1
@@ -3575,44 +3577,44 @@ def fold_sweep_fixed(D, X, JA, JB, x, nb, k, A, B):
     s5_4 = y5_3 * y4_3 + y5_4 * y4_4 + y5_5 * y4_5
     s5_5 = y5_3 * y5_3 + y5_4 * y5_4 + y5_5 * y5_5
     s = s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
+    q0_0 = 1.0 / np.sqrt(s)
     q1_0 = (s1_0) * q0_0
     s = s1_1 - q1_0 * q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
+    q1_1 = 1.0 / np.sqrt(s)
     q2_0 = (s2_0) * q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
+    q2_2 = 1.0 / np.sqrt(s)
     q3_0 = (s3_0) * q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
     q3_2 = (s3_2 - q3_0 * q2_0 - q3_1 * q2_1) * q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
+    q3_3 = 1.0 / np.sqrt(s)
     q4_0 = (s4_0) * q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
     q4_2 = (s4_2 - q4_0 * q2_0 - q4_1 * q2_1) * q2_2
     q4_3 = (s4_3 - q4_0 * q3_0 - q4_1 * q3_1 - q4_2 * q3_2) * q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
+    q4_4 = 1.0 / np.sqrt(s)
     q5_0 = (s5_0) * q0_0
     q5_1 = (s5_1 - q5_0 * q1_0) * q1_1
     q5_2 = (s5_2 - q5_0 * q2_0 - q5_1 * q2_1) * q2_2
     q5_3 = (s5_3 - q5_0 * q3_0 - q5_1 * q3_1 - q5_2 * q3_2) * q3_3
     q5_4 = (s5_4 - q5_0 * q4_0 - q5_1 * q4_1 - q5_2 * q4_2 - q5_3 * q4_3) * q4_4
     s = s5_5 - q5_0 * q5_0 - q5_1 * q5_1 - q5_2 * q5_2 - q5_3 * q5_3 - q5_4 * q5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    q5_5 = 1.0 / math.sqrt(s)
+    q5_5 = 1.0 / np.sqrt(s)
     D[j, 0, 0] = q0_0
     D[j, 1, 0] = q1_0
     D[j, 1, 1] = q1_1
@@ -3766,34 +3768,34 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_j = nb + p_k
     s = D[B, 0, 0]
     p_s = D[p_B, 0, 0]
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b0_0 = 1.0 / math.sqrt(s)
-    p_b0_0 = 1.0 / math.sqrt(p_s)
+    b0_0 = 1.0 / np.sqrt(s)
+    p_b0_0 = 1.0 / np.sqrt(p_s)
     b1_0 = (D[B, 1, 0]) * b0_0
     p_b1_0 = (D[p_B, 1, 0]) * p_b0_0
     s = D[B, 1, 1] - b1_0 * b1_0
     p_s = D[p_B, 1, 1] - p_b1_0 * p_b1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b1_1 = 1.0 / math.sqrt(s)
-    p_b1_1 = 1.0 / math.sqrt(p_s)
+    b1_1 = 1.0 / np.sqrt(s)
+    p_b1_1 = 1.0 / np.sqrt(p_s)
     b2_0 = (D[B, 2, 0]) * b0_0
     p_b2_0 = (D[p_B, 2, 0]) * p_b0_0
     b2_1 = (D[B, 2, 1] - b2_0 * b1_0) * b1_1
     p_b2_1 = (D[p_B, 2, 1] - p_b2_0 * p_b1_0) * p_b1_1
     s = D[B, 2, 2] - b2_0 * b2_0 - b2_1 * b2_1
     p_s = D[p_B, 2, 2] - p_b2_0 * p_b2_0 - p_b2_1 * p_b2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b2_2 = 1.0 / math.sqrt(s)
-    p_b2_2 = 1.0 / math.sqrt(p_s)
+    b2_2 = 1.0 / np.sqrt(s)
+    p_b2_2 = 1.0 / np.sqrt(p_s)
     b3_0 = (D[B, 3, 0]) * b0_0
     p_b3_0 = (D[p_B, 3, 0]) * p_b0_0
     b3_1 = (D[B, 3, 1] - b3_0 * b1_0) * b1_1
@@ -3802,12 +3804,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b3_2 = (D[p_B, 3, 2] - p_b3_0 * p_b2_0 - p_b3_1 * p_b2_1) * p_b2_2
     s = D[B, 3, 3] - b3_0 * b3_0 - b3_1 * b3_1 - b3_2 * b3_2
     p_s = D[p_B, 3, 3] - p_b3_0 * p_b3_0 - p_b3_1 * p_b3_1 - p_b3_2 * p_b3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b3_3 = 1.0 / math.sqrt(s)
-    p_b3_3 = 1.0 / math.sqrt(p_s)
+    b3_3 = 1.0 / np.sqrt(s)
+    p_b3_3 = 1.0 / np.sqrt(p_s)
     b4_0 = (D[B, 4, 0]) * b0_0
     p_b4_0 = (D[p_B, 4, 0]) * p_b0_0
     b4_1 = (D[B, 4, 1] - b4_0 * b1_0) * b1_1
@@ -3818,12 +3820,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b4_3 = (D[p_B, 4, 3] - p_b4_0 * p_b3_0 - p_b4_1 * p_b3_1 - p_b4_2 * p_b3_2) * p_b3_3
     s = D[B, 4, 4] - b4_0 * b4_0 - b4_1 * b4_1 - b4_2 * b4_2 - b4_3 * b4_3
     p_s = D[p_B, 4, 4] - p_b4_0 * p_b4_0 - p_b4_1 * p_b4_1 - p_b4_2 * p_b4_2 - p_b4_3 * p_b4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b4_4 = 1.0 / math.sqrt(s)
-    p_b4_4 = 1.0 / math.sqrt(p_s)
+    b4_4 = 1.0 / np.sqrt(s)
+    p_b4_4 = 1.0 / np.sqrt(p_s)
     b5_0 = (D[B, 5, 0]) * b0_0
     p_b5_0 = (D[p_B, 5, 0]) * p_b0_0
     b5_1 = (D[B, 5, 1] - b5_0 * b1_0) * b1_1
@@ -3836,12 +3838,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_b5_4 = (D[p_B, 5, 4] - p_b5_0 * p_b4_0 - p_b5_1 * p_b4_1 - p_b5_2 * p_b4_2 - p_b5_3 * p_b4_3) * p_b4_4
     s = D[B, 5, 5] - b5_0 * b5_0 - b5_1 * b5_1 - b5_2 * b5_2 - b5_3 * b5_3 - b5_4 * b5_4
     p_s = D[p_B, 5, 5] - p_b5_0 * p_b5_0 - p_b5_1 * p_b5_1 - p_b5_2 * p_b5_2 - p_b5_3 * p_b5_3 - p_b5_4 * p_b5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    b5_5 = 1.0 / math.sqrt(s)
-    p_b5_5 = 1.0 / math.sqrt(p_s)
+    b5_5 = 1.0 / np.sqrt(s)
+    p_b5_5 = 1.0 / np.sqrt(p_s)
     D[B, 0, 0] = b0_0
     D[p_B, 0, 0] = p_b0_0
     D[B, 1, 0] = b1_0
@@ -4024,34 +4026,34 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_s5_5 = p_y5_3 * p_y5_3 + p_y5_4 * p_y5_4 + p_y5_5 * p_y5_5
     s = s0_0
     p_s = p_s0_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q0_0 = 1.0 / math.sqrt(s)
-    p_q0_0 = 1.0 / math.sqrt(p_s)
+    q0_0 = 1.0 / np.sqrt(s)
+    p_q0_0 = 1.0 / np.sqrt(p_s)
     q1_0 = (s1_0) * q0_0
     p_q1_0 = (p_s1_0) * p_q0_0
     s = s1_1 - q1_0 * q1_0
     p_s = p_s1_1 - p_q1_0 * p_q1_0
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q1_1 = 1.0 / math.sqrt(s)
-    p_q1_1 = 1.0 / math.sqrt(p_s)
+    q1_1 = 1.0 / np.sqrt(s)
+    p_q1_1 = 1.0 / np.sqrt(p_s)
     q2_0 = (s2_0) * q0_0
     p_q2_0 = (p_s2_0) * p_q0_0
     q2_1 = (s2_1 - q2_0 * q1_0) * q1_1
     p_q2_1 = (p_s2_1 - p_q2_0 * p_q1_0) * p_q1_1
     s = s2_2 - q2_0 * q2_0 - q2_1 * q2_1
     p_s = p_s2_2 - p_q2_0 * p_q2_0 - p_q2_1 * p_q2_1
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q2_2 = 1.0 / math.sqrt(s)
-    p_q2_2 = 1.0 / math.sqrt(p_s)
+    q2_2 = 1.0 / np.sqrt(s)
+    p_q2_2 = 1.0 / np.sqrt(p_s)
     q3_0 = (s3_0) * q0_0
     p_q3_0 = (p_s3_0) * p_q0_0
     q3_1 = (s3_1 - q3_0 * q1_0) * q1_1
@@ -4060,12 +4062,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q3_2 = (p_s3_2 - p_q3_0 * p_q2_0 - p_q3_1 * p_q2_1) * p_q2_2
     s = s3_3 - q3_0 * q3_0 - q3_1 * q3_1 - q3_2 * q3_2
     p_s = p_s3_3 - p_q3_0 * p_q3_0 - p_q3_1 * p_q3_1 - p_q3_2 * p_q3_2
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q3_3 = 1.0 / math.sqrt(s)
-    p_q3_3 = 1.0 / math.sqrt(p_s)
+    q3_3 = 1.0 / np.sqrt(s)
+    p_q3_3 = 1.0 / np.sqrt(p_s)
     q4_0 = (s4_0) * q0_0
     p_q4_0 = (p_s4_0) * p_q0_0
     q4_1 = (s4_1 - q4_0 * q1_0) * q1_1
@@ -4076,12 +4078,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q4_3 = (p_s4_3 - p_q4_0 * p_q3_0 - p_q4_1 * p_q3_1 - p_q4_2 * p_q3_2) * p_q3_3
     s = s4_4 - q4_0 * q4_0 - q4_1 * q4_1 - q4_2 * q4_2 - q4_3 * q4_3
     p_s = p_s4_4 - p_q4_0 * p_q4_0 - p_q4_1 * p_q4_1 - p_q4_2 * p_q4_2 - p_q4_3 * p_q4_3
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q4_4 = 1.0 / math.sqrt(s)
-    p_q4_4 = 1.0 / math.sqrt(p_s)
+    q4_4 = 1.0 / np.sqrt(s)
+    p_q4_4 = 1.0 / np.sqrt(p_s)
     q5_0 = (s5_0) * q0_0
     p_q5_0 = (p_s5_0) * p_q0_0
     q5_1 = (s5_1 - q5_0 * q1_0) * q1_1
@@ -4094,12 +4096,12 @@ def fold_sweep_fixed_pair(D, X, JA, JB, x, nb, k, A, B, p_k, p_A, p_B):
     p_q5_4 = (p_s5_4 - p_q5_0 * p_q4_0 - p_q5_1 * p_q4_1 - p_q5_2 * p_q4_2 - p_q5_3 * p_q4_3) * p_q4_4
     s = s5_5 - q5_0 * q5_0 - q5_1 * q5_1 - q5_2 * q5_2 - q5_3 * q5_3 - q5_4 * q5_4
     p_s = p_s5_5 - p_q5_0 * p_q5_0 - p_q5_1 * p_q5_1 - p_q5_2 * p_q5_2 - p_q5_3 * p_q5_3 - p_q5_4 * p_q5_4
-    if not s > 0.0:
+    if not s.real > 0.0:
         return False
-    if not p_s > 0.0:
+    if not p_s.real > 0.0:
         return False
-    q5_5 = 1.0 / math.sqrt(s)
-    p_q5_5 = 1.0 / math.sqrt(p_s)
+    q5_5 = 1.0 / np.sqrt(s)
+    p_q5_5 = 1.0 / np.sqrt(p_s)
     D[j, 0, 0] = q0_0
     D[p_j, 0, 0] = p_q0_0
     D[j, 1, 0] = q1_0

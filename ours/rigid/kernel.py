@@ -6,11 +6,15 @@ M u̇ = f + Jᵀλ with f = (m g, −ω × I_w ω); the joints' rows satisfy J u
 The pair is solved as one symmetric system [[M, Jᵀ], [J, 0]] whose graph (bodies and joints as
 nodes) is the mechanism's tree, factored leaves first without fill: O(n) (Baraff's elimination).
 ``model`` and ``work`` are the tuples ``ours.rigid.pack`` builds; nothing here allocates.
+
+Every operation of a step is one complex numbers carry (numpy's square root, sine and cosine; the tests of
+a pivot's sign, of a small angle and of convergence read real parts or magnitudes), so :func:`run` also
+compiles for a complex128 state and scratch: ``ours.rigid.sensitivity``'s complex step.
 """
 
 from __future__ import annotations
 
-import math
+import numpy as np
 
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.blocks import (
@@ -25,7 +29,7 @@ from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 #: sha256 of ours/rigid/blocks.py, which ``python -m ours.rigid.generate`` writes along with it: numba's
 #: on-disk cache of this module is checked against this file's stamp alone, so regenerating the blocks
 #: must change this file too, or the compiled step would keep the old blocks.
-BLOCKS_DIGEST = "8c5f4ad6c258fc01adc4ba56080eab00e67752563aa6505b81517bde06110023"
+BLOCKS_DIGEST = "b547b00d0ef62618e7c204faab93051c99b97af502af2ca12be96b400ee6425f"
 
 BALL, REVOLUTE, PRISMATIC, FIXED = 0, 1, 2, 3
 EXPLICIT_RK, SYMPLECTIC_EULER = 0, 1
@@ -206,9 +210,9 @@ def _cholesky(D, i, n):
             for m in range(c):
                 s -= D[i, r, m] * D[i, c, m]
             if r == c:
-                if not s > 0.0:
+                if not s.real > 0.0:
                     return False
-                D[i, r, r] = 1.0 / math.sqrt(s)
+                D[i, r, r] = 1.0 / np.sqrt(s)
             else:
                 D[i, r, c] = s * D[i, c, c]
     return True
@@ -473,15 +477,15 @@ def derivative(y, model, work, ks, kd, ydot):
 def _rotate_quaternion(y, o, t0, t1, t2):
     """Q ← exp(θ/2) ⊗ Q for the world rotation vector θ = (t0, t1, t2), then Q normalised."""
     square = t0 * t0 + t1 * t1 + t2 * t2  # |θ|²
-    if square > 0.0:
+    if square.real > 0.0:
         x2 = 0.25 * square  # (|θ|/2)²
-        if x2 < SMALL_HALF_ANGLE_SQUARED:  # a step's turn: the series, exact to round-off, without sqrt, sin, cos
+        if x2.real < SMALL_HALF_ANGLE_SQUARED:  # a step's turn: the series, exact to round-off, without sqrt, sin, cos
             s = 0.5 * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
             a0 = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
         else:
-            angle = math.sqrt(square)
-            s = math.sin(0.5 * angle) / angle
-            a0 = math.cos(0.5 * angle)
+            angle = np.sqrt(square)
+            s = np.sin(0.5 * angle) / angle
+            a0 = np.cos(0.5 * angle)
         a1, a2, a3 = s * t0, s * t1, s * t2
         b0, b1, b2, b3 = y[o], y[o + 1], y[o + 2], y[o + 3]
         c1, c2, c3 = _cross(a1, a2, a3, b1, b2, b3)
@@ -489,7 +493,7 @@ def _rotate_quaternion(y, o, t0, t1, t2):
         y[o + 1] = a0 * b1 + b0 * a1 + c1
         y[o + 2] = a0 * b2 + b0 * a2 + c2
         y[o + 3] = a0 * b3 + b0 * a3 + c3
-    inverse = 1.0 / math.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
+    inverse = 1.0 / np.sqrt(y[o] ** 2 + y[o + 1] ** 2 + y[o + 2] ** 2 + y[o + 3] ** 2)
     for i in range(4):
         y[o + i] *= inverse
 

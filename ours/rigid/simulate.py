@@ -71,18 +71,21 @@ def packed(mech: Mechanism) -> tuple:
     return model
 
 
-def workspace(mech: Mechanism, stages: int) -> tuple:
+def workspace(mech: Mechanism, stages: int, dtype: type = np.float64) -> tuple:
     """Scratch arrays of the kernel (nothing in it allocates), with the constant entries of the joints'
-    Jacobians J_A, J_B (work[2], work[3]) written once."""
+    Jacobians J_A, J_B (work[2], work[3]) written once; complex128 for ``ours.rigid.sensitivity``'s complex step."""
     nb, nj = len(mech.bodies), len(mech.joints)
     nn = nb + nj
-    JA, JB = np.zeros((nj, 6, 6)), np.zeros((nj, 6, 6))
+
+    def z(*shape):
+        return np.zeros(shape, dtype)
+
+    JA, JB = z(nj, 6, 6), z(nj, 6, 6)
     for k, j in enumerate(mech.joints):  # the point rows' linear half, ±e, is constant: the kernel never writes it
         if j.kind != "prismatic":
             JA[k, :3, :3], JB[k, :3, :3] = np.eye(3), -np.eye(3)
-    return (np.zeros((nb, 3, 3)), np.zeros((nj, 6)), JA, JB, np.zeros((nj, 6)),
-            np.zeros((nn, 6, 6)), np.zeros((nn, 6, 6)), np.zeros((nn, 1, 6)), np.zeros((nj, 6)),
-            np.zeros((max(stages, 1), 13 * nb)), np.zeros(13 * nb))
+    return (z(nb, 3, 3), z(nj, 6), JA, JB, z(nj, 6), z(nn, 6, 6), z(nn, 6, 6), z(nn, 1, 6), z(nj, 6),
+            z(max(stages, 1), 13 * nb), z(13 * nb))
 
 
 def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -129,15 +132,29 @@ def _coordinate(values, joint, default=0.0) -> float:
     return number
 
 
+def _ball_coordinate(values, joint, size: int) -> np.ndarray | None:
+    """A ball joint's given quaternion (w, x, y, z; normalised) or rate (3,), None when not given."""
+    if joint.name not in (values or {}):
+        return None
+    value = np.asarray(values[joint.name], dtype=float).reshape(-1)
+    if value.shape != (size,) or not np.isfinite(value).all() or (size == 4 and not np.linalg.norm(value)):
+        raise ModelError(f"joint {joint.name}: a ball joint's {'quaternion' if size == 4 else 'rate'} must be "
+                         f"{size} finite numbers{' (nonzero)' if size == 4 else ''}, got {values[joint.name]!r}")
+    return value / np.linalg.norm(value) if size == 4 else value
+
+
 def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None) -> np.ndarray:
     """y (13 nb,) from joint coordinates q and rates v (by joint name: rad and rad/s for revolute,
-    m and m/s for prismatic; missing = 0). Fixed and ball joints start aligned and at rest;
+    m and m/s for prismatic; for a ball joint a unit quaternion (w, x, y, z), the child frame's rotation in
+    the joint frame, and the child's angular velocity relative to the parent in the child frame (3,) rad/s;
+    missing = 0, a ball aligned and at rest). Fixed joints start aligned and at rest;
     a body with no inbound joint starts at the origin, at rest."""
-    known = {j.name for j in mech.joints if DOFS[j.kind] == 1}
+    known = {j.name for j in mech.joints if DOFS[j.kind] >= 1}
     for values, what in ((q, "q"), (v, "v")):
         for name in values or {}:
             if name not in known:
-                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name; choose from {sorted(known)}")
+                raise ModelError(f"{what}.{name}: no revolute or prismatic joint of that name, nor a ball joint; "
+                                 f"choose from {sorted(known)}")
     nb = len(mech.bodies)
     R = [np.eye(3) for _ in range(nb)]
     p = [np.zeros(3) for _ in range(nb)]  # body frame origins
@@ -153,6 +170,7 @@ def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None)
         angle = rate = 0.0
         if DOFS[j.kind] == 1:
             angle, rate = _coordinate(q, j), _coordinate(v, j)
+        turn, spin = (_ball_coordinate(q, j, 4), _ball_coordinate(v, j, 3)) if j.kind == "ball" else (None, None)
         c = j.child
         R[c], p[c], w[c] = Rj, pj, wp.copy()
         vel[c] = vp + np.cross(wp, pj - pp)
@@ -162,6 +180,9 @@ def initial_state(mech: Mechanism, q: dict | None = None, v: dict | None = None)
         elif j.kind == "prismatic":
             p[c] = pj + angle * axis
             vel[c] = vp + np.cross(wp, p[c] - pp) + rate * axis
+        elif j.kind == "ball":
+            R[c] = Rj if turn is None else Rj @ rotation_of(turn)
+            w[c] = wp if spin is None else wp + R[c] @ spin
     y = np.zeros(13 * nb)
     for b, body in enumerate(mech.bodies):
         o = 13 * b
@@ -256,6 +277,32 @@ def joint_coordinates(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.nd
     return q, v
 
 
+def ball_coordinates(mech: Mechanism, y: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Ball joint name -> (quaternion (..., 4) w x y z of the child frame in the joint frame, sign as computed;
+    the child's angular velocity relative to the parent, in the child frame (..., 3) rad/s) at states y."""
+    y = np.asarray(y, dtype=float)
+    s = y.reshape(y.shape[:-1] + (len(mech.bodies), 13))
+    _, R = frames(mech, y)
+    out = {}
+    for j in mech.joints:
+        if j.kind != "ball":
+            continue
+        c = j.child
+        if j.parent >= 0:
+            Rp, wp = R[..., j.parent, :, :], s[..., j.parent, 10:13]
+        else:
+            Rp, wp = np.broadcast_to(np.eye(3), y.shape[:-1] + (3, 3)), np.zeros(y.shape[:-1] + (3,))
+        rel = np.swapaxes(Rp @ j.origin_rotation, -1, -2) @ R[..., c, :, :]
+        out[j.name] = (_quaternions(rel), np.einsum("...ji,...j->...i", R[..., c, :, :], s[..., c, 10:13] - wp))
+    return out
+
+
+def _quaternions(matrices: np.ndarray) -> np.ndarray:
+    """(..., 4) w x y z of rotation matrices (..., 3, 3)."""
+    flat = matrices.reshape(-1, 3, 3)
+    return np.array([quaternion(m) for m in flat]).reshape(matrices.shape[:-2] + (4,))
+
+
 @dataclass(frozen=True, eq=False)
 class RigidResult:
     """Samples of one run. t (S,) s; y (S, 13 nb) states (see the module docstring); steps taken;
@@ -278,12 +325,34 @@ def _kernel():
 _warmed: set[tuple] = set()
 
 
-def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
-             integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
-             tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidResult:
-    """Simulate ``mech`` from y0 (13 nb,) for n_steps steps of dt s; samples at step 0, every
-    sample_every steps and the last. method: plain, baumgarte, projection; integrator: euler,
-    symplectic-euler, midpoint, rk4 (default). k_s (1/s²), k_d (1/s): Baumgarte gains (default 100, 2√k_s)."""
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A run's checked settings, as the kernel's ``run`` takes them: args (method code, integrator code, A, b);
+    stages of the integrator; y (13 nb,) the start; dt s; n_steps; stride (steps between samples); n_samples;
+    ks (1/s²), kd (1/s) the gains (0 unless baumgarte); tolerance; max_iterations; settings (as RigidResult's)."""
+
+    args: tuple
+    stages: int
+    y: np.ndarray
+    dt: float
+    n_steps: int
+    stride: int
+    n_samples: int
+    ks: float
+    kd: float
+    tolerance: float
+    max_iterations: int
+    settings: dict[str, Any]
+
+    def times(self, written: int) -> np.ndarray:
+        """(written,) s: the times of the first ``written`` samples (step 0, every stride steps, the last)."""
+        return np.minimum(np.arange(self.n_samples) * self.stride, self.n_steps)[:written] * self.dt
+
+
+def prepare(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
+            integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
+            tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> Prepared:
+    """:func:`simulate`'s arguments checked (OursError / ModelError naming the field) and resolved."""
     code, scheme = resolve(method, integrator)
     y = np.array(y0, dtype=float).ravel()
     if y.shape != (13 * len(mech.bodies),) or not np.isfinite(y).all():
@@ -298,25 +367,37 @@ def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1
         ks = kd = 0.0
     tolerance = _positive(tolerance, "tolerance", "1e-12 is near round-off for joints of order 1 m")
     max_iterations = _count(max_iterations, "max_iterations")
-    kernel = _kernel()
-    model = pack(mech)
-    work = workspace(mech, scheme.stages)
     n_samples = n_steps // stride + 1 + (1 if n_steps % stride else 0)
-    out = np.full((n_samples, y.size), np.nan)
-    args = (code, scheme.code, scheme.A, scheme.b)
-    if args[:2] not in _warmed:  # compile (or load from numba's cache) before the clock starts
-        kernel.run(*args, y.copy(), model, work, ks, kd, dt, 1, 1, tolerance, max_iterations, out[:2].copy())
-        _warmed.add(args[:2])
-    start = time.perf_counter()
-    written, steps, status = kernel.run(*args, y, model, work, ks, kd, dt, n_steps, stride, tolerance,
-                                        max_iterations, out)
-    wall_time = time.perf_counter() - start
     settings = {"method": method, "integrator": scheme.name, "tolerance": tolerance, "max_iterations": max_iterations}
     if code == BAUMGARTE:
         settings.update(k_s=ks, k_d=kd)
-    t = np.minimum(np.arange(n_samples) * stride, n_steps)[:written] * dt
-    return RigidResult(t=t, y=out[:written], steps=int(steps), wall_time=wall_time,
-                       status=STATUS_TEXT[int(status)], settings=settings)
+    return Prepared((code, scheme.code, scheme.A, scheme.b), scheme.stages, y, dt, n_steps, stride, n_samples, ks, kd,
+                    tolerance, max_iterations, settings)
+
+
+def simulate(mech: Mechanism, y0, dt: float, n_steps: int, sample_every: int = 1, *, method: str = "baumgarte",
+             integrator: str | None = None, k_s: float | None = None, k_d: float | None = None,
+             tolerance: float = DEFAULT_TOLERANCE, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidResult:
+    """Simulate ``mech`` from y0 (13 nb,) for n_steps steps of dt s; samples at step 0, every
+    sample_every steps and the last. method: plain, baumgarte, projection; integrator: euler,
+    symplectic-euler, midpoint, rk4 (default). k_s (1/s²), k_d (1/s): Baumgarte gains (default 100, 2√k_s)."""
+    run = prepare(mech, y0, dt, n_steps, sample_every, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
+                  tolerance=tolerance, max_iterations=max_iterations)
+    kernel = _kernel()
+    model = pack(mech)
+    work = workspace(mech, run.stages)
+    y, args = run.y, run.args
+    out = np.full((run.n_samples, y.size), np.nan)
+    if args[:2] not in _warmed:  # compile (or load from numba's cache) before the clock starts
+        kernel.run(*args, y.copy(), model, work, run.ks, run.kd, run.dt, 1, 1, run.tolerance, run.max_iterations,
+                   out[:2].copy())
+        _warmed.add(args[:2])
+    start = time.perf_counter()
+    written, steps, status = kernel.run(*args, y, model, work, run.ks, run.kd, run.dt, run.n_steps, run.stride,
+                                        run.tolerance, run.max_iterations, out)
+    wall_time = time.perf_counter() - start
+    return RigidResult(t=run.times(written), y=out[:written], steps=int(steps), wall_time=wall_time,
+                       status=STATUS_TEXT[int(status)], settings=run.settings)
 
 
 def joint_errors(mech: Mechanism, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
