@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 SCRIPTS_DIR = Path(__file__).resolve().parent.parent / "scripts"
-SCRIPTS = ["gradient_figures", "rigid_gradient_figures", "ours_claims", "rigid_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco", "defaults_pybullet", "defaults_pymunk", "reference_horizon", "model_findings", "dart_findings", "model_scene_findings", "history_trend_rates", "model_survey", "model_seeds", "gate_window_rates", "timing_gate_noise", "big_report", "ball_joints"]
+SCRIPTS = ["gradient_figures", "rigid_gradient_figures", "ours_claims", "rigid_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco", "defaults_pybullet", "defaults_pymunk", "reference_horizon", "model_findings", "dart_findings", "model_scene_findings", "history_trend_rates", "model_survey", "model_seeds", "gate_window_rates", "timing_gate_noise", "big_report", "ball_joints", "mjx_chain_gradients"]
 
 
 def load(name: str):
@@ -69,7 +69,7 @@ def test_quoted_figures_match_their_script(name):
 #: The scripts whose figures come from catalog scenes, which XVAL_ROUNDOFF_ULPS perturbs (the others build
 #: their states elsewhere: ours' own systems, model files, stored history).
 PERTURBED = ["inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco",
-             "defaults_pybullet", "defaults_pymunk", "reference_horizon", "dart_findings"]
+             "defaults_pybullet", "defaults_pymunk", "reference_horizon", "dart_findings", "mjx_chain_gradients"]
 #: How far the second pass moves the initial angles and rates: a few ulps, as other round-off would.
 ULPS = 3
 #: The marker of the line the second pass's process prints its figures on (a script may print too).

@@ -1,7 +1,9 @@
-"""MJX's own derivatives (engines/mjx/gradients.py): jacfwd through its stepping loop, float64 and float32.
+"""MJX's own derivatives (engines/mjx/gradients.py): forward mode through its stepping loop, float64 and float32.
 
-Few and cached: each (model, precision) compiles jit(jacfwd(fori_loop(mjx.step))) once per process
-(13-19 s of CPU, or JAX's persistent cache), so one scene and one spawned process for the module. MJX runs
+Few and cached: each (model, precision) compiles jit(jvp(fori_loop(mjx.step))) once per process
+(seconds of CPU on these two scenes, or JAX's persistent cache), so one spawned process for the module. The chain
+of 8 compiles for about a minute, more than a test may: scripts/mjx_chain_gradients.py measures it (its
+self-consistency, error and NaN samples, quoted in docs/gradients.md). MJX runs
 there, never in the test process (tests/fork_guard.py; see tests/test_engine_mjx.py).
 """
 
@@ -18,7 +20,7 @@ pytestmark = pytest.mark.skipif(not HAVE_MJX, reason="MJX is not installed: pip 
 
 
 def _measure(variant: str, name: str = "double-pendulum") -> dict:
-    """In the spawned process: MJX's jacfwd Jacobian of scene ``name`` at dt 1e-3 over 1 s against differences of
+    """In the spawned process: MJX's forward-mode Jacobian of scene ``name`` at dt 1e-3 over 1 s against differences of
     its own rollouts and against the reference, and the first sample whose Jacobian is not finite."""
     from engines import registry
     from engines.gradients import finite_difference_jacobian
@@ -44,7 +46,7 @@ def spawned():
         yield pool
 
 
-def test_float64_rk4_jacfwd_is_accurate_and_self_consistent(spawned):
+def test_float64_rk4_forward_mode_is_accurate_and_self_consistent(spawned):
     answer = spawned.submit(_measure, "hinge-rk4").result()
     assert answer["method"] == "autodiff"
     assert answer["self"] <= 1e-6  # measured 9e-11
@@ -53,7 +55,7 @@ def test_float64_rk4_jacfwd_is_accurate_and_self_consistent(spawned):
 
 
 @pytest.mark.parametrize("name", ["double-pendulum", "bead"])
-def test_float32_rk4_jacfwd_stays_finite_at_every_sample_and_within_its_floor(spawned, name):
+def test_float32_rk4_forward_mode_stays_finite_at_every_sample_and_within_its_floor(spawned, name):
     """No NaN appears in MJX's float32 forward-mode Jacobian on the double pendulum and the bead: each 0.01 s
     sample of d x(t) / d x(0) is finite; at T it is within the float32 floor (1e-3) of the reference (measured
     2e-6 on both), and of differences of its own float32 rollouts (step 3e-2 of each parameter's scale)."""

@@ -82,6 +82,7 @@ class MJXEngine(Engine):
         "flag.contact": "disable (default enable): the scenes have nothing to collide",
         "jax_enable_x64": "on for float64 variants (JAX's default is off: float32)",
         "impl": "jax (put_model's default picks by device; JAX on a CPU)",
+        "xla_cpu_use_fusion_emitters": "off (jaxlib's default on): their cost grows exponentially with the tree's depth",
     }
 
     def version(self) -> str:
@@ -102,7 +103,7 @@ class MJXEngine(Engine):
 
     def jacobian(self, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
                  wrt: list[str]) -> tuple[np.ndarray, str] | None:
-        """jax.jacfwd through the stepping loop, float64 or float32 (engines/mjx/gradients.py)."""
+        """Forward mode (jax.jvp) through the stepping loop, float64 or float32 (engines/mjx/gradients.py)."""
         from engines.mjx import gradients
 
         return gradients.jacobian(self, scene, variant, options, dt, wrt)
@@ -132,7 +133,7 @@ class MJXEngine(Engine):
             t0 = time.perf_counter()
             if compiled is None:
                 library.trace_in(jax, x64)
-                compiled = _compiled[key] = jax.jit(_advance).lower(mx, dx, np.int32(1)).compile()
+                compiled = _compiled[key] = library.compiled(jax, _advance, mx, dx, np.int32(1))
             record["jit_compile_time"] = 0.0 if record["jit_cache_hit"] else time.perf_counter() - t0
             outputs = []
             t0 = time.perf_counter()

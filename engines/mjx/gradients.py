@@ -1,12 +1,15 @@
-"""MJX's own derivatives: ``jax.jacfwd`` through its stepping loop, in float64 or float32.
+"""MJX's own derivatives: forward mode (``jax.jvp``) through its stepping loop, in float64 or float32.
 
 Forward mode through ``fori_loop(mjx.step)`` (a ``while_loop`` for a traced step count, which forward mode
-differentiates and reverse mode would not) gives d x(t + n·dt) / d x(t) for MJX's state x = (qpos, qvel). The
-run is differentiated one sample interval at a time and the interval Jacobians multiplied, so the Jacobian is
-known at every sample and the first one holding a NaN or an infinity is named (:func:`transition_over_time`).
-The chain rule (engines.gradients.chained_jacobian, with MuJoCo's readout of the same model) turns it into
-d outputs(T) / d p for initial-condition parameters; g, masses and lengths change the model, and get central
-differences of MJX's rollouts.
+differentiates and reverse mode would not) gives d x(t + n·dt) / d x(t) · e for MJX's state x = (qpos, qvel),
+one direction e at a time: the loop body (one step and its tangent) compiles once, for any n and any direction.
+A single direction compiles in less time than ``jax.jacfwd`` (the same tangents, vmapped over all directions)
+and runs slower: the compile is most of the cost of a Jacobian over a few seconds (scripts/mjx_chain_gradients.py
+prints both on the chain of 8). The run is differentiated one sample interval at a time and the interval
+Jacobians multiplied, so the Jacobian is known at every sample and the first one holding a NaN or an infinity
+is named (:func:`transition_over_time`). The chain rule (engines.gradients.chained_jacobian, with MuJoCo's
+readout of the same model) turns it into d outputs(T) / d p for initial-condition parameters; g, masses and
+lengths change the model, and get central differences of MJX's rollouts.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from engines.mujoco.builder import hinge_readout
 from engines.mujoco.library import mujoco
 from engines.scene.scene import Scene
 
-#: Compiled jit(jacfwd(advance)) by (model structure, x64): one compile (13-19 s of CPU) serves every dt and length.
+#: Compiled jit(jvp(advance)) by (model structure, x64): one compile serves every dt, length and direction.
 _compiled: dict[tuple[str, bool], Any] = {}
 
 
@@ -55,16 +58,20 @@ def transition_over_time(engine: Any, scene: Scene, variant: str | None, options
         mx = mjx.put_model(model, impl="jax")
         dx = mjx.put_data(model, data, impl="jax")
         step = _compiled.get((xml, x64))
+        x = np.concatenate([dx.qpos, dx.qvel])
+        directions = np.eye(len(x), dtype=x.dtype)
         if step is None:
             library.trace_in(jax, x64)
-            step = _compiled[(xml, x64)] = _jacobian_of_steps(jax, mjx, model.nq)
-        x = np.concatenate([dx.qpos, dx.qvel])
+            step = _compiled[(xml, x64)] = library.compiled(jax, _tangent_of_steps(jax, mjx, model.nq), mx, dx, x,
+                                                            directions[0], np.int32(1))
         product = np.eye(len(x))
         times, products, states = [0.0], [product], [np.asarray(x, dtype=float)]
         done = 0
         for count in counts:
-            jacobian, x = step(mx, dx, x, np.int32(count))
-            product = np.asarray(jacobian, dtype=float) @ product
+            columns = [step(mx, dx, x, e, np.int32(count)) for e in directions]
+            jacobian = np.stack([np.asarray(tangent, dtype=float) for _, tangent in columns], axis=1)
+            x = columns[0][0]
+            product = jacobian @ product
             done += int(count)
             times.append(done * dt)
             products.append(product)
@@ -74,22 +81,21 @@ def transition_over_time(engine: Any, scene: Scene, variant: str | None, options
     return model, Transition(np.array(times), np.array(products), np.array(states), first)
 
 
-def _jacobian_of_steps(jax, mjx, nq: int):
-    """jit(x, n -> (d x_n / d x, x_n)) for MJX's state x = (qpos, qvel) after n steps."""
+def _tangent_of_steps(jax, mjx, nq: int):
+    """(mx, dx, x, e, n -> (x_n, d x_n / d x · e)) for MJX's state x = (qpos, qvel) after n steps."""
     jnp = jax.numpy
+
     def advance(x, mx, dx, n):
         d = dx.replace(qpos=x[:nq], qvel=x[nq:])
         d = jax.lax.fori_loop(0, n, lambda _, s: mjx.step(mx, s), d)
-        end = jnp.concatenate([d.qpos, d.qvel])
-        return end, end
+        return jnp.concatenate([d.qpos, d.qvel])
 
-    jacobian = jax.jacfwd(advance, has_aux=True)
-    return jax.jit(lambda mx, dx, x, n: jacobian(x, mx, dx, n))
+    return lambda mx, dx, x, e, n: jax.jvp(lambda y: advance(y, mx, dx, n), (x,), (e,))
 
 
 def jacobian(engine: Any, scene: Scene, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str] | None:
-    """(J (6P, k), "autodiff"): jacfwd for initial-condition parameters, differences of rollouts for the rest;
+    """(J (6P, k), "autodiff"): forward mode for initial-condition parameters, differences of rollouts for the rest;
     None when no parameter of ``wrt`` is an initial condition."""
     if scene.is_model:  # a model's own derivatives are not chained here yet: differences of rollouts
         return None

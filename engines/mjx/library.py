@@ -49,12 +49,26 @@ def _persistent_cache(jax) -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
+#: XLA options of every MJX compile here (:func:`compiled`). XLA's CPU fusion emitters (on by default in jaxlib
+#: 0.10) make MJX's step cost grow exponentially with the body tree's depth: RK4 float64 steps of a planar
+#: chain took 0.05 ms at 4 links, 5 ms at 6 and about 1 s at 8 with them (a one-second run of the chain of 8:
+#: a quarter of an hour), and 0.18 ms at 8 without, whose compile is shorter too
+#: (scripts/mjx_chain_gradients.py prints both).
+COMPILER_OPTIONS: dict[str, Any] = {"xla_cpu_use_fusion_emitters": False}
+
+
+def compiled(jax, function, *args) -> Any:
+    """``jax.jit(function)`` lowered for ``args`` and compiled with COMPILER_OPTIONS (JAX's persistent cache
+    keys on them too)."""
+    return jax.jit(function).lower(*args).compile(COMPILER_OPTIONS)
+
+
 #: The x64 mode JAX last traced in, in this process (trace_in).
 _last_trace_x64: list[bool] = []
 
 
 def trace_in(jax, x64: bool) -> None:
-    """Call before a trace in this x64 mode (the adapter's stepping loop, gradients.py's jacfwd): JAX's trace
+    """Call before a trace in this x64 mode (the adapter's stepping loop, gradients.py's forward mode): JAX's trace
     caches outlive a change of x64 mode, and an inner jit (MJX's RK4 calls jnp.tril) traced in float64 is
     reused in float32 and fails to lower, so the traces start afresh when the mode changes."""
     if _last_trace_x64 and _last_trace_x64[-1] != x64:
