@@ -2,7 +2,7 @@
 
     .venv/bin/python scripts/verdict_reruns.py RESULTS_DIR RESULTS_DIR [...]
 
-Runs `xval verdict DIR --format json` on each directory (the same document users get) and prints, per scene:
+Runs `xval verdict DIR --format json --front` on each directory (the document users get, with the front) and prints, per scene:
 the focus family's winner with its ties against the best other engine with its ties, and the cost ratio with
 its interval, per run; then whether every family's winner and ties, the comparison's two sides and the
 equal-cost best are the same in every run, and whether every pair of ratio intervals overlaps. Last, the
@@ -28,7 +28,8 @@ XVAL = [sys.executable, "-c", "from compare.cli import main; main()"]
 
 
 def document(directory: str) -> dict[str, Any]:
-    out = subprocess.run([*XVAL, "verdict", directory, "--format", "json"], capture_output=True, text=True, check=True)
+    out = subprocess.run([*XVAL, "verdict", directory, "--format", "json", "--front"], capture_output=True, text=True,
+                         check=True)
     return json.loads(out.stdout)
 
 

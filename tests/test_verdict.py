@@ -269,8 +269,16 @@ def test_xval_verdict_gives_the_verdict_as_text_and_as_one_json_document(tiny_su
     code, out, err = run_cli(capsys, "verdict", str(tmp_path / "out"), "--format", "json")
     assert code == 0, err
     document = json.loads(out)
-    assert document["schema"] == "xval-verdict/1" and document["focus"] == "mujoco"
+    # Changed by issue 45 (schema 1 always held the front): the front, which measured time decides point by
+    # point, comes only with --front, each point with its margin; nothing else in the document moves with timing.
+    assert document["schema"] == "xval-verdict/2" and document["focus"] == "mujoco"
     (bead,) = document["scenes"]
+    assert "front" not in bead
+    code, out, err = run_cli(capsys, "verdict", str(tmp_path / "out"), "--format", "json", "--front")
+    assert code == 0, err
+    (with_front,) = json.loads(out)["scenes"]
+    assert with_front["front"] and all("margin" in p and p["case"].startswith("bead|") for p in with_front["front"])
+    assert {k: v for k, v in with_front.items() if k != "front"} == bead
     assert [w["family"] for w in bead["winners"]] == ["mujoco", "pymunk", "broken"]
     models = {m["engine"]: m for m in bead["cost_models"]}
     hinge = models["mujoco/hinge"]  # two timed cases: per-step ratios, not a fit

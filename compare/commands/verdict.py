@@ -21,9 +21,12 @@ from engines.errors import UserError
               help="table: the verdict as `xval run` ends with it; json: one document with every figure and interval.")
 @click.option("--focus", default=None, metavar="FAMILY",
               help="The engine family compared with the best of the others (default: the suite's first).")
+@click.option("--front", is_flag=True,
+              help="JSON: add each scene's Pareto front, each point with its margin. It is decided by measured "
+                   "costs, so points at its edge can differ between reruns; the rest of the document does not.")
 @click.option("--output", default=STDOUT, show_default=True, callback=output_path, metavar="FILE",
               help="Where to write: - for standard output, or a file (never one of DIR's own files).")
-def command(directory, output_format, focus, output) -> None:
+def command(directory, output_format, focus, front, output) -> None:
     """Per scene of DIR (the --output of 'xval run'): the Pareto front, each family's best variant, the cost to
     reach 1e-6·L with its interval, ties, and the problems."""
     target = check_writable(output, inputs=results_inputs(directory))
@@ -34,7 +37,7 @@ def command(directory, output_format, focus, output) -> None:
     focus = focus or default_focus(variant_sweeps)
     verdicts = scene_verdicts(variant_sweeps, focus)
     if output_format == "json":
-        text = json.dumps(verdict_document(verdicts, focus), indent=1) + "\n"
+        text = json.dumps(verdict_document(verdicts, focus, front), indent=1) + "\n"
     else:
         text = format_verdicts(verdicts)
     if str(target) == STDOUT:

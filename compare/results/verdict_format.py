@@ -1,8 +1,8 @@
 """The verdict (compare.results.verdict) as text for the terminal and as one JSON document.
 
 ``xval verdict DIR`` prints either; ``xval show`` and the end of ``xval run`` print the text; the report
-lays out the same SceneVerdict objects. The JSON document (``schema`` "xval-verdict/1") holds per scene:
-the Pareto front, each variant's cost model (per-step cost with its interval), each variant's cost to
+lays out the same SceneVerdict objects. The JSON document (``schema`` "xval-verdict/2") holds per scene:
+(with ``front``) the Pareto front, each point with its margin, each variant's cost model (per-step cost with its interval), each variant's cost to
 reach 1e-6·L with its interval, each family's winner and the variants tied with it, the focus
 comparison (ratio with its interval, tie or not, its sentence), the consistency of every variant, and
 the problems, most severe first (each with its severity).
@@ -19,7 +19,9 @@ from compare.results.verdict import SEVERITIES, AtBudget, Point, Problem, Reach,
 #: Longest problem text printed in the terminal (the report and the case files have the whole message).
 LINE = 140
 #: JSON schema of ``xval verdict --format json``.
-SCHEMA = "xval-verdict/1"
+#: 2: the Pareto front only when asked (``front``): it is the one list that measured time decides point by
+#: point, so it can differ between reruns, and everything else in the document does not (docs/metrics.md).
+SCHEMA = "xval-verdict/2"
 
 
 def clip(text: str, width: int = LINE) -> str:
@@ -106,8 +108,9 @@ def _reach(r: Reach) -> dict[str, Any]:
             "steps_per_simulated_second": r.steps}
 
 
-def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
-    """One scene's verdict as JSON-ready data (its fields: docs/report.md, "Module notes")."""
+def scene_document(verdict: SceneVerdict, front: bool = False) -> dict[str, Any]:
+    """One scene's verdict as JSON-ready data (its fields: docs/report.md, "Module notes"); ``front`` adds the
+    Pareto front."""
     comparison = verdict.comparison
     same = comparison.at_equal_cost if comparison is not None else None
     return {
@@ -116,7 +119,7 @@ def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
         "target": verdict.target,
         # The reference's error bar, horizon and Lyapunov estimate, each estimate with its interval.
         "reference": scene_reference(r for s in verdict.variants for r in s.records),
-        "front": [_point(p) for p in verdict.front],
+        **({"front": [_point(p) for p in verdict.front]} if front else {}),
         "cost_models": [
             {"engine": s.engine, "per_step": s.cost.per_step, "per_step_interval": [s.cost.low, s.cost.high],
              "overhead": s.cost.overhead, "cases": s.cost.cases, "how": s.cost.how}
@@ -153,6 +156,6 @@ def scene_document(verdict: SceneVerdict) -> dict[str, Any]:
     }
 
 
-def verdict_document(verdicts: Sequence[SceneVerdict], focus: str | None) -> dict[str, Any]:
-    """The verdict of every scene as one JSON-ready object."""
-    return {"schema": SCHEMA, "focus": focus, "scenes": [scene_document(v) for v in verdicts]}
+def verdict_document(verdicts: Sequence[SceneVerdict], focus: str | None, front: bool = False) -> dict[str, Any]:
+    """The verdict of every scene as one JSON-ready object; ``front`` adds each scene's Pareto front."""
+    return {"schema": SCHEMA, "focus": focus, "scenes": [scene_document(v, front) for v in verdicts]}
