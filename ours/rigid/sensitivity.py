@@ -22,8 +22,9 @@ import numpy as np
 
 from ours.errors import OursError
 from ours.method import DEFAULT_MAX_ITERATIONS
+from ours.rigid.method import PROJECTION
 from ours.rigid.model import Mechanism
-from ours.rigid.simulate import DEFAULT_TOLERANCE, _kernel, pack, prepare, workspace
+from ours.rigid.simulate import DEFAULT_TOLERANCE, Prepared, _kernel, pack, prepare, workspace
 from ours.status import NON_FINITE, OK, STATUS_TEXT
 
 #: The complex step's size: far under any round-off of the state, and with no difference taken it costs nothing.
@@ -45,19 +46,31 @@ class RigidSensitivities:
     status: str
 
 
+def _prepared(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int, **options) -> tuple[Prepared, np.ndarray]:
+    """The run's checked settings and the directions (k, 13 nb), checked."""
+    run = prepare(mech, y0, dt, n_steps, sample_every, **options)
+    directions = np.asarray(dy0, dtype=float)
+    if directions.ndim != 2 or directions.shape[1] != run.y.size or len(directions) == 0 \
+            or not np.isfinite(directions).all():
+        raise OursError(f"dy0: expected k ≥ 1 directions of {run.y.size} finite numbers each, (k, 13 nb), "
+                        f"got shape {directions.shape}")
+    return run, directions
+
+
+def _result(run: Prepared, y: np.ndarray, dy: np.ndarray, written: int, steps: int, status: int) -> RigidSensitivities:
+    if status == OK and not (np.isfinite(y).all() and np.isfinite(dy[:written]).all()):
+        status = NON_FINITE
+    return RigidSensitivities(run.times(written), y, dy[:written], int(steps), STATUS_TEXT[int(status)])
+
+
 def forward_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
                           method: str = "baumgarte", integrator: str | None = None, k_s: float | None = None,
                           k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                           max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidSensitivities:
     """Run ``mech`` from y0 (13 nb,) as ours.rigid.simulate does with the same arguments, and carry the
     directions dy0 (k, 13 nb) along: one complex run per direction, sampled as simulate samples."""
-    run = prepare(mech, y0, dt, n_steps, sample_every, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
-                  tolerance=tolerance, max_iterations=max_iterations)
-    directions = np.asarray(dy0, dtype=float)
-    if directions.ndim != 2 or directions.shape[1] != run.y.size or len(directions) == 0 \
-            or not np.isfinite(directions).all():
-        raise OursError(f"dy0: expected k ≥ 1 directions of {run.y.size} finite numbers each, (k, 13 nb), "
-                        f"got shape {directions.shape}")
+    run, directions = _prepared(mech, y0, dy0, dt, n_steps, sample_every, method=method, integrator=integrator,
+                                k_s=k_s, k_d=k_d, tolerance=tolerance, max_iterations=max_iterations)
     kernel, model = _kernel(), pack(mech)
     work = workspace(mech, run.stages, np.complex128)
     dy = np.full((run.n_samples, len(directions), run.y.size), np.nan)
@@ -68,7 +81,28 @@ def forward_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sam
         written, steps, status = kernel.run(*run.args, z, model, work, run.ks, run.kd, run.dt, run.n_steps,
                                             run.stride, run.tolerance, run.max_iterations, out)
         dy[:written, k] = out[:written].imag / STEP
-    y = out[:written].real.copy()
-    if status == OK and not (np.isfinite(y).all() and np.isfinite(dy[:written]).all()):
-        status = NON_FINITE
-    return RigidSensitivities(run.times(written), y, dy[:written], int(steps), STATUS_TEXT[int(status)])
+    return _result(run, out[:written].real.copy(), dy, written, steps, status)
+
+
+def tangent_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
+                          method: str = "baumgarte", integrator: str | None = None, k_s: float | None = None,
+                          k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
+                          max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidSensitivities:
+    """:func:`forward_sensitivities` by the tangent-linear step (ours.rigid.tangent): one real run, each direction
+    carried beside it for its derivative alone. Plain and baumgarte, every integrator; OursError for projection."""
+    run, directions = _prepared(mech, y0, dy0, dt, n_steps, sample_every, method=method, integrator=integrator,
+                                k_s=k_s, k_d=k_d, tolerance=tolerance, max_iterations=max_iterations)
+    if run.args[0] == PROJECTION:
+        raise OursError("method: the tangent-linear rigid step covers plain and baumgarte; for projection use "
+                        "forward_sensitivities (complex step)")
+    from ours.rigid import tangent  # imports numba: only when a run needs it
+
+    integrator_code, A, b = run.args[1:]
+    y, dy = run.y.copy(), directions.copy()
+    work = workspace(mech, run.stages)
+    tw = tangent.tangent_workspace(len(dy), len(mech.bodies), len(mech.joints), run.stages)
+    out = np.full((run.n_samples, y.size), np.nan)
+    dout = np.full((run.n_samples,) + dy.shape, np.nan)
+    written, steps, status = tangent.run(integrator_code, A, b, y, dy, pack(mech), work, tw, run.ks, run.kd, run.dt,
+                                         run.n_steps, run.stride, out, dout)
+    return _result(run, out[:written], dout, written, steps, status)

@@ -1,0 +1,466 @@
+"""The tangent-linear rigid step: ``ours.rigid.kernel``'s step with n directions of the state carried beside it.
+
+The real step is the kernel's own (``derivative``, ``kick_drift``, the Runge–Kutta stages, in its order), so its
+state is ``kernel.run``'s; each direction pays only for its derivative. The tree solve is not differentiated:
+[[M, Jᵀ], [J, 0]] x = b gives dx = K⁻¹ (db − dK x), one more solve (two sweeps) through the factor the real
+stage left in the work arrays. The rest (rotations, the joints' rows, the forces, the rates, the exponential-map
+drift) is differentiated by hand, term for term. Plain and baumgarte with every integrator; projection's
+iterations are left to the complex step (``ours.rigid.sensitivity``).
+
+Shapes: n directions, nb bodies, nj joints, nn = nb + nj nodes. dy (n, 13 nb); the tangent scratch ``tw`` is
+:func:`tangent_workspace`'s: dR (n, nb, 3, 3), dC (n, nj, 6), dJA / dJB (n, nj, 6, 6), dgam (n, nj, 6),
+rhs (n, nn, 1, 6), dK (stages, n, 13 nb), dys (n, 13 nb).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
+from ours.rigid.kernel import (
+    FIXED, PRISMATIC, REVOLUTE, SMALL_HALF_ANGLE_SQUARED, SYMPLECTIC_EULER, _axis, _body, _cross, derivative,
+    kick_drift, tree_solve,
+)
+from ours.status import NON_FINITE, OK
+
+
+def tangent_workspace(n: int, nb: int, nj: int, stages: int) -> tuple:
+    """Scratch of :func:`run` for n directions (the compiled code allocates nothing). The entries of dJA and dJB
+    that the real rows keep constant (a point row's ±e, a torque row's zeros) stay zero: nothing writes them."""
+
+    def z(*shape):
+        return np.zeros(shape)
+
+    return (z(n, nb, 3, 3), z(n, nj, 6), z(n, nj, 6, 6), z(n, nj, 6, 6), z(n, nj, 6), z(n, nb + nj, 1, 6),
+            z(max(stages, 1), n, 13 * nb), z(n, 13 * nb))
+
+
+@inlined
+def _dcross(a, da, b, db):
+    """d (a × b) = da × b + a × db."""
+    x = _cross(da[0], da[1], da[2], b[0], b[1], b[2])
+    y = _cross(a[0], a[1], a[2], db[0], db[1], db[2])
+    return x[0] + y[0], x[1] + y[1], x[2] + y[2]
+
+
+@inlined
+def _ddot(a, da, b, db):
+    """d (a · b)."""
+    return da[0] * b[0] + da[1] * b[1] + da[2] * b[2] + a[0] * db[0] + a[1] * db[1] + a[2] * db[2]
+
+
+@inlined
+def _drot(dR, d, b, v0, v1, v2):
+    """dR[d, b] @ v."""
+    return (dR[d, b, 0, 0] * v0 + dR[d, b, 0, 1] * v1 + dR[d, b, 0, 2] * v2,
+            dR[d, b, 1, 0] * v0 + dR[d, b, 1, 1] * v1 + dR[d, b, 1, 2] * v2,
+            dR[d, b, 2, 0] * v0 + dR[d, b, 2, 1] * v1 + dR[d, b, 2, 2] * v2)
+
+
+@inlined
+def _dbody(dy, dR, d, b, l0, l1, l2):
+    """Direction d of ``kernel._body``'s x, r, v, ω (the world's: zero)."""
+    if b < 0:
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    o = 13 * b
+    return ((dy[d, o], dy[d, o + 1], dy[d, o + 2]), _drot(dR, d, b, l0, l1, l2),
+            (dy[d, o + 7], dy[d, o + 8], dy[d, o + 9]), (dy[d, o + 10], dy[d, o + 11], dy[d, o + 12]))
+
+
+@inlined
+def _daxis(dR, d, b, F, k, col):
+    """Direction d of ``kernel._axis`` (a frame fixed in the world: zero)."""
+    if b < 0:
+        return 0.0, 0.0, 0.0
+    return _drot(dR, d, b, F[k, 0, col], F[k, 1, col], F[k, 2, col])
+
+
+@llvm_inlined
+def d_rotations(y, dy, n, nb, dR):
+    """dR (n, nb, 3, 3) of ``kernel.rotations``' R (the quaternion normalised on the fly) along each direction."""
+    for b in range(nb):
+        o = 13 * b + 3
+        w, x, yy, z = y[o], y[o + 1], y[o + 2], y[o + 3]
+        s = 2.0 / (w * w + x * x + yy * yy + z * z)
+        for d in range(n):
+            dw, dx, dyy, dz = dy[d, o], dy[d, o + 1], dy[d, o + 2], dy[d, o + 3]
+            ds = -s * s * (w * dw + x * dx + yy * dyy + z * dz)
+            dR[d, b, 0, 0] = -(ds * (yy * yy + z * z) + 2.0 * s * (yy * dyy + z * dz))
+            dR[d, b, 0, 1] = ds * (x * yy - w * z) + s * (dx * yy + x * dyy - dw * z - w * dz)
+            dR[d, b, 0, 2] = ds * (x * z + w * yy) + s * (dx * z + x * dz + dw * yy + w * dyy)
+            dR[d, b, 1, 0] = ds * (x * yy + w * z) + s * (dx * yy + x * dyy + dw * z + w * dz)
+            dR[d, b, 1, 1] = -(ds * (x * x + z * z) + 2.0 * s * (x * dx + z * dz))
+            dR[d, b, 1, 2] = ds * (yy * z - w * x) + s * (dyy * z + yy * dz - dw * x - w * dx)
+            dR[d, b, 2, 0] = ds * (x * z - w * yy) + s * (dx * z + x * dz - dw * yy - w * dyy)
+            dR[d, b, 2, 1] = ds * (yy * z + w * x) + s * (dyy * z + yy * dz + dw * x + w * dx)
+            dR[d, b, 2, 2] = -(ds * (x * x + yy * yy) + 2.0 * s * (x * dx + yy * dyy))
+
+
+@inlined
+def _d_point_rows(d, k, r0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam):
+    """Direction d of ``kernel._point_rows``."""
+    tA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
+    tB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
+    dtA = _dcross(wA, dwA, rA, drA)
+    dtB = _dcross(wB, dwB, rB, drB)
+    dcA = _dcross(wA, dwA, tA, dtA)
+    dcB = _dcross(wB, dwB, tB, dtB)
+    for i in range(3):
+        e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
+        ra = _cross(drA[0], drA[1], drA[2], e0, e1, e2)
+        rb = _cross(drB[0], drB[1], drB[2], e0, e1, e2)
+        for c in range(3):
+            dJA[d, k, r0 + i, 3 + c] = ra[c]
+            dJB[d, k, r0 + i, 3 + c] = -rb[c]
+        dC[d, k, r0 + i] = dxA[i] + drA[i] - dxB[i] - drB[i]
+        dgam[d, k, r0 + i] = dcA[i] - dcB[i]
+
+
+@inlined
+def _d_dot_row(d, k, r, p, dp, w, dw, wA, dwA, wB, dwB, dC, dJA, dJB, dgam):
+    """Direction d of ``kernel._dot_row``."""
+    dn = _dcross(p, dp, w, dw)
+    for c in range(3):
+        dJA[d, k, r, 3 + c] = dn[c]
+        dJB[d, k, r, 3 + c] = -dn[c]
+    dC[d, k, r] = _ddot(p, dp, w, dw)
+    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
+    wd = _cross(wB[0], wB[1], wB[2], w[0], w[1], w[2])
+    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
+    wdd = _cross(wB[0], wB[1], wB[2], wd[0], wd[1], wd[2])
+    dpd = _dcross(wA, dwA, p, dp)
+    dwd = _dcross(wB, dwB, w, dw)
+    dpdd = _dcross(wA, dwA, pd, dpd)
+    dwdd = _dcross(wB, dwB, wd, dwd)
+    g = 0.0
+    for i in range(3):
+        g += (dpdd[i] * w[i] + pdd[i] * dw[i] + 2.0 * (dpd[i] * wd[i] + pd[i] * dwd[i])
+              + dp[i] * wdd[i] + p[i] * dwdd[i])
+    dgam[d, k, r] = g
+
+
+@inlined
+def _d_slide_row(d, k, r, p, dp, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB, dwB,
+                 dC, dJA, dJB, dgam):
+    """Direction d of ``kernel._slide_row``."""
+    g_ = (xB[0] + rB[0] - xA[0] - rA[0], xB[1] + rB[1] - xA[1] - rA[1], xB[2] + rB[2] - xA[2] - rA[2])
+    dg_ = (dxB[0] + drB[0] - dxA[0] - drA[0], dxB[1] + drB[1] - dxA[1] - drA[1], dxB[2] + drB[2] - dxA[2] - drA[2])
+    da = _dcross(p, dp, (g_[0] + rA[0], g_[1] + rA[1], g_[2] + rA[2]),
+                 (dg_[0] + drA[0], dg_[1] + drA[1], dg_[2] + drA[2]))
+    db = _dcross(rB, drB, p, dp)
+    for c in range(3):
+        dJA[d, k, r, c] = -dp[c]
+        dJA[d, k, r, 3 + c] = da[c]
+        dJB[d, k, r, c] = dp[c]
+        dJB[d, k, r, 3 + c] = db[c]
+    dC[d, k, r] = _ddot(p, dp, g_, dg_)
+    wrA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
+    wrB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
+    dwrA = _dcross(wA, dwA, rA, drA)
+    dwrB = _dcross(wB, dwB, rB, drB)
+    gd = (vB[0] + wrB[0] - vA[0] - wrA[0], vB[1] + wrB[1] - vA[1] - wrA[1], vB[2] + wrB[2] - vA[2] - wrA[2])
+    dgd = (dvB[0] + dwrB[0] - dvA[0] - dwrA[0], dvB[1] + dwrB[1] - dvA[1] - dwrA[1],
+           dvB[2] + dwrB[2] - dvA[2] - dwrA[2])
+    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
+    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
+    cA = _cross(wA[0], wA[1], wA[2], wrA[0], wrA[1], wrA[2])
+    cB = _cross(wB[0], wB[1], wB[2], wrB[0], wrB[1], wrB[2])
+    dpd = _dcross(wA, dwA, p, dp)
+    dpdd = _dcross(wA, dwA, pd, dpd)
+    dcA = _dcross(wA, dwA, wrA, dwrA)
+    dcB = _dcross(wB, dwB, wrB, dwrB)
+    g = 0.0
+    for i in range(3):
+        g += (dpdd[i] * g_[i] + pdd[i] * dg_[i] + 2.0 * (dpd[i] * gd[i] + pd[i] * dgd[i])
+              + dp[i] * (cB[i] - cA[i]) + p[i] * (dcB[i] - dcA[i]))
+    dgam[d, k, r] = g
+
+
+@llvm_inlined
+def d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam):
+    """Directions of ``kernel.joint_rows``' C, JA, JB and gam (R, dR at y)."""
+    kind, parent, child, la, lb, FA, FB = model[4], model[5], model[6], model[7], model[8], model[9], model[10]
+    for k in range(kind.shape[0]):
+        A, B = parent[k], child[k]
+        xA, rA, vA, wA = _body(y, R, A, la[k, 0], la[k, 1], la[k, 2])
+        xB, rB, vB, wB = _body(y, R, B, lb[k, 0], lb[k, 1], lb[k, 2])
+        p1, p2, p3 = _axis(R, A, FA, k, 0), _axis(R, A, FA, k, 1), _axis(R, A, FA, k, 2)
+        w1, w2, w3 = _axis(R, B, FB, k, 0), _axis(R, B, FB, k, 1), _axis(R, B, FB, k, 2)
+        t = kind[k]
+        for d in range(n):
+            dxA, drA, dvA, dwA = _dbody(dy, dR, d, A, la[k, 0], la[k, 1], la[k, 2])
+            dxB, drB, dvB, dwB = _dbody(dy, dR, d, B, lb[k, 0], lb[k, 1], lb[k, 2])
+            dp1, dp2, dp3 = _daxis(dR, d, A, FA, k, 0), _daxis(dR, d, A, FA, k, 1), _daxis(dR, d, A, FA, k, 2)
+            dw1, dw2, dw3 = _daxis(dR, d, B, FB, k, 0), _daxis(dR, d, B, FB, k, 1), _daxis(dR, d, B, FB, k, 2)
+            if t == PRISMATIC:
+                _d_dot_row(d, k, 0, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 1, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 2, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_slide_row(d, k, 3, p1, dp1, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB,
+                             dwB, dC, dJA, dJB, dgam)
+                _d_slide_row(d, k, 4, p2, dp2, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB,
+                             dwB, dC, dJA, dJB, dgam)
+                continue
+            _d_point_rows(d, k, 0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam)
+            if t == REVOLUTE:
+                _d_dot_row(d, k, 3, p1, dp1, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 4, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+            elif t == FIXED:
+                _d_dot_row(d, k, 3, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 4, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 5, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+
+
+@llvm_inlined
+def d_bodies(y, dy, n, model, R, dR, sol, rhs):
+    """rhs[d]'s body entries ← d f − dM u̇ along each direction: f = (m g, −ω × I_w ω), M = diag(m, I_w),
+    I_w = R I_b Rᵀ, u̇ the real solution (sol's body entries)."""
+    inertia, nb = model[1], model[0].shape[0]
+    for b in range(nb):
+        o = 13 * b
+        w = (y[o + 10], y[o + 11], y[o + 12])
+        Ib = inertia[b]
+        l0 = R[b, 0, 0] * w[0] + R[b, 1, 0] * w[1] + R[b, 2, 0] * w[2]  # Rᵀ ω
+        l1 = R[b, 0, 1] * w[0] + R[b, 1, 1] * w[1] + R[b, 2, 1] * w[2]
+        l2 = R[b, 0, 2] * w[0] + R[b, 1, 2] * w[1] + R[b, 2, 2] * w[2]
+        m = (Ib[0, 0] * l0 + Ib[0, 1] * l1 + Ib[0, 2] * l2, Ib[1, 0] * l0 + Ib[1, 1] * l1 + Ib[1, 2] * l2,
+             Ib[2, 0] * l0 + Ib[2, 1] * l1 + Ib[2, 2] * l2)
+        L = (R[b, 0, 0] * m[0] + R[b, 0, 1] * m[1] + R[b, 0, 2] * m[2],
+             R[b, 1, 0] * m[0] + R[b, 1, 1] * m[1] + R[b, 1, 2] * m[2],
+             R[b, 2, 0] * m[0] + R[b, 2, 1] * m[1] + R[b, 2, 2] * m[2])
+        a0, a1, a2 = sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5]  # ω̇
+        k0 = R[b, 0, 0] * a0 + R[b, 1, 0] * a1 + R[b, 2, 0] * a2  # Rᵀ ω̇
+        k1 = R[b, 0, 1] * a0 + R[b, 1, 1] * a1 + R[b, 2, 1] * a2
+        k2 = R[b, 0, 2] * a0 + R[b, 1, 2] * a1 + R[b, 2, 2] * a2
+        ma = (Ib[0, 0] * k0 + Ib[0, 1] * k1 + Ib[0, 2] * k2, Ib[1, 0] * k0 + Ib[1, 1] * k1 + Ib[1, 2] * k2,
+              Ib[2, 0] * k0 + Ib[2, 1] * k1 + Ib[2, 2] * k2)
+        for d in range(n):
+            dw = (dy[d, o + 10], dy[d, o + 11], dy[d, o + 12])
+            e0 = (dR[d, b, 0, 0] * w[0] + dR[d, b, 1, 0] * w[1] + dR[d, b, 2, 0] * w[2]
+                  + R[b, 0, 0] * dw[0] + R[b, 1, 0] * dw[1] + R[b, 2, 0] * dw[2])  # d (Rᵀ ω)
+            e1 = (dR[d, b, 0, 1] * w[0] + dR[d, b, 1, 1] * w[1] + dR[d, b, 2, 1] * w[2]
+                  + R[b, 0, 1] * dw[0] + R[b, 1, 1] * dw[1] + R[b, 2, 1] * dw[2])
+            e2 = (dR[d, b, 0, 2] * w[0] + dR[d, b, 1, 2] * w[1] + dR[d, b, 2, 2] * w[2]
+                  + R[b, 0, 2] * dw[0] + R[b, 1, 2] * dw[1] + R[b, 2, 2] * dw[2])
+            # d (Rᵀ ω̇) with ω̇ held: dRᵀ ω̇ (dM u̇ = dR I Rᵀ ω̇ + R I dRᵀ ω̇)
+            f0 = dR[d, b, 0, 0] * a0 + dR[d, b, 1, 0] * a1 + dR[d, b, 2, 0] * a2
+            f1 = dR[d, b, 0, 1] * a0 + dR[d, b, 1, 1] * a1 + dR[d, b, 2, 1] * a2
+            f2 = dR[d, b, 0, 2] * a0 + dR[d, b, 1, 2] * a1 + dR[d, b, 2, 2] * a2
+            dm0 = Ib[0, 0] * e0 + Ib[0, 1] * e1 + Ib[0, 2] * e2
+            dm1 = Ib[1, 0] * e0 + Ib[1, 1] * e1 + Ib[1, 2] * e2
+            dm2 = Ib[2, 0] * e0 + Ib[2, 1] * e1 + Ib[2, 2] * e2
+            dn0 = Ib[0, 0] * f0 + Ib[0, 1] * f1 + Ib[0, 2] * f2
+            dn1 = Ib[1, 0] * f0 + Ib[1, 1] * f1 + Ib[1, 2] * f2
+            dn2 = Ib[2, 0] * f0 + Ib[2, 1] * f1 + Ib[2, 2] * f2
+            dL = _drot(dR, d, b, m[0], m[1], m[2])
+            rL = (R[b, 0, 0] * dm0 + R[b, 0, 1] * dm1 + R[b, 0, 2] * dm2,
+                  R[b, 1, 0] * dm0 + R[b, 1, 1] * dm1 + R[b, 1, 2] * dm2,
+                  R[b, 2, 0] * dm0 + R[b, 2, 1] * dm1 + R[b, 2, 2] * dm2)
+            dL = (dL[0] + rL[0], dL[1] + rL[1], dL[2] + rL[2])
+            dg = _dcross(w, dw, L, dL)
+            dIa = _drot(dR, d, b, ma[0], ma[1], ma[2])
+            rI = (R[b, 0, 0] * dn0 + R[b, 0, 1] * dn1 + R[b, 0, 2] * dn2,
+                  R[b, 1, 0] * dn0 + R[b, 1, 1] * dn1 + R[b, 1, 2] * dn2,
+                  R[b, 2, 0] * dn0 + R[b, 2, 1] * dn1 + R[b, 2, 2] * dn2)
+            for i in range(3):
+                rhs[d, b, 0, i] = 0.0
+                rhs[d, b, 0, 3 + i] = -dg[i] - dIa[i] - rI[i]
+
+
+@llvm_inlined
+def d_joints(y, dy, n, model, work, dC, dJA, dJB, dgam, rhs, ks, kd):
+    """rhs[d]'s joint entries ← dc − dJ u̇ (c = −J̇u − k_s C − k_d J u), and the bodies' −dJᵀ λ (λ, u̇ the real
+    solution in work[7])."""
+    nb, parent, child, rows = model[0].shape[0], model[5], model[6], model[11]
+    JA, JB, sol = work[2], work[3], work[7]
+    for k in range(rows.shape[0]):
+        A, B = parent[k], child[k]
+        a, b = 13 * A + 7, 13 * B + 7
+        for d in range(n):
+            for r in range(rows[k]):
+                lam = sol[nb + k, 0, r]
+                rate = 0.0
+                acc = 0.0
+                for c in range(6):
+                    rate += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
+                    acc += dJB[d, k, r, c] * sol[B, 0, c]
+                    rhs[d, B, 0, c] -= dJB[d, k, r, c] * lam
+                if A >= 0:
+                    for c in range(6):
+                        rate += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
+                        acc += dJA[d, k, r, c] * sol[A, 0, c]
+                        rhs[d, A, 0, c] -= dJA[d, k, r, c] * lam
+                rhs[d, nb + k, 0, r] = -dgam[d, k, r] - ks * dC[d, k, r] - kd * rate - acc
+
+
+@llvm_inlined
+def d_rates(y, dy, n, nb, rhs, dydot):
+    """dydot (n, 13 nb) of ``kernel.rates``' ydot, with du̇ solved into rhs."""
+    for b in range(nb):
+        o = 13 * b
+        q = (y[o + 4], y[o + 5], y[o + 6])
+        qw = y[o + 3]
+        w = (y[o + 10], y[o + 11], y[o + 12])
+        for d in range(n):
+            dq = (dy[d, o + 4], dy[d, o + 5], dy[d, o + 6])
+            dqw = dy[d, o + 3]
+            dw = (dy[d, o + 10], dy[d, o + 11], dy[d, o + 12])
+            dydot[d, o], dydot[d, o + 1], dydot[d, o + 2] = dy[d, o + 7], dy[d, o + 8], dy[d, o + 9]
+            dydot[d, o + 3] = -0.5 * _ddot(w, dw, q, dq)
+            dc = _dcross(w, dw, q, dq)
+            for i in range(3):
+                dydot[d, o + 4 + i] = 0.5 * (dqw * w[i] + qw * dw[i] + dc[i])
+            for r in range(6):
+                dydot[d, o + 7 + r] = rhs[d, b, 0, r]
+
+
+@llvm_inlined
+def d_derivative(y, dy, n, model, work, tw, ks, kd, dydot):
+    """dydot (n, 13 nb) along dy (n, 13 nb), right after ``kernel.derivative`` at y returned OK (its rotations,
+    rows, factor and solution still in work)."""
+    nb, R = model[0].shape[0], work[0]
+    dR, dC, dJA, dJB, dgam, rhs = tw[0], tw[1], tw[2], tw[3], tw[4], tw[5]
+    d_rotations(y, dy, n, nb, dR)
+    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+    d_bodies(y, dy, n, model, R, dR, work[7], rhs)
+    d_joints(y, dy, n, model, work, dC, dJA, dJB, dgam, rhs, ks, kd)
+    for d in range(n):  # dx = K⁻¹ (db − dK x): the real factor, one more solve per direction
+        tree_solve(model, work, rhs[d])
+    d_rates(y, dy, n, nb, rhs, dydot)
+
+
+@llvm_inlined
+def d_kick_drift(y, dy, n, nb, ydot, dydot, h):
+    """Directions of ``kernel.kick_drift`` (called before it: y is the state it starts from)."""
+    for b in range(nb):
+        o = 13 * b
+        for d in range(n):
+            for r in range(6):
+                dy[d, o + 7 + r] += h * dydot[d, o + 7 + r]
+            for r in range(3):
+                dy[d, o + r] += h * dy[d, o + 7 + r]
+        t = (h * (y[o + 10] + h * ydot[o + 10]), h * (y[o + 11] + h * ydot[o + 11]),
+             h * (y[o + 12] + h * ydot[o + 12]))  # θ = h ω after the kick
+        q = (y[o + 3], y[o + 4], y[o + 5], y[o + 6])
+        square = t[0] * t[0] + t[1] * t[1] + t[2] * t[2]
+        rotates = square > 0.0
+        s = a0 = ds_ = da0_ = angle = 0.0
+        p = q
+        if rotates:
+            x2 = 0.25 * square
+            if x2 < SMALL_HALF_ANGLE_SQUARED:  # the kernel's series, and its derivative in x2
+                s = 0.5 * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
+                a0 = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
+                ds_ = 0.5 * (-1.0 / 6.0 + x2 * (2.0 / 120.0 - x2 * (3.0 / 5040.0 - x2 * (4.0 / 362880.0))))
+                da0_ = -0.5 + x2 * (2.0 / 24.0 - x2 * (3.0 / 720.0 - x2 * (4.0 / 40320.0)))
+            else:  # in x2 = angle² / 4: d/dx2 = (2 / angle) d/dangle
+                angle = np.sqrt(square)
+                s = np.sin(0.5 * angle) / angle
+                a0 = np.cos(0.5 * angle)
+                ds_ = (0.5 * a0 * angle - np.sin(0.5 * angle)) / (angle * angle) * 2.0 / angle
+                da0_ = -0.5 * np.sin(0.5 * angle) * 2.0 / angle
+            a = (s * t[0], s * t[1], s * t[2])
+            c = _cross(a[0], a[1], a[2], q[1], q[2], q[3])
+            p = (a0 * q[0] - a[0] * q[1] - a[1] * q[2] - a[2] * q[3], a0 * q[1] + q[0] * a[0] + c[0],
+                 a0 * q[2] + q[0] * a[1] + c[1], a0 * q[3] + q[0] * a[2] + c[2])
+        inverse = 1.0 / np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3])
+        u = (p[0] * inverse, p[1] * inverse, p[2] * inverse, p[3] * inverse)
+        for d in range(n):
+            dq = (dy[d, o + 3], dy[d, o + 4], dy[d, o + 5], dy[d, o + 6])
+            dp = dq
+            if rotates:
+                dt = (h * dy[d, o + 10], h * dy[d, o + 11], h * dy[d, o + 12])  # ω after the kick's tangent
+                dx2 = 0.5 * (t[0] * dt[0] + t[1] * dt[1] + t[2] * dt[2])
+                ds, da0 = ds_ * dx2, da0_ * dx2
+                a = (s * t[0], s * t[1], s * t[2])
+                da = (ds * t[0] + s * dt[0], ds * t[1] + s * dt[1], ds * t[2] + s * dt[2])
+                dc = _dcross(a, da, (q[1], q[2], q[3]), (dq[1], dq[2], dq[3]))
+                dp = (da0 * q[0] + a0 * dq[0] - da[0] * q[1] - a[0] * dq[1] - da[1] * q[2] - a[1] * dq[2]
+                      - da[2] * q[3] - a[2] * dq[3],
+                      da0 * q[1] + a0 * dq[1] + dq[0] * a[0] + q[0] * da[0] + dc[0],
+                      da0 * q[2] + a0 * dq[2] + dq[0] * a[1] + q[0] * da[1] + dc[1],
+                      da0 * q[3] + a0 * dq[3] + dq[0] * a[2] + q[0] * da[2] + dc[2])
+            radial = u[0] * dp[0] + u[1] * dp[1] + u[2] * dp[2] + u[3] * dp[3]
+            for i in range(4):
+                dy[d, o + 3 + i] = (dp[i] - u[i] * radial) * inverse
+
+
+@llvm_inlined
+def step(code, A, bw, y, dy, model, work, tw, ks, kd, h):
+    """``kernel.step`` (plain or baumgarte) and its directions dy (n, 13 nb), both in place; a status code."""
+    nb, n = model[0].shape[0], dy.shape[0]
+    K, ys = work[9], work[10]
+    dK, dys = tw[6], tw[7]
+    m = y.shape[0]
+    if code == SYMPLECTIC_EULER:
+        status = derivative(y, model, work, ks, kd, K[0])
+        if status != OK:
+            return status
+        d_derivative(y, dy, n, model, work, tw, ks, kd, dK[0])
+        d_kick_drift(y, dy, n, nb, K[0], dK[0], h)
+        kick_drift(y, nb, K[0], h)
+    else:
+        s = bw.shape[0]
+        for i in range(s):
+            for e in range(m):
+                ys[e] = y[e]
+            for d in range(n):
+                for e in range(m):
+                    dys[d, e] = dy[d, e]
+            for j in range(i):
+                a = h * A[i, j]
+                if a != 0.0:
+                    for e in range(m):
+                        ys[e] += a * K[j, e]
+                    for d in range(n):
+                        for e in range(m):
+                            dys[d, e] += a * dK[j, d, e]
+            status = derivative(ys, model, work, ks, kd, K[i])
+            if status != OK:
+                return status
+            d_derivative(ys, dys, n, model, work, tw, ks, kd, dK[i])
+        for e in range(m):
+            acc = 0.0
+            for i in range(s):
+                acc += bw[i] * K[i, e]
+            y[e] += h * acc
+        for d in range(n):
+            for e in range(m):
+                acc = 0.0
+                for i in range(s):
+                    acc += bw[i] * dK[i, d, e]
+                dy[d, e] += h * acc
+    spread = 0.0
+    for e in range(m):
+        spread += y[e] - y[e]
+    for d in range(n):
+        for e in range(m):
+            spread += dy[d, e] - dy[d, e]
+    if spread != 0.0:
+        return NON_FINITE
+    return OK
+
+
+@compiled
+def run(code, A, bw, y, dy, model, work, tw, ks, kd, h, n_steps, stride, out, dout):
+    """Step n_steps times (plain or baumgarte); out (samples, 13 nb) gets y and dout (samples, n, 13 nb) dy at
+    step 0, every stride steps and the last. Returns (samples written, steps taken, status)."""
+    m, n = y.shape[0], dy.shape[0]
+    for e in range(m):
+        out[0, e] = y[e]
+    for d in range(n):
+        for e in range(m):
+            dout[0, d, e] = dy[d, e]
+    written = 1
+    for s in range(1, n_steps + 1):
+        status = step(code, A, bw, y, dy, model, work, tw, ks, kd, h)
+        if status != OK:
+            return written, s - 1, status
+        if s % stride == 0 or s == n_steps:
+            for e in range(m):
+                out[written, e] = y[e]
+            for d in range(n):
+                for e in range(m):
+                    dout[written, d, e] = dy[d, e]
+            written += 1
+    return written, n_steps, OK
