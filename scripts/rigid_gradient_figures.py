@@ -3,8 +3,8 @@
 Run:  .venv/bin/python scripts/rigid_gradient_figures.py      (about a minute once compiled)
 
 The KUKA iiwa (pybullet_data:kuka_iiwa/model.urdf, q0 joint 2 = 30°, joint 4 = −45°), T = 1 s,
-d (q, v)(T) / d (q0.lbr_iiwa_joint_2, v0.lbr_iiwa_joint_4, q0.lbr_iiwa_joint_6), ours/baumgarte-rk4 by complex
-step through its compiled rigid step (engines/ours/rigid_gradients.py): the relative Frobenius error against
+d (q, v)(T) / d (q0.lbr_iiwa_joint_2, v0.lbr_iiwa_joint_4, q0.lbr_iiwa_joint_6), ours/baumgarte-rk4 by its
+tangent-linear rigid step (engines/ours/rigid_gradients.py; projection's by complex step): the relative Frobenius error against
 the reference's variational equations (Pinocchio's derivatives under DOP853) at dt 2e-3, 1e-3 and 5e-4 s, the
 observed orders between them, and its self-consistency: against central differences of its own rollouts at the
 harness's step (h = 1e-4, engines.gradients.parameter_step) and at a quarter of it. The errors are RK4's
@@ -51,7 +51,7 @@ def figures(quick: bool = False) -> dict[str, float]:
     engine, variant = registry.resolve(VARIANT)
     for dt in DTS[:2]:  # each case runs at dt and dt/2: 2e-3 and 1e-3 cover all three steps
         case = engine_case(engine, variant, None, scene, dt, WRT, bound)
-        f[f"method_autodiff|{dt:g}"] = float(case.method == "autodiff")
+        f[f"method_analytic|{dt:g}"] = float(case.method == "analytic")
         f[f"error|{dt:g}"], f[f"error|{dt / 2:g}"] = case.error, case.error_half
         f[f"correct|{dt:g}"] = float(case.klass == "correct")
         if dt == 1e-3:
@@ -99,7 +99,7 @@ def main() -> None:
     lines = [f"{VARIANT} on the KUKA iiwa, T = 1 s, d (q, v)(T) / d ({', '.join(WRT)}):",
              *(f"  dt {dt:g} s: error {f[f'error|{dt:g}']:.2g}" for dt in DTS),
              f"  observed order {f['order|2e-3']:.2f} (2e-3 to 1e-3 s), {f['order|1e-3']:.2f} (1e-3 to 5e-4 s); class "
-             f"correct at 1e-3: {bool(f['correct|0.001'])}, method autodiff: {bool(f['method_autodiff|0.001'])}",
+             f"correct at 1e-3: {bool(f['correct|0.001'])}, method analytic: {bool(f['method_analytic|0.001'])}",
              f"  self-consistency at dt 1e-3: {f['self_consistency']:.2g} against differences at h = 1e-4 (the "
              f"harness's), {f['self_consistency_quarter_step']:.2g} at h = 2.5e-5",
              f"  every method and integrator: self-consistency at most {f['pairs|self_consistency_worst']:.2g} at "

@@ -22,7 +22,6 @@ import numpy as np
 
 from ours.errors import OursError
 from ours.method import DEFAULT_MAX_ITERATIONS
-from ours.rigid.method import PROJECTION
 from ours.rigid.model import Mechanism
 from ours.rigid.simulate import DEFAULT_TOLERANCE, Prepared, _kernel, pack, prepare, workspace
 from ours.status import NON_FINITE, OK, STATUS_TEXT
@@ -89,20 +88,16 @@ def tangent_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sam
                           k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                           max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidSensitivities:
     """:func:`forward_sensitivities` by the tangent-linear step (ours.rigid.tangent): one real run, each direction
-    carried beside it for its derivative alone. Plain and baumgarte, every integrator; OursError for projection."""
+    carried beside it for its derivative alone. Every method and integrator."""
     run, directions = _prepared(mech, y0, dy0, dt, n_steps, sample_every, method=method, integrator=integrator,
                                 k_s=k_s, k_d=k_d, tolerance=tolerance, max_iterations=max_iterations)
-    if run.args[0] == PROJECTION:
-        raise OursError("method: the tangent-linear rigid step covers plain and baumgarte; for projection use "
-                        "forward_sensitivities (complex step)")
     from ours.rigid import tangent  # imports numba: only when a run needs it
 
-    integrator_code, A, b = run.args[1:]
     y, dy = run.y.copy(), directions.copy()
     work = workspace(mech, run.stages)
     tw = tangent.tangent_workspace(len(dy), len(mech.bodies), len(mech.joints), run.stages)
     out = np.full((run.n_samples, y.size), np.nan)
     dout = np.full((run.n_samples,) + dy.shape, np.nan)
-    written, steps, status = tangent.run(integrator_code, A, b, y, dy, pack(mech), work, tw, run.ks, run.kd, run.dt,
-                                         run.n_steps, run.stride, out, dout)
+    written, steps, status = tangent.run(*run.args, y, dy, pack(mech), work, tw, run.ks, run.kd, run.dt, run.n_steps,
+                                         run.stride, run.tolerance, run.max_iterations, out, dout)
     return _result(run, out[:written], dout, written, steps, status)

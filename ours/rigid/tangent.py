@@ -18,10 +18,10 @@ import numpy as np
 
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.kernel import (
-    FIXED, PRISMATIC, REVOLUTE, SMALL_HALF_ANGLE_SQUARED, SYMPLECTIC_EULER, _axis, _body, _cross, derivative,
-    kick_drift, tree_solve,
+    FIXED, PRISMATIC, PROJECTION, REVOLUTE, SMALL_HALF_ANGLE_SQUARED, SYMPLECTIC_EULER, _axis, _body, _correction,
+    _cross, _rotate_quaternion, derivative, joint_rows, kick_drift, rotations, tree_factor, tree_solve,
 )
-from ours.status import NON_FINITE, OK
+from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
 
 def tangent_workspace(n: int, nb: int, nj: int, stages: int) -> tuple:
@@ -32,7 +32,17 @@ def tangent_workspace(n: int, nb: int, nj: int, stages: int) -> tuple:
         return np.zeros(shape)
 
     return (z(n, nb, 3, 3), z(n, nj, 6), z(n, nj, 6, 6), z(n, nj, 6, 6), z(n, nj, 6), z(n, nb + nj, 1, 6),
-            z(max(stages, 1), n, 13 * nb), z(n, 13 * nb))
+            z(max(stages, 1), n, 13 * nb), z(n, 13 * nb), z(n, 3), z(nb, 3, 3), z(n, nb, 3, 3), z(n, nj, 6, 6),
+            z(n, nj, 6, 6))
+
+
+@inlined
+def _copy(source, target):
+    """target ← source, both (m, r, c)."""
+    for i in range(source.shape[0]):
+        for j in range(source.shape[1]):
+            for k in range(source.shape[2]):
+                target[i, j, k] = source[i, j, k]
 
 
 @inlined
@@ -329,8 +339,56 @@ def d_derivative(y, dy, n, model, work, tw, ks, kd, dydot):
     d_rates(y, dy, n, nb, rhs, dydot)
 
 
+@inlined
+def _d_turn(y, dy, n, o, t, dtheta):
+    """Directions of ``kernel._rotate_quaternion(y, o, θ)`` (called before it: y[o:o + 4] is the quaternion it
+    turns): θ = t (3 floats), its direction d in dtheta[d] (n, 3)."""
+    q = (y[o], y[o + 1], y[o + 2], y[o + 3])
+    square = t[0] * t[0] + t[1] * t[1] + t[2] * t[2]
+    rotates = square.real > 0.0
+    s = a0 = ds_ = da0_ = 0.0
+    p = q
+    if rotates:
+        x2 = 0.25 * square
+        if x2.real < SMALL_HALF_ANGLE_SQUARED:  # the kernel's series, and its derivative in x2
+            s = 0.5 * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
+            a0 = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
+            ds_ = 0.5 * (-1.0 / 6.0 + x2 * (2.0 / 120.0 - x2 * (3.0 / 5040.0 - x2 * (4.0 / 362880.0))))
+            da0_ = -0.5 + x2 * (2.0 / 24.0 - x2 * (3.0 / 720.0 - x2 * (4.0 / 40320.0)))
+        else:  # x2 = angle² / 4, so d/dx2 = (2 / angle) d/dangle
+            angle = np.sqrt(square)
+            s = np.sin(0.5 * angle) / angle
+            a0 = np.cos(0.5 * angle)
+            ds_ = (0.5 * a0 * angle - np.sin(0.5 * angle)) / (angle * angle) * 2.0 / angle
+            da0_ = -0.5 * np.sin(0.5 * angle) * 2.0 / angle
+        a = (s * t[0], s * t[1], s * t[2])
+        c = _cross(a[0], a[1], a[2], q[1], q[2], q[3])
+        p = (a0 * q[0] - a[0] * q[1] - a[1] * q[2] - a[2] * q[3], a0 * q[1] + q[0] * a[0] + c[0],
+             a0 * q[2] + q[0] * a[1] + c[1], a0 * q[3] + q[0] * a[2] + c[2])
+    inverse = 1.0 / np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3])
+    u = (p[0] * inverse, p[1] * inverse, p[2] * inverse, p[3] * inverse)
+    for d in range(n):
+        dq = (dy[d, o], dy[d, o + 1], dy[d, o + 2], dy[d, o + 3])
+        dp = dq
+        if rotates:
+            dt = (dtheta[d, 0], dtheta[d, 1], dtheta[d, 2])
+            dx2 = 0.5 * (t[0] * dt[0] + t[1] * dt[1] + t[2] * dt[2])
+            ds, da0 = ds_ * dx2, da0_ * dx2
+            a = (s * t[0], s * t[1], s * t[2])
+            da = (ds * t[0] + s * dt[0], ds * t[1] + s * dt[1], ds * t[2] + s * dt[2])
+            dc = _dcross(a, da, (q[1], q[2], q[3]), (dq[1], dq[2], dq[3]))
+            dp = (da0 * q[0] + a0 * dq[0] - da[0] * q[1] - a[0] * dq[1] - da[1] * q[2] - a[1] * dq[2]
+                  - da[2] * q[3] - a[2] * dq[3],
+                  da0 * q[1] + a0 * dq[1] + dq[0] * a[0] + q[0] * da[0] + dc[0],
+                  da0 * q[2] + a0 * dq[2] + dq[0] * a[1] + q[0] * da[1] + dc[1],
+                  da0 * q[3] + a0 * dq[3] + dq[0] * a[2] + q[0] * da[2] + dc[2])
+        radial = u[0] * dp[0] + u[1] * dp[1] + u[2] * dp[2] + u[3] * dp[3]
+        for i in range(4):
+            dy[d, o + i] = (dp[i] - u[i] * radial) * inverse
+
+
 @llvm_inlined
-def d_kick_drift(y, dy, n, nb, ydot, dydot, h):
+def d_kick_drift(y, dy, n, nb, ydot, dydot, h, dtheta):
     """Directions of ``kernel.kick_drift`` (called before it: y is the state it starts from)."""
     for b in range(nb):
         o = 13 * b
@@ -339,55 +397,121 @@ def d_kick_drift(y, dy, n, nb, ydot, dydot, h):
                 dy[d, o + 7 + r] += h * dydot[d, o + 7 + r]
             for r in range(3):
                 dy[d, o + r] += h * dy[d, o + 7 + r]
+                dtheta[d, r] = h * dy[d, o + 10 + r]  # the turn's, with ω after the kick
         t = (h * (y[o + 10] + h * ydot[o + 10]), h * (y[o + 11] + h * ydot[o + 11]),
              h * (y[o + 12] + h * ydot[o + 12]))  # θ = h ω after the kick
-        q = (y[o + 3], y[o + 4], y[o + 5], y[o + 6])
-        square = t[0] * t[0] + t[1] * t[1] + t[2] * t[2]
-        rotates = square > 0.0
-        s = a0 = ds_ = da0_ = angle = 0.0
-        p = q
-        if rotates:
-            x2 = 0.25 * square
-            if x2 < SMALL_HALF_ANGLE_SQUARED:  # the kernel's series, and its derivative in x2
-                s = 0.5 * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))))
-                a0 = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)))
-                ds_ = 0.5 * (-1.0 / 6.0 + x2 * (2.0 / 120.0 - x2 * (3.0 / 5040.0 - x2 * (4.0 / 362880.0))))
-                da0_ = -0.5 + x2 * (2.0 / 24.0 - x2 * (3.0 / 720.0 - x2 * (4.0 / 40320.0)))
-            else:  # in x2 = angle² / 4: d/dx2 = (2 / angle) d/dangle
-                angle = np.sqrt(square)
-                s = np.sin(0.5 * angle) / angle
-                a0 = np.cos(0.5 * angle)
-                ds_ = (0.5 * a0 * angle - np.sin(0.5 * angle)) / (angle * angle) * 2.0 / angle
-                da0_ = -0.5 * np.sin(0.5 * angle) * 2.0 / angle
-            a = (s * t[0], s * t[1], s * t[2])
-            c = _cross(a[0], a[1], a[2], q[1], q[2], q[3])
-            p = (a0 * q[0] - a[0] * q[1] - a[1] * q[2] - a[2] * q[3], a0 * q[1] + q[0] * a[0] + c[0],
-                 a0 * q[2] + q[0] * a[1] + c[1], a0 * q[3] + q[0] * a[2] + c[2])
-        inverse = 1.0 / np.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + p[3] * p[3])
-        u = (p[0] * inverse, p[1] * inverse, p[2] * inverse, p[3] * inverse)
-        for d in range(n):
-            dq = (dy[d, o + 3], dy[d, o + 4], dy[d, o + 5], dy[d, o + 6])
-            dp = dq
-            if rotates:
-                dt = (h * dy[d, o + 10], h * dy[d, o + 11], h * dy[d, o + 12])  # ω after the kick's tangent
-                dx2 = 0.5 * (t[0] * dt[0] + t[1] * dt[1] + t[2] * dt[2])
-                ds, da0 = ds_ * dx2, da0_ * dx2
-                a = (s * t[0], s * t[1], s * t[2])
-                da = (ds * t[0] + s * dt[0], ds * t[1] + s * dt[1], ds * t[2] + s * dt[2])
-                dc = _dcross(a, da, (q[1], q[2], q[3]), (dq[1], dq[2], dq[3]))
-                dp = (da0 * q[0] + a0 * dq[0] - da[0] * q[1] - a[0] * dq[1] - da[1] * q[2] - a[1] * dq[2]
-                      - da[2] * q[3] - a[2] * dq[3],
-                      da0 * q[1] + a0 * dq[1] + dq[0] * a[0] + q[0] * da[0] + dc[0],
-                      da0 * q[2] + a0 * dq[2] + dq[0] * a[1] + q[0] * da[1] + dc[1],
-                      da0 * q[3] + a0 * dq[3] + dq[0] * a[2] + q[0] * da[2] + dc[2])
-            radial = u[0] * dp[0] + u[1] * dp[1] + u[2] * dp[2] + u[3] * dp[3]
-            for i in range(4):
-                dy[d, o + 3 + i] = (dp[i] - u[i] * radial) * inverse
+        _d_turn(y, dy, n, o + 3, t, dtheta)
 
 
 @llvm_inlined
-def step(code, A, bw, y, dy, model, work, tw, ks, kd, h):
-    """``kernel.step`` (plain or baumgarte) and its directions dy (n, 13 nb), both in place; a status code."""
+def _d_chord(y, dy, n, model, work, tw, velocity):
+    """rhs[d] ← the direction d of :func:`kernel._correction`'s solve x = K₀⁻¹ [0; −e] (K₀ factored at the state
+    the step arrived at, e = C, or J u with J at the projected positions): K₀⁻¹ (−de − dK₀ x), with dK₀ from the
+    saved R₀, dR₀, dJ₀ and de from the current dC (positions) or dJ, J (velocities)."""
+    inertia, nb, parent, child, rows = model[1], model[0].shape[0], model[5], model[6], model[11]
+    JA, JB, sol = work[2], work[3], work[7]
+    dC, dJA, dJB, rhs = tw[1], tw[2], tw[3], tw[5]
+    R0, dR0, dJA0, dJB0 = tw[9], tw[10], tw[11], tw[12]
+    for b in range(nb):  # −dM₀ x_b (only I_w = R₀ I_b R₀ᵀ moves)
+        Ib = inertia[b]
+        a0, a1, a2 = sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5]
+        k0 = R0[b, 0, 0] * a0 + R0[b, 1, 0] * a1 + R0[b, 2, 0] * a2
+        k1 = R0[b, 0, 1] * a0 + R0[b, 1, 1] * a1 + R0[b, 2, 1] * a2
+        k2 = R0[b, 0, 2] * a0 + R0[b, 1, 2] * a1 + R0[b, 2, 2] * a2
+        ma = (Ib[0, 0] * k0 + Ib[0, 1] * k1 + Ib[0, 2] * k2, Ib[1, 0] * k0 + Ib[1, 1] * k1 + Ib[1, 2] * k2,
+              Ib[2, 0] * k0 + Ib[2, 1] * k1 + Ib[2, 2] * k2)
+        for d in range(n):
+            f0 = dR0[d, b, 0, 0] * a0 + dR0[d, b, 1, 0] * a1 + dR0[d, b, 2, 0] * a2
+            f1 = dR0[d, b, 0, 1] * a0 + dR0[d, b, 1, 1] * a1 + dR0[d, b, 2, 1] * a2
+            f2 = dR0[d, b, 0, 2] * a0 + dR0[d, b, 1, 2] * a1 + dR0[d, b, 2, 2] * a2
+            dn0 = Ib[0, 0] * f0 + Ib[0, 1] * f1 + Ib[0, 2] * f2
+            dn1 = Ib[1, 0] * f0 + Ib[1, 1] * f1 + Ib[1, 2] * f2
+            dn2 = Ib[2, 0] * f0 + Ib[2, 1] * f1 + Ib[2, 2] * f2
+            dIa = _drot(dR0, d, b, ma[0], ma[1], ma[2])
+            for i in range(3):
+                rhs[d, b, 0, i] = 0.0
+                rhs[d, b, 0, 3 + i] = -dIa[i] - (R0[b, i, 0] * dn0 + R0[b, i, 1] * dn1 + R0[b, i, 2] * dn2)
+    for k in range(rows.shape[0]):
+        A, B = parent[k], child[k]
+        a, b = 13 * A + 7, 13 * B + 7
+        for d in range(n):
+            for r in range(rows[k]):
+                lam = sol[nb + k, 0, r]
+                acc = 0.0
+                de = 0.0
+                for c in range(6):
+                    acc += dJB0[d, k, r, c] * sol[B, 0, c]
+                    rhs[d, B, 0, c] -= dJB0[d, k, r, c] * lam
+                    if velocity:
+                        de += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
+                if A >= 0:
+                    for c in range(6):
+                        acc += dJA0[d, k, r, c] * sol[A, 0, c]
+                        rhs[d, A, 0, c] -= dJA0[d, k, r, c] * lam
+                        if velocity:
+                            de += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
+                if not velocity:
+                    de = dC[d, k, r]
+                rhs[d, nb + k, 0, r] = -de - acc
+    for d in range(n):
+        tree_solve(model, work, rhs[d])
+
+
+@llvm_inlined
+def project(y, dy, n, model, work, tw, tolerance, max_iterations):
+    """``kernel.project`` (the same calls in the same order) and its directions, iterate by iterate: each
+    iteration's correction differentiated through the factor at the arrival state. A status code."""
+    nb, R, sol = model[0].shape[0], work[0], work[7]
+    dR, dC, dJA, dJB, dgam, rhs, dtheta = tw[0], tw[1], tw[2], tw[3], tw[4], tw[5], tw[8]
+    R0, dR0, dJA0, dJB0 = tw[9], tw[10], tw[11], tw[12]
+    rotations(y, nb, R)
+    joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+    if not tree_factor(y, model, work):
+        return SINGULAR
+    d_rotations(y, dy, n, nb, dR)
+    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+    for b in range(nb):  # K₀'s data: the chord method keeps its factor through every iteration
+        for i in range(3):
+            for j in range(3):
+                R0[b, i, j] = R[b, i, j]
+    for d in range(n):
+        _copy(dR[d], dR0[d])
+        _copy(dJA[d], dJA0[d])
+        _copy(dJB[d], dJB0[d])
+    for velocity in (False, True):
+        for it in range(max_iterations + 1):
+            if it > 0 and not velocity:
+                rotations(y, nb, R)
+                joint_rows(y, model, R, work[1], work[2], work[3], work[4])
+                d_rotations(y, dy, n, nb, dR)
+                d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+            worst = _correction(y, model, work, velocity, tolerance)
+            if worst <= tolerance:
+                break
+            if it == max_iterations:
+                return NOT_CONVERGED
+            _d_chord(y, dy, n, model, work, tw, velocity)
+            for b in range(nb):
+                o = 13 * b
+                if velocity:
+                    for r in range(6):
+                        y[o + 7 + r] += sol[b, 0, r]
+                        for d in range(n):
+                            dy[d, o + 7 + r] += rhs[d, b, 0, r]
+                else:
+                    for r in range(3):
+                        y[o + r] += sol[b, 0, r]
+                        for d in range(n):
+                            dy[d, o + r] += rhs[d, b, 0, r]
+                            dtheta[d, r] = rhs[d, b, 0, 3 + r]
+                    _d_turn(y, dy, n, o + 3, (sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5]), dtheta)
+                    _rotate_quaternion(y, o + 3, sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
+    return OK
+
+
+@llvm_inlined
+def step(method, code, A, bw, y, dy, model, work, tw, ks, kd, h, tolerance, max_iterations):
+    """``kernel.step`` and its directions dy (n, 13 nb), both in place; a status code."""
     nb, n = model[0].shape[0], dy.shape[0]
     K, ys = work[9], work[10]
     dK, dys = tw[6], tw[7]
@@ -397,7 +521,7 @@ def step(code, A, bw, y, dy, model, work, tw, ks, kd, h):
         if status != OK:
             return status
         d_derivative(y, dy, n, model, work, tw, ks, kd, dK[0])
-        d_kick_drift(y, dy, n, nb, K[0], dK[0], h)
+        d_kick_drift(y, dy, n, nb, K[0], dK[0], h, tw[8])
         kick_drift(y, nb, K[0], h)
     else:
         s = bw.shape[0]
@@ -430,6 +554,10 @@ def step(code, A, bw, y, dy, model, work, tw, ks, kd, h):
                 for i in range(s):
                     acc += bw[i] * dK[i, d, e]
                 dy[d, e] += h * acc
+    if method == PROJECTION:
+        status = project(y, dy, n, model, work, tw, tolerance, max_iterations)
+        if status != OK:
+            return status
     spread = 0.0
     for e in range(m):
         spread += y[e] - y[e]
@@ -442,8 +570,9 @@ def step(code, A, bw, y, dy, model, work, tw, ks, kd, h):
 
 
 @compiled
-def run(code, A, bw, y, dy, model, work, tw, ks, kd, h, n_steps, stride, out, dout):
-    """Step n_steps times (plain or baumgarte); out (samples, 13 nb) gets y and dout (samples, n, 13 nb) dy at
+def run(method, code, A, bw, y, dy, model, work, tw, ks, kd, h, n_steps, stride, tolerance, max_iterations, out,
+        dout):
+    """Step n_steps times; out (samples, 13 nb) gets y and dout (samples, n, 13 nb) dy at
     step 0, every stride steps and the last. Returns (samples written, steps taken, status)."""
     m, n = y.shape[0], dy.shape[0]
     for e in range(m):
@@ -453,7 +582,7 @@ def run(code, A, bw, y, dy, model, work, tw, ks, kd, h, n_steps, stride, out, do
             dout[0, d, e] = dy[d, e]
     written = 1
     for s in range(1, n_steps + 1):
-        status = step(code, A, bw, y, dy, model, work, tw, ks, kd, h)
+        status = step(method, code, A, bw, y, dy, model, work, tw, ks, kd, h, tolerance, max_iterations)
         if status != OK:
             return written, s - 1, status
         if s % stride == 0 or s == n_steps:
