@@ -1,12 +1,10 @@
 """ours' own derivatives on a model file (its rigid bodies): forward sensitivities by the tangent-linear rigid step
-(plain and baumgarte: method "analytic"), or by complex step through the compiled rigid step (projection:
-"autodiff"), both in ours.rigid.sensitivity.
+(ours.rigid.tangent through ours.rigid.sensitivity; method "analytic"), every method and integrator.
 
 A model's parameters, q0.JOINT and v0.JOINT, move ours' initial state y0 (13 per body, maximal coordinates,
 engines.ours.model.start_state) along dy0/dp, a kinematic map differentiated by central differences with one
 Richardson step (within about 1e-11: INITIAL_STEP). The tangent-linear step carries every dy0/dp beside one
-real run (one complex run per parameter for projection) through ours' own step to every sample, exact to
-round-off; the outputs' derivatives are those of ours' readout
+real run through ours' own step to every sample, exact to round-off; the outputs' derivatives are those of ours' readout
 of the joints' q and v from its state (engines.ours.model's joint_coordinates), taken along each carried
 direction by the same differences. A floating base is left to differences of rollouts (None).
 """
@@ -31,7 +29,7 @@ READOUT_STEP = 1e-2
 
 def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str, Any] | None, dt: float,
              wrt: Sequence[str]) -> tuple[np.ndarray, str, np.ndarray, np.ndarray] | None:
-    """(J (2 nq, k), method ("analytic"; "autodiff" for projection), times (n,) s, J at each (n, 2 nq, k)) for a
+    """(J (2 nq, k), "analytic", times (n,) s, J at each (n, 2 nq, k)) for a
     fixed-base model scene, sampled as differences of rollouts are (every SAMPLE_INTERVAL); None for a floating base or ball joints, a model or a method and
     integrator ours' rigid bodies refuse, or a run that stops early. ``engine`` : ours' adapter; ``wrt`` : the
     model's q0.JOINT, v0.JOINT."""
@@ -39,7 +37,7 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
     from engines.ours.model import of_scene, start_state
     from ours import OursError
     from ours.rigid.method import resolve
-    from ours.rigid.sensitivity import forward_sensitivities, tangent_sensitivities
+    from ours.rigid.sensitivity import tangent_sensitivities
 
     settings = engine.resolve(variant, options)
     try:
@@ -59,16 +57,14 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
 
     directions = np.array([central_difference(lambda delta, name=name: start(name, delta), INITIAL_STEP)
                            for name in wrt])
-    analytic = settings["method"] != "projection"  # projection's iterations: the complex step
-    carry = tangent_sensitivities if analytic else forward_sensitivities
-    result = carry(
+    result = tangent_sensitivities(
         model.mechanism, start_state(model, scene), directions, dt, schedule.n_steps, schedule.stride,
         method=settings["method"], integrator=settings["integrator"], k_s=settings["k_s"], k_d=settings["k_d"],
         tolerance=settings["tolerance"], max_iterations=settings["max_iterations"])
     if result.status != "ok":
         return None  # a run that stopped early has no derivative at T: differences of rollouts say what it does
     over_time = readout_tangent(model.mechanism, result.y, result.dy)
-    return over_time[-1], "analytic" if analytic else "autodiff", result.t, over_time
+    return over_time[-1], "analytic", result.t, over_time
 
 
 def readout_tangent(mech: Any, y: np.ndarray, dy: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""Forward sensitivities of a rigid-body run: d y(t) / d y(0) along given directions, by complex step through
-the compiled step itself.
+"""Forward sensitivities of a rigid-body run, d y(t) / d y(0) along given directions: by complex step through the
+compiled step itself, and by the tangent-linear step (``tangent_sensitivities``, ``ours.rigid.tangent``).
 
 Each direction dy0 (13 nb,) starts ``ours.rigid.kernel.run`` (the real run's own loop and step, compiled a
 second time for complex128 states and scratch; the model stays real) from y0 + i h dy0, h = 1e-30. Every
@@ -7,11 +7,11 @@ operation of the step is arithmetic that complex numbers carry (numpy's square r
 sign, a small angle and the projection's stop read real parts or magnitudes), so Im(y)/h is the derivative of
 what the kernel computes, exact to round-off, with no difference taken; the real parts follow the real run
 (every branch as there; they differ from it at most in the last bit, where a fused multiply-add meets a
-complex product). Each direction costs one complex run (particles' ``ours.sensitivity`` shares one real step).
+complex product). Each direction costs one complex run; the tangent-linear step shares one real step among the
+directions (ours' method), and this complex step is its independent check.
 
-Covered: every method (plain, baumgarte, projection) with every integrator ours' rigid bodies offer. The
-projection's stop reads the real residual: along a direction that pulls the joints apart, the derivative is that
-of the iterations the real run took (along the joints' own coordinates it matches differences of rollouts).
+Both cover every method with every integrator. The projection's stop reads the real residual: along a direction
+that pulls the joints apart, the derivative is that of the iterations the real run took.
 """
 
 from __future__ import annotations

@@ -4,12 +4,14 @@ The real step is the kernel's own (``derivative``, ``kick_drift``, the Runge–K
 state is ``kernel.run``'s; each direction pays only for its derivative. The tree solve is not differentiated:
 [[M, Jᵀ], [J, 0]] x = b gives dx = K⁻¹ (db − dK x), one more solve (two sweeps) through the factor the real
 stage left in the work arrays. The rest (rotations, the joints' rows, the forces, the rates, the exponential-map
-drift) is differentiated by hand, term for term. Plain and baumgarte with every integrator; projection's
-iterations are left to the complex step (``ours.rigid.sensitivity``).
+drift) is differentiated by hand, term for term, and projection's iterations iterate by iterate (each correction's
+solve through the factor of the state the step arrived at, which the chord method keeps). Every method and integrator;
+``ours.rigid.sensitivity``'s complex step is its independent check.
 
 Shapes: n directions, nb bodies, nj joints, nn = nb + nj nodes. dy (n, 13 nb); the tangent scratch ``tw`` is
 :func:`tangent_workspace`'s: dR (n, nb, 3, 3), dC (n, nj, 6), dJA / dJB (n, nj, 6, 6), dgam (n, nj, 6),
-rhs (n, nn, 1, 6), dK (stages, n, 13 nb), dys (n, 13 nb).
+rhs (n, nn, 1, 6), dK (stages, n, 13 nb), dys (n, 13 nb), dtheta (n, 3), and the projection's factored state:
+R0 (nb, 3, 3), dR0 (n, nb, 3, 3), dJA0 / dJB0 (n, nj, 6, 6).
 """
 
 from __future__ import annotations
@@ -22,6 +24,11 @@ from ours.rigid.kernel import (
     _cross, _rotate_quaternion, derivative, joint_rows, kick_drift, rotations, tree_factor, tree_solve,
 )
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
+
+#: sha256 of ours/rigid/kernel.py, which ``python -m ours.rigid.generate`` writes: this module's compiled step inlines
+#: the kernel's, and numba's on-disk cache of it is checked against this file's stamp alone, so a changed kernel
+#: must change this file too (tests/test_gradients_ours_rigid.py checks it).
+KERNEL_DIGEST = "3965197138c6adb3355ea15630a92bf96fc0ed19f0a45b2cf2997f6c1acdd7d2"
 
 
 def tangent_workspace(n: int, nb: int, nj: int, stages: int) -> tuple:
