@@ -21,7 +21,7 @@ import numpy as np
 from ours.banded import compiled_fma as compiled, inlined_fma as inlined, llvm_inlined_fma as llvm_inlined
 from ours.rigid.kernel import (
     FIXED, PRISMATIC, PROJECTION, REVOLUTE, SMALL_HALF_ANGLE_SQUARED, SYMPLECTIC_EULER, _axis, _body, _correction,
-    _cross, _rotate_quaternion, derivative, joint_rows, kick_drift, rotations, tree_factor, tree_solve,
+    _cross, _rot, _rotate_quaternion, derivative, joint_rows, kick_drift, rotations, tree_factor, tree_solve,
 )
 from ours.status import NON_FINITE, NOT_CONVERGED, OK, SINGULAR
 
@@ -58,6 +58,15 @@ def _dcross(a, da, b, db):
     x = _cross(da[0], da[1], da[2], b[0], b[1], b[2])
     y = _cross(a[0], a[1], a[2], db[0], db[1], db[2])
     return x[0] + y[0], x[1] + y[1], x[2] + y[2]
+
+
+@inlined
+def _twice(w, dw, v, dv):
+    """(w × v, w × (w × v)) and their directions (d (w × v), d (w × (w × v))): the first and second rates of a
+    vector v carried by a body turning at w."""
+    t = _cross(w[0], w[1], w[2], v[0], v[1], v[2])
+    dt = _dcross(w, dw, v, dv)
+    return t, _cross(w[0], w[1], w[2], t[0], t[1], t[2]), dt, _dcross(w, dw, t, dt)
 
 
 @inlined
@@ -116,12 +125,8 @@ def d_rotations(y, dy, n, nb, dR):
 @inlined
 def _d_point_rows(d, k, r0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam):
     """Direction d of ``kernel._point_rows``."""
-    tA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
-    tB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
-    dtA = _dcross(wA, dwA, rA, drA)
-    dtB = _dcross(wB, dwB, rB, drB)
-    dcA = _dcross(wA, dwA, tA, dtA)
-    dcB = _dcross(wB, dwB, tB, dtB)
+    dcA = _twice(wA, dwA, rA, drA)[3]
+    dcB = _twice(wB, dwB, rB, drB)[3]
     for i in range(3):
         e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
         ra = _cross(drA[0], drA[1], drA[2], e0, e1, e2)
@@ -141,14 +146,8 @@ def _d_dot_row(d, k, r, p, dp, w, dw, wA, dwA, wB, dwB, dC, dJA, dJB, dgam):
         dJA[d, k, r, 3 + c] = dn[c]
         dJB[d, k, r, 3 + c] = -dn[c]
     dC[d, k, r] = _ddot(p, dp, w, dw)
-    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
-    wd = _cross(wB[0], wB[1], wB[2], w[0], w[1], w[2])
-    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
-    wdd = _cross(wB[0], wB[1], wB[2], wd[0], wd[1], wd[2])
-    dpd = _dcross(wA, dwA, p, dp)
-    dwd = _dcross(wB, dwB, w, dw)
-    dpdd = _dcross(wA, dwA, pd, dpd)
-    dwdd = _dcross(wB, dwB, wd, dwd)
+    pd, pdd, dpd, dpdd = _twice(wA, dwA, p, dp)
+    wd, wdd, dwd, dwdd = _twice(wB, dwB, w, dw)
     g = 0.0
     for i in range(3):
         g += (dpdd[i] * w[i] + pdd[i] * dw[i] + 2.0 * (dpd[i] * wd[i] + pd[i] * dwd[i])
@@ -171,21 +170,12 @@ def _d_slide_row(d, k, r, p, dp, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB
         dJB[d, k, r, c] = dp[c]
         dJB[d, k, r, 3 + c] = db[c]
     dC[d, k, r] = _ddot(p, dp, g_, dg_)
-    wrA = _cross(wA[0], wA[1], wA[2], rA[0], rA[1], rA[2])
-    wrB = _cross(wB[0], wB[1], wB[2], rB[0], rB[1], rB[2])
-    dwrA = _dcross(wA, dwA, rA, drA)
-    dwrB = _dcross(wB, dwB, rB, drB)
+    wrA, cA, dwrA, dcA = _twice(wA, dwA, rA, drA)
+    wrB, cB, dwrB, dcB = _twice(wB, dwB, rB, drB)
+    pd, pdd, dpd, dpdd = _twice(wA, dwA, p, dp)
     gd = (vB[0] + wrB[0] - vA[0] - wrA[0], vB[1] + wrB[1] - vA[1] - wrA[1], vB[2] + wrB[2] - vA[2] - wrA[2])
     dgd = (dvB[0] + dwrB[0] - dvA[0] - dwrA[0], dvB[1] + dwrB[1] - dvA[1] - dwrA[1],
            dvB[2] + dwrB[2] - dvA[2] - dwrA[2])
-    pd = _cross(wA[0], wA[1], wA[2], p[0], p[1], p[2])
-    pdd = _cross(wA[0], wA[1], wA[2], pd[0], pd[1], pd[2])
-    cA = _cross(wA[0], wA[1], wA[2], wrA[0], wrA[1], wrA[2])
-    cB = _cross(wB[0], wB[1], wB[2], wrB[0], wrB[1], wrB[2])
-    dpd = _dcross(wA, dwA, p, dp)
-    dpdd = _dcross(wA, dwA, pd, dpd)
-    dcA = _dcross(wA, dwA, wrA, dwrA)
-    dcB = _dcross(wB, dwB, wrB, dwrB)
     g = 0.0
     for i in range(3):
         g += (dpdd[i] * g_[i] + pdd[i] * dg_[i] + 2.0 * (dpd[i] * gd[i] + pd[i] * dgd[i])
@@ -228,6 +218,31 @@ def d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam):
                 _d_dot_row(d, k, 5, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
 
 
+@inlined
+def _in_body(R, b, Ib, a):
+    """I_b Rᵀ a (3 floats): a world vector a (3 floats) into body b's frame, times its inertia."""
+    k0 = R[b, 0, 0] * a[0] + R[b, 1, 0] * a[1] + R[b, 2, 0] * a[2]
+    k1 = R[b, 0, 1] * a[0] + R[b, 1, 1] * a[1] + R[b, 2, 1] * a[2]
+    k2 = R[b, 0, 2] * a[0] + R[b, 1, 2] * a[1] + R[b, 2, 2] * a[2]
+    return (Ib[0, 0] * k0 + Ib[0, 1] * k1 + Ib[0, 2] * k2, Ib[1, 0] * k0 + Ib[1, 1] * k1 + Ib[1, 2] * k2,
+            Ib[2, 0] * k0 + Ib[2, 1] * k1 + Ib[2, 2] * k2)
+
+
+@inlined
+def _d_inertia(R, dR, d, b, Ib, a, ma):
+    """(dR I_b Rᵀ + R I_b dRᵀ) a: direction d of the world inertia I_w = R I_b Rᵀ, times a (3 floats held);
+    ma = I_b Rᵀ a (:func:`_in_body`)."""
+    f0 = dR[d, b, 0, 0] * a[0] + dR[d, b, 1, 0] * a[1] + dR[d, b, 2, 0] * a[2]
+    f1 = dR[d, b, 0, 1] * a[0] + dR[d, b, 1, 1] * a[1] + dR[d, b, 2, 1] * a[2]
+    f2 = dR[d, b, 0, 2] * a[0] + dR[d, b, 1, 2] * a[1] + dR[d, b, 2, 2] * a[2]
+    n0 = Ib[0, 0] * f0 + Ib[0, 1] * f1 + Ib[0, 2] * f2
+    n1 = Ib[1, 0] * f0 + Ib[1, 1] * f1 + Ib[1, 2] * f2
+    n2 = Ib[2, 0] * f0 + Ib[2, 1] * f1 + Ib[2, 2] * f2
+    x = _drot(dR, d, b, ma[0], ma[1], ma[2])
+    r = _rot(R, b, n0, n1, n2)
+    return x[0] + r[0], x[1] + r[1], x[2] + r[2]
+
+
 @llvm_inlined
 def d_bodies(y, dy, n, model, R, dR, sol, rhs):
     """rhs[d]'s body entries ← d f − dM u̇ along each direction: f = (m g, −ω × I_w ω), M = diag(m, I_w),
@@ -235,59 +250,29 @@ def d_bodies(y, dy, n, model, R, dR, sol, rhs):
     inertia, nb = model[1], model[0].shape[0]
     for b in range(nb):
         o = 13 * b
-        w = (y[o + 10], y[o + 11], y[o + 12])
         Ib = inertia[b]
-        l0 = R[b, 0, 0] * w[0] + R[b, 1, 0] * w[1] + R[b, 2, 0] * w[2]  # Rᵀ ω
-        l1 = R[b, 0, 1] * w[0] + R[b, 1, 1] * w[1] + R[b, 2, 1] * w[2]
-        l2 = R[b, 0, 2] * w[0] + R[b, 1, 2] * w[1] + R[b, 2, 2] * w[2]
-        m = (Ib[0, 0] * l0 + Ib[0, 1] * l1 + Ib[0, 2] * l2, Ib[1, 0] * l0 + Ib[1, 1] * l1 + Ib[1, 2] * l2,
-             Ib[2, 0] * l0 + Ib[2, 1] * l1 + Ib[2, 2] * l2)
-        L = (R[b, 0, 0] * m[0] + R[b, 0, 1] * m[1] + R[b, 0, 2] * m[2],
-             R[b, 1, 0] * m[0] + R[b, 1, 1] * m[1] + R[b, 1, 2] * m[2],
-             R[b, 2, 0] * m[0] + R[b, 2, 1] * m[1] + R[b, 2, 2] * m[2])
-        a0, a1, a2 = sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5]  # ω̇
-        k0 = R[b, 0, 0] * a0 + R[b, 1, 0] * a1 + R[b, 2, 0] * a2  # Rᵀ ω̇
-        k1 = R[b, 0, 1] * a0 + R[b, 1, 1] * a1 + R[b, 2, 1] * a2
-        k2 = R[b, 0, 2] * a0 + R[b, 1, 2] * a1 + R[b, 2, 2] * a2
-        ma = (Ib[0, 0] * k0 + Ib[0, 1] * k1 + Ib[0, 2] * k2, Ib[1, 0] * k0 + Ib[1, 1] * k1 + Ib[1, 2] * k2,
-              Ib[2, 0] * k0 + Ib[2, 1] * k1 + Ib[2, 2] * k2)
+        w = (y[o + 10], y[o + 11], y[o + 12])
+        m = _in_body(R, b, Ib, w)
+        L = _rot(R, b, m[0], m[1], m[2])  # I_w ω
+        a = (sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])  # ω̇
+        ma = _in_body(R, b, Ib, a)
         for d in range(n):
             dw = (dy[d, o + 10], dy[d, o + 11], dy[d, o + 12])
-            e0 = (dR[d, b, 0, 0] * w[0] + dR[d, b, 1, 0] * w[1] + dR[d, b, 2, 0] * w[2]
-                  + R[b, 0, 0] * dw[0] + R[b, 1, 0] * dw[1] + R[b, 2, 0] * dw[2])  # d (Rᵀ ω)
-            e1 = (dR[d, b, 0, 1] * w[0] + dR[d, b, 1, 1] * w[1] + dR[d, b, 2, 1] * w[2]
-                  + R[b, 0, 1] * dw[0] + R[b, 1, 1] * dw[1] + R[b, 2, 1] * dw[2])
-            e2 = (dR[d, b, 0, 2] * w[0] + dR[d, b, 1, 2] * w[1] + dR[d, b, 2, 2] * w[2]
-                  + R[b, 0, 2] * dw[0] + R[b, 1, 2] * dw[1] + R[b, 2, 2] * dw[2])
-            # d (Rᵀ ω̇) with ω̇ held: dRᵀ ω̇ (dM u̇ = dR I Rᵀ ω̇ + R I dRᵀ ω̇)
-            f0 = dR[d, b, 0, 0] * a0 + dR[d, b, 1, 0] * a1 + dR[d, b, 2, 0] * a2
-            f1 = dR[d, b, 0, 1] * a0 + dR[d, b, 1, 1] * a1 + dR[d, b, 2, 1] * a2
-            f2 = dR[d, b, 0, 2] * a0 + dR[d, b, 1, 2] * a1 + dR[d, b, 2, 2] * a2
-            dm0 = Ib[0, 0] * e0 + Ib[0, 1] * e1 + Ib[0, 2] * e2
-            dm1 = Ib[1, 0] * e0 + Ib[1, 1] * e1 + Ib[1, 2] * e2
-            dm2 = Ib[2, 0] * e0 + Ib[2, 1] * e1 + Ib[2, 2] * e2
-            dn0 = Ib[0, 0] * f0 + Ib[0, 1] * f1 + Ib[0, 2] * f2
-            dn1 = Ib[1, 0] * f0 + Ib[1, 1] * f1 + Ib[1, 2] * f2
-            dn2 = Ib[2, 0] * f0 + Ib[2, 1] * f1 + Ib[2, 2] * f2
-            dL = _drot(dR, d, b, m[0], m[1], m[2])
-            rL = (R[b, 0, 0] * dm0 + R[b, 0, 1] * dm1 + R[b, 0, 2] * dm2,
-                  R[b, 1, 0] * dm0 + R[b, 1, 1] * dm1 + R[b, 1, 2] * dm2,
-                  R[b, 2, 0] * dm0 + R[b, 2, 1] * dm1 + R[b, 2, 2] * dm2)
-            dL = (dL[0] + rL[0], dL[1] + rL[1], dL[2] + rL[2])
-            dg = _dcross(w, dw, L, dL)
-            dIa = _drot(dR, d, b, ma[0], ma[1], ma[2])
-            rI = (R[b, 0, 0] * dn0 + R[b, 0, 1] * dn1 + R[b, 0, 2] * dn2,
-                  R[b, 1, 0] * dn0 + R[b, 1, 1] * dn1 + R[b, 1, 2] * dn2,
-                  R[b, 2, 0] * dn0 + R[b, 2, 1] * dn1 + R[b, 2, 2] * dn2)
+            held = _d_inertia(R, dR, d, b, Ib, w, m)
+            mw = _in_body(R, b, Ib, dw)
+            turned = _rot(R, b, mw[0], mw[1], mw[2])
+            dg = _dcross(w, dw, L, (held[0] + turned[0], held[1] + turned[1], held[2] + turned[2]))
+            dIa = _d_inertia(R, dR, d, b, Ib, a, ma)
             for i in range(3):
                 rhs[d, b, 0, i] = 0.0
-                rhs[d, b, 0, 3 + i] = -dg[i] - dIa[i] - rI[i]
+                rhs[d, b, 0, 3 + i] = -dg[i] - dIa[i]
 
 
 @llvm_inlined
-def d_joints(y, dy, n, model, work, dC, dJA, dJB, dgam, rhs, ks, kd):
-    """rhs[d]'s joint entries ← dc − dJ u̇ (c = −J̇u − k_s C − k_d J u), and the bodies' −dJᵀ λ (λ, u̇ the real
-    solution in work[7])."""
+def d_joints(y, dy, n, model, work, dKA, dKB, dJA, dJB, dC, dgam, rhs, gain_gam, gain_C, gain_rate):
+    """The joints' part of rhs[d] = db − dK x (x = [u̇; λ], the real solution in work[7]; dK's rows dKA, dKB):
+    the bodies' entries −= dJ_Kᵀ λ, the joints' ← −gain_gam dgam − gain_C dC − gain_rate d(J u) − dJ_K u̇, with
+    d(J u) = dJ u + J du at the current rows (work's J, dJA, dJB). The step's rows: (1, k_s, k_d) and dK = dJ."""
     nb, parent, child, rows = model[0].shape[0], model[5], model[6], model[11]
     JA, JB, sol = work[2], work[3], work[7]
     for k in range(rows.shape[0]):
@@ -300,14 +285,14 @@ def d_joints(y, dy, n, model, work, dC, dJA, dJB, dgam, rhs, ks, kd):
                 acc = 0.0
                 for c in range(6):
                     rate += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
-                    acc += dJB[d, k, r, c] * sol[B, 0, c]
-                    rhs[d, B, 0, c] -= dJB[d, k, r, c] * lam
+                    acc += dKB[d, k, r, c] * sol[B, 0, c]
+                    rhs[d, B, 0, c] -= dKB[d, k, r, c] * lam
                 if A >= 0:
                     for c in range(6):
                         rate += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
-                        acc += dJA[d, k, r, c] * sol[A, 0, c]
-                        rhs[d, A, 0, c] -= dJA[d, k, r, c] * lam
-                rhs[d, nb + k, 0, r] = -dgam[d, k, r] - ks * dC[d, k, r] - kd * rate - acc
+                        acc += dKA[d, k, r, c] * sol[A, 0, c]
+                        rhs[d, A, 0, c] -= dKA[d, k, r, c] * lam
+                rhs[d, nb + k, 0, r] = -gain_gam * dgam[d, k, r] - gain_C * dC[d, k, r] - gain_rate * rate - acc
 
 
 @llvm_inlined
@@ -340,7 +325,7 @@ def d_derivative(y, dy, n, model, work, tw, ks, kd, dydot):
     d_rotations(y, dy, n, nb, dR)
     d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
     d_bodies(y, dy, n, model, R, dR, work[7], rhs)
-    d_joints(y, dy, n, model, work, dC, dJA, dJB, dgam, rhs, ks, kd)
+    d_joints(y, dy, n, model, work, dJA, dJB, dJA, dJB, dC, dgam, rhs, 1.0, ks, kd)
     for d in range(n):  # dx = K⁻¹ (db − dK x): the real factor, one more solve per direction
         tree_solve(model, work, rhs[d])
     d_rates(y, dy, n, nb, rhs, dydot)
@@ -415,51 +400,22 @@ def _d_chord(y, dy, n, model, work, tw, velocity):
     """rhs[d] ← the direction d of :func:`kernel._correction`'s solve x = K₀⁻¹ [0; −e] (K₀ factored at the state
     the step arrived at, e = C, or J u with J at the projected positions): K₀⁻¹ (−de − dK₀ x), with dK₀ from the
     saved R₀, dR₀, dJ₀ and de from the current dC (positions) or dJ, J (velocities)."""
-    inertia, nb, parent, child, rows = model[1], model[0].shape[0], model[5], model[6], model[11]
-    JA, JB, sol = work[2], work[3], work[7]
+    inertia, nb, sol = model[1], model[0].shape[0], work[7]
     dC, dJA, dJB, rhs = tw[1], tw[2], tw[3], tw[5]
     R0, dR0, dJA0, dJB0 = tw[9], tw[10], tw[11], tw[12]
     for b in range(nb):  # −dM₀ x_b (only I_w = R₀ I_b R₀ᵀ moves)
         Ib = inertia[b]
-        a0, a1, a2 = sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5]
-        k0 = R0[b, 0, 0] * a0 + R0[b, 1, 0] * a1 + R0[b, 2, 0] * a2
-        k1 = R0[b, 0, 1] * a0 + R0[b, 1, 1] * a1 + R0[b, 2, 1] * a2
-        k2 = R0[b, 0, 2] * a0 + R0[b, 1, 2] * a1 + R0[b, 2, 2] * a2
-        ma = (Ib[0, 0] * k0 + Ib[0, 1] * k1 + Ib[0, 2] * k2, Ib[1, 0] * k0 + Ib[1, 1] * k1 + Ib[1, 2] * k2,
-              Ib[2, 0] * k0 + Ib[2, 1] * k1 + Ib[2, 2] * k2)
+        a = (sol[b, 0, 3], sol[b, 0, 4], sol[b, 0, 5])
+        ma = _in_body(R0, b, Ib, a)
         for d in range(n):
-            f0 = dR0[d, b, 0, 0] * a0 + dR0[d, b, 1, 0] * a1 + dR0[d, b, 2, 0] * a2
-            f1 = dR0[d, b, 0, 1] * a0 + dR0[d, b, 1, 1] * a1 + dR0[d, b, 2, 1] * a2
-            f2 = dR0[d, b, 0, 2] * a0 + dR0[d, b, 1, 2] * a1 + dR0[d, b, 2, 2] * a2
-            dn0 = Ib[0, 0] * f0 + Ib[0, 1] * f1 + Ib[0, 2] * f2
-            dn1 = Ib[1, 0] * f0 + Ib[1, 1] * f1 + Ib[1, 2] * f2
-            dn2 = Ib[2, 0] * f0 + Ib[2, 1] * f1 + Ib[2, 2] * f2
-            dIa = _drot(dR0, d, b, ma[0], ma[1], ma[2])
+            dIa = _d_inertia(R0, dR0, d, b, Ib, a, ma)
             for i in range(3):
                 rhs[d, b, 0, i] = 0.0
-                rhs[d, b, 0, 3 + i] = -dIa[i] - (R0[b, i, 0] * dn0 + R0[b, i, 1] * dn1 + R0[b, i, 2] * dn2)
-    for k in range(rows.shape[0]):
-        A, B = parent[k], child[k]
-        a, b = 13 * A + 7, 13 * B + 7
-        for d in range(n):
-            for r in range(rows[k]):
-                lam = sol[nb + k, 0, r]
-                acc = 0.0
-                de = 0.0
-                for c in range(6):
-                    acc += dJB0[d, k, r, c] * sol[B, 0, c]
-                    rhs[d, B, 0, c] -= dJB0[d, k, r, c] * lam
-                    if velocity:
-                        de += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
-                if A >= 0:
-                    for c in range(6):
-                        acc += dJA0[d, k, r, c] * sol[A, 0, c]
-                        rhs[d, A, 0, c] -= dJA0[d, k, r, c] * lam
-                        if velocity:
-                            de += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
-                if not velocity:
-                    de = dC[d, k, r]
-                rhs[d, nb + k, 0, r] = -de - acc
+                rhs[d, b, 0, 3 + i] = -dIa[i]
+    if velocity:  # e = J u
+        d_joints(y, dy, n, model, work, dJA0, dJB0, dJA, dJB, dC, tw[4], rhs, 0.0, 0.0, 1.0)
+    else:  # e = C
+        d_joints(y, dy, n, model, work, dJA0, dJB0, dJA, dJB, dC, tw[4], rhs, 0.0, 1.0, 0.0)
     for d in range(n):
         tree_solve(model, work, rhs[d])
 
