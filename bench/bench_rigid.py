@@ -18,9 +18,9 @@
    ``base = "floating"``, the same pairs timed the same way. ours steps the free root as a plain rigid body (no
    constraint row); MuJoCo as a free joint. Target ≤ 1.0× for both.
 5. KUKA iiwa forward sensitivities (``ours.rigid.sensitivity``), per step in steps' worth of the same variant's
-   real step, for baumgarte-rk4 and baumgarte-symplectic-euler: the tangent-linear step (``tangent_sensitivities``)
+   real step, for baumgarte and projection with RK4 and symplectic Euler: the tangent-linear step (``forward_sensitivities``)
    carrying n = 1, 2, 4 and 8 directions, target ≤ 2 + n (the issue's budget), and one direction's complex run
-   (``forward_sensitivities``, projection's method; no target).
+   (``complex_step_sensitivities``, the tangent's check and ours' method before it; no target).
 
 Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
 compare ratios within a run, not across machines.
@@ -141,19 +141,19 @@ DIRECTIONS = (1, 2, 4, 8)
 
 def sensitivity_rows(repeats: int, steps: int = 500) -> list[dict]:
     """The KUKA from rest at 0.3 rad per joint: the real step (Stepping) against the tangent-linear step carrying
-    n directions (tangent_sensitivities) and one direction's complex run (forward_sensitivities), each compiled
+    n directions (forward_sensitivities) and one direction's complex run (complex_step_sensitivities), each compiled
     before timing, thread CPU per step, the least of ``repeats``; a call's setup (packing, scratch) is timed too."""
     from engines.model.source import resolve
     from engines.model.urdf import read
     from engines.ours.model import translate
-    from ours.rigid.sensitivity import forward_sensitivities, tangent_sensitivities
+    from ours.rigid.sensitivity import complex_step_sensitivities, forward_sensitivities
 
     description = read(resolve("pybullet_data:kuka_iiwa/model.urdf"))
     mech = translate(description).mechanism
     y0 = initial_state(mech, {j.name: 0.3 for j in description.moving_joints})
     directions = np.random.default_rng(0).normal(size=(max(DIRECTIONS), y0.size))
     rows = []
-    for method, integrator in (("baumgarte", "rk4"), ("baumgarte", "symplectic-euler")):
+    for method, integrator in VARIANTS + (("projection", "rk4"),):
         real = ours_step_seconds(mech, y0, method, integrator, steps, repeats)
 
         def per_step(carry, n, method=method, integrator=integrator):
@@ -163,8 +163,8 @@ def sensitivity_rows(repeats: int, steps: int = 500) -> list[dict]:
             once()  # compile, or load from numba's cache
             return fastest(once, repeats) / steps
 
-        tangent = [per_step(tangent_sensitivities, n) for n in DIRECTIONS]
-        complex_step = per_step(forward_sensitivities, 1)
+        tangent = [per_step(forward_sensitivities, n) for n in DIRECTIONS]
+        complex_step = per_step(complex_step_sensitivities, 1)
         worth = [t / real for t in tangent]
         rows.append({"section": "sensitivity", "variant": f"{method}-{integrator}", "us_per_step": real * 1e6,
                      "directions": list(DIRECTIONS), "tangent_us_per_step": [t * 1e6 for t in tangent],

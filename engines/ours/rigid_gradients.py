@@ -37,7 +37,7 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
     from engines.ours.model import of_scene, start_state
     from ours import OursError
     from ours.rigid.method import resolve
-    from ours.rigid.sensitivity import tangent_sensitivities
+    from ours.rigid.sensitivity import forward_sensitivities
 
     settings = engine.resolve(variant, options)
     try:
@@ -57,7 +57,7 @@ def jacobian(engine: Any, scene: Any, variant: str | None, options: Mapping[str,
 
     directions = np.array([central_difference(lambda delta, name=name: start(name, delta), INITIAL_STEP)
                            for name in wrt])
-    result = tangent_sensitivities(
+    result = forward_sensitivities(
         model.mechanism, start_state(model, scene), directions, dt, schedule.n_steps, schedule.stride,
         method=settings["method"], integrator=settings["integrator"], k_s=settings["k_s"], k_d=settings["k_d"],
         tolerance=settings["tolerance"], max_iterations=settings["max_iterations"])

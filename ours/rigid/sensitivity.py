@@ -1,5 +1,5 @@
-"""Forward sensitivities of a rigid-body run, d y(t) / d y(0) along given directions: by complex step through the
-compiled step itself, and by the tangent-linear step (``tangent_sensitivities``, ``ours.rigid.tangent``).
+"""Forward sensitivities of a rigid-body run, d y(t) / d y(0) along given directions: by the tangent-linear step
+(``forward_sensitivities``, ``ours.rigid.tangent``), and by complex step through the compiled step itself.
 
 Each direction dy0 (13 nb,) starts ``ours.rigid.kernel.run`` (the real run's own loop and step, compiled a
 second time for complex128 states and scratch; the model stays real) from y0 + i h dy0, h = 1e-30. Every
@@ -62,12 +62,11 @@ def _result(run: Prepared, y: np.ndarray, dy: np.ndarray, written: int, steps: i
     return RigidSensitivities(run.times(written), y, dy[:written], int(steps), STATUS_TEXT[int(status)])
 
 
-def forward_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
+def complex_step_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
                           method: str = "baumgarte", integrator: str | None = None, k_s: float | None = None,
                           k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                           max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidSensitivities:
-    """Run ``mech`` from y0 (13 nb,) as ours.rigid.simulate does with the same arguments, and carry the
-    directions dy0 (k, 13 nb) along: one complex run per direction, sampled as simulate samples."""
+    """:func:`forward_sensitivities` by complex step: one complex run per direction (its independent check)."""
     run, directions = _prepared(mech, y0, dy0, dt, n_steps, sample_every, method=method, integrator=integrator,
                                 k_s=k_s, k_d=k_d, tolerance=tolerance, max_iterations=max_iterations)
     kernel, model = _kernel(), pack(mech)
@@ -83,12 +82,13 @@ def forward_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sam
     return _result(run, out[:written].real.copy(), dy, written, steps, status)
 
 
-def tangent_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
+def forward_sensitivities(mech: Mechanism, y0, dy0, dt: float, n_steps: int, sample_every: int = 1, *,
                           method: str = "baumgarte", integrator: str | None = None, k_s: float | None = None,
                           k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                           max_iterations: int = DEFAULT_MAX_ITERATIONS) -> RigidSensitivities:
-    """:func:`forward_sensitivities` by the tangent-linear step (ours.rigid.tangent): one real run, each direction
-    carried beside it for its derivative alone. Every method and integrator."""
+    """Run ``mech`` from y0 (13 nb,) as ours.rigid.simulate does with the same arguments, and carry the directions
+    dy0 (k, 13 nb) along by the tangent-linear step (ours.rigid.tangent): one real run, each direction's derivative
+    beside it, sampled as simulate samples. Every method and integrator."""
     run, directions = _prepared(mech, y0, dy0, dt, n_steps, sample_every, method=method, integrator=integrator,
                                 k_s=k_s, k_d=k_d, tolerance=tolerance, max_iterations=max_iterations)
     from ours.rigid import tangent  # imports numba: only when a run needs it
