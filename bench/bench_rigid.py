@@ -18,9 +18,9 @@
    ``base = "floating"``, the same pairs timed the same way. ours steps the free root as a plain rigid body (no
    constraint row); MuJoCo as a free joint. Target ≤ 1.0× for both.
 5. KUKA iiwa forward sensitivities (``ours.rigid.sensitivity``), per step in steps' worth of the same variant's
-   real step, for baumgarte and projection with RK4 and symplectic Euler: the tangent-linear step (``forward_sensitivities``)
-   carrying n = 1, 2, 4 and 8 directions, target ≤ 2 + n (the issue's budget), and one direction's complex run
-   (``complex_step_sensitivities``, the tangent's check and ours' method before it; no target).
+   real step, for baumgarte and projection with RK4 and symplectic Euler: the tangent-linear step
+   (``forward_sensitivities``) carrying n = 1, 2, 4 and 8 directions, target ≤ 2 + n (the issue's budget), and one
+   direction's complex run (``complex_step_sensitivities``, the tangent's check and ours' method before it).
 
 Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
 compare ratios within a run, not across machines.

@@ -123,10 +123,8 @@ def d_rotations(y, dy, n, nb, dR):
 
 
 @inlined
-def _d_point_rows(d, k, r0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam):
-    """Direction d of ``kernel._point_rows``."""
-    dcA = _twice(wA, dwA, rA, drA)[3]
-    dcB = _twice(wB, dwB, rB, drB)[3]
+def _d_point_rows(d, k, r0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam, rates):
+    """Direction d of ``kernel._point_rows`` (gam's only with ``rates``)."""
     for i in range(3):
         e0, e1, e2 = 1.0 if i == 0 else 0.0, 1.0 if i == 1 else 0.0, 1.0 if i == 2 else 0.0
         ra = _cross(drA[0], drA[1], drA[2], e0, e1, e2)
@@ -135,17 +133,23 @@ def _d_point_rows(d, k, r0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJ
             dJA[d, k, r0 + i, 3 + c] = ra[c]
             dJB[d, k, r0 + i, 3 + c] = -rb[c]
         dC[d, k, r0 + i] = dxA[i] + drA[i] - dxB[i] - drB[i]
-        dgam[d, k, r0 + i] = dcA[i] - dcB[i]
+    if rates:
+        dcA = _twice(wA, dwA, rA, drA)[3]
+        dcB = _twice(wB, dwB, rB, drB)[3]
+        for i in range(3):
+            dgam[d, k, r0 + i] = dcA[i] - dcB[i]
 
 
 @inlined
-def _d_dot_row(d, k, r, p, dp, w, dw, wA, dwA, wB, dwB, dC, dJA, dJB, dgam):
-    """Direction d of ``kernel._dot_row``."""
+def _d_dot_row(d, k, r, p, dp, w, dw, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates):
+    """Direction d of ``kernel._dot_row`` (gam's only with ``rates``)."""
     dn = _dcross(p, dp, w, dw)
     for c in range(3):
         dJA[d, k, r, 3 + c] = dn[c]
         dJB[d, k, r, 3 + c] = -dn[c]
     dC[d, k, r] = _ddot(p, dp, w, dw)
+    if not rates:
+        return
     pd, pdd, dpd, dpdd = _twice(wA, dwA, p, dp)
     wd, wdd, dwd, dwdd = _twice(wB, dwB, w, dw)
     g = 0.0
@@ -157,8 +161,8 @@ def _d_dot_row(d, k, r, p, dp, w, dw, wA, dwA, wB, dwB, dC, dJA, dJB, dgam):
 
 @inlined
 def _d_slide_row(d, k, r, p, dp, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB, dwB,
-                 dC, dJA, dJB, dgam):
-    """Direction d of ``kernel._slide_row``."""
+                 dC, dJA, dJB, dgam, rates):
+    """Direction d of ``kernel._slide_row`` (gam's only with ``rates``)."""
     g_ = (xB[0] + rB[0] - xA[0] - rA[0], xB[1] + rB[1] - xA[1] - rA[1], xB[2] + rB[2] - xA[2] - rA[2])
     dg_ = (dxB[0] + drB[0] - dxA[0] - drA[0], dxB[1] + drB[1] - dxA[1] - drA[1], dxB[2] + drB[2] - dxA[2] - drA[2])
     da = _dcross(p, dp, (g_[0] + rA[0], g_[1] + rA[1], g_[2] + rA[2]),
@@ -170,6 +174,8 @@ def _d_slide_row(d, k, r, p, dp, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB
         dJB[d, k, r, c] = dp[c]
         dJB[d, k, r, 3 + c] = db[c]
     dC[d, k, r] = _ddot(p, dp, g_, dg_)
+    if not rates:
+        return
     wrA, cA, dwrA, dcA = _twice(wA, dwA, rA, drA)
     wrB, cB, dwrB, dcB = _twice(wB, dwB, rB, drB)
     pd, pdd, dpd, dpdd = _twice(wA, dwA, p, dp)
@@ -184,8 +190,9 @@ def _d_slide_row(d, k, r, p, dp, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB
 
 
 @llvm_inlined
-def d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam):
-    """Directions of ``kernel.joint_rows``' C, JA, JB and gam (R, dR at y)."""
+def d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam, rates):
+    """Directions of ``kernel.joint_rows``' C, JA, JB and, with ``rates``, gam (R, dR at y; the projection uses no
+    gam)."""
     kind, parent, child, la, lb, FA, FB = model[4], model[5], model[6], model[7], model[8], model[9], model[10]
     for k in range(kind.shape[0]):
         A, B = parent[k], child[k]
@@ -200,22 +207,22 @@ def d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam):
             dp1, dp2, dp3 = _daxis(dR, d, A, FA, k, 0), _daxis(dR, d, A, FA, k, 1), _daxis(dR, d, A, FA, k, 2)
             dw1, dw2, dw3 = _daxis(dR, d, B, FB, k, 0), _daxis(dR, d, B, FB, k, 1), _daxis(dR, d, B, FB, k, 2)
             if t == PRISMATIC:
-                _d_dot_row(d, k, 0, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
-                _d_dot_row(d, k, 1, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
-                _d_dot_row(d, k, 2, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 0, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
+                _d_dot_row(d, k, 1, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
+                _d_dot_row(d, k, 2, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
                 _d_slide_row(d, k, 3, p1, dp1, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB,
-                             dwB, dC, dJA, dJB, dgam)
+                             dwB, dC, dJA, dJB, dgam, rates)
                 _d_slide_row(d, k, 4, p2, dp2, xA, dxA, rA, drA, vA, dvA, wA, dwA, xB, dxB, rB, drB, vB, dvB, wB,
-                             dwB, dC, dJA, dJB, dgam)
+                             dwB, dC, dJA, dJB, dgam, rates)
                 continue
-            _d_point_rows(d, k, 0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam)
+            _d_point_rows(d, k, 0, dxA, rA, drA, wA, dwA, dxB, rB, drB, wB, dwB, dC, dJA, dJB, dgam, rates)
             if t == REVOLUTE:
-                _d_dot_row(d, k, 3, p1, dp1, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
-                _d_dot_row(d, k, 4, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 3, p1, dp1, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
+                _d_dot_row(d, k, 4, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
             elif t == FIXED:
-                _d_dot_row(d, k, 3, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
-                _d_dot_row(d, k, 4, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
-                _d_dot_row(d, k, 5, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam)
+                _d_dot_row(d, k, 3, p2, dp2, w3, dw3, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
+                _d_dot_row(d, k, 4, p3, dp3, w1, dw1, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
+                _d_dot_row(d, k, 5, p1, dp1, w2, dw2, wA, dwA, wB, dwB, dC, dJA, dJB, dgam, rates)
 
 
 @inlined
@@ -284,14 +291,18 @@ def d_joints(y, dy, n, model, work, dKA, dKB, dJA, dJB, dC, dgam, rhs, gain_gam,
                 rate = 0.0
                 acc = 0.0
                 for c in range(6):
-                    rate += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
                     acc += dKB[d, k, r, c] * sol[B, 0, c]
                     rhs[d, B, 0, c] -= dKB[d, k, r, c] * lam
                 if A >= 0:
                     for c in range(6):
-                        rate += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
                         acc += dKA[d, k, r, c] * sol[A, 0, c]
                         rhs[d, A, 0, c] -= dKA[d, k, r, c] * lam
+                if gain_rate != 0.0:  # plain's k_d and the projection's positions: no J u
+                    for c in range(6):
+                        rate += dJB[d, k, r, c] * y[b + c] + JB[k, r, c] * dy[d, b + c]
+                    if A >= 0:
+                        for c in range(6):
+                            rate += dJA[d, k, r, c] * y[a + c] + JA[k, r, c] * dy[d, a + c]
                 rhs[d, nb + k, 0, r] = -gain_gam * dgam[d, k, r] - gain_C * dC[d, k, r] - gain_rate * rate - acc
 
 
@@ -323,7 +334,7 @@ def d_derivative(y, dy, n, model, work, tw, ks, kd, dydot):
     nb, R = model[0].shape[0], work[0]
     dR, dC, dJA, dJB, dgam, rhs = tw[0], tw[1], tw[2], tw[3], tw[4], tw[5]
     d_rotations(y, dy, n, nb, dR)
-    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam, True)
     d_bodies(y, dy, n, model, R, dR, work[7], rhs)
     d_joints(y, dy, n, model, work, dJA, dJB, dJA, dJB, dC, dgam, rhs, 1.0, ks, kd)
     for d in range(n):  # dx = K⁻¹ (db − dK x): the real factor, one more solve per direction
@@ -432,7 +443,7 @@ def project(y, dy, n, model, work, tw, tolerance, max_iterations):
     if not tree_factor(y, model, work):
         return SINGULAR
     d_rotations(y, dy, n, nb, dR)
-    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+    d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam, False)
     for b in range(nb):  # K₀'s data: the chord method keeps its factor through every iteration
         for i in range(3):
             for j in range(3):
@@ -447,7 +458,7 @@ def project(y, dy, n, model, work, tw, tolerance, max_iterations):
                 rotations(y, nb, R)
                 joint_rows(y, model, R, work[1], work[2], work[3], work[4])
                 d_rotations(y, dy, n, nb, dR)
-                d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam)
+                d_joint_rows(y, dy, n, model, R, dR, dC, dJA, dJB, dgam, False)
             worst = _correction(y, model, work, velocity, tolerance)
             if worst <= tolerance:
                 break
