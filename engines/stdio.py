@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import io
 import os
 import re
 import sys
@@ -180,12 +181,22 @@ def _empty(file: BinaryIO) -> None:
 
 
 def line_buffered() -> None:
-    """Flush C's stdout at every line, and Python's sys.stdout: a process that dies (a segfault, a timeout's
-    SIGKILL) then loses at most a part line, not a buffer of what it printed. For a case host, whose fds 1
-    and 2 go to a file (a file is fully buffered by default). glibc keeps line buffering whatever stdout
-    points at; elsewhere this may do nothing."""
-    with contextlib.suppress(Exception):
-        sys.stdout.reconfigure(line_buffering=True)  # type: ignore[union-attr]  # a TextIOWrapper
+    """Flush C's stdout at every line, and Python's sys.stdout and sys.stderr: a process that dies (a segfault,
+    a timeout's SIGKILL) then loses at most a part line, not a buffer of what it printed. For a case host, whose
+    fds 1 and 2 go to a file (a file is fully buffered by default). A Python stream that is not on its fd (a
+    test runner's capture, inherited through the fork) is replaced by one that is, so what the host prints
+    reaches the file. glibc keeps line buffering whatever stdout points at; elsewhere this may do nothing."""
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        stream = getattr(sys, name)
+        try:
+            stream.flush()
+            if stream.fileno() == fd:
+                stream.reconfigure(line_buffering=True)
+                continue
+        except Exception:  # no fileno (an in-memory capture), or a stream that cannot reconfigure
+            pass
+        setattr(sys, name, io.TextIOWrapper(io.FileIO(fd, "w", closefd=False), line_buffering=True,
+                                            errors="backslashreplace"))
     with contextlib.suppress(ValueError, AttributeError, OSError):
         stdout = ctypes.c_void_p.in_dll(_LIBC, "stdout")
         _LIBC.setvbuf(stdout, None, 1, 0)  # _IOLBF, the buffer C already has (glibc: only a flag)

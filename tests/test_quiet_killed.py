@@ -145,3 +145,18 @@ def test_a_case_run_by_an_executors_worker_keeps_what_it_printed_when_killed_at_
         outcome = execute(task)
     assert outcome.status == "timeout" and outcome.output.to_dict() == KEPT
     assert open_files() <= before
+
+
+def test_a_host_forked_under_an_in_memory_stdout_still_keeps_what_python_printed(monkeypatch):
+    # A test runner's capture (or any caller's) may leave sys.stdout an in-memory stream; the host inherits it
+    # through the fork, and its print() went there and died with it (27 of 40 lines kept, on CI). The host
+    # puts Python's streams back on fds 1 and 2, line-buffered.
+    import io
+
+    from compare.run.isolation import execute
+
+    task = CaseTask(case_id="hang", engine_id="compare_engines:PRINTING/hang", variant="hang", options={},
+                    scene=build("bead", {"duration": 0.2}), dt=1e-2, sample_interval=0.05, timeout=TIMEOUT)
+    monkeypatch.setattr("sys.stdout", io.StringIO())
+    outcome = execute(task)
+    assert outcome.status == "timeout" and outcome.output.to_dict() == KEPT
