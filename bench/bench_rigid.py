@@ -21,6 +21,8 @@
    real step, for baumgarte and projection with RK4 and symplectic Euler: the tangent-linear step
    (``forward_sensitivities``) carrying n = 1, 2, 4 and 8 directions, target ≤ 2 + n (the issue's budget), and one
    direction's complex run (``complex_step_sensitivities``, the tangent's check and ours' method before it).
+6. The KUKA's whole one-step Jacobian (14 × 14) per step: MuJoCo's ``mjd_transitionFD`` then ``mj_step`` against
+   ours' tangent-linear step carrying 14 directions, each in steps' worth of its own plain step, and their ratio.
 
 Times are minima over repeats of thread CPU time (the least disturbed run on a shared machine);
 compare ratios within a run, not across machines.
@@ -174,6 +176,64 @@ def sensitivity_rows(repeats: int, steps: int = 500) -> list[dict]:
     return rows
 
 
+def transition_rows(repeats: int, steps: int = 200) -> list[dict]:
+    """The KUKA's whole one-step Jacobian, 2 nv × 2 nv (nv = 7), per step: MuJoCo's ``mjd_transitionFD`` (centred
+    differences) then ``mj_step`` (Euler), against ours' tangent-linear step (baumgarte-symplectic-euler) carrying
+    2 nv directions through its own step: both in steps' worth of their own plain step, and their ratio.
+    Python loops on MuJoCo's side (its step and its derivative, as a user calls them), thread CPU."""
+    import mujoco
+
+    from engines.mujoco import model as mujoco_model
+    from engines.model.source import resolve
+    from engines.model.urdf import read
+    from engines.ours.model import translate
+    from ours.rigid.sensitivity import forward_sensitivities
+
+    source = resolve("pybullet_data:kuka_iiwa/model.urdf")
+    description = read(source)
+    peer = mujoco_model.load(source, description)
+    model, data = peer.model, peer.data
+    model.opt.timestep = 1e-3
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    n = 2 * model.nv
+    jacobian = np.empty((n, n))
+    q0 = {j.name: 0.3 for j in description.moving_joints}
+
+    def start() -> None:
+        data.qpos[:] = 0.0
+        data.qpos[peer.qpos] = [q0[j.name] for j in description.moving_joints]
+        data.qvel[:] = 0.0
+
+    def plain() -> None:
+        start()
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+
+    def chained() -> None:
+        start()
+        for _ in range(steps):
+            mujoco.mjd_transitionFD(model, data, 1e-6, True, jacobian, None, None, None)
+            mujoco.mj_step(model, data)
+
+    plain()
+    chained()
+    step, fd = fastest(plain, repeats) / steps, fastest(chained, repeats) / steps
+    mech = translate(description).mechanism
+    y0 = initial_state(mech, q0)
+    directions = np.random.default_rng(0).normal(size=(n, y0.size))
+    real = ours_step_seconds(mech, y0, "baumgarte", "symplectic-euler", steps, repeats)
+
+    def carried() -> None:
+        forward_sensitivities(mech, y0, directions, 1e-3, steps, steps, method="baumgarte",
+                              integrator="symplectic-euler")
+
+    carried()
+    tangent = fastest(carried, repeats) / steps
+    return [{"section": "transition", "n": n, "mujoco_us_per_step": step * 1e6, "mujoco_fd_us_per_step": fd * 1e6,
+             "mujoco_steps_worth": fd / step, "ours_us_per_step": real * 1e6, "ours_tangent_us_per_step": tangent * 1e6,
+             "ours_steps_worth": tangent / real, "ratio": tangent / fd, "met": tangent / real <= 2 + n}]
+
+
 def quadruped_scene(duration: float):
     """pybullet_data's Unitree A1 (12 revolute joints, full inertias) with its base floating, from the suite's
     reading of a URDF with ``base = "floating"``: legs crouched and swinging, the base moving and turning, gravity
@@ -270,11 +330,19 @@ def main(argv: list[str]) -> int:
     for r in sensitivity:
         print(f"{r['variant']:<34}{r['us_per_step']:8.2f}" + "".join(f"{w:8.2f}" for w in r["tangent_steps_worth"])
               + f"{r['steps_worth']:9.2f}  {'met' if r['met'] else 'MISSED'}")
+    transition = transition_rows(repeats)
+    for r in transition:
+        print(f"\nKUKA iiwa whole one-step Jacobian ({r['n']} × {r['n']}) per step, each in steps' worth of its own "
+              f"plain step: MuJoCo mjd_transitionFD + mj_step {r['mujoco_fd_us_per_step']:.1f} µs "
+              f"({r['mujoco_steps_worth']:.1f}); ours' tangent-linear step, {r['n']} directions, baumgarte-symplectic-euler "
+              f"{r['ours_tangent_us_per_step']:.1f} µs ({r['ours_steps_worth']:.1f}, budget {2 + r['n']}); "
+              f"ours / MuJoCo {r['ratio']:.2f}×  {'met' if r['met'] else 'MISSED'}")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {load:.1f} on {os.cpu_count()} CPUs")
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"rows": rows + kuka + harness + sensitivity, "load_average": load}, indent=1))
-    return 0 if all(r["met"] for r in rows + kuka + harness + sensitivity) else 1
+    everything = rows + kuka + harness + sensitivity + transition
+    path.write_text(json.dumps({"rows": everything, "load_average": load}, indent=1))
+    return 0 if all(r["met"] for r in everything) else 1
 
 
 if __name__ == "__main__":
