@@ -20,8 +20,8 @@ from engines.errors import UserError
 def output_columns(scene: Any) -> list[str]:
     """The CSV's state columns, in its order: ``p{i}_x p{i}_y p{i}_z v{i}_x v{i}_y v{i}_z`` per particle; for a
     model scene ``q_<joint>`` then ``v_<joint>`` for its moving joints."""
-    if scene.is_model:
-        return [f"{kind}_{joint}" for kind in "qv" for joint in scene.joint_names]
+    if scene.is_model:  # a floating base's and a ball's entries one column each (quaternion x y z w included)
+        return [*(f"q_{name}" for name in scene.config_names), *(f"v_{name}" for name in scene.velocity_names)]
     return [f"{kind}{i}_{axis}" for i in range(len(scene.particles)) for kind in "pv" for axis in "xyz"]
 
 
@@ -41,8 +41,31 @@ def si_scale(scene_name: str, name: str) -> float:
 
 def model_parameters(scene: Any) -> list[str]:
     """A model scene's parameters: ``q0.<joint>`` and ``v0.<joint>`` for its moving joints (SI: rad or m, rad/s
-    or m/s; the q0 a user gives in degrees is differentiated per radian)."""
-    return [f"{kind}.{joint}" for kind in ("q0", "v0") for joint in scene.joint_names]
+    or m/s; the q0 a user gives in degrees is differentiated per radian), in v's order. A quaternion's q0 is
+    differentiated along the tangent: ``q0.J.rx``, ``.ry``, ``.rz`` turn a ball's child (or, for ``q0.BASE``, the
+    base) about its own x, y, z axes (per radian, Q ⊗ exp(δ/2), Pinocchio's q ⊕ δ), so every perturbed
+    quaternion stays a unit one; a base's position ``q0.BASE.x`` … ``.z`` (m, world); a base's and a ball's v0
+    per entry (``v0.BASE.vx`` … ``.wz``, ``v0.J.wx`` … ``.wz``)."""
+    description = scene.description
+    rotations = ("rx", "ry", "rz")
+    config = [f"{description.floating.name}.{a}" for a in ("x", "y", "z", *rotations)] \
+        if description.floating is not None else []
+    for joint in description.moving_joints:
+        config += [f"{joint.name}.{a}" for a in rotations] if joint.type == "ball" else [joint.name]
+    return [*(f"q0.{name}" for name in config), *(f"v0.{name}" for name in scene.velocity_names)]
+
+
+def _turned(q0: tuple, joint: str, axis: int, angle: float) -> tuple:
+    """A model scene's q0 entries with joint ``joint``'s quaternion (``joint.qx`` … ``.qw``) turned by ``angle``
+    rad about its own ``axis`` (0, 1, 2): Q ⊗ (sin(angle/2) e, cos(angle/2))."""
+    names = [f"{joint}.q{a}" for a in "xyzw"]
+    values = dict(q0)
+    vector, scalar = np.array([values[n] for n in names[:3]]), values[names[3]]
+    turn = np.zeros(3)
+    turn[axis] = np.sin(angle / 2)
+    c = np.cos(angle / 2)
+    moved = dict(zip(names, [*(scalar * turn + c * vector + np.cross(vector, turn)), c * scalar - vector @ turn]))
+    return tuple((name, float(moved.get(name, value))) for name, value in q0)
 
 
 def real_parameters(scene: Any) -> list[str]:
@@ -73,6 +96,9 @@ def perturbed(scene: Any, name: str, delta: float) -> Any:
     the catalog, a model scene with its q0 or v0 entry moved."""
     if scene.is_model:
         kind, _, joint = name.partition(".")
+        stem, _, axis = joint.rpartition(".")
+        if kind == "q0" and axis in ("rx", "ry", "rz"):
+            return replace(scene, q0=_turned(scene.q0, stem, "xyz".index(axis[1]), delta))
         moved = tuple((j, value + delta if j == joint else value) for j, value in getattr(scene, kind))
         return replace(scene, **{kind: moved})
     from engines.scene.catalog import build
