@@ -171,3 +171,14 @@ def test_a_ball_joint_s_parameter_is_named_by_its_tangent():
     assert done.returncode == 2 and done.stderr.strip().splitlines()[-1] == (
         "xval: error: --wrt: ball_pendulum has no real parameter 'q0.shoulder'; choose from: q0.shoulder.rx, "
         "q0.shoulder.ry, q0.shoulder.rz, q0.elbow, v0.shoulder.wx, v0.shoulder.wy, v0.shoulder.wz, v0.elbow")
+
+
+def test_an_engine_that_misreads_the_file_is_judged_on_the_file_s_physics():
+    """DART's MJCF reader ignores ``<inertial>`` (docs/models.md), so on the MJCF ball pendulum its trajectory is
+    another pendulum's, and its Jacobian (differences of its RK4 rollouts) is ``wrong``: off by as much at dt/2."""
+    from compare.gradients.measure import engine_case
+    from engines import registry
+
+    engine, variant = registry.resolve("dart/rk4")
+    case = engine_case(engine, variant, None, SCENES["ball-pendulum"](), 1e-3, ["q0.shoulder.rx", "v0.shoulder.wz"])
+    assert case.klass == "wrong" and case.error > 0.1 and case.error_half > 0.1
