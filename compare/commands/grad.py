@@ -28,7 +28,8 @@ from engines.reference.sensitivity import bound_sensitivity
 @click.option("--duration", required=True, type=Seconds(), help="T, s: the outputs' time.")
 @click.option("--wrt", required=True, metavar="P1,P2,...",
               help="Scene parameters to differentiate by (see 'xval scenes'): initial angles and rates, g, masses, "
-                   "lengths; a model's q0.JOINT, v0.JOINT; per SI unit (per radian for angles).")
+                   "lengths; a model's q0.JOINT, v0.JOINT (a quaternion's q0 by its turns q0.JOINT.rx, .ry, .rz, a base's "
+                   "position q0.BASE.x; a ball's or base's v0 per entry, v0.JOINT.wx); per SI unit (per radian for angles).")
 @param_option()
 @engine_option_option()
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table", show_default=True,
