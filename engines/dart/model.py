@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 from engines.dart import library
 from engines.dart.rk4 import floating_rk4_stepper, rk4_stepper
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping, angular_linear_world
+from engines.model.floating import Mapping, angular_linear_world, continuous
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -199,10 +199,7 @@ class DartModel(LoadedModel):
             part = values[at:at + joint.nv]
             at += joint.nv
             if joint.type == "ball":
-                part = Rotation.from_rotvec(part).as_quat()
-                last = self._quaternions.get(joint.name)
-                if last is not None and part @ last < 0:
-                    part = -part
+                part = continuous(Rotation.from_rotvec(part).as_quat(), self._quaternions.get(joint.name))
                 self._quaternions[joint.name] = part
             parts.append(part)
         return np.concatenate(parts)

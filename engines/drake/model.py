@@ -20,7 +20,7 @@ import numpy as np
 
 from engines.drake import library as drake
 from engines.model.description import ModelDescription
-from engines.model.floating import Mapping, angular_linear_world, rotation, with_balls
+from engines.model.floating import Mapping, angular_linear_world, continuous, rotation, with_balls
 from engines.model.kinematics import matrix_rpy, rpy_matrix
 from engines.model.inertia import world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
@@ -209,10 +209,8 @@ class DrakeModel(LoadedModel):
             if joint.type != "ball":
                 parts.append(positions[where])
                 continue
-            quaternion = Rotation.from_matrix(rpy_matrix(positions[where])).as_quat()
-            last = self._last.get(joint.name)
-            if last is not None and quaternion @ last < 0:  # q and −q are one turn: keep it continuous between reads
-                quaternion = -quaternion
+            quaternion = continuous(Rotation.from_matrix(rpy_matrix(positions[where])).as_quat(),
+                                    self._last.get(joint.name))
             self._last[joint.name] = quaternion
             parts.append(quaternion)
         q = np.concatenate(parts) if parts else np.zeros(0)

@@ -36,6 +36,12 @@ def angular_linear_world(r: np.ndarray) -> np.ndarray:
 rotation = quaternion_rotation
 
 
+def continuous(quaternion: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+    """``quaternion`` (x y z w) or its negative, whichever is nearer ``last`` (the one read before; None: as is):
+    q and −q are one turn, so a quaternion read back from an engine's other coordinates is kept continuous."""
+    return -quaternion if last is not None and quaternion @ last < 0 else quaternion
+
+
 def skew(w) -> np.ndarray:
     """[w]×, so that skew(w) @ u = w × u."""
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])

@@ -19,6 +19,7 @@ import numpy as np
 
 from engines.errors import Unsupported
 from engines.model.description import ModelDescription
+from engines.model.floating import continuous
 from engines.model.inertia import combine, world_inertia
 from engines.model.kinematics import rpy_matrix
 from engines.model.stepping import Stepper, unbounded_joints
@@ -201,9 +202,7 @@ class OursStepper(Stepper):
             q, v = self._with_balls(q, v)
         if floating:
             pose, rates = base_state(self.model, self.run.y)
-            if pose[3:7] @ self._turn < 0:  # q and −q are one turn: keep the quaternion continuous between reads
-                pose[3:7] *= -1
-            self._turn = pose[3:7].copy()
+            pose[3:7] = self._turn = continuous(pose[3:7].copy(), self._turn)
             return np.concatenate([pose, q]), np.concatenate([rates, v])
         return q, v
 
@@ -221,9 +220,7 @@ class OursStepper(Stepper):
                 continue
             turn, spin = balls[name]
             turn = np.roll(turn, -1)  # w x y z -> x y z w
-            if turn @ self._quaternions[name] < 0:  # q and −q are one turn
-                turn = -turn
-            self._quaternions[name] = turn
+            turn = self._quaternions[name] = continuous(turn, self._quaternions[name])
             parts_q.extend(turn)
             parts_v.extend(spin)
         return np.array(parts_q), np.array(parts_v)

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from engines.model.description import ModelDescription
-from engines.model.floating import rotation, skew
+from engines.model.floating import continuous, rotation, skew
 from engines.model.inertia import LinkInertia, combine, world_inertia
 from engines.model.loaded import GRAVITY, LoadedModel, Refused, index_map
 from engines.model.source import ModelSource
@@ -393,10 +393,7 @@ class PyBulletStepper(Stepper):
         linear, angular = (np.asarray(x, dtype=float) for x in self.pb.getBaseVelocity(loaded.body, **kw))
         turn = np.array(self.pb.getMatrixFromQuaternion(orientation)).reshape(3, 3) @ loaded.turn.T
         spin = turn.T @ angular
-        quaternion = Rotation.from_matrix(turn).as_quat()
-        if quaternion @ self._turn < 0:  # q and −q are one turn: keep it continuous between reads
-            quaternion = -quaternion
-        self._turn = quaternion
+        quaternion = self._turn = continuous(Rotation.from_matrix(turn).as_quat(), self._turn)
         base = np.concatenate([np.asarray(position) - turn @ loaded.offset, quaternion])
         return np.concatenate([base, q]), np.concatenate([turn.T @ linear - np.cross(spin, loaded.offset), spin, v])
 
