@@ -33,6 +33,26 @@ def _flush_all() -> None:
     _LIBC.fflush(None)
 
 
+def _redirect(target: int) -> None:
+    """Point fds 1 and 2 at the descriptor ``target``, each saved first (one that is not open is left alone).
+    Called under _quiet_lock by the outermost redirection only."""
+    for fd in (1, 2):
+        try:
+            _saved_fds[fd] = os.dup(fd)
+        except OSError:
+            continue
+        os.dup2(target, fd)
+
+
+def _restore() -> None:
+    """Flush what was printed into the redirection, then give fds 1 and 2 back what :func:`_redirect` saved."""
+    _flush_all()
+    for fd, saved in _saved_fds.items():
+        os.dup2(saved, fd)
+        os.close(saved)
+    _saved_fds.clear()
+
+
 @contextlib.contextmanager
 def quiet_output() -> Iterator[None]:
     """Point file descriptors 1 and 2 at /dev/null for the duration; nested and concurrent uses share one redirection.
@@ -50,12 +70,7 @@ def quiet_output() -> Iterator[None]:
             _flush_all()
             devnull = os.open(_sink, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
             try:
-                for fd in (1, 2):
-                    try:
-                        _saved_fds[fd] = os.dup(fd)
-                    except OSError:
-                        continue
-                    os.dup2(devnull, fd)
+                _redirect(devnull)
             finally:
                 os.close(devnull)
         _quiet_depth += 1
@@ -65,11 +80,7 @@ def quiet_output() -> Iterator[None]:
         with _quiet_lock:
             _quiet_depth -= 1
             if _quiet_depth == 0:
-                _flush_all()
-                for fd, saved in _saved_fds.items():
-                    os.dup2(saved, fd)
-                    os.close(saved)
-                _saved_fds.clear()
+                _restore()
 
 
 def capture_into(path: str) -> None:
@@ -223,23 +234,14 @@ def capture_output(into: BinaryIO | None = None) -> Iterator[Captured]:
             _flush_all()
             file = tempfile.TemporaryFile() if into is None else into
             _empty(file)
-            for fd in (1, 2):
-                try:
-                    _saved_fds[fd] = os.dup(fd)
-                except OSError:
-                    continue
-                os.dup2(file.fileno(), fd)
+            _redirect(file.fileno())
     try:
         yield captured
     finally:
         with _quiet_lock:
             _quiet_depth -= 1
             if not outer:
-                _flush_all()
-                for fd, saved in _saved_fds.items():
-                    os.dup2(saved, fd)
-                    os.close(saved)
-                _saved_fds.clear()
+                _restore()
                 try:
                     captured.output = _summary(file)
                 finally:
