@@ -101,8 +101,13 @@ class ModelScene:
         return tuple(j.name for j in self.description.moving_joints)
 
     @property
+    def kinematics(self) -> "FrameKinematics":
+        """The frames, energy and momentum of this scene's file, lock and base (cached per file: :func:`_kinematics`)."""
+        return _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint)
+
+    @property
     def floating_base(self) -> bool:
-        """True when the model's base is free (an MJCF free joint)."""
+        """True when the model's base is free (an MJCF free joint, or a URDF's root with base = "floating")."""
         return self.description.floating is not None
 
     @property
@@ -201,12 +206,12 @@ class ModelScene:
 
     def frame_states(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link frame origins (n, L, 3) m and their velocities (n, L, 3) m/s at states q (n, nconfig), v (n, nv)."""
-        return _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).frames(q, v)
+        return self.kinematics.frames(q, v)
 
     def energy(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """(n,) J: kinetic (translational and rotational) plus gravitational energy at q, v (n, nq),
         with the file's mass properties (the reference's reading of them)."""
-        return _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).energy(q, v, self.g)
+        return self.kinematics.energy(q, v, self.g)
 
     def conserved_momenta(self) -> tuple[str, ...]:
         """With a floating base, the components of the total momentum in the world that nothing changes: every
@@ -248,7 +253,7 @@ class ModelScene:
             return None
         if len(q) < 2:
             return 0.0
-        momentum = _kinematics(self.model, self.path, self.digest, self.lock, self.root_joint).momentum(q, v)
+        momentum = self.kinematics.momentum(q, v)
         speed = float(self.masses.sum()) * self.characteristic_speed
         worst = 0.0
         if self.description.floating is not None:
