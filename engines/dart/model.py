@@ -35,6 +35,8 @@ from engines.stdio import quiet_output
 from engines.model.scene import ModelScene
 
 NAME = "dart"
+#: The key of the floating base's quaternion among the balls' last reads (a joint name is never empty).
+BASE_KEY = ""
 
 
 def version() -> str:
@@ -147,7 +149,7 @@ class DartModel(LoadedModel):
         # A BallJoint (its MJCF parser's ball): positions the rotation vector, velocities the child's angular
         # velocity in the child frame, xval's (measured, tests/test_ball_joint.py).
         self.dof = np.array([i for k in index_map(description, names) for i in dofs[k]], dtype=int)
-        self._quaternions: dict[str, np.ndarray] = {}  # each ball's quaternion as last read
+        self._quaternions: dict[str, np.ndarray] = {}  # each ball's (and the base's) quaternion as last read
         if bool(base) != (description.floating is not None):
             raise Refused("DART's skeleton has no FreeJoint for the floating base (its MJCF parser welds a free "
                           "joint's body to the world)")
@@ -185,7 +187,9 @@ class DartModel(LoadedModel):
         if len(self.selected) == len(self.dof):
             return q, rates.copy()
         base = self.selected[:6]  # the FreeJoint's (rotation vector, position)
-        quaternion = Rotation.from_rotvec(positions[base[:3]]).as_quat()
+        # DART's rotation vector wraps at π: kept continuous like each ball's (BASE_KEY: no joint has that name).
+        quaternion = continuous(Rotation.from_rotvec(positions[base[:3]]).as_quat(), self._quaternions.get(BASE_KEY))
+        self._quaternions[BASE_KEY] = quaternion
         config = np.concatenate([positions[base[3:]], quaternion, q])
         return config, np.linalg.solve(Mapping(angular_linear_world, config, nv=len(rates)).T, rates)
 
