@@ -16,6 +16,7 @@ import importlib.util
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Callable
 
 from ours.files import atomic_write, cache_dir
 
@@ -75,23 +76,28 @@ _TANGENT = "# ---- TANGENT (ours.specialize appends what follows to the kernel's
 def kernel_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> ModuleType:
     """``ours.kernel`` specialised for ``dim`` (2 or 3) coordinates per particle, and for the sizes
     (P, C, bandwidth, band entries) when given (see :func:`sizes_of`)."""
-    return _load("kernel", dim, sizes, _source(dim, sizes))
+    return _load("kernel", dim, sizes, lambda: _source(dim, sizes))
 
 
 def tangent_for(dim: int, sizes: tuple[int, int, int, int] | None = None) -> ModuleType:
     """:func:`kernel_for`'s copy with ``ours.tangent``'s tangent-linear step appended (its text after the TANGENT
     line, which calls the kernel's functions by name): a module of its own, so the plain kernel's compiled code
     and cache stay as they are."""
-    tangent = (Path(__file__).parent / "tangent.py").read_text(encoding="utf-8").split(_TANGENT, 1)[1]
-    return _load("tangent", dim, sizes, _source(dim, sizes) + f"\n\n{_TANGENT}\n{tangent}")
+    def source() -> str:
+        tangent = (Path(__file__).parent / "tangent.py").read_text(encoding="utf-8").split(_TANGENT, 1)[1]
+        return _source(dim, sizes) + f"\n\n{_TANGENT}\n{tangent}"
+
+    return _load("tangent", dim, sizes, source)
 
 
-def _load(kind: str, dim: int, sizes: tuple[int, int, int, int] | None, source: str) -> ModuleType:
-    """The module of ``source``, written once under the cache directory and imported once per process."""
+def _load(kind: str, dim: int, sizes: tuple[int, int, int, int] | None, text: Callable[[], str]) -> ModuleType:
+    """The module of the source ``text()`` makes, written once under the cache directory and imported once per
+    process (the source is read and built only on the first call: every run of ours asks for its kernel)."""
     key = (kind, dim, sizes)
     module = _loaded.get(key)
     if module is not None:
         return module
+    source = text()
     # The kernel calls ours.banded and ours.constraint, whose edits numba's cache would not notice
     # (it checks only the calling file): their text is part of the name, so an edit makes a new copy.
     here = Path(__file__).parent

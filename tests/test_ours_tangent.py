@@ -48,10 +48,11 @@ def _both(key: str, variant: str):
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_the_tangent_linear_step_is_the_complex_step_to_round_off(variant, key):
     """d (q, v)(t) / d p at every sample, every parameter of the scene: within 1e-10 relative of the complex step
-    (both exact to round-off; measured 1e-15 to 2e-14), and the real state the same bit for bit."""
+    (both exact to round-off), and the real state the same to round-off (a complex product's real part may round
+    its last bit otherwise where LLVM fuses a multiply and an add)."""
     tangent, complex_step = _both(key, variant)
     assert tangent.status == complex_step.status == "ok"
-    assert np.array_equal(tangent.q, complex_step.q) and np.array_equal(tangent.v, complex_step.v)
+    assert _within(tangent.q, complex_step.q, 1e-11) and _within(tangent.v, complex_step.v, 1e-11)
     for s in range(len(tangent.sample_steps)):
         assert _within(tangent.sample_dq[s], complex_step.sample_dq[s])
         assert _within(tangent.sample_dv[s], complex_step.sample_dv[s])

@@ -229,18 +229,14 @@ def gradient_measurement(engine: Engine, variant: str | None, options: Mapping[s
                          dt: float, wrt: Sequence[str]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(:func:`gradient_metrics`, :func:`gradient_series`): the metrics and the series the report draws; both {}
     when the metrics are null."""
-    from engines.errors import UserError
-
     names = [name for name in wrt if name in real_parameters(scene)]
     if not names:
         return {}, {}
     try:
         bound = bound_sensitivity(scene, names)
         case = engine_case(engine, variant, options, scene, dt, names, bound)
-    except UserError:  # the reference's sensitivities do not cover this scene
-        return {}, {}
-    except Exception:  # noqa: BLE001 - the gradient's own trouble leaves its metrics null, not the case failed
-        return {}, {}
+    except Exception:  # noqa: BLE001 - a UserError (the reference's sensitivities do not cover this scene) or the
+        return {}, {}  # gradient's own trouble leaves its metrics null, not the case failed
     metrics = {"gradient_error": _number(case.error), "gradient_self_consistency": _number(case.self_consistency),
                "gradient_wrong": float(case.klass in ("wrong", "nan"))}
     return metrics, gradient_series(case, bound)
