@@ -28,6 +28,11 @@ XVAL_ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), str(ROOT)])}
 
 T = TypeVar("T")
 
+#: Marks of a test that needs ours' complex- or tangent-typed rigid kernel, which takes minutes of CPU to compile
+#: in a fresh numba cache: all of them run in one worker (one xdist group, the Makefile's --dist loadgroup), which
+#: compiles it once while the others load it from the cache, with a limit that allows that compile under load.
+RIGID_COMPILE = [pytest.mark.xdist_group("ours-rigid-compile"), pytest.mark.timeout(1500)]
+
 
 def run_xval(*args: object, timeout: float = 120, cwd: Path = ROOT, **options) -> subprocess.CompletedProcess:
     """``xval ARGS...`` in a process of its own, from ``cwd`` (the repository root unless given) with

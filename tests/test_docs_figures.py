@@ -27,6 +27,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import RIGID_COMPILE
+
 SCRIPTS_DIR = Path(__file__).resolve().parent.parent / "scripts"
 SCRIPTS = ["gradient_figures", "rigid_gradient_figures", "ours_claims", "rigid_claims", "inertia_floor", "soft_constraints", "probe_table", "findings_figures", "defaults_mujoco", "defaults_pybullet", "defaults_pymunk", "reference_horizon", "model_findings", "dart_findings", "model_scene_findings", "history_trend_rates", "model_survey", "model_seeds", "gate_window_rates", "timing_gate_noise", "big_report", "ball_joints", "mjx_chain_gradients"]
 
@@ -39,15 +41,12 @@ def load(name: str):
     return module
 
 
-#: Scripts that need ours' complex-typed rigid kernel: run in the worker that compiles it (one xdist group, as
-#: tests/test_gradients_ours_rigid.py), with a limit that allows that compile in a fresh cache on a loaded machine.
+#: Scripts that need ours' compiled rigid derivatives: with the tests that compile them (conftest.RIGID_COMPILE).
 COMPLEX_RIGID = {"rigid_gradient_figures"}
 
 
 def _marked(name: str):
-    if name in COMPLEX_RIGID:
-        return pytest.param(name, marks=[pytest.mark.xdist_group("ours-rigid-complex"), pytest.mark.timeout(1500)])
-    return name
+    return pytest.param(name, marks=RIGID_COMPILE) if name in COMPLEX_RIGID else name
 
 
 @pytest.mark.parametrize("name", [_marked(name) for name in SCRIPTS])

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from compare.gradients.measure import engine_case
-from conftest import run_xval
+from conftest import RIGID_COMPILE, run_xval
 from engines import registry
 from engines.gradients import STEP, finite_difference_jacobian
 from engines.model.scene import model_scene
@@ -23,10 +23,7 @@ from ours.rigid import initial_state, simulate, valid_pairs
 from ours.rigid.sensitivity import complex_step_sensitivities, forward_sensitivities
 from rigid_support import compound_double_pendulum
 
-# The complex-typed rigid kernel takes minutes of CPU to compile in a fresh numba cache: one worker compiles it
-# (one xdist group, Makefile's --dist loadgroup) and the rest load it from the cache; the first test's limit
-# allows for that compile on a loaded machine.
-pytestmark = [pytest.mark.xdist_group("ours-rigid-complex"), pytest.mark.timeout(1500)]
+pytestmark = RIGID_COMPILE
 
 KUKA_WRT = ["q0.lbr_iiwa_joint_2", "v0.lbr_iiwa_joint_4", "q0.lbr_iiwa_joint_6"]
 

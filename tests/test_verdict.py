@@ -59,6 +59,12 @@ def test_pareto_front_drops_only_the_certainly_beaten_runs_most_accurate_first()
         ("b/y", 2.0, 1e-4), ("b/y", 3.0, 1e-3), ("a/x", 1.0, 1e-2), ("a/x", 0.5, 1e-1)]
     # The staircase drawn through it: the classic front at the measured costs, cheapest first.
     assert [(p.engine, p.cost) for p in lower_envelope(front)] == [("a/x", 0.5), ("a/x", 1.0), ("b/y", 2.0)]
+    # Each point's margin: the least high end, over the other variants' points that err no more, over its own
+    # low end (b/y at 2 s/s beats a/x's at 1 and 0.5 once costs move 2·R² and 4·R²); none where nothing errs less.
+    from compare.results.cost import RESOLUTION
+
+    assert [p.margin for p in front[:2]] == [None, None]
+    assert [p.margin for p in front[2:]] == pytest.approx([2 * RESOLUTION ** 2, 4 * RESOLUTION ** 2], rel=1e-12)
 
 
 def test_pareto_front_names_equal_errors_in_suite_order():

@@ -264,11 +264,6 @@ def test_the_equal_cost_pick_does_not_jump_with_the_costs(scene):
             assert overlap((mine.reading.low, mine.reading.high), (theirs.reading.low, theirs.reading.high)), label
 
 
-def front(verdict: SceneVerdict) -> list[tuple[str, str]]:
-    """The Pareto front as `xval verdict --format json` names it: each point's variant and case, in order."""
-    return [(p.engine, p.case_id) for p in verdict.front]
-
-
 #: Per-step costs move up to about 2× between runs of a shared machine (docs/metrics.md); a point whose margin is
 #: under it may leave the front in a rerun, one over it may not.
 RERUN_SPREAD = 2.0

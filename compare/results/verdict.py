@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import statistics
 from dataclasses import dataclass, field, replace
-from typing import Iterable, Mapping, Sequence, TypeGuard
+from typing import Any, Iterable, Mapping, Sequence, TypeGuard, TypeVar
 
 from compare.results.cost import CostModel, modelled, step_rate
 from compare.results.record import PROBLEMS, CaseRecord, Status
@@ -35,6 +35,9 @@ _SEVERITY_OF_KIND = {"inconsistent": 0, "wrong gradient": 0, "failed": 1, "timeo
 def family(engine: str) -> str:
     """The engine family of a variant label: the part before the first ``/`` (``mujoco/hinge`` -> ``mujoco``)."""
     return engine.split("/", 1)[0]
+
+
+T = TypeVar("T")
 
 
 def competitors(sweeps: Iterable[VariantSweep]) -> list[VariantSweep]:
@@ -336,21 +339,27 @@ def error_at_budget(curve: Sequence[Point], budget: float) -> AtBudget | None:
     return AtBudget(cheapest.engine, budget, error, min(read), max(read), bar, how)
 
 
-def _overlap(a: AtBudget, b: AtBudget) -> bool:
+def _overlap(a: Any, b: Any) -> bool:
+    """Whether two things' ``interval`` s (low, high) overlap, ends included."""
     return a.interval[0] <= b.interval[1] and b.interval[0] <= a.interval[1]
 
 
-def tied_with(most: AtBudget, readings: Sequence[AtBudget]) -> list[AtBudget]:
-    """``most`` and every reading linked to it by overlapping error intervals, directly or through others,
-    in the order given (the chain :func:`cheapest_tie` makes of cost intervals)."""
-    linked, grown = [most], True
+def chained(seed: T, items: Sequence[T]) -> list[T]:
+    """``seed`` and every item linked to it by overlapping intervals (``.interval``), directly or through
+    others (a chain), in the order of ``items``: a tie that stays the same whichever member noise puts first."""
+    linked, grown = [seed], True
     while grown:
         grown = False
-        for reading in readings:
-            if reading not in linked and any(_overlap(reading, member) for member in linked):
-                linked.append(reading)
+        for item in items:
+            if item not in linked and any(_overlap(item, member) for member in linked):
+                linked.append(item)
                 grown = True
-    return [r for r in readings if r in linked]
+    return [item for item in items if item in linked]
+
+
+def tied_with(most: AtBudget, readings: Sequence[AtBudget]) -> list[AtBudget]:
+    """``most`` and every reading linked to it by overlapping error intervals (:func:`chained`)."""
+    return chained(most, readings)
 
 
 @dataclass(frozen=True)
@@ -533,23 +542,9 @@ def _names(first: str, ties: Sequence[str]) -> str:
 
 
 def cheapest_tie(reached: Sequence[Reach]) -> list[Reach]:
-    """The cheapest of ``reached`` (each with a cost) and every Reach linked to it by overlapping cost intervals,
-    directly or through others (a chain), in the order given.
-
-    Sorted by the low ends, the intervals fall into runs that each overlap the one before; the first run holds
-    the cheapest (its interval reaches down to at least the cheapest's). Linking through the chain makes the
-    tie the same whichever member noise makes the cheapest.
-    """
-    ordered = sorted(reached, key=lambda r: r.interval[0])  # type: ignore[index]
-    top = ordered[0].interval[1]  # type: ignore[index]
-    linked = {ordered[0].engine}
-    for reach in ordered[1:]:
-        low, high = reach.interval  # type: ignore[misc]
-        if low > top:
-            break
-        linked.add(reach.engine)
-        top = max(top, high)
-    return [r for r in reached if r.engine in linked]
+    """The cheapest of ``reached`` (each with a cost: the lowest low end) and every Reach linked to it by
+    overlapping cost intervals (:func:`chained`), in the order given."""
+    return chained(min(reached, key=lambda r: r.interval[0]), reached)  # type: ignore[index]
 
 
 def leader(reaches: Sequence[Reach]) -> tuple[Reach | None, tuple[str, ...]]:
