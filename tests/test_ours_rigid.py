@@ -251,9 +251,7 @@ def test_a_free_spin_about_a_hinge_reads_back_unwrapped():
 def test_written_out_blocks_are_what_their_generator_writes():
     """ours/rigid/blocks.py is generated (python -m ours.rigid.generate): an edit by hand, or a generator
     changed without rewriting the file, fails here."""
-    from ours.rigid import generate
-
-    from ours.rigid import kernel
+    from ours.rigid import generate, kernel
 
     assert generate.TARGET.read_text(encoding="utf-8") == generate.source()
     assert kernel.BLOCKS_DIGEST == generate.digest(generate.source())  # numba's cache of the kernel follows

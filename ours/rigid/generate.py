@@ -287,9 +287,13 @@ def digest(text: str) -> str:
 
 
 def _stamp(path: Path, name: str, value: str) -> None:
-    """Write ``name = "value"`` over that line of the file at ``path``."""
-    path.write_text(re.sub(rf'^{name} = ".*"$', f'{name} = "{value}"', path.read_text(encoding="utf-8"), count=1,
-                           flags=re.M), encoding="utf-8")
+    """Write ``name = "value"`` over that line of the file at ``path``; a file without that line is an error (a
+    missed stamp would leave numba's cache of the old code in use)."""
+    text, found = re.subn(rf'^{name} = ".*"$', f'{name} = "{value}"', path.read_text(encoding="utf-8"), count=1,
+                          flags=re.M)
+    if not found:
+        raise SystemExit(f"{path}: no line {name} = \"...\" to stamp; restore it and run this module again")
+    path.write_text(text, encoding="utf-8")
 
 
 def main() -> None:

@@ -445,18 +445,18 @@ class Stepping:
     def __init__(self, mech: Mechanism, y0, dt: float, *, method: str = "baumgarte", integrator: str | None = None,
                  k_s: float | None = None, k_d: float | None = None, tolerance: float = DEFAULT_TOLERANCE,
                  max_iterations: int = DEFAULT_MAX_ITERATIONS) -> None:
-        first = simulate(mech, y0, dt, 1, 1, method=method, integrator=integrator, k_s=k_s, k_d=k_d,
-                         tolerance=tolerance, max_iterations=max_iterations)  # validates, compiles, warms
-        self.settings = first.settings
-        code, scheme = resolve(method, integrator)
-        self._args = (code, scheme.code, scheme.A, scheme.b)
-        self._gains = (first.settings.get("k_s", 0.0), first.settings.get("k_d", 0.0))
-        self._dt, self._tolerance, self._max_iterations = float(dt), float(tolerance), int(max_iterations)
-        self._model, self._work = pack(mech), workspace(mech, scheme.stages)
-        self.y = np.array(y0, dtype=float).ravel()
+        options: dict[str, Any] = dict(method=method, integrator=integrator, k_s=k_s, k_d=k_d, tolerance=tolerance,
+                                   max_iterations=max_iterations)
+        run = prepare(mech, y0, dt, 1, 1, **options)  # validated and resolved, as simulate has them
+        simulate(mech, y0, dt, 1, 1, **options)  # compiles (or loads) and warms the kernel
+        self.settings = run.settings
+        self._args, self._gains, self._dt = run.args, (run.ks, run.kd), run.dt
+        self._tolerance, self._max_iterations = run.tolerance, run.max_iterations
+        self._model, self._work = pack(mech), workspace(mech, run.stages)
+        self.y = run.y
         self._out = np.zeros((2, self.y.size))
         self.status, self.steps = "ok", 0
-        # everything but the step count bound once: a sample's call passes two numbers
+        # the arguments before the step count bound once: a sample's call passes the count and the three after it
         self._run = functools.partial(_compiled_run(self._args, self.y, self._model, self._work, self._out),
                                       *self._args, self.y, self._model, self._work, *self._gains, self._dt)
 
