@@ -217,7 +217,9 @@ def test_the_tangent_step_is_the_complex_step_at_every_sample(systems, method, i
         complex_step = complex_step_sensitivities(mech, y0, directions, 1e-3, 1000, 10, **options)
         assert tangent.status == complex_step.status == run.status == "ok", name
         assert tangent.steps == run.steps == 1000 and np.array_equal(tangent.t, run.t), name
-        assert np.array_equal(tangent.y, run.y), name  # the real step is the kernel's own
+        # The real step is the kernel's own, compiled into a second module: bit for bit here, but a compiler may
+        # fuse a multiply-add differently there, so the bound is round-off, not equality.
+        assert np.abs(tangent.y - run.y).max() <= 1e-12 * np.abs(run.y).max(), name
         assert tangent.dy.shape == complex_step.dy.shape == (101, 3, y0.size), name
         scale = np.abs(complex_step.dy).max(axis=(1, 2))
         gap = np.abs(tangent.dy - complex_step.dy).max(axis=(1, 2)) / scale

@@ -58,7 +58,7 @@ def test_the_tangent_linear_step_is_the_complex_step_to_round_off(variant, key):
         assert _within(tangent.sample_dv[s], complex_step.sample_dv[s])
 
 
-def test_the_tangent_run_is_the_real_run_bit_for_bit():
+def test_the_tangent_run_is_the_real_run_to_round_off():
     """The tangent run's real state is ours.simulate's exactly, model moving or not: the derivative is that of the
     run itself, every branch (a Newton or SHAKE stop) taken as there."""
     system = ours.System((1.0, 2.0), (0.0, -9.81), (Pin(0, (0.0, 0.0), 1.0), Rod(0, 1, 0.5)))
@@ -73,7 +73,11 @@ def test_the_tangent_run_is_the_real_run_bit_for_bit():
             carried = forward_sensitivities(system, q0, v0, np.ones((1, 2, 2)), np.zeros((1, 2, 2)), 2e-3, 300,
                                             dmodel=dmodel, method=method, integrator=integrator)
             assert carried.status == "ok"
-            assert np.array_equal(carried.q, run.q[-1]) and np.array_equal(carried.v, run.v[-1])
+            # The kernel's own functions, compiled into a second module: bit for bit on this machine, but a
+            # compiler may fuse a multiply-add differently there, so the bound is round-off, not equality.
+            scale = np.abs(run.q[-1]).max() + np.abs(run.v[-1]).max()
+            assert np.abs(carried.q - run.q[-1]).max() <= 1e-12 * scale
+            assert np.abs(carried.v - run.v[-1]).max() <= 1e-12 * scale
 
 
 @pytest.mark.parametrize("method", ["baumgarte", "projection", "rattle"])
